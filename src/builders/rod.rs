@@ -1,0 +1,686 @@
+//! The falling flexible rod (PROBLEMS.md B) and the chains of PROBLEMS.md D.
+
+use crate::constraints::Revolute;
+use crate::forces::{
+    AppliedForce, Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
+};
+use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
+use serde::{Deserialize, Serialize};
+
+/// Every physical input of the falling-rod problem (PROBLEMS.md B), SI units.
+///
+/// [`RodParams::problem_b`] gives the reference values. The rod is cut into
+/// `n_segments` rigid segments of length `l_s = length / n_segments`,
+/// numbered from the bottom, with mass `m = ρ w² l_s`, inertia
+/// `I = m (l_s² + w²) / 12`, joined by revolute joints (paper eq. (14)) that
+/// carry torsional spring–dampers `k = E w⁴ / (12 l_s)`, `c = damping_time · k`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RodParams {
+    /// Rod length l \[m\] (1).
+    pub length: f64,
+    /// Width w of the square cross-section \[m\] (0.03).
+    pub width: f64,
+    /// Density ρ of the rod \[kg/m³\] (7850, steel).
+    pub density: f64,
+    /// Young's modulus E \[Pa\] (2.1e11).
+    pub youngs_modulus: f64,
+    /// Damping time c/k of the joint spring–dampers \[s\] (1e-5).
+    pub damping_time: f64,
+    /// Number of segments N ≥ 1 (10 in the paper).
+    pub n_segments: usize,
+    /// Initial tilt φ0 of the straight rod \[rad\] (0.6° = 0.6 π/180);
+    /// φ = 0 is vertical, positive counter-clockwise.
+    pub tilt: f64,
+    /// Initial velocity (v_x, v_y) of every segment centre \[m/s\] ((0.1, 0)).
+    pub initial_velocity: [f64; 2],
+    /// Channel width d \[m\]: walls at x = ±d/2 (0.05).
+    pub channel_width: f64,
+    /// Water density ρ_w \[kg/m³\] (1000).
+    pub water_density: f64,
+    /// Transverse drag coefficient C_t (1.2), also used for rotational drag.
+    pub drag_transverse: f64,
+    /// Axial skin-friction coefficient C_f (0.02).
+    pub drag_skin: f64,
+    /// End-face drag coefficient C_e of the bottom segment (1.0).
+    pub drag_end: f64,
+    /// Hertz contact stiffness k_h \[N/m^{3/2}\] (1e9).
+    pub contact_stiffness: f64,
+    /// Hunt–Crossley damping factor χ \[s/m\] (0.75).
+    pub contact_damping: f64,
+    /// Wall friction coefficient μ (0.3).
+    pub friction_coefficient: f64,
+    /// Regularisation velocity v_s of the friction law \[m/s\] (1e-3).
+    pub friction_velocity: f64,
+    /// Magnitude of gravity g \[m/s²\] (9.81), acting along −y.
+    pub gravity: f64,
+    /// Whether the fluid loads (buoyancy and drag) are included.
+    pub fluid: bool,
+    /// Whether the wall contacts are included.
+    pub contact: bool,
+}
+
+impl Default for RodParams {
+    /// [`RodParams::problem_b`] with the paper's 10 segments.
+    fn default() -> Self {
+        Self::problem_b(10)
+    }
+}
+
+/// Element name used in the parameter errors of this module.
+const ROD: &str = "rod parameters";
+
+fn invalid(element: &str, field: &str, value: String, why: String) -> ModelError {
+    ModelError::InvalidParameter {
+        element: element.into(),
+        field: field.into(),
+        value,
+        why,
+    }
+}
+
+/// `Err` unless `v` is finite and `> 0` (`strict`) or `≥ 0`.
+fn check_value(element: &str, field: &str, v: f64, strict: bool) -> Result<(), ModelError> {
+    let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
+    if ok {
+        Ok(())
+    } else {
+        let why = if strict {
+            "must be finite and > 0"
+        } else {
+            "must be finite and >= 0"
+        };
+        Err(invalid(element, field, v.to_string(), why.into()))
+    }
+}
+
+impl RodParams {
+    /// PROBLEMS.md B exactly, with `n_segments` segments.
+    pub fn problem_b(n_segments: usize) -> Self {
+        Self {
+            length: 1.0,
+            width: 0.03,
+            density: 7850.0,
+            youngs_modulus: 2.1e11,
+            damping_time: 1e-5,
+            n_segments,
+            tilt: 0.6_f64.to_radians(),
+            initial_velocity: [0.1, 0.0],
+            channel_width: 0.05,
+            water_density: 1000.0,
+            drag_transverse: 1.2,
+            drag_skin: 0.02,
+            drag_end: 1.0,
+            contact_stiffness: 1e9,
+            contact_damping: 0.75,
+            friction_coefficient: 0.3,
+            friction_velocity: 1e-3,
+            gravity: 9.81,
+            fluid: true,
+            contact: true,
+        }
+    }
+
+    /// Segment length `l_s = l / N`.
+    pub fn segment_length(&self) -> f64 {
+        self.length / self.n_segments as f64
+    }
+    /// Segment mass `m = ρ w² l_s`.
+    pub fn segment_mass(&self) -> f64 {
+        self.density * self.width * self.width * self.segment_length()
+    }
+    /// Segment inertia about its centre `I = m (l_s² + w²) / 12`.
+    pub fn segment_inertia(&self) -> f64 {
+        let ls = self.segment_length();
+        self.segment_mass() * (ls * ls + self.width * self.width) / 12.0
+    }
+    /// Bending stiffness of the continuous rod `E I_A = E w⁴ / 12` \[N m²\].
+    pub fn bending_stiffness(&self) -> f64 {
+        self.youngs_modulus * self.width.powi(4) / 12.0
+    }
+    /// Joint spring stiffness `k = E w⁴ / (12 l_s)` \[N m/rad\].
+    pub fn spring_stiffness(&self) -> f64 {
+        self.bending_stiffness() / self.segment_length()
+    }
+    /// Joint damping `c = damping_time · k` \[N m s/rad\].
+    pub fn spring_damping(&self) -> f64 {
+        self.damping_time * self.spring_stiffness()
+    }
+    /// Rod axis `e_a = (−sin φ0, cos φ0)` of the initial straight rod.
+    fn axis(&self) -> [f64; 2] {
+        let (s, c) = self.tilt.sin_cos();
+        [-s, c]
+    }
+    /// Initial centre of segment `i` (0-based from the bottom): the rod
+    /// centre at the origin, the segments along the tilted axis.
+    pub fn initial_centre(&self, i: usize) -> [f64; 2] {
+        let ls = self.segment_length();
+        let a = (i as f64 + 0.5) * ls - 0.5 * self.length;
+        let e = self.axis();
+        [a * e[0], a * e[1]]
+    }
+
+    /// The parameters shared by every chain built from a `RodParams`.
+    fn validate_structure(&self) -> Result<(), ModelError> {
+        if self.n_segments == 0 {
+            return Err(invalid(
+                ROD,
+                "n_segments",
+                "0".into(),
+                "the rod needs at least one segment".into(),
+            ));
+        }
+        check_value(ROD, "length", self.length, true)?;
+        check_value(ROD, "width", self.width, true)?;
+        check_value(ROD, "density", self.density, true)?;
+        check_value(ROD, "youngs_modulus", self.youngs_modulus, true)?;
+        check_value(ROD, "damping_time", self.damping_time, false)?;
+        if !self.tilt.is_finite() {
+            return Err(invalid(
+                ROD,
+                "tilt",
+                self.tilt.to_string(),
+                "must be finite".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Check every parameter used by [`add_rod`]: positive finite segment
+    /// count, length, width, density, Young's modulus; non-negative damping
+    /// time and gravity; finite tilt and initial velocity; with `fluid`,
+    /// non-negative water density and drag coefficients; with `contact`,
+    /// positive k_h and v_s, non-negative χ and μ, a channel wider than the
+    /// rod and an initial state whose corners do not penetrate a wall.
+    /// Errors name the field and its value.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        self.validate_structure()?;
+        if !self.initial_velocity.iter().all(|v| v.is_finite()) {
+            return Err(invalid(
+                ROD,
+                "initial_velocity",
+                format!("{:?}", self.initial_velocity),
+                "must be finite".into(),
+            ));
+        }
+        check_value(ROD, "gravity", self.gravity, false)?;
+        if self.fluid {
+            check_value(ROD, "water_density", self.water_density, false)?;
+            check_value(ROD, "drag_transverse", self.drag_transverse, false)?;
+            check_value(ROD, "drag_skin", self.drag_skin, false)?;
+            check_value(ROD, "drag_end", self.drag_end, false)?;
+        }
+        if self.contact {
+            check_value(ROD, "channel_width", self.channel_width, true)?;
+            if self.channel_width <= self.width {
+                return Err(invalid(
+                    ROD,
+                    "channel_width",
+                    self.channel_width.to_string(),
+                    format!(
+                        "the channel must be wider than the rod (width = {})",
+                        self.width
+                    ),
+                ));
+            }
+            check_value(ROD, "contact_stiffness", self.contact_stiffness, true)?;
+            check_value(ROD, "contact_damping", self.contact_damping, false)?;
+            check_value(
+                ROD,
+                "friction_coefficient",
+                self.friction_coefficient,
+                false,
+            )?;
+            check_value(ROD, "friction_velocity", self.friction_velocity, true)?;
+            // Initial penetration: every corner of the straight tilted rod.
+            let mut worst: Option<(f64, usize, usize, &str)> = None;
+            let probe = self.contact_element(0, 0);
+            let (sn, cs) = self.tilt.sin_cos();
+            for i in 0..self.n_segments {
+                let r = self.initial_centre(i);
+                for c in 0..4 {
+                    let s = probe.corner_offset(c);
+                    let px = r[0] + cs * s[0] - sn * s[1];
+                    for (wall, delta) in [
+                        ("left", -0.5 * self.channel_width - px),
+                        ("right", px - 0.5 * self.channel_width),
+                    ] {
+                        if delta > 0.0 && worst.is_none_or(|w| delta > w.0) {
+                            worst = Some((delta, i, c, wall));
+                        }
+                    }
+                }
+            }
+            if let Some((delta, i, c, wall)) = worst {
+                return Err(invalid(
+                    ROD,
+                    "tilt",
+                    format!("{} rad ({}°)", self.tilt, self.tilt.to_degrees()),
+                    format!(
+                        "at the initial state corner {c} of segment {} penetrates the {wall} \
+                         wall by {delta:.3e} m (channel_width = {}, length = {}, width = {})",
+                        i + 1,
+                        self.channel_width,
+                        self.length,
+                        self.width
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The wall-contact element of segment `segment` on body `body`.
+    fn contact_element(&self, body: usize, segment: usize) -> WallContact {
+        WallContact {
+            body,
+            segment,
+            width: self.width,
+            length: self.segment_length(),
+            left_wall: -0.5 * self.channel_width,
+            right_wall: 0.5 * self.channel_width,
+            stiffness: self.contact_stiffness,
+            damping: self.contact_damping,
+            friction: self.friction_coefficient,
+            slip_velocity: self.friction_velocity,
+        }
+    }
+}
+
+/// What a chain builder of this module added: body, joint and force-element
+/// indices and the derived parameters. Force indices are those returned by
+/// [`SystemBuilder::add_force`]; the builders of this module add gravity as
+/// an ordinary element, so they are also the indices into
+/// [`System::forces`] — unless the caller of [`add_rod`] also enables
+/// [`SystemBuilder::gravity`], which inserts gravity at position 0 and
+/// shifts every force index by one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RodInfo {
+    /// Body indices of the segments (the rod: from the bottom; the pendulum:
+    /// from the pivot).
+    pub bodies: Vec<usize>,
+    /// Joint indices of the revolute joints between consecutive segments:
+    /// `joints[i]` connects `bodies[i]` and `bodies[i + 1]`.
+    pub joints: Vec<usize>,
+    /// Joint index of the pin to the ground (cantilever, pendulum).
+    pub base_joint: Option<usize>,
+    /// Segment length l_s \[m\].
+    pub segment_length: f64,
+    /// Segment mass \[kg\].
+    pub segment_mass: f64,
+    /// Segment moment of inertia about its centre \[kg m²\].
+    pub segment_inertia: f64,
+    /// Joint spring stiffness k \[N m/rad\] (0 without springs).
+    pub spring_stiffness: f64,
+    /// Joint damping c \[N m s/rad\] (0 without springs).
+    pub spring_damping: f64,
+    /// Force indices of the torsional spring–dampers (the cantilever's base
+    /// spring first).
+    pub springs: Vec<usize>,
+    /// Force index of the buoyancy element.
+    pub buoyancy: Option<usize>,
+    /// Force indices of the drag elements, per segment.
+    pub drag: Vec<usize>,
+    /// Force index of the gravity element (not set by [`add_rod`]).
+    pub gravity: Option<usize>,
+    /// Force index of the cantilever's tip load.
+    pub tip_load: Option<usize>,
+    /// Force indices of the wall-contact elements, per segment.
+    pub contact_elements: Vec<usize>,
+    /// Copies of the wall-contact elements (same order), for
+    /// [`RodInfo::corner_states`].
+    pub contacts: Vec<WallContact>,
+}
+
+impl RodInfo {
+    fn empty() -> Self {
+        Self {
+            bodies: Vec::new(),
+            joints: Vec::new(),
+            base_joint: None,
+            segment_length: 0.0,
+            segment_mass: 0.0,
+            segment_inertia: 0.0,
+            spring_stiffness: 0.0,
+            spring_damping: 0.0,
+            springs: Vec::new(),
+            buoyancy: None,
+            drag: Vec::new(),
+            gravity: None,
+            tip_load: None,
+            contact_elements: Vec::new(),
+            contacts: Vec::new(),
+        }
+    }
+
+    /// Number of segments.
+    pub fn n_segments(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Clear `out`, then list every corner that penetrates a wall at the
+    /// state `q`, `qd` (segment by segment from the bottom, corners in
+    /// [`WallContact::corner_offset`] order). Empty without contact elements.
+    pub fn corner_states(&self, q: &[f64], qd: &[f64], out: &mut Vec<CornerState>) {
+        out.clear();
+        for c in &self.contacts {
+            c.corner_states(q, qd, out);
+        }
+    }
+}
+
+/// Add the segments and joints of a straight chain to `builder`.
+/// `centre(i)` gives segment i's centre; joint i connects the point
+/// `(0, hinge)` of segment i with `(0, −hinge)` of segment i+1.
+#[allow(clippy::too_many_arguments)]
+fn add_chain(
+    builder: &mut SystemBuilder,
+    name: &str,
+    n: usize,
+    mass: f64,
+    inertia: f64,
+    phi: f64,
+    velocity: [f64; 2],
+    hinge: f64,
+    centre: impl Fn(usize) -> [f64; 2],
+) -> (Vec<usize>, Vec<usize>) {
+    let bodies: Vec<usize> = (0..n)
+        .map(|i| {
+            let c = centre(i);
+            builder.add_body(
+                Body::new(
+                    format!("{name} {}", i + 1),
+                    mass,
+                    inertia,
+                    [c[0], c[1], phi],
+                )
+                .with_velocity([velocity[0], velocity[1], 0.0]),
+            )
+        })
+        .collect();
+    let joints = bodies
+        .windows(2)
+        .enumerate()
+        .map(|(i, b)| {
+            builder.add_constraint(Revolute::new(
+                format!("{name} joint {}", i + 1),
+                BodyRef::Body(b[0]),
+                [0.0, hinge],
+                BodyRef::Body(b[1]),
+                [0.0, -hinge],
+            ))
+        })
+        .collect();
+    (bodies, joints)
+}
+
+/// Add the falling rod of PROBLEMS.md B to `builder`.
+///
+/// Adds, after validating `params` ([`RodParams::validate`]):
+/// * `N` segment bodies numbered from the bottom ("segment 1" … "segment N"):
+///   mass `ρ w² l_s`, inertia `m (l_s² + w²)/12`, body-frame y along the rod,
+///   ends at local `(0, ∓l_s/2)`;
+/// * `N − 1` revolute joints, eq. (14): top of segment i = bottom of i+1;
+/// * a [`TorsionalSpringDamper`] in every joint, `k = E w⁴/(12 l_s)`,
+///   `c = damping_time · k`;
+/// * with `params.fluid`: one [`Buoyancy`] element for all segments and a
+///   [`Drag`] per segment (end-face drag on the bottom one);
+/// * with `params.contact`: a [`WallContact`] per segment, walls at `±d/2`.
+///
+/// Initial state: straight rod at tilt φ0 with its centre at the origin,
+/// every centre moving at `initial_velocity`, `φ̇ = 0` (consistent with the
+/// joints). Gravity is *not* added (it is system-wide): use [`build_rod`],
+/// or add a [`Gravity`] element / [`SystemBuilder::gravity`] with
+/// `(0, −params.gravity)` yourself.
+pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInfo, ModelError> {
+    params.validate()?;
+    let p = params;
+    let n = p.n_segments;
+    let ls = p.segment_length();
+    let (m, inertia) = (p.segment_mass(), p.segment_inertia());
+    let (bodies, joints) = add_chain(
+        builder,
+        "segment",
+        n,
+        m,
+        inertia,
+        p.tilt,
+        p.initial_velocity,
+        0.5 * ls,
+        |i| p.initial_centre(i),
+    );
+    let mut info = RodInfo::empty();
+    info.segment_length = ls;
+    info.segment_mass = m;
+    info.segment_inertia = inertia;
+    info.spring_stiffness = p.spring_stiffness();
+    info.spring_damping = p.spring_damping();
+    info.springs = bodies
+        .windows(2)
+        .map(|b| {
+            builder.add_force(TorsionalSpringDamper::new(
+                BodyRef::Body(b[0]),
+                BodyRef::Body(b[1]),
+                info.spring_stiffness,
+                info.spring_damping,
+            ))
+        })
+        .collect();
+    if p.fluid {
+        let volume = p.width * p.width * ls;
+        info.buoyancy = Some(builder.add_force(Buoyancy {
+            fluid_density: p.water_density,
+            gravity: p.gravity,
+            bodies: bodies.iter().map(|&b| (b, volume)).collect(),
+        }));
+        info.drag = bodies
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| {
+                builder.add_force(Drag {
+                    body: b,
+                    width: p.width,
+                    length: ls,
+                    fluid_density: p.water_density,
+                    c_transverse: p.drag_transverse,
+                    c_skin: p.drag_skin,
+                    c_end: p.drag_end,
+                    end_face: i == 0,
+                })
+            })
+            .collect();
+    }
+    if p.contact {
+        for (i, &b) in bodies.iter().enumerate() {
+            let c = p.contact_element(b, i);
+            info.contact_elements.push(builder.add_force(c.clone()));
+            info.contacts.push(c);
+        }
+    }
+    info.bodies = bodies;
+    info.joints = joints;
+    Ok(info)
+}
+
+/// The standalone falling rod of PROBLEMS.md B: [`add_rod`] plus a
+/// [`Gravity`] element `(0, −g)` on every segment (omitted when g = 0).
+pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
+    let mut builder = SystemBuilder::new();
+    let mut info = add_rod(&mut builder, params)?;
+    if params.gravity != 0.0 {
+        info.gravity = Some(
+            builder.add_force(Gravity {
+                g: [0.0, -params.gravity],
+                bodies: info
+                    .bodies
+                    .iter()
+                    .map(|&b| (b, info.segment_mass))
+                    .collect(),
+            }),
+        );
+    }
+    Ok((builder.build()?, info))
+}
+
+/// The finite-segment cantilever of PROBLEMS.md D.
+///
+/// The rod of `params` (length, width, density, Young's modulus, damping
+/// time, segment count and tilt are used) stands straight along the
+/// direction of `params.tilt` (φ = 0: vertical, pointing up) with the bottom
+/// end of segment 1 pinned to the ground at the origin by a revolute joint
+/// and a [`TorsionalSpringDamper`] of the same `k`, `c` as the other joints
+/// (relaxed in the straight state). A constant force `tip_load` `(F_x, F_y)`,
+/// fixed in the global frame, acts at the top end of segment N (omitted when
+/// zero). No fluid, contact or gravity; the initial state is at rest.
+///
+/// Euler–Bernoulli limits: tip deflection `P l³ / (3 E I_A)`,
+/// `ω_n = (β_n l)² sqrt(E I_A / (ρ A l⁴))`, `I_A = w⁴/12`, `A = w²`.
+pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, RodInfo), ModelError> {
+    params.validate_structure()?;
+    if !tip_load.iter().all(|v| v.is_finite()) {
+        return Err(invalid(
+            "cantilever",
+            "tip_load",
+            format!("{tip_load:?}"),
+            "must be finite".into(),
+        ));
+    }
+    let p = params;
+    let n = p.n_segments;
+    let ls = p.segment_length();
+    let e = p.axis();
+    let mut builder = SystemBuilder::new();
+    let (m, inertia) = (p.segment_mass(), p.segment_inertia());
+    let (bodies, joints) = add_chain(
+        &mut builder,
+        "segment",
+        n,
+        m,
+        inertia,
+        p.tilt,
+        [0.0, 0.0],
+        0.5 * ls,
+        |i| {
+            let a = (i as f64 + 0.5) * ls;
+            [a * e[0], a * e[1]]
+        },
+    );
+    let mut info = RodInfo::empty();
+    info.base_joint = Some(builder.add_constraint(Revolute::new(
+        "cantilever base",
+        BodyRef::Ground,
+        [0.0, 0.0],
+        BodyRef::Body(bodies[0]),
+        [0.0, -0.5 * ls],
+    )));
+    info.segment_length = ls;
+    info.segment_mass = m;
+    info.segment_inertia = inertia;
+    info.spring_stiffness = p.spring_stiffness();
+    info.spring_damping = p.spring_damping();
+    info.springs.push(builder.add_force(TorsionalSpringDamper {
+        body_i: BodyRef::Ground,
+        body_j: BodyRef::Body(bodies[0]),
+        k: info.spring_stiffness,
+        c: info.spring_damping,
+        rest_angle: p.tilt,
+    }));
+    for b in bodies.windows(2) {
+        info.springs
+            .push(builder.add_force(TorsionalSpringDamper::new(
+                BodyRef::Body(b[0]),
+                BodyRef::Body(b[1]),
+                info.spring_stiffness,
+                info.spring_damping,
+            )));
+    }
+    if tip_load != [0.0, 0.0] {
+        info.tip_load = Some(builder.add_force(AppliedForce {
+            name: "tip load".into(),
+            body: bodies[n - 1],
+            point: [0.0, 0.5 * ls],
+            fx: TimeFunction::Constant(tip_load[0]),
+            fy: TimeFunction::Constant(tip_load[1]),
+        }));
+    }
+    info.bodies = bodies;
+    info.joints = joints;
+    Ok((builder.build()?, info))
+}
+
+/// The conservative N-link pendulum of PROBLEMS.md D: `n` uniform slender
+/// links (length `link_length`, mass `link_mass`, inertia `m l²/12`), body
+/// frame y along the link with ends at local `(0, ∓l/2)`, numbered from the
+/// pivot: the top end of link 1 is pinned to the ground at the origin, the
+/// bottom end of link i to the top end of link i+1. No springs, drag or
+/// contact; a [`Gravity`] element `(0, −gravity)` (omitted when 0).
+///
+/// Initial state: a straight chain at rest, every `φ_i = initial_angle`
+/// (φ = 0 hangs straight down; positive swings the chain towards +x).
+pub fn n_link_pendulum(
+    n: usize,
+    link_length: f64,
+    link_mass: f64,
+    initial_angle: f64,
+    gravity: f64,
+) -> Result<(System, RodInfo), ModelError> {
+    const PEND: &str = "n-link pendulum";
+    if n == 0 {
+        return Err(invalid(
+            PEND,
+            "n",
+            "0".into(),
+            "the pendulum needs at least one link".into(),
+        ));
+    }
+    check_value(PEND, "link_length", link_length, true)?;
+    check_value(PEND, "link_mass", link_mass, true)?;
+    check_value(PEND, "gravity", gravity, false)?;
+    if !initial_angle.is_finite() {
+        return Err(invalid(
+            PEND,
+            "initial_angle",
+            initial_angle.to_string(),
+            "must be finite".into(),
+        ));
+    }
+    let (s, c) = initial_angle.sin_cos();
+    let down = [s, -c]; // −e_a: from the top end towards the bottom end
+    let inertia = link_mass * link_length * link_length / 12.0;
+    let mut builder = SystemBuilder::new();
+    // Link i's bottom (0, −l/2) meets link i+1's top (0, +l/2): joint
+    // "hinge" −l/2 on the upper link, +l/2 on the lower.
+    let (bodies, joints) = add_chain(
+        &mut builder,
+        "link",
+        n,
+        link_mass,
+        inertia,
+        initial_angle,
+        [0.0, 0.0],
+        -0.5 * link_length,
+        |i| {
+            let a = (i as f64 + 0.5) * link_length;
+            [a * down[0], a * down[1]]
+        },
+    );
+    let mut info = RodInfo::empty();
+    info.base_joint = Some(builder.add_constraint(Revolute::new(
+        "pendulum pivot",
+        BodyRef::Ground,
+        [0.0, 0.0],
+        BodyRef::Body(bodies[0]),
+        [0.0, 0.5 * link_length],
+    )));
+    if gravity != 0.0 {
+        info.gravity = Some(builder.add_force(Gravity {
+            g: [0.0, -gravity],
+            bodies: bodies.iter().map(|&b| (b, link_mass)).collect(),
+        }));
+    }
+    info.segment_length = link_length;
+    info.segment_mass = link_mass;
+    info.segment_inertia = inertia;
+    info.bodies = bodies;
+    info.joints = joints;
+    Ok((builder.build()?, info))
+}

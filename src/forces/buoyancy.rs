@@ -1,0 +1,100 @@
+//! Static buoyancy (PROBLEMS.md B).
+
+use super::{check_coordinates, ForceElement};
+use crate::model::ModelError;
+
+/// Static buoyancy of fully submerged bodies in still fluid (PROBLEMS.md B,
+/// "buoyancy"): a constant uplift `ρ_w g V` along +y on every listed body,
+/// applied at its centre (no torque). For a rod segment `V = w² l_s`.
+///
+/// One element may cover many bodies. The force does not depend on the state,
+/// so [`ForceElement::jacobian_coordinates`] is empty. Potential energy
+/// `−Σ ρ_w g V y`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Buoyancy {
+    /// Fluid density ρ_w ≥ 0 \[kg/m³\].
+    pub fluid_density: f64,
+    /// Magnitude of the acceleration of gravity g ≥ 0 \[m/s²\] (gravity acts along −y).
+    pub gravity: f64,
+    /// `(body index, displaced volume V > 0 [m³])` pairs, distinct bodies.
+    pub bodies: Vec<(usize, f64)>,
+}
+
+impl Buoyancy {
+    /// Uplift on a body of displaced volume `volume` \[N\].
+    pub fn uplift(&self, volume: f64) -> f64 {
+        self.fluid_density * self.gravity * volume
+    }
+}
+
+impl ForceElement for Buoyancy {
+    fn name(&self) -> String {
+        format!("buoyancy ({} bodies)", self.bodies.len())
+    }
+
+    fn coordinates(&self) -> Vec<usize> {
+        let mut c: Vec<usize> = self.bodies.iter().map(|&(b, _)| 3 * b + 1).collect();
+        c.sort_unstable();
+        c.dedup();
+        c
+    }
+
+    fn add_forces(&self, _t: f64, _q: &[f64], _qd: &[f64], g: &mut [f64]) {
+        for &(b, v) in &self.bodies {
+            g[3 * b + 1] += self.uplift(v);
+        }
+    }
+
+    fn jacobian_coordinates(&self) -> Vec<usize> {
+        Vec::new()
+    }
+
+    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        Some(
+            self.bodies
+                .iter()
+                .map(|&(b, v)| -self.uplift(v) * q[3 * b + 1])
+                .sum(),
+        )
+    }
+
+    fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
+        let bad = |field: &str, value: String, why: &str| ModelError::InvalidParameter {
+            element: self.name(),
+            field: field.into(),
+            value,
+            why: why.into(),
+        };
+        if !(self.fluid_density.is_finite() && self.fluid_density >= 0.0) {
+            return Err(bad(
+                "fluid_density",
+                self.fluid_density.to_string(),
+                "must be finite and >= 0",
+            ));
+        }
+        if !(self.gravity.is_finite() && self.gravity >= 0.0) {
+            return Err(bad(
+                "gravity",
+                self.gravity.to_string(),
+                "must be finite and >= 0",
+            ));
+        }
+        for &(b, v) in &self.bodies {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(
+                    "volume",
+                    format!("{v} (body {b})"),
+                    "must be finite and > 0",
+                ));
+            }
+        }
+        if self.coordinates().len() != self.bodies.len() {
+            return Err(bad(
+                "bodies",
+                format!("{:?}", self.bodies),
+                "each body may appear only once",
+            ));
+        }
+        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+    }
+}

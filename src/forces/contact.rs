@@ -1,0 +1,297 @@
+//! Contact of a rod segment's corners with the two channel walls (PROBLEMS.md B).
+
+use super::{check_coordinates, FdWorkspace, ForceElement};
+use crate::model::ModelError;
+
+/// One of the two vertical channel walls.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Wall {
+    /// The wall at `x = left_wall` (pushes bodies towards +x).
+    Left,
+    /// The wall at `x = right_wall` (pushes bodies towards −x).
+    Right,
+}
+
+/// A segment corner in contact with a wall (penetration δ > 0), as reported
+/// by [`WallContact::corner_states`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CornerState {
+    /// Body index of the segment.
+    pub body: usize,
+    /// Segment label of the element ([`WallContact::segment`]; the rod
+    /// builder numbers segments 0, 1, … from the bottom).
+    pub segment: usize,
+    /// Corner index 0..4, see [`WallContact::corner_offset`].
+    pub corner: usize,
+    /// The wall touched.
+    pub wall: Wall,
+    /// Global position of the corner \[m\].
+    pub position: [f64; 2],
+    /// Penetration δ > 0 \[m\].
+    pub penetration: f64,
+    /// Penetration rate δ̇ \[m/s\] (positive while approaching the wall).
+    pub penetration_rate: f64,
+    /// Normal force `max(0, k_h δ^{3/2} (1 + χ δ̇))` \[N\] (0 while the
+    /// corner separates faster than `1/χ`).
+    pub normal_force: f64,
+    /// Friction force along the wall (y component) \[N\].
+    pub friction_force: f64,
+}
+
+/// Penalty contact of the four corners of one rectangular rod segment with
+/// two vertical walls `x = left_wall` and `x = right_wall` (PROBLEMS.md B,
+/// "contact").
+///
+/// Corner `c` sits at the body-fixed point [`WallContact::corner_offset`]
+/// `(±w/2, ±l_s/2)`. A corner at global `p` with velocity `ṗ` penetrates the
+/// left wall by `δ = left_wall − p_x` and the right wall by
+/// `δ = p_x − right_wall`. For `δ > 0` the wall pushes it back with the
+/// Hunt–Crossley normal force `F_n = k_h δ^{3/2} (1 + χ δ̇)`, clamped at
+/// `F_n ≥ 0`, and friction `−μ F_n tanh(ṗ_y / v_s)` along the wall; both act
+/// at the corner, so they also produce a torque on the segment.
+///
+/// Jacobians are analytic. Potential energy: the elastic part
+/// `Σ (2/5) k_h δ^{5/2}` (damping and friction only dissipate).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WallContact {
+    /// Body index of the segment.
+    pub body: usize,
+    /// Label reported in [`CornerState::segment`].
+    pub segment: usize,
+    /// Segment width w \[m\].
+    pub width: f64,
+    /// Segment length l_s \[m\].
+    pub length: f64,
+    /// x of the left wall \[m\] (−d/2 in problem B).
+    pub left_wall: f64,
+    /// x of the right wall \[m\] (+d/2 in problem B).
+    pub right_wall: f64,
+    /// Hertz stiffness k_h > 0 \[N/m^{3/2}\] (1e9).
+    pub stiffness: f64,
+    /// Hunt–Crossley damping factor χ ≥ 0 \[s/m\] (0.75).
+    pub damping: f64,
+    /// Friction coefficient μ ≥ 0 (0.3).
+    pub friction: f64,
+    /// Regularisation velocity v_s > 0 of the friction law \[m/s\] (1e-3).
+    pub slip_velocity: f64,
+}
+
+/// Per-corner contact evaluation against one wall.
+struct CornerEval {
+    wall: Wall,
+    /// +1 for the left wall (force along +x), −1 for the right.
+    sigma: f64,
+    /// Rotated corner offset R(φ) s.
+    rs: [f64; 2],
+    pos: [f64; 2],
+    delta: f64,
+    delta_dot: f64,
+    fn_: f64,
+    tanh: f64,
+}
+
+impl WallContact {
+    /// Body-fixed position of corner `c` (0..4): 0 = (−w/2, −l_s/2),
+    /// 1 = (+w/2, −l_s/2), 2 = (+w/2, +l_s/2), 3 = (−w/2, +l_s/2)
+    /// (counter-clockwise from bottom left at φ = 0).
+    pub fn corner_offset(&self, c: usize) -> [f64; 2] {
+        const SIGNS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+        [
+            SIGNS[c][0] * 0.5 * self.width,
+            SIGNS[c][1] * 0.5 * self.length,
+        ]
+    }
+
+    /// The body's three entries of a full coordinate or velocity vector.
+    fn body_q(&self, v: &[f64]) -> [f64; 3] {
+        let o = 3 * self.body;
+        [v[o], v[o + 1], v[o + 2]]
+    }
+
+    /// Calls `f` for every (corner, wall) pair with δ > 0.
+    /// `qb`, `vb`: the body's `[x, y, φ]` and `[ẋ, ẏ, φ̇]`.
+    fn for_each_contact(&self, qb: [f64; 3], vb: [f64; 3], mut f: impl FnMut(usize, &CornerEval)) {
+        let (sn, cs) = qb[2].sin_cos();
+        let w = vb[2];
+        for c in 0..4 {
+            let s = self.corner_offset(c);
+            let rs = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
+            let pos = [qb[0] + rs[0], qb[1] + rs[1]];
+            let vel = [vb[0] - w * rs[1], vb[1] + w * rs[0]];
+            for (wall, sigma, xw) in [
+                (Wall::Left, 1.0, self.left_wall),
+                (Wall::Right, -1.0, self.right_wall),
+            ] {
+                let delta = sigma * (xw - pos[0]);
+                if delta <= 0.0 {
+                    continue;
+                }
+                let delta_dot = -sigma * vel[0];
+                let fn_ =
+                    (self.stiffness * delta * delta.sqrt() * (1.0 + self.damping * delta_dot))
+                        .max(0.0);
+                let tanh = (vel[1] / self.slip_velocity).tanh();
+                f(
+                    c,
+                    &CornerEval {
+                        wall,
+                        sigma,
+                        rs,
+                        pos,
+                        delta,
+                        delta_dot,
+                        fn_,
+                        tanh,
+                    },
+                );
+            }
+        }
+    }
+
+    /// Append to `out` the state of every corner that penetrates a wall
+    /// (δ > 0), in corner order. `out` is not cleared. `q`, `qd` are the
+    /// full coordinate and velocity vectors.
+    pub fn corner_states(&self, q: &[f64], qd: &[f64], out: &mut Vec<CornerState>) {
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |c, e| {
+            out.push(CornerState {
+                body: self.body,
+                segment: self.segment,
+                corner: c,
+                wall: e.wall,
+                position: e.pos,
+                penetration: e.delta,
+                penetration_rate: e.delta_dot,
+                normal_force: e.fn_,
+                friction_force: -self.friction * e.fn_ * e.tanh,
+            })
+        });
+    }
+}
+
+impl ForceElement for WallContact {
+    fn name(&self) -> String {
+        format!("wall contact of body {}", self.body)
+    }
+
+    fn coordinates(&self) -> Vec<usize> {
+        let o = 3 * self.body;
+        vec![o, o + 1, o + 2]
+    }
+
+    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        let o = 3 * self.body;
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, e| {
+            if e.fn_ > 0.0 {
+                let fx = e.sigma * e.fn_;
+                let fy = -self.friction * e.fn_ * e.tanh;
+                g[o] += fx;
+                g[o + 1] += fy;
+                g[o + 2] += e.rs[0] * fy - e.rs[1] * fx;
+            }
+        });
+    }
+
+    fn add_jacobians(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        dq: &mut [f64],
+        dqd: &mut [f64],
+        _ws: &mut FdWorkspace,
+    ) {
+        let w = qd[3 * self.body + 2];
+        let (kh, chi, mu, vs) = (
+            self.stiffness,
+            self.damping,
+            self.friction,
+            self.slip_velocity,
+        );
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, e| {
+            if e.fn_ <= 0.0 {
+                return; // clamped: force and derivatives vanish
+            }
+            let (sg, rs) = (e.sigma, e.rs);
+            // Derivatives w.r.t. (x, y, φ) and (ẋ, ẏ, φ̇).
+            // p = r + R s: ∂p_x/∂q = (1, 0, −rs_y); ṗ = ṙ + φ̇ J R s:
+            // ∂ṗ_x/∂φ = −φ̇ rs_x, ∂ṗ_y/∂φ = −φ̇ rs_y, ∂ṗ/∂q̇ = (I, J R s).
+            let d_delta_q = [-sg, 0.0, sg * rs[1]];
+            let d_ddelta_q = [0.0, 0.0, sg * w * rs[0]];
+            let d_ddelta_qd = [-sg, 0.0, sg * rs[1]];
+            let d_vy_q = [0.0, 0.0, -w * rs[1]];
+            let d_vy_qd = [0.0, 1.0, rs[0]];
+            let sq = e.delta.sqrt();
+            let a = 1.5 * kh * sq * (1.0 + chi * e.delta_dot); // ∂F_n/∂δ
+            let b = kh * e.delta * sq * chi; // ∂F_n/∂δ̇
+            let dtanh = (1.0 - e.tanh * e.tanh) / vs;
+            let fx = sg * e.fn_;
+            let fy = -mu * e.fn_ * e.tanh;
+            for (out, dd, ddd, dvy, is_q) in [
+                (&mut *dq, d_delta_q, d_ddelta_q, d_vy_q, true),
+                (&mut *dqd, [0.0; 3], d_ddelta_qd, d_vy_qd, false),
+            ] {
+                for c in 0..3 {
+                    let dfn = a * dd[c] + b * ddd[c];
+                    let dfx = sg * dfn;
+                    let dfy = -mu * (e.tanh * dfn + e.fn_ * dtanh * dvy[c]);
+                    let mut dt = rs[0] * dfy - rs[1] * dfx;
+                    if is_q && c == 2 {
+                        // ∂(R s)/∂φ = J R s = (−rs_y, rs_x)
+                        dt += -rs[1] * fy - rs[0] * fx;
+                    }
+                    out[c] += dfx;
+                    out[3 + c] += dfy;
+                    out[6 + c] += dt;
+                }
+            }
+        });
+    }
+
+    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        let mut e = 0.0;
+        self.for_each_contact(self.body_q(q), [0.0; 3], |_, c| {
+            e += 0.4 * self.stiffness * c.delta * c.delta * c.delta.sqrt();
+        });
+        Some(e)
+    }
+
+    fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
+        let bad = |field: &str, value: f64, why: &str| ModelError::InvalidParameter {
+            element: self.name(),
+            field: field.into(),
+            value: value.to_string(),
+            why: why.into(),
+        };
+        for (field, v) in [
+            ("width", self.width),
+            ("length", self.length),
+            ("stiffness", self.stiffness),
+            ("slip_velocity", self.slip_velocity),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, v, "must be finite and > 0"));
+            }
+        }
+        for (field, v) in [("damping", self.damping), ("friction", self.friction)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, v, "must be finite and >= 0"));
+            }
+        }
+        for (field, v) in [
+            ("left_wall", self.left_wall),
+            ("right_wall", self.right_wall),
+        ] {
+            if !v.is_finite() {
+                return Err(bad(field, v, "must be finite"));
+            }
+        }
+        if self.right_wall - self.left_wall <= self.width {
+            return Err(bad(
+                "right_wall",
+                self.right_wall,
+                "the gap between the walls must exceed the segment width",
+            ));
+        }
+        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+    }
+}

@@ -1,0 +1,42 @@
+//! Uniform gravity.
+
+use super::ForceElement;
+
+/// Uniform gravity `m g` on every listed body (g = (0, −9.81) m/s² in the
+/// reference problems). Potential energy `−Σ m g·r`.
+#[derive(Debug, Clone)]
+pub struct Gravity {
+    /// Acceleration of gravity \[m/s²\].
+    pub g: [f64; 2],
+    /// `(body index, mass)` pairs.
+    pub bodies: Vec<(usize, f64)>,
+}
+
+impl ForceElement for Gravity {
+    fn name(&self) -> String {
+        "gravity".into()
+    }
+    fn coordinates(&self) -> Vec<usize> {
+        self.bodies
+            .iter()
+            .flat_map(|&(b, _)| [3 * b, 3 * b + 1])
+            .collect()
+    }
+    fn add_forces(&self, _t: f64, _q: &[f64], _qd: &[f64], g: &mut [f64]) {
+        for &(b, m) in &self.bodies {
+            g[3 * b] += m * self.g[0];
+            g[3 * b + 1] += m * self.g[1];
+        }
+    }
+    fn jacobian_coordinates(&self) -> Vec<usize> {
+        Vec::new()
+    }
+    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        Some(
+            self.bodies
+                .iter()
+                .map(|&(b, m)| -m * (self.g[0] * q[3 * b] + self.g[1] * q[3 * b + 1]))
+                .sum(),
+        )
+    }
+}

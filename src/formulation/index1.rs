@@ -1,0 +1,240 @@
+//! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
+
+use super::{Baumgarte, Formulation, FormulationError};
+use crate::integrate::{OdeSystem, RhsError};
+use crate::linalg::{solver_for, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats};
+use crate::model::System;
+use faer::linalg::solvers::Solve;
+use serde::Serialize;
+
+/// Options of [`Index1`].
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Index1Options {
+    /// Saddle point (eq. (5)) or λ eliminated (eq. (9)).
+    pub formulation: Formulation,
+    /// Baumgarte parameters (α = β = 0: none).
+    pub baumgarte: Baumgarte,
+    /// Linear solver for the saddle-point form.
+    pub linear_solver: SolverKind,
+}
+
+/// Counters of [`Index1`].
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct RhsStats {
+    /// Right-hand-side (acceleration) evaluations.
+    pub evaluations: usize,
+    /// Linear-solver counters (saddle form) or Cholesky factorisations (eliminated).
+    pub solver: SolverStats,
+}
+
+/// The equations of motion as a first-order ODE for `y = [q; q̇]`.
+///
+/// Each evaluation computes Φ_q, g, γ (and Φ, Φ_t for the Baumgarte terms),
+/// writes them into the fixed pattern of the saddle-point matrix and solves
+/// `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ̄` (eq. (5), multipliers with the sign of
+/// [`crate::linalg`]). No allocation per evaluation.
+pub struct Index1<'a> {
+    sys: &'a System,
+    opts: Index1Options,
+    solver: Box<dyn SaddlePointSolver>,
+    k: SaddleMatrix,
+    jac: Vec<f64>,
+    g: Vec<f64>,
+    gamma: Vec<f64>,
+    phi: Vec<f64>,
+    phi_t: Vec<f64>,
+    phid: Vec<f64>,
+    x: Vec<f64>,
+    lambda: Vec<f64>,
+    schur: faer::Mat<f64>,
+    schur_rhs: faer::Mat<f64>,
+    /// Φ_q entries by column: (row, index into `jac`), for eq. (9).
+    by_col: Vec<Vec<(usize, usize)>>,
+    stats: RhsStats,
+}
+
+impl<'a> Index1<'a> {
+    /// Set up the pattern, the solver and its symbolic analysis (once).
+    pub fn new(sys: &'a System, opts: Index1Options) -> Result<Self, FormulationError> {
+        let b = opts.baumgarte;
+        if !(b.alpha.is_finite() && b.alpha >= 0.0 && b.beta.is_finite() && b.beta >= 0.0) {
+            return Err(FormulationError::Invalid(format!(
+                "Baumgarte parameters must be finite and ≥ 0, got alpha = {}, beta = {}",
+                b.alpha, b.beta
+            )));
+        }
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        let k = SaddleMatrix::new(n, m, &[], sys.jacobian_pattern());
+        let mut solver = solver_for(opts.linear_solver, n + m);
+        solver
+            .analyze(&k)
+            .map_err(|source| FormulationError::Linear {
+                t: f64::NAN,
+                source,
+            })?;
+        let (schur, by_col) = match opts.formulation {
+            Formulation::Eliminated => {
+                let mut by_col = vec![Vec::new(); n];
+                for (k, &(r, c)) in sys.jacobian_pattern().iter().enumerate() {
+                    by_col[c].push((r, k));
+                }
+                (faer::Mat::zeros(m, m), by_col)
+            }
+            Formulation::Saddle => (faer::Mat::zeros(0, 0), Vec::new()),
+        };
+        Ok(Self {
+            sys,
+            opts,
+            solver,
+            k,
+            jac: vec![0.0; sys.jacobian_pattern().len()],
+            g: vec![0.0; n],
+            gamma: vec![0.0; m],
+            phi: vec![0.0; m],
+            phi_t: vec![0.0; m],
+            phid: vec![0.0; m],
+            x: vec![0.0; n + m],
+            lambda: vec![0.0; m],
+            schur,
+            schur_rhs: faer::Mat::zeros(m, 1),
+            by_col,
+            stats: RhsStats::default(),
+        })
+    }
+
+    /// The system.
+    pub fn system(&self) -> &System {
+        self.sys
+    }
+
+    /// Options in force.
+    pub fn options(&self) -> &Index1Options {
+        &self.opts
+    }
+
+    /// Multipliers λ of the last evaluation (`M q̈ + Φ_qᵀ λ = g`).
+    pub fn lambda(&self) -> &[f64] {
+        &self.lambda
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> RhsStats {
+        let mut s = self.stats;
+        if self.opts.formulation == Formulation::Saddle {
+            s.solver = self.solver.stats();
+        }
+        s
+    }
+
+    /// Name of the linear solver in use.
+    pub fn solver_name(&self) -> &'static str {
+        match self.opts.formulation {
+            Formulation::Saddle => self.solver.name(),
+            Formulation::Eliminated => "schur-dense-cholesky",
+        }
+    }
+
+    /// Accelerations `q̈(q, q̇, t)`; λ is kept (see [`Index1::lambda`]).
+    pub fn accelerations(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        let sys = self.sys;
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        self.stats.evaluations += 1;
+        sys.jacobian_values(q, t, &mut self.jac);
+        sys.forces_into(t, q, qd, &mut self.g);
+        sys.gamma(q, qd, t, &mut self.gamma);
+        let b = self.opts.baumgarte;
+        if !b.is_off() {
+            // eq. (11): γ̄ = γ − 2αΦ̇ − β²Φ with Φ̇ = Φ_q q̇ + Φ_t
+            sys.phi(q, t, &mut self.phi);
+            sys.phi_t(q, t, &mut self.phi_t);
+            sys.jacobian_mul(&self.jac, qd, &mut self.phid);
+            for r in 0..m {
+                let phid = self.phid[r] + self.phi_t[r];
+                self.gamma[r] -= 2.0 * b.alpha * phid + b.beta * b.beta * self.phi[r];
+            }
+        }
+        match self.opts.formulation {
+            Formulation::Saddle => {
+                self.k.set_a_diagonal(sys.mass_diagonal());
+                self.k.set_jacobian(&self.jac);
+                let lin = |source| FormulationError::Linear { t, source };
+                self.solver.factorize(&self.k).map_err(lin)?;
+                self.x[..n].copy_from_slice(&self.g);
+                self.x[n..].copy_from_slice(&self.gamma);
+                self.solver
+                    .solve_in_place(&self.k, &mut self.x)
+                    .map_err(lin)?;
+                qdd.copy_from_slice(&self.x[..n]);
+                self.lambda.copy_from_slice(&self.x[n..]);
+            }
+            Formulation::Eliminated => self.eliminated(t, qdd)?,
+        }
+        Ok(())
+    }
+
+    /// eq. (9) with a dense Schur complement `S = Φ_q M⁻¹ Φ_qᵀ`.
+    fn eliminated(&mut self, t: f64, qdd: &mut [f64]) -> Result<(), FormulationError> {
+        let sys = self.sys;
+        let mass = sys.mass_diagonal();
+        let m = sys.n_constraints();
+        // S = Σ_c Φ_q[:, c] Φ_q[:, c]ᵀ / M_c over the entries of each column.
+        self.schur.fill(0.0);
+        for (c, col) in self.by_col.iter().enumerate() {
+            for &(r1, k1) in col {
+                for &(r2, k2) in col {
+                    self.schur[(r1, r2)] += self.jac[k1] * self.jac[k2] / mass[c];
+                }
+            }
+        }
+        // right-hand side Φ_q M⁻¹ g − γ̄
+        for r in 0..m {
+            self.schur_rhs[(r, 0)] = -self.gamma[r];
+        }
+        for (c, col) in self.by_col.iter().enumerate() {
+            for &(r, k) in col {
+                self.schur_rhs[(r, 0)] += self.jac[k] * self.g[c] / mass[c];
+            }
+        }
+        let llt = self
+            .schur
+            .llt(faer::Side::Lower)
+            .map_err(|e| FormulationError::Linear {
+                t,
+                source: crate::linalg::LinalgError::Singular(format!(
+                    "Schur complement Φ_q M⁻¹ Φ_qᵀ is not positive definite ({e:?}); \
+                     redundant constraints need the saddle formulation"
+                )),
+            })?;
+        llt.solve_in_place(self.schur_rhs.as_mut());
+        self.stats.solver.factorizations += 1;
+        self.stats.solver.solves += 1;
+        for r in 0..m {
+            self.lambda[r] = self.schur_rhs[(r, 0)];
+        }
+        sys.jacobian_tmul(&self.jac, &self.lambda, qdd);
+        for c in 0..sys.n_coords() {
+            qdd[c] = (self.g[c] - qdd[c]) / mass[c];
+        }
+        Ok(())
+    }
+}
+
+impl OdeSystem for Index1<'_> {
+    fn dim(&self) -> usize {
+        2 * self.sys.n_coords()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError> {
+        let n = self.sys.n_coords();
+        let (q, qd) = y.split_at(n);
+        let (dq, dqd) = dydt.split_at_mut(n);
+        dq.copy_from_slice(qd);
+        self.accelerations(t, q, qd, dqd)
+            .map_err(|e| RhsError(e.to_string()))
+    }
+}

@@ -1,0 +1,335 @@
+//! Pieces shared by every integrator: input validation, right-hand-side
+//! calls with failure/non-finite detection, Runge–Kutta stage evaluation,
+//! linear combinations of stages, and delivery of requested outputs.
+
+use std::ops::ControlFlow;
+
+use super::{
+    IntegratorError, Observer, OdeOptions, OdeSystem, Report, Stats, Termination, Tolerance,
+};
+
+/// `out = y + h·Σ_j coeffs[j]·k_j`, where `k_j = k[j*n..(j+1)*n]`.
+/// Zero coefficients are skipped. The sum over stages is formed first and
+/// then added to `y`, as MATLAB's `y + f*hB(:,j)` does.
+pub(crate) fn lincomb(out: &mut [f64], y: &[f64], h: f64, coeffs: &[f64], k: &[f64]) {
+    weighted_sum(out, h, coeffs, k);
+    for (o, yi) in out.iter_mut().zip(y) {
+        *o += *yi;
+    }
+}
+
+/// `out = h·Σ_j coeffs[j]·k_j` (stages stored contiguously in `k`).
+pub(crate) fn weighted_sum(out: &mut [f64], h: f64, coeffs: &[f64], k: &[f64]) {
+    let n = out.len();
+    out.fill(0.0);
+    for (j, &cj) in coeffs.iter().enumerate() {
+        if cj == 0.0 {
+            continue;
+        }
+        let w = h * cj;
+        for (o, kj) in out.iter_mut().zip(&k[j * n..(j + 1) * n]) {
+            *o += w * *kj;
+        }
+    }
+}
+
+/// Index and value of the first non-finite entry, if any.
+pub(crate) fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
+    v.iter()
+        .enumerate()
+        .find(|(_, x)| !x.is_finite())
+        .map(|(i, x)| (i, *x))
+}
+
+/// Evaluates `f(t, y)` into `dydt`, counting the evaluation. Returns the
+/// failure reason if the system reports an error or returns a non-finite value.
+pub(crate) fn call_rhs(
+    sys: &mut dyn OdeSystem,
+    t: f64,
+    y: &[f64],
+    dydt: &mut [f64],
+    stats: &mut Stats,
+) -> Result<(), String> {
+    stats.rhs_evals += 1;
+    sys.rhs(t, y, dydt)
+        .map_err(|e| format!("right-hand side failed at t = {t:e}: {e}"))?;
+    if let Some((i, v)) = first_non_finite(dydt) {
+        return Err(format!(
+            "right-hand side returned a non-finite value ({v}) in component {i} at t = {t:e}"
+        ));
+    }
+    Ok(())
+}
+
+/// Evaluates the explicit stages `first..=last` of a Runge–Kutta step:
+/// `k_i = f(t + c_i·h, y + h·Σ_{j<i} a[i][j]·k_j)`, using `ytmp` as the stage
+/// input buffer. `k` holds all stages contiguously (`k_0` must be filled in).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn eval_stages(
+    sys: &mut dyn OdeSystem,
+    t: f64,
+    h: f64,
+    y: &[f64],
+    c: &[f64],
+    a: &[&[f64]],
+    stages: std::ops::RangeInclusive<usize>,
+    k: &mut [f64],
+    ytmp: &mut [f64],
+    stats: &mut Stats,
+) -> Result<(), String> {
+    let n = y.len();
+    for i in stages {
+        let (done, rest) = k.split_at_mut(i * n);
+        lincomb(ytmp, y, h, a[i], done);
+        call_rhs(sys, t + c[i] * h, ytmp, &mut rest[..n], stats)?;
+    }
+    Ok(())
+}
+
+/// Spacing of doubles at `x`, as MATLAB's `eps(x)`: the distance from `|x|`
+/// to the next larger double (`eps(1) = 2^-52`, `eps(0) = 2^-1074`).
+/// NaN for non-finite `x`.
+pub fn eps(x: f64) -> f64 {
+    let a = x.abs();
+    if !a.is_finite() {
+        return f64::NAN;
+    }
+    let exp = ((a.to_bits() >> 52) & 0x7ff) as i64;
+    if exp <= 52 {
+        // The spacing is subnormal: 2^(max(exp,1) - 1075).
+        f64::from_bits(1u64 << (exp.max(1) - 1))
+    } else {
+        f64::from_bits(((exp - 52) as u64) << 52)
+    }
+}
+
+/// Validated per-run inputs.
+pub(crate) struct Run<'a> {
+    pub t0: f64,
+    pub t_end: f64,
+    pub n: usize,
+    pub outputs: OutputCursor<'a>,
+}
+
+fn invalid(option: &'static str, value: impl std::fmt::Display, reason: &str) -> IntegratorError {
+    IntegratorError::InvalidOption {
+        option,
+        value: value.to_string(),
+        reason: reason.to_string(),
+    }
+}
+
+/// Checks options that do not depend on the system (called by `integrator`).
+pub(crate) fn validate_options(
+    method: super::Method,
+    o: &OdeOptions,
+) -> Result<(), IntegratorError> {
+    use super::Method;
+    if o.max_steps == 0 {
+        return Err(invalid("max_steps", 0, "must be at least 1"));
+    }
+    match method {
+        Method::Rk4 => match o.fixed_step {
+            None => {
+                return Err(invalid(
+                    "fixed_step",
+                    "None",
+                    "rk4 requires a positive, finite fixed_step",
+                ))
+            }
+            Some(h) if !(h > 0.0 && h.is_finite()) => {
+                return Err(invalid(
+                    "fixed_step",
+                    h,
+                    "rk4 requires a positive, finite fixed_step",
+                ))
+            }
+            Some(_) => {}
+        },
+        Method::Ode23 | Method::Ode45 => {
+            if !(o.rtol > 0.0 && o.rtol.is_finite()) {
+                return Err(invalid("rtol", o.rtol, "must be positive and finite"));
+            }
+            match &o.atol {
+                Tolerance::Scalar(a) => {
+                    if !(*a >= 0.0 && a.is_finite()) {
+                        return Err(invalid("atol", a, "must be non-negative and finite"));
+                    }
+                }
+                Tolerance::Vector(v) => {
+                    if let Some((i, a)) = v
+                        .iter()
+                        .enumerate()
+                        .find(|(_, a)| !(**a >= 0.0 && a.is_finite()))
+                    {
+                        return Err(IntegratorError::InvalidOption {
+                            option: "atol",
+                            value: format!("{a} (component {i})"),
+                            reason: "every component must be non-negative and finite".into(),
+                        });
+                    }
+                }
+            }
+            if let Some(h) = o.max_step {
+                if h.is_nan() || h <= 0.0 {
+                    return Err(invalid("max_step", h, "must be positive"));
+                }
+            }
+            if let Some(h) = o.initial_step {
+                if !(h > 0.0 && h.is_finite()) {
+                    return Err(invalid("initial_step", h, "must be positive and finite"));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks the per-run inputs (time span, initial state, output times, the
+/// length of a vector `atol`).
+pub(crate) fn validate_run<'a>(
+    sys: &dyn OdeSystem,
+    options: &OdeOptions,
+    t0: f64,
+    t_end: f64,
+    y0: &[f64],
+    output_times: &'a [f64],
+) -> Result<Run<'a>, IntegratorError> {
+    if !t0.is_finite() {
+        return Err(IntegratorError::InvalidTimeSpan {
+            t0,
+            t_end,
+            reason: "t0 must be finite".into(),
+        });
+    }
+    if !t_end.is_finite() {
+        return Err(IntegratorError::InvalidTimeSpan {
+            t0,
+            t_end,
+            reason: "t_end must be finite".into(),
+        });
+    }
+    if t_end <= t0 {
+        return Err(IntegratorError::InvalidTimeSpan {
+            t0,
+            t_end,
+            reason: "t_end must be greater than t0 (only forward integration is supported)".into(),
+        });
+    }
+    let n = sys.dim();
+    if y0.len() != n {
+        return Err(IntegratorError::DimensionMismatch {
+            what: "y0",
+            expected: n,
+            got: y0.len(),
+        });
+    }
+    if let Some((index, value)) = first_non_finite(y0) {
+        return Err(IntegratorError::NonFiniteInitialState { index, value });
+    }
+    if let Tolerance::Vector(v) = &options.atol {
+        if v.len() != n {
+            return Err(IntegratorError::DimensionMismatch {
+                what: "atol",
+                expected: n,
+                got: v.len(),
+            });
+        }
+    }
+    for (i, &tk) in output_times.iter().enumerate() {
+        let bad = |reason: &str| IntegratorError::InvalidOutputTimes {
+            index: i,
+            value: tk,
+            reason: reason.to_string(),
+        };
+        if !tk.is_finite() {
+            return Err(bad("not finite"));
+        }
+        if tk < t0 || tk > t_end {
+            return Err(bad(&format!("outside the time span [{t0}, {t_end}]")));
+        }
+        if i > 0 && tk <= output_times[i - 1] {
+            return Err(bad(&format!(
+                "output times must be strictly increasing (previous is {})",
+                output_times[i - 1]
+            )));
+        }
+    }
+    Ok(Run {
+        t0,
+        t_end,
+        n,
+        outputs: OutputCursor {
+            times: output_times,
+            next: 0,
+        },
+    })
+}
+
+/// Walks through the requested output times as the integration advances.
+pub(crate) struct OutputCursor<'a> {
+    times: &'a [f64],
+    next: usize,
+}
+
+impl OutputCursor<'_> {
+    /// Delivers `output(t0, y0)` if `t0` is a requested time.
+    pub fn deliver_initial(
+        &mut self,
+        t0: f64,
+        y0: &[f64],
+        obs: &mut dyn Observer,
+    ) -> ControlFlow<(f64, String)> {
+        if self.times.first() == Some(&t0) {
+            self.next = 1;
+            if let ControlFlow::Break(r) = obs.output(t0, y0) {
+                return ControlFlow::Break((t0, r));
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// Delivers every requested time in `(t, t_new]` after an accepted step
+    /// ending at `(t_new, y_new)`: a time equal to `t_new` gets `y_new`,
+    /// earlier ones get `interp(t_out, buf)` (the continuous extension).
+    pub fn deliver_step(
+        &mut self,
+        t_new: f64,
+        y_new: &[f64],
+        buf: &mut [f64],
+        mut interp: impl FnMut(f64, &mut [f64]),
+        obs: &mut dyn Observer,
+    ) -> ControlFlow<(f64, String)> {
+        while let Some(&tk) = self.times.get(self.next) {
+            if tk > t_new {
+                break;
+            }
+            self.next += 1;
+            let flow = if tk == t_new {
+                obs.output(tk, y_new)
+            } else {
+                interp(tk, buf);
+                obs.output(tk, buf)
+            };
+            if let ControlFlow::Break(r) = flow {
+                return ControlFlow::Break((tk, r));
+            }
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+/// Builds the final report.
+pub(crate) fn report(
+    stats: Stats,
+    termination: Termination,
+    t_reached: f64,
+    warnings: Vec<String>,
+) -> Report {
+    Report {
+        stats,
+        termination,
+        t_reached,
+        warnings,
+    }
+}

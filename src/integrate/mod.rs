@@ -1,0 +1,347 @@
+//! Explicit ODE integrators for first-order systems `y' = f(t, y)`.
+//!
+//! * [`Method::Ode23`]: Bogacki–Shampine 3(2) pair (Bogacki & Shampine,
+//!   Appl. Math. Lett. 2 (1989)), FSAL, 3 evaluations per step.
+//! * [`Method::Ode45`]: Dormand–Prince 5(4) pair (Dormand & Prince,
+//!   J. Comput. Appl. Math. 6 (1980)), FSAL, 6 evaluations per step.
+//! * [`Method::Rk4`]: classic fixed-step fourth-order Runge–Kutta.
+//!
+//! `ode23` and `ode45` follow MATLAB's `ode23.m` / `ode45.m` and their
+//! interpolants `ntrp23.m` / `ntrp45.m` (Shampine & Reichelt, "The MATLAB ODE
+//! Suite", SIAM J. Sci. Comput. 18 (1997)): same error norm (NormControl
+//! off), initial step, step-size update, minimal step `16·eps(t)`, step
+//! stretching to hit `t_end`, continuous extension and function-evaluation
+//! count. Both share one engine parametrised by the tableau (see the
+//! `embedded` submodule for the exact rules).
+//!
+//! Differences from MATLAB (all outside the step-size logic):
+//! * Only forward integration (`t_end > t0`).
+//! * `atol = 0` is accepted (MATLAB requires `atol > 0`); a component whose
+//!   weight is then `0/0` is ignored by the error norm, as MATLAB's `max`
+//!   ignores NaN.
+//! * A right-hand side returning an error or a non-finite value, or a
+//!   non-finite state, ends the run with [`Termination::Failed`] (MATLAB
+//!   would carry NaN/Inf along).
+//! * No events, mass matrix, NonNegative or NormControl options.
+//! * A cap on the number of steps ([`OdeOptions::max_steps`]).
+
+mod common;
+mod embedded;
+mod rk4;
+mod tableau;
+
+use std::ops::ControlFlow;
+use std::str::FromStr;
+
+pub use common::eps;
+
+/// A first-order system y' = f(t, y).
+pub trait OdeSystem {
+    /// Number of state components.
+    fn dim(&self) -> usize;
+    /// Evaluate f(t, y) into dydt. An Err aborts the integration (reported as Termination::Failed at the current time).
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError>;
+}
+
+/// Failure of a right-hand-side evaluation, with a human-readable reason.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("{0}")]
+pub struct RhsError(pub String);
+
+/// An [`OdeSystem`] made of a dimension and an infallible closure
+/// `f(t, y, dydt)`; convenient for simple problems and tests.
+pub struct FnSystem<F> {
+    dim: usize,
+    f: F,
+}
+
+impl<F: FnMut(f64, &[f64], &mut [f64])> FnSystem<F> {
+    /// Wraps `f` as a system of dimension `dim`.
+    pub fn new(dim: usize, f: F) -> Self {
+        Self { dim, f }
+    }
+}
+
+impl<F: FnMut(f64, &[f64], &mut [f64])> OdeSystem for FnSystem<F> {
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError> {
+        (self.f)(t, y, dydt);
+        Ok(())
+    }
+}
+
+/// Integration method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Bogacki–Shampine 3(2), adaptive, as MATLAB's `ode23`.
+    Ode23,
+    /// Dormand–Prince 5(4), adaptive, as MATLAB's `ode45`.
+    Ode45,
+    /// Classic Runge–Kutta 4, fixed step.
+    Rk4,
+}
+
+impl Method {
+    /// All methods, in the order of [`Method::NAMES`].
+    pub const ALL: [Method; 3] = [Method::Ode23, Method::Ode45, Method::Rk4];
+    /// The valid method names.
+    pub const NAMES: [&'static str; 3] = ["ode23", "ode45", "rk4"];
+
+    /// Lower-case name: "ode23", "ode45" or "rk4".
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Ode23 => "ode23",
+            Method::Ode45 => "ode45",
+            Method::Rk4 => "rk4",
+        }
+    }
+
+    /// Whether the method adapts its step to `rtol`/`atol`.
+    pub fn is_adaptive(&self) -> bool {
+        !matches!(self, Method::Rk4)
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Method {
+    type Err = IntegratorError;
+    /// Parses "ode23", "ode45" or "rk4" (case-insensitive, surrounding
+    /// whitespace ignored).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let key = s.trim().to_ascii_lowercase();
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == key)
+            .ok_or_else(|| IntegratorError::UnknownMethod(s.to_string()))
+    }
+}
+
+/// Absolute tolerance: one value for all components or one per component.
+#[derive(Debug, Clone)]
+pub enum Tolerance {
+    /// Same absolute tolerance for every component.
+    Scalar(f64),
+    /// One absolute tolerance per component (length must equal the system dimension).
+    Vector(Vec<f64>),
+}
+
+/// Integration options, named and defaulted as MATLAB's `odeset`.
+#[derive(Debug, Clone)]
+pub struct OdeOptions {
+    /// Relative tolerance (`RelTol`), default 1e-3. Values below `100·eps`
+    /// are raised to `100·eps` (reported in [`Report::warnings`]).
+    pub rtol: f64,
+    /// Absolute tolerance (`AbsTol`), default `Scalar(1e-6)`; must be ≥ 0.
+    pub atol: Tolerance,
+    /// Maximal step (`MaxStep`); `None` => MATLAB default `0.1·|t_end - t0|`.
+    /// Always limited to `|t_end - t0|`.
+    pub max_step: Option<f64>,
+    /// First step to try (`InitialStep`); `None` => MATLAB's automatic choice.
+    pub initial_step: Option<f64>,
+    /// Step of [`Method::Rk4`] (required there, ignored by the adaptive methods);
+    /// the last step is shortened to end exactly on `t_end`.
+    pub fixed_step: Option<f64>,
+    /// Safety cap on accepted steps; reaching it ends the run with
+    /// [`Termination::Failed`]. Default 50 000 000.
+    pub max_steps: usize,
+}
+
+impl Default for OdeOptions {
+    fn default() -> Self {
+        Self {
+            rtol: 1e-3,
+            atol: Tolerance::Scalar(1e-6),
+            max_step: None,
+            initial_step: None,
+            fixed_step: None,
+            max_steps: 50_000_000,
+        }
+    }
+}
+
+/// Work statistics, counted as MATLAB's `nsteps`, `nfailed`, `nfevals`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Stats {
+    /// Accepted steps.
+    pub steps: usize,
+    /// Rejected step attempts.
+    pub failed_steps: usize,
+    /// Right-hand-side evaluations, including the initial `f(t0, y0)`.
+    pub rhs_evals: usize,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Termination {
+    /// Reached `t_end`.
+    Completed,
+    /// Could not continue past `t` (step size below `hmin`, right-hand-side
+    /// error, non-finite value, `max_steps`); `reason` says which.
+    Failed {
+        /// Time of the last accepted state.
+        t: f64,
+        /// Human-readable reason, naming the time.
+        reason: String,
+    },
+    /// The observer asked to stop.
+    Stopped {
+        /// Time of the output or step at which the observer asked to stop.
+        t: f64,
+        /// Reason given by the observer.
+        reason: String,
+    },
+}
+
+/// Result of a run that started (invalid inputs are an [`IntegratorError`] instead).
+#[derive(Debug, Clone)]
+pub struct Report {
+    /// Work statistics.
+    pub stats: Stats,
+    /// How the run ended.
+    pub termination: Termination,
+    /// End of the last accepted step (`t0` if none).
+    pub t_reached: f64,
+    /// Non-fatal notices, e.g. `rtol` raised to `100·eps`.
+    pub warnings: Vec<String>,
+}
+
+/// Receives the solution. Default methods do nothing and continue.
+pub trait Observer {
+    /// At each requested output time, in increasing order, y from the method's continuous extension
+    /// (or the exact step end when a step ends on it). Return ControlFlow::Break(reason) to stop the run.
+    fn output(&mut self, _t: f64, _y: &[f64]) -> ControlFlow<String> {
+        ControlFlow::Continue(())
+    }
+    /// After every accepted step, with the step's end state.
+    fn step(&mut self, _t: f64, _y: &[f64]) -> ControlFlow<String> {
+        ControlFlow::Continue(())
+    }
+}
+
+/// The unit observer ignores everything.
+impl Observer for () {}
+
+impl<O: Observer + ?Sized> Observer for &mut O {
+    fn output(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
+        (**self).output(t, y)
+    }
+    fn step(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
+        (**self).step(t, y)
+    }
+}
+
+/// Stores all output samples (t, y).
+#[derive(Debug, Clone, Default)]
+pub struct Recorder {
+    /// Output times.
+    pub t: Vec<f64>,
+    /// States at the output times.
+    pub y: Vec<Vec<f64>>,
+}
+
+impl Observer for Recorder {
+    fn output(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
+        self.t.push(t);
+        self.y.push(y.to_vec());
+        ControlFlow::Continue(())
+    }
+}
+
+/// Invalid options or inputs, detected before integration starts.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum IntegratorError {
+    /// An option has an invalid value.
+    #[error("invalid option {option} = {value}: {reason}")]
+    InvalidOption {
+        /// Option name (field of [`OdeOptions`]).
+        option: &'static str,
+        /// Offending value.
+        value: String,
+        /// What is required.
+        reason: String,
+    },
+    /// Unknown method name.
+    #[error("unknown integration method '{0}'; valid methods are ode23, ode45, rk4")]
+    UnknownMethod(String),
+    /// Bad time span.
+    #[error("invalid time span t0 = {t0}, t_end = {t_end}: {reason}")]
+    InvalidTimeSpan {
+        /// Start time.
+        t0: f64,
+        /// End time.
+        t_end: f64,
+        /// What is required.
+        reason: String,
+    },
+    /// A vector has the wrong length for the system.
+    #[error("{what} has length {got}, but the system dimension is {expected}")]
+    DimensionMismatch {
+        /// Which input ("y0", "atol").
+        what: &'static str,
+        /// System dimension.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+    /// The initial state contains NaN or infinity.
+    #[error("initial state y0[{index}] = {value} is not finite")]
+    NonFiniteInitialState {
+        /// Component index.
+        index: usize,
+        /// Offending value.
+        value: f64,
+    },
+    /// Bad requested output times.
+    #[error("invalid output time output_times[{index}] = {value}: {reason}")]
+    InvalidOutputTimes {
+        /// Index into the output times.
+        index: usize,
+        /// Offending value.
+        value: f64,
+        /// What is required.
+        reason: String,
+    },
+}
+
+/// An ODE integrator configured with a method and options.
+pub trait Integrator {
+    /// The method implemented.
+    fn method(&self) -> Method;
+    /// Integrate from t0 to t_end (t_end > t0 required — only forward integration is supported), starting at y0.
+    /// output_times: strictly increasing, within [t0, t_end]; t0 itself may be included (then output(t0, y0) is called first).
+    /// Midway failure (step size below MATLAB's hmin = 16*eps(t), RHS error, non-finite state, max_steps) does not
+    /// return Err: it returns Ok(Report{termination: Failed{t, reason}, ..}) after having delivered every output up to t.
+    fn integrate(
+        &mut self,
+        sys: &mut dyn OdeSystem,
+        t0: f64,
+        t_end: f64,
+        y0: &[f64],
+        output_times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError>;
+}
+
+/// Creates an integrator for `method`, validating the options that do not
+/// depend on the system (`rtol > 0`, `atol ≥ 0`, `max_step > 0`,
+/// `initial_step > 0`, `max_steps ≥ 1`; `fixed_step > 0` for rk4).
+/// Tolerances and step limits are checked only for the methods that use them.
+pub fn integrator(
+    method: Method,
+    options: OdeOptions,
+) -> Result<Box<dyn Integrator>, IntegratorError> {
+    common::validate_options(method, &options)?;
+    Ok(match method {
+        Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
+        Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
+        Method::Rk4 => Box::new(rk4::Rk4::new(options)),
+    })
+}

@@ -1,0 +1,148 @@
+//! Linear solves of the saddle-point matrix of eq. (5),
+//!
+//! ```text
+//! K = [ A    Φ_qᵀ ]      A = M (index-1 form), or M·c_m + C·c_c + K_t (Newton
+//!     [ Φ_q  D    ]      matrix of implicit methods); D = 0 or a regularisation
+//! ```
+//!
+//! [`SaddleMatrix`] owns the fixed sparse pattern (built once per system) and
+//! the values that each evaluation refills; every solver implements
+//! [`SaddlePointSolver`]: `analyze` once per pattern, `factorize` per
+//! evaluation, `solve_in_place` per right-hand side.
+//!
+//! Sign convention: we solve `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`, i.e. the
+//! unknown vector is `[q̈; λ]`. The paper's eq. (5) writes the same system
+//! with unknowns `[q̈; −λ]`, so its multipliers are our `−λ`.
+
+mod dense;
+mod saddle;
+mod sparse;
+
+pub use dense::DenseLu;
+pub use saddle::SaddleMatrix;
+pub use sparse::{
+    chain_order, Ordering, SparseLdlt, DEFAULT_DELTA, DEFAULT_EPSILON, REFINE_THRESHOLD,
+};
+
+use serde::Serialize;
+
+/// Failure of a saddle-point factorisation or solve.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum LinalgError {
+    /// The matrix is numerically singular (or the solution is not finite).
+    #[error("saddle-point matrix is singular: {0}")]
+    Singular(String),
+    /// A non-finite value was written into the matrix.
+    #[error("non-finite entry in the saddle-point matrix at ({row}, {col})")]
+    NonFinite {
+        /// Row of the offending entry.
+        row: usize,
+        /// Column of the offending entry.
+        col: usize,
+    },
+    /// `factorize`/`solve_in_place` called out of order.
+    #[error("saddle-point solver used before {0}")]
+    NotReady(&'static str),
+    /// A length does not match the matrix.
+    #[error("dimension mismatch: expected {expected}, got {got}")]
+    Dimension {
+        /// Expected length.
+        expected: usize,
+        /// Length received.
+        got: usize,
+    },
+}
+
+/// What one numeric factorisation reports.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct FactorInfo {
+    /// Pivots that had to be regularised (rank-deficient Φ_q, singular positions).
+    pub regularized_pivots: usize,
+}
+
+/// Running counters of a solver.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct SolverStats {
+    /// Symbolic analyses performed (should be 1 per pattern).
+    pub analyses: usize,
+    /// Numeric factorisations performed.
+    pub factorizations: usize,
+    /// Right-hand sides solved.
+    pub solves: usize,
+    /// Sum of regularised pivots over all factorisations.
+    pub regularized_pivots: usize,
+    /// Steps of iterative refinement applied.
+    pub refinements: usize,
+}
+
+/// A direct solver for the symmetric saddle-point matrix [`SaddleMatrix`].
+///
+/// The pattern is fixed: `analyze` is called once, then `factorize` whenever
+/// the values change and `solve_in_place` for each right-hand side.
+pub trait SaddlePointSolver: Send {
+    /// Short name for summaries ("dense-lu", "sparse-ldlt", …).
+    fn name(&self) -> &'static str;
+    /// Symbolic work for the pattern of `k` (orderings, elimination tree).
+    fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError>;
+    /// Numeric factorisation of the current values of `k`.
+    fn factorize(&mut self, k: &SaddleMatrix) -> Result<FactorInfo, LinalgError>;
+    /// Overwrite `rhs` with `K⁻¹ rhs` using the last factorisation of `k`.
+    fn solve_in_place(&mut self, k: &SaddleMatrix, rhs: &mut [f64]) -> Result<(), LinalgError>;
+    /// Counters since construction.
+    fn stats(&self) -> SolverStats;
+}
+
+/// Which saddle-point solver to use (scenario key `linear_solver`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// Dense for tiny systems, sparse above a measured size.
+    #[default]
+    Auto,
+    /// Dense LU with partial pivoting (faer); for tiny systems and cross-checks.
+    Dense,
+    /// Sparse LDLᵀ (faer) with symbolic analysis once per pattern.
+    Sparse,
+}
+
+impl std::str::FromStr for SolverKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "dense" => Ok(Self::Dense),
+            "sparse" => Ok(Self::Sparse),
+            other => Err(format!(
+                "unknown linear solver '{other}' (expected auto, sparse or dense)"
+            )),
+        }
+    }
+}
+
+/// `SolverKind::Auto` uses the dense LU for saddle-point matrices of
+/// dimension `n + m` below this and the sparse LDLᵀ from it on.
+///
+/// Measured with `cargo bench --bench saddle_point -- breakeven` (pendulum
+/// chains, numeric factorisation + one solve, release, 2-core machine):
+/// there is no break-even — `SparseLdlt` is faster at every size, from
+/// dim 5 (1 body: 0.36 µs vs 1.6 µs for `DenseLu`) through dim 30
+/// (2.1 µs vs 8.1 µs) to dim 120 (9.7 µs vs 105 µs). `DenseLu` pays an
+/// allocation and a dense copy per factorisation that the sparse path has
+/// not, and it rejects rank-deficient `Φ_q` where the sparse path
+/// regularises. So `Auto` is sparse for every dimension (threshold 0);
+/// the constant stays so that a faster dense kernel can reclaim tiny
+/// systems by re-measuring.
+pub const AUTO_DENSE_MAX_DIM: usize = 0;
+
+/// Create the solver of `kind` for a saddle-point matrix of dimension `dim`.
+// The measured threshold is currently 0, which makes the `Auto` comparison
+// always false; keep it so that re-measuring only changes the constant.
+#[allow(clippy::absurd_extreme_comparisons)]
+pub fn solver_for(kind: SolverKind, dim: usize) -> Box<dyn SaddlePointSolver> {
+    match kind {
+        SolverKind::Dense => Box::new(DenseLu::default()),
+        SolverKind::Sparse => Box::new(SparseLdlt::default()),
+        SolverKind::Auto if dim < AUTO_DENSE_MAX_DIM => Box::new(DenseLu::default()),
+        SolverKind::Auto => Box::new(SparseLdlt::default()),
+    }
+}

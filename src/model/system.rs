@@ -1,0 +1,256 @@
+//! The assembled multibody system: numbering and evaluation of Φ, Φ_q, Φ_t,
+//! γ and g.
+
+use super::{Body, ModelError};
+use crate::constraints::Constraint;
+use crate::forces::{ForceElement, Gravity};
+
+/// A planar multibody system.
+///
+/// **Numbering.** Body `i` (0-based, in the order added) owns coordinates
+/// `3i, 3i+1, 3i+2` = `x_i, y_i, φ_i`. Constraint rows follow the order in
+/// which joints were added; joint `k` owns rows
+/// `row_offset(k) .. row_offset(k) + n_eq`. The structural non-zeros of Φ_q
+/// are [`System::jacobian_pattern`]: joint by joint, each in its own order.
+///
+/// **Evaluation.** All methods take `&self` and write into caller buffers,
+/// so a `System` can be shared between threads and formulations.
+#[derive(Debug)]
+pub struct System {
+    bodies: Vec<Body>,
+    constraints: Vec<Box<dyn Constraint>>,
+    forces: Vec<Box<dyn ForceElement>>,
+    row_offset: Vec<usize>,
+    jac_offset: Vec<usize>,
+    jac_pattern: Vec<(usize, usize)>,
+    mass_diag: Vec<f64>,
+}
+
+/// Collects bodies, joints and force elements, then validates them into a [`System`].
+#[derive(Debug, Default)]
+pub struct SystemBuilder {
+    bodies: Vec<Body>,
+    constraints: Vec<Box<dyn Constraint>>,
+    forces: Vec<Box<dyn ForceElement>>,
+    gravity: Option<[f64; 2]>,
+}
+
+impl SystemBuilder {
+    /// An empty system.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Add a body; returns its index.
+    pub fn add_body(&mut self, body: Body) -> usize {
+        self.bodies.push(body);
+        self.bodies.len() - 1
+    }
+    /// Add a joint; returns its index (constraint rows follow this order).
+    pub fn add_constraint(&mut self, c: impl Constraint + 'static) -> usize {
+        self.add_boxed_constraint(Box::new(c))
+    }
+    /// Add a boxed joint.
+    pub fn add_boxed_constraint(&mut self, c: Box<dyn Constraint>) -> usize {
+        self.constraints.push(c);
+        self.constraints.len() - 1
+    }
+    /// Add a force element.
+    pub fn add_force(&mut self, f: impl ForceElement + 'static) -> usize {
+        self.add_boxed_force(Box::new(f))
+    }
+    /// Add a boxed force element.
+    pub fn add_boxed_force(&mut self, f: Box<dyn ForceElement>) -> usize {
+        self.forces.push(f);
+        self.forces.len() - 1
+    }
+    /// Uniform gravity on every body (added as a [`Gravity`] element at build time).
+    pub fn gravity(&mut self, g: [f64; 2]) -> &mut Self {
+        self.gravity = Some(g);
+        self
+    }
+    /// Bodies added so far.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+    /// Mutable access to the bodies (e.g. to set initial states).
+    pub fn bodies_mut(&mut self) -> &mut [Body] {
+        &mut self.bodies
+    }
+
+    /// Validate everything and fix the numbering.
+    pub fn build(mut self) -> Result<System, ModelError> {
+        if self.bodies.is_empty() {
+            return Err(ModelError::Empty);
+        }
+        for b in &self.bodies {
+            b.validate()?;
+        }
+        if let Some(g) = self.gravity {
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(ModelError::InvalidParameter {
+                    element: "gravity".into(),
+                    field: "g".into(),
+                    value: format!("{g:?}"),
+                    why: "must be finite".into(),
+                });
+            }
+            let bodies = self
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(i, b)| (i, b.mass))
+                .collect();
+            self.forces.insert(0, Box::new(Gravity { g, bodies }));
+        }
+        let nb = self.bodies.len();
+        let n = 3 * nb;
+        let mut row_offset = vec![0];
+        let mut jac_offset = vec![0];
+        let mut jac_pattern = Vec::new();
+        for c in &self.constraints {
+            c.validate(nb)?;
+            let r0 = *row_offset.last().expect("non-empty");
+            for (r, col) in c.jacobian_pattern() {
+                debug_assert!(r < c.n_eq() && col < n);
+                jac_pattern.push((r0 + r, col));
+            }
+            row_offset.push(r0 + c.n_eq());
+            jac_offset.push(jac_pattern.len());
+        }
+        for f in &self.forces {
+            f.validate(n)?;
+        }
+        let mass_diag = self
+            .bodies
+            .iter()
+            .flat_map(|b| [b.mass, b.mass, b.inertia])
+            .collect();
+        Ok(System {
+            bodies: self.bodies,
+            constraints: self.constraints,
+            forces: self.forces,
+            row_offset,
+            jac_offset,
+            jac_pattern,
+            mass_diag,
+        })
+    }
+}
+
+impl System {
+    /// Bodies in numbering order.
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+    /// Joints in row order.
+    pub fn constraints(&self) -> &[Box<dyn Constraint>] {
+        &self.constraints
+    }
+    /// Force elements (gravity first when enabled).
+    pub fn forces(&self) -> &[Box<dyn ForceElement>] {
+        &self.forces
+    }
+    /// Number of coordinates n = 3 · bodies.
+    pub fn n_coords(&self) -> usize {
+        self.mass_diag.len()
+    }
+    /// Number of constraint equations m.
+    pub fn n_constraints(&self) -> usize {
+        *self.row_offset.last().expect("non-empty")
+    }
+    /// First row of joint `k`.
+    pub fn row_offset(&self, k: usize) -> usize {
+        self.row_offset[k]
+    }
+    /// Diagonal of the mass matrix `M = diag(m_1, m_1, I_1, …)`.
+    pub fn mass_diagonal(&self) -> &[f64] {
+        &self.mass_diag
+    }
+    /// Structural non-zeros `(row, col)` of Φ_q in value order.
+    pub fn jacobian_pattern(&self) -> &[(usize, usize)] {
+        &self.jac_pattern
+    }
+    /// Initial positions and velocities as given on the bodies.
+    pub fn initial_state(&self) -> (Vec<f64>, Vec<f64>) {
+        let q = self.bodies.iter().flat_map(|b| b.q0).collect();
+        let v = self.bodies.iter().flat_map(|b| b.v0).collect();
+        (q, v)
+    }
+    /// Name of coordinate `k`, 1-based as in outputs: `x1`, `y1`, `phi1`, …
+    pub fn coordinate_name(k: usize) -> String {
+        let axis = ["x", "y", "phi"][k % 3];
+        format!("{axis}{}", k / 3 + 1)
+    }
+
+    fn rows(&self, k: usize) -> std::ops::Range<usize> {
+        self.row_offset[k]..self.row_offset[k + 1]
+    }
+
+    /// Φ(q, t), eq. (2).
+    pub fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        for (k, c) in self.constraints.iter().enumerate() {
+            c.phi(q, t, &mut out[self.rows(k)]);
+        }
+    }
+    /// Values of Φ_q(q, t) in the order of [`System::jacobian_pattern`].
+    pub fn jacobian_values(&self, q: &[f64], t: f64, vals: &mut [f64]) {
+        for (k, c) in self.constraints.iter().enumerate() {
+            c.jacobian(q, t, &mut vals[self.jac_offset[k]..self.jac_offset[k + 1]]);
+        }
+    }
+    /// Φ_t(q, t).
+    pub fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        for (k, c) in self.constraints.iter().enumerate() {
+            c.phi_t(q, t, &mut out[self.rows(k)]);
+        }
+    }
+    /// γ(q, q̇, t) of the acceleration equation Φ_q q̈ = γ, eq. (4).
+    pub fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) {
+        for (k, c) in self.constraints.iter().enumerate() {
+            c.gamma(q, qd, t, &mut out[self.rows(k)]);
+        }
+    }
+    /// Generalized forces g(q, q̇, t) (overwrites `g`).
+    pub fn forces_into(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        g.fill(0.0);
+        for f in &self.forces {
+            f.add_forces(t, q, qd, g);
+        }
+    }
+    /// `out = Φ_q x` from Jacobian values `vals`.
+    pub fn jacobian_mul(&self, vals: &[f64], x: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (&(r, c), &v) in self.jac_pattern.iter().zip(vals) {
+            out[r] += v * x[c];
+        }
+    }
+    /// `out = Φ_qᵀ y` from Jacobian values `vals`.
+    pub fn jacobian_tmul(&self, vals: &[f64], y: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (&(r, c), &v) in self.jac_pattern.iter().zip(vals) {
+            out[c] += v * y[r];
+        }
+    }
+    /// Kinetic energy ½ q̇ᵀ M q̇.
+    pub fn kinetic_energy(&self, qd: &[f64]) -> f64 {
+        0.5 * self
+            .mass_diag
+            .iter()
+            .zip(qd)
+            .map(|(m, v)| m * v * v)
+            .sum::<f64>()
+    }
+    /// Sum of the potential energies of the conservative force elements.
+    pub fn potential_energy(&self, q: &[f64]) -> f64 {
+        self.forces
+            .iter()
+            .filter_map(|f| f.potential_energy(q))
+            .sum()
+    }
+    /// Euclidean norm ‖Φ(q, t)‖₂ (allocates; for outputs, not inner loops).
+    pub fn constraint_norm(&self, q: &[f64], t: f64) -> f64 {
+        let mut phi = vec![0.0; self.n_constraints()];
+        self.phi(q, t, &mut phi);
+        phi.iter().map(|v| v * v).sum::<f64>().sqrt()
+    }
+}
