@@ -49,6 +49,15 @@ fn rk4_opts(h: f64) -> OdeOptions {
     }
 }
 
+/// Default options for the adaptive methods, a 0.25 step for rk4.
+fn integ_opts(method: Method) -> OdeOptions {
+    if method == Method::Rk4 {
+        rk4_opts(0.25)
+    } else {
+        OdeOptions::default()
+    }
+}
+
 fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| {
@@ -545,12 +554,7 @@ fn max_step_defaults_to_a_tenth_of_the_span() {
 fn output_at_exactly_the_requested_times() {
     let out = vec![0.0, 0.1, 0.1000001, 0.37, 1.0, 2.5, PI, 5.999, 6.0];
     for method in [Method::Ode23, Method::Ode45, Method::Rk4] {
-        let o = if method == Method::Rk4 {
-            rk4_opts(0.25)
-        } else {
-            OdeOptions::default()
-        };
-        let mut integ = integrator(method, o).unwrap();
+        let mut integ = integrator(method, integ_opts(method)).unwrap();
         let mut rec = Recorder::default();
         let rep = integ
             .integrate(&mut oscillator(), 0.0, 6.0, &[1.0, 0.0], &out, &mut rec)
@@ -585,14 +589,6 @@ fn output_at_exactly_the_requested_times() {
         &[],
     );
     assert!(log.out_t.is_empty() && !log.step_t.is_empty());
-}
-
-fn integ_opts(method: Method) -> OdeOptions {
-    if method == Method::Rk4 {
-        rk4_opts(0.25)
-    } else {
-        OdeOptions::default()
-    }
 }
 
 #[test]
