@@ -20,6 +20,7 @@ pub mod formulation;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
+pub mod events;
 pub mod output;
 pub mod reproduce;
 pub mod scenario;

@@ -18,6 +18,8 @@ use crate::formulation::{
 use crate::integrate::{Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
 use crate::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
+use crate::builders::{add_rod, RodInfo, RodParams};
+use crate::model::Evaluation;
 use crate::simulation::RunConfig;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -52,6 +54,8 @@ pub struct Scenario {
     pub assembly: Option<ConsistentState>,
     /// Integrator, formulation, time span and output times.
     pub run: RunConfig,
+    /// The rod's bookkeeping when the scenario has a `[rod]` table.
+    pub rod: Option<RodInfo>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -77,6 +81,41 @@ struct RawScenario {
     output: RawOutput,
     formulation: Option<String>,
     linear_solver: Option<String>,
+    rod: Option<RawRod>,
+    #[serde(default)]
+    constraints: RawConstraints,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawConstraints {
+    evaluation: Option<String>,
+}
+
+/// `[rod]`: the finite-segment rod of PROBLEMS.md B; every key defaults to
+/// problem B. Segments are added after the `[[body]]` bodies.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRod {
+    segments: Option<i64>,
+    length: Option<f64>,
+    width: Option<f64>,
+    density: Option<f64>,
+    youngs_modulus: Option<f64>,
+    damping_time: Option<f64>,
+    tilt_deg: Option<f64>,
+    velocity: Option<[f64; 2]>,
+    channel_width: Option<f64>,
+    water_density: Option<f64>,
+    drag_transverse: Option<f64>,
+    drag_skin: Option<f64>,
+    drag_end: Option<f64>,
+    contact_stiffness: Option<f64>,
+    contact_damping: Option<f64>,
+    friction: Option<f64>,
+    friction_velocity: Option<f64>,
+    fluid: Option<bool>,
+    contact: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -630,12 +669,65 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
             }
         }
     }
+    let mut rod = None;
+    if let Some(r) = &raw.rod {
+        let mut p = RodParams::problem_b(10);
+        if let Some(n) = r.segments {
+            if n < 1 {
+                return Err(err("rod.segments".into(), format!("{n} is invalid: the rod needs at least one segment")));
+            }
+            p.n_segments = n as usize;
+        }
+        let set = |slot: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *slot = v;
+            }
+        };
+        set(&mut p.length, r.length);
+        set(&mut p.width, r.width);
+        set(&mut p.density, r.density);
+        set(&mut p.youngs_modulus, r.youngs_modulus);
+        set(&mut p.damping_time, r.damping_time);
+        set(&mut p.tilt, r.tilt_deg.map(f64::to_radians));
+        set(&mut p.channel_width, r.channel_width);
+        set(&mut p.water_density, r.water_density);
+        set(&mut p.drag_transverse, r.drag_transverse);
+        set(&mut p.drag_skin, r.drag_skin);
+        set(&mut p.drag_end, r.drag_end);
+        set(&mut p.contact_stiffness, r.contact_stiffness);
+        set(&mut p.contact_damping, r.contact_damping);
+        set(&mut p.friction_coefficient, r.friction);
+        set(&mut p.friction_velocity, r.friction_velocity);
+        if let Some(v) = r.velocity {
+            p.initial_velocity = v;
+        }
+        p.fluid = r.fluid.unwrap_or(true);
+        p.contact = r.contact.unwrap_or(true);
+        // Buoyancy uses the scenario's gravity (none without `gravity`).
+        p.gravity = raw.gravity.map_or(0.0, |g| g[0].hypot(g[1]));
+        let info = add_rod(&mut builder, &p).map_err(|e| err("rod".into(), e.to_string()))?;
+        rod = Some(info);
+    }
     if let Some(g) = raw.gravity {
         builder.gravity(g);
     }
-    let system = builder
+    let mut system = builder
         .build()
         .map_err(|e| err("model".into(), e.to_string()))?;
+    let evaluation = match raw.constraints.evaluation.as_deref() {
+        None | Some("auto") => Evaluation::Auto,
+        Some("generic") => Evaluation::Generic,
+        Some("generated") => Evaluation::Generated,
+        Some(o) => {
+            return Err(err(
+                "constraints.evaluation".into(),
+                format!("unknown evaluation '{o}' (expected auto, generic or generated)"),
+            ))
+        }
+    };
+    system
+        .set_evaluation(evaluation)
+        .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
 
     // Run settings.
     let method: Method = match &raw.integrator.method {
@@ -802,6 +894,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         qd0,
         assembly,
         run,
+        rod,
     })
 }
 

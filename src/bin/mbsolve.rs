@@ -1,7 +1,9 @@
 //! `mbsolve`: command-line front end of the mbsolve library.
 
 use clap::{Parser, Subcommand};
+use mbsolve::events::ContactMonitor;
 use mbsolve::output::{write_summary_json, write_trajectory_csv};
+use mbsolve::simulation::Monitor;
 use mbsolve::{reproduce, scenario, simulation};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -62,7 +64,12 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
             a.position_residual, a.velocity_residual, a.iterations
         );
     }
-    let (traj, summary) = simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
+    let mut contacts = sc.rod.clone().map(ContactMonitor::new);
+    let mut monitors: Vec<&mut dyn Monitor> = Vec::new();
+    if let Some(c) = contacts.as_mut() {
+        monitors.push(c);
+    }
+    let (traj, summary) = simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut monitors)
         .map_err(|e| e.to_string())?;
     let stem = path
         .file_stem()
@@ -82,6 +89,16 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
         summary.max_constraint_norm,
         summary.final_constraint_norm
     );
+    if let Some(c) = &contacts {
+        match c.first_contact() {
+            Some(t) => println!(
+                "contacts: first at t = {t:.4} s, {} starts, peak normal force {:.1} N",
+                c.events.iter().filter(|e| e.kind == "start").count(),
+                c.peak.map_or(0.0, |p| p.force)
+            ),
+            None => println!("contacts: none"),
+        }
+    }
     println!("wrote {} and {}", csv.display(), json.display());
     if summary.status == "completed" {
         Ok(ExitCode::SUCCESS)

@@ -77,14 +77,19 @@ pub fn check_coordinates(
     }
 }
 
-/// Scratch space for finite-difference Jacobians of force elements: copies
-/// of q, q̇ and a zeroed force vector of full length, perturbed and restored
-/// only on an element's footprint (cost O(footprint²), not O(n)).
+/// Scratch space for finite-difference Jacobians of force elements: full
+/// copies of q, q̇ and a zeroed force vector, perturbed and restored only on
+/// an element's footprint, so one element costs O(footprint²), not O(n).
+///
+/// Invariant between calls: `g` is all zero; `q`, `qd` may be stale anywhere,
+/// and are refreshed on the element's footprint ([`ForceElement::coordinates`],
+/// which covers everything it reads) at the start of each call.
 #[derive(Debug, Clone, Default)]
 pub struct FdWorkspace {
     q: Vec<f64>,
     qd: Vec<f64>,
     g: Vec<f64>,
+    plus: Vec<f64>,
 }
 
 impl FdWorkspace {
@@ -104,43 +109,72 @@ impl FdWorkspace {
             self.qd = qd.to_vec();
             self.g = vec![0.0; n];
         }
-        let cols = elem.jacobian_coordinates();
-        let k = cols.len();
-        // Bring the copies up to date on the footprint only.
-        for &c in &cols {
+        let footprint = elem.coordinates();
+        for &c in &footprint {
             self.q[c] = q[c];
             self.qd[c] = qd[c];
         }
-        for (which, out) in [(0, &mut *dq), (1, &mut *dqd)] {
+        let cols = elem.jacobian_coordinates();
+        let k = cols.len();
+        self.plus.resize(k, 0.0);
+        for velocity in [false, true] {
+            let out = if velocity { &mut *dqd } else { &mut *dq };
             for (ci, &c) in cols.iter().enumerate() {
-                let x0 = if which == 0 { q[c] } else { qd[c] };
+                let x0 = if velocity { qd[c] } else { q[c] };
                 let h = 1e-7 * (1.0 + x0.abs());
-                let mut col_val = |x: f64, gs: &mut Vec<f64>| {
-                    if which == 0 {
-                        self.q[c] = x;
-                    } else {
+                for (sign, store_plus) in [(1.0, true), (-1.0, false)] {
+                    let x = x0 + sign * h;
+                    if velocity {
                         self.qd[c] = x;
+                    } else {
+                        self.q[c] = x;
                     }
-                    for &r in &cols {
-                        gs[r] = 0.0;
+                    elem.add_forces(t, &self.q, &self.qd, &mut self.g);
+                    for (ri, &r) in cols.iter().enumerate() {
+                        if store_plus {
+                            self.plus[ri] = self.g[r];
+                        } else {
+                            out[ri * k + ci] += (self.plus[ri] - self.g[r]) / (2.0 * h);
+                        }
                     }
-                    elem.add_forces(t, &self.q, &self.qd, gs);
-                };
-                let mut g = std::mem::take(&mut self.g);
-                col_val(x0 + h, &mut g);
-                let plus: Vec<f64> = cols.iter().map(|&r| g[r]).collect();
-                col_val(x0 - h, &mut g);
-                for (ri, &r) in cols.iter().enumerate() {
-                    out[ri * k + ci] += (plus[ri] - g[r]) / (2.0 * h);
-                    g[r] = 0.0;
+                    for &r in &footprint {
+                        self.g[r] = 0.0;
+                    }
                 }
-                self.g = g;
-                if which == 0 {
-                    self.q[c] = x0;
-                } else {
+                if velocity {
                     self.qd[c] = x0;
+                } else {
+                    self.q[c] = x0;
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::BodyRef;
+
+    #[test]
+    fn fd_workspace_matches_analytic_jacobians_and_stays_clean() {
+        let spring = TorsionalSpringDamper::new(BodyRef::Body(0), BodyRef::Body(2), 3.0, 0.7);
+        let q = [0.1, 0.2, 0.3, 0.0, 0.0, -0.4, 0.5, 0.6, 0.9];
+        let qd = [0.0, 0.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.0, -2.0];
+        let k = spring.jacobian_coordinates().len();
+        let (mut a_q, mut a_qd) = (vec![0.0; k * k], vec![0.0; k * k]);
+        let mut ws = FdWorkspace::default();
+        spring.add_jacobians(0.0, &q, &qd, &mut a_q, &mut a_qd, &mut ws);
+        // twice through the workspace: the second call must see fresh q and a clean g
+        for q_shift in [0.0, 0.25] {
+            let q2: Vec<f64> = q.iter().map(|v| v + q_shift).collect();
+            let (mut f_q, mut f_qd) = (vec![0.0; k * k], vec![0.0; k * k]);
+            ws.jacobians(&spring, 0.0, &q2, &qd, &mut f_q, &mut f_qd);
+            for i in 0..k * k {
+                assert!((a_q[i] - f_q[i]).abs() < 1e-6, "{a_q:?} vs {f_q:?}");
+                assert!((a_qd[i] - f_qd[i]).abs() < 1e-6, "{a_qd:?} vs {f_qd:?}");
+            }
+        }
+        assert!(ws.g.iter().all(|&v| v == 0.0));
     }
 }

@@ -13,10 +13,15 @@
 //! * [`SaddlePointSolver::factorize`] (per evaluation): a symmetric diagonal
 //!   scaling (`O(nnz)`), a scatter of the scaled values through the slot map
 //!   and faer's numeric LDLᵀ into the pre-allocated factor storage. No
-//!   sorting, no symbolic work, no heap allocation by this module (faer's
-//!   numeric kernels take all their scratch from the pre-sized `MemStack`;
-//!   `tests/linalg.rs` checks with a counting allocator that a
-//!   re-factorisation performs zero allocations).
+//!   sorting, no symbolic work and no heap allocation at all: faer's
+//!   numeric kernels take all their scratch from the pre-sized `MemStack`
+//!   (`tests/linalg.rs` checks with a counting allocator that
+//!   re-factorisation and solve perform zero allocations, on the
+//!   simplicial and the supernodal path). The simplicial/supernodal numeric
+//!   kernels are called directly rather than through
+//!   `SymbolicCholesky::factorize_numeric_ldlt`, because that wrapper
+//!   re-permutes the matrix on every call and drops faer's `LdltInfo` (the
+//!   regularised-pivot count).
 //! * [`SaddlePointSolver::solve_in_place`] (per right-hand side): scaled
 //!   solve, residual check, at most one step of iterative refinement.
 //!
@@ -30,17 +35,19 @@
 //! Replacing a pivot is the same as perturbing that diagonal entry of `K`,
 //! so a redundant constraint row (rank-deficient `Φ_q`) gets the penalty
 //! `−δ` on its multiplier: for a consistent right-hand side the coordinate
-//! part of the solution is the unique one and the redundant multiplier
-//! stays (numerically) zero — the least-squares / minimum-norm behaviour the
+//! part of the solution is the unique one and the multiplier whose pivot
+//! was regularised stays ≈ 0 (the pair's sum is the physical multiplier) — the least-squares / minimum-norm behaviour the
 //! dynamics needs instead of NaNs.
 //!
 //! `ε` and `δ` are *relative*: each factorisation first scales
 //! `K̃ = S K S` with `S = diag(s)`, `s_i = 1/√|A_ii|` for the coordinates
 //! (unit diagonal of `Ã`) and `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)` for
 //! the multipliers (largest scaled Jacobian entry of each row is 1). In
-//! these units a genuine multiplier pivot of a full-rank `Φ_q` eliminated
-//! after its coordinates has magnitude ≥ 1, while the pivot of a redundant
-//! row is rounding noise (~1e-15). Defaults: [`DEFAULT_EPSILON`] = 1e-11,
+//! these units the multiplier pivots of a well-conditioned full-rank `Φ_q`
+//! are O(1) (≥ 1 for a diagonal `A` when a row's coordinates are eliminated
+//! before it), while the pivot of a redundant row is rounding noise
+//! (~1e-15); the coordinate pivots are ≥ the scaled smallest eigenvalue of
+//! `A`. Defaults: [`DEFAULT_EPSILON`] = 1e-11,
 //! [`DEFAULT_DELTA`] = 1e-8 (scaled units, i.e. relative to the size of the
 //! mass/Newton diagonal and of the Jacobian rows).
 
@@ -90,7 +97,9 @@ pub enum Ordering {
     /// diagonal per body.
     Natural,
     /// A user elimination order: `order[k]` is the row/column of `K`
-    /// eliminated `k`-th (e.g. [`chain_order`]).
+    /// eliminated `k`-th (e.g. [`chain_order`]). `analyze` returns
+    /// [`LinalgError::Dimension`] if the length is not `n + m` and panics if
+    /// it is not a permutation.
     Custom(Vec<usize>),
 }
 
@@ -619,5 +628,35 @@ mod tests {
         assert!((x[1] - 2.0).abs() < 1e-10);
         assert!((x[2] - 0.6).abs() < 1e-10);
         assert!((x[3] + x[4] - 1.2).abs() < 1e-8);
+    }
+
+    #[test]
+    fn empty_and_unconstrained() {
+        let k = SaddleMatrix::new(0, 0, &[], &[]);
+        let mut s = SparseLdlt::default();
+        s.analyze(&k).unwrap();
+        s.factorize(&k).unwrap();
+        s.solve_in_place(&k, &mut []).unwrap();
+
+        // m = 0: plain SPD A with one coupling.
+        let mut k = SaddleMatrix::new(3, 0, &[(2, 0)], &[]);
+        k.set_a_diagonal(&[4.0, 1.0, 2.0]);
+        let slot = k.a_slots()[0];
+        k.values_mut()[slot] = 1.0;
+        for ord in [
+            Ordering::Amd,
+            Ordering::Natural,
+            Ordering::Custom(vec![2, 0, 1]),
+        ] {
+            let mut s = SparseLdlt::new(ord);
+            s.analyze(&k).unwrap();
+            assert_eq!(s.factorize(&k).unwrap().regularized_pivots, 0);
+            let mut x = vec![5.0, 1.0, 3.0];
+            s.solve_in_place(&k, &mut x).unwrap();
+            assert!((x[0] - 1.0).abs() < 1e-14 && (x[1] - 1.0).abs() < 1e-14);
+            assert!((x[2] - 1.0).abs() < 1e-14, "{x:?}");
+        }
+        let mut s = SparseLdlt::new(Ordering::Custom(vec![0, 1]));
+        assert!(matches!(s.analyze(&k), Err(LinalgError::Dimension { .. })));
     }
 }

@@ -50,13 +50,15 @@ impl Body {
         if !(self.inertia.is_finite() && self.inertia > 0.0) {
             return Err(bad("inertia", self.inertia, "must be finite and > 0"));
         }
-        for (k, f) in ["x", "y", "phi"].iter().enumerate() {
-            let _ = f;
+        for (k, (fq, fv)) in [("x", "vx"), ("y", "vy"), ("phi", "omega")]
+            .into_iter()
+            .enumerate()
+        {
             if !self.q0[k].is_finite() {
-                return Err(bad("initial position", self.q0[k], "must be finite"));
+                return Err(bad(fq, self.q0[k], "must be finite"));
             }
             if !self.v0[k].is_finite() {
-                return Err(bad("initial velocity", self.v0[k], "must be finite"));
+                return Err(bad(fv, self.v0[k], "must be finite"));
             }
         }
         Ok(())

@@ -11,7 +11,7 @@ mod system;
 mod time_function;
 
 pub use body::{Body, BodyRef};
-pub use system::{System, SystemBuilder};
+pub use system::{ConstraintKernels, Evaluation, System, SystemBuilder};
 pub use time_function::TimeFunction;
 
 /// Rotation matrix R(φ) applied to a body-fixed vector `s`: `R(φ) s`.

@@ -5,6 +5,39 @@ use super::{Body, ModelError};
 use crate::constraints::Constraint;
 use crate::forces::{ForceElement, Gravity};
 
+/// Specialised evaluation of Φ, Φ_q, Φ_t and γ for a whole system, e.g.
+/// code emitted at build time by `mbsolve-codegen` for a known topology.
+///
+/// Implementations must produce exactly what the generic per-joint
+/// evaluation produces (to rounding): the same rows, and Φ_q values in the
+/// order of [`System::jacobian_pattern`].
+pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
+    /// Name for summaries, e.g. "generated:rod_chain".
+    fn name(&self) -> &str;
+    /// Φ(q, t).
+    fn phi(&self, q: &[f64], t: f64, out: &mut [f64]);
+    /// Φ_q values in pattern order.
+    fn jacobian_values(&self, q: &[f64], t: f64, vals: &mut [f64]);
+    /// Φ_t(q, t).
+    fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]);
+    /// γ(q, q̇, t).
+    fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]);
+}
+
+/// Which evaluation of Φ, Φ_q, Φ_t, γ a [`System`] uses
+/// (scenario key `constraints.evaluation`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Evaluation {
+    /// Kernels when attached, the generic per-joint loop otherwise.
+    #[default]
+    Auto,
+    /// Always the generic per-joint loop over [`Constraint`] objects.
+    Generic,
+    /// The attached kernels (an error when none are attached).
+    Generated,
+}
+
 /// A planar multibody system.
 ///
 /// **Numbering.** Body `i` (0-based, in the order added) owns coordinates
@@ -24,6 +57,8 @@ pub struct System {
     jac_offset: Vec<usize>,
     jac_pattern: Vec<(usize, usize)>,
     mass_diag: Vec<f64>,
+    kernels: Option<Box<dyn ConstraintKernels>>,
+    use_kernels: bool,
 }
 
 /// Collects bodies, joints and force elements, then validates them into a [`System`].
@@ -100,7 +135,8 @@ impl SystemBuilder {
                 .enumerate()
                 .map(|(i, b)| (i, b.mass))
                 .collect();
-            self.forces.insert(0, Box::new(Gravity { g, bodies }));
+            // Appended, so indices returned by `add_force` stay valid.
+            self.forces.push(Box::new(Gravity { g, bodies }));
         }
         let nb = self.bodies.len();
         let n = 3 * nb;
@@ -133,6 +169,8 @@ impl SystemBuilder {
             jac_offset,
             jac_pattern,
             mass_diag,
+            kernels: None,
+            use_kernels: false,
         })
     }
 }
@@ -146,7 +184,7 @@ impl System {
     pub fn constraints(&self) -> &[Box<dyn Constraint>] {
         &self.constraints
     }
-    /// Force elements (gravity first when enabled).
+    /// Force elements in the order added (builder gravity last).
     pub fn forces(&self) -> &[Box<dyn ForceElement>] {
         &self.forces
     }
@@ -186,26 +224,80 @@ impl System {
         self.row_offset[k]..self.row_offset[k + 1]
     }
 
+    /// Attach specialised kernels (used by default from now on).
+    pub fn attach_kernels(&mut self, k: Box<dyn ConstraintKernels>) {
+        self.kernels = Some(k);
+        self.use_kernels = true;
+    }
+
+    /// Choose the evaluation; `Generated` without attached kernels is an error.
+    pub fn set_evaluation(&mut self, e: Evaluation) -> Result<(), ModelError> {
+        self.use_kernels = match e {
+            Evaluation::Auto => self.kernels.is_some(),
+            Evaluation::Generic => false,
+            Evaluation::Generated => {
+                if self.kernels.is_none() {
+                    return Err(ModelError::InvalidParameter {
+                        element: "system".into(),
+                        field: "constraints.evaluation".into(),
+                        value: "generated".into(),
+                        why: "no generated kernels match this system's topology".into(),
+                    });
+                }
+                true
+            }
+        };
+        Ok(())
+    }
+
+    /// Name of the evaluation in use ("generic" or the kernels' name).
+    pub fn evaluation_name(&self) -> &str {
+        match (&self.kernels, self.use_kernels) {
+            (Some(k), true) => k.name(),
+            _ => "generic",
+        }
+    }
+
+    fn active_kernels(&self) -> Option<&dyn ConstraintKernels> {
+        if self.use_kernels {
+            self.kernels.as_deref()
+        } else {
+            None
+        }
+    }
+
     /// Φ(q, t), eq. (2).
     pub fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        if let Some(k) = self.active_kernels() {
+            return k.phi(q, t, out);
+        }
         for (k, c) in self.constraints.iter().enumerate() {
             c.phi(q, t, &mut out[self.rows(k)]);
         }
     }
     /// Values of Φ_q(q, t) in the order of [`System::jacobian_pattern`].
     pub fn jacobian_values(&self, q: &[f64], t: f64, vals: &mut [f64]) {
+        if let Some(k) = self.active_kernels() {
+            return k.jacobian_values(q, t, vals);
+        }
         for (k, c) in self.constraints.iter().enumerate() {
             c.jacobian(q, t, &mut vals[self.jac_offset[k]..self.jac_offset[k + 1]]);
         }
     }
     /// Φ_t(q, t).
     pub fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        if let Some(k) = self.active_kernels() {
+            return k.phi_t(q, t, out);
+        }
         for (k, c) in self.constraints.iter().enumerate() {
             c.phi_t(q, t, &mut out[self.rows(k)]);
         }
     }
     /// γ(q, q̇, t) of the acceleration equation Φ_q q̈ = γ, eq. (4).
     pub fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) {
+        if let Some(k) = self.active_kernels() {
+            return k.gamma(q, qd, t, out);
+        }
         for (k, c) in self.constraints.iter().enumerate() {
             c.gamma(q, qd, t, &mut out[self.rows(k)]);
         }

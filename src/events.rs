@@ -1,0 +1,139 @@
+//! Contact events of the falling rod: starts and ends of corner–wall
+//! contacts and the peak normal force, observed at accepted steps.
+
+use crate::builders::RodInfo;
+use crate::forces::{CornerState, Wall};
+use crate::simulation::Monitor;
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+/// One contact start or end.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ContactEvent {
+    /// Time of the first accepted step at which the new state was seen \[s\].
+    pub t: f64,
+    /// `start` or `end`.
+    pub kind: &'static str,
+    /// Segment, 1-based from the bottom.
+    pub segment: usize,
+    /// Corner 0..4 in [`crate::forces::WallContact::corner_offset`] order.
+    pub corner: usize,
+    /// `left` (x = −d/2) or `right` (x = +d/2).
+    pub wall: &'static str,
+}
+
+/// The largest normal force seen.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct PeakForce {
+    /// Normal force \[N\].
+    pub force: f64,
+    /// When \[s\].
+    pub t: f64,
+    /// Segment, 1-based.
+    pub segment: usize,
+    /// Corner.
+    pub corner: usize,
+}
+
+/// A [`Monitor`] that turns corner states into contact events.
+///
+/// Contacts are sampled at accepted integration steps, so an event's time is
+/// accurate to one step and a contact shorter than a step may be missed.
+#[derive(Debug)]
+pub struct ContactMonitor {
+    rod: RodInfo,
+    active: Vec<(usize, usize, &'static str)>,
+    scratch: Vec<CornerState>,
+    now: Vec<(usize, usize, &'static str)>,
+    /// Events in time order.
+    pub events: Vec<ContactEvent>,
+    /// Peak normal force.
+    pub peak: Option<PeakForce>,
+}
+
+fn wall_name(w: Wall) -> &'static str {
+    match w {
+        Wall::Left => "left",
+        Wall::Right => "right",
+    }
+}
+
+impl ContactMonitor {
+    /// Monitor the contacts of `rod`.
+    pub fn new(rod: RodInfo) -> Self {
+        Self {
+            rod,
+            active: Vec::new(),
+            scratch: Vec::new(),
+            now: Vec::new(),
+            events: Vec::new(),
+            peak: None,
+        }
+    }
+
+    /// Time of the first contact start.
+    pub fn first_contact(&self) -> Option<f64> {
+        self.events.first().map(|e| e.t)
+    }
+}
+
+impl Monitor for ContactMonitor {
+    fn step(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        self.rod.corner_states(q, qd, &mut self.scratch);
+        self.now.clear();
+        for c in &self.scratch {
+            let key = (c.segment + 1, c.corner, wall_name(c.wall));
+            self.now.push(key);
+            if self.peak.is_none_or(|p| c.normal_force > p.force) {
+                self.peak = Some(PeakForce {
+                    force: c.normal_force,
+                    t,
+                    segment: c.segment + 1,
+                    corner: c.corner,
+                });
+            }
+        }
+        for &(segment, corner, wall) in &self.now {
+            if !self.active.contains(&(segment, corner, wall)) {
+                self.events.push(ContactEvent {
+                    t,
+                    kind: "start",
+                    segment,
+                    corner,
+                    wall,
+                });
+            }
+        }
+        for &(segment, corner, wall) in &self.active {
+            if !self.now.contains(&(segment, corner, wall)) {
+                self.events.push(ContactEvent {
+                    t,
+                    kind: "end",
+                    segment,
+                    corner,
+                    wall,
+                });
+            }
+        }
+        std::mem::swap(&mut self.active, &mut self.now);
+    }
+
+    fn report(&self, extra: &mut Map<String, Value>) {
+        extra.insert(
+            "first_contact_time".into(),
+            self.first_contact().map_or(Value::Null, Value::from),
+        );
+        extra.insert(
+            "contact_starts".into(),
+            Value::from(self.events.iter().filter(|e| e.kind == "start").count()),
+        );
+        extra.insert(
+            "peak_normal_force".into(),
+            serde_json::to_value(self.peak).unwrap_or(Value::Null),
+        );
+        extra.insert(
+            "contact_events".into(),
+            serde_json::to_value(&self.events).unwrap_or(Value::Null),
+        );
+    }
+}
