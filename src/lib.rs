@@ -15,12 +15,12 @@
 
 pub mod builders;
 pub mod constraints;
+pub mod events;
 pub mod forces;
 pub mod formulation;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
-pub mod events;
 pub mod output;
 pub mod reproduce;
 pub mod scenario;

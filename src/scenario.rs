@@ -9,6 +9,7 @@
 //! overrides are applied to the parsed document before validation, so they
 //! obey the same rules (an unknown key is an error).
 
+use crate::builders::{add_rod, RodInfo, RodParams};
 use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
 use crate::forces::{AppliedForce, AppliedTorque};
 use crate::formulation::{
@@ -17,9 +18,8 @@ use crate::formulation::{
 };
 use crate::integrate::{Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
-use crate::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
-use crate::builders::{add_rod, RodInfo, RodParams};
 use crate::model::Evaluation;
+use crate::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
 use crate::simulation::RunConfig;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -399,7 +399,16 @@ pub fn parse(
             }
         },
     )?;
-    build(raw, file, stem)
+    build(raw, file, stem).map_err(|mut e| {
+        // Name the override when the offending key came from --set.
+        if let Some(k) = set_keys
+            .iter()
+            .find(|k| e.key == **k || e.key.starts_with(&format!("{k}.")))
+        {
+            e.file = format!("{file} (--set {k})");
+        }
+        e
+    })
 }
 
 /// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
@@ -674,7 +683,10 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         let mut p = RodParams::problem_b(10);
         if let Some(n) = r.segments {
             if n < 1 {
-                return Err(err("rod.segments".into(), format!("{n} is invalid: the rod needs at least one segment")));
+                return Err(err(
+                    "rod.segments".into(),
+                    format!("{n} is invalid: the rod needs at least one segment"),
+                ));
             }
             p.n_segments = n as usize;
         }
@@ -705,7 +717,20 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         p.contact = r.contact.unwrap_or(true);
         // Buoyancy uses the scenario's gravity (none without `gravity`).
         p.gravity = raw.gravity.map_or(0.0, |g| g[0].hypot(g[1]));
-        let info = add_rod(&mut builder, &p).map_err(|e| err("rod".into(), e.to_string()))?;
+        let info = add_rod(&mut builder, &p).map_err(|e| {
+            // Name the scenario key of the offending builder field.
+            let key = match &e {
+                crate::model::ModelError::InvalidParameter { field, .. } => match field.as_str() {
+                    "n_segments" => "rod.segments".to_string(),
+                    "tilt" => "rod.tilt_deg".to_string(),
+                    "initial_velocity" => "rod.velocity".to_string(),
+                    "friction_coefficient" => "rod.friction".to_string(),
+                    f => format!("rod.{f}"),
+                },
+                _ => "rod".to_string(),
+            };
+            err(key, e.to_string())
+        })?;
         rod = Some(info);
     }
     if let Some(g) = raw.gravity {

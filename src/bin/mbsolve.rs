@@ -121,5 +121,9 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     );
     print!("{}", reproduce::fourbar_table(&cases));
     println!("wrote {}", out.join("fourbar").display());
+    let rod = reproduce::rod_study(out).map_err(|e| e.to_string())?;
+    println!("falling rod, N = 10: {} runs", rod.len());
+    print!("{}", reproduce::rod_table(&rod));
+    println!("wrote {}", out.join("falling_rod").display());
     Ok(ExitCode::SUCCESS)
 }

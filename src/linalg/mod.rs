@@ -96,7 +96,8 @@ pub trait SaddlePointSolver: Send {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SolverKind {
-    /// Dense for tiny systems, sparse above a measured size.
+    /// Dense below the measured [`AUTO_DENSE_MAX_DIM`], sparse from it on
+    /// (the measurement found no size where dense wins: currently sparse).
     #[default]
     Auto,
     /// Dense LU with partial pivoting (faer); for tiny systems and cross-checks.
@@ -125,8 +126,8 @@ impl std::str::FromStr for SolverKind {
 /// Measured with `cargo bench --bench saddle_point -- breakeven` (pendulum
 /// chains, numeric factorisation + one solve, release, 2-core machine):
 /// there is no break-even — `SparseLdlt` is faster at every size, from
-/// dim 5 (1 body: 0.36 µs vs 1.6 µs for `DenseLu`) through dim 30
-/// (2.1 µs vs 8.1 µs) to dim 120 (9.7 µs vs 105 µs). `DenseLu` pays an
+/// dim 5 (1 body: 0.25 µs vs 0.91 µs for `DenseLu`) through dim 30
+/// (1.5 µs vs 5.4 µs) to dim 120 (6.1 µs vs 66 µs). `DenseLu` pays an
 /// allocation and a dense copy per factorisation that the sparse path has
 /// not, and it rejects rank-deficient `Φ_q` where the sparse path
 /// regularises. So `Auto` is sparse for every dimension (threshold 0);

@@ -1,0 +1,210 @@
+//! Problem B and D dynamics through the whole pipeline: exact free fall
+//! with buoyancy, energy of the conservative pendulum, static Hertz contact
+//! reached dynamically, contact events, integrator agreement.
+
+use mbsolve::builders::{add_rod, n_link_pendulum, RodParams};
+use mbsolve::events::ContactMonitor;
+use mbsolve::forces::{AppliedForce, Buoyancy, Gravity};
+use mbsolve::formulation::{Baumgarte, Index1Options};
+use mbsolve::integrate::{Method, OdeOptions, Tolerance};
+use mbsolve::model::{SystemBuilder, TimeFunction};
+use mbsolve::reproduce::FALLING_ROD_TOML;
+use mbsolve::scenario;
+use mbsolve::simulation::{simulate, Monitor, RunConfig};
+
+fn config(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfig {
+    RunConfig {
+        method,
+        ode: OdeOptions {
+            rtol,
+            atol: Tolerance::Scalar(atol),
+            ..Default::default()
+        },
+        t0: 0.0,
+        t_end,
+        output_dt: dt,
+        index1: Index1Options::default(),
+    }
+}
+
+#[test]
+fn buoyant_free_fall_is_exact_and_uniform_in_x() {
+    // Contact and drag off, buoyancy on: the centre of mass falls with
+    // g (1 − ρ_w/ρ) and moves uniformly in x (PROBLEMS.md B).
+    let mut p = RodParams::problem_b(8);
+    p.fluid = false;
+    p.contact = false;
+    let mut b = SystemBuilder::new();
+    let info = add_rod(&mut b, &p).unwrap();
+    let vol = p.width * p.width * p.segment_length();
+    b.add_force(Buoyancy {
+        fluid_density: 1000.0,
+        gravity: 9.81,
+        bodies: info.bodies.iter().map(|&i| (i, vol)).collect(),
+    });
+    b.add_force(Gravity {
+        g: [0.0, -9.81],
+        bodies: info.bodies.iter().map(|&i| (i, p.segment_mass())).collect(),
+    });
+    let sys = b.build().unwrap();
+    let (q0, qd0) = sys.initial_state();
+    let cfg = config(Method::Ode45, 1e-10, 1e-12, 0.5, 0.05);
+    let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+    assert_eq!(s.status, "completed");
+    let a = 9.81 * (1.0 - 1000.0 / 7850.0);
+    let com = |q: &[f64], k: usize| info.bodies.iter().map(|&i| q[3 * i + k]).sum::<f64>() / 8.0;
+    let (x0, y0) = (com(&traj.q[0], 0), com(&traj.q[0], 1));
+    for (k, &t) in traj.t.iter().enumerate() {
+        let (x, y) = (com(&traj.q[k], 0), com(&traj.q[k], 1));
+        assert!((x - (x0 + 0.1 * t)).abs() < 1e-10, "x at t = {t}: {x}");
+        assert!(
+            (y - (y0 - 0.5 * a * t * t)).abs() < 1e-10,
+            "y at t = {t}: {y} vs {}",
+            y0 - 0.5 * a * t * t
+        );
+    }
+}
+
+#[test]
+fn conservative_pendulum_keeps_its_energy() {
+    let (sys, _) = n_link_pendulum(5, 0.2, 0.3, 0.7, 9.81).unwrap();
+    let (q0, qd0) = sys.initial_state();
+    let energy = |q: &[f64], qd: &[f64]| sys.kinetic_energy(qd) + sys.potential_energy(q);
+    let e0 = energy(&q0, &qd0);
+    let scale = 5.0 * 0.3 * 9.81 * 0.2; // a typical potential-energy swing [J]
+    let mut drifts = Vec::new();
+    for rtol in [1e-6, 1e-9] {
+        let mut cfg = config(Method::Ode45, rtol, rtol * 1e-2, 2.0, 0.01);
+        cfg.index1.baumgarte = Baumgarte {
+            alpha: 0.0,
+            beta: 0.0,
+        };
+        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+        assert_eq!(s.status, "completed");
+        let drift = traj
+            .q
+            .iter()
+            .zip(&traj.qd)
+            .map(|(q, qd)| (energy(q, qd) - e0).abs())
+            .fold(0.0, f64::max);
+        drifts.push(drift / scale);
+    }
+    assert!(
+        drifts[1] < 1e-7,
+        "energy drift at rtol 1e-9: {:e}",
+        drifts[1]
+    );
+    assert!(
+        drifts[1] < drifts[0] / 50.0,
+        "energy drift does not follow the tolerance: {drifts:?}"
+    );
+}
+
+#[test]
+fn segment_pushed_against_a_wall_settles_at_the_hertz_penetration() {
+    // One vertical segment, no gravity or fluid, pushed by F towards the
+    // right wall: both right corners carry F/2, so δ = (F / (2 k_h))^(2/3).
+    // A short segment (0.1 m, 0.7 kg): the contact oscillation (≈ 700 Hz)
+    // is damped by Hunt–Crossley at ≈ 100/s, so it settles well within 0.5 s.
+    let mut p = RodParams::problem_b(1);
+    p.length = 0.1;
+    p.fluid = false;
+    p.tilt = 0.0;
+    p.initial_velocity = [0.0, 0.0];
+    let mut b = SystemBuilder::new();
+    let info = add_rod(&mut b, &p).unwrap();
+    let body = info.bodies[0];
+    b.bodies_mut()[body].q0[0] = 0.025 - p.width / 2.0; // touching
+    let f = 200.0;
+    b.add_force(AppliedForce {
+        name: "push".into(),
+        body,
+        point: [0.0, 0.0],
+        fx: TimeFunction::Constant(f),
+        fy: TimeFunction::Constant(0.0),
+    });
+    let sys = b.build().unwrap();
+    let (q0, qd0) = sys.initial_state();
+    let cfg = config(Method::Ode45, 1e-8, 1e-12, 0.5, 0.01);
+    let mut mon = ContactMonitor::new(info.clone());
+    let mut mons: [&mut dyn Monitor; 1] = [&mut mon];
+    let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut mons).unwrap();
+    assert_eq!(s.status, "completed");
+    let q = traj.q.last().unwrap();
+    let delta = q[3 * body] + p.width / 2.0 - 0.025;
+    let expect = (f / (2.0 * p.contact_stiffness)).powf(2.0 / 3.0);
+    assert!(
+        (delta / expect - 1.0).abs() < 1e-4,
+        "δ = {delta:e}, Hertz {expect:e}"
+    );
+    assert!(
+        q[3 * body + 2].abs() < 1e-9,
+        "the segment must not tilt: {}",
+        q[3 * body + 2]
+    );
+    // the two right corners came into contact (corners 1 and 2 face +x)
+    let starts: Vec<_> = mon.events.iter().filter(|e| e.kind == "start").collect();
+    assert!(
+        starts.iter().any(|e| e.corner == 1 && e.wall == "right"),
+        "{:?}",
+        mon.events
+    );
+    assert!(
+        starts.iter().any(|e| e.corner == 2 && e.wall == "right"),
+        "{:?}",
+        mon.events
+    );
+}
+
+#[test]
+fn ode23_and_ode45_agree_on_problem_b() {
+    let run = |method: &str, rtol: f64| {
+        let o = vec![
+            format!("integrator.method={method}"),
+            format!("integrator.rtol={rtol}"),
+            format!("integrator.atol={}", rtol * 1e-3),
+            "time.end=0.3".to_string(),
+            "output.dt=0.01".to_string(),
+        ];
+        let sc = scenario::parse(FALLING_ROD_TOML, "falling_rod.toml", "falling_rod", &o).unwrap();
+        let (traj, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+        assert_eq!(s.status, "completed");
+        traj
+    };
+    let a = run("ode23", 1e-7);
+    let b = run("ode45", 1e-9);
+    let mut worst: f64 = 0.0;
+    for (qa, qb) in a.q.iter().zip(&b.q) {
+        for i in 0..10 {
+            worst = worst.max((qa[3 * i] - qb[3 * i]).abs());
+        }
+    }
+    assert!(worst < 1e-5, "x of segments differ by {worst:e} m");
+}
+
+#[test]
+fn bad_rod_input_is_rejected_with_the_field() {
+    for (set, needles) in [
+        ("rod.segments=0", vec!["rod.segments", "0"]),
+        ("rod.width=-0.03", vec!["width", "-0.03"]),
+        ("rod.channel_width=0.02", vec!["channel_width", "0.02"]),
+        ("rod.tilt_deg=20", vec!["tilt"]),
+        ("rod.youngs_modulus=0", vec!["youngs_modulus"]),
+    ] {
+        let e = scenario::parse(
+            FALLING_ROD_TOML,
+            "falling_rod.toml",
+            "falling_rod",
+            &[set.to_string()],
+        )
+        .unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("falling_rod.toml") && msg.contains("--set"),
+            "{set}: {msg}"
+        );
+        for n in needles {
+            assert!(msg.contains(n), "{set}: '{n}' not in: {msg}");
+        }
+    }
+}
