@@ -295,7 +295,7 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
         }
         if method == "ode23" && alpha == 0.0 {
             let labels = [
-                format!("segment 1"),
+                "segment 1".to_string(),
                 format!("segment {}", n / 2),
                 format!("segment {n}"),
             ];

@@ -86,7 +86,6 @@ fn emit_fn(m: &PlanarModel, spec: &FnSpec, code: &mut String) -> usize {
     }
     code.push_str(&body);
     code.push_str("}\n\n");
-    let _ = spec.args.iter().filter(|a| a.2 == ArgKind::Output).count();
     ops
 }
 
@@ -522,7 +521,6 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
         let _ = writeln!(code, "    }}\n}}\n");
         st.functions += 1;
     }
-    let _ = &mut m;
     (code, st)
 }
 
