@@ -18,6 +18,8 @@ pub mod constraints;
 pub mod events;
 pub mod forces;
 pub mod formulation;
+pub mod gate;
+pub mod generated;
 pub mod integrate;
 pub mod linalg;
 pub mod model;

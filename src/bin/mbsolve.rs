@@ -32,6 +32,12 @@ enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// CI performance gate: machine-independent ratios measured in one run.
+    BenchGate {
+        /// Also write the figures as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -45,6 +51,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run { scenario, set, out } => run(&scenario, &set, &out),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::BenchGate { json } => bench_gate(json.as_deref()),
     };
     match result {
         Ok(code) => code,
@@ -126,4 +133,26 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     print!("{}", reproduce::rod_table(&rod));
     println!("wrote {}", out.join("falling_rod").display());
     Ok(ExitCode::SUCCESS)
+}
+
+fn bench_gate(json: Option<&std::path::Path>) -> Result<ExitCode, String> {
+    let checks = mbsolve::gate::run();
+    let mut ok = true;
+    for c in &checks {
+        let op = if c.at_most { "<=" } else { ">=" };
+        println!(
+            "{} {}: ratio {:.2} ({op} {}) — {}",
+            if c.passed { "PASS" } else { "FAIL" },
+            c.name,
+            c.ratio,
+            c.threshold,
+            c.detail
+        );
+        ok &= c.passed;
+    }
+    if let Some(p) = json {
+        let text = serde_json::to_string_pretty(&checks).map_err(|e| e.to_string())?;
+        std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display()))?;
+    }
+    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }

@@ -86,6 +86,11 @@ pub trait Constraint: Send + Sync + Debug {
     fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
         check_bodies(&self.name(), &self.bodies(), n_bodies)
     }
+    /// The joint as a [`Revolute`], if it is one (lets generated kernels
+    /// recognise a topology; see `crate::generated`).
+    fn as_revolute(&self) -> Option<&Revolute> {
+        None
+    }
 }
 
 /// Every referenced body exists and the two sides differ.

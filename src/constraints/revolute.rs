@@ -106,4 +106,7 @@ impl Constraint for Revolute {
         check_finite(&self.name(), "point j", &self.s_j)?;
         check_bodies(&self.name(), &self.bodies(), n_bodies)
     }
+    fn as_revolute(&self) -> Option<&Revolute> {
+        Some(self)
+    }
 }

@@ -11,7 +11,7 @@
 mod index1;
 mod initial;
 
-pub use index1::{Index1, Index1Options, RhsStats};
+pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
 
 use crate::linalg::LinalgError;
@@ -120,6 +120,17 @@ pub enum FormulationError {
         t: f64,
         /// The linear-algebra failure.
         source: LinalgError,
+    },
+    /// The state handed to the right-hand side is not finite.
+    #[error(
+        "at t = {t}: state component {component} is not finite: the integration became \
+         unstable (step too large for the system's stiffness, or tolerances too loose)"
+    )]
+    Unstable {
+        /// Time of the evaluation.
+        t: f64,
+        /// The first non-finite component (e.g. `phi12` or `dx3/dt`).
+        component: String,
     },
     /// Invalid parameters.
     #[error("{0}")]

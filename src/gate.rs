@@ -1,0 +1,133 @@
+//! The CI performance gate (`mbsolve bench-gate`): ratios measured in one
+//! run, so they do not depend on the machine's speed.
+//!
+//! * RHS scaling: one right-hand-side evaluation of the falling rod at
+//!   N = 8000 over N = 1000 (linear cost ≈ 8; fails above 10);
+//! * sparse over dense: the RHS at N = 200 with the dense LU against the
+//!   sparse LDLᵀ (fails below 50×).
+//!
+//! Timings are the minimum over interleaved repetitions (robust to a shared
+//! machine) on a single thread (so the ratio measures algorithmic scaling,
+//! not the concurrency that only large N switch on).
+
+use crate::builders::{build_rod, RodParams};
+use crate::formulation::{Index1, Index1Options};
+use crate::linalg::SolverKind;
+use crate::model::System;
+use serde::Serialize;
+use std::time::Instant;
+
+/// One check of the gate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Check {
+    /// What is measured.
+    pub name: String,
+    /// Measured ratio.
+    pub ratio: f64,
+    /// Threshold.
+    pub threshold: f64,
+    /// `true` when the ratio must stay at or below the threshold, `false` when at or above.
+    pub at_most: bool,
+    /// Whether it passed.
+    pub passed: bool,
+    /// The underlying timings.
+    pub detail: String,
+}
+
+struct RhsCase {
+    sys: System,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+}
+
+impl RhsCase {
+    fn rod(n: usize) -> Self {
+        let (sys, _) = build_rod(&RodParams::problem_b(n)).expect("problem B builds");
+        let (q, mut qd) = sys.initial_state();
+        // a generic state: small perturbations of every velocity
+        for (i, v) in qd.iter_mut().enumerate() {
+            *v += 1e-3 * ((i as f64) * 0.37).sin();
+        }
+        Self { sys, q, qd }
+    }
+
+    /// Seconds per RHS evaluation: min over `reps` batches of `batch` evaluations.
+    fn time(&self, f: &mut Index1<'_>, batch: usize) -> f64 {
+        let mut qdd = vec![0.0; self.sys.n_coords()];
+        let t = Instant::now();
+        for _ in 0..batch {
+            f.accelerations(0.0, &self.q, &self.qd, &mut qdd)
+                .expect("RHS evaluates");
+        }
+        t.elapsed().as_secs_f64() / batch as f64
+    }
+}
+
+fn ratio_of(
+    a: &RhsCase,
+    fa: &mut Index1<'_>,
+    batch_a: usize,
+    b: &RhsCase,
+    fb: &mut Index1<'_>,
+    batch_b: usize,
+    reps: usize,
+) -> (f64, f64) {
+    let (mut ta, mut tb) = (f64::MAX, f64::MAX);
+    // warm-up, then interleave so that load changes hit both alike
+    a.time(fa, 1);
+    b.time(fb, 1);
+    for _ in 0..reps {
+        ta = ta.min(a.time(fa, batch_a));
+        tb = tb.min(b.time(fb, batch_b));
+    }
+    (ta, tb)
+}
+
+/// Run every check (about 15–30 s on the 2-core CI machine).
+pub fn run() -> Vec<Check> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread pool");
+    pool.install(|| {
+        let mut checks = Vec::new();
+        let sparse = Index1Options {
+            linear_solver: SolverKind::Sparse,
+            ..Default::default()
+        };
+
+        let small = RhsCase::rod(1000);
+        let large = RhsCase::rod(8000);
+        let mut fs = Index1::new(&small.sys, sparse).expect("formulation");
+        let mut fl = Index1::new(&large.sys, sparse).expect("formulation");
+        let (ts, tl) = ratio_of(&small, &mut fs, 40, &large, &mut fl, 5, 60);
+        let r = tl / ts;
+        checks.push(Check {
+            name: "RHS cost, falling rod N = 8000 over N = 1000 (linear ≈ 8)".into(),
+            ratio: r,
+            threshold: 10.0,
+            at_most: true,
+            passed: r <= 10.0,
+            detail: format!("{:.1} µs vs {:.1} µs per evaluation", tl * 1e6, ts * 1e6),
+        });
+
+        let mid = RhsCase::rod(200);
+        let dense = Index1Options {
+            linear_solver: SolverKind::Dense,
+            ..Default::default()
+        };
+        let mut fd = Index1::new(&mid.sys, dense).expect("formulation");
+        let mut fsp = Index1::new(&mid.sys, sparse).expect("formulation");
+        let (td, tsp) = ratio_of(&mid, &mut fd, 3, &mid, &mut fsp, 300, 15);
+        let r = td / tsp;
+        checks.push(Check {
+            name: "RHS speed, sparse LDLᵀ over dense LU, falling rod N = 200 (dim 998)".into(),
+            ratio: r,
+            threshold: 50.0,
+            at_most: false,
+            passed: r >= 50.0,
+            detail: format!("dense {:.2} ms vs sparse {:.1} µs per evaluation", td * 1e3, tsp * 1e6),
+        });
+        checks
+    })
+}

@@ -1,0 +1,411 @@
+//! Constraint kernels generated at build time by `mbsolve-codegen`
+//! (DESIGN.md, "Code generation").
+//!
+//! `build.rs` runs the generator for the built-in topologies and writes
+//! `$OUT_DIR/mbsolve_generated.rs`, included here as [`kernels`]: the
+//! body–body revolute chain (per-joint kernels plus loops; the rod and the
+//! links of the N-link pendulum), one revolute between the ground and a body
+//! (the pendulum pivot, the cantilever base), the four-bar (fully unrolled),
+//! and force kernels (torsional spring–dampers along a chain, drag on every
+//! body). Joint parameters — the body-fixed points — are run-time inputs, so
+//! one set of kernels serves every segment length and every N.
+//!
+//! [`recognise`] inspects a [`System`]'s joints and returns matching kernels
+//! implementing [`ConstraintKernels`], or `None`; [`attach_generated`]
+//! attaches them. The kernels reproduce the generic per-joint evaluation
+//! (same rows, Φ_q values in the order of [`System::jacobian_pattern`]).
+//!
+//! Recognised topologies:
+//! * **four-bar**: 3 bodies and exactly the revolutes ground–0, 0–1, 1–2,
+//!   ground–2 in that order (PROBLEMS.md A), any pin points;
+//! * **revolute chain**: N bodies, joints `k = 0 … N−2` each a revolute with
+//!   `body_i = k`, `body_j = k + 1` (any points), in row order — the rod of
+//!   PROBLEMS.md B; optionally one more revolute between the ground (either
+//!   side) and any body, as the first or the last joint — the N-link
+//!   pendulum and the cantilever of PROBLEMS.md D.
+//!
+//! Anything else (another joint kind, other body numbering or order) gives
+//! `None`, and the system keeps its generic evaluation.
+
+use crate::constraints::Revolute;
+use crate::model::{BodyRef, ConstraintKernels, System};
+
+/// The generated functions (`$OUT_DIR/mbsolve_generated.rs`).
+pub mod kernels {
+    include!(concat!(env!("OUT_DIR"), "/mbsolve_generated.rs"));
+}
+
+fn code(b: BodyRef) -> i64 {
+    match b {
+        BodyRef::Ground => -1,
+        BodyRef::Body(i) => i as i64,
+    }
+}
+
+fn revolute_params(r: &Revolute) -> [f64; 4] {
+    [r.s_i[0], r.s_i[1], r.s_j[0], r.s_j[1]]
+}
+
+#[inline]
+fn arr<const N: usize>(s: &[f64]) -> &[f64; N] {
+    s[..N].try_into().expect("slice length")
+}
+
+#[inline]
+fn arr_mut<const N: usize>(s: &mut [f64]) -> &mut [f64; N] {
+    (&mut s[..N]).try_into().expect("slice length")
+}
+
+/// A revolute joint between the ground and one body.
+#[derive(Debug, Clone)]
+struct GroundJoint {
+    /// The ground is side i (`Revolute::body_i`)?
+    ground_is_i: bool,
+    /// The body's first coordinate.
+    off: usize,
+    row0: usize,
+    jac0: usize,
+    params: [f64; 4],
+}
+
+impl GroundJoint {
+    fn phi(&self, q: &[f64], out: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi(qb, &self.params, &[], o);
+        }
+    }
+    fn jacobian(&self, q: &[f64], vals: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut vals[self.jac0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_jacobian(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_jacobian(qb, &self.params, &[], o);
+        }
+    }
+    fn phi_t(&self, q: &[f64], out: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi_t(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi_t(qb, &self.params, &[], o);
+        }
+    }
+    fn gamma(&self, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
+        let o = arr_mut(&mut out[self.row0..]);
+        if self.ground_is_i {
+            kernels::revolute_gb_gamma(qb, vb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_gamma(qb, vb, &self.params, &[], o);
+        }
+    }
+    fn eval(&self, q: &[f64], qd: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]) {
+        let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
+        let (p, v, g) = (
+            arr_mut(&mut phi[self.row0..]),
+            arr_mut(&mut vals[self.jac0..]),
+            arr_mut(&mut gamma[self.row0..]),
+        );
+        if self.ground_is_i {
+            kernels::revolute_gb_eval(qb, vb, &self.params, &[], p, v, g);
+        } else {
+            kernels::revolute_bg_eval(qb, vb, &self.params, &[], p, v, g);
+        }
+    }
+    fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+        let qb = arr(&q[self.off..]);
+        let l = arr(&lambda[self.row0..]);
+        let o = arr_mut(vals);
+        if self.ground_is_i {
+            kernels::revolute_gb_hessian(qb, &self.params, &[], l, o);
+        } else {
+            kernels::revolute_bg_hessian(qb, &self.params, &[], l, o);
+        }
+    }
+}
+
+/// Generated kernels for a revolute chain (the rod), optionally with one
+/// ground revolute (the N-link pendulum, the cantilever).
+#[derive(Debug, Clone)]
+pub struct ChainKernels {
+    name: String,
+    n_joints: usize,
+    row0: usize,
+    jac0: usize,
+    params: Vec<f64>,
+    ground: Option<GroundJoint>,
+}
+
+impl ChainKernels {
+    /// Kernels for `sys` if its joints form a revolute chain (see the
+    /// module documentation), else `None`.
+    pub fn recognise(sys: &System) -> Option<Self> {
+        let nb = sys.bodies().len();
+        let revs: Vec<&Revolute> = sys
+            .constraints()
+            .iter()
+            .map(|c| c.as_revolute())
+            .collect::<Option<_>>()?;
+        let is_ground = |r: &Revolute| r.body_i == BodyRef::Ground || r.body_j == BodyRef::Ground;
+        let grounds: Vec<usize> = (0..revs.len()).filter(|&k| is_ground(revs[k])).collect();
+        let ground_pos = match grounds.as_slice() {
+            [] => None,
+            [g] if *g == 0 || *g + 1 == revs.len() => Some(*g),
+            _ => return None,
+        };
+        let chain: Vec<&Revolute> = revs.iter().copied().filter(|r| !is_ground(r)).collect();
+        if chain.len() + 1 != nb {
+            return None;
+        }
+        for (k, r) in chain.iter().enumerate() {
+            if r.body_i != BodyRef::Body(k) || r.body_j != BodyRef::Body(k + 1) {
+                return None;
+            }
+        }
+        let nj = chain.len();
+        let (row0, jac0, ground) = match ground_pos {
+            None => (0, 0, None),
+            Some(g) => {
+                let r = revs[g];
+                let (ground_is_i, body) = match (r.body_i, r.body_j) {
+                    (BodyRef::Ground, BodyRef::Body(b)) => (true, b),
+                    (BodyRef::Body(b), BodyRef::Ground) => (false, b),
+                    _ => return None,
+                };
+                let first = g == 0;
+                let gj = GroundJoint {
+                    ground_is_i,
+                    off: 3 * body,
+                    row0: if first { 0 } else { 2 * nj },
+                    jac0: if first { 0 } else { 8 * nj },
+                    params: revolute_params(r),
+                };
+                if first {
+                    (2, 4, Some(gj))
+                } else {
+                    (0, 0, Some(gj))
+                }
+            }
+        };
+        let params = chain.iter().flat_map(|r| revolute_params(r)).collect();
+        let name = if ground.is_some() {
+            "generated:pendulum_chain"
+        } else {
+            "generated:rod_chain"
+        };
+        let k = ChainKernels {
+            name: name.into(),
+            n_joints: nj,
+            row0,
+            jac0,
+            params,
+            ground,
+        };
+        (k.pattern() == sys.jacobian_pattern()).then_some(k)
+    }
+
+    /// The Φ_q pattern these kernels write (must equal the system's).
+    fn pattern(&self) -> Vec<(usize, usize)> {
+        let mut p = vec![(0, 0); 8 * self.n_joints + 4 * usize::from(self.ground.is_some())];
+        for k in 0..self.n_joints {
+            for (e, &(r, c)) in kernels::REVOLUTE_CHAIN_JOINT_JAC_PATTERN.iter().enumerate() {
+                p[self.jac0 + 8 * k + e] = (self.row0 + 2 * k + r, 3 * k + c);
+            }
+        }
+        if let Some(g) = &self.ground {
+            for (e, &(r, c)) in kernels::REVOLUTE_GB_JAC_PATTERN.iter().enumerate() {
+                p[g.jac0 + e] = (g.row0 + r, g.off + c);
+            }
+        }
+        p
+    }
+
+    fn chain_rows(&self) -> std::ops::Range<usize> {
+        self.row0..self.row0 + 2 * self.n_joints
+    }
+    fn chain_vals(&self) -> std::ops::Range<usize> {
+        self.jac0..self.jac0 + 8 * self.n_joints
+    }
+
+    /// Φ, Φ_q values and γ in one pass (sines and cosines computed once per
+    /// body instead of once per function and joint side).
+    pub fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        let (r, v) = (self.chain_rows(), self.chain_vals());
+        kernels::revolute_chain_eval(
+            q,
+            qd,
+            &self.params,
+            &mut phi[r.clone()],
+            &mut vals[v],
+            &mut gamma[r],
+        );
+        if let Some(g) = &self.ground {
+            g.eval(q, qd, phi, vals, gamma);
+        }
+    }
+
+    /// Add (Φ_qᵀλ)_q in the order of the joints' `hessian_pattern`s,
+    /// joint after joint (2 values per chain joint, 1 for the ground joint).
+    pub fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+        let nh = 2 * self.n_joints;
+        let (chain_at, ground_at) = match &self.ground {
+            Some(g) if g.row0 == 0 => (1, 0),
+            _ => (0, nh),
+        };
+        kernels::revolute_chain_hessian(
+            q,
+            &self.params,
+            &lambda[self.chain_rows()],
+            &mut vals[chain_at..chain_at + nh],
+        );
+        if let Some(g) = &self.ground {
+            g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
+        }
+    }
+}
+
+impl ConstraintKernels for ChainKernels {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::revolute_chain_phi(q, &self.params, &mut out[self.chain_rows()]);
+        if let Some(g) = &self.ground {
+            g.phi(q, out);
+        }
+    }
+    fn jacobian_values(&self, q: &[f64], _t: f64, vals: &mut [f64]) {
+        kernels::revolute_chain_jacobian(q, &self.params, &mut vals[self.chain_vals()]);
+        if let Some(g) = &self.ground {
+            g.jacobian(q, vals);
+        }
+    }
+    fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::revolute_chain_phi_t(q, &self.params, &mut out[self.chain_rows()]);
+        if let Some(g) = &self.ground {
+            g.phi_t(q, out);
+        }
+    }
+    fn gamma(&self, q: &[f64], qd: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::revolute_chain_gamma(q, qd, &self.params, &mut out[self.chain_rows()]);
+        if let Some(g) = &self.ground {
+            g.gamma(q, qd, out);
+        }
+    }
+}
+
+/// Generated, fully unrolled kernels for the four-bar (PROBLEMS.md A).
+#[derive(Debug, Clone)]
+pub struct FourBarKernels {
+    params: [f64; kernels::FOURBAR_N_PARAMS],
+}
+
+impl FourBarKernels {
+    /// Kernels for `sys` if it is a four-bar: 3 bodies and the revolutes
+    /// ground–0, 0–1, 1–2, ground–2 in that order (any pin points).
+    pub fn recognise(sys: &System) -> Option<Self> {
+        if sys.bodies().len() != 3 || sys.constraints().len() != kernels::FOURBAR_JOINTS.len() {
+            return None;
+        }
+        let mut params = [0.0; kernels::FOURBAR_N_PARAMS];
+        for (k, (c, &(kind, i, j))) in sys
+            .constraints()
+            .iter()
+            .zip(&kernels::FOURBAR_JOINTS)
+            .enumerate()
+        {
+            let r = c.as_revolute()?;
+            if kind != "revolute" || code(r.body_i) != i || code(r.body_j) != j {
+                return None;
+            }
+            params[4 * k..4 * k + 4].copy_from_slice(&revolute_params(r));
+        }
+        (sys.jacobian_pattern() == kernels::FOURBAR_JAC_PATTERN).then_some(Self { params })
+    }
+
+    /// Φ, Φ_q values and γ in one pass.
+    pub fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        kernels::fourbar_eval(
+            arr(q),
+            arr(qd),
+            &self.params,
+            &[],
+            arr_mut(phi),
+            arr_mut(vals),
+            arr_mut(gamma),
+        );
+    }
+
+    /// Add (Φ_qᵀλ)_q in the order of the joints' `hessian_pattern`s.
+    pub fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+        kernels::fourbar_hessian(arr(q), &self.params, &[], arr(lambda), arr_mut(vals));
+    }
+}
+
+impl ConstraintKernels for FourBarKernels {
+    fn name(&self) -> &str {
+        "generated:fourbar"
+    }
+    fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::fourbar_phi(arr(q), &self.params, &[], arr_mut(out));
+    }
+    fn jacobian_values(&self, q: &[f64], _t: f64, vals: &mut [f64]) {
+        kernels::fourbar_jacobian(arr(q), &self.params, &[], arr_mut(vals));
+    }
+    fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::fourbar_phi_t(arr(q), &self.params, &[], arr_mut(out));
+    }
+    fn gamma(&self, q: &[f64], qd: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::fourbar_gamma(arr(q), arr(qd), &self.params, &[], arr_mut(out));
+    }
+}
+
+/// Generated kernels matching `sys`'s topology (four-bar or revolute
+/// chain, see the module documentation), or `None`.
+pub fn recognise(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
+    if let Some(k) = FourBarKernels::recognise(sys) {
+        return Some(Box::new(k));
+    }
+    ChainKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
+}
+
+/// Kernels for a revolute chain (optionally with a ground pivot) — the
+/// chain part of [`recognise`].
+pub fn chain_kernels(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
+    ChainKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
+}
+
+/// Kernels for the four-bar — the four-bar part of [`recognise`].
+pub fn fourbar_kernels(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
+    FourBarKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
+}
+
+/// Recognise `sys`'s topology and attach the generated kernels (used from
+/// then on, see [`System::attach_kernels`]). Returns whether kernels were
+/// attached; the system is unchanged when none match.
+pub fn attach_generated(sys: &mut System) -> bool {
+    match recognise(sys) {
+        Some(k) => {
+            sys.attach_kernels(k);
+            true
+        }
+        None => false,
+    }
+}
