@@ -5,13 +5,18 @@
 //!   (default) or from the Schur complement with λ eliminated, eq. (9);
 //!   Baumgarte stabilization eq. (10)–(11) replaces γ by
 //!   `γ̄ = γ − 2αΦ̇ − β²Φ`, `Φ̇ = Φ_q q̇ + Φ_t`.
+//! * [`Index3`]: the index-3 residual `M q̈ + Φ_qᵀ λ − g`, `Φ` and the
+//!   scaled, symmetrised Newton matrix of implicit integrators
+//!   (generalized-α, [`crate::integrate::GenAlpha`]).
 //! * [`consistent_initial_state`]: positions on Φ(q, t₀) = 0 and velocities
 //!   on Φ_q q̇ = −Φ_t, given the independent coordinates.
 
 mod index1;
+mod index3;
 mod initial;
 
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
+pub use index3::{Index3, Index3Stats};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
 
 use crate::linalg::LinalgError;

@@ -181,6 +181,8 @@ pub(crate) fn validate_options(
                 }
             }
         }
+        // implicit methods are validated by `GenAlpha::new`
+        Method::GenAlpha | Method::Hht | Method::Newmark => {}
     }
     Ok(())
 }

@@ -27,8 +27,14 @@
 
 mod common;
 mod embedded;
+mod genalpha;
 mod rk4;
 mod tableau;
+
+pub use genalpha::{
+    AlphaParameters, GenAlpha, GenAlphaStats, ImplicitOptions, SecondOrderDae, REUSE_BAND,
+    SLOW_ITERATIONS, THETA_REFACTOR,
+};
 
 use std::ops::ControlFlow;
 use std::str::FromStr;
@@ -82,26 +88,54 @@ pub enum Method {
     Ode45,
     /// Classic Runge–Kutta 4, fixed step.
     Rk4,
+    /// Generalized-α on the index-3 equations (Chung & Hulbert 1993;
+    /// Arnold & Brüls 2007), parameters from ρ∞ — see [`GenAlpha`]. Implicit:
+    /// not an [`OdeSystem`] integrator, run through `simulation::simulate`.
+    GenAlpha,
+    /// HHT-α (Hilber, Hughes & Taylor 1977) as the generalized-α member
+    /// with α_m = 0 (ρ∞ ∈ [½, 1]) — see [`AlphaParameters::hht`]. Implicit.
+    Hht,
+    /// Newmark (α_m = α_f = 0) with dissipation from ρ∞ — see
+    /// [`AlphaParameters::newmark`]. Implicit.
+    Newmark,
 }
 
 impl Method {
     /// All methods, in the order of [`Method::NAMES`].
-    pub const ALL: [Method; 3] = [Method::Ode23, Method::Ode45, Method::Rk4];
+    pub const ALL: [Method; 6] = [
+        Method::Ode23,
+        Method::Ode45,
+        Method::Rk4,
+        Method::GenAlpha,
+        Method::Hht,
+        Method::Newmark,
+    ];
     /// The valid method names.
-    pub const NAMES: [&'static str; 3] = ["ode23", "ode45", "rk4"];
+    pub const NAMES: [&'static str; 6] = ["ode23", "ode45", "rk4", "genalpha", "hht", "newmark"];
 
-    /// Lower-case name: "ode23", "ode45" or "rk4".
+    /// Lower-case name: "ode23", "ode45", "rk4", "genalpha", "hht" or "newmark".
     pub fn name(&self) -> &'static str {
         match self {
             Method::Ode23 => "ode23",
             Method::Ode45 => "ode45",
             Method::Rk4 => "rk4",
+            Method::GenAlpha => "genalpha",
+            Method::Hht => "hht",
+            Method::Newmark => "newmark",
         }
     }
 
-    /// Whether the method adapts its step to `rtol`/`atol`.
+    /// Whether the method adapts its step to `rtol`/`atol` (the implicit
+    /// methods only with [`ImplicitOptions::adaptive`]).
     pub fn is_adaptive(&self) -> bool {
-        !matches!(self, Method::Rk4)
+        matches!(self, Method::Ode23 | Method::Ode45)
+    }
+
+    /// Whether the method is one of the implicit generalized-α family
+    /// (index-3 DAE integrators, [`GenAlpha`]) rather than an explicit ODE
+    /// integrator.
+    pub fn is_implicit(&self) -> bool {
+        matches!(self, Method::GenAlpha | Method::Hht | Method::Newmark)
     }
 }
 
@@ -113,7 +147,7 @@ impl std::fmt::Display for Method {
 
 impl FromStr for Method {
     type Err = IntegratorError;
-    /// Parses "ode23", "ode45" or "rk4" (case-insensitive, surrounding
+    /// Parses one of [`Method::NAMES`] (case-insensitive, surrounding
     /// whitespace ignored).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let key = s.trim().to_ascii_lowercase();
@@ -269,8 +303,17 @@ pub enum IntegratorError {
         reason: String,
     },
     /// Unknown method name.
-    #[error("unknown integration method '{0}'; valid methods are ode23, ode45, rk4")]
+    #[error(
+        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, genalpha, hht, newmark"
+    )]
     UnknownMethod(String),
+    /// The method is implicit (index-3 DAE) and has no [`OdeSystem`]
+    /// integrator; run it through `simulation::simulate` or [`GenAlpha`].
+    #[error(
+        "'{0}' is an implicit index-3 method, not an ODE integrator: run it through \
+         simulation::simulate (or integrate::GenAlpha)"
+    )]
+    ImplicitMethod(&'static str),
     /// Bad time span.
     #[error("invalid time span t0 = {t0}, t_end = {t_end}: {reason}")]
     InvalidTimeSpan {
@@ -334,14 +377,23 @@ pub trait Integrator {
 /// depend on the system (`rtol > 0`, `atol ≥ 0`, `max_step > 0`,
 /// `initial_step > 0`, `max_steps ≥ 1`; `fixed_step > 0` for rk4).
 /// Tolerances and step limits are checked only for the methods that use them.
+///
+/// The implicit methods ([`Method::is_implicit`]) return
+/// [`IntegratorError::ImplicitMethod`].
 pub fn integrator(
     method: Method,
     options: OdeOptions,
 ) -> Result<Box<dyn Integrator>, IntegratorError> {
+    if method.is_implicit() {
+        return Err(IntegratorError::ImplicitMethod(method.name()));
+    }
     common::validate_options(method, &options)?;
     Ok(match method {
         Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
         Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
         Method::Rk4 => Box::new(rk4::Rk4::new(options)),
+        Method::GenAlpha | Method::Hht | Method::Newmark => {
+            return Err(IntegratorError::ImplicitMethod(method.name()))
+        }
     })
 }
