@@ -18,12 +18,20 @@ fn best<F: FnMut()>(reps: usize, mut f: F) -> f64 {
 }
 
 fn main() {
-    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let pool2 = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let pool1 = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let pool2 = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
     for n in [100usize, 300, 500, 1000, 3000, 10_000] {
         let (sys, _) = build_rod(&RodParams::problem_b(n)).unwrap();
         let (q, mut qd) = sys.initial_state();
-        qd.iter_mut().enumerate().for_each(|(i, v)| *v += 1e-3 * (i as f64).sin());
+        qd.iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| *v += 1e-3 * (i as f64).sin());
         let nc = sys.n_coords();
         let m = sys.n_constraints();
         let mut g = vec![0.0; nc];
