@@ -27,3 +27,4 @@ pub mod output;
 pub mod reproduce;
 pub mod scenario;
 pub mod simulation;
+pub mod sweep;

@@ -231,3 +231,80 @@ fn reproduce_writes_the_four_bar_figures() {
     let table = std::fs::read_to_string(fb.join("fourbar_table.md")).unwrap();
     assert_eq!(table.lines().count(), 2 + 7, "{table}");
 }
+
+#[test]
+fn sweep_runs_the_product_in_order_and_matches_single_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let f = fourbar_path();
+    let o = mbsolve(&[
+        "sweep",
+        f.to_str().unwrap(),
+        "--param",
+        "stabilization.alpha=0,10",
+        "--param",
+        "initial.incorrect=false,true",
+        "--set",
+        "stabilization.rule=equal",
+        "--set",
+        "time.end=0.5",
+        "--out",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(dir.path().join("fourbar_sweep.csv")).unwrap();
+    let rows: Vec<Vec<String>> = table
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    assert_eq!(rows.len(), 4);
+    let expect = [
+        ("0", "false"),
+        ("0", "true"),
+        ("10", "false"),
+        ("10", "true"),
+    ];
+    for (row, (a, inc)) in rows.iter().zip(expect) {
+        assert_eq!((row[0].as_str(), row[1].as_str()), (a, inc));
+        // the same run alone gives the same step count and constraint norm
+        let single = dir.path().join("single");
+        let o = mbsolve(&[
+            "run",
+            f.to_str().unwrap(),
+            "--set",
+            &format!("stabilization.alpha={a}"),
+            "--set",
+            &format!("initial.incorrect={inc}"),
+            "--set",
+            "stabilization.rule=equal",
+            "--set",
+            "time.end=0.5",
+            "--out",
+            single.to_str().unwrap(),
+        ]);
+        assert!(o.status.success());
+        let s: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(single.join("fourbar.summary.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(row[3], s["steps"].to_string());
+        assert_eq!(
+            row[8].parse::<f64>().unwrap(),
+            format!("{:.6e}", s["final_constraint_norm"].as_f64().unwrap())
+                .parse::<f64>()
+                .unwrap()
+        );
+    }
+    // a bad key fails before anything runs
+    let o = mbsolve(&[
+        "sweep",
+        f.to_str().unwrap(),
+        "--param",
+        "stabilization.alpah=1,2",
+        "--out",
+        out,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("alpah"), "{}", stderr(&o));
+}
