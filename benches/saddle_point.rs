@@ -320,12 +320,14 @@ fn factor_solve(c: &mut Criterion) {
             s.factorize(&k).unwrap();
             s.solve_in_place(&k, &mut xref).unwrap();
         }
-        for (name, ord) in [
-            ("sparse_amd", Ordering::Amd),
-            ("sparse_chain", Ordering::Custom(chain_perm(nb))),
-            ("sparse_natural", Ordering::Natural),
+        for (name, ord, check) in [
+            ("sparse_amd", Ordering::Amd, true),
+            ("sparse_amd_nocheck", Ordering::Amd, false),
+            ("sparse_chain", Ordering::Custom(chain_perm(nb)), true),
+            ("sparse_natural", Ordering::Natural, true),
         ] {
             let mut s = sparse_solver(&k, ord);
+            s = s.with_residual_check(check);
             s.factorize(&k).unwrap();
             x.copy_from_slice(&b);
             s.solve_in_place(&k, &mut x).unwrap();

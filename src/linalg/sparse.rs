@@ -183,6 +183,7 @@ pub struct SparseLdlt {
     factorized: bool,
     last_info: FactorInfo,
     last_residual: f64,
+    check_residual: bool,
     stats: SolverStats,
 }
 
@@ -215,8 +216,19 @@ impl SparseLdlt {
             factorized: false,
             last_info: FactorInfo::default(),
             last_residual: 0.0,
+            check_residual: true,
             stats: SolverStats::default(),
         }
+    }
+
+    /// Switch the residual check (and the iterative refinement it may
+    /// trigger) after each solve on or off (default on). Off saves one
+    /// sparse matrix–vector product per solve — for a chain about a quarter
+    /// of factorisation + solve — at the price of not detecting an
+    /// inaccurate solution; non-finite solutions are still rejected.
+    pub fn with_residual_check(mut self, on: bool) -> Self {
+        self.check_residual = on;
+        self
     }
 
     /// Override the regularisation threshold `ε` and value `δ` (scaled
@@ -556,6 +568,16 @@ impl SaddlePointSolver for SparseLdlt {
         an.rhs0.copy_from_slice(rhs);
         scaled_solve(an, rhs);
         self.stats.solves += 1;
+        if !self.check_residual {
+            self.last_residual = f64::NAN;
+            return if rhs.iter().all(|v| v.is_finite()) {
+                Ok(())
+            } else {
+                Err(LinalgError::Singular(
+                    "sparse LDLᵀ produced a non-finite solution".into(),
+                ))
+            };
+        }
         let mut res = k.relative_residual(rhs, &an.rhs0, &mut an.work);
         if (res.is_nan() || res > REFINE_THRESHOLD) && rhs.iter().all(|v| v.is_finite()) {
             // One step of iterative refinement: x += K⁻¹ (b − K x);
