@@ -130,6 +130,7 @@ fn main() {
         output_dt: 0.1,
         ode: Default::default(),
         index1: Default::default(),
+        ..Default::default()
     };
     let (traj, s) = simulate(&sys, &ic.q, &ic.qd, &cfg, &mut []).expect("runs");
     for (k, t) in traj.t.iter().enumerate() {

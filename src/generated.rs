@@ -127,9 +127,41 @@ impl GroundJoint {
     }
 }
 
+/// Sines and cosines of the chain's body angles, memoised per body on the
+/// exact bits of φ: the formulation asks for Φ_q, γ, Φ and Φ_t at the same
+/// q one after the other, and the trigonometry is most of their cost. The
+/// values are those `sin_cos` returns, so results do not change.
+#[derive(Debug)]
+struct TrigMemo {
+    phi_bits: Vec<u64>,
+    sc: Vec<f64>,
+}
+
+impl TrigMemo {
+    fn new(n_bodies: usize) -> Self {
+        // NaN sentinel: a NaN angle "hits" and gets NaN sines, as sin_cos would.
+        Self {
+            phi_bits: vec![f64::NAN.to_bits(); n_bodies],
+            sc: vec![f64::NAN; 2 * n_bodies],
+        }
+    }
+    fn update(&mut self, q: &[f64]) -> &[f64] {
+        for (b, bits) in self.phi_bits.iter_mut().enumerate() {
+            let phi = q[3 * b + 2];
+            if *bits != phi.to_bits() {
+                let (s, c) = phi.sin_cos();
+                self.sc[2 * b] = s;
+                self.sc[2 * b + 1] = c;
+                *bits = phi.to_bits();
+            }
+        }
+        &self.sc
+    }
+}
+
 /// Generated kernels for a revolute chain (the rod), optionally with one
 /// ground revolute (the N-link pendulum, the cantilever).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct ChainKernels {
     name: String,
     n_joints: usize,
@@ -137,6 +169,7 @@ pub struct ChainKernels {
     jac0: usize,
     params: Vec<f64>,
     ground: Option<GroundJoint>,
+    memo: std::sync::Mutex<TrigMemo>,
 }
 
 impl ChainKernels {
@@ -203,6 +236,7 @@ impl ChainKernels {
             jac0,
             params,
             ground,
+            memo: std::sync::Mutex::new(TrigMemo::new(nb)),
         };
         (k.pattern() == sys.jacobian_pattern()).then_some(k)
     }
@@ -275,17 +309,40 @@ impl ChainKernels {
 }
 
 impl ConstraintKernels for ChainKernels {
+    fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        _t: f64,
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        ChainKernels::evaluate(self, q, qd, phi, vals, gamma)
+    }
     fn name(&self) -> &str {
         &self.name
     }
     fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
-        kernels::revolute_chain_phi(q, &self.params, &mut out[self.chain_rows()]);
+        let o = &mut out[self.chain_rows()];
+        let p = &self.params;
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
+            Err(_) => kernels::revolute_chain_phi(q, p, o),
+        }
         if let Some(g) = &self.ground {
             g.phi(q, out);
         }
     }
     fn jacobian_values(&self, q: &[f64], _t: f64, vals: &mut [f64]) {
-        kernels::revolute_chain_jacobian(q, &self.params, &mut vals[self.chain_vals()]);
+        let o = &mut vals[self.chain_vals()];
+        let p = &self.params;
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
+            Err(_) => kernels::revolute_chain_jacobian(q, p, o),
+        }
         if let Some(g) = &self.ground {
             g.jacobian(q, vals);
         }
@@ -297,7 +354,13 @@ impl ConstraintKernels for ChainKernels {
         }
     }
     fn gamma(&self, q: &[f64], qd: &[f64], _t: f64, out: &mut [f64]) {
-        kernels::revolute_chain_gamma(q, qd, &self.params, &mut out[self.chain_rows()]);
+        let o = &mut out[self.chain_rows()];
+        let p = &self.params;
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
+            Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
+        }
         if let Some(g) = &self.ground {
             g.gamma(q, qd, out);
         }
@@ -360,6 +423,17 @@ impl FourBarKernels {
 }
 
 impl ConstraintKernels for FourBarKernels {
+    fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        _t: f64,
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        FourBarKernels::evaluate(self, q, qd, phi, vals, gamma)
+    }
     fn name(&self) -> &str {
         "generated:fourbar"
     }

@@ -6,7 +6,7 @@
 
 use mbsolve::builders::n_link_pendulum;
 use mbsolve::constraints::{Revolute, Translational};
-use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper};
+use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
 use mbsolve::model::{Body, BodyRef, Evaluation, System, SystemBuilder};
 use mbsolve::reproduce::FOURBAR_TOML;
@@ -66,7 +66,11 @@ fn rel_close(label: &str, a: &[f64], b: &[f64], tol: f64) {
 /// kernels provide, on `samples` random states.
 fn compare(sys: &mut System, r: &mut Rng, samples: usize) {
     assert!(attach_generated(sys), "topology not recognised");
-    let (n, m, nnz) = (sys.n_coords(), sys.n_constraints(), sys.jacobian_pattern().len());
+    let (n, m, nnz) = (
+        sys.n_coords(),
+        sys.n_constraints(),
+        sys.jacobian_pattern().len(),
+    );
     for _ in 0..samples {
         let q = r.vec(n, -2.0, 2.0);
         let qd = r.vec(n, -3.0, 3.0);
@@ -238,11 +242,28 @@ fn fourbar_trajectories_agree() {
         assert_eq!(a.t.len(), b.t.len(), "same output times");
         let (qa, qb) = (a.q.last().unwrap(), b.q.last().unwrap());
         let (va, vb) = (a.qd.last().unwrap(), b.qd.last().unwrap());
-        let dmax = qa.iter().zip(qb).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-        eprintln!("four-bar run {k}: {} output times, max |Δq(t_end)| = {dmax:e}", a.t.len());
+        let dmax = qa
+            .iter()
+            .zip(qb)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "four-bar run {k}: {} output times, max |Δq(t_end)| = {dmax:e}",
+            a.t.len()
+        );
         for i in 0..9 {
-            assert!((qa[i] - qb[i]).abs() <= 1e-12 * (1.0 + qa[i].abs()), "q{i}: {} vs {}", qa[i], qb[i]);
-            assert!((va[i] - vb[i]).abs() <= 1e-11 * (1.0 + va[i].abs()), "q̇{i}: {} vs {}", va[i], vb[i]);
+            assert!(
+                (qa[i] - qb[i]).abs() <= 1e-12 * (1.0 + qa[i].abs()),
+                "q{i}: {} vs {}",
+                qa[i],
+                qb[i]
+            );
+            assert!(
+                (va[i] - vb[i]).abs() <= 1e-11 * (1.0 + va[i].abs()),
+                "q̇{i}: {} vs {}",
+                va[i],
+                vb[i]
+            );
         }
     }
 }
@@ -253,7 +274,15 @@ fn other_topologies_are_not_recognised() {
     let mut b = SystemBuilder::new();
     b.add_body(Body::new("a", 1.0, 1.0, [0.0; 3]));
     b.add_body(Body::new("b", 1.0, 1.0, [0.0; 3]));
-    b.add_constraint(Translational::new("s", BodyRef::Body(0), [0.0; 2], [1.0, 0.0], BodyRef::Body(1), [0.0; 2], 0.0));
+    b.add_constraint(Translational::new(
+        "s",
+        BodyRef::Body(0),
+        [0.0; 2],
+        [1.0, 0.0],
+        BodyRef::Body(1),
+        [0.0; 2],
+        0.0,
+    ));
     let mut sys = b.build().unwrap();
     assert!(generated::recognise(&sys).is_none());
     assert!(!attach_generated(&mut sys));
@@ -265,17 +294,47 @@ fn other_topologies_are_not_recognised() {
         for _ in 0..3 {
             b.add_body(Body::new("x", 1.0, 1.0, [0.0; 3]));
         }
-        b.add_constraint(Revolute::new("r", BodyRef::Body(i), [0.0; 2], BodyRef::Body(j), [0.0; 2]));
-        b.add_constraint(Revolute::new("r", BodyRef::Body(1), [0.0; 2], BodyRef::Body(2), [0.0; 2]));
+        b.add_constraint(Revolute::new(
+            "r",
+            BodyRef::Body(i),
+            [0.0; 2],
+            BodyRef::Body(j),
+            [0.0; 2],
+        ));
+        b.add_constraint(Revolute::new(
+            "r",
+            BodyRef::Body(1),
+            [0.0; 2],
+            BodyRef::Body(2),
+            [0.0; 2],
+        ));
         assert!(generated::recognise(&b.build().unwrap()).is_none());
     }
     // two ground joints on a chain (not a four-bar: 2 bodies)
     let mut b = SystemBuilder::new();
     b.add_body(Body::new("x", 1.0, 1.0, [0.0; 3]));
     b.add_body(Body::new("y", 1.0, 1.0, [0.0; 3]));
-    b.add_constraint(Revolute::new("g1", BodyRef::Ground, [0.0; 2], BodyRef::Body(0), [0.0; 2]));
-    b.add_constraint(Revolute::new("c", BodyRef::Body(0), [0.0; 2], BodyRef::Body(1), [0.0; 2]));
-    b.add_constraint(Revolute::new("g2", BodyRef::Ground, [1.0, 0.0], BodyRef::Body(1), [0.0; 2]));
+    b.add_constraint(Revolute::new(
+        "g1",
+        BodyRef::Ground,
+        [0.0; 2],
+        BodyRef::Body(0),
+        [0.0; 2],
+    ));
+    b.add_constraint(Revolute::new(
+        "c",
+        BodyRef::Body(0),
+        [0.0; 2],
+        BodyRef::Body(1),
+        [0.0; 2],
+    ));
+    b.add_constraint(Revolute::new(
+        "g2",
+        BodyRef::Ground,
+        [1.0, 0.0],
+        BodyRef::Body(1),
+        [0.0; 2],
+    ));
     assert!(generated::recognise(&b.build().unwrap()).is_none());
     // the four-bar with its joints in another order
     let sc = fourbar();
@@ -315,7 +374,10 @@ fn force_kernels_match_runtime_elements() {
             end_face: i == 0,
         })
         .collect();
-    let fp_springs: Vec<f64> = springs.iter().flat_map(|s| [s.k, s.c, s.rest_angle]).collect();
+    let fp_springs: Vec<f64> = springs
+        .iter()
+        .flat_map(|s| [s.k, s.c, s.rest_angle])
+        .collect();
     let fp_drag: Vec<f64> = drags
         .iter()
         .flat_map(|d| {
@@ -362,4 +424,126 @@ fn force_kernels_match_runtime_elements() {
             rel_close("drag ∂g/∂q̇", &b, &dqd[9 * i..9 * i + 9], 1e-12);
         }
     }
+}
+
+/// The kernels' per-body sine/cosine memo: changing one angle, or
+/// evaluating from several threads at once, gives the generic values.
+#[test]
+fn trig_memo_is_exact_under_partial_updates_and_threads() {
+    let n = 40;
+    let mut sys = rod_chain(n, 0.05);
+    assert!(attach_generated(&mut sys));
+    let mut r = Rng(8);
+    let m = sys.n_constraints();
+    let nnz = sys.jacobian_pattern().len();
+    let eval = |sys: &System, q: &[f64], qd: &[f64]| {
+        let (mut a, mut b, mut c) = (vec![0.0; m], vec![0.0; nnz], vec![0.0; m]);
+        sys.jacobian_values(q, 0.0, &mut b);
+        sys.gamma(q, qd, 0.0, &mut c);
+        sys.phi(q, 0.0, &mut a);
+        [a, b, c].concat()
+    };
+    let mut generic = rod_chain(n, 0.05);
+    generic.set_evaluation(Evaluation::Generic).unwrap();
+    let mut q = r.vec(3 * n, -2.0, 2.0);
+    let qd = r.vec(3 * n, -2.0, 2.0);
+    for step in 0..20 {
+        q[3 * (step % n) + 2] += 0.1; // one angle changes
+        q[3 * ((7 * step) % n)] -= 0.05; // and one position
+        rel_close(
+            "memo",
+            &eval(&generic, &q, &qd),
+            &eval(&sys, &q, &qd),
+            1e-13,
+        );
+    }
+    let states: Vec<(Vec<f64>, Vec<f64>)> = (0..8)
+        .map(|_| (r.vec(3 * n, -2.0, 2.0), r.vec(3 * n, -2.0, 2.0)))
+        .collect();
+    let want: Vec<Vec<f64>> = states.iter().map(|(q, qd)| eval(&generic, q, qd)).collect();
+    std::thread::scope(|s| {
+        for t in 0..4 {
+            let (sys, states, want) = (&sys, &states, &want);
+            s.spawn(move || {
+                for rep in 0..200 {
+                    let k = (t + rep) % states.len();
+                    let got = eval(sys, &states[k].0, &states[k].1);
+                    rel_close("threads", &want[k], &got, 1e-13);
+                }
+            });
+        }
+    });
+}
+
+/// Hunt–Crossley wall contact (PROBLEMS.md B): generated forces and
+/// Jacobians against the runtime's `WallContact`, on states where corners
+/// penetrate the walls.
+#[test]
+fn contact_kernels_match_runtime_elements() {
+    let n = 5;
+    let ls = 0.1;
+    let elems: Vec<WallContact> = (0..n)
+        .map(|i| WallContact {
+            body: i,
+            segment: i,
+            width: 0.03,
+            length: ls,
+            left_wall: -0.025,
+            right_wall: 0.025,
+            stiffness: 1e9,
+            damping: 0.75,
+            friction: 0.3,
+            slip_velocity: 1e-3,
+        })
+        .collect();
+    let fp: Vec<f64> = elems
+        .iter()
+        .flat_map(|e| {
+            [
+                0.5 * e.width,
+                0.5 * e.length,
+                e.left_wall,
+                e.right_wall,
+                e.stiffness,
+                e.damping,
+                e.friction,
+                e.slip_velocity,
+            ]
+        })
+        .collect();
+    let mut r = Rng(2718);
+    let mut ws = FdWorkspace::default();
+    let mut touching = 0;
+    for _ in 0..50 {
+        let mut q = vec![0.0; 3 * n];
+        let mut qd = vec![0.0; 3 * n];
+        for b in 0..n {
+            q[3 * b] = r.uniform(-0.02, 0.02);
+            q[3 * b + 1] = b as f64 * ls;
+            q[3 * b + 2] = r.uniform(-0.3, 0.3);
+            qd[3 * b] = r.uniform(-0.2, 0.2);
+            qd[3 * b + 1] = r.uniform(-0.01, 0.01);
+            qd[3 * b + 2] = r.uniform(-1.0, 1.0);
+        }
+        let base = r.vec(3 * n, -1.0, 1.0); // forces already in g
+        let mut want = base.clone();
+        for e in &elems {
+            e.add_forces(0.0, &q, &qd, &mut want);
+        }
+        let mut got = base.clone();
+        kernels::contact_bodies_forces(&q, &qd, &fp, &mut got);
+        rel_close("contact g", &want, &got, 1e-13);
+        let (mut dq, mut dqd) = (vec![0.0; 9 * n], vec![0.0; 9 * n]);
+        kernels::contact_bodies_force_jacobians(&q, &qd, &fp, &mut dq, &mut dqd);
+        for (i, e) in elems.iter().enumerate() {
+            let (mut a, mut b) = (vec![0.0; 9], vec![0.0; 9]);
+            e.add_jacobians(0.0, &q, &qd, &mut a, &mut b, &mut ws);
+            if a.iter().any(|&x| x != 0.0) {
+                touching += 1;
+            }
+            rel_close("contact ∂g/∂q", &a, &dq[9 * i..9 * i + 9], 1e-12);
+            rel_close("contact ∂g/∂q̇", &b, &dqd[9 * i..9 * i + 9], 1e-12);
+        }
+    }
+    assert!(touching > 50, "only {touching} segments in contact");
 }

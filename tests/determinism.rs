@@ -23,9 +23,13 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
         t_end: 2e-9,
         output_dt: 1e-9,
         index1: Default::default(),
+        ..Default::default()
     };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         let (traj, s) = pool.install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
         assert_eq!(s.status, "completed", "{:?}", s.message);
         traj
@@ -41,5 +45,8 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
     // g (1 − ρ_w/ρ) (drag from the 0.1 m/s sideways motion adds ~1e-5)
     let mean_vy = (0..n).map(|i| a.qd.last().unwrap()[3 * i + 1]).sum::<f64>() / n as f64;
     let expect = -9.81 * (1.0 - 1000.0 / 7850.0) * 2e-9;
-    assert!((mean_vy / expect - 1.0).abs() < 1e-3, "{mean_vy:e} vs {expect:e}");
+    assert!(
+        (mean_vy / expect - 1.0).abs() < 1e-3,
+        "{mean_vy:e} vs {expect:e}"
+    );
 }

@@ -29,7 +29,13 @@ fn four_bar_with_a_doubled_joint_runs_like_the_plain_one() {
     let text = format!("{FOURBAR_TOML}\n{DOUBLED_B}");
     // TOML arrays of tables may continue after other tables: the extra joint
     // is appended to [[joint]].
-    let sets = ["linear_solver=sparse", "integrator.method=ode45", "integrator.rtol=1e-9", "integrator.atol=1e-11", "time.end=1.0"];
+    let sets = [
+        "linear_solver=sparse",
+        "integrator.method=ode45",
+        "integrator.rtol=1e-9",
+        "integrator.atol=1e-11",
+        "time.end=1.0",
+    ];
     let red = with_extra(&text, &sets);
     let plain = with_extra(FOURBAR_TOML, &sets);
     assert_eq!(red.system.n_constraints(), 10);
@@ -45,7 +51,10 @@ fn four_bar_with_a_doubled_joint_runs_like_the_plain_one() {
             worst = worst.max((x - y).abs());
         }
     }
-    assert!(worst < 1e-6, "redundant and plain trajectories differ by {worst:e}");
+    assert!(
+        worst < 1e-6,
+        "redundant and plain trajectories differ by {worst:e}"
+    );
     // the dense LU refuses the rank-deficient matrix with a clear error
     let dense = with_extra(&text, &["linear_solver=dense", "initial.consistent=false"]);
     let (_, sd) = simulate(&dense.system, &dense.q0, &dense.qd0, &dense.run, &mut []).unwrap();
@@ -60,20 +69,45 @@ fn parallelogram_passes_its_singular_position_without_nans() {
     // collinear and Φ_q loses rank. Start just before it, turning towards it.
     let text = FOURBAR_TOML
         .replace("point_i = [0.4, 0.0]", "point_i = [0.4, 0.0] # D")
-        .replace("name = \"rocker\"       # D -> C\nmass = 0.25\ninertia = 1.3020833333333333e-3", "name = \"rocker\"       # D -> C\nmass = 0.2\ninertia = 6.666666666666667e-4")
+        .replace(
+            "name = \"rocker\"       # D -> C\nmass = 0.25\ninertia = 1.3020833333333333e-3",
+            "name = \"rocker\"       # D -> C\nmass = 0.2\ninertia = 6.666666666666667e-4",
+        )
         .replace("point_j = [0.125, 0.0]", "point_j = [0.1, 0.0]")
         .replace("point_j = [-0.125, 0.0]", "point_j = [-0.1, 0.0]")
         // guesses of the parallelogram branch at φ1 = 20°
-        .replace("x = 0.298\ny = 0.202\nphi_deg = 8.3", "x = 0.294\ny = 0.0684\nphi_deg = 0.0")
-        .replace("x = 0.448\ny = 0.1155\nphi_deg = 67.5", "x = 0.494\ny = 0.0342\nphi_deg = 20.0")
-        .replace("x = 0.05\ny = 0.0866\nphi_deg = 60.0\nomega = 6.283185307179586", "x = 0.094\ny = 0.0342\nphi_deg = 20.0\nomega = -6.283185307179586");
+        .replace(
+            "x = 0.298\ny = 0.202\nphi_deg = 8.3",
+            "x = 0.294\ny = 0.0684\nphi_deg = 0.0",
+        )
+        .replace(
+            "x = 0.448\ny = 0.1155\nphi_deg = 67.5",
+            "x = 0.494\ny = 0.0342\nphi_deg = 20.0",
+        )
+        .replace(
+            "x = 0.05\ny = 0.0866\nphi_deg = 60.0\nomega = 6.283185307179586",
+            "x = 0.094\ny = 0.0342\nphi_deg = 20.0\nomega = -6.283185307179586",
+        );
     assert!(text.contains("omega = -6.28"), "fixture replacement failed");
-    let sc = with_extra(&text, &["linear_solver=sparse", "time.end=0.3", "output.dt=0.001"]);
+    let sc = with_extra(
+        &text,
+        &["linear_solver=sparse", "time.end=0.3", "output.dt=0.001"],
+    );
     let (traj, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
-    assert!(traj.q.iter().flatten().all(|v| v.is_finite()), "NaN in the trajectory");
+    assert!(
+        traj.q.iter().flatten().all(|v| v.is_finite()),
+        "NaN in the trajectory"
+    );
     // the crank angle crossed zero (the singular position)
     let phi1: Vec<f64> = traj.q.iter().map(|q| q[2]).collect();
-    assert!(phi1[0] > 0.0 && phi1.iter().any(|&p| p < 0.0), "crank did not pass φ1 = 0: {:?}", &phi1[..5]);
-    eprintln!("parallelogram: {} ({:?}), {} regularised pivots, max ‖Φ‖ {:e}", s.status, s.message, s.regularized_pivots, s.max_constraint_norm);
+    assert!(
+        phi1[0] > 0.0 && phi1.iter().any(|&p| p < 0.0),
+        "crank did not pass φ1 = 0: {:?}",
+        &phi1[..5]
+    );
+    eprintln!(
+        "parallelogram: {} ({:?}), {} regularised pivots, max ‖Φ‖ {:e}",
+        s.status, s.message, s.regularized_pivots, s.max_constraint_norm
+    );
     assert_eq!(s.status, "completed", "{:?}", s.message);
 }

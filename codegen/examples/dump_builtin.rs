@@ -1,1 +1,5 @@
-fn main(){ let (c, s) = mbsolve_codegen::mbsolve_builtin(); print!("{c}"); eprintln!("{s:?}"); }
+fn main() {
+    let (c, s) = mbsolve_codegen::mbsolve_builtin();
+    print!("{c}");
+    eprintln!("{s:?}");
+}

@@ -137,7 +137,7 @@ impl<'c> Block<'c> {
         }
         match self.ctx.node(id) {
             Node::Const(_) | Node::Var(_) => false,
-            Node::Step(_) => true,
+            Node::Step(_) | Node::Select(..) => true,
             _ => self.pair_of.contains_key(&id) || self.uses.get(&id).copied().unwrap_or(0) > 1,
         }
     }
@@ -165,7 +165,11 @@ impl<'c> Block<'c> {
                 };
                 let (a, _) = self.inline(arg, ATOM);
                 let (sn, cn) = (format!("s{}", s.0), format!("c{}", c.0));
-                let _ = writeln!(self.code, "{}let ({sn}, {cn}) = {a}.sin_cos();", self.indent);
+                let _ = writeln!(
+                    self.code,
+                    "{}let ({sn}, {cn}) = {a}.sin_cos();",
+                    self.indent
+                );
                 self.n_ops += 2;
                 self.names.insert(s, sn);
                 self.names.insert(c, cn);
@@ -258,8 +262,13 @@ impl<'c> Block<'c> {
             Tanh(a) => self.method(a, "tanh()"),
             Max0(a) => self.method(a, "max(0.0)"),
             Step(a) => {
-                let (x, _) = self.inline(a, MUL);
+                let (x, _) = self.inline(a, ADD);
                 format!("if {x} > 0.0 {{ 1.0 }} else {{ 0.0 }}")
+            }
+            Select(a, b) => {
+                let (x, _) = self.inline(a, ADD);
+                let (y, _) = self.inline(b, 0);
+                format!("if {x} > 0.0 {{ {y} }} else {{ 0.0 }}")
             }
             Const(_) | Var(_) => unreachable!(),
         }
@@ -329,7 +338,7 @@ fn prec(n: Node) -> u8 {
         Mul(..) | Div(..) => MUL,
         Powi(_, 2) => MUL,
         Neg(_) => UNARY,
-        Step(_) => 0,
+        Step(_) | Select(..) => 0,
         _ => ATOM,
     }
 }

@@ -62,6 +62,9 @@ pub enum Node {
     Max0(Id),
     /// Heaviside step: 1 for `a > 0`, else 0 (derivative of `max(a, 0)`).
     Step(Id),
+    /// `b` where `a > 0`, else 0 — a guard: the other branch is never used,
+    /// even when it is not finite there (e.g. `√δ` terms for `δ ≤ 0`).
+    Select(Id, Id),
 }
 
 impl Node {
@@ -70,9 +73,17 @@ impl Node {
         use Node::*;
         match *self {
             Const(_) | Var(_) => ([None, None], 0),
-            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) => ([Some(a), Some(b)], 2),
-            Neg(a) | Powi(a, _) | Sqrt(a) | Sin(a) | Cos(a) | Abs(a) | Sign(a) | Tanh(a)
-            | Max0(a) | Step(a) => ([Some(a), None], 1),
+            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) | Select(a, b) => ([Some(a), Some(b)], 2),
+            Neg(a)
+            | Powi(a, _)
+            | Sqrt(a)
+            | Sin(a)
+            | Cos(a)
+            | Abs(a)
+            | Sign(a)
+            | Tanh(a)
+            | Max0(a)
+            | Step(a) => ([Some(a), None], 1),
         }
     }
     /// Iterator over the children.
@@ -183,7 +194,10 @@ impl Ctx {
     }
     /// Declare `v` the time variable (for `∂/∂t` of time-dependent inputs).
     pub fn set_time(&mut self, v: Id) {
-        assert!(matches!(self.node(v), Node::Var(_)), "time must be a variable");
+        assert!(
+            matches!(self.node(v), Node::Var(_)),
+            "time must be a variable"
+        );
         self.time = Some(v);
     }
     /// The time variable, if declared.
@@ -419,6 +433,17 @@ impl Ctx {
         self.intern(Node::Step(a))
     }
 
+    /// `b` where `a > 0`, else 0.
+    pub fn select(&mut self, a: Id, b: Id) -> Id {
+        if let Some(x) = self.as_const(a) {
+            return if x > 0.0 { b } else { self.zero() };
+        }
+        if self.is_const(b, 0.0) {
+            return b;
+        }
+        self.intern(Node::Select(a, b))
+    }
+
     /// Sum of `terms` (left to right).
     pub fn sum(&mut self, terms: &[Id]) -> Id {
         let mut acc = self.zero();
@@ -439,7 +464,9 @@ impl Ctx {
     /// Partial derivatives of several expressions with one shared memo.
     pub fn diff_many(&mut self, es: &[Id], v: Id) -> Vec<Id> {
         let mut memo = HashMap::new();
-        es.iter().map(|&e| self.diff_memo(e, v, &mut memo)).collect()
+        es.iter()
+            .map(|&e| self.diff_memo(e, v, &mut memo))
+            .collect()
     }
 
     fn diff_memo(&mut self, e: Id, v: Id, memo: &mut HashMap<Id, Id>) -> Id {
@@ -530,6 +557,10 @@ impl Ctx {
                 let s = self.step(a);
                 self.mul(s, da)
             }
+            Select(a, b) => {
+                let db = self.diff_memo(b, v, memo);
+                self.select(a, db)
+            }
             Sign(_) | Step(_) => self.zero(),
         };
         memo.insert(e, d);
@@ -549,13 +580,14 @@ impl Ctx {
         use Node::*;
         let r = match self.node(e) {
             Const(_) | Var(_) => e,
-            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) => {
+            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) | Select(a, b) => {
                 let (x, y) = (self.subst_memo(a, memo), self.subst_memo(b, memo));
                 match self.node(e) {
                     Add(..) => self.add(x, y),
                     Sub(..) => self.sub(x, y),
                     Mul(..) => self.mul(x, y),
-                    _ => self.div(x, y),
+                    Div(..) => self.div(x, y),
+                    _ => self.select(x, y),
                 }
             }
             Neg(a) => {
@@ -621,9 +653,9 @@ impl Ctx {
             let g = |x: Id| val[&x];
             let v = match self.node(id) {
                 Node::Const(b) => f64::from_bits(b),
-                Node::Var(k) => *vars
-                    .get(k as usize)
-                    .unwrap_or_else(|| panic!("no value for variable {}", self.vars[k as usize].name)),
+                Node::Var(k) => *vars.get(k as usize).unwrap_or_else(|| {
+                    panic!("no value for variable {}", self.vars[k as usize].name)
+                }),
                 n => eval_op(n, g),
             };
             val.insert(id, v);
@@ -671,6 +703,14 @@ fn eval_op(n: Node, mut g: impl FnMut(Id) -> f64) -> f64 {
         Step(a) => {
             if g(a) > 0.0 {
                 1.0
+            } else {
+                0.0
+            }
+        }
+        Select(a, b) => {
+            let (c, v) = (g(a), g(b));
+            if c > 0.0 {
+                v
             } else {
                 0.0
             }

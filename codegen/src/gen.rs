@@ -107,7 +107,12 @@ pub struct Stats {
 
 /// Bindings of the model's inputs to conventional argument names:
 /// `q`, `qd`, `p` (joint parameters), `tf` (time inputs), `lambda`, `fp`.
-fn input_binds(m: &PlanarModel, with_qd: bool, with_lambda: bool, with_fp: bool) -> Vec<(Id, String)> {
+fn input_binds(
+    m: &PlanarModel,
+    with_qd: bool,
+    with_lambda: bool,
+    with_fp: bool,
+) -> Vec<(Id, String)> {
     let mut v = Vec::new();
     for (k, &id) in m.q.iter().enumerate() {
         v.push((id, format!("q[{k}]")));
@@ -196,14 +201,28 @@ pub fn emit_unrolled(topo: &Topology, prefix: &str) -> (String, Stats) {
         ("N_JAC", jp.len(), "Φ_q non-zeros."),
         ("N_HESS", hp.len(), "(Φ_qᵀλ)_q non-zeros."),
         ("N_PARAMS", np, "Joint parameters."),
-        ("N_TIME_INPUTS", nt, "Time inputs (f, f', f'' per angle drive)."),
+        (
+            "N_TIME_INPUTS",
+            nt,
+            "Time inputs (f, f', f'' per angle drive).",
+        ),
         ("N_FORCE_PARAMS", nfp, "Force-element parameters."),
         ("N_FORCE_JAC", nfj, "Entries of the force Jacobian blocks."),
     ] {
         let _ = writeln!(code, "/// {doc}\npub const {up}_{name}: usize = {v};");
     }
-    pattern_const(&mut code, "Φ_q pattern (row, coordinate), value order.", &format!("{up}_JAC_PATTERN"), &jp);
-    pattern_const(&mut code, "(Φ_qᵀλ)_q pattern (row ≥ col), value order.", &format!("{up}_HESS_PATTERN"), &hp);
+    pattern_const(
+        &mut code,
+        "Φ_q pattern (row, coordinate), value order.",
+        &format!("{up}_JAC_PATTERN"),
+        &jp,
+    );
+    pattern_const(
+        &mut code,
+        "(Φ_qᵀλ)_q pattern (row ≥ col), value order.",
+        &format!("{up}_HESS_PATTERN"),
+        &hp,
+    );
     let joints: Vec<String> = topo
         .joints
         .iter()
@@ -370,8 +389,17 @@ pub fn emit_chain(prefix: &str, element: ChainElement) -> (String, Stats) {
 }
 
 fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
-    assert_eq!(kind.n_time_inputs(), 0, "chains of time-dependent joints are not supported");
-    let topo = Topology::new(format!("{prefix} link"), 2).joint("link", kind, Side::Body(0), Side::Body(1));
+    assert_eq!(
+        kind.n_time_inputs(),
+        0,
+        "chains of time-dependent joints are not supported"
+    );
+    let topo = Topology::new(format!("{prefix} link"), 2).joint(
+        "link",
+        kind,
+        Side::Body(0),
+        Side::Body(1),
+    );
     let mut m = PlanarModel::new(&topo);
     let up = prefix.to_uppercase();
     let (ne, np) = (kind.n_eq(), kind.n_params());
@@ -380,7 +408,11 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
     let nh = j.hess.len();
     let mut code = String::new();
     let mut st = Stats::default();
-    let _ = writeln!(code, "// ---- chain '{prefix}': {} joint between body k and body k+1 ----\n", kind.label());
+    let _ = writeln!(
+        code,
+        "// ---- chain '{prefix}': {} joint between body k and body k+1 ----\n",
+        kind.label()
+    );
     for (name, v, doc) in [
         ("N_EQ", ne, "Rows per joint."),
         ("N_JAC", nj, "Φ_q values per joint."),
@@ -405,7 +437,12 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
 
     // Kernel bindings: q, qd windows of 6, sines and cosines from `trig`.
     let (phi0, phi1) = (m.q[2], m.q[5]);
-    let trig_nodes = [m.ctx.sin(phi0), m.ctx.cos(phi0), m.ctx.sin(phi1), m.ctx.cos(phi1)];
+    let trig_nodes = [
+        m.ctx.sin(phi0),
+        m.ctx.cos(phi0),
+        m.ctx.sin(phi1),
+        m.ctx.cos(phi1),
+    ];
     let mut binds = input_binds(&m, true, true, false);
     for (k, &id) in trig_nodes.iter().enumerate() {
         binds.push((id, format!("trig[{k}]")));
@@ -418,16 +455,46 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
     let o = |n: &str, len: usize| (n.to_string(), arr_mut(len), ArgKind::Output);
     let kdoc = "Kernel of one link (`trig` = [sin φ_k, cos φ_k, sin φ_k+1, cos φ_k+1]):";
     let kernels = vec![
-        ("phi", "Φ", vec![q.clone(), trig.clone(), p.clone(), o("out", ne)], outs("out", &j.phi, Store::Assign)),
-        ("jacobian", "Φ_q values", vec![q.clone(), trig.clone(), p.clone(), o("vals", nj)], outs("vals", &j.jac, Store::Assign)),
-        ("phi_t", "Φ_t", vec![q.clone(), trig.clone(), p.clone(), o("out", ne)], outs("out", &j.phi_t, Store::Assign)),
-        ("gamma", "γ", vec![q.clone(), qd.clone(), trig.clone(), p.clone(), o("out", ne)], outs("out", &j.gamma, Store::Assign)),
-        ("hessian", "adds (Φ_qᵀλ)_q", vec![q.clone(), trig.clone(), p.clone(), lam, o("vals", nh)], outs("vals", &j.hess, Store::AddAssign)),
+        (
+            "phi",
+            "Φ",
+            vec![q.clone(), trig.clone(), p.clone(), o("out", ne)],
+            outs("out", &j.phi, Store::Assign),
+        ),
+        (
+            "jacobian",
+            "Φ_q values",
+            vec![q.clone(), trig.clone(), p.clone(), o("vals", nj)],
+            outs("vals", &j.jac, Store::Assign),
+        ),
+        (
+            "phi_t",
+            "Φ_t",
+            vec![q.clone(), trig.clone(), p.clone(), o("out", ne)],
+            outs("out", &j.phi_t, Store::Assign),
+        ),
+        (
+            "gamma",
+            "γ",
+            vec![q.clone(), qd.clone(), trig.clone(), p.clone(), o("out", ne)],
+            outs("out", &j.gamma, Store::Assign),
+        ),
+        (
+            "hessian",
+            "adds (Φ_qᵀλ)_q",
+            vec![q.clone(), trig.clone(), p.clone(), lam, o("vals", nh)],
+            outs("vals", &j.hess, Store::AddAssign),
+        ),
         (
             "eval",
             "Φ, Φ_q values, γ",
             vec![q, qd, trig, p, o("phi", ne), o("vals", nj), o("gamma", ne)],
-            [outs("phi", &j.phi, Store::Assign), outs("vals", &j.jac, Store::Assign), outs("gamma", &j.gamma, Store::Assign)].concat(),
+            [
+                outs("phi", &j.phi, Store::Assign),
+                outs("vals", &j.jac, Store::Assign),
+                outs("gamma", &j.gamma, Store::Assign),
+            ]
+            .concat(),
         ),
     ];
     let mut uses_trig = std::collections::HashMap::new();
@@ -462,64 +529,104 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
         ("hessian", "Adds (Φ_qᵀλ)_q of the chain to `vals` (λ: this chain's multipliers).", "q: &[f64], p: &[f64], lambda: &[f64], vals: &mut [f64]", "vals", "lambda"),
         ("eval", "Φ, Φ_q values and γ of the chain in one pass.", "q: &[f64], qd: &[f64], p: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]", "", "qd"),
     ];
+    // Each loop twice: computing the sines and cosines as it goes, and
+    // (`_sc`, for kernels that read them) taking them precomputed from
+    // `sc = [sin φ_0, cos φ_0, sin φ_1, cos φ_1, …]`.
     for (what, doc, sig, outn, extra) in loops {
-        let trig_used = uses_trig[what];
-        let _ = writeln!(code, "/// {doc}\n/// The number of joints is `p.len() / {np}`; joint k links body k to body k+1.");
-        let _ = writeln!(code, "pub fn {prefix}_{what}({sig}) {{");
-        let _ = writeln!(code, "    let n = p.len() / {np};");
-        let _ = writeln!(code, "    assert!(p.len() == {np} * n && (n == 0 || q.len() >= 3 * n + 3));");
-        let (out_sizes, out_names): (Vec<usize>, Vec<&str>) = match what {
-            "phi" | "phi_t" | "gamma" => (vec![ne], vec![outn]),
-            "jacobian" => (vec![nj], vec![outn]),
-            "hessian" => (vec![nh], vec![outn]),
-            _ => (vec![ne, nj, ne], vec!["phi", "vals", "gamma"]),
-        };
-        for (sz, nm) in out_sizes.iter().zip(&out_names) {
-            let _ = writeln!(code, "    assert!({nm}.len() >= {sz} * n);");
-        }
-        if extra == "qd" {
-            let _ = writeln!(code, "    assert!(n == 0 || qd.len() >= 3 * n + 3);");
-        }
-        if extra == "lambda" {
-            let _ = writeln!(code, "    assert!(lambda.len() >= {ne} * n);");
-        }
-        let _ = writeln!(code, "    if n == 0 {{\n        return;\n    }}");
-        if trig_used {
-            let _ = writeln!(code, "    let (mut s0, mut c0) = q[2].sin_cos();");
-        }
-        let _ = writeln!(code, "    for k in 0..n {{");
-        let _ = writeln!(code, "        let qk: &[f64; 6] = q[3 * k..3 * k + 6].try_into().unwrap();");
-        if extra == "qd" {
-            let _ = writeln!(code, "        let qdk: &[f64; 6] = qd[3 * k..3 * k + 6].try_into().unwrap();");
-        }
-        if extra == "lambda" {
-            let _ = writeln!(code, "        let lk: &[f64; {ne}] = lambda[{ne} * k..{ne} * k + {ne}].try_into().unwrap();");
-        }
-        let _ = writeln!(code, "        let pk: &[f64; {np}] = p[{np} * k..{np} * k + {np}].try_into().unwrap();");
-        for (sz, nm) in out_sizes.iter().zip(&out_names) {
+        for with_sc in [false, true] {
+            let trig_used = uses_trig[what];
+            if with_sc && !trig_used {
+                continue;
+            }
+            let (suffix, sig) = if with_sc {
+                (
+                    "_sc",
+                    sig.replacen("q: &[f64], ", "q: &[f64], sc: &[f64], ", 1),
+                )
+            } else {
+                ("", sig.to_string())
+            };
+            let _ = writeln!(code, "/// {doc}\n/// The number of joints is `p.len() / {np}`; joint k links body k to body k+1.");
+            if with_sc {
+                let _ = writeln!(code, "/// Sines and cosines precomputed: `sc[2b] = sin φ_b`, `sc[2b + 1] = cos φ_b`.");
+            }
+            let _ = writeln!(code, "pub fn {prefix}_{what}{suffix}({sig}) {{");
+            let _ = writeln!(code, "    let n = p.len() / {np};");
             let _ = writeln!(
                 code,
-                "        let {nm}k: &mut [f64; {sz}] = (&mut {nm}[{sz} * k..{sz} * k + {sz}]).try_into().unwrap();"
+                "    assert!(p.len() == {np} * n && (n == 0 || q.len() >= 3 * n + 3));"
             );
+            if with_sc {
+                let _ = writeln!(code, "    assert!(n == 0 || sc.len() >= 2 * n + 2);");
+            }
+            let (out_sizes, out_names): (Vec<usize>, Vec<&str>) = match what {
+                "phi" | "phi_t" | "gamma" => (vec![ne], vec![outn]),
+                "jacobian" => (vec![nj], vec![outn]),
+                "hessian" => (vec![nh], vec![outn]),
+                _ => (vec![ne, nj, ne], vec!["phi", "vals", "gamma"]),
+            };
+            for (sz, nm) in out_sizes.iter().zip(&out_names) {
+                let _ = writeln!(code, "    assert!({nm}.len() >= {sz} * n);");
+            }
+            if extra == "qd" {
+                let _ = writeln!(code, "    assert!(n == 0 || qd.len() >= 3 * n + 3);");
+            }
+            if extra == "lambda" {
+                let _ = writeln!(code, "    assert!(lambda.len() >= {ne} * n);");
+            }
+            let _ = writeln!(code, "    if n == 0 {{\n        return;\n    }}");
+            if trig_used && !with_sc {
+                let _ = writeln!(code, "    let (mut s0, mut c0) = q[2].sin_cos();");
+            }
+            let _ = writeln!(code, "    for k in 0..n {{");
+            let _ = writeln!(
+                code,
+                "        let qk: &[f64; 6] = q[3 * k..3 * k + 6].try_into().unwrap();"
+            );
+            if extra == "qd" {
+                let _ = writeln!(
+                    code,
+                    "        let qdk: &[f64; 6] = qd[3 * k..3 * k + 6].try_into().unwrap();"
+                );
+            }
+            if extra == "lambda" {
+                let _ = writeln!(code, "        let lk: &[f64; {ne}] = lambda[{ne} * k..{ne} * k + {ne}].try_into().unwrap();");
+            }
+            let _ = writeln!(
+                code,
+                "        let pk: &[f64; {np}] = p[{np} * k..{np} * k + {np}].try_into().unwrap();"
+            );
+            for (sz, nm) in out_sizes.iter().zip(&out_names) {
+                let _ = writeln!(
+                    code,
+                    "        let {nm}k: &mut [f64; {sz}] = (&mut {nm}[{sz} * k..{sz} * k + {sz}]).try_into().unwrap();"
+                );
+            }
+            let trig_arg = if with_sc {
+                let _ = writeln!(
+                    code,
+                    "        let sck: &[f64; 4] = sc[2 * k..2 * k + 4].try_into().unwrap();"
+                );
+                "sck"
+            } else if trig_used {
+                let _ = writeln!(code, "        let (s1, c1) = qk[5].sin_cos();");
+                "&[s0, c0, s1, c1]"
+            } else {
+                "&[0.0; 4]"
+            };
+            let call_args = match what {
+                "phi" | "phi_t" | "jacobian" => format!("qk, {trig_arg}, pk, {outn}k"),
+                "gamma" => format!("qk, qdk, {trig_arg}, pk, {outn}k"),
+                "hessian" => format!("qk, {trig_arg}, pk, lk, {outn}k"),
+                _ => format!("qk, qdk, {trig_arg}, pk, phik, valsk, gammak"),
+            };
+            let _ = writeln!(code, "        {prefix}_joint_{what}({call_args});");
+            if trig_used && !with_sc {
+                let _ = writeln!(code, "        s0 = s1;\n        c0 = c1;");
+            }
+            let _ = writeln!(code, "    }}\n}}\n");
+            st.functions += 1;
         }
-        let trig_arg = if trig_used {
-            let _ = writeln!(code, "        let (s1, c1) = qk[5].sin_cos();");
-            "&[s0, c0, s1, c1]"
-        } else {
-            "&[0.0; 4]"
-        };
-        let call_args = match what {
-            "phi" | "phi_t" | "jacobian" => format!("qk, {trig_arg}, pk, {outn}k"),
-            "gamma" => format!("qk, qdk, {trig_arg}, pk, {outn}k"),
-            "hessian" => format!("qk, {trig_arg}, pk, lk, {outn}k"),
-            _ => format!("qk, qdk, {trig_arg}, pk, phik, valsk, gammak"),
-        };
-        let _ = writeln!(code, "        {prefix}_joint_{what}({call_args});");
-        if trig_used {
-            let _ = writeln!(code, "        s0 = s1;\n        c0 = c1;");
-        }
-        let _ = writeln!(code, "    }}\n}}\n");
-        st.functions += 1;
     }
     (code, st)
 }
@@ -527,7 +634,8 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
 fn emit_force_chain(prefix: &str, kind: ForceKind, pair: bool) -> (String, Stats) {
     let nb = if pair { 2 } else { 1 };
     let j = if pair { Side::Body(1) } else { Side::Ground };
-    let topo = Topology::new(format!("{prefix} element"), nb).force("element", kind, Side::Body(0), j);
+    let topo =
+        Topology::new(format!("{prefix} element"), nb).force("element", kind, Side::Body(0), j);
     let m = PlanarModel::new(&topo);
     let f = m.forces[0].clone();
     let w = 3 * nb;
@@ -536,15 +644,25 @@ fn emit_force_chain(prefix: &str, kind: ForceKind, pair: bool) -> (String, Stats
     let up = prefix.to_uppercase();
     let mut code = String::new();
     let mut st = Stats::default();
-    let what = if pair { "between body k and body k+1" } else { "on every body" };
-    let _ = writeln!(code, "// ---- force chain '{prefix}': {kind:?} {what} ----\n");
+    let what = if pair {
+        "between body k and body k+1"
+    } else {
+        "on every body"
+    };
+    let _ = writeln!(
+        code,
+        "// ---- force chain '{prefix}': {kind:?} {what} ----\n"
+    );
     let _ = writeln!(
         code,
         "/// Footprint of one element (columns relative to 3k).\npub const {up}_COORDS: [usize; {}] = {:?};",
         f.coords.len(),
         f.coords
     );
-    let _ = writeln!(code, "/// Parameters per element.\npub const {up}_N_PARAMS: usize = {np};\n");
+    let _ = writeln!(
+        code,
+        "/// Parameters per element.\npub const {up}_N_PARAMS: usize = {np};\n"
+    );
     let binds = input_binds(&m, true, false, true);
     let q = ("q".to_string(), arr(w), ArgKind::Input);
     let qd = ("qd".to_string(), arr(w), ArgKind::Input);
@@ -577,7 +695,11 @@ fn emit_force_chain(prefix: &str, kind: ForceKind, pair: bool) -> (String, Stats
         st.ops += emit_fn(&m, &spec, &mut code);
         st.functions += 1;
     }
-    let count = if pair { "n + 1 bodies for n elements" } else { "one element per body" };
+    let count = if pair {
+        "n + 1 bodies for n elements"
+    } else {
+        "one element per body"
+    };
     let _ = writeln!(
         code,
         "/// Adds the forces of all elements ({what}; {count}; `n = fp.len() / {np}`) to `g`.\npub fn {prefix}_forces(q: &[f64], qd: &[f64], fp: &[f64], g: &mut [f64]) {{"
@@ -586,11 +708,26 @@ fn emit_force_chain(prefix: &str, kind: ForceKind, pair: bool) -> (String, Stats
     let _ = writeln!(code, "    let n = fp.len() / {np};");
     let _ = writeln!(code, "    assert!(fp.len() == {np} * n && (n == 0 || (q.len() >= {span} && qd.len() >= {span} && g.len() >= {span})));");
     let _ = writeln!(code, "    for k in 0..n {{");
-    let _ = writeln!(code, "        let qk: &[f64; {w}] = q[3 * k..3 * k + {w}].try_into().unwrap();");
-    let _ = writeln!(code, "        let qdk: &[f64; {w}] = qd[3 * k..3 * k + {w}].try_into().unwrap();");
-    let _ = writeln!(code, "        let pk: &[f64; {np}] = fp[{np} * k..{np} * k + {np}].try_into().unwrap();");
-    let _ = writeln!(code, "        let gk: &mut [f64; {w}] = (&mut g[3 * k..3 * k + {w}]).try_into().unwrap();");
-    let _ = writeln!(code, "        {prefix}_element_forces(qk, qdk, pk, gk);\n    }}\n}}\n");
+    let _ = writeln!(
+        code,
+        "        let qk: &[f64; {w}] = q[3 * k..3 * k + {w}].try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        let qdk: &[f64; {w}] = qd[3 * k..3 * k + {w}].try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        let pk: &[f64; {np}] = fp[{np} * k..{np} * k + {np}].try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        let gk: &mut [f64; {w}] = (&mut g[3 * k..3 * k + {w}]).try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        {prefix}_element_forces(qk, qdk, pk, gk);\n    }}\n}}\n"
+    );
     let _ = writeln!(
         code,
         "/// Adds ∂g/∂q, ∂g/∂q̇ of all elements: block k at `{kk} * k` ({0}×{0} row-major over `{up}_COORDS` + 3k).\npub fn {prefix}_force_jacobians(q: &[f64], qd: &[f64], fp: &[f64], dq: &mut [f64], dqd: &mut [f64]) {{",
@@ -598,14 +735,29 @@ fn emit_force_chain(prefix: &str, kind: ForceKind, pair: bool) -> (String, Stats
     );
     let _ = writeln!(code, "    let n = fp.len() / {np};");
     let _ = writeln!(code, "    assert!(fp.len() == {np} * n && (n == 0 || (q.len() >= {span} && qd.len() >= {span})));");
-    let _ = writeln!(code, "    assert!(dq.len() >= {kk} * n && dqd.len() >= {kk} * n);");
+    let _ = writeln!(
+        code,
+        "    assert!(dq.len() >= {kk} * n && dqd.len() >= {kk} * n);"
+    );
     let _ = writeln!(code, "    for k in 0..n {{");
-    let _ = writeln!(code, "        let qk: &[f64; {w}] = q[3 * k..3 * k + {w}].try_into().unwrap();");
-    let _ = writeln!(code, "        let qdk: &[f64; {w}] = qd[3 * k..3 * k + {w}].try_into().unwrap();");
-    let _ = writeln!(code, "        let pk: &[f64; {np}] = fp[{np} * k..{np} * k + {np}].try_into().unwrap();");
+    let _ = writeln!(
+        code,
+        "        let qk: &[f64; {w}] = q[3 * k..3 * k + {w}].try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        let qdk: &[f64; {w}] = qd[3 * k..3 * k + {w}].try_into().unwrap();"
+    );
+    let _ = writeln!(
+        code,
+        "        let pk: &[f64; {np}] = fp[{np} * k..{np} * k + {np}].try_into().unwrap();"
+    );
     let _ = writeln!(code, "        let dqk: &mut [f64; {kk}] = (&mut dq[{kk} * k..{kk} * k + {kk}]).try_into().unwrap();");
     let _ = writeln!(code, "        let dqdk: &mut [f64; {kk}] = (&mut dqd[{kk} * k..{kk} * k + {kk}]).try_into().unwrap();");
-    let _ = writeln!(code, "        {prefix}_element_jacobians(qk, qdk, pk, dqk, dqdk);\n    }}\n}}\n");
+    let _ = writeln!(
+        code,
+        "        {prefix}_element_jacobians(qk, qdk, pk, dqk, dqdk);\n    }}\n}}\n"
+    );
     st.functions += 2;
     (code, st)
 }

@@ -131,18 +131,26 @@ pub enum ForceKind {
     /// `e_t = (cos φ, sin φ)`, `e_a = (−sin φ, cos φ)`.
     /// Parameters: `a_t, a_a, a_r`. Side `i` only (`j` ignored).
     Drag,
+    /// Hunt–Crossley contact of the four corners `(±w/2, ±l_s/2)` of body
+    /// `i` with two vertical walls `x = x_l`, `x = x_r`: per corner and wall
+    /// with penetration `δ > 0`, `F_n = max(0, k_h δ^{3/2} (1 + χ δ̇))` normal
+    /// to the wall and friction `−μ F_n tanh(ṗ_y / v_s)` along it, acting at
+    /// the corner (mbsolve's `WallContact`). Parameters:
+    /// `w/2, l_s/2, x_l, x_r, k_h, χ, μ, v_s`. Side `i` only.
+    WallContact,
 }
 
 impl ForceKind {
     /// Run-time parameters per element.
     pub fn n_params(self) -> usize {
-        3
+        self.param_names().len()
     }
     /// Names of the parameters.
     pub fn param_names(self) -> &'static [&'static str] {
         match self {
             ForceKind::TorsionalSpringDamper => &["k", "c", "rest"],
             ForceKind::Drag => &["at", "aa", "ar"],
+            ForceKind::WallContact => &["hw", "hl", "xl", "xr", "kh", "chi", "mu", "vs"],
         }
     }
 }
@@ -214,13 +222,20 @@ impl Topology {
         };
         for jd in &self.joints {
             if !ok(jd.i) || !ok(jd.j) || jd.i == jd.j {
-                return Err(format!("joint '{}': bad bodies {:?}, {:?}", jd.name, jd.i, jd.j));
+                return Err(format!(
+                    "joint '{}': bad bodies {:?}, {:?}",
+                    jd.name, jd.i, jd.j
+                ));
             }
         }
         for f in &self.forces {
             let two = f.kind == ForceKind::TorsionalSpringDamper;
+            // one-body kinds (drag, contact) use side i only
             if !ok(f.i) || (two && (!ok(f.j) || f.i == f.j)) || (!two && f.i == Side::Ground) {
-                return Err(format!("force '{}': bad bodies {:?}, {:?}", f.name, f.i, f.j));
+                return Err(format!(
+                    "force '{}': bad bodies {:?}, {:?}",
+                    f.name, f.i, f.j
+                ));
             }
         }
         Ok(())
@@ -484,9 +499,7 @@ impl PlanarModel {
                 vec![r0, r1]
             }
             JointKind::DriveAngle => {
-                let f: Vec<Id> = (0..4)
-                    .map(|d| self.ctx.var(format!("j{k}_f{d}")))
-                    .collect();
+                let f: Vec<Id> = (0..4).map(|d| self.ctx.var(format!("j{k}_f{d}"))).collect();
                 for d in 0..3 {
                     self.ctx.set_time_derivative(f[d], f[d + 1]);
                 }
@@ -498,7 +511,8 @@ impl PlanarModel {
         let time_inputs = tf_start..self.tf.len();
         let n_eq = phi.len();
         for r in 0..n_eq {
-            self.lambda.push(self.ctx.var(format!("lambda{}", row0 + r)));
+            self.lambda
+                .push(self.ctx.var(format!("lambda{}", row0 + r)));
         }
         let lam = self.lambda[row0..row0 + n_eq].to_vec();
 
@@ -666,6 +680,55 @@ impl PlanarModel {
                 let ar_aw = c.mul(p[2], aw);
                 let gw = c.mul(ar_aw, b.w);
                 (vec![o, o + 1, o + 2], vec![gx, gy, gw])
+            }
+            ForceKind::WallContact => {
+                let o = fd.i.offset().expect("contact on the ground");
+                let b = self.side(fd.i);
+                let (hw, hl, kh, chi, mu, vs) = (p[0], p[1], p[4], p[5], p[6], p[7]);
+                let mut terms: [Vec<Id>; 3] = [Vec::new(), Vec::new(), Vec::new()];
+                for (sx, sy) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    let c = &mut self.ctx;
+                    let (cx, cy) = (c.constant(sx), c.constant(sy));
+                    let s = [c.mul(cx, hw), c.mul(cy, hl)];
+                    let rs = self.rotate(b.phi, s);
+                    let c = &mut self.ctx;
+                    let px = c.add(b.x, rs[0]);
+                    let a = c.mul(b.w, rs[1]);
+                    let velx = c.sub(b.vx, a);
+                    let a = c.mul(b.w, rs[0]);
+                    let vely = c.add(b.vy, a);
+                    for (sigma, xw) in [(1.0, p[2]), (-1.0, p[3])] {
+                        let sg = c.constant(sigma);
+                        let gap = c.sub(xw, px);
+                        let delta = c.mul(sg, gap);
+                        let msg = c.constant(-sigma);
+                        let ddot = c.mul(msg, velx);
+                        // F_n = max(0, k_h δ √δ (1 + χ δ̇)) for δ > 0, else no contact
+                        let a = c.mul(kh, delta);
+                        let sq = c.sqrt(delta);
+                        let a = c.mul(a, sq);
+                        let one = c.one();
+                        let cd = c.mul(chi, ddot);
+                        let f = c.add(one, cd);
+                        let a = c.mul(a, f);
+                        let fnorm = c.max0(a);
+                        let fnorm = c.select(delta, fnorm);
+                        let r = c.div(vely, vs);
+                        let th = c.tanh(r);
+                        let fx = c.mul(sg, fnorm);
+                        let mmu = c.neg(mu);
+                        let a = c.mul(mmu, fnorm);
+                        let fy = c.mul(a, th);
+                        let a = c.mul(rs[0], fy);
+                        let bb = c.mul(rs[1], fx);
+                        let tq = c.sub(a, bb);
+                        terms[0].push(fx);
+                        terms[1].push(fy);
+                        terms[2].push(tq);
+                    }
+                }
+                let g: Vec<Id> = terms.iter().map(|t| self.ctx.sum(t)).collect();
+                (vec![o, o + 1, o + 2], g)
             }
         };
         let kdim = coords.len();

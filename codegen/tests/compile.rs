@@ -21,9 +21,20 @@ fn custom() -> Topology {
         .joint("S", JointKind::Translational, Side::Body(1), Side::Body(2))
         .joint("P", JointKind::Translational, Side::Ground, Side::Body(2))
         .joint("D", JointKind::DriveAngle, Side::Body(0), Side::Body(2))
-        .force("k01", ForceKind::TorsionalSpringDamper, Side::Body(0), Side::Body(1))
-        .force("k2", ForceKind::TorsionalSpringDamper, Side::Ground, Side::Body(2))
+        .force(
+            "k01",
+            ForceKind::TorsionalSpringDamper,
+            Side::Body(0),
+            Side::Body(1),
+        )
+        .force(
+            "k2",
+            ForceKind::TorsionalSpringDamper,
+            Side::Ground,
+            Side::Body(2),
+        )
         .force("drag", ForceKind::Drag, Side::Body(1), Side::Ground)
+        .force("wall", ForceKind::WallContact, Side::Body(0), Side::Ground)
 }
 
 /// Chain equivalent, unrolled for the interpreter: 4 bodies, revolutes and
@@ -34,7 +45,12 @@ fn chain4() -> Topology {
         t = t.revolute("link", Side::Body(k), Side::Body(k + 1));
     }
     for k in 0..3 {
-        t = t.force("spring", ForceKind::TorsionalSpringDamper, Side::Body(k), Side::Body(k + 1));
+        t = t.force(
+            "spring",
+            ForceKind::TorsionalSpringDamper,
+            Side::Body(k),
+            Side::Body(k + 1),
+        );
     }
     for k in 0..4 {
         t = t.force("drag", ForceKind::Drag, Side::Body(k), Side::Ground);
@@ -55,7 +71,10 @@ struct Program {
 
 impl Program {
     fn call(&mut self, label: &str, setup: &str, call: &str, out: &str, want: &[f64]) {
-        let _ = writeln!(self.main, "    {{\n        {setup}\n        {call};\n        pr(&{out});\n    }}");
+        let _ = writeln!(
+            self.main,
+            "    {{\n        {setup}\n        {call};\n        pr(&{out});\n    }}"
+        );
         for (k, &w) in want.iter().enumerate() {
             self.expected.push((format!("{label}[{k}]"), w));
         }
@@ -108,7 +127,13 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
         b.finish()
     );
     let want = c.eval(&outs, &x);
-    prog.call("exprs", &format!("let mut o = [0.0; {}];", outs.len()), &format!("g::exprs(&{}, &mut o)", arr(&x)), "o", &want);
+    prog.call(
+        "exprs",
+        &format!("let mut o = [0.0; {}];", outs.len()),
+        &format!("g::exprs(&{}, &mut o)", arr(&x)),
+        "o",
+        &want,
+    );
 
     // 2. The unrolled custom topology.
     let topo = custom();
@@ -116,7 +141,11 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     prog.code.push_str(&code);
     let m = PlanarModel::new(&topo);
     let mut v: Vec<f64> = (0..m.ctx.n_vars()).map(|_| r.uniform(-1.0, 1.0)).collect();
-    let get = |v: &Vec<f64>, ids: &[Id]| -> Vec<f64> { ids.iter().map(|&i| v[m.ctx.var_number(i).unwrap()]).collect() };
+    let get = |v: &Vec<f64>, ids: &[Id]| -> Vec<f64> {
+        ids.iter()
+            .map(|&i| v[m.ctx.var_number(i).unwrap()])
+            .collect()
+    };
     // unit sliding axes
     for j in &m.joints {
         if j.params.len() == 7 {
@@ -127,19 +156,66 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
             v[iy] /= n;
         }
     }
-    let (q, qd, p, tf, lam, fp) = (get(&v, &m.q), get(&v, &m.qd), get(&v, &m.p), get(&v, &m.tf), get(&v, &m.lambda), get(&v, &m.fp));
+    let (q, qd, p, tf, lam, fp) = (
+        get(&v, &m.q),
+        get(&v, &m.qd),
+        get(&v, &m.p),
+        get(&v, &m.tf),
+        get(&v, &m.lambda),
+        get(&v, &m.fp),
+    );
     let (nr, nj, nh, nc) = (m.n_rows(), m.jac().len(), m.hess().len(), m.n_coords());
     let inputs = format!(
         "let q = {}; let qd = {}; let p = {}; let tf = {}; let lam = {}; let fp = {};",
-        arr(&q), arr(&qd), arr(&p), arr(&tf), arr(&lam), arr(&fp)
+        arr(&q),
+        arr(&qd),
+        arr(&p),
+        arr(&tf),
+        arr(&lam),
+        arr(&fp)
     );
     let s = |extra: &str| format!("{inputs} {extra}");
-    prog.call("phi", &s(&format!("let mut o = [0.0; {nr}];")), "g::custom_phi(&q, &p, &tf, &mut o)", "o", &values(&m, &v, &m.phi()));
-    prog.call("jac", &s(&format!("let mut o = [0.0; {nj}];")), "g::custom_jacobian(&q, &p, &tf, &mut o)", "o", &values(&m, &v, &m.jac()));
-    prog.call("phi_t", &s(&format!("let mut o = [0.0; {nr}];")), "g::custom_phi_t(&q, &p, &tf, &mut o)", "o", &values(&m, &v, &m.phi_t()));
-    prog.call("gamma", &s(&format!("let mut o = [0.0; {nr}];")), "g::custom_gamma(&q, &qd, &p, &tf, &mut o)", "o", &values(&m, &v, &m.gamma()));
-    prog.call("hess", &s(&format!("let mut o = [0.0; {nh}];")), "g::custom_hessian(&q, &p, &tf, &lam, &mut o)", "o", &values(&m, &v, &m.hess()));
-    let fused = [values(&m, &v, &m.phi()), values(&m, &v, &m.jac()), values(&m, &v, &m.gamma())].concat();
+    prog.call(
+        "phi",
+        &s(&format!("let mut o = [0.0; {nr}];")),
+        "g::custom_phi(&q, &p, &tf, &mut o)",
+        "o",
+        &values(&m, &v, &m.phi()),
+    );
+    prog.call(
+        "jac",
+        &s(&format!("let mut o = [0.0; {nj}];")),
+        "g::custom_jacobian(&q, &p, &tf, &mut o)",
+        "o",
+        &values(&m, &v, &m.jac()),
+    );
+    prog.call(
+        "phi_t",
+        &s(&format!("let mut o = [0.0; {nr}];")),
+        "g::custom_phi_t(&q, &p, &tf, &mut o)",
+        "o",
+        &values(&m, &v, &m.phi_t()),
+    );
+    prog.call(
+        "gamma",
+        &s(&format!("let mut o = [0.0; {nr}];")),
+        "g::custom_gamma(&q, &qd, &p, &tf, &mut o)",
+        "o",
+        &values(&m, &v, &m.gamma()),
+    );
+    prog.call(
+        "hess",
+        &s(&format!("let mut o = [0.0; {nh}];")),
+        "g::custom_hessian(&q, &p, &tf, &lam, &mut o)",
+        "o",
+        &values(&m, &v, &m.hess()),
+    );
+    let fused = [
+        values(&m, &v, &m.phi()),
+        values(&m, &v, &m.jac()),
+        values(&m, &v, &m.gamma()),
+    ]
+    .concat();
     prog.call(
         "eval",
         &s(&format!("let (mut a, mut b, mut c) = ([0.0; {nr}], [0.0; {nj}], [0.0; {nr}]);")),
@@ -153,7 +229,13 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
             g[*c] += gv;
         }
     }
-    prog.call("forces", &s(&format!("let mut o = [0.0; {nc}];")), "g::custom_forces(&q, &qd, &fp, &mut o)", "o", &g);
+    prog.call(
+        "forces",
+        &s(&format!("let mut o = [0.0; {nc}];")),
+        "g::custom_forces(&q, &qd, &fp, &mut o)",
+        "o",
+        &g,
+    );
     let dq: Vec<Id> = m.forces.iter().flat_map(|f| f.dq.clone()).collect();
     let dqd: Vec<Id> = m.forces.iter().flat_map(|f| f.dqd.clone()).collect();
     let nfj = dq.len();
@@ -169,7 +251,10 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     //    interpreted unrolled 4-body chain; also a translational chain.
     for (prefix, el) in [
         ("rc", ChainElement::Joint(JointKind::Revolute)),
-        ("tc", ChainElement::PairForce(ForceKind::TorsionalSpringDamper)),
+        (
+            "tc",
+            ChainElement::PairForce(ForceKind::TorsionalSpringDamper),
+        ),
         ("dc", ChainElement::BodyForce(ForceKind::Drag)),
         ("pc", ChainElement::Joint(JointKind::Translational)),
     ] {
@@ -177,20 +262,59 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     }
     let m = PlanarModel::new(&chain4());
     let v: Vec<f64> = (0..m.ctx.n_vars()).map(|_| r.uniform(-1.0, 1.0)).collect();
-    let get = |ids: &[Id]| -> Vec<f64> { ids.iter().map(|&i| v[m.ctx.var_number(i).unwrap()]).collect() };
+    let get = |ids: &[Id]| -> Vec<f64> {
+        ids.iter()
+            .map(|&i| v[m.ctx.var_number(i).unwrap()])
+            .collect()
+    };
     let (q, qd, p, lam, fp) = (get(&m.q), get(&m.qd), get(&m.p), get(&m.lambda), get(&m.fp));
     let (nr, nj, nh, nc) = (m.n_rows(), m.jac().len(), m.hess().len(), m.n_coords());
     let (fps, fpd) = fp.split_at(9);
     let inputs = format!(
         "let q = {}; let qd = {}; let p = {}; let lam = {}; let fps = {}; let fpd = {};",
-        arr(&q), arr(&qd), arr(&p), arr(&lam), arr(fps), arr(fpd)
+        arr(&q),
+        arr(&qd),
+        arr(&p),
+        arr(&lam),
+        arr(fps),
+        arr(fpd)
     );
     let s = |extra: &str| format!("{inputs} {extra}");
-    prog.call("chain_phi", &s(&format!("let mut o = [0.0; {nr}];")), "g::rc_phi(&q, &p, &mut o)", "o", &values(&m, &v, &m.phi()));
-    prog.call("chain_jac", &s(&format!("let mut o = [0.0; {nj}];")), "g::rc_jacobian(&q, &p, &mut o)", "o", &values(&m, &v, &m.jac()));
-    prog.call("chain_phi_t", &s(&format!("let mut o = [1.0; {nr}];")), "g::rc_phi_t(&q, &p, &mut o)", "o", &values(&m, &v, &m.phi_t()));
-    prog.call("chain_gamma", &s(&format!("let mut o = [0.0; {nr}];")), "g::rc_gamma(&q, &qd, &p, &mut o)", "o", &values(&m, &v, &m.gamma()));
-    prog.call("chain_hess", &s(&format!("let mut o = [0.0; {nh}];")), "g::rc_hessian(&q, &p, &lam, &mut o)", "o", &values(&m, &v, &m.hess()));
+    prog.call(
+        "chain_phi",
+        &s(&format!("let mut o = [0.0; {nr}];")),
+        "g::rc_phi(&q, &p, &mut o)",
+        "o",
+        &values(&m, &v, &m.phi()),
+    );
+    prog.call(
+        "chain_jac",
+        &s(&format!("let mut o = [0.0; {nj}];")),
+        "g::rc_jacobian(&q, &p, &mut o)",
+        "o",
+        &values(&m, &v, &m.jac()),
+    );
+    prog.call(
+        "chain_phi_t",
+        &s(&format!("let mut o = [1.0; {nr}];")),
+        "g::rc_phi_t(&q, &p, &mut o)",
+        "o",
+        &values(&m, &v, &m.phi_t()),
+    );
+    prog.call(
+        "chain_gamma",
+        &s(&format!("let mut o = [0.0; {nr}];")),
+        "g::rc_gamma(&q, &qd, &p, &mut o)",
+        "o",
+        &values(&m, &v, &m.gamma()),
+    );
+    prog.call(
+        "chain_hess",
+        &s(&format!("let mut o = [0.0; {nh}];")),
+        "g::rc_hessian(&q, &p, &lam, &mut o)",
+        "o",
+        &values(&m, &v, &m.hess()),
+    );
     prog.call(
         "chain_eval",
         &s(&format!("let (mut a, mut b, mut c) = ([0.0; {nr}], [0.0; {nj}], [0.0; {nr}]);")),
@@ -250,8 +374,28 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     std::fs::write(dir.join("main.rs"), main).unwrap();
     let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
     for args in [
-        &["-O", "--edition", "2021", "--crate-type", "lib", "--crate-name", "generated", "lib.rs"][..],
-        &["-O", "--edition", "2021", "main.rs", "-o", "prog", "--extern", "generated=libgenerated.rlib", "-L", "."][..],
+        &[
+            "-O",
+            "--edition",
+            "2021",
+            "--crate-type",
+            "lib",
+            "--crate-name",
+            "generated",
+            "lib.rs",
+        ][..],
+        &[
+            "-O",
+            "--edition",
+            "2021",
+            "main.rs",
+            "-o",
+            "prog",
+            "--extern",
+            "generated=libgenerated.rlib",
+            "-L",
+            ".",
+        ][..],
     ] {
         let out = Command::new(&rustc)
             .args(args)
@@ -262,7 +406,9 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
         assert!(out.status.success(), "rustc {args:?} failed:\n{stderr}");
         assert!(!stderr.contains("warning"), "{stderr}");
     }
-    let run = Command::new(dir.join("prog")).output().expect("run program");
+    let run = Command::new(dir.join("prog"))
+        .output()
+        .expect("run program");
     assert!(run.status.success());
     let got: Vec<f64> = String::from_utf8_lossy(&run.stdout)
         .lines()
@@ -272,7 +418,10 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     let mut bitwise = 0;
     for ((label, want), got) in prog.expected.iter().zip(&got) {
         let tol = 1e-14 * want.abs().max(1.0);
-        assert!((want - got).abs() <= tol, "{label}: compiled {got:e} vs interpreter {want:e}");
+        assert!(
+            (want - got).abs() <= tol,
+            "{label}: compiled {got:e} vs interpreter {want:e}"
+        );
         if want.to_bits() == got.to_bits() || (*want == 0.0 && *got == 0.0) {
             bitwise += 1;
         }

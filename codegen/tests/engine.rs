@@ -121,8 +121,8 @@ fn derivatives_match_finite_differences() {
                 continue;
             }
             let f = c.eval(&[e], &x)[0];
-            for k in 0..nv {
-                let sym = c.eval(&[d[k]], &x)[0];
+            for (k, &dk) in d.iter().enumerate() {
+                let sym = c.eval(&[dk], &x)[0];
                 let (a, b) = (fd(&c, e, &x, k, 1e-4), fd(&c, e, &x, k, 5e-5));
                 let tol = 1e-6 * (1.0 + b.abs() + f.abs());
                 if !(a - b).abs().is_finite() || (a - b).abs() > tol {
@@ -137,7 +137,10 @@ fn derivatives_match_finite_differences() {
             }
         }
     }
-    assert!(checked > 1500 && skipped * 10 < checked, "checked {checked}, skipped {skipped}");
+    assert!(
+        checked > 1500 && skipped * 10 < checked,
+        "checked {checked}, skipped {skipped}"
+    );
 }
 
 /// Non-smooth primitives away from their kinks, and chained time inputs.
@@ -196,7 +199,10 @@ fn emitted_block_shares_nodes_and_pairs_sin_cos() {
     blk.store("out[1]", e2, mbsolve_codegen::Store::Assign);
     let code = blk.finish();
     assert_eq!(code.matches("sin_cos()").count(), 1, "{code}");
-    assert!(!code.contains(".sin()") && !code.contains(".cos()"), "{code}");
+    assert!(
+        !code.contains(".sin()") && !code.contains(".cos()"),
+        "{code}"
+    );
     // `a` is used twice → one let; `b` used twice (b·b) → one let
     assert_eq!(code.matches("let ").count(), 3, "{code}");
 }

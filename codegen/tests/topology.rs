@@ -13,14 +13,28 @@ fn mixed() -> Topology {
         .joint("P", JointKind::Translational, Side::Ground, Side::Body(2))
         .joint("D", JointKind::DriveAngle, Side::Body(0), Side::Body(2))
         .joint("E", JointKind::DriveAngle, Side::Ground, Side::Body(1))
-        .force("k01", ForceKind::TorsionalSpringDamper, Side::Body(0), Side::Body(1))
-        .force("k2", ForceKind::TorsionalSpringDamper, Side::Ground, Side::Body(2))
+        .force(
+            "k01",
+            ForceKind::TorsionalSpringDamper,
+            Side::Body(0),
+            Side::Body(1),
+        )
+        .force(
+            "k2",
+            ForceKind::TorsionalSpringDamper,
+            Side::Ground,
+            Side::Body(2),
+        )
         .force("drag", ForceKind::Drag, Side::Body(1), Side::Ground)
 }
 
 /// Prescribed drive f(t) = a sin(2t) + b t and its derivatives.
 fn drive(t: f64, a: f64, b: f64) -> [f64; 3] {
-    [a * (2.0 * t).sin() + b * t, 2.0 * a * (2.0 * t).cos() + b, -4.0 * a * (2.0 * t).sin()]
+    [
+        a * (2.0 * t).sin() + b * t,
+        2.0 * a * (2.0 * t).cos() + b,
+        -4.0 * a * (2.0 * t).sin(),
+    ]
 }
 
 struct Env<'a> {
@@ -35,7 +49,10 @@ impl<'a> Env<'a> {
         for j in &m.joints {
             if j.jac.len() >= 4 && j.params.len() == 7 {
                 let (ux, uy) = (j.params.start + 2, j.params.start + 3);
-                let (a, b) = (v[m.ctx.var_number(m.p[ux]).unwrap()], v[m.ctx.var_number(m.p[uy]).unwrap()]);
+                let (a, b) = (
+                    v[m.ctx.var_number(m.p[ux]).unwrap()],
+                    v[m.ctx.var_number(m.p[uy]).unwrap()],
+                );
                 let n = (a * a + b * b).sqrt();
                 v[m.ctx.var_number(m.p[ux]).unwrap()] = a / n;
                 v[m.ctx.var_number(m.p[uy]).unwrap()] = b / n;
@@ -56,8 +73,8 @@ impl<'a> Env<'a> {
         for (k, j) in self.m.joints.iter().enumerate() {
             if !j.time_inputs.is_empty() {
                 let f = drive(t, 0.3 + 0.1 * k as f64, 0.2);
-                for d in 0..3 {
-                    self.set(self.m.tf[j.time_inputs.start + d], f[d]);
+                for (d, &fd) in f.iter().enumerate() {
+                    self.set(self.m.tf[j.time_inputs.start + d], fd);
                 }
             }
         }
@@ -128,7 +145,11 @@ fn jacobian_phi_t_and_hessian_match_finite_differences() {
         env.set_time(t0);
         for row in 0..m.n_rows() {
             let num = (pp[row] - pm[row]) / (2.0 * h);
-            assert!(close(phi_t[row], num, 1e-8), "Φ_t[{row}] {} vs {num}", phi_t[row]);
+            assert!(
+                close(phi_t[row], num, 1e-8),
+                "Φ_t[{row}] {} vs {num}",
+                phi_t[row]
+            );
         }
     }
 }
@@ -166,7 +187,10 @@ fn gamma_is_the_acceleration_right_hand_side() {
                 .map(|(&(_, c), j)| j * a[c])
                 .sum();
             let sym = qa - gamma[row];
-            assert!(close(sym, num, 1e-5), "row {row}: Φ_q a − γ = {sym} vs d²Φ/dt² = {num}");
+            assert!(
+                close(sym, num, 1e-5),
+                "row {row}: Φ_q a − γ = {sym} vs d²Φ/dt² = {num}"
+            );
         }
     }
 }
@@ -222,4 +246,60 @@ fn revolute_gamma_is_the_textbook_formula() {
         let want = ri[a] * w(2) * w(2) - rj[a] * w(5) * w(5);
         assert_eq!(g[a], want, "bitwise equal to the hand formula");
     }
+}
+
+/// Hunt–Crossley wall contact: forces and Jacobians against finite
+/// differences on states with penetrating corners (away from the kinks).
+#[test]
+fn wall_contact_matches_finite_differences() {
+    let topo =
+        Topology::new("contact", 1).force("c", ForceKind::WallContact, Side::Body(0), Side::Ground);
+    let m = PlanarModel::new(&topo);
+    let f = &m.forces[0];
+    let mut r = Rng(123);
+    let mut active = 0;
+    for _ in 0..200 {
+        let mut v = vec![0.0; m.ctx.n_vars()];
+        let mut set = |id: Id, x: f64| v[m.ctx.var_number(id).unwrap()] = x;
+        // hw, hl, x_l, x_r, k_h, χ, μ, v_s
+        let p = [0.015, 0.05, -0.025, 0.025, 1e9, 0.75, 0.3, 1e-3];
+        for (k, &x) in p.iter().enumerate() {
+            set(m.fp[k], x);
+        }
+        set(m.q[0], r.uniform(-0.02, 0.02));
+        set(m.q[1], r.uniform(-1.0, 1.0));
+        set(m.q[2], r.uniform(-0.3, 0.3));
+        set(m.qd[0], r.uniform(-0.2, 0.2));
+        set(m.qd[1], r.uniform(-5e-3, 5e-3));
+        set(m.qd[2], r.uniform(-1.0, 1.0));
+        let g = m.ctx.eval(&f.g, &v);
+        if g[0] == 0.0 {
+            continue;
+        }
+        active += 1;
+        let (dq, dqd) = (m.ctx.eval(&f.dq, &v), m.ctx.eval(&f.dqd, &v));
+        for (vars, sym, h) in [(&m.q, &dq, 1e-9), (&m.qd, &dqd, 1e-8)] {
+            for c in 0..3 {
+                let k = m.ctx.var_number(vars[c]).unwrap();
+                let x0 = v[k];
+                v[k] = x0 + h;
+                let gp = m.ctx.eval(&f.g, &v);
+                v[k] = x0 - h;
+                let gm = m.ctx.eval(&f.g, &v);
+                v[k] = x0;
+                for row in 0..3 {
+                    let num = (gp[row] - gm[row]) / (2.0 * h);
+                    let s = sym[row * 3 + c];
+                    // truncation + rounding (ε |g| / h, large where tanh saturates)
+                    let tol = 1e-5 * (1.0 + s.abs().max(num.abs()))
+                        + 1e3 * f64::EPSILON * g[row].abs().max(gp[row].abs()) / h;
+                    assert!(
+                        (s - num).abs() <= tol,
+                        "∂g{row}/∂{c} (h = {h}): {s:e} vs {num:e}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(active > 50, "only {active} states in contact");
 }

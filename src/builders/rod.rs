@@ -518,7 +518,7 @@ pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
             }),
         );
     }
-    Ok((builder.build()?, info))
+    Ok((with_generated(builder.build()?), info))
 }
 
 /// The finite-segment cantilever of PROBLEMS.md D.
@@ -604,7 +604,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     }
     info.bodies = bodies;
     info.joints = joints;
-    Ok((builder.build()?, info))
+    Ok((with_generated(builder.build()?), info))
 }
 
 /// The conservative N-link pendulum of PROBLEMS.md D: `n` uniform slender
@@ -682,5 +682,12 @@ pub fn n_link_pendulum(
     info.segment_inertia = inertia;
     info.bodies = bodies;
     info.joints = joints;
-    Ok((builder.build()?, info))
+    Ok((with_generated(builder.build()?), info))
+}
+
+/// Attach the build-time generated constraint kernels when the topology is
+/// recognised (it is for the standalone rod, cantilever and pendulum).
+fn with_generated(mut sys: System) -> System {
+    crate::generated::attach_generated(&mut sys);
+    sys
 }

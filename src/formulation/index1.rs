@@ -176,11 +176,11 @@ impl<'a> Index1<'a> {
             &mut self.phid,
         );
         let mut constraint_terms = || {
-            sys.jacobian_values(q, t, jac);
-            sys.gamma(q, qd, t, gamma);
+            // Φ comes for free with generated kernels (one fused pass).
+            let want_phi = !b.is_off() || sys.uses_kernels();
+            sys.constraint_terms(q, qd, t, want_phi.then_some(&mut phi[..]), jac, gamma);
             if !b.is_off() {
                 // eq. (11): γ̄ = γ − 2αΦ̇ − β²Φ with Φ̇ = Φ_q q̇ + Φ_t
-                sys.phi(q, t, phi);
                 sys.phi_t(q, t, phi_t);
                 sys.jacobian_mul(jac, qd, phid);
                 for r in 0..gamma.len() {

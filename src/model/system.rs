@@ -22,6 +22,21 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
     fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]);
     /// γ(q, q̇, t).
     fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]);
+    /// Φ, Φ_q values and γ in one pass. Default: the three calls; kernels
+    /// override it to share the sines and cosines of every angle.
+    fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        self.phi(q, t, phi);
+        self.jacobian_values(q, t, vals);
+        self.gamma(q, qd, t, gamma);
+    }
 }
 
 /// Which evaluation of Φ, Φ_q, Φ_t, γ a [`System`] uses
@@ -284,6 +299,34 @@ impl System {
             c.jacobian(q, t, &mut vals[self.jac_offset[k]..self.jac_offset[k + 1]]);
         }
     }
+    /// True when specialised kernels evaluate the constraints.
+    pub fn uses_kernels(&self) -> bool {
+        self.active_kernels().is_some()
+    }
+
+    /// Φ_q values and γ, and Φ when `phi` is given, in one pass where
+    /// kernels allow it (see [`ConstraintKernels::evaluate`]).
+    pub fn constraint_terms(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+        phi: Option<&mut [f64]>,
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        match (self.active_kernels(), phi) {
+            (Some(k), Some(p)) => k.evaluate(q, qd, t, p, vals, gamma),
+            (_, phi) => {
+                if let Some(p) = phi {
+                    self.phi(q, t, p);
+                }
+                self.jacobian_values(q, t, vals);
+                self.gamma(q, qd, t, gamma);
+            }
+        }
+    }
+
     /// Φ_t(q, t).
     pub fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]) {
         if let Some(k) = self.active_kernels() {

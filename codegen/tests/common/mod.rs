@@ -158,7 +158,10 @@ pub fn random_tree(r: &mut Rng, depth: usize, nv: usize, smooth: bool) -> Tree {
         6 => {
             // a / (1.5 + b²)
             let b = sub(r);
-            Div(sub(r), Box::new(Add(Box::new(C(1.5)), Box::new(Powi(b, 2)))))
+            Div(
+                sub(r),
+                Box::new(Add(Box::new(C(1.5)), Box::new(Powi(b, 2)))),
+            )
         }
         7 => Neg(sub(r)),
         8 => Powi(sub(r), [2, 3, -1, 4][r.below(4)]),
