@@ -21,14 +21,22 @@ fn best<F: FnMut()>(reps: usize, mut f: F) -> f64 {
 }
 
 fn main() {
-    let pool1 = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let pool2 = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let pool1 = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let pool2 = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
     println!("times in µs, best of 30");
     println!("       N |   forces | Φ,Φ_q,γ generic | Φ,Φ_q,γ generated | RHS generic | RHS generated | ratio | RHS generated, 2 threads");
     for n in [10usize, 100, 1000, 3000, 10_000] {
         let (mut sys, _) = build_rod(&RodParams::problem_b(n)).unwrap();
         let (q, mut qd) = sys.initial_state();
-        qd.iter_mut().enumerate().for_each(|(i, v)| *v += 1e-3 * (i as f64).sin());
+        qd.iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| *v += 1e-3 * (i as f64).sin());
         let nc = sys.n_coords();
         let m = sys.n_constraints();
         let mut g = vec![0.0; nc];
@@ -39,10 +47,14 @@ fn main() {
         let tf = best(reps, || sys.forces_into(0.0, &q, &qd, &mut g));
         let mut rhs = |sys: &mut mbsolve::model::System, e: Evaluation| {
             sys.set_evaluation(e).unwrap();
-            let tc = best(reps, || sys.constraint_terms(&q, &qd, 0.0, Some(&mut phi), &mut jac, &mut gam));
+            let tc = best(reps, || {
+                sys.constraint_terms(&q, &qd, 0.0, Some(&mut phi), &mut jac, &mut gam)
+            });
             let mut f = Index1::new(sys, Index1Options::default()).unwrap();
-            let t1 = pool1.install(|| best(reps, || f.accelerations(0.0, &q, &qd, &mut qdd).unwrap()));
-            let t2 = pool2.install(|| best(reps, || f.accelerations(0.0, &q, &qd, &mut qdd).unwrap()));
+            let t1 =
+                pool1.install(|| best(reps, || f.accelerations(0.0, &q, &qd, &mut qdd).unwrap()));
+            let t2 =
+                pool2.install(|| best(reps, || f.accelerations(0.0, &q, &qd, &mut qdd).unwrap()));
             (tc, t1, t2)
         };
         let (tc_gen, r_gen, _) = rhs(&mut sys, Evaluation::Generic);

@@ -165,9 +165,15 @@ pub fn run() -> Vec<Check> {
             };
             let (mut tg, mut tgen) = (f64::MAX, f64::MAX);
             for _ in 0..20 {
-                chain.sys.set_evaluation(Evaluation::Generic).expect("generic");
+                chain
+                    .sys
+                    .set_evaluation(Evaluation::Generic)
+                    .expect("generic");
                 tg = tg.min(time(&chain.sys, &mut q));
-                chain.sys.set_evaluation(Evaluation::Generated).expect("kernels attached");
+                chain
+                    .sys
+                    .set_evaluation(Evaluation::Generated)
+                    .expect("kernels attached");
                 tgen = tgen.min(time(&chain.sys, &mut q));
             }
             (tg, tgen)
@@ -179,7 +185,11 @@ pub fn run() -> Vec<Check> {
             threshold: 2.0,
             at_most: false,
             passed: r >= 2.0,
-            detail: format!("generic {:.1} µs vs generated {:.1} µs", tg * 1e6, tgen * 1e6),
+            detail: format!(
+                "generic {:.1} µs vs generated {:.1} µs",
+                tg * 1e6,
+                tgen * 1e6
+            ),
         });
         checks
     })

@@ -16,7 +16,7 @@ use crate::formulation::{
     consistent_initial_state, Baumgarte, BaumgarteRule, ConsistentState, Formulation,
     Index1Options, InitialOptions,
 };
-use crate::integrate::{Method, OdeOptions, Tolerance};
+use crate::integrate::{ImplicitOptions, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
 use crate::model::Evaluation;
 use crate::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
@@ -317,6 +317,18 @@ struct RawIntegrator {
     step: Option<f64>,
     max_step: Option<f64>,
     initial_step: Option<f64>,
+    // implicit methods (genalpha, hht, newmark): see `ImplicitOptions`
+    rho_inf: Option<f64>,
+    adaptive: Option<bool>,
+    newton_tol: Option<f64>,
+    max_newton: Option<i64>,
+    project: Option<bool>,
+    reuse: Option<bool>,
+    filter_error: Option<bool>,
+    check_constraints: Option<bool>,
+    min_step: Option<f64>,
+    lu: Option<bool>,
+    extrapolate: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -750,6 +762,9 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
             ))
         }
     };
+    // Generated kernels for recognised topologies (chains, four-bar);
+    // `constraints.evaluation` decides whether they are used.
+    crate::generated::attach_generated(&mut system);
     system
         .set_evaluation(evaluation)
         .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
@@ -792,6 +807,58 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
             positive(v).map_err(|m| err(k.into(), m))?;
             *slot = Some(v);
         }
+    }
+    let ri = &raw.integrator;
+    let mut implicit = ImplicitOptions::default();
+    if let Some(r) = ri.rho_inf {
+        let lo = if method == Method::Hht { 0.5 } else { 0.0 };
+        if !(r.is_finite() && (lo..=1.0).contains(&r)) {
+            return Err(err(
+                "integrator.rho_inf".into(),
+                format!("{r} is invalid: must be in [{lo}, 1] for {}", method.name()),
+            ));
+        }
+        implicit.rho_inf = r;
+    }
+    if let Some(v) = ri.newton_tol {
+        positive(v).map_err(|m| err("integrator.newton_tol".into(), m))?;
+        implicit.newton_tol = v;
+    }
+    if let Some(v) = ri.min_step {
+        positive(v).map_err(|m| err("integrator.min_step".into(), m))?;
+        implicit.min_step = Some(v);
+    }
+    if let Some(v) = ri.max_newton {
+        if v < 1 {
+            return Err(err(
+                "integrator.max_newton".into(),
+                format!("{v} is invalid: must be ≥ 1"),
+            ));
+        }
+        implicit.max_newton = v as usize;
+    }
+    for (flag, slot) in [
+        (ri.adaptive, &mut implicit.adaptive),
+        (ri.project, &mut implicit.project),
+        (ri.reuse, &mut implicit.reuse),
+        (ri.filter_error, &mut implicit.filter_error),
+        (ri.check_constraints, &mut implicit.check_constraints),
+        (ri.lu, &mut implicit.lu),
+        (ri.extrapolate, &mut implicit.extrapolate),
+    ] {
+        if let Some(v) = flag {
+            *slot = v;
+        }
+    }
+    implicit.step = ode.fixed_step;
+    if method.is_implicit() && ode.fixed_step.is_none() && !implicit.adaptive {
+        return Err(err(
+            "integrator.step".into(),
+            format!(
+                "{} needs a fixed integrator.step, or integrator.adaptive = true",
+                method.name()
+            ),
+        ));
     }
     if method == Method::Rk4 && ode.fixed_step.is_none() {
         return Err(err(
@@ -843,6 +910,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
             baumgarte,
             linear_solver,
         },
+        implicit,
     };
 
     // Initial state.

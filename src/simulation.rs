@@ -1,9 +1,10 @@
 //! One run, end to end: formulation + integrator + observation of the
 //! constraint violation, with a [`Summary`] of the work done.
 
-use crate::formulation::{FormulationError, Index1, Index1Options};
+use crate::formulation::{FormulationError, Index1, Index1Options, Index3, NewtonSolverKind};
 use crate::integrate::{
-    integrator, IntegratorError, Method, Observer, OdeOptions, Termination, Tolerance,
+    integrator, GenAlpha, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report,
+    Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -25,6 +26,27 @@ pub struct RunConfig {
     pub output_dt: f64,
     /// Formulation, Baumgarte parameters, linear solver.
     pub index1: Index1Options,
+    /// Options of the implicit methods ([`Method::is_implicit`]: genalpha,
+    /// hht, newmark): ρ∞, step, adaptivity, Newton, projection. Their
+    /// tolerances, `max_step`, `initial_step` and `max_steps` come from
+    /// `ode`, their linear solver from `index1.linear_solver`.
+    pub implicit: ImplicitOptions,
+}
+
+impl Default for RunConfig {
+    /// ode23 with MATLAB's default options from 0 to 1 s, outputs every
+    /// 0.01 s, default index-1 and implicit options.
+    fn default() -> Self {
+        Self {
+            method: Method::Ode23,
+            ode: OdeOptions::default(),
+            t0: 0.0,
+            t_end: 1.0,
+            output_dt: 0.01,
+            index1: Index1Options::default(),
+            implicit: ImplicitOptions::default(),
+        }
+    }
 }
 
 impl RunConfig {
@@ -67,6 +89,8 @@ pub struct Summary {
     pub formulation: String,
     /// Linear solver.
     pub linear_solver: String,
+    /// Evaluation of Φ, Φ_q, γ: `generic` or the generated kernels' name.
+    pub evaluation: String,
     /// Baumgarte α.
     pub alpha: f64,
     /// Baumgarte β.
@@ -148,6 +172,23 @@ struct Watch<'s, 'm, 'd> {
     monitors: &'m mut [&'d mut dyn Monitor],
 }
 
+impl<'s, 'm, 'd> Watch<'s, 'm, 'd> {
+    fn new(sys: &'s System, monitors: &'m mut [&'d mut dyn Monitor]) -> Self {
+        let m = sys.n_constraints();
+        Self {
+            sys,
+            n: sys.n_coords(),
+            traj: Trajectory::default(),
+            phi: vec![0.0; m],
+            phi_t: vec![0.0; m],
+            jac: vec![0.0; sys.jacobian_pattern().len()],
+            phid: vec![0.0; m],
+            max_norm: 0.0,
+            monitors,
+        }
+    }
+}
+
 fn norm2(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -208,56 +249,158 @@ pub fn simulate(
             "component {k} of (q0, q̇0) is not finite"
         )));
     }
+    if cfg.method.is_implicit() {
+        return simulate_implicit(sys, q0, qd0, cfg, monitors);
+    }
     let mut f = Index1::new(sys, cfg.index1)?;
     let mut integ = integrator(cfg.method, cfg.ode.clone())?;
     let mut y0 = q0.to_vec();
     y0.extend_from_slice(qd0);
-    let m = sys.n_constraints();
-    let mut watch = Watch {
-        sys,
-        n,
-        traj: Trajectory::default(),
-        phi: vec![0.0; m],
-        phi_t: vec![0.0; m],
-        jac: vec![0.0; sys.jacobian_pattern().len()],
-        phid: vec![0.0; m],
-        max_norm: 0.0,
-        monitors,
-    };
+    let mut watch = Watch::new(sys, monitors);
     let times = cfg.output_times();
     let start = Instant::now();
     let report = integ.integrate(&mut f, cfg.t0, cfg.t_end, &y0, &times, &mut watch)?;
     let wall_s = start.elapsed().as_secs_f64();
     let stats = f.stats();
+    let work = Work {
+        formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
+        linear_solver: f.solver_name().to_string(),
+        baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
+        factorizations: stats.solver.factorizations,
+        regularized_pivots: stats.solver.regularized_pivots,
+    };
+    Ok(finish(
+        sys,
+        cfg,
+        watch,
+        &report,
+        wall_s,
+        work,
+        serde_json::Map::new(),
+    ))
+}
+
+/// The implicit path of [`simulate`] (methods genalpha, hht, newmark):
+/// generalized-α on the index-3 equations ([`GenAlpha`] over
+/// [`Index3`]), the same [`Trajectory`] and [`Summary`] as the explicit
+/// path. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
+/// `rhs_evals` = residual evaluations, `factorizations` = factorisations of
+/// the Newton matrix, `failed_steps` = error rejections + Newton failures;
+/// `extra` adds `newton_iterations`, `newton_failures`, `error_rejections`,
+/// `jacobian_evaluations`, `projections`, `projection_factorizations`,
+/// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
+/// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
+/// `max_step_taken`.
+fn simulate_implicit(
+    sys: &System,
+    q0: &[f64],
+    qd0: &[f64],
+    cfg: &RunConfig,
+    monitors: &mut [&mut dyn Monitor],
+) -> Result<(Trajectory, Summary), SimulationError> {
+    let mut integ = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+    let newton = if cfg.implicit.lu {
+        NewtonSolverKind::SparseLu
+    } else {
+        NewtonSolverKind::SymmetricLdlt
+    };
+    let mut f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+    let mut watch = Watch::new(sys, monitors);
+    let times = cfg.output_times();
+    let start = Instant::now();
+    let report = integ.integrate(&mut f, cfg.t0, cfg.t_end, q0, qd0, &times, &mut watch)?;
+    let wall_s = start.elapsed().as_secs_f64();
+    let gs = integ.stats();
+    let fs = f.stats();
+    let p = integ.params();
+    let mut extra = serde_json::Map::new();
+    let opts = integ.options();
+    let fixed_step = if opts.adaptive {
+        serde_json::Value::Null
+    } else {
+        opts.step.or(cfg.ode.fixed_step).into()
+    };
+    for (k, v) in [
+        ("newton_iterations", gs.newton_iterations.into()),
+        ("newton_failures", gs.newton_failures.into()),
+        ("error_rejections", gs.error_rejections.into()),
+        ("jacobian_evaluations", fs.jacobians.into()),
+        ("projections", gs.projections.into()),
+        (
+            "projection_factorizations",
+            fs.mass_solver.factorizations.into(),
+        ),
+        ("rho_inf", opts.rho_inf.into()),
+        ("alpha_m", p.alpha_m.into()),
+        ("alpha_f", p.alpha_f.into()),
+        ("gamma_newmark", p.gamma.into()),
+        ("beta_newmark", p.beta.into()),
+        ("fixed_step", fixed_step),
+        ("adaptive", opts.adaptive.into()),
+        ("newton_tol", opts.newton_tol.into()),
+        ("min_step_taken", gs.min_step_taken.into()),
+        ("max_step_taken", gs.max_step_taken.into()),
+    ] {
+        extra.insert(k.to_string(), v);
+    }
+    let work = Work {
+        formulation: "index3".to_string(),
+        linear_solver: f.solver_name().to_string(),
+        baumgarte: (0.0, 0.0),
+        factorizations: gs.factorizations,
+        regularized_pivots: fs.newton_solver.regularized_pivots,
+    };
+    Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
+}
+
+/// Formulation-specific figures of a run, for [`finish`].
+struct Work {
+    formulation: String,
+    linear_solver: String,
+    baumgarte: (f64, f64),
+    factorizations: usize,
+    regularized_pivots: usize,
+}
+
+/// Assemble the [`Summary`] of a run (both paths).
+fn finish(
+    sys: &System,
+    cfg: &RunConfig,
+    watch: Watch<'_, '_, '_>,
+    report: &Report,
+    wall_s: f64,
+    work: Work,
+    mut extra: serde_json::Map<String, serde_json::Value>,
+) -> (Trajectory, Summary) {
     let (status, message) = match &report.termination {
         Termination::Completed => ("completed", None),
         Termination::Failed { reason, .. } => ("failed", Some(reason.clone())),
         Termination::Stopped { reason, .. } => ("stopped", Some(reason.clone())),
     };
-    let mut extra = serde_json::Map::new();
     for mon in watch.monitors.iter() {
         mon.report(&mut extra);
     }
     let traj = watch.traj;
     let summary = Summary {
         method: cfg.method.name().to_string(),
-        formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
-        linear_solver: f.solver_name().to_string(),
-        alpha: cfg.index1.baumgarte.alpha,
-        beta: cfg.index1.baumgarte.beta,
+        formulation: work.formulation,
+        linear_solver: work.linear_solver,
+        evaluation: sys.evaluation_name().to_string(),
+        alpha: work.baumgarte.0,
+        beta: work.baumgarte.1,
         rtol: cfg.ode.rtol,
         atol: match &cfg.ode.atol {
             Tolerance::Scalar(a) => *a,
             Tolerance::Vector(v) => v.iter().cloned().fold(0.0, f64::max),
         },
         bodies: sys.bodies().len(),
-        coordinates: n,
-        constraints: m,
+        coordinates: sys.n_coords(),
+        constraints: sys.n_constraints(),
         steps: report.stats.steps,
         failed_steps: report.stats.failed_steps,
         rhs_evals: report.stats.rhs_evals,
-        factorizations: stats.solver.factorizations,
-        regularized_pivots: stats.solver.regularized_pivots,
+        factorizations: work.factorizations,
+        regularized_pivots: work.regularized_pivots,
         wall_s,
         max_constraint_norm: watch.max_norm,
         final_constraint_norm: traj.constraint_norm.last().copied().unwrap_or(f64::NAN),
@@ -273,5 +416,5 @@ pub fn simulate(
         warnings: report.warnings.clone(),
         extra,
     };
-    Ok((traj, summary))
+    (traj, summary)
 }

@@ -24,6 +24,7 @@ fn config(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfi
         t_end,
         output_dt: dt,
         index1: Index1Options::default(),
+        ..Default::default()
     }
 }
 

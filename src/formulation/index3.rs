@@ -32,9 +32,10 @@
 //!     [ Φ_q                         0    ] · [ μ] = [ −Φ(q, t)               ]
 //! ```
 //!
-//! whose blocks stay O(1) as `h → 0` (the unscaled matrix has condition
-//! number O(h⁻⁴)); this is `β h² · D S_t D` with `D = diag(I, I/(β h²))`, so
-//! it stays symmetric.
+//! whose blocks stay O(1) as `h → 0` (unscaled, `A ~ h⁻²` while the
+//! multiplier Schur complement `Φ_q A⁻¹ Φ_qᵀ ~ h²`: condition number
+//! O(h⁻⁴)); this is `β h² · D S_t D` with `D = diag(I, I/(β h²))`, so it
+//! stays symmetric.
 //!
 //! **Symmetrisation.** The drag and contact Jacobians are not symmetric,
 //! but the saddle-point solvers factor a symmetric matrix. [`Index3`]
@@ -57,7 +58,9 @@
 use super::FormulationError;
 use crate::forces::FdWorkspace;
 use crate::integrate::SecondOrderDae;
-use crate::linalg::{solver_for, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats};
+use crate::linalg::{
+    solver_for, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats, SparseLdlt,
+};
 use crate::model::System;
 use serde::Serialize;
 
@@ -122,6 +125,173 @@ pub struct Index3<'a> {
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
+    /// The unsymmetric alternative ([`NewtonSolverKind::SparseLu`]).
+    lu: Option<LuNewton>,
+}
+
+/// How the Newton matrix is factorised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NewtonSolverKind {
+    /// The symmetric part `½ (A + Aᵀ)` of the `A` block with the symmetric
+    /// saddle-point solver (sparse LDLᵀ by default): modified Newton.
+    #[default]
+    SymmetricLdlt,
+    /// The full unsymmetric matrix with faer's sparse LU (COLAMD column
+    /// order, partial pivoting; `faer::sparse::linalg::lu`): exact Newton.
+    SparseLu,
+}
+
+/// The full unsymmetric Newton matrix in CSC for faer's sparse LU, with
+/// slot maps (built once) and the symbolic analysis (once).
+struct LuNewton {
+    dim: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    /// Slot of each `a_pattern` entry (force entries as given, Hessian
+    /// entries at `(i, j)`), and of its transpose for Hessian entries
+    /// (`usize::MAX` for force entries).
+    a_slot: Vec<usize>,
+    a_slot_t: Vec<usize>,
+    mass_slot: Vec<usize>,
+    jac_slot: Vec<usize>,
+    jac_slot_t: Vec<usize>,
+    symbolic: faer::sparse::linalg::lu::SymbolicLu<usize>,
+    numeric: faer::sparse::linalg::lu::NumericLu<usize, f64>,
+    mem: faer::dyn_stack::MemBuffer,
+    factorizations: usize,
+    solves: usize,
+    ready: bool,
+}
+
+impl LuNewton {
+    fn new(
+        n: usize,
+        m: usize,
+        a_pattern: &[(usize, usize)],
+        n_force: usize,
+        jac_pattern: &[(usize, usize)],
+    ) -> Result<Self, FormulationError> {
+        use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuSymbolicParams, NumericLu};
+        let dim = n + m;
+        let mut entries: Vec<(usize, usize)> = Vec::new();
+        entries.extend((0..n).map(|i| (i, i)));
+        for (k, &(i, j)) in a_pattern.iter().enumerate() {
+            entries.push((i, j));
+            if k >= n_force {
+                entries.push((j, i));
+            }
+        }
+        for &(r, c) in jac_pattern {
+            entries.push((n + r, c));
+            entries.push((c, n + r));
+        }
+        // CSC: sort by (col, row)
+        let mut by_col: Vec<(usize, usize)> = entries.iter().map(|&(r, c)| (c, r)).collect();
+        by_col.sort_unstable();
+        by_col.dedup();
+        let mut col_ptr = vec![0usize; dim + 1];
+        let mut row_idx = Vec::with_capacity(by_col.len());
+        for &(c, r) in &by_col {
+            col_ptr[c + 1] += 1;
+            row_idx.push(r);
+        }
+        for c in 0..dim {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let slot = |r: usize, c: usize| -> usize {
+            let range = col_ptr[c]..col_ptr[c + 1];
+            range.start
+                + row_idx[range]
+                    .binary_search(&r)
+                    .expect("entry is in the pattern")
+        };
+        let mass_slot = (0..n).map(|i| slot(i, i)).collect();
+        let a_slot = a_pattern.iter().map(|&(i, j)| slot(i, j)).collect();
+        let a_slot_t = a_pattern
+            .iter()
+            .enumerate()
+            .map(|(k, &(i, j))| if k >= n_force { slot(j, i) } else { usize::MAX })
+            .collect();
+        let jac_slot = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
+        let jac_slot_t = jac_pattern.iter().map(|&(r, c)| slot(c, n + r)).collect();
+        let pattern =
+            faer::sparse::SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
+        let symbolic =
+            factorize_symbolic_lu(pattern, LuSymbolicParams::default()).map_err(|e| {
+                FormulationError::Invalid(format!("sparse LU symbolic analysis failed: {e:?}"))
+            })?;
+        let req = faer::dyn_stack::StackReq::any_of(&[
+            symbolic.factorize_numeric_lu_scratch::<f64>(faer::Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, faer::Par::Seq),
+        ]);
+        Ok(Self {
+            dim,
+            values: vec![0.0; row_idx.len()],
+            col_ptr,
+            row_idx,
+            a_slot,
+            a_slot_t,
+            mass_slot,
+            jac_slot,
+            jac_slot_t,
+            symbolic,
+            numeric: NumericLu::new(),
+            mem: faer::dyn_stack::MemBuffer::new(req),
+            factorizations: 0,
+            solves: 0,
+            ready: false,
+        })
+    }
+
+    fn factorize(&mut self) -> Result<(), String> {
+        use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+        self.ready = false;
+        if let Some(v) = self.values.iter().find(|v| !v.is_finite()) {
+            return Err(format!("non-finite entry {v} in the Newton matrix"));
+        }
+        let a = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(
+                self.dim,
+                self.dim,
+                &self.col_ptr,
+                None,
+                &self.row_idx,
+            ),
+            &self.values,
+        );
+        self.symbolic
+            .factorize_numeric_lu(
+                &mut self.numeric,
+                a,
+                faer::Par::Seq,
+                faer::dyn_stack::MemStack::new(&mut self.mem),
+                Default::default(),
+            )
+            .map_err(|e| format!("sparse LU of the Newton matrix failed: {e:?}"))?;
+        self.factorizations += 1;
+        self.ready = true;
+        Ok(())
+    }
+
+    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), String> {
+        if !self.ready {
+            return Err("sparse LU solve before a successful factorisation".into());
+        }
+        let lu = faer::sparse::linalg::lu::LuRef::new_unchecked(&self.symbolic, &self.numeric);
+        lu.solve_in_place_with_conj(
+            faer::Conj::No,
+            faer::MatMut::from_column_major_slice_mut(rhs, self.dim, 1),
+            faer::Par::Seq,
+            faer::dyn_stack::MemStack::new(&mut self.mem),
+        );
+        self.solves += 1;
+        if rhs.iter().any(|v| !v.is_finite()) {
+            return Err("sparse LU produced a non-finite solution".into());
+        }
+        Ok(())
+    }
 }
 
 impl std::fmt::Debug for Index3<'_> {
@@ -139,8 +309,21 @@ impl<'a> Index3<'a> {
     /// Build both patterns and run the symbolic analyses (once).
     ///
     /// `linear_solver` chooses the saddle-point solver of both matrices
-    /// ([`solver_for`]); the sparse LDLᵀ is the default.
+    /// ([`solver_for`]); the sparse LDLᵀ is the default, for the Newton
+    /// matrix without its residual check (a modified Newton iteration
+    /// tolerates an inexact solve: its residual is exact).
     pub fn new(sys: &'a System, linear_solver: SolverKind) -> Result<Self, FormulationError> {
+        Self::with_newton_solver(sys, linear_solver, NewtonSolverKind::default())
+    }
+
+    /// As [`Index3::new`], choosing how the Newton matrix is factorised
+    /// ([`NewtonSolverKind`]); `linear_solver` then only applies to the
+    /// mass matrix with [`NewtonSolverKind::SparseLu`].
+    pub fn with_newton_solver(
+        sys: &'a System,
+        linear_solver: SolverKind,
+        newton: NewtonSolverKind,
+    ) -> Result<Self, FormulationError> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let mut a_pattern: Vec<(usize, usize)> = Vec::new();
         let mut weights = Vec::new();
@@ -171,6 +354,7 @@ impl<'a> Index3<'a> {
                 }
             }
         }
+        let n_force = a_pattern.len();
         let mut hess_blocks = Vec::new();
         let mut n_hess = 0;
         for (j, c) in sys.constraints().iter().enumerate() {
@@ -194,12 +378,29 @@ impl<'a> Index3<'a> {
         let k = SaddleMatrix::new(n, m, &a_pattern, sys.jacobian_pattern());
         let slots = k.a_slots().to_vec();
         let mass_slots = k.diag_slots()[..n].to_vec();
-        let mut solver = solver_for(linear_solver, n + m);
+        // Newton corrections need no residual check: an inaccurate solve
+        // only slows the (exact-residual) iteration down.
+        let mut solver: Box<dyn SaddlePointSolver> = match linear_solver {
+            SolverKind::Dense => solver_for(linear_solver, n + m),
+            SolverKind::Sparse | SolverKind::Auto => {
+                Box::new(SparseLdlt::default().with_residual_check(false))
+            }
+        };
         let lin = |source| FormulationError::Linear {
             t: f64::NAN,
             source,
         };
         solver.analyze(&k).map_err(lin)?;
+        let lu = match newton {
+            NewtonSolverKind::SymmetricLdlt => None,
+            NewtonSolverKind::SparseLu => Some(LuNewton::new(
+                n,
+                m,
+                &a_pattern,
+                n_force,
+                sys.jacobian_pattern(),
+            )?),
+        };
         let kp = SaddleMatrix::new(n, m, &[], sys.jacobian_pattern());
         let mut psolver = solver_for(linear_solver, n + m);
         psolver.analyze(&kp).map_err(lin)?;
@@ -226,6 +427,7 @@ impl<'a> Index3<'a> {
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
+            lu,
         })
     }
 
@@ -241,19 +443,28 @@ impl<'a> Index3<'a> {
 
     /// Name of the linear solver of the Newton matrix.
     pub fn solver_name(&self) -> &'static str {
-        self.solver.name()
+        if self.lu.is_some() {
+            "sparse-lu"
+        } else {
+            self.solver.name()
+        }
     }
 
     /// Counters so far.
     pub fn stats(&self) -> Index3Stats {
         let mut s = self.stats;
         s.newton_solver = self.solver.stats();
+        if let Some(lu) = &self.lu {
+            s.newton_solver.factorizations = lu.factorizations;
+            s.newton_solver.solves = lu.solves;
+        }
         s.mass_solver = self.psolver.stats();
         s
     }
 
     /// Index-3 residual, scaled (module docs):
     /// `r[..n] = s (M q̈ + Φ_qᵀ λ − g(q, q̇, t))`, `r[n..] = Φ(q, t)`.
+    #[allow(clippy::too_many_arguments)]
     pub fn residual_into(
         &mut self,
         t: f64,
@@ -302,12 +513,23 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         self.stats.jacobians += 1;
         finite_state(t, q, qd)?;
-        self.k.set_zero();
-        {
-            let mass = sys.mass_diagonal();
-            let vals = self.k.values_mut();
-            for (i, &s) in self.mass_slots.iter().enumerate() {
-                vals[s] = c_m * mass[i];
+        // Values go either to the symmetric saddle matrix (each dense entry
+        // with its weight: ½ off the diagonal, so a shared slot holds the
+        // symmetric part) or to the full matrix of the sparse LU.
+        let mass = sys.mass_diagonal();
+        match &mut self.lu {
+            None => {
+                self.k.set_zero();
+                let vals = self.k.values_mut();
+                for (i, &s) in self.mass_slots.iter().enumerate() {
+                    vals[s] = c_m * mass[i];
+                }
+            }
+            Some(lu) => {
+                lu.values.fill(0.0);
+                for (i, &s) in lu.mass_slot.iter().enumerate() {
+                    lu.values[s] = c_m * mass[i];
+                }
             }
         }
         let forces = sys.forces();
@@ -317,10 +539,19 @@ impl<'a> Index3<'a> {
             dq.fill(0.0);
             dqd.fill(0.0);
             forces[b.element].add_jacobians(t, q, qd, dq, dqd, &mut self.ws);
-            let vals = self.k.values_mut();
-            for e in 0..kk {
-                let idx = b.offset + e;
-                vals[self.slots[idx]] -= self.weights[idx] * (c_c * dqd[e] + c_k * dq[e]);
+            match &mut self.lu {
+                None => {
+                    let vals = self.k.values_mut();
+                    for e in 0..kk {
+                        let idx = b.offset + e;
+                        vals[self.slots[idx]] -= self.weights[idx] * (c_c * dqd[e] + c_k * dq[e]);
+                    }
+                }
+                Some(lu) => {
+                    for e in 0..kk {
+                        lu.values[lu.a_slot[b.offset + e]] -= c_c * dqd[e] + c_k * dq[e];
+                    }
+                }
             }
         }
         if !self.hess_blocks.is_empty() {
@@ -332,26 +563,52 @@ impl<'a> Index3<'a> {
                 constraints[j].add_hessian(q, t, &lambda[rows], &mut self.hess_vals[h0..h0 + cnt]);
                 h0 += cnt;
             }
-            let vals = self.k.values_mut();
             let mut h0 = 0;
             for &(_, off, cnt) in &self.hess_blocks {
                 for e in 0..cnt {
-                    vals[self.slots[off + e]] += c_k * self.hess_vals[h0 + e];
+                    let v = c_k * self.hess_vals[h0 + e];
+                    match &mut self.lu {
+                        None => self.k.values_mut()[self.slots[off + e]] += v,
+                        Some(lu) => {
+                            let (a, b) = (lu.a_slot[off + e], lu.a_slot_t[off + e]);
+                            lu.values[a] += v;
+                            if b != a {
+                                lu.values[b] += v;
+                            }
+                        }
+                    }
                 }
                 h0 += cnt;
             }
         }
         sys.jacobian_values(q, t, &mut self.jac);
-        self.k.set_jacobian(&self.jac);
-        self.solver
-            .factorize(&self.k)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+        match &mut self.lu {
+            None => {
+                self.k.set_jacobian(&self.jac);
+                self.solver
+                    .factorize(&self.k)
+                    .map_err(|source| FormulationError::Linear { t, source })?;
+            }
+            Some(lu) => {
+                for (k, &v) in self.jac.iter().enumerate() {
+                    lu.values[lu.jac_slot[k]] += v;
+                    lu.values[lu.jac_slot_t[k]] += v;
+                }
+                lu.factorize()
+                    .map_err(|e| FormulationError::Invalid(format!("at t = {t}: {e}")))?;
+            }
+        }
         Ok(())
     }
 
     /// Overwrite `rhs` (length `n + m`) with `K⁻¹ rhs` using the last
     /// factorisation of the Newton matrix.
     pub fn solve_newton(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), FormulationError> {
+        if let Some(lu) = &mut self.lu {
+            return lu
+                .solve(rhs)
+                .map_err(|e| FormulationError::Invalid(format!("at t = {t}: {e}")));
+        }
         self.solver
             .solve_in_place(&self.k, rhs)
             .map_err(|source| FormulationError::Linear { t, source })
@@ -396,7 +653,12 @@ impl<'a> Index3<'a> {
     /// step `min ‖Δq‖_M` s.t. `Φ_q Δq = −Φ(q, t)` on the positions, then
     /// `min ‖Δq̇‖_M` s.t. `Φ_q Δq̇ = −(Φ_q q̇ + Φ_t)` on the velocities (with
     /// the same factorisation, Φ_q at the corrected q on the right-hand side).
-    pub fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), FormulationError> {
+    pub fn project(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<(), FormulationError> {
         let n = self.n;
         let lin = |source| FormulationError::Linear { t, source };
         self.stats.projections += 1;

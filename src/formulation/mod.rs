@@ -16,7 +16,7 @@ mod index3;
 mod initial;
 
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
-pub use index3::{Index3, Index3Stats};
+pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
 
 use crate::linalg::LinalgError;

@@ -33,7 +33,7 @@ mod tableau;
 
 pub use genalpha::{
     AlphaParameters, GenAlpha, GenAlphaStats, ImplicitOptions, SecondOrderDae, REUSE_BAND,
-    SLOW_ITERATIONS, THETA_REFACTOR,
+    ROUNDING_ULPS, SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 
 use std::ops::ControlFlow;
