@@ -191,14 +191,19 @@ impl SaddleMatrix {
     pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
         y.fill(0.0);
         for col in 0..self.dim() {
-            for s in self.col_ptr[col]..self.col_ptr[col + 1] {
-                let row = self.row_idx[s];
-                let v = self.values[s];
-                y[row] += v * x[col];
-                if row != col {
-                    y[col] += v * x[row];
-                }
+            let range = self.col_ptr[col]..self.col_ptr[col + 1];
+            let (rows, vals) = (&self.row_idx[range.clone()], &self.values[range]);
+            let xc = x[col];
+            // Column `col` of the lower triangle gives y[row] += v x[col] and,
+            // by symmetry, y[col] += v x[row] for the rows below the diagonal.
+            let mut acc = 0.0;
+            for (&row, &v) in rows.iter().zip(vals) {
+                y[row] += v * xc;
+                acc += v * x[row];
             }
+            // The diagonal (always stored, first in its column) was counted twice.
+            let diag = vals.first().copied().unwrap_or(0.0);
+            y[col] += acc - diag * xc;
         }
     }
 
