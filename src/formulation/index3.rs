@@ -59,7 +59,7 @@ use super::FormulationError;
 use crate::forces::FdWorkspace;
 use crate::integrate::SecondOrderDae;
 use crate::linalg::{
-    solver_for, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats, SparseLdlt,
+    solver_for, CscPattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats, SparseLdlt,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -187,26 +187,8 @@ impl LuNewton {
             entries.push((n + r, c));
             entries.push((c, n + r));
         }
-        // CSC: sort by (col, row)
-        let mut by_col: Vec<(usize, usize)> = entries.iter().map(|&(r, c)| (c, r)).collect();
-        by_col.sort_unstable();
-        by_col.dedup();
-        let mut col_ptr = vec![0usize; dim + 1];
-        let mut row_idx = Vec::with_capacity(by_col.len());
-        for &(c, r) in &by_col {
-            col_ptr[c + 1] += 1;
-            row_idx.push(r);
-        }
-        for c in 0..dim {
-            col_ptr[c + 1] += col_ptr[c];
-        }
-        let slot = |r: usize, c: usize| -> usize {
-            let range = col_ptr[c]..col_ptr[c + 1];
-            range.start
-                + row_idx[range]
-                    .binary_search(&r)
-                    .expect("entry is in the pattern")
-        };
+        let pat = CscPattern::from_entries(dim, entries);
+        let slot = |r: usize, c: usize| pat.slot(r, c);
         let mass_slot = (0..n).map(|i| slot(i, i)).collect();
         let a_slot = a_pattern.iter().map(|&(i, j)| slot(i, j)).collect();
         let a_slot_t = a_pattern
@@ -216,6 +198,7 @@ impl LuNewton {
             .collect();
         let jac_slot = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
         let jac_slot_t = jac_pattern.iter().map(|&(r, c)| slot(c, n + r)).collect();
+        let CscPattern { col_ptr, row_idx } = pat;
         let pattern =
             faer::sparse::SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
         let symbolic =

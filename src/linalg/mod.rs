@@ -15,10 +15,12 @@
 //! with unknowns `[q̈; −λ]`, so its multipliers are our `−λ`.
 
 mod dense;
+mod pattern;
 mod saddle;
 mod sparse;
 
 pub use dense::DenseLu;
+pub use pattern::CscPattern;
 pub use saddle::SaddleMatrix;
 pub use sparse::{
     chain_order, Ordering, SparseLdlt, DEFAULT_DELTA, DEFAULT_EPSILON, REFINE_THRESHOLD,

@@ -1,6 +1,6 @@
 //! The fixed sparse pattern of the saddle-point matrix and its values.
 
-use super::LinalgError;
+use super::{CscPattern, LinalgError};
 
 /// Symmetric saddle-point matrix `K = [A Φ_qᵀ; Φ_q D]` of dimension `n + m`,
 /// stored as the lower triangle (row ≥ column) in compressed sparse columns
@@ -15,8 +15,7 @@ use super::LinalgError;
 pub struct SaddleMatrix {
     n: usize,
     m: usize,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
+    pattern: CscPattern,
     values: Vec<f64>,
     diag_slots: Vec<usize>,
     a_slots: Vec<usize>,
@@ -42,33 +41,25 @@ impl SaddleMatrix {
         jac_pattern: &[(usize, usize)],
     ) -> Self {
         let dim = n + m;
-        // Lower-triangle entries (row, col) with row >= col, per column.
-        let mut cols: Vec<Vec<usize>> = (0..dim).map(|c| vec![c]).collect();
         for &(i, j) in a_pattern {
             assert!(i < n && j < n, "A entry ({i}, {j}) outside {n}×{n}");
-            if i != j {
-                cols[i.min(j)].push(i.max(j));
-            }
         }
         for &(r, c) in jac_pattern {
             assert!(r < m && c < n, "Φ_q entry ({r}, {c}) outside {m}×{n}");
-            cols[c].push(n + r);
         }
-        let mut col_ptr = Vec::with_capacity(dim + 1);
-        let mut row_idx = Vec::new();
-        col_ptr.push(0);
-        for col in &mut cols {
-            col.sort_unstable();
-            col.dedup();
-            row_idx.extend_from_slice(col);
-            col_ptr.push(row_idx.len());
-        }
+        // Lower triangle (row ≥ col): the full diagonal, A, and Φ_q at (n + r, c).
+        let pattern = CscPattern::from_entries(
+            dim,
+            (0..dim)
+                .map(|i| (i, i))
+                .chain(a_pattern.iter().map(|&(i, j)| (i.max(j), i.min(j))))
+                .chain(jac_pattern.iter().map(|&(r, c)| (n + r, c))),
+        );
         let mut k = Self {
             n,
             m,
-            values: vec![0.0; row_idx.len()],
-            col_ptr,
-            row_idx,
+            values: vec![0.0; pattern.nnz()],
+            pattern,
             diag_slots: Vec::new(),
             a_slots: Vec::new(),
             jac_slots: Vec::new(),
@@ -83,11 +74,7 @@ impl SaddleMatrix {
     }
 
     fn slot(&self, row: usize, col: usize) -> usize {
-        let range = self.col_ptr[col]..self.col_ptr[col + 1];
-        let pos = self.row_idx[range.clone()]
-            .binary_search(&row)
-            .expect("entry is in the pattern");
-        range.start + pos
+        self.pattern.slot(row, col)
     }
 
     /// Number of coordinates `n`.
@@ -104,11 +91,11 @@ impl SaddleMatrix {
     }
     /// Column pointers of the lower triangle (length `dim + 1`).
     pub fn col_ptr(&self) -> &[usize] {
-        &self.col_ptr
+        &self.pattern.col_ptr
     }
     /// Row indices of the lower triangle, sorted within each column.
     pub fn row_idx(&self) -> &[usize] {
-        &self.row_idx
+        &self.pattern.row_idx
     }
     /// Values of the lower triangle, in pattern order.
     pub fn values(&self) -> &[f64] {
@@ -132,7 +119,7 @@ impl SaddleMatrix {
     }
     /// Number of stored entries of the lower triangle.
     pub fn nnz(&self) -> usize {
-        self.row_idx.len()
+        self.pattern.row_idx.len()
     }
 
     /// Zero every value.
@@ -175,10 +162,10 @@ impl SaddleMatrix {
     /// Check that every value is finite.
     pub fn check_finite(&self) -> Result<(), LinalgError> {
         for col in 0..self.dim() {
-            for s in self.col_ptr[col]..self.col_ptr[col + 1] {
+            for s in self.pattern.col_ptr[col]..self.pattern.col_ptr[col + 1] {
                 if !self.values[s].is_finite() {
                     return Err(LinalgError::NonFinite {
-                        row: self.row_idx[s],
+                        row: self.pattern.row_idx[s],
                         col,
                     });
                 }
@@ -191,8 +178,8 @@ impl SaddleMatrix {
     pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
         y.fill(0.0);
         for col in 0..self.dim() {
-            let range = self.col_ptr[col]..self.col_ptr[col + 1];
-            let (rows, vals) = (&self.row_idx[range.clone()], &self.values[range]);
+            let range = self.pattern.col_ptr[col]..self.pattern.col_ptr[col + 1];
+            let (rows, vals) = (&self.pattern.row_idx[range.clone()], &self.values[range]);
             let xc = x[col];
             // Column `col` of the lower triangle gives y[row] += v x[col] and,
             // by symmetry, y[col] += v x[row] for the rows below the diagonal.
@@ -224,8 +211,8 @@ impl SaddleMatrix {
         let dim = self.dim();
         let mut d = faer::Mat::<f64>::zeros(dim, dim);
         for col in 0..dim {
-            for s in self.col_ptr[col]..self.col_ptr[col + 1] {
-                let row = self.row_idx[s];
+            for s in self.pattern.col_ptr[col]..self.pattern.col_ptr[col + 1] {
+                let row = self.pattern.row_idx[s];
                 d[(row, col)] = self.values[s];
                 d[(col, row)] = self.values[s];
             }
