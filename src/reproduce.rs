@@ -34,6 +34,9 @@ pub enum ReproduceError {
     /// File-system problem.
     #[error("{0}")]
     Io(String),
+    /// The study's scenario lacks something the study needs.
+    #[error("{0}")]
+    Study(String),
 }
 
 /// The (α, β) pairs of the sweep, with labels: (0,0), (1,1), (5,5), (10,10),
@@ -99,7 +102,7 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
                 &overrides,
             )?;
             let (traj, summary) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])?;
-            let row_b = joint_row(&sc.system, "B");
+            let row_b = joint_row(&sc.system, "B")?;
             let phi_bx: Vec<f64> = traj.phi.iter().map(|p| p[row_b]).collect();
             let inf: Vec<f64> = traj
                 .phi
@@ -205,13 +208,12 @@ pub fn fourbar_table(cases: &[FourBarCase]) -> String {
 }
 
 /// First row of the joint named `name` (e.g. "B": its x-equation).
-pub fn joint_row(sys: &crate::model::System, name: &str) -> usize {
-    let k = sys
-        .constraints()
+pub fn joint_row(sys: &crate::model::System, name: &str) -> Result<usize, ReproduceError> {
+    sys.constraints()
         .iter()
         .position(|c| c.name().ends_with(&format!("'{name}'")))
-        .unwrap_or(0);
-    sys.row_offset(k)
+        .map(|k| sys.row_offset(k))
+        .ok_or_else(|| ReproduceError::Study(format!("the scenario has no joint named '{name}'")))
 }
 
 /// One run of the rod study.

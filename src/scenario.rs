@@ -394,16 +394,8 @@ pub fn parse(
     let raw: RawScenario = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             let key = e.path().to_string();
-            let origin = if set_keys
-                .iter()
-                .any(|k| key.starts_with(k.as_str()) || k.starts_with(key.as_str()) && key != ".")
-            {
-                "--set".to_string()
-            } else {
-                file.to_string()
-            };
+            let origin = attribute(file, &key, &set_keys);
             let message = e.inner().message().to_string();
-            // An unknown key is reported at its parent; name the key itself.
             ScenarioError {
                 file: origin,
                 key,
@@ -412,15 +404,21 @@ pub fn parse(
         },
     )?;
     build(raw, file, stem).map_err(|mut e| {
-        // Name the override when the offending key came from --set.
-        if let Some(k) = set_keys
-            .iter()
-            .find(|k| e.key == **k || e.key.starts_with(&format!("{k}.")))
-        {
-            e.file = format!("{file} (--set {k})");
-        }
+        e.file = attribute(file, &e.key, &set_keys);
         e
     })
+}
+
+/// The origin of an error at `key`: the file, or the file and the `--set`
+/// override that wrote the key (or a table or key below it).
+fn attribute(file: &str, key: &str, set_keys: &[String]) -> String {
+    let related = |k: &String| {
+        key == k || key.starts_with(&format!("{k}.")) || k.starts_with(&format!("{key}."))
+    };
+    match set_keys.iter().find(|k| related(k)) {
+        Some(k) => format!("{file} (--set {k})"),
+        None => file.to_string(),
+    }
 }
 
 /// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
