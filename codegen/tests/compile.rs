@@ -15,26 +15,12 @@ use std::fmt::Write;
 use std::process::Command;
 
 fn custom() -> Topology {
-    Topology::new("custom", 3)
-        .revolute("A", Side::Ground, Side::Body(0))
-        .revolute("B", Side::Body(0), Side::Body(1))
-        .joint("S", JointKind::Translational, Side::Body(1), Side::Body(2))
-        .joint("P", JointKind::Translational, Side::Ground, Side::Body(2))
-        .joint("D", JointKind::DriveAngle, Side::Body(0), Side::Body(2))
-        .force(
-            "k01",
-            ForceKind::TorsionalSpringDamper,
-            Side::Body(0),
-            Side::Body(1),
-        )
-        .force(
-            "k2",
-            ForceKind::TorsionalSpringDamper,
-            Side::Ground,
-            Side::Body(2),
-        )
-        .force("drag", ForceKind::Drag, Side::Body(1), Side::Ground)
-        .force("wall", ForceKind::WallContact, Side::Body(0), Side::Ground)
+    common::mixed_topology("custom").force(
+        "wall",
+        ForceKind::WallContact,
+        Side::Body(0),
+        Side::Ground,
+    )
 }
 
 /// Chain equivalent, unrolled for the interpreter: 4 bodies, revolutes and

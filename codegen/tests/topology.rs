@@ -6,26 +6,7 @@ use common::Rng;
 use mbsolve_codegen::{ForceKind, Id, JointKind, PlanarModel, Side, Topology};
 
 fn mixed() -> Topology {
-    Topology::new("mixed", 3)
-        .revolute("A", Side::Ground, Side::Body(0))
-        .revolute("B", Side::Body(0), Side::Body(1))
-        .joint("S", JointKind::Translational, Side::Body(1), Side::Body(2))
-        .joint("P", JointKind::Translational, Side::Ground, Side::Body(2))
-        .joint("D", JointKind::DriveAngle, Side::Body(0), Side::Body(2))
-        .joint("E", JointKind::DriveAngle, Side::Ground, Side::Body(1))
-        .force(
-            "k01",
-            ForceKind::TorsionalSpringDamper,
-            Side::Body(0),
-            Side::Body(1),
-        )
-        .force(
-            "k2",
-            ForceKind::TorsionalSpringDamper,
-            Side::Ground,
-            Side::Body(2),
-        )
-        .force("drag", ForceKind::Drag, Side::Body(1), Side::Ground)
+    common::mixed_topology("mixed").joint("E", JointKind::DriveAngle, Side::Ground, Side::Body(1))
 }
 
 /// Prescribed drive f(t) = a sin(2t) + b t and its derivatives.

@@ -1,7 +1,8 @@
-//! Shared helpers: a small deterministic RNG and random expression trees.
+//! Shared helpers: a small deterministic RNG, random expression trees and
+//! a mixed test topology.
 #![allow(dead_code)]
 
-use mbsolve_codegen::{Ctx, Id};
+use mbsolve_codegen::{Ctx, ForceKind, Id, JointKind, Side, Topology};
 
 /// xorshift64*.
 pub struct Rng(pub u64);
@@ -193,4 +194,29 @@ pub fn random_tree(r: &mut Rng, depth: usize, nv: usize, smooth: bool) -> Tree {
 /// Relative difference with an absolute floor.
 pub fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / a.abs().max(b.abs()).max(1.0)
+}
+
+/// Three bodies with every joint kind (ground and body–body revolutes,
+/// translational to a body and to the ground, an angle drive) and spring,
+/// drag forces; the tests add what they need on top.
+pub fn mixed_topology(name: &str) -> Topology {
+    Topology::new(name, 3)
+        .revolute("A", Side::Ground, Side::Body(0))
+        .revolute("B", Side::Body(0), Side::Body(1))
+        .joint("S", JointKind::Translational, Side::Body(1), Side::Body(2))
+        .joint("P", JointKind::Translational, Side::Ground, Side::Body(2))
+        .joint("D", JointKind::DriveAngle, Side::Body(0), Side::Body(2))
+        .force(
+            "k01",
+            ForceKind::TorsionalSpringDamper,
+            Side::Body(0),
+            Side::Body(1),
+        )
+        .force(
+            "k2",
+            ForceKind::TorsionalSpringDamper,
+            Side::Ground,
+            Side::Body(2),
+        )
+        .force("drag", ForceKind::Drag, Side::Body(1), Side::Ground)
 }
