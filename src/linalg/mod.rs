@@ -102,7 +102,7 @@ pub enum SolverKind {
     /// (the measurement found no size where dense wins: currently sparse).
     #[default]
     Auto,
-    /// Dense LU with partial pivoting (faer); for tiny systems and cross-checks.
+    /// Dense LU with partial pivoting (faer); for cross-checks.
     Dense,
     /// Sparse LDLᵀ (faer) with symbolic analysis once per pattern.
     Sparse,
