@@ -25,6 +25,14 @@ use serde::Deserialize;
 use std::collections::HashMap;
 use std::path::Path;
 
+/// The four-bar scenario shipped with the tool (PROBLEMS.md A), embedded at
+/// build time so that the binary needs no files.
+pub const FOURBAR_TOML: &str = include_str!("../scenarios/fourbar.toml");
+
+/// The falling-rod scenario shipped with the tool (PROBLEMS.md B), embedded
+/// at build time.
+pub const FALLING_ROD_TOML: &str = include_str!("../scenarios/falling_rod.toml");
+
 /// A scenario error: where (file and key) and what.
 #[derive(Debug, Clone, thiserror::Error)]
 #[error("{file}: {key}: {message}")]

@@ -9,8 +9,8 @@ use mbsolve::constraints::{Revolute, Translational};
 use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
 use mbsolve::model::{Body, BodyRef, Evaluation, System, SystemBuilder};
-use mbsolve::reproduce::FOURBAR_TOML;
 use mbsolve::scenario;
+use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
 
 struct Rng(u64);

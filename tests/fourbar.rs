@@ -2,7 +2,7 @@
 
 use mbsolve::formulation::{Baumgarte, Formulation, Index1, Index1Options};
 use mbsolve::integrate::{Method, Tolerance};
-use mbsolve::reproduce::FOURBAR_TOML;
+use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::simulate;
 

@@ -2,8 +2,8 @@
 //! the regularised sparse LDLᵀ solves them without NaNs and the summary
 //! counts the regularised pivots.
 
-use mbsolve::reproduce::FOURBAR_TOML;
 use mbsolve::scenario;
+use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
 
 fn with_extra(text: &str, overrides: &[&str]) -> scenario::Scenario {

@@ -8,8 +8,8 @@ use mbsolve::forces::{AppliedForce, Buoyancy, Gravity};
 use mbsolve::formulation::{Baumgarte, Index1Options};
 use mbsolve::integrate::{Method, OdeOptions, Tolerance};
 use mbsolve::model::{SystemBuilder, TimeFunction};
-use mbsolve::reproduce::FALLING_ROD_TOML;
 use mbsolve::scenario;
+use mbsolve::scenario::FALLING_ROD_TOML;
 use mbsolve::simulation::{simulate, Monitor, RunConfig};
 
 fn config(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfig {

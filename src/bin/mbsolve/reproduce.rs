@@ -8,16 +8,10 @@
 //!   stabilization; ode23 and ode45; contact events.
 
 use crate::output::{line_plot, write_columns_csv, OutputError, Series};
-use crate::scenario::{self, ScenarioError};
-use crate::simulation::{simulate, SimulationError, Summary};
+use mbsolve::scenario::{self, ScenarioError, FALLING_ROD_TOML, FOURBAR_TOML};
+use mbsolve::simulation::{simulate, SimulationError, Summary};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// The four-bar scenario shipped with the tool (embedded at build time).
-pub const FOURBAR_TOML: &str = include_str!("../scenarios/fourbar.toml");
-
-/// The falling-rod scenario shipped with the tool (embedded at build time).
-pub const FALLING_ROD_TOML: &str = include_str!("../scenarios/falling_rod.toml");
 
 /// A failure of a study.
 #[derive(Debug, thiserror::Error)]
@@ -64,8 +58,6 @@ struct Curve {
 pub struct FourBarCase {
     /// Incorrect initial state?
     pub incorrect: bool,
-    /// Label of the (α, β) pair.
-    pub label: String,
     /// α.
     pub alpha: f64,
     /// β.
@@ -121,7 +113,6 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
             )?;
             cases.push(FourBarCase {
                 incorrect,
-                label: label.clone(),
                 alpha,
                 beta,
                 max_abs_phi: inf.iter().cloned().fold(0.0, f64::max),
@@ -208,7 +199,7 @@ pub fn fourbar_table(cases: &[FourBarCase]) -> String {
 }
 
 /// First row of the joint named `name` (e.g. "B": its x-equation).
-pub fn joint_row(sys: &crate::model::System, name: &str) -> Result<usize, ReproduceError> {
+pub fn joint_row(sys: &mbsolve::model::System, name: &str) -> Result<usize, ReproduceError> {
     sys.constraints()
         .iter()
         .position(|c| c.name().ends_with(&format!("'{name}'")))
@@ -238,8 +229,8 @@ pub struct RodCase {
 /// Run the falling-rod study (N = 10): figures 5–7, CSVs and a table under
 /// `out/falling_rod/`.
 pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
-    use crate::events::ContactMonitor;
-    use crate::simulation::Monitor;
+    use mbsolve::events::ContactMonitor;
+    use mbsolve::simulation::Monitor;
     let dir = out.join("falling_rod");
     std::fs::create_dir_all(&dir)
         .map_err(|e| ReproduceError::Io(format!("{}: {e}", dir.display())))?;

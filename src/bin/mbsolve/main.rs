@@ -1,10 +1,15 @@
 //! `mbsolve`: command-line front end of the mbsolve library.
 
 use clap::{Parser, Subcommand};
+mod gate;
+mod output;
+mod reproduce;
+mod sweep;
+
 use mbsolve::events::ContactMonitor;
-use mbsolve::output::{write_summary_json, write_trajectory_csv};
 use mbsolve::simulation::Monitor;
-use mbsolve::{reproduce, scenario, simulation};
+use mbsolve::{scenario, simulation};
+use output::{write_summary_json, write_trajectory_csv};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -158,7 +163,7 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
 }
 
 fn bench_gate(json: Option<&std::path::Path>) -> Result<ExitCode, String> {
-    let checks = mbsolve::gate::run();
+    let checks = gate::run();
     let mut ok = true;
     for c in &checks {
         let op = if c.at_most { "<=" } else { ">=" };
@@ -189,7 +194,7 @@ fn sweep(
     set: &[String],
     out: &std::path::Path,
 ) -> Result<ExitCode, String> {
-    use mbsolve::sweep::{run, SweepParam};
+    use sweep::{run, SweepParam};
     let params = params
         .iter()
         .map(|p| p.parse::<SweepParam>())

@@ -3,8 +3,8 @@
 //! Figures use plotters' SVG backend with its built-in font metrics, so no
 //! system library (fontconfig, freetype) is needed to draw them.
 
-use crate::model::System;
-use crate::simulation::{Summary, Trajectory};
+use mbsolve::model::System;
+use mbsolve::simulation::{Summary, Trajectory};
 use plotters::prelude::*;
 use std::path::Path;
 

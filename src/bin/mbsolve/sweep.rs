@@ -3,8 +3,8 @@
 //! results do not depend on the number of threads; they are returned in the
 //! order of the product.
 
-use crate::scenario::{self, ScenarioError};
-use crate::simulation::{simulate, Summary, Trajectory};
+use mbsolve::scenario::{self, ScenarioError};
+use mbsolve::simulation::{simulate, Summary, Trajectory};
 use rayon::prelude::*;
 use std::path::Path;
 

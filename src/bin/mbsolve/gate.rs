@@ -13,10 +13,10 @@
 //! machine) on a single thread (so the ratio measures algorithmic scaling,
 //! not the concurrency that only large N switch on).
 
-use crate::builders::{build_rod, RodParams};
-use crate::formulation::{Index1, Index1Options};
-use crate::linalg::SolverKind;
-use crate::model::{Evaluation, System};
+use mbsolve::builders::{build_rod, RodParams};
+use mbsolve::formulation::{Index1, Index1Options};
+use mbsolve::linalg::SolverKind;
+use mbsolve::model::{Evaluation, System};
 use serde::Serialize;
 use std::time::Instant;
 
