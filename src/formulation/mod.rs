@@ -1,4 +1,4 @@
-//! From a [`System`] to what an integrator consumes.
+//! From a [`System`](crate::model::System) to what an integrator consumes.
 //!
 //! * [`Index1`]: the index-1 DAE of eq. (5) written as the first-order ODE
 //!   `y = [q; q̇]`, `ẏ = [q̇; q̈]`, with `q̈` from the saddle-point system
