@@ -230,6 +230,72 @@ fn reproduce_writes_the_four_bar_figures() {
     );
     let table = std::fs::read_to_string(fb.join("fourbar_table.md")).unwrap();
     assert_eq!(table.lines().count(), 2 + 7, "{table}");
+    for dir in [fb, dir.path().join("falling_rod")] {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let p = entry.unwrap().path();
+            if p.to_str().unwrap().ends_with(".redraw.txt") {
+                redraws_identically(&p);
+            }
+        }
+    }
+}
+
+/// The figure beside `redraw` (`<stem>.redraw.txt`) is redrawn byte for
+/// byte by the `mbsolve plot` command in that file from `<stem>.csv`.
+fn redraws_identically(redraw: &Path) {
+    let dir = redraw.parent().unwrap();
+    let stem = redraw.to_str().unwrap().trim_end_matches(".redraw.txt");
+    let line = std::fs::read_to_string(redraw).unwrap();
+    // split the shell line: words, 'single-quoted' words, '\'' escapes
+    let (mut words, mut cur, mut quoted, mut in_word) = (Vec::new(), String::new(), false, false);
+    let mut chars = line.trim_end().chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\'' => {
+                quoted = !quoted;
+                in_word = true;
+            }
+            '\\' if !quoted => {
+                cur.push(chars.next().unwrap());
+                in_word = true;
+            }
+            ' ' if !quoted => {
+                if in_word {
+                    words.push(std::mem::take(&mut cur));
+                }
+                in_word = false;
+            }
+            c => {
+                cur.push(c);
+                in_word = true;
+            }
+        }
+    }
+    words.push(cur);
+    assert_eq!(words[..2], ["mbsolve", "plot"], "{line}");
+    let columns = csv::Reader::from_path(format!("{stem}.csv"))
+        .unwrap()
+        .headers()
+        .unwrap()
+        .len();
+    assert_eq!(
+        words.iter().filter(|w| *w == "--y").count(),
+        columns - 1,
+        "every data column of {stem}.csv is plotted: {line}"
+    );
+    let redrawn = dir.join("redrawn.svg");
+    let mut args: Vec<String> = words[1..].to_vec();
+    let out = args.iter().position(|w| w == "--out").unwrap();
+    args[out + 1] = redrawn.to_str().unwrap().to_string();
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args(&args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{line}: {}", stderr(&o));
+    let a = std::fs::read_to_string(format!("{stem}.svg")).unwrap();
+    let b = std::fs::read_to_string(&redrawn).unwrap();
+    assert!(a == b, "{stem}.svg is not redrawn identically from its CSV");
 }
 
 #[test]

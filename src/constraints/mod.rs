@@ -86,6 +86,12 @@ pub trait Constraint: Send + Sync + Debug {
     fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
         check_bodies(&self.name(), &self.bodies(), n_bodies)
     }
+    /// The points this constraint attaches to its bodies, `(body, point in
+    /// the body frame — global for the ground)`: what a drawing of the
+    /// mechanism shows as joints. Default: none (e.g. driving constraints).
+    fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
+        Vec::new()
+    }
     /// The joint as a [`Revolute`], if it is one (lets generated kernels
     /// recognise a topology; see `crate::generated`).
     fn as_revolute(&self) -> Option<&Revolute> {

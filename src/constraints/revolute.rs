@@ -40,6 +40,10 @@ impl Revolute {
 }
 
 impl Constraint for Revolute {
+    fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
+        vec![(self.body_i, self.s_i), (self.body_j, self.s_j)]
+    }
+
     fn name(&self) -> String {
         format!("revolute joint '{}'", self.name)
     }

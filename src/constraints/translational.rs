@@ -65,6 +65,10 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 impl Constraint for Translational {
+    fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
+        vec![(self.body_i, self.s_i), (self.body_j, self.s_j)]
+    }
+
     fn name(&self) -> String {
         format!("translational joint '{}'", self.name)
     }

@@ -1,8 +1,11 @@
 //! `mbsolve`: command-line front end of the mbsolve library.
 
 use clap::{Parser, Subcommand};
+mod animate;
+mod figure;
 mod gate;
 mod output;
+mod plot;
 mod reproduce;
 mod sweep;
 
@@ -59,6 +62,54 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Plot columns of a CSV written by mbsolve (a run, a study, the data
+    /// beside a figure) as SVG or PNG.
+    Plot {
+        /// The CSV file (first row: column names).
+        csv: PathBuf,
+        /// Abscissa column.
+        #[arg(long, default_value = "t")]
+        x: String,
+        /// Ordinate column(s): repeat the flag or separate names by commas.
+        #[arg(long, value_name = "COLUMN[,COLUMN...]", required = true)]
+        y: Vec<String>,
+        /// Logarithmic ordinate (|y| plotted).
+        #[arg(long)]
+        log_y: bool,
+        /// Output file, .svg or .png [default: the CSV's path with .svg].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Title [default: the CSV's file name].
+        #[arg(long)]
+        title: Option<String>,
+        /// Ordinate label [default: the column's name when there is one].
+        #[arg(long)]
+        y_label: Option<String>,
+    },
+    /// Animate a run: the mechanism's motion from the scenario's geometry and
+    /// the run's CSV, as an animated SVG (SMIL) or a GIF.
+    Animate {
+        /// Scenario file of the run.
+        scenario: PathBuf,
+        /// The run's trajectory CSV (written by `mbsolve run`).
+        csv: PathBuf,
+        /// The overrides the run used (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output file: .svg (animated), .gif, or .png (one still) [default:
+        /// the CSV's path with .svg].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Playback speed: simulated seconds per second.
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+        /// GIF: draw every k-th output time.
+        #[arg(long, default_value_t = 1)]
+        every: usize,
+        /// PNG still: the output time nearest to T [default: the last].
+        #[arg(long, value_name = "T")]
+        at: Option<f64>,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -72,6 +123,48 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run { scenario, set, out } => run(&scenario, &set, &out),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Animate {
+            scenario,
+            csv,
+            set,
+            out,
+            speed,
+            every,
+            at,
+        } => animate::animate(&animate::AnimateArgs {
+            at,
+            out: out.unwrap_or_else(|| csv.with_extension("svg")),
+            scenario,
+            set,
+            csv,
+            speed,
+            every,
+        })
+        .map(|p| {
+            println!("wrote {}", p.display());
+            ExitCode::SUCCESS
+        }),
+        Command::Plot {
+            csv,
+            x,
+            y,
+            log_y,
+            out,
+            title,
+            y_label,
+        } => plot::plot(&plot::PlotArgs {
+            csv,
+            x,
+            y,
+            log_y,
+            out,
+            title,
+            y_label,
+        })
+        .map(|p| {
+            println!("wrote {}", p.display());
+            ExitCode::SUCCESS
+        }),
         Command::BenchGate { json } => bench_gate(json.as_deref()),
         Command::Sweep {
             scenario,

@@ -7,7 +7,8 @@
 //!   angles φ_i − φ_1; one joint's constraint with and without Baumgarte
 //!   stabilization; ode23 and ode45; contact events.
 
-use crate::output::{line_plot, write_columns_csv, OutputError, Series};
+use crate::figure::{Figure, Series};
+use crate::output::{write_columns_csv, OutputError};
 use mbsolve::scenario::{self, ScenarioError, FALLING_ROD_TOML, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, SimulationError, Summary};
 use std::fmt::Write as _;
@@ -132,32 +133,36 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
         } else {
             "correct initial state"
         };
-        let series = |k: usize| -> Vec<Series<'_>> {
+        let series = |k: usize| -> Vec<Series> {
             curves
                 .iter()
                 .map(|c| Series {
                     label: c.label.clone(),
-                    x: &c.t,
-                    y: if k == 0 { &c.phi_bx } else { &c.norm },
+                    x: c.t.clone(),
+                    y: if k == 0 {
+                        c.phi_bx.clone()
+                    } else {
+                        c.norm.clone()
+                    },
                 })
                 .collect()
         };
-        line_plot(
-            &dir.join(format!("{fig}_fourbar_{tag}_phiBx.svg")),
-            &format!("Four-bar, {what}: x-equation of pin B (ode23, RelTol 1e-3)"),
-            "t [s]",
-            "Φ_Bx [m]",
-            &series(0),
-            false,
-        )?;
-        line_plot(
-            &dir.join(format!("{fig}_fourbar_{tag}_norm.svg")),
-            &format!("Four-bar, {what}: ‖Φ‖₂"),
-            "t [s]",
-            "‖Φ‖₂ [m]",
-            &series(1),
-            true,
-        )?;
+        Figure {
+            title: format!("Four-bar, {what}: x-equation of pin B (ode23, RelTol 1e-3)"),
+            x_label: "t [s]".into(),
+            y_label: "Φ_Bx [m]".into(),
+            series: series(0),
+            log_y: false,
+        }
+        .save(&dir, &format!("{fig}_fourbar_{tag}_phiBx"))?;
+        Figure {
+            title: format!("Four-bar, {what}: ‖Φ‖₂"),
+            x_label: "t [s]".into(),
+            y_label: "‖Φ‖₂ [m]".into(),
+            series: series(1),
+            log_y: true,
+        }
+        .save(&dir, &format!("{fig}_fourbar_{tag}_norm"))?;
     }
     let table = fourbar_table(&cases);
     let path: PathBuf = dir.join("fourbar_table.md");
@@ -292,30 +297,30 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
                 format!("segment {}", n / 2),
                 format!("segment {n}"),
             ];
-            line_plot(
-                &dir.join("fig5_rod_x.svg"),
-                &format!("Falling rod, N = {n}: horizontal position of segments (ode23)"),
-                "t [s]",
-                "x [m]",
-                &[
+            Figure {
+                title: format!("Falling rod, N = {n}: horizontal position of segments (ode23)"),
+                x_label: "t [s]".into(),
+                y_label: "x [m]".into(),
+                series: vec![
                     Series {
                         label: labels[0].clone(),
-                        x: &traj.t,
-                        y: &x1,
+                        x: traj.t.clone(),
+                        y: x1.clone(),
                     },
                     Series {
                         label: labels[1].clone(),
-                        x: &traj.t,
-                        y: &xm,
+                        x: traj.t.clone(),
+                        y: xm.clone(),
                     },
                     Series {
                         label: labels[2].clone(),
-                        x: &traj.t,
-                        y: &xn,
+                        x: traj.t.clone(),
+                        y: xn.clone(),
                     },
                 ],
-                false,
-            )?;
+                log_y: false,
+            }
+            .save(&dir, "fig5_rod_x")?;
             let p1 = phi(0);
             let rel: Vec<(String, Vec<f64>)> = [1, n / 2 - 1, n - 1]
                 .iter()
@@ -328,22 +333,22 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
                     )
                 })
                 .collect();
-            let series: Vec<Series<'_>> = rel
-                .iter()
-                .map(|(l, v)| Series {
-                    label: l.clone(),
-                    x: &traj.t,
-                    y: v,
+            let series: Vec<Series> = rel
+                .into_iter()
+                .map(|(label, y)| Series {
+                    label,
+                    x: traj.t.clone(),
+                    y,
                 })
                 .collect();
-            line_plot(
-                &dir.join("fig6_rod_relative_angles.svg"),
-                &format!("Falling rod, N = {n}: relative rotations (ode23)"),
-                "t [s]",
-                "φ_i − φ_1 [rad]",
-                &series,
-                false,
-            )?;
+            Figure {
+                title: format!("Falling rod, N = {n}: relative rotations (ode23)"),
+                x_label: "t [s]".into(),
+                y_label: "φ_i − φ_1 [rad]".into(),
+                series,
+                log_y: false,
+            }
+            .save(&dir, "fig6_rod_relative_angles")?;
         }
         let at = |t_q: f64| -> (f64, f64, f64) {
             let k = traj
@@ -363,22 +368,18 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
             summary,
         });
     }
-    let series: Vec<Series<'_>> = stab_curves
-        .iter()
-        .map(|c| Series {
-            label: c.0.clone(),
-            x: &c.1,
-            y: &c.2,
-        })
+    let series: Vec<Series> = stab_curves
+        .into_iter()
+        .map(|(label, x, y)| Series { label, x, y })
         .collect();
-    line_plot(
-        &dir.join("fig7_rod_joint_constraint.svg"),
-        "Falling rod: x-equation of the middle joint, with and without stabilization",
-        "t [s]",
-        "Φ [m]",
-        &series,
-        true,
-    )?;
+    Figure {
+        title: "Falling rod: x-equation of the middle joint, with and without stabilization".into(),
+        x_label: "t [s]".into(),
+        y_label: "|Φ| [m]".into(),
+        series,
+        log_y: true,
+    }
+    .save(&dir, "fig7_rod_joint_constraint")?;
     let table = rod_table(&cases);
     let path = dir.join("falling_rod_table.md");
     std::fs::write(&path, &table)
