@@ -55,6 +55,14 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Run only shard I of N (1 ≤ I ≤ N): the runs k of the product
+        /// with k mod N = I − 1; writes DIR/<stem>_sweep.shard-I-of-N.csv.
+        #[arg(long, value_name = "I/N", conflicts_with = "merge")]
+        shard: Option<String>,
+        /// Join the shard tables in DIR (same --param and --set) into
+        /// DIR/<stem>_sweep.csv, checking that every run is there once.
+        #[arg(long)]
+        merge: bool,
     },
     /// CI performance gate: machine-independent ratios measured in one run.
     BenchGate {
@@ -171,7 +179,16 @@ fn main() -> ExitCode {
             param,
             set,
             out,
-        } => sweep(&scenario, &param, &set, &out),
+            shard,
+            merge,
+        } => sweep::command(&sweep::SweepArgs {
+            scenario,
+            params: param,
+            set,
+            out,
+            shard,
+            merge,
+        }),
     };
     match result {
         Ok(code) => code,
@@ -275,87 +292,6 @@ fn bench_gate(json: Option<&std::path::Path>) -> Result<ExitCode, String> {
         std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display()))?;
     }
     Ok(if ok {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
-}
-
-fn sweep(
-    path: &std::path::Path,
-    params: &[String],
-    set: &[String],
-    out: &std::path::Path,
-) -> Result<ExitCode, String> {
-    use sweep::{run, SweepParam};
-    let params = params
-        .iter()
-        .map(|p| p.parse::<SweepParam>())
-        .collect::<Result<Vec<_>, _>>()?;
-    let runs = run(path, set, &params).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scenario".into());
-    let table = out.join(format!("{stem}_sweep.csv"));
-    let mut w = csv::Writer::from_path(&table).map_err(|e| format!("{}: {e}", table.display()))?;
-    let mut header: Vec<String> = params.iter().map(|p| p.key.clone()).collect();
-    header.extend(
-        [
-            "status",
-            "steps",
-            "failed_steps",
-            "rhs_evals",
-            "wall_s",
-            "max_constraint_norm",
-            "final_constraint_norm",
-        ]
-        .map(String::from),
-    );
-    w.write_record(&header).map_err(|e| e.to_string())?;
-    let mut failures = 0;
-    for (k, r) in runs.iter().enumerate() {
-        let mut row: Vec<String> = r
-            .point
-            .iter()
-            .map(|p| p.split_once('=').map_or(String::new(), |x| x.1.to_string()))
-            .collect();
-        match &r.result {
-            Ok((_, s)) => {
-                write_summary_json(&out.join(format!("{stem}_sweep{k}.summary.json")), s)
-                    .map_err(|e| e.to_string())?;
-                if s.status != "completed" {
-                    failures += 1;
-                }
-                row.extend([
-                    s.status.clone(),
-                    s.steps.to_string(),
-                    s.failed_steps.to_string(),
-                    s.rhs_evals.to_string(),
-                    format!("{:.6}", s.wall_s),
-                    format!("{:.6e}", s.max_constraint_norm),
-                    format!("{:.6e}", s.final_constraint_norm),
-                ]);
-                println!(
-                    "{}: {} steps, max ‖Φ‖ = {:.3e}",
-                    r.point.join(" "),
-                    s.steps,
-                    s.max_constraint_norm
-                );
-            }
-            Err(e) => {
-                failures += 1;
-                row.extend(["error".to_string(), e.clone()]);
-                row.resize(header.len(), String::new());
-                println!("{}: error: {e}", r.point.join(" "));
-            }
-        }
-        w.write_record(&row).map_err(|e| e.to_string())?;
-    }
-    w.flush().map_err(|e| e.to_string())?;
-    println!("wrote {}", table.display());
-    Ok(if failures == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

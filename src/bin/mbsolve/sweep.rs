@@ -2,11 +2,20 @@
 //! parallel (rayon). Each run is independent and sequential inside, so the
 //! results do not depend on the number of threads; they are returned in the
 //! order of the product.
+//!
+//! Beyond one machine: `--shard I/N` runs the runs k of the product with
+//! k mod N = I − 1 (round robin, so every shard gets a similar mix of
+//! parameters) and writes a shard table with the run index k; `--merge`
+//! joins the N shard tables into the table one unsharded sweep writes,
+//! checking that every run is present exactly once.
 
+use crate::output::write_summary_json;
 use mbsolve::scenario::{self, ScenarioError};
 use mbsolve::simulation::{simulate, Summary, Trajectory};
 use rayon::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// One parameter of a sweep: a scenario key and its values.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,29 +73,322 @@ pub fn combinations(params: &[SweepParam]) -> Vec<Vec<String>> {
     out
 }
 
-/// Run the sweep over `path` (with `base` overrides applied first). The
-/// first combination is validated before anything runs, so a bad key fails
-/// fast with the scenario's error.
+/// Shard `i` of `n` (1-based), parsed from `I/N`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shard {
+    /// This shard, 1 ≤ i ≤ n.
+    pub i: usize,
+    /// Number of shards.
+    pub n: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("--shard {s}: expected I/N with 1 ≤ I ≤ N, e.g. --shard 3/8");
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let (i, n): (usize, usize) = (
+            i.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if n == 0 || i == 0 || i > n {
+            return Err(bad());
+        }
+        Ok(Shard { i, n })
+    }
+}
+
+impl Shard {
+    /// Does run `k` of the product belong to this shard?
+    pub fn owns(&self, k: usize) -> bool {
+        k % self.n == self.i - 1
+    }
+}
+
+/// Run the sweep over `path` (with `base` overrides applied first), only
+/// the runs of `shard` when given; returns (run index in the product, run).
+/// Every combination is validated before anything runs, so a bad key fails
+/// fast with the scenario's error. `progress` labels a line on stderr per
+/// finished run.
 pub fn run(
     path: &Path,
     base: &[String],
     params: &[SweepParam],
-) -> Result<Vec<SweepRun>, ScenarioError> {
-    let points = combinations(params);
+    shard: Option<Shard>,
+    progress: &str,
+) -> Result<Vec<(usize, SweepRun)>, ScenarioError> {
+    let points: Vec<(usize, Vec<String>)> = combinations(params)
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| shard.is_none_or(|s| s.owns(*k)))
+        .collect();
     let with = |p: &Vec<String>| -> Vec<String> { base.iter().chain(p).cloned().collect() };
-    for p in &points {
+    for (_, p) in &points {
         scenario::load(path, &with(p))?;
     }
+    let total = points.len();
+    let done = AtomicUsize::new(0);
     Ok(points
         .into_par_iter()
-        .map(|point| {
+        .map(|(k, point)| {
             let result = scenario::load(path, &with(&point))
                 .map_err(|e| e.to_string())
                 .and_then(|sc| {
                     simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
                         .map_err(|e| e.to_string())
                 });
-            SweepRun { point, result }
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            eprintln!(
+                "{progress}{d}/{total} runs done (run {k}: {})",
+                point.join(" ")
+            );
+            (k, SweepRun { point, result })
         })
         .collect())
+}
+
+/// What `mbsolve sweep` was asked for.
+pub struct SweepArgs {
+    /// Scenario file.
+    pub scenario: PathBuf,
+    /// `--param KEY=v1,v2,…` arguments.
+    pub params: Vec<String>,
+    /// `--set` overrides of every run.
+    pub set: Vec<String>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// `--shard I/N`.
+    pub shard: Option<String>,
+    /// `--merge`.
+    pub merge: bool,
+}
+
+/// Columns after the parameters in a sweep table.
+const RESULT_COLUMNS: [&str; 7] = [
+    "status",
+    "steps",
+    "failed_steps",
+    "rhs_evals",
+    "wall_s",
+    "max_constraint_norm",
+    "final_constraint_norm",
+];
+
+/// `mbsolve sweep`: run (all or one shard) or merge.
+pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
+    let params = a
+        .params
+        .iter()
+        .map(|p| p.parse::<SweepParam>())
+        .collect::<Result<Vec<_>, _>>()?;
+    for (k, p) in params.iter().enumerate() {
+        if params[..k].iter().any(|q| q.key == p.key) {
+            return Err(format!("--param {}: the key is given twice", p.key));
+        }
+        if let Some(s) = a
+            .set
+            .iter()
+            .find(|s| s.split_once('=').is_some_and(|(k, _)| k.trim() == p.key))
+        {
+            return Err(format!(
+                "--param {}: the key is also fixed by --set {s}",
+                p.key
+            ));
+        }
+    }
+    let shard = a.shard.as_deref().map(str::parse::<Shard>).transpose()?;
+    let stem = a
+        .scenario
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scenario".into());
+    let mut header: Vec<String> = params.iter().map(|p| p.key.clone()).collect();
+    header.extend(RESULT_COLUMNS.map(String::from));
+    if a.merge {
+        return merge(&a.out, &stem, &header, combinations(&params).len());
+    }
+    let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
+    let runs = run(&a.scenario, &a.set, &params, shard, &label).map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let table = match shard {
+        None => a.out.join(format!("{stem}_sweep.csv")),
+        Some(s) => a
+            .out
+            .join(format!("{stem}_sweep.shard-{}-of-{}.csv", s.i, s.n)),
+    };
+    let werr = |e: &dyn std::fmt::Display| format!("{}: {e}", table.display());
+    let mut w = csv::Writer::from_path(&table).map_err(|e| werr(&e))?;
+    let mut first: Vec<String> = if shard.is_some() {
+        vec!["run".into()]
+    } else {
+        Vec::new()
+    };
+    first.extend(header.iter().cloned());
+    w.write_record(&first).map_err(|e| werr(&e))?;
+    let mut failures = 0;
+    for (k, r) in &runs {
+        let mut row: Vec<String> = if shard.is_some() {
+            vec![k.to_string()]
+        } else {
+            Vec::new()
+        };
+        row.extend(
+            r.point
+                .iter()
+                .map(|p| p.split_once('=').map_or(String::new(), |x| x.1.to_string())),
+        );
+        match &r.result {
+            Ok((_, s)) => {
+                write_summary_json(&a.out.join(format!("{stem}_sweep{k}.summary.json")), s)
+                    .map_err(|e| e.to_string())?;
+                if s.status != "completed" {
+                    failures += 1;
+                }
+                row.extend([
+                    s.status.clone(),
+                    s.steps.to_string(),
+                    s.failed_steps.to_string(),
+                    s.rhs_evals.to_string(),
+                    format!("{:.6}", s.wall_s),
+                    format!("{:.6e}", s.max_constraint_norm),
+                    format!("{:.6e}", s.final_constraint_norm),
+                ]);
+                println!(
+                    "{}: {} steps, max ‖Φ‖ = {:.3e}",
+                    r.point.join(" "),
+                    s.steps,
+                    s.max_constraint_norm
+                );
+            }
+            Err(e) => {
+                failures += 1;
+                row.extend(["error".to_string(), e.clone()]);
+                row.resize(first.len(), String::new());
+                println!("{}: error: {e}", r.point.join(" "));
+            }
+        }
+        w.write_record(&row).map_err(|e| werr(&e))?;
+    }
+    w.flush().map_err(|e| werr(&e))?;
+    println!("wrote {}", table.display());
+    Ok(if failures == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// Join the shard tables `<stem>_sweep.shard-I-of-N.csv` in `dir` into
+/// `<stem>_sweep.csv` (product order, without the run column). Every run
+/// 0 … total−1 must appear exactly once, all shards must share one N and
+/// the sweep's columns. Exit status 1 when a merged run did not complete.
+fn merge(dir: &Path, stem: &str, header: &[String], total: usize) -> Result<ExitCode, String> {
+    let prefix = format!("{stem}_sweep.shard-");
+    let mut shards: Vec<(PathBuf, usize, usize)> = Vec::new();
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for e in entries {
+        let path = e.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let Some(rest) = name
+            .strip_prefix(&prefix)
+            .and_then(|r| r.strip_suffix(".csv"))
+        else {
+            continue;
+        };
+        let parsed = rest
+            .split_once("-of-")
+            .and_then(|(i, n)| Some((i.parse().ok()?, n.parse().ok()?)));
+        let (i, n) = parsed.ok_or_else(|| format!("{}: not a shard table name", path.display()))?;
+        shards.push((path, i, n));
+    }
+    if shards.is_empty() {
+        return Err(format!(
+            "{}: no shard tables {prefix}I-of-N.csv to merge",
+            dir.display()
+        ));
+    }
+    shards.sort_by_key(|s| s.1);
+    let n = shards[0].2;
+    if let Some(s) = shards.iter().find(|s| s.2 != n) {
+        return Err(format!(
+            "{}: a shard of {} runs next to shards of {n}: remove stale tables",
+            s.0.display(),
+            s.2
+        ));
+    }
+    let missing: Vec<String> = (1..=n)
+        .filter(|i| !shards.iter().any(|s| s.1 == *i))
+        .map(|i| i.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "{}: shard(s) {} of {n} missing",
+            dir.display(),
+            missing.join(", ")
+        ));
+    }
+    let mut rows: Vec<Option<csv::StringRecord>> = vec![None; total];
+    for (path, _, _) in &shards {
+        let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+        let mut r = csv::Reader::from_path(path).map_err(|e| err(&e))?;
+        let h = r.headers().map_err(|e| err(&e))?.clone();
+        if h.len() != header.len() + 1
+            || &h[0] != "run"
+            || h.iter().skip(1).zip(header).any(|(a, b)| a != b)
+        {
+            return Err(err(&format!(
+                "columns {:?} are not those of this sweep (run, {})",
+                h.iter().collect::<Vec<_>>(),
+                header.join(", ")
+            )));
+        }
+        for rec in r.records() {
+            let rec = rec.map_err(|e| err(&e))?;
+            let k: usize = rec[0]
+                .parse()
+                .ok()
+                .filter(|k| *k < total)
+                .ok_or_else(|| err(&format!("run index '{}' is not in 0..{total}", &rec[0])))?;
+            if rows[k].is_some() {
+                return Err(err(&format!("run {k} appears twice")));
+            }
+            rows[k] = Some(rec.iter().skip(1).collect());
+        }
+    }
+    let missing: Vec<String> = (0..total)
+        .filter(|k| rows[*k].is_none())
+        .map(|k| k.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "{}: run(s) {} of the sweep are in no shard table (a shard did not finish?)",
+            dir.display(),
+            missing.join(", ")
+        ));
+    }
+    let table = dir.join(format!("{stem}_sweep.csv"));
+    let werr = |e: &dyn std::fmt::Display| format!("{}: {e}", table.display());
+    let mut w = csv::Writer::from_path(&table).map_err(|e| werr(&e))?;
+    w.write_record(header).map_err(|e| werr(&e))?;
+    let status = header.len() - RESULT_COLUMNS.len();
+    let mut failures = 0;
+    for rec in rows.into_iter().flatten() {
+        if &rec[status] != "completed" {
+            failures += 1;
+        }
+        w.write_record(&rec).map_err(|e| werr(&e))?;
+    }
+    w.flush().map_err(|e| werr(&e))?;
+    println!(
+        "merged {n} shards, {total} runs ({failures} not completed) into {}",
+        table.display()
+    );
+    Ok(if failures == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

@@ -1,0 +1,152 @@
+//! `mbsolve sweep` beyond one machine: `--shard I/N` and `--merge` give the
+//! table of one unsharded sweep; bad sharding and parameter requests are
+//! clear errors.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn mbsolve(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The sweep's arguments with `extra` appended.
+fn sweep(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "sweep",
+        "scenarios/fourbar.toml",
+        "--param",
+        "stabilization.alpha=0,1,5",
+        "--param",
+        "initial.incorrect=false,true",
+        "--set",
+        "stabilization.rule=equal",
+        "--set",
+        "time.end=0.2",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    mbsolve(&args)
+}
+
+/// The table's rows without the wall-time column.
+fn rows_without_wall_time(path: &Path) -> Vec<Vec<String>> {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    let h = r.headers().unwrap().clone();
+    let wall = h.iter().position(|c| c == "wall_s").unwrap();
+    let mut out = vec![h
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != wall)
+        .map(|(_, c)| c.to_string())
+        .collect::<Vec<_>>()];
+    for rec in r.records() {
+        out.push(
+            rec.unwrap()
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k != wall)
+                .map(|(_, c)| c.to_string())
+                .collect(),
+        );
+    }
+    out
+}
+
+#[test]
+fn shards_merge_into_the_table_of_one_sweep() {
+    let whole = tempfile::tempdir().unwrap();
+    let o = sweep(whole.path(), &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let expected = rows_without_wall_time(&whole.path().join("fourbar_sweep.csv"));
+    assert_eq!(expected.len(), 1 + 6);
+
+    let parts = tempfile::tempdir().unwrap();
+    for i in ["2/2", "1/2"] {
+        let o = sweep(parts.path(), &["--shard", i]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("shard {i}: 3/3 runs done")),
+            "{}",
+            stderr(&o)
+        );
+    }
+    // shard 2 of 2 holds runs 1, 3, 5 of the product, each with its summary
+    let s2 = std::fs::read_to_string(parts.path().join("fourbar_sweep.shard-2-of-2.csv")).unwrap();
+    let runs: Vec<&str> = s2
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(runs, ["1", "3", "5"]);
+    for k in 0..6 {
+        assert!(parts
+            .path()
+            .join(format!("fourbar_sweep{k}.summary.json"))
+            .exists());
+    }
+    let o = sweep(parts.path(), &["--merge"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let merged = rows_without_wall_time(&parts.path().join("fourbar_sweep.csv"));
+    assert_eq!(merged, expected);
+}
+
+#[test]
+fn merge_refuses_missing_and_stale_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = sweep(dir.path(), &["--merge"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no shard tables"), "{}", stderr(&o));
+
+    let o = sweep(dir.path(), &["--shard", "1/3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = sweep(dir.path(), &["--merge"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("shard(s) 2, 3 of 3 missing"),
+        "{}",
+        stderr(&o)
+    );
+
+    let o = sweep(dir.path(), &["--shard", "2/2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = sweep(dir.path(), &["--merge"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("remove stale tables"), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_shards_and_parameters_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    for bad in ["0/2", "3/2", "1/0", "x/2", "2"] {
+        let o = sweep(dir.path(), &["--shard", bad]);
+        assert_eq!(o.status.code(), Some(2), "{bad}");
+        assert!(
+            stderr(&o).contains(&format!("--shard {bad}: expected I/N")),
+            "{}",
+            stderr(&o)
+        );
+    }
+    let o = sweep(dir.path(), &["--param", "stabilization.alpha=7"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--param stabilization.alpha: the key is given twice"),
+        "{}",
+        stderr(&o)
+    );
+    let o = sweep(dir.path(), &["--set", "initial.incorrect=true"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--param initial.incorrect: the key is also fixed by --set"),
+        "{}",
+        stderr(&o)
+    );
+}
