@@ -2,8 +2,9 @@
 //! closed-loop matrices built directly (no model code involved).
 
 use mbsolve::linalg::{
-    chain_order, solver_for, DenseLu, LinalgError, Ordering, SaddleMatrix, SaddlePointSolver,
-    SolverKind, SparseLdlt, AUTO_DENSE_MAX_DIM,
+    chain_order, solver_for, APattern, DenseLu, LinalgError, Ordering, SaddleMatrix,
+    SaddlePointSolver, SolverKind, SolverOptions, SparseLdlt, Storage, Symmetry,
+    AUTO_DENSE_MAX_DIM,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -553,17 +554,36 @@ fn factorize_and_solve_do_not_allocate() {
 #[test]
 #[allow(clippy::absurd_extreme_comparisons)] // the measured threshold is 0
 fn solver_for_kinds() {
-    assert_eq!(solver_for(SolverKind::Dense, 1000).name(), "dense-lu");
-    assert_eq!(solver_for(SolverKind::Sparse, 5).name(), "sparse-ldlt");
-    assert_eq!(solver_for(SolverKind::Auto, 10_000).name(), "sparse-ldlt");
+    assert_eq!(
+        solver_for(SolverKind::Dense, 1000, SolverOptions::default()).name(),
+        "dense-lu"
+    );
+    assert_eq!(
+        solver_for(SolverKind::Sparse, 5, SolverOptions::default()).name(),
+        "sparse-ldlt"
+    );
+    assert_eq!(
+        solver_for(SolverKind::Auto, 10_000, SolverOptions::default()).name(),
+        "sparse-ldlt"
+    );
     if AUTO_DENSE_MAX_DIM > 1 {
         assert_eq!(
-            solver_for(SolverKind::Auto, AUTO_DENSE_MAX_DIM - 1).name(),
+            solver_for(
+                SolverKind::Auto,
+                AUTO_DENSE_MAX_DIM - 1,
+                SolverOptions::default()
+            )
+            .name(),
             "dense-lu"
         );
     }
     assert_eq!(
-        solver_for(SolverKind::Auto, AUTO_DENSE_MAX_DIM).name(),
+        solver_for(
+            SolverKind::Auto,
+            AUTO_DENSE_MAX_DIM,
+            SolverOptions::default()
+        )
+        .name(),
         "sparse-ldlt"
     );
     // Both kinds solve the same system through the trait object.
@@ -573,7 +593,7 @@ fn solver_for_kinds() {
     let b = Rng::new(3).vec(k.dim());
     let mut xs = Vec::new();
     for kind in [SolverKind::Dense, SolverKind::Sparse, SolverKind::Auto] {
-        let mut s = solver_for(kind, k.dim());
+        let mut s = solver_for(kind, k.dim(), SolverOptions::default());
         s.analyze(&k).unwrap();
         s.factorize(&k).unwrap();
         let mut x = b.clone();
@@ -582,6 +602,90 @@ fn solver_for_kinds() {
     }
     assert!(rel_diff(&xs[1], &xs[0]) <= 1e-10);
     assert!(rel_diff(&xs[2], &xs[0]) <= 1e-10);
+}
+
+/// Every solver kind through the one seam, each on the storage it asks
+/// for: the same assembly calls, the same solution. The Schur complement
+/// (eq. (9)) gets a diagonal `A`; the sparse LU an unsymmetric `A` that the
+/// dense LU of the full matrix cross-checks, while the symmetric solvers
+/// see its symmetric part.
+#[test]
+fn every_solver_kind_through_one_assembly() {
+    let (n, m) = (6, 3);
+    let jac: Vec<(usize, usize)> = vec![(0, 0), (0, 3), (1, 1), (1, 4), (2, 2), (2, 5), (2, 0)];
+    let jv = [1.0, -1.0, 0.5, 2.0, -0.3, 1.1, 0.7];
+    let mut a = APattern::new();
+    let blk: Vec<(usize, usize)> = [0, 1, 3]
+        .iter()
+        .flat_map(|&r| [0, 1, 3].map(move |c| (r, c)))
+        .collect();
+    let id = a.push_block(&blk, Symmetry::Unsymmetric);
+    let hid = a.push_block(&[(5, 2)], Symmetry::Symmetric);
+    let assemble = |k: &mut SaddleMatrix, diag_only: bool| {
+        k.set_zero();
+        for i in 0..n {
+            k.add_diagonal(i, 3.0 + i as f64);
+        }
+        if !diag_only {
+            for e in 0..blk.len() {
+                k.add_a(
+                    id + e,
+                    0.1 * (e as f64 + 1.0) * if e % 2 == 0 { 1.0 } else { -0.5 },
+                );
+            }
+            k.add_a(hid, 0.4);
+        }
+        k.set_jacobian(&jv);
+    };
+    let b: Vec<f64> = (0..n + m).map(|i| (i as f64 * 0.7).sin() + 0.2).collect();
+    let empty = APattern::new();
+    let solve = |kind: SolverKind, diag_only: bool| -> (Vec<f64>, Storage) {
+        let mut s = solver_for(kind, n + m, SolverOptions::default());
+        let mut k = SaddleMatrix::with_storage(
+            n,
+            m,
+            if diag_only { &empty } else { &a },
+            &jac,
+            s.storage(),
+        );
+        assemble(&mut k, diag_only);
+        s.analyze(&k).unwrap();
+        s.factorize(&k).unwrap();
+        let mut x = b.clone();
+        s.solve_in_place(&k, &mut x).unwrap();
+        // the residual of the matrix the solver was given
+        let mut r = vec![0.0; n + m];
+        k.mul_vec(&x, &mut r);
+        assert!(rel_diff(&r, &b) < 1e-12, "{kind:?}: residual");
+        (x, k.storage())
+    };
+    // diagonal A: all five agree
+    let (reference, _) = solve(SolverKind::Dense, true);
+    for kind in [
+        SolverKind::Sparse,
+        SolverKind::Auto,
+        SolverKind::SparseLu,
+        SolverKind::Schur,
+    ] {
+        assert!(
+            rel_diff(&solve(kind, true).0, &reference) < 1e-12,
+            "{kind:?}"
+        );
+    }
+    // unsymmetric A: LU solves the full matrix, LDLᵀ its symmetric part
+    let (lu, storage) = solve(SolverKind::SparseLu, false);
+    assert_eq!(storage, Storage::Full);
+    let (ldlt, storage) = solve(SolverKind::Sparse, false);
+    assert_eq!(storage, Storage::SymmetricLower);
+    assert!(rel_diff(&lu, &ldlt) > 1e-6, "the skew part must matter");
+    // the Schur complement refuses a non-diagonal A, LDLᵀ a full matrix
+    let mut k = SaddleMatrix::with_storage(n, m, &a, &jac, Storage::SymmetricLower);
+    assemble(&mut k, false);
+    let mut schur = solver_for(SolverKind::Schur, n + m, SolverOptions::default());
+    assert!(schur.analyze(&k).is_err());
+    let k = SaddleMatrix::with_storage(n, m, &a, &jac, Storage::Full);
+    let mut ldlt = solver_for(SolverKind::Sparse, n + m, SolverOptions::default());
+    assert!(matches!(ldlt.analyze(&k), Err(LinalgError::Storage { .. })));
 }
 
 #[test]

@@ -2,9 +2,10 @@
 
 use super::{Baumgarte, Formulation, FormulationError};
 use crate::integrate::{OdeSystem, RhsError};
-use crate::linalg::{solver_for, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats};
+use crate::linalg::{
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
+};
 use crate::model::System;
-use faer::linalg::solvers::Solve;
 use serde::Serialize;
 
 /// Number of coordinates from which forces and constraint terms are
@@ -34,7 +35,7 @@ pub struct Index1Options {
 pub struct RhsStats {
     /// Right-hand-side (acceleration) evaluations.
     pub evaluations: usize,
-    /// Linear-solver counters (saddle form) or Cholesky factorisations (eliminated).
+    /// Linear-solver counters (the Schur complement's for eq. (9)).
     pub solver: SolverStats,
 }
 
@@ -43,7 +44,10 @@ pub struct RhsStats {
 /// Each evaluation computes Φ_q, g, γ (and Φ, Φ_t for the Baumgarte terms),
 /// writes them into the fixed pattern of the saddle-point matrix and solves
 /// `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ̄` (eq. (5), multipliers with the sign of
-/// [`crate::linalg`]). No allocation per evaluation.
+/// [`crate::linalg`]) — with the chosen saddle-point solver, or, for
+/// [`Formulation::Eliminated`], with λ eliminated through the Schur
+/// complement of eq. (9) ([`crate::linalg::SchurComplement`]). No
+/// allocation per evaluation.
 pub struct Index1<'a> {
     sys: &'a System,
     opts: Index1Options,
@@ -57,10 +61,6 @@ pub struct Index1<'a> {
     phid: Vec<f64>,
     x: Vec<f64>,
     lambda: Vec<f64>,
-    schur: faer::Mat<f64>,
-    schur_rhs: faer::Mat<f64>,
-    /// Φ_q entries by column: (row, index into `jac`), for eq. (9).
-    by_col: Vec<Vec<(usize, usize)>>,
     stats: RhsStats,
 }
 
@@ -75,24 +75,24 @@ impl<'a> Index1<'a> {
             )));
         }
         let (n, m) = (sys.n_coords(), sys.n_constraints());
-        let k = SaddleMatrix::new(n, m, &[], sys.jacobian_pattern());
-        let mut solver = solver_for(opts.linear_solver, n + m);
+        let kind = match opts.formulation {
+            Formulation::Saddle => opts.linear_solver,
+            Formulation::Eliminated => SolverKind::Schur,
+        };
+        let mut solver = solver_for(kind, n + m, SolverOptions::default());
+        let k = SaddleMatrix::with_storage(
+            n,
+            m,
+            &APattern::new(),
+            sys.jacobian_pattern(),
+            solver.storage(),
+        );
         solver
             .analyze(&k)
             .map_err(|source| FormulationError::Linear {
                 t: f64::NAN,
                 source,
             })?;
-        let (schur, by_col) = match opts.formulation {
-            Formulation::Eliminated => {
-                let mut by_col = vec![Vec::new(); n];
-                for (k, &(r, c)) in sys.jacobian_pattern().iter().enumerate() {
-                    by_col[c].push((r, k));
-                }
-                (faer::Mat::zeros(m, m), by_col)
-            }
-            Formulation::Saddle => (faer::Mat::zeros(0, 0), Vec::new()),
-        };
         Ok(Self {
             sys,
             opts,
@@ -106,9 +106,6 @@ impl<'a> Index1<'a> {
             phid: vec![0.0; m],
             x: vec![0.0; n + m],
             lambda: vec![0.0; m],
-            schur,
-            schur_rhs: faer::Mat::zeros(m, 1),
-            by_col,
             stats: RhsStats::default(),
         })
     }
@@ -131,18 +128,13 @@ impl<'a> Index1<'a> {
     /// Counters so far.
     pub fn stats(&self) -> RhsStats {
         let mut s = self.stats;
-        if self.opts.formulation == Formulation::Saddle {
-            s.solver = self.solver.stats();
-        }
+        s.solver = self.solver.stats();
         s
     }
 
     /// Name of the linear solver in use.
     pub fn solver_name(&self) -> &'static str {
-        match self.opts.formulation {
-            Formulation::Saddle => self.solver.name(),
-            Formulation::Eliminated => "schur-dense-cholesky",
-        }
+        self.solver.name()
     }
 
     /// Accelerations `q̈(q, q̇, t)`; λ is kept (see [`Index1::lambda`]).
@@ -198,68 +190,17 @@ impl<'a> Index1<'a> {
             sys.forces_into(t, q, qd, g);
             constraint_terms();
         }
-        match self.opts.formulation {
-            Formulation::Saddle => {
-                self.k.set_a_diagonal(sys.mass_diagonal());
-                self.k.set_jacobian(&self.jac);
-                let lin = |source| FormulationError::Linear { t, source };
-                self.solver.factorize(&self.k).map_err(lin)?;
-                self.x[..n].copy_from_slice(&self.g);
-                self.x[n..].copy_from_slice(&self.gamma);
-                self.solver
-                    .solve_in_place(&self.k, &mut self.x)
-                    .map_err(lin)?;
-                qdd.copy_from_slice(&self.x[..n]);
-                self.lambda.copy_from_slice(&self.x[n..]);
-            }
-            Formulation::Eliminated => self.eliminated(t, qdd)?,
-        }
-        Ok(())
-    }
-
-    /// eq. (9) with a dense Schur complement `S = Φ_q M⁻¹ Φ_qᵀ`.
-    fn eliminated(&mut self, t: f64, qdd: &mut [f64]) -> Result<(), FormulationError> {
-        let sys = self.sys;
-        let mass = sys.mass_diagonal();
-        let m = sys.n_constraints();
-        // S = Σ_c Φ_q[:, c] Φ_q[:, c]ᵀ / M_c over the entries of each column.
-        self.schur.fill(0.0);
-        for (c, col) in self.by_col.iter().enumerate() {
-            for &(r1, k1) in col {
-                for &(r2, k2) in col {
-                    self.schur[(r1, r2)] += self.jac[k1] * self.jac[k2] / mass[c];
-                }
-            }
-        }
-        // right-hand side Φ_q M⁻¹ g − γ̄
-        for r in 0..m {
-            self.schur_rhs[(r, 0)] = -self.gamma[r];
-        }
-        for (c, col) in self.by_col.iter().enumerate() {
-            for &(r, k) in col {
-                self.schur_rhs[(r, 0)] += self.jac[k] * self.g[c] / mass[c];
-            }
-        }
-        let llt = self
-            .schur
-            .llt(faer::Side::Lower)
-            .map_err(|e| FormulationError::Linear {
-                t,
-                source: crate::linalg::LinalgError::Singular(format!(
-                    "Schur complement Φ_q M⁻¹ Φ_qᵀ is not positive definite ({e:?}); \
-                     redundant constraints need the saddle formulation"
-                )),
-            })?;
-        llt.solve_in_place(self.schur_rhs.as_mut());
-        self.stats.solver.factorizations += 1;
-        self.stats.solver.solves += 1;
-        for r in 0..m {
-            self.lambda[r] = self.schur_rhs[(r, 0)];
-        }
-        sys.jacobian_tmul(&self.jac, &self.lambda, qdd);
-        for c in 0..sys.n_coords() {
-            qdd[c] = (self.g[c] - qdd[c]) / mass[c];
-        }
+        self.k.set_a_diagonal(sys.mass_diagonal());
+        self.k.set_jacobian(&self.jac);
+        let lin = |source| FormulationError::Linear { t, source };
+        self.solver.factorize(&self.k).map_err(lin)?;
+        self.x[..n].copy_from_slice(&self.g);
+        self.x[n..].copy_from_slice(&self.gamma);
+        self.solver
+            .solve_in_place(&self.k, &mut self.x)
+            .map_err(lin)?;
+        qdd.copy_from_slice(&self.x[..n]);
+        self.lambda.copy_from_slice(&self.x[n..]);
         Ok(())
     }
 }

@@ -37,13 +37,15 @@
 //! O(h⁻⁴)); this is `β h² · D S_t D` with `D = diag(I, I/(β h²))`, so it
 //! stays symmetric.
 //!
-//! **Symmetrisation.** The drag and contact Jacobians are not symmetric,
-//! but the saddle-point solvers factor a symmetric matrix. [`Index3`]
-//! assembles the symmetric part `½ (A + Aᵀ)` of the `A` block (exactly what
-//! a slot shared by `(i, j)` and `(j, i)` holds when every dense entry adds
-//! half its value): a *modified* Newton method whose residual is exact, so
-//! the converged solution is the same and only the contraction rate can
-//! suffer (with `c_c ∝ h`, `c_k ∝ h²` the skew part vanishes as `h → 0`).
+//! **Symmetrisation.** The drag and contact Jacobians are not symmetric.
+//! They are registered as unsymmetric blocks ([`Symmetry::Unsymmetric`]):
+//! the sparse LU ([`NewtonSolverKind::SparseLu`]) factorises them as they
+//! are (exact Newton); the symmetric solvers (the default LDLᵀ) receive the
+//! symmetric part `½ (A + Aᵀ)` of the `A` block, a *modified* Newton method
+//! whose residual is exact, so the converged solution is the same and only
+//! the contraction rate can suffer (with `c_c ∝ h`, `c_k ∝ h²` the skew part
+//! vanishes as `h → 0`). The assembly is the same for both
+//! ([`SaddleMatrix::add_a`]); the storage follows the solver.
 //!
 //! **Pattern.** The `A` block's pattern is the union of the force elements'
 //! Jacobian blocks ([`ForceElement::jacobian_coordinates`]² each) and the
@@ -59,7 +61,8 @@ use super::FormulationError;
 use crate::forces::FdWorkspace;
 use crate::integrate::SecondOrderDae;
 use crate::linalg::{
-    solver_for, CscPattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverStats, SparseLdlt,
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
+    Symmetry,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -80,7 +83,7 @@ pub struct Index3Stats {
 }
 
 /// One force element's Jacobian block: `k × k` over its
-/// `jacobian_coordinates`, written to `slots[offset .. offset + k²]`.
+/// `jacobian_coordinates`, registered as `A` entries `offset .. offset + k²`.
 #[derive(Debug, Clone, Copy)]
 struct ForceBlock {
     element: usize,
@@ -88,9 +91,9 @@ struct ForceBlock {
     offset: usize,
 }
 
-/// The index-3 residual and the scaled, symmetrised Newton matrix of a
-/// [`System`] (module docs), plus the mass-weighted projections used for
-/// consistent initial accelerations and drift control.
+/// The index-3 residual and the scaled Newton matrix of a [`System`]
+/// (module docs), plus the mass-weighted projections used for consistent
+/// initial accelerations and drift control.
 ///
 /// Two saddle-point matrices are built once:
 /// * the Newton matrix `[c_m M + c_c C_t + c_k K_t, Φ_qᵀ; Φ_q, 0]` with the
@@ -106,16 +109,11 @@ pub struct Index3<'a> {
     solver: Box<dyn SaddlePointSolver>,
     kp: SaddleMatrix,
     psolver: Box<dyn SaddlePointSolver>,
-    /// Slots of the `A` entries in `k`: force blocks, then Hessians.
+    /// The force blocks among the `A` entries of `k`.
     force_blocks: Vec<ForceBlock>,
-    /// `(constraint, first slot index, count)` of each Hessian block.
+    /// `(constraint, first A entry id, count)` of each Hessian block.
     hess_blocks: Vec<(usize, usize, usize)>,
     hess_vals: Vec<f64>,
-    slots: Vec<usize>,
-    /// Diagonal slots of the coordinates in `k`.
-    mass_slots: Vec<usize>,
-    /// Weight per slot entry: ½ for an off-diagonal dense entry, 1 otherwise.
-    weights: Vec<f64>,
     dq: Vec<f64>,
     dqd: Vec<f64>,
     ws: FdWorkspace,
@@ -125,8 +123,6 @@ pub struct Index3<'a> {
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
-    /// The unsymmetric alternative ([`NewtonSolverKind::SparseLu`]).
-    lu: Option<LuNewton>,
 }
 
 /// How the Newton matrix is factorised.
@@ -140,141 +136,6 @@ pub enum NewtonSolverKind {
     /// The full unsymmetric matrix with faer's sparse LU (COLAMD column
     /// order, partial pivoting; `faer::sparse::linalg::lu`): exact Newton.
     SparseLu,
-}
-
-/// The full unsymmetric Newton matrix in CSC for faer's sparse LU, with
-/// slot maps (built once) and the symbolic analysis (once).
-struct LuNewton {
-    dim: usize,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    values: Vec<f64>,
-    /// Slot of each `a_pattern` entry (force entries as given, Hessian
-    /// entries at `(i, j)`), and of its transpose for Hessian entries
-    /// (`usize::MAX` for force entries).
-    a_slot: Vec<usize>,
-    a_slot_t: Vec<usize>,
-    mass_slot: Vec<usize>,
-    jac_slot: Vec<usize>,
-    jac_slot_t: Vec<usize>,
-    symbolic: faer::sparse::linalg::lu::SymbolicLu<usize>,
-    numeric: faer::sparse::linalg::lu::NumericLu<usize, f64>,
-    mem: faer::dyn_stack::MemBuffer,
-    factorizations: usize,
-    solves: usize,
-    ready: bool,
-}
-
-impl LuNewton {
-    fn new(
-        n: usize,
-        m: usize,
-        a_pattern: &[(usize, usize)],
-        n_force: usize,
-        jac_pattern: &[(usize, usize)],
-    ) -> Result<Self, FormulationError> {
-        use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuSymbolicParams, NumericLu};
-        let dim = n + m;
-        let mut entries: Vec<(usize, usize)> = Vec::new();
-        entries.extend((0..n).map(|i| (i, i)));
-        for (k, &(i, j)) in a_pattern.iter().enumerate() {
-            entries.push((i, j));
-            if k >= n_force {
-                entries.push((j, i));
-            }
-        }
-        for &(r, c) in jac_pattern {
-            entries.push((n + r, c));
-            entries.push((c, n + r));
-        }
-        let pat = CscPattern::from_entries(dim, entries);
-        let slot = |r: usize, c: usize| pat.slot(r, c);
-        let mass_slot = (0..n).map(|i| slot(i, i)).collect();
-        let a_slot = a_pattern.iter().map(|&(i, j)| slot(i, j)).collect();
-        let a_slot_t = a_pattern
-            .iter()
-            .enumerate()
-            .map(|(k, &(i, j))| if k >= n_force { slot(j, i) } else { usize::MAX })
-            .collect();
-        let jac_slot = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
-        let jac_slot_t = jac_pattern.iter().map(|&(r, c)| slot(c, n + r)).collect();
-        let CscPattern { col_ptr, row_idx } = pat;
-        let pattern =
-            faer::sparse::SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
-        let symbolic =
-            factorize_symbolic_lu(pattern, LuSymbolicParams::default()).map_err(|e| {
-                FormulationError::Invalid(format!("sparse LU symbolic analysis failed: {e:?}"))
-            })?;
-        let req = faer::dyn_stack::StackReq::any_of(&[
-            symbolic.factorize_numeric_lu_scratch::<f64>(faer::Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, faer::Par::Seq),
-        ]);
-        Ok(Self {
-            dim,
-            values: vec![0.0; row_idx.len()],
-            col_ptr,
-            row_idx,
-            a_slot,
-            a_slot_t,
-            mass_slot,
-            jac_slot,
-            jac_slot_t,
-            symbolic,
-            numeric: NumericLu::new(),
-            mem: faer::dyn_stack::MemBuffer::new(req),
-            factorizations: 0,
-            solves: 0,
-            ready: false,
-        })
-    }
-
-    fn factorize(&mut self) -> Result<(), String> {
-        use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-        self.ready = false;
-        if let Some(v) = self.values.iter().find(|v| !v.is_finite()) {
-            return Err(format!("non-finite entry {v} in the Newton matrix"));
-        }
-        let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(
-                self.dim,
-                self.dim,
-                &self.col_ptr,
-                None,
-                &self.row_idx,
-            ),
-            &self.values,
-        );
-        self.symbolic
-            .factorize_numeric_lu(
-                &mut self.numeric,
-                a,
-                faer::Par::Seq,
-                faer::dyn_stack::MemStack::new(&mut self.mem),
-                Default::default(),
-            )
-            .map_err(|e| format!("sparse LU of the Newton matrix failed: {e:?}"))?;
-        self.factorizations += 1;
-        self.ready = true;
-        Ok(())
-    }
-
-    fn solve(&mut self, rhs: &mut [f64]) -> Result<(), String> {
-        if !self.ready {
-            return Err("sparse LU solve before a successful factorisation".into());
-        }
-        let lu = faer::sparse::linalg::lu::LuRef::new_unchecked(&self.symbolic, &self.numeric);
-        lu.solve_in_place_with_conj(
-            faer::Conj::No,
-            faer::MatMut::from_column_major_slice_mut(rhs, self.dim, 1),
-            faer::Par::Seq,
-            faer::dyn_stack::MemStack::new(&mut self.mem),
-        );
-        self.solves += 1;
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err("sparse LU produced a non-finite solution".into());
-        }
-        Ok(())
-    }
 }
 
 impl std::fmt::Debug for Index3<'_> {
@@ -308,10 +169,10 @@ impl<'a> Index3<'a> {
         newton: NewtonSolverKind,
     ) -> Result<Self, FormulationError> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
-        let mut a_pattern: Vec<(usize, usize)> = Vec::new();
-        let mut weights = Vec::new();
+        let mut a = APattern::new();
         let mut force_blocks = Vec::new();
         let mut max_k = 0;
+        let mut block = Vec::new();
         for (e, f) in sys.forces().iter().enumerate() {
             let cols = f.jacobian_coordinates();
             let k = cols.len();
@@ -325,19 +186,15 @@ impl<'a> Index3<'a> {
                 )));
             }
             max_k = max_k.max(k);
+            block.clear();
+            block.extend(cols.iter().flat_map(|&r| cols.iter().map(move |&c| (r, c))));
+            let offset = a.push_block(&block, Symmetry::Unsymmetric);
             force_blocks.push(ForceBlock {
                 element: e,
                 k,
-                offset: a_pattern.len(),
+                offset,
             });
-            for &r in &cols {
-                for &c in &cols {
-                    a_pattern.push((r, c));
-                    weights.push(if r == c { 1.0 } else { 0.5 });
-                }
-            }
         }
-        let n_force = a_pattern.len();
         let mut hess_blocks = Vec::new();
         let mut n_hess = 0;
         for (j, c) in sys.constraints().iter().enumerate() {
@@ -345,47 +202,39 @@ impl<'a> Index3<'a> {
             if hp.is_empty() {
                 continue;
             }
-            hess_blocks.push((j, a_pattern.len(), hp.len()));
-            n_hess += hp.len();
-            for (r, col) in hp {
-                if r >= n || col >= n {
-                    return Err(FormulationError::Invalid(format!(
-                        "{}: Hessian entry ({r}, {col}) out of range (n = {n})",
-                        c.name()
-                    )));
-                }
-                a_pattern.push((r, col));
-                weights.push(1.0);
+            if let Some(&(r, col)) = hp.iter().find(|&&(r, col)| r >= n || col >= n) {
+                return Err(FormulationError::Invalid(format!(
+                    "{}: Hessian entry ({r}, {col}) out of range (n = {n})",
+                    c.name()
+                )));
             }
+            hess_blocks.push((j, a.push_block(&hp, Symmetry::Symmetric), hp.len()));
+            n_hess += hp.len();
         }
-        let k = SaddleMatrix::new(n, m, &a_pattern, sys.jacobian_pattern());
-        let slots = k.a_slots().to_vec();
-        let mass_slots = k.diag_slots()[..n].to_vec();
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
-        let mut solver: Box<dyn SaddlePointSolver> = match linear_solver {
-            SolverKind::Dense => solver_for(linear_solver, n + m),
-            SolverKind::Sparse | SolverKind::Auto => {
-                Box::new(SparseLdlt::default().with_residual_check(false))
-            }
+        let kind = match newton {
+            NewtonSolverKind::SymmetricLdlt => linear_solver,
+            NewtonSolverKind::SparseLu => SolverKind::SparseLu,
         };
+        let newton_opts = SolverOptions {
+            residual_check: false,
+        };
+        let mut solver = solver_for(kind, n + m, newton_opts);
+        let k = SaddleMatrix::with_storage(n, m, &a, sys.jacobian_pattern(), solver.storage());
         let lin = |source| FormulationError::Linear {
             t: f64::NAN,
             source,
         };
         solver.analyze(&k).map_err(lin)?;
-        let lu = match newton {
-            NewtonSolverKind::SymmetricLdlt => None,
-            NewtonSolverKind::SparseLu => Some(LuNewton::new(
-                n,
-                m,
-                &a_pattern,
-                n_force,
-                sys.jacobian_pattern(),
-            )?),
-        };
-        let kp = SaddleMatrix::new(n, m, &[], sys.jacobian_pattern());
-        let mut psolver = solver_for(linear_solver, n + m);
+        let mut psolver = solver_for(linear_solver, n + m, SolverOptions::default());
+        let kp = SaddleMatrix::with_storage(
+            n,
+            m,
+            &APattern::new(),
+            sys.jacobian_pattern(),
+            psolver.storage(),
+        );
         psolver.analyze(&kp).map_err(lin)?;
         Ok(Self {
             sys,
@@ -398,9 +247,6 @@ impl<'a> Index3<'a> {
             force_blocks,
             hess_blocks,
             hess_vals: vec![0.0; n_hess],
-            slots,
-            mass_slots,
-            weights,
             dq: vec![0.0; max_k * max_k],
             dqd: vec![0.0; max_k * max_k],
             ws: FdWorkspace::default(),
@@ -410,7 +256,6 @@ impl<'a> Index3<'a> {
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
-            lu,
         })
     }
 
@@ -426,21 +271,13 @@ impl<'a> Index3<'a> {
 
     /// Name of the linear solver of the Newton matrix.
     pub fn solver_name(&self) -> &'static str {
-        if self.lu.is_some() {
-            "sparse-lu"
-        } else {
-            self.solver.name()
-        }
+        self.solver.name()
     }
 
     /// Counters so far.
     pub fn stats(&self) -> Index3Stats {
         let mut s = self.stats;
         s.newton_solver = self.solver.stats();
-        if let Some(lu) = &self.lu {
-            s.newton_solver.factorizations = lu.factorizations;
-            s.newton_solver.solves = lu.solves;
-        }
         s.mass_solver = self.psolver.stats();
         s
     }
@@ -479,9 +316,10 @@ impl<'a> Index3<'a> {
         Ok(())
     }
 
-    /// Assemble the scaled, symmetrised Newton matrix at `(t, q, q̇, λ)`:
-    /// `A = c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀ λ)_q` (symmetric part),
-    /// Jacobian block `Φ_q(q, t)`, multiplier block 0 — and factorise it.
+    /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:
+    /// `A = c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀ λ)_q` (its symmetric
+    /// part for the symmetric solvers), Jacobian block `Φ_q(q, t)`,
+    /// multiplier block 0 — and factorise it.
     #[allow(clippy::too_many_arguments)]
     pub fn assemble_and_factorize(
         &mut self,
@@ -496,24 +334,10 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         self.stats.jacobians += 1;
         finite_state(t, q, qd)?;
-        // Values go either to the symmetric saddle matrix (each dense entry
-        // with its weight: ½ off the diagonal, so a shared slot holds the
-        // symmetric part) or to the full matrix of the sparse LU.
         let mass = sys.mass_diagonal();
-        match &mut self.lu {
-            None => {
-                self.k.set_zero();
-                let vals = self.k.values_mut();
-                for (i, &s) in self.mass_slots.iter().enumerate() {
-                    vals[s] = c_m * mass[i];
-                }
-            }
-            Some(lu) => {
-                lu.values.fill(0.0);
-                for (i, &s) in lu.mass_slot.iter().enumerate() {
-                    lu.values[s] = c_m * mass[i];
-                }
-            }
+        self.k.set_zero();
+        for (i, &mi) in mass.iter().enumerate() {
+            self.k.add_diagonal(i, c_m * mi);
         }
         let forces = sys.forces();
         for b in &self.force_blocks {
@@ -522,19 +346,8 @@ impl<'a> Index3<'a> {
             dq.fill(0.0);
             dqd.fill(0.0);
             forces[b.element].add_jacobians(t, q, qd, dq, dqd, &mut self.ws);
-            match &mut self.lu {
-                None => {
-                    let vals = self.k.values_mut();
-                    for e in 0..kk {
-                        let idx = b.offset + e;
-                        vals[self.slots[idx]] -= self.weights[idx] * (c_c * dqd[e] + c_k * dq[e]);
-                    }
-                }
-                Some(lu) => {
-                    for e in 0..kk {
-                        lu.values[lu.a_slot[b.offset + e]] -= c_c * dqd[e] + c_k * dq[e];
-                    }
-                }
+            for e in 0..kk {
+                self.k.add_a(b.offset + e, -(c_c * dqd[e] + c_k * dq[e]));
             }
         }
         if !self.hess_blocks.is_empty() {
@@ -549,49 +362,22 @@ impl<'a> Index3<'a> {
             let mut h0 = 0;
             for &(_, off, cnt) in &self.hess_blocks {
                 for e in 0..cnt {
-                    let v = c_k * self.hess_vals[h0 + e];
-                    match &mut self.lu {
-                        None => self.k.values_mut()[self.slots[off + e]] += v,
-                        Some(lu) => {
-                            let (a, b) = (lu.a_slot[off + e], lu.a_slot_t[off + e]);
-                            lu.values[a] += v;
-                            if b != a {
-                                lu.values[b] += v;
-                            }
-                        }
-                    }
+                    self.k.add_a(off + e, c_k * self.hess_vals[h0 + e]);
                 }
                 h0 += cnt;
             }
         }
         sys.jacobian_values(q, t, &mut self.jac);
-        match &mut self.lu {
-            None => {
-                self.k.set_jacobian(&self.jac);
-                self.solver
-                    .factorize(&self.k)
-                    .map_err(|source| FormulationError::Linear { t, source })?;
-            }
-            Some(lu) => {
-                for (k, &v) in self.jac.iter().enumerate() {
-                    lu.values[lu.jac_slot[k]] += v;
-                    lu.values[lu.jac_slot_t[k]] += v;
-                }
-                lu.factorize()
-                    .map_err(|e| FormulationError::Invalid(format!("at t = {t}: {e}")))?;
-            }
-        }
+        self.k.set_jacobian(&self.jac);
+        self.solver
+            .factorize(&self.k)
+            .map_err(|source| FormulationError::Linear { t, source })?;
         Ok(())
     }
 
     /// Overwrite `rhs` (length `n + m`) with `K⁻¹ rhs` using the last
     /// factorisation of the Newton matrix.
     pub fn solve_newton(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), FormulationError> {
-        if let Some(lu) = &mut self.lu {
-            return lu
-                .solve(rhs)
-                .map_err(|e| FormulationError::Invalid(format!("at t = {t}: {e}")));
-        }
         self.solver
             .solve_in_place(&self.k, rhs)
             .map_err(|source| FormulationError::Linear { t, source })

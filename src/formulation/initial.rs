@@ -2,7 +2,7 @@
 //! velocities on Φ_q q̇ = −Φ_t, given the independent coordinates.
 
 use super::FormulationError;
-use crate::linalg::{solver_for, SaddleMatrix, SolverKind};
+use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::System;
 use serde::Serialize;
 
@@ -69,7 +69,7 @@ pub fn consistent_initial_state(
     let mut pattern = sys.jacobian_pattern().to_vec();
     pattern.extend(independent.iter().enumerate().map(|(i, &k)| (m + i, k)));
     let mut kmat = SaddleMatrix::new(n, m + nl, &[], &pattern);
-    let mut solver = solver_for(opts.linear_solver, n + m + nl);
+    let mut solver = solver_for(opts.linear_solver, n + m + nl, SolverOptions::default());
     let lin = |source| FormulationError::Linear { t: t0, source };
     solver.analyze(&kmat).map_err(lin)?;
     kmat.set_a_diagonal(&vec![1.0; n]);

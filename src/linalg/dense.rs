@@ -4,8 +4,11 @@ use super::{FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStat
 use faer::linalg::solvers::{PartialPivLu, Solve};
 use faer::MatMut;
 
-/// Dense LU of the full saddle-point matrix. `O((n+m)³)` per factorisation:
-/// only for small systems and as an independent reference for the sparse path.
+/// Dense LU of the full saddle-point matrix (either storage). `O((n+m)³)`
+/// per factorisation: only for small systems and as an independent
+/// reference for the sparse path. Unlike the other solvers it allocates per
+/// factorisation (a dense copy and faer's `PartialPivLu`): it is a
+/// cross-check, never chosen by `Auto`, and simplicity beats speed here.
 #[derive(Default)]
 pub struct DenseLu {
     lu: Option<PartialPivLu<f64>>,

@@ -6,22 +6,38 @@
 //! ```
 //!
 //! [`SaddleMatrix`] owns the fixed sparse pattern (built once per system) and
-//! the values that each evaluation refills; every solver implements
-//! [`SaddlePointSolver`]: `analyze` once per pattern, `factorize` per
-//! evaluation, `solve_in_place` per right-hand side.
+//! the values that each evaluation refills, in the [`Storage`] its solver
+//! needs (lower triangle of a symmetric matrix, or every entry); formulations
+//! register their `A` blocks once ([`APattern`], with their [`Symmetry`]) and
+//! assemble through the same calls whatever the storage. Every solver
+//! implements [`SaddlePointSolver`]: `analyze` once per pattern,
+//! `factorize` per evaluation, `solve_in_place` per right-hand side, scratch
+//! memory owned by the solver. [`solver_for`] is the one place a solver is
+//! chosen:
+//!
+//! | [`SolverKind`] | solver | storage | use |
+//! | --- | --- | --- | --- |
+//! | `Auto`, `Sparse` | [`SparseLdlt`] (regularised sparse LDLᵀ) | symmetric | default everywhere |
+//! | `Dense` | [`DenseLu`] | symmetric | cross-checks |
+//! | `SparseLu` | [`SparseLu`] | full | exact Newton with unsymmetric Jacobians |
+//! | `Schur` | [`SchurComplement`] (eq. (9), dense Cholesky) | symmetric | diagonal `A`, λ eliminated |
 //!
 //! Sign convention: we solve `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`, i.e. the
 //! unknown vector is `[q̈; λ]`. The paper's eq. (5) writes the same system
 //! with unknowns `[q̈; −λ]`, so its multipliers are our `−λ`.
 
 mod dense;
+mod lu;
 mod pattern;
 mod saddle;
+mod schur;
 mod sparse;
 
 pub use dense::DenseLu;
+pub use lu::SparseLu;
 pub use pattern::CscPattern;
-pub use saddle::SaddleMatrix;
+pub use saddle::{APattern, SaddleMatrix, Storage, Symmetry};
+pub use schur::SchurComplement;
 pub use sparse::{
     chain_order, Ordering, SparseLdlt, DEFAULT_DELTA, DEFAULT_EPSILON, REFINE_THRESHOLD,
 };
@@ -45,6 +61,14 @@ pub enum LinalgError {
     /// `factorize`/`solve_in_place` called out of order.
     #[error("saddle-point solver used before {0}")]
     NotReady(&'static str),
+    /// The matrix is not stored the way the solver needs.
+    #[error("{solver} needs a matrix in {needs:?} storage")]
+    Storage {
+        /// The solver.
+        solver: &'static str,
+        /// The storage it needs.
+        needs: Storage,
+    },
     /// A length does not match the matrix.
     #[error("dimension mismatch: expected {expected}, got {got}")]
     Dimension {
@@ -84,6 +108,11 @@ pub struct SolverStats {
 pub trait SaddlePointSolver: Send {
     /// Short name for summaries ("dense-lu", "sparse-ldlt", …).
     fn name(&self) -> &'static str;
+    /// The [`Storage`] of the matrices this solver factorises (build the
+    /// [`SaddleMatrix`] with it).
+    fn storage(&self) -> Storage {
+        Storage::SymmetricLower
+    }
     /// Symbolic work for the pattern of `k` (orderings, elimination tree).
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError>;
     /// Numeric factorisation of the current values of `k`.
@@ -106,6 +135,27 @@ pub enum SolverKind {
     Dense,
     /// Sparse LDLᵀ (faer) with symbolic analysis once per pattern.
     Sparse,
+    /// Sparse LU (faer) of the full matrix: unsymmetric Newton matrices.
+    SparseLu,
+    /// λ eliminated by the Schur complement of a diagonal `A`, eq. (9).
+    Schur,
+}
+
+/// Options passed to the solver [`solver_for`] creates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverOptions {
+    /// Check the relative residual of each solve (and refine or reject);
+    /// off for Newton corrections, which tolerate an inexact solve (the
+    /// Newton residual is exact). Applies to [`SparseLdlt`].
+    pub residual_check: bool,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        Self {
+            residual_check: true,
+        }
+    }
 }
 
 impl std::str::FromStr for SolverKind {
@@ -137,15 +187,20 @@ impl std::str::FromStr for SolverKind {
 /// systems by re-measuring.
 pub const AUTO_DENSE_MAX_DIM: usize = 0;
 
-/// Create the solver of `kind` for a saddle-point matrix of dimension `dim`.
+/// Create the solver of `kind` for a saddle-point matrix of dimension
+/// `dim`: the one place a solver is chosen. Build the matrix in the
+/// solver's [`SaddlePointSolver::storage`].
 // The measured threshold is currently 0, which makes the `Auto` comparison
 // always false; keep it so that re-measuring only changes the constant.
 #[allow(clippy::absurd_extreme_comparisons)]
-pub fn solver_for(kind: SolverKind, dim: usize) -> Box<dyn SaddlePointSolver> {
+pub fn solver_for(kind: SolverKind, dim: usize, opts: SolverOptions) -> Box<dyn SaddlePointSolver> {
+    let ldlt = || Box::new(SparseLdlt::default().with_residual_check(opts.residual_check));
     match kind {
         SolverKind::Dense => Box::new(DenseLu::default()),
-        SolverKind::Sparse => Box::new(SparseLdlt::default()),
+        SolverKind::Sparse => ldlt(),
         SolverKind::Auto if dim < AUTO_DENSE_MAX_DIM => Box::new(DenseLu::default()),
-        SolverKind::Auto => Box::new(SparseLdlt::default()),
+        SolverKind::Auto => ldlt(),
+        SolverKind::SparseLu => Box::new(SparseLu::default()),
+        SolverKind::Schur => Box::new(SchurComplement::default()),
     }
 }

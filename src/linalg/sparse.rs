@@ -363,6 +363,12 @@ impl SaddlePointSolver for SparseLdlt {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
+        if k.storage() != super::Storage::SymmetricLower {
+            return Err(LinalgError::Storage {
+                solver: self.name(),
+                needs: super::Storage::SymmetricLower,
+            });
+        }
         let dim = k.dim();
         let n = k.n();
         let nnz = k.nnz();
