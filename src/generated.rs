@@ -1,5 +1,5 @@
 //! Constraint kernels generated at build time by `mbsolve-codegen`
-//! (DESIGN.md, "Code generation").
+//! (ARCHITECTURE.md, "Code generation").
 //!
 //! `build.rs` runs the generator for the built-in topologies and writes
 //! `$OUT_DIR/mbsolve_generated.rs`, included here as [`kernels`]: the
@@ -10,10 +10,15 @@
 //! body). Joint parameters — the body-fixed points — are run-time inputs, so
 //! one set of kernels serves every segment length and every N.
 //!
-//! [`recognise`] inspects a [`System`]'s joints and returns matching kernels
-//! implementing [`ConstraintKernels`], or `None`; [`attach_generated`]
-//! attaches them. The kernels reproduce the generic per-joint evaluation
-//! (same rows, Φ_q values in the order of [`System::jacobian_pattern`]).
+//! The kernels implement [`ConstraintKernels`] for a range of joints,
+//! including (Φ_qᵀλ)_q for the Newton matrix of the implicit methods, and
+//! reproduce the generic per-joint evaluation (same rows, Φ_q values in the
+//! order of [`System::jacobian_pattern`]). The builders attach the kernels
+//! of what they build ([`ChainKernels::new`] for a rod's or a pendulum's
+//! chain, any body numbering, anywhere in a larger system); for systems
+//! read from scenario files, [`recognise`] inspects the joints as data
+//! ([`crate::model::Constraint::geometry`]) and [`attach_generated`]
+//! attaches matching whole-system kernels.
 //!
 //! Recognised topologies:
 //! * **four-bar**: 3 bodies and exactly the revolutes ground–0, 0–1, 1–2,
@@ -27,8 +32,8 @@
 //! Anything else (another joint kind, other body numbering or order) gives
 //! `None`, and the system keeps its generic evaluation.
 
-use crate::constraints::Revolute;
-use crate::model::{BodyRef, ConstraintKernels, System};
+use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
+use crate::model::{BodyRef, ConstraintKernels, ForceKernels, JointGeometry, System};
 
 /// The generated functions (`$OUT_DIR/mbsolve_generated.rs`).
 pub mod kernels {
@@ -42,8 +47,17 @@ fn code(b: BodyRef) -> i64 {
     }
 }
 
-fn revolute_params(r: &Revolute) -> [f64; 4] {
-    [r.s_i[0], r.s_i[1], r.s_j[0], r.s_j[1]]
+/// A revolute joint as data: (body i, body j, kernel parameters s_i, s_j).
+fn revolute(g: JointGeometry) -> Option<(BodyRef, BodyRef, [f64; 4])> {
+    match g {
+        JointGeometry::Revolute {
+            body_i,
+            s_i,
+            body_j,
+            s_j,
+        } => Some((body_i, body_j, [s_i[0], s_i[1], s_j[0], s_j[1]])),
+        _ => None,
+    }
 }
 
 #[inline]
@@ -164,6 +178,8 @@ impl TrigMemo {
 #[derive(Debug)]
 pub struct ChainKernels {
     name: String,
+    /// First coordinate of the chain's first body.
+    q0: usize,
     n_joints: usize,
     row0: usize,
     jac0: usize,
@@ -172,72 +188,104 @@ pub struct ChainKernels {
     memo: std::sync::Mutex<TrigMemo>,
 }
 
+/// A ground pivot of a chain: a revolute between the ground and `body`,
+/// attached before (`first`) or after the chain's joints.
+#[derive(Debug, Clone, Copy)]
+pub struct GroundPivot {
+    /// The pivot is the first joint of the range (else the last).
+    pub first: bool,
+    /// The ground is the joint's side i.
+    pub ground_is_i: bool,
+    /// The pivoted body.
+    pub body: usize,
+    /// `[s_i, s_j]` of the joint (the ground's point global).
+    pub points: [f64; 4],
+}
+
 impl ChainKernels {
-    /// Kernels for `sys` if its joints form a revolute chain (see the
-    /// module documentation), else `None`.
-    pub fn recognise(sys: &System) -> Option<Self> {
-        let nb = sys.bodies().len();
-        let revs: Vec<&Revolute> = sys
-            .constraints()
-            .iter()
-            .map(|c| c.as_revolute())
-            .collect::<Option<_>>()?;
-        let is_ground = |r: &Revolute| r.body_i == BodyRef::Ground || r.body_j == BodyRef::Ground;
-        let grounds: Vec<usize> = (0..revs.len()).filter(|&k| is_ground(revs[k])).collect();
-        let ground_pos = match grounds.as_slice() {
-            [] => None,
-            [g] if *g == 0 || *g + 1 == revs.len() => Some(*g),
-            _ => return None,
-        };
-        let chain: Vec<&Revolute> = revs.iter().copied().filter(|r| !is_ground(r)).collect();
-        if chain.len() + 1 != nb {
-            return None;
-        }
-        for (k, r) in chain.iter().enumerate() {
-            if r.body_i != BodyRef::Body(k) || r.body_j != BodyRef::Body(k + 1) {
-                return None;
-            }
-        }
-        let nj = chain.len();
-        let (row0, jac0, ground) = match ground_pos {
+    /// Kernels for the joints of a chain of bodies `body0, body0 + 1, …`:
+    /// joint `k` a revolute between `body0 + k` (point `s_i`) and
+    /// `body0 + k + 1` (point `s_j`), `joints[k] = [s_i, s_j]`, in row order;
+    /// with an optional ground pivot before or after them.
+    pub fn new(body0: usize, joints: &[[f64; 4]], pivot: Option<GroundPivot>) -> Self {
+        let nj = joints.len();
+        let (row0, jac0, ground) = match pivot {
             None => (0, 0, None),
-            Some(g) => {
-                let r = revs[g];
-                let (ground_is_i, body) = match (r.body_i, r.body_j) {
-                    (BodyRef::Ground, BodyRef::Body(b)) => (true, b),
-                    (BodyRef::Body(b), BodyRef::Ground) => (false, b),
-                    _ => return None,
-                };
-                let first = g == 0;
+            Some(p) => {
                 let gj = GroundJoint {
-                    ground_is_i,
-                    off: 3 * body,
-                    row0: if first { 0 } else { 2 * nj },
-                    jac0: if first { 0 } else { 8 * nj },
-                    params: revolute_params(r),
+                    ground_is_i: p.ground_is_i,
+                    off: 3 * p.body,
+                    row0: if p.first { 0 } else { 2 * nj },
+                    jac0: if p.first { 0 } else { 8 * nj },
+                    params: p.points,
                 };
-                if first {
+                if p.first {
                     (2, 4, Some(gj))
                 } else {
                     (0, 0, Some(gj))
                 }
             }
         };
-        let params = chain.iter().flat_map(|r| revolute_params(r)).collect();
         let name = if ground.is_some() {
             "generated:pendulum_chain"
         } else {
             "generated:rod_chain"
         };
-        let k = ChainKernels {
+        ChainKernels {
             name: name.into(),
+            q0: 3 * body0,
             n_joints: nj,
             row0,
             jac0,
-            params,
+            params: joints.iter().flatten().copied().collect(),
             ground,
-            memo: std::sync::Mutex::new(TrigMemo::new(nb)),
+            memo: std::sync::Mutex::new(TrigMemo::new(nj + 1)),
+        }
+    }
+
+    /// Kernels for the whole of `sys` if its joints form a revolute chain
+    /// (see the module documentation), else `None`.
+    pub fn recognise(sys: &System) -> Option<Self> {
+        let nb = sys.bodies().len();
+        let revs: Vec<(BodyRef, BodyRef, [f64; 4])> = sys
+            .constraints()
+            .iter()
+            .map(|c| revolute(c.geometry()))
+            .collect::<Option<_>>()?;
+        let is_ground =
+            |r: &(BodyRef, BodyRef, [f64; 4])| r.0 == BodyRef::Ground || r.1 == BodyRef::Ground;
+        let grounds: Vec<usize> = (0..revs.len()).filter(|&k| is_ground(&revs[k])).collect();
+        let ground_pos = match grounds.as_slice() {
+            [] => None,
+            [g] if *g == 0 || *g + 1 == revs.len() => Some(*g),
+            _ => return None,
         };
+        let chain: Vec<[f64; 4]> = revs
+            .iter()
+            .filter(|r| !is_ground(r))
+            .enumerate()
+            .map(|(k, r)| (r.0 == BodyRef::Body(k) && r.1 == BodyRef::Body(k + 1)).then_some(r.2))
+            .collect::<Option<_>>()?;
+        if chain.len() + 1 != nb {
+            return None;
+        }
+        let pivot = match ground_pos {
+            None => None,
+            Some(g) => {
+                let (ground_is_i, body) = match (revs[g].0, revs[g].1) {
+                    (BodyRef::Ground, BodyRef::Body(b)) => (true, b),
+                    (BodyRef::Body(b), BodyRef::Ground) => (false, b),
+                    _ => return None,
+                };
+                Some(GroundPivot {
+                    first: g == 0,
+                    ground_is_i,
+                    body,
+                    points: revs[g].2,
+                })
+            }
+        };
+        let k = ChainKernels::new(0, &chain, pivot);
         (k.pattern() == sys.jacobian_pattern()).then_some(k)
     }
 
@@ -246,7 +294,7 @@ impl ChainKernels {
         let mut p = vec![(0, 0); 8 * self.n_joints + 4 * usize::from(self.ground.is_some())];
         for k in 0..self.n_joints {
             for (e, &(r, c)) in kernels::REVOLUTE_CHAIN_JOINT_JAC_PATTERN.iter().enumerate() {
-                p[self.jac0 + 8 * k + e] = (self.row0 + 2 * k + r, 3 * k + c);
+                p[self.jac0 + 8 * k + e] = (self.row0 + 2 * k + r, self.q0 + 3 * k + c);
             }
         }
         if let Some(g) = &self.ground {
@@ -255,6 +303,11 @@ impl ChainKernels {
             }
         }
         p
+    }
+
+    /// The chain's part of q (or q̇): its bodies' coordinates.
+    fn chain_q<'q>(&self, q: &'q [f64]) -> &'q [f64] {
+        &q[self.q0..self.q0 + 3 * (self.n_joints + 1)]
     }
 
     fn chain_rows(&self) -> std::ops::Range<usize> {
@@ -276,8 +329,8 @@ impl ChainKernels {
     ) {
         let (r, v) = (self.chain_rows(), self.chain_vals());
         kernels::revolute_chain_eval(
-            q,
-            qd,
+            self.chain_q(q),
+            self.chain_q(qd),
             &self.params,
             &mut phi[r.clone()],
             &mut vals[v],
@@ -297,7 +350,7 @@ impl ChainKernels {
             _ => (0, nh),
         };
         kernels::revolute_chain_hessian(
-            q,
+            self.chain_q(q),
             &self.params,
             &lambda[self.chain_rows()],
             &mut vals[chain_at..chain_at + nh],
@@ -309,6 +362,15 @@ impl ChainKernels {
 }
 
 impl ConstraintKernels for ChainKernels {
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        self.pattern()
+    }
+    fn has_hessian(&self) -> bool {
+        true
+    }
+    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
+        ChainKernels::add_hessian(self, q, lambda, vals)
+    }
     fn evaluate(
         &self,
         q: &[f64],
@@ -323,44 +385,47 @@ impl ConstraintKernels for ChainKernels {
     fn name(&self) -> &str {
         &self.name
     }
-    fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+    fn phi(&self, q_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
-        let p = &self.params;
+        let (p, q) = (&self.params, self.chain_q(q_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
         match self.memo.try_lock() {
             Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_phi(q, p, o),
         }
+        let q = q_all;
         if let Some(g) = &self.ground {
             g.phi(q, out);
         }
     }
-    fn jacobian_values(&self, q: &[f64], _t: f64, vals: &mut [f64]) {
+    fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
         let o = &mut vals[self.chain_vals()];
-        let p = &self.params;
+        let (p, q) = (&self.params, self.chain_q(q_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
         match self.memo.try_lock() {
             Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_jacobian(q, p, o),
         }
+        let q = q_all;
         if let Some(g) = &self.ground {
             g.jacobian(q, vals);
         }
     }
     fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
-        kernels::revolute_chain_phi_t(q, &self.params, &mut out[self.chain_rows()]);
+        kernels::revolute_chain_phi_t(self.chain_q(q), &self.params, &mut out[self.chain_rows()]);
         if let Some(g) = &self.ground {
             g.phi_t(q, out);
         }
     }
-    fn gamma(&self, q: &[f64], qd: &[f64], _t: f64, out: &mut [f64]) {
+    fn gamma(&self, q_all: &[f64], qd_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
-        let p = &self.params;
+        let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
         match self.memo.try_lock() {
             Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
             Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
         }
+        let (q, qd) = (q_all, qd_all);
         if let Some(g) = &self.ground {
             g.gamma(q, qd, out);
         }
@@ -387,11 +452,11 @@ impl FourBarKernels {
             .zip(&kernels::FOURBAR_JOINTS)
             .enumerate()
         {
-            let r = c.as_revolute()?;
-            if kind != "revolute" || code(r.body_i) != i || code(r.body_j) != j {
+            let (bi, bj, points) = revolute(c.geometry())?;
+            if kind != "revolute" || code(bi) != i || code(bj) != j {
                 return None;
             }
-            params[4 * k..4 * k + 4].copy_from_slice(&revolute_params(r));
+            params[4 * k..4 * k + 4].copy_from_slice(&points);
         }
         (sys.jacobian_pattern() == kernels::FOURBAR_JAC_PATTERN).then_some(Self { params })
     }
@@ -423,6 +488,15 @@ impl FourBarKernels {
 }
 
 impl ConstraintKernels for FourBarKernels {
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        kernels::FOURBAR_JAC_PATTERN.to_vec()
+    }
+    fn has_hessian(&self) -> bool {
+        true
+    }
+    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
+        FourBarKernels::add_hessian(self, q, lambda, vals)
+    }
     fn evaluate(
         &self,
         q: &[f64],
@@ -471,15 +545,149 @@ pub fn fourbar_kernels(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
     FourBarKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
 }
 
-/// Recognise `sys`'s topology and attach the generated kernels (used from
-/// then on, see [`System::attach_kernels`]). Returns whether kernels were
-/// attached; the system is unchanged when none match.
+/// Recognise `sys`'s topology and attach the generated kernels to all its
+/// joints, replacing kernels attached before (used from then on, see
+/// [`System::attach_kernels`]). Returns whether kernels were attached; the
+/// system is unchanged when none match.
 pub fn attach_generated(sys: &mut System) -> bool {
     match recognise(sys) {
         Some(k) => {
-            sys.attach_kernels(k);
-            true
+            sys.detach_kernels();
+            sys.attach_kernels(0..sys.constraints().len(), k).is_ok()
         }
         None => false,
+    }
+}
+
+/// Generated Jacobians of the torsional spring–dampers between neighbours of
+/// a chain of bodies `body0, body0 + 1, …` (the rod's bending springs), for
+/// the Newton matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct TorsionalChainJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+}
+
+impl TorsionalChainJacobians {
+    /// Kernels for `springs[k]` between bodies `body0 + k` and `body0 + k + 1`.
+    pub fn new(body0: usize, springs: &[TorsionalSpringDamper]) -> Self {
+        Self {
+            q0: 3 * body0,
+            fp: springs
+                .iter()
+                .flat_map(|s| [s.k, s.c, s.rest_angle])
+                .collect(),
+        }
+    }
+    fn n(&self) -> usize {
+        self.fp.len() / 3
+    }
+}
+
+impl ForceKernels for TorsionalChainJacobians {
+    fn name(&self) -> &str {
+        "generated:torsional_chain"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.n())
+            .map(|k| vec![self.q0 + 3 * k + 2, self.q0 + 3 * k + 5])
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + 3 * (self.n() + 1);
+        kernels::torsional_chain_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+}
+
+/// Generated Jacobians of the quadratic fluid drag on bodies `body0,
+/// body0 + 1, …` (the rod's segments; paper's problem B), for the Newton
+/// matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct DragJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+}
+
+impl DragJacobians {
+    /// Kernels for `drags[k]` acting on body `body0 + k`.
+    pub fn new(body0: usize, drags: &[Drag]) -> Self {
+        Self {
+            q0: 3 * body0,
+            fp: drags
+                .iter()
+                .flat_map(|d| {
+                    let (rho, w, l) = (d.fluid_density, d.width, d.length);
+                    let end = if d.end_face { d.c_end * w * w } else { 0.0 };
+                    [
+                        -0.5 * rho * d.c_transverse * w * l,
+                        -0.5 * rho * (d.c_skin * 4.0 * w * l + end),
+                        -rho * d.c_transverse * w * l.powi(4) / 64.0,
+                    ]
+                })
+                .collect(),
+        }
+    }
+}
+
+impl ForceKernels for DragJacobians {
+    fn name(&self) -> &str {
+        "generated:drag_bodies"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.fp.len() / 3)
+            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + self.fp.len();
+        kernels::drag_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+}
+
+/// Generated Jacobians of the Hunt–Crossley wall contacts of bodies `body0,
+/// body0 + 1, …` (the rod's segment corners against the channel walls), for
+/// the Newton matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct ContactJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+}
+
+impl ContactJacobians {
+    /// Kernels for `contacts[k]` of body `body0 + k`.
+    pub fn new(body0: usize, contacts: &[WallContact]) -> Self {
+        Self {
+            q0: 3 * body0,
+            fp: contacts
+                .iter()
+                .flat_map(|e| {
+                    [
+                        0.5 * e.width,
+                        0.5 * e.length,
+                        e.left_wall,
+                        e.right_wall,
+                        e.stiffness,
+                        e.damping,
+                        e.friction,
+                        e.slip_velocity,
+                    ]
+                })
+                .collect(),
+        }
+    }
+}
+
+impl ForceKernels for ContactJacobians {
+    fn name(&self) -> &str {
+        "generated:contact_bodies"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.fp.len() / 8)
+            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + 3 * (self.fp.len() / 8);
+        kernels::contact_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
     }
 }

@@ -69,7 +69,13 @@ fn constraint_hessian(sys: &System, q: &[f64], lambda: &[f64]) -> Mat<f64> {
         let r0 = sys.row_offset(k);
         let pat = c.hessian_pattern();
         let mut vals = vec![0.0; pat.len()];
-        c.add_hessian(q, 0.0, &lambda[r0..r0 + c.n_eq()], &mut vals);
+        c.add_hessian(
+            q,
+            0.0,
+            &lambda[r0..r0 + c.n_eq()],
+            &mut vals,
+            &mut mbsolve::model::FdWorkspace::default(),
+        );
         for (&(r, cc), v) in pat.iter().zip(vals) {
             h[(r, cc)] += v;
             if r != cc {

@@ -8,7 +8,7 @@ use mbsolve::builders::n_link_pendulum;
 use mbsolve::constraints::{Revolute, Translational};
 use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
-use mbsolve::model::{Body, BodyRef, Evaluation, System, SystemBuilder};
+use mbsolve::model::{Body, BodyRef, Evaluation, JointGeometry, System, SystemBuilder};
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
@@ -101,7 +101,13 @@ fn generic_hessian(sys: &System, q: &[f64], lambda: &[f64]) -> Vec<f64> {
     for (k, c) in sys.constraints().iter().enumerate() {
         let mut v = vec![0.0; c.hessian_pattern().len()];
         let r0 = sys.row_offset(k);
-        c.add_hessian(q, 0.0, &lambda[r0..r0 + c.n_eq()], &mut v);
+        c.add_hessian(
+            q,
+            0.0,
+            &lambda[r0..r0 + c.n_eq()],
+            &mut v,
+            &mut mbsolve::model::FdWorkspace::default(),
+        );
         out.extend(v);
     }
     out
@@ -343,8 +349,16 @@ fn other_topologies_are_not_recognised() {
         b.add_body(body.clone());
     }
     for k in [1, 0, 2, 3] {
-        let r = sc.system.constraints()[k].as_revolute().unwrap().clone();
-        b.add_constraint(r);
+        let JointGeometry::Revolute {
+            body_i,
+            s_i,
+            body_j,
+            s_j,
+        } = sc.system.constraints()[k].geometry()
+        else {
+            panic!("the four-bar has revolutes only")
+        };
+        b.add_constraint(Revolute::new(format!("j{k}"), body_i, s_i, body_j, s_j));
     }
     assert!(generated::recognise(&b.build().unwrap()).is_none());
 }

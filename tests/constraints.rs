@@ -175,7 +175,13 @@ fn lambda_hessian_matches_finite_differences() {
         let lam = rng.vec(c.n_eq(), 1.0);
         let hp = c.hessian_pattern();
         let mut hv = vec![0.0; hp.len()];
-        c.add_hessian(&q, t, &lam, &mut hv);
+        c.add_hessian(
+            &q,
+            t,
+            &lam,
+            &mut hv,
+            &mut mbsolve::model::FdWorkspace::default(),
+        );
         // FD of Φ_qᵀλ (dense over all coordinates)
         let pat = c.jacobian_pattern();
         let grad = |q: &[f64]| {

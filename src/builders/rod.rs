@@ -4,6 +4,9 @@ use crate::constraints::Revolute;
 use crate::forces::{
     AppliedForce, Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
 };
+use crate::generated::{
+    ChainKernels, ContactJacobians, DragJacobians, GroundPivot, TorsionalChainJacobians,
+};
 use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
 use serde::{Deserialize, Serialize};
 
@@ -269,6 +272,21 @@ impl RodParams {
         Ok(())
     }
 
+    /// The drag element of segment `segment` (0: the bottom one, with the
+    /// end face) on body `body`.
+    fn drag_element(&self, body: usize, segment: usize) -> Drag {
+        Drag {
+            body,
+            width: self.width,
+            length: self.segment_length(),
+            fluid_density: self.water_density,
+            c_transverse: self.drag_transverse,
+            c_skin: self.drag_skin,
+            c_end: self.drag_end,
+            end_face: segment == 0,
+        }
+    }
+
     /// The wall-contact element of segment `segment` on body `body`.
     fn contact_element(&self, body: usize, segment: usize) -> WallContact {
         WallContact {
@@ -370,7 +388,9 @@ impl RodInfo {
 
 /// Add the segments and joints of a straight chain to `builder`.
 /// `centre(i)` gives segment i's centre; joint i connects the point
-/// `(0, hinge)` of segment i with `(0, −hinge)` of segment i+1.
+/// `(0, hinge)` of segment i with `(0, −hinge)` of segment i+1. Returns the
+/// bodies, the joints and the joints' points `[s_i, s_j]` (for
+/// [`ChainKernels::new`]).
 #[allow(clippy::too_many_arguments)]
 fn add_chain(
     builder: &mut SystemBuilder,
@@ -382,7 +402,7 @@ fn add_chain(
     velocity: [f64; 2],
     hinge: f64,
     centre: impl Fn(usize) -> [f64; 2],
-) -> (Vec<usize>, Vec<usize>) {
+) -> (Vec<usize>, Vec<usize>, Vec<[f64; 4]>) {
     let bodies: Vec<usize> = (0..n)
         .map(|i| {
             let c = centre(i);
@@ -410,7 +430,28 @@ fn add_chain(
             ))
         })
         .collect();
-    (bodies, joints)
+    let points = vec![[0.0, hinge, 0.0, -hinge]; n.saturating_sub(1)];
+    (bodies, joints, points)
+}
+
+/// Attach the generated chain kernels ([`ChainKernels`]) to the chain's
+/// joints (and a ground pivot added right after them): the builder knows
+/// the topology, so nothing has to be recognised.
+fn attach_chain_kernels(
+    builder: &mut SystemBuilder,
+    bodies: &[usize],
+    joints: &[usize],
+    points: &[[f64; 4]],
+    pivot: Option<(usize, GroundPivot)>,
+) {
+    let first = joints.first().copied().or(pivot.map(|p| p.0));
+    let last = pivot.map(|p| p.0).or(joints.last().copied());
+    if let (Some(a), Some(b), Some(&body0)) = (first, last, bodies.first()) {
+        builder.attach_kernels(
+            a..b + 1,
+            Box::new(ChainKernels::new(body0, points, pivot.map(|p| p.1))),
+        );
+    }
 }
 
 /// Add the falling rod of PROBLEMS.md B to `builder`.
@@ -437,7 +478,7 @@ pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInf
     let n = p.n_segments;
     let ls = p.segment_length();
     let (m, inertia) = (p.segment_mass(), p.segment_inertia());
-    let (bodies, joints) = add_chain(
+    let (bodies, joints, points) = add_chain(
         builder,
         "segment",
         n,
@@ -448,6 +489,7 @@ pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInf
         0.5 * ls,
         |i| p.initial_centre(i),
     );
+    attach_chain_kernels(builder, &bodies, &joints, &points, None);
     let mut info = RodInfo::empty();
     info.segment_length = ls;
     info.segment_mass = m;
@@ -475,18 +517,7 @@ pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInf
         info.drag = bodies
             .iter()
             .enumerate()
-            .map(|(i, &b)| {
-                builder.add_force(Drag {
-                    body: b,
-                    width: p.width,
-                    length: ls,
-                    fluid_density: p.water_density,
-                    c_transverse: p.drag_transverse,
-                    c_skin: p.drag_skin,
-                    c_end: p.drag_end,
-                    end_face: i == 0,
-                })
-            })
+            .map(|(i, &b)| builder.add_force(p.drag_element(b, i)))
             .collect();
     }
     if p.contact {
@@ -496,9 +527,49 @@ pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInf
             info.contacts.push(c);
         }
     }
+    attach_force_kernels(builder, &bodies, &info, p);
     info.bodies = bodies;
     info.joints = joints;
     Ok(info)
+}
+
+/// Attach the generated force-Jacobian kernels of the rod's springs, drags
+/// and contacts (each a contiguous run of elements on consecutive bodies).
+fn attach_force_kernels(
+    builder: &mut SystemBuilder,
+    bodies: &[usize],
+    info: &RodInfo,
+    p: &RodParams,
+) {
+    let range = |ids: &[usize]| ids.first().map(|&a| a..a + ids.len());
+    let Some(&body0) = bodies.first() else {
+        return;
+    };
+    if let Some(r) = range(&info.springs) {
+        let springs: Vec<TorsionalSpringDamper> = bodies
+            .windows(2)
+            .map(|b| {
+                TorsionalSpringDamper::new(
+                    BodyRef::Body(b[0]),
+                    BodyRef::Body(b[1]),
+                    info.spring_stiffness,
+                    info.spring_damping,
+                )
+            })
+            .collect();
+        builder.attach_force_kernels(r, Box::new(TorsionalChainJacobians::new(body0, &springs)));
+    }
+    if let Some(r) = range(&info.drag) {
+        let drags: Vec<Drag> = bodies
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| p.drag_element(b, i))
+            .collect();
+        builder.attach_force_kernels(r, Box::new(DragJacobians::new(body0, &drags)));
+    }
+    if let Some(r) = range(&info.contact_elements) {
+        builder.attach_force_kernels(r, Box::new(ContactJacobians::new(body0, &info.contacts)));
+    }
 }
 
 /// The standalone falling rod of PROBLEMS.md B: [`add_rod`] plus a
@@ -518,7 +589,7 @@ pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
             }),
         );
     }
-    Ok((with_generated(builder.build()?), info))
+    Ok((builder.build()?, info))
 }
 
 /// The finite-segment cantilever of PROBLEMS.md D.
@@ -550,7 +621,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     let e = p.axis();
     let mut builder = SystemBuilder::new();
     let (m, inertia) = (p.segment_mass(), p.segment_inertia());
-    let (bodies, joints) = add_chain(
+    let (bodies, joints, points) = add_chain(
         &mut builder,
         "segment",
         n,
@@ -565,13 +636,21 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
         },
     );
     let mut info = RodInfo::empty();
-    info.base_joint = Some(builder.add_constraint(Revolute::new(
+    let base = builder.add_constraint(Revolute::new(
         "cantilever base",
         BodyRef::Ground,
         [0.0, 0.0],
         BodyRef::Body(bodies[0]),
         [0.0, -0.5 * ls],
-    )));
+    ));
+    info.base_joint = Some(base);
+    let pivot = GroundPivot {
+        first: false,
+        ground_is_i: true,
+        body: bodies[0],
+        points: [0.0, 0.0, 0.0, -0.5 * ls],
+    };
+    attach_chain_kernels(&mut builder, &bodies, &joints, &points, Some((base, pivot)));
     info.segment_length = ls;
     info.segment_mass = m;
     info.segment_inertia = inertia;
@@ -604,7 +683,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     }
     info.bodies = bodies;
     info.joints = joints;
-    Ok((with_generated(builder.build()?), info))
+    Ok((builder.build()?, info))
 }
 
 /// The conservative N-link pendulum of PROBLEMS.md D: `n` uniform slender
@@ -649,7 +728,7 @@ pub fn n_link_pendulum(
     let mut builder = SystemBuilder::new();
     // Link i's bottom (0, −l/2) meets link i+1's top (0, +l/2): joint
     // "hinge" −l/2 on the upper link, +l/2 on the lower.
-    let (bodies, joints) = add_chain(
+    let (bodies, joints, points) = add_chain(
         &mut builder,
         "link",
         n,
@@ -664,13 +743,21 @@ pub fn n_link_pendulum(
         },
     );
     let mut info = RodInfo::empty();
-    info.base_joint = Some(builder.add_constraint(Revolute::new(
+    let base = builder.add_constraint(Revolute::new(
         "pendulum pivot",
         BodyRef::Ground,
         [0.0, 0.0],
         BodyRef::Body(bodies[0]),
         [0.0, 0.5 * link_length],
-    )));
+    ));
+    info.base_joint = Some(base);
+    let pivot = GroundPivot {
+        first: false,
+        ground_is_i: true,
+        body: bodies[0],
+        points: [0.0, 0.0, 0.0, 0.5 * link_length],
+    };
+    attach_chain_kernels(&mut builder, &bodies, &joints, &points, Some((base, pivot)));
     if gravity != 0.0 {
         info.gravity = Some(builder.add_force(Gravity {
             g: [0.0, -gravity],
@@ -682,12 +769,5 @@ pub fn n_link_pendulum(
     info.segment_inertia = inertia;
     info.bodies = bodies;
     info.joints = joints;
-    Ok((with_generated(builder.build()?), info))
-}
-
-/// Attach the build-time generated constraint kernels when the topology is
-/// recognised (it is for the standalone rod, cantilever and pendulum).
-fn with_generated(mut sys: System) -> System {
-    crate::generated::attach_generated(&mut sys);
-    sys
+    Ok((builder.build()?, info))
 }

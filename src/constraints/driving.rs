@@ -61,7 +61,15 @@ impl Constraint for DriveCoordinate {
     fn hessian_pattern(&self) -> Vec<(usize, usize)> {
         Vec::new()
     }
-    fn add_hessian(&self, _q: &[f64], _t: f64, _lambda: &[f64], _vals: &mut [f64]) {}
+    fn add_hessian(
+        &self,
+        _q: &[f64],
+        _t: f64,
+        _lambda: &[f64],
+        _vals: &mut [f64],
+        _ws: &mut crate::model::FdWorkspace,
+    ) {
+    }
     fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
         if self.coordinate > 2 {
             return Err(ModelError::InvalidParameter {
@@ -138,5 +146,13 @@ impl Constraint for DriveRelativeAngle {
     fn hessian_pattern(&self) -> Vec<(usize, usize)> {
         Vec::new()
     }
-    fn add_hessian(&self, _q: &[f64], _t: f64, _lambda: &[f64], _vals: &mut [f64]) {}
+    fn add_hessian(
+        &self,
+        _q: &[f64],
+        _t: f64,
+        _lambda: &[f64],
+        _vals: &mut [f64],
+        _ws: &mut crate::model::FdWorkspace,
+    ) {
+    }
 }

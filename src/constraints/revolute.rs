@@ -1,6 +1,7 @@
 //! Revolute joint: a point of body i coincides with a point of body j.
 
-use super::{angular_velocity, check_bodies, check_finite, point, Constraint};
+use super::{angular_velocity, check_bodies, check_finite, point, Constraint, JointGeometry};
+use crate::model::FdWorkspace;
 use crate::model::{perp, BodyRef, ModelError};
 
 /// Revolute joint, 2 equations (paper eq. (14) for the rod):
@@ -40,8 +41,13 @@ impl Revolute {
 }
 
 impl Constraint for Revolute {
-    fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
-        vec![(self.body_i, self.s_i), (self.body_j, self.s_j)]
+    fn geometry(&self) -> JointGeometry {
+        JointGeometry::Revolute {
+            body_i: self.body_i,
+            s_i: self.s_i,
+            body_j: self.body_j,
+            s_j: self.s_j,
+        }
     }
 
     fn name(&self) -> String {
@@ -94,7 +100,14 @@ impl Constraint for Revolute {
             .filter_map(|b| b.offset().map(|o| (o + 2, o + 2)))
             .collect()
     }
-    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
+    fn add_hessian(
+        &self,
+        q: &[f64],
+        _t: f64,
+        lambda: &[f64],
+        vals: &mut [f64],
+        _ws: &mut FdWorkspace,
+    ) {
         // ∂/∂φ_i (λ · J R_i s_i) = −λ · R_i s_i, and +λ · R_j s_j for body j.
         let mut k = 0;
         for (b, s, sign) in [(self.body_i, self.s_i, -1.0), (self.body_j, self.s_j, 1.0)] {
@@ -109,8 +122,5 @@ impl Constraint for Revolute {
         check_finite(&self.name(), "point i", &self.s_i)?;
         check_finite(&self.name(), "point j", &self.s_j)?;
         check_bodies(&self.name(), &self.bodies(), n_bodies)
-    }
-    fn as_revolute(&self) -> Option<&Revolute> {
-        Some(self)
     }
 }

@@ -1,6 +1,8 @@
 //! Translational (prismatic) joint: body j slides along an axis of body i.
 
-use super::{angle, angular_velocity, check_bodies, check_finite, point, velocity, Constraint};
+use super::{
+    angle, angular_velocity, check_bodies, check_finite, point, velocity, Constraint, JointGeometry,
+};
 use crate::model::{perp, rotate, BodyRef, ModelError};
 
 /// Translational joint, 2 equations:
@@ -65,8 +67,14 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 }
 
 impl Constraint for Translational {
-    fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
-        vec![(self.body_i, self.s_i), (self.body_j, self.s_j)]
+    fn geometry(&self) -> JointGeometry {
+        JointGeometry::Translational {
+            body_i: self.body_i,
+            s_i: self.s_i,
+            u_i: self.u_i,
+            body_j: self.body_j,
+            s_j: self.s_j,
+        }
     }
 
     fn name(&self) -> String {

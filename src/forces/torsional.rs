@@ -103,7 +103,7 @@ impl ForceElement for TorsionalSpringDamper {
         // g_j = −k(φ_j − φ_i − r) − c(φ̇_j − φ̇_i), g_i = −g_j:
         // ∂g_a/∂φ_b = −k s_a s_b with s_i = −1, s_j = +1.
         let slots = self.slots();
-        let n = self.coordinates().len();
+        let n = slots.iter().flatten().count();
         for (ra, sa) in slots.iter().flatten() {
             for (cb, sb) in slots.iter().flatten() {
                 dq[ra * n + cb] -= self.k * sa * sb;

@@ -49,7 +49,9 @@
 //!
 //! **Pattern.** The `A` block's pattern is the union of the force elements'
 //! Jacobian blocks ([`ForceElement::jacobian_coordinates`]² each) and the
-//! joints' [`Constraint::hessian_pattern`]; it is built **once**, the
+//! joints' [`Constraint::hessian_pattern`] (evaluated by the generated
+//! kernels where the system has them, [`System::add_constraint_hessians`]);
+//! it is built **once**, the
 //! symbolic analysis of the solver runs once, and each assembly writes the
 //! values straight into precomputed slots (no search, no allocation beyond
 //! what individual elements do).
@@ -82,15 +84,6 @@ pub struct Index3Stats {
     pub projections: usize,
 }
 
-/// One force element's Jacobian block: `k × k` over its
-/// `jacobian_coordinates`, registered as `A` entries `offset .. offset + k²`.
-#[derive(Debug, Clone, Copy)]
-struct ForceBlock {
-    element: usize,
-    k: usize,
-    offset: usize,
-}
-
 /// The index-3 residual and the scaled Newton matrix of a [`System`]
 /// (module docs), plus the mass-weighted projections used for consistent
 /// initial accelerations and drift control.
@@ -109,10 +102,12 @@ pub struct Index3<'a> {
     solver: Box<dyn SaddlePointSolver>,
     kp: SaddleMatrix,
     psolver: Box<dyn SaddlePointSolver>,
-    /// The force blocks among the `A` entries of `k`.
-    force_blocks: Vec<ForceBlock>,
-    /// `(constraint, first A entry id, count)` of each Hessian block.
-    hess_blocks: Vec<(usize, usize, usize)>,
+    /// Id of the first force-Jacobian entry among the `A` entries of `k`
+    /// ([`System::force_jacobian_pattern`] order).
+    force_first: usize,
+    /// Id of the first (Φ_qᵀλ)_q entry among the `A` entries of `k`
+    /// ([`System::hessian_pattern`] order).
+    hess_first: usize,
     hess_vals: Vec<f64>,
     dq: Vec<f64>,
     dqd: Vec<f64>,
@@ -170,47 +165,14 @@ impl<'a> Index3<'a> {
     ) -> Result<Self, FormulationError> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let mut a = APattern::new();
-        let mut force_blocks = Vec::new();
-        let mut max_k = 0;
-        let mut block = Vec::new();
-        for (e, f) in sys.forces().iter().enumerate() {
-            let cols = f.jacobian_coordinates();
-            let k = cols.len();
-            if k == 0 {
-                continue;
-            }
-            if let Some(&c) = cols.iter().find(|&&c| c >= n) {
-                return Err(FormulationError::Invalid(format!(
-                    "{}: Jacobian coordinate {c} out of range (n = {n})",
-                    f.name()
-                )));
-            }
-            max_k = max_k.max(k);
-            block.clear();
-            block.extend(cols.iter().flat_map(|&r| cols.iter().map(move |&c| (r, c))));
-            let offset = a.push_block(&block, Symmetry::Unsymmetric);
-            force_blocks.push(ForceBlock {
-                element: e,
-                k,
-                offset,
-            });
-        }
-        let mut hess_blocks = Vec::new();
-        let mut n_hess = 0;
-        for (j, c) in sys.constraints().iter().enumerate() {
-            let hp = c.hessian_pattern();
-            if hp.is_empty() {
-                continue;
-            }
-            if let Some(&(r, col)) = hp.iter().find(|&&(r, col)| r >= n || col >= n) {
-                return Err(FormulationError::Invalid(format!(
-                    "{}: Hessian entry ({r}, {col}) out of range (n = {n})",
-                    c.name()
-                )));
-            }
-            hess_blocks.push((j, a.push_block(&hp, Symmetry::Symmetric), hp.len()));
-            n_hess += hp.len();
-        }
+        // ∂g/∂q, ∂g/∂q̇: every force element's block, evaluated by the system
+        // (generated kernels where attached, the elements' own otherwise).
+        let force_first = a.push_block(sys.force_jacobian_pattern(), Symmetry::Unsymmetric);
+        let n_force = sys.force_jacobian_pattern().len();
+        // (Φ_qᵀλ)_q: every joint's block, evaluated by the system (generated
+        // kernels where attached, the joints' own otherwise).
+        let hess_first = a.push_block(sys.hessian_pattern(), Symmetry::Symmetric);
+        let n_hess = sys.hessian_pattern().len();
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
         let kind = match newton {
@@ -244,11 +206,11 @@ impl<'a> Index3<'a> {
             solver,
             kp,
             psolver,
-            force_blocks,
-            hess_blocks,
+            force_first,
+            hess_first,
             hess_vals: vec![0.0; n_hess],
-            dq: vec![0.0; max_k * max_k],
-            dqd: vec![0.0; max_k * max_k],
+            dq: vec![0.0; n_force],
+            dqd: vec![0.0; n_force],
             ws: FdWorkspace::default(),
             jac: vec![0.0; sys.jacobian_pattern().len()],
             g: vec![0.0; n],
@@ -339,32 +301,17 @@ impl<'a> Index3<'a> {
         for (i, &mi) in mass.iter().enumerate() {
             self.k.add_diagonal(i, c_m * mi);
         }
-        let forces = sys.forces();
-        for b in &self.force_blocks {
-            let kk = b.k * b.k;
-            let (dq, dqd) = (&mut self.dq[..kk], &mut self.dqd[..kk]);
-            dq.fill(0.0);
-            dqd.fill(0.0);
-            forces[b.element].add_jacobians(t, q, qd, dq, dqd, &mut self.ws);
-            for e in 0..kk {
-                self.k.add_a(b.offset + e, -(c_c * dqd[e] + c_k * dq[e]));
-            }
+        self.dq.fill(0.0);
+        self.dqd.fill(0.0);
+        sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
+        for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
+            self.k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
         }
-        if !self.hess_blocks.is_empty() {
+        if !self.hess_vals.is_empty() {
             self.hess_vals.fill(0.0);
-            let constraints = sys.constraints();
-            let mut h0 = 0;
-            for &(j, _, cnt) in &self.hess_blocks {
-                let rows = sys.row_offset(j)..sys.row_offset(j) + constraints[j].n_eq();
-                constraints[j].add_hessian(q, t, &lambda[rows], &mut self.hess_vals[h0..h0 + cnt]);
-                h0 += cnt;
-            }
-            let mut h0 = 0;
-            for &(_, off, cnt) in &self.hess_blocks {
-                for e in 0..cnt {
-                    self.k.add_a(off + e, c_k * self.hess_vals[h0 + e]);
-                }
-                h0 += cnt;
+            sys.add_constraint_hessians(q, t, lambda, &mut self.hess_vals, &mut self.ws);
+            for (e, &h) in self.hess_vals.iter().enumerate() {
+                self.k.add_a(self.hess_first + e, c_k * h);
             }
         }
         sys.jacobian_values(q, t, &mut self.jac);

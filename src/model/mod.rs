@@ -1,17 +1,26 @@
 //! The multibody model: what is simulated, independent of how.
 //!
 //! Planar rigid bodies in reference-point coordinates `q_i = [x_i, y_i, φ_i]`
-//! (centre of mass and rotation of the body frame), joints that become
-//! constraint equations Φ(q, t) = 0 (module [`crate::constraints`]), force
-//! elements that contribute to the generalized forces g(q, q̇, t) (module
-//! [`crate::forces`]), and the [`System`] that fixes their numbering.
+//! (centre of mass and rotation of the body frame), the [`Constraint`]
+//! trait of joints that become constraint equations Φ(q, t) = 0 (the joints:
+//! [`crate::constraints`]), the [`ForceElement`] trait of elements that
+//! contribute to the generalized forces g(q, q̇, t) (the elements:
+//! [`crate::forces`]), uniform [`Gravity`], and the [`System`] that fixes
+//! their numbering. `model` imports nothing from the rest of the crate:
+//! joints and forces build on it, not the other way round.
 
 mod body;
+mod constraint;
+mod force;
+mod gravity;
 mod system;
 mod time_function;
 
 pub use body::{Body, BodyRef};
-pub use system::{ConstraintKernels, Evaluation, System, SystemBuilder};
+pub use constraint::{check_bodies, touched_columns, Constraint, JointGeometry};
+pub use force::{check_coordinates, FdWorkspace, ForceElement};
+pub use gravity::Gravity;
+pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};
 pub use time_function::TimeFunction;
 
 /// Rotation matrix R(φ) applied to a body-fixed vector `s`: `R(φ) s`.

@@ -92,7 +92,7 @@ fn scene(sc: &scenario::Scenario, csv: &Path) -> Result<Scene, String> {
     let mut joints: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
     let mut ground_pivots = Vec::new();
     for c in sys.constraints() {
-        for (b, p) in c.attachment_points() {
+        for (b, p) in c.geometry().attachment_points() {
             match b {
                 BodyRef::Ground => ground_pivots.push(p),
                 BodyRef::Body(i) => {
