@@ -81,8 +81,9 @@ const NONE: usize = usize::MAX;
 /// its solver needs: the lower triangle of the symmetric matrix, or every
 /// entry.
 ///
-/// The pattern always contains the full diagonal (coordinates and
-/// multipliers, so that regularisation `D` has a place), the entries of `A`
+/// The pattern always contains the diagonal of `A` and, in symmetric
+/// storage, of `D` (so that regularisation has a place; full storage has
+/// no `D` block), the entries of `A`
 /// registered at construction, and the structural non-zeros of `Φ_q` (at
 /// `(n + row, col)`, and at `(col, n + row)` in full storage). Each entry
 /// knows its *slot* in the value array, so assembly writes straight into
@@ -145,7 +146,11 @@ impl SaddleMatrix {
         }
         let full = storage == Storage::Full;
         let lower = |i: usize, j: usize| (i.max(j), i.min(j));
-        let mut entries: Vec<(usize, usize)> = (0..dim).map(|i| (i, i)).collect();
+        // Full storage (sparse LU) has no D block: D = 0 and the multiplier
+        // diagonal stays out of the pattern (its structural zeros would
+        // change LU's column ordering).
+        let n_diag = if full { n } else { dim };
+        let mut entries: Vec<(usize, usize)> = (0..n_diag).map(|i| (i, i)).collect();
         for (&(i, j), &sym) in a.entries.iter().zip(&a.symmetry) {
             match (full, sym) {
                 (false, _) => entries.push(lower(i, j)),
@@ -188,7 +193,9 @@ impl SaddleMatrix {
                 },
             })
             .collect();
-        let diag_slots = (0..dim).map(|i| slot(i, i)).collect();
+        let diag_slots = (0..dim)
+            .map(|i| if i < n_diag { slot(i, i) } else { NONE })
+            .collect();
         let jac_slots = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
         let jac_slots_t = if full {
             jac_pattern.iter().map(|&(r, c)| slot(c, n + r)).collect()
@@ -242,7 +249,8 @@ impl SaddleMatrix {
     pub fn values_mut(&mut self) -> &mut [f64] {
         &mut self.values
     }
-    /// Slot of diagonal entry `i` (`i < n + m`).
+    /// Slot of diagonal entry `i` (`i < n + m`; `usize::MAX` for the
+    /// multiplier rows in full storage, which has no `D` block).
     pub fn diag_slots(&self) -> &[usize] {
         &self.diag_slots
     }
@@ -279,7 +287,8 @@ impl SaddleMatrix {
         }
     }
 
-    /// Add `v` to diagonal entry `i` (`i < n + m`).
+    /// Add `v` to diagonal entry `i` (`i < n`, or `< n + m` in symmetric
+    /// storage).
     #[inline]
     pub fn add_diagonal(&mut self, i: usize, v: f64) {
         self.values[self.diag_slots[i]] += v;
@@ -298,9 +307,18 @@ impl SaddleMatrix {
         }
     }
 
-    /// Write the multiplier block `D = diag(d)` (zero for the plain index-1 form).
+    /// Write the multiplier block `D = diag(d)` (zero for the plain index-1
+    /// form). Symmetric storage only: full storage has no `D` block.
+    ///
+    /// # Panics
+    /// In full storage.
     pub fn set_d_diagonal(&mut self, d: &[f64]) {
         debug_assert_eq!(d.len(), self.m);
+        assert_eq!(
+            self.storage,
+            Storage::SymmetricLower,
+            "full storage has no D block"
+        );
         for (r, &dr) in d.iter().enumerate() {
             self.values[self.diag_slots[self.n + r]] = dr;
         }
