@@ -1,6 +1,6 @@
 //! Generated (build-time `mbsolve-codegen`) vs generic (per-joint
 //! `dyn Constraint`) evaluation of Φ + Φ_q + γ for the rod chain
-//! (N bodies, N − 1 body–body revolutes, rod geometry of PROBLEMS.md B).
+//! (N bodies, N − 1 body–body revolutes, rod geometry of problem B (docs/problems.md)).
 //!
 //! * `phi_jac_gamma/generic/N`: `System::jacobian_values`, `gamma`, `phi`
 //!   (the order of the index-1 formulation) with `Evaluation::Generic`;

@@ -1,4 +1,4 @@
-//! Problem C (the falling rod of PROBLEMS.md B with N = 10 … 10 000
+//! Problem C (the falling rod of problem B (docs/problems.md) with N = 10 … 10 000
 //! segments) through generalized-α on the index-3 equations.
 //!
 //! A plain `main` (harness = false) that times whole runs:

@@ -2,7 +2,7 @@
 //!
 //! * a carriage body driven along a prescribed path (rheonomic drives of
 //!   x, y and φ),
-//! * the rod of PROBLEMS.md B (20 segments, in water, no walls) hanging from
+//! * the rod of problem B (docs/problems.md) (20 segments, in water, no walls) hanging from
 //!   the carriage by a revolute joint,
 //! * a tip mass pinned to the rod's free end,
 //! * a user-written force element: a linear tether spring–damper pulling the

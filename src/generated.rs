@@ -22,12 +22,12 @@
 //!
 //! Recognised topologies:
 //! * **four-bar**: 3 bodies and exactly the revolutes ground–0, 0–1, 1–2,
-//!   ground–2 in that order (PROBLEMS.md A), any pin points;
+//!   ground–2 in that order (docs/problems.md, problem A), any pin points;
 //! * **revolute chain**: N bodies, joints `k = 0 … N−2` each a revolute with
 //!   `body_i = k`, `body_j = k + 1` (any points), in row order — the rod of
-//!   PROBLEMS.md B; optionally one more revolute between the ground (either
+//!   problem B (docs/problems.md); optionally one more revolute between the ground (either
 //!   side) and any body, as the first or the last joint — the N-link
-//!   pendulum and the cantilever of PROBLEMS.md D.
+//!   pendulum and the cantilever of problem D (docs/problems.md).
 //!
 //! Anything else (another joint kind, other body numbering or order) gives
 //! `None`, and the system keeps its generic evaluation.
@@ -432,7 +432,7 @@ impl ConstraintKernels for ChainKernels {
     }
 }
 
-/// Generated, fully unrolled kernels for the four-bar (PROBLEMS.md A).
+/// Generated, fully unrolled kernels for the four-bar (docs/problems.md, problem A).
 #[derive(Debug, Clone)]
 pub struct FourBarKernels {
     params: [f64; kernels::FOURBAR_N_PARAMS],

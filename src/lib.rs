@@ -5,12 +5,31 @@
 //! stabilization techniques in the dynamic analysis of multibody systems",
 //! Applied and Computational Mechanics 1 (2007).
 //!
-//! Data flows one way through the modules:
-//! `model` (bodies, joints, force elements, [`model::System`]) →
-//! `formulation` (index-1 saddle point with Baumgarte terms, eq. (5), (10)–(11);
-//! λ eliminated, eq. (9); consistent initial conditions) → `integrate`
-//! (ode23, ode45, rk4) → `output`. Linear algebra of the saddle point lives in
-//! `linalg`, behind [`linalg::SaddlePointSolver`].
+//! The library is a ladder; each module uses only those above it:
+//!
+//! 1. [`model`]: bodies, the [`model::Constraint`] and [`model::ForceElement`]
+//!    traits, gravity, and [`model::System`], which fixes the numbering and
+//!    evaluates Φ, Φ_q, Φ_t, γ, (Φ_qᵀλ)_q, g and ∂g/∂q, ∂g/∂q̇ — generically
+//!    or through attached kernels;
+//! 2. [`constraints`] (revolute, translational, drives) and [`forces`]
+//!    (applied loads, springs, the rod's fluid and contact loads);
+//! 3. [`generated`]: build-time generated kernels (crate `mbsolve-codegen`)
+//!    for chains and the four-bar, attached to ranges of joints and force
+//!    elements; [`builders`]: the falling rod, cantilever, N-link pendulum;
+//! 4. [`linalg`]: the saddle-point matrix and every linear solver behind
+//!    [`linalg::SaddlePointSolver`] (sparse LDLᵀ, sparse LU, dense LU, the
+//!    Schur complement of eq. (9)); [`integrate`]: ode23, ode45, rk4 for
+//!    first-order ODEs and generalized-α/HHT/Newmark for second-order DAEs,
+//!    knowing nothing of multibody systems;
+//! 5. [`formulation`]: [`formulation::Index1`] (eq. (5) with Baumgarte terms
+//!    (10)–(11), or λ eliminated, eq. (9)) as an ODE, [`formulation::Index3`]
+//!    (index-3 residual and Newton matrix) as a second-order DAE, consistent
+//!    initial conditions;
+//! 6. [`simulation`]: one run — formulation + integrator + observation — and
+//!    [`scenario`]: TOML files to validated models and run settings.
+//!
+//! The `mbsolve` binary (src/bin/mbsolve/) adds the CLI, the paper's
+//! studies, sweeps, the performance gate, figures and animations.
 #![warn(missing_docs)]
 
 pub mod builders;

@@ -25,11 +25,11 @@ use serde::Deserialize;
 use std::collections::HashMap;
 use std::path::Path;
 
-/// The four-bar scenario shipped with the tool (PROBLEMS.md A), embedded at
+/// The four-bar scenario shipped with the tool (docs/problems.md, problem A), embedded at
 /// build time so that the binary needs no files.
 pub const FOURBAR_TOML: &str = include_str!("../scenarios/fourbar.toml");
 
-/// The falling-rod scenario shipped with the tool (PROBLEMS.md B), embedded
+/// The falling-rod scenario shipped with the tool (docs/problems.md, problem B), embedded
 /// at build time.
 pub const FALLING_ROD_TOML: &str = include_str!("../scenarios/falling_rod.toml");
 
@@ -100,7 +100,7 @@ struct RawConstraints {
     evaluation: Option<String>,
 }
 
-/// `[rod]`: the finite-segment rod of PROBLEMS.md B; every key defaults to
+/// `[rod]`: the finite-segment rod of problem B (docs/problems.md); every key defaults to
 /// problem B. Segments are added after the `[[body]]` bodies.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,4 +1,4 @@
-//! PROBLEMS.md D: the finite-segment cantilever converges to Euler–Bernoulli.
+//! problem D (docs/problems.md): the finite-segment cantilever converges to Euler–Bernoulli.
 //!
 //! The rod of problem B (l = 1, w = 0.03, steel) stands vertical, segment 1
 //! pinned to the ground at its bottom end with a torsional spring of the same

@@ -489,7 +489,7 @@ fn trig_memo_is_exact_under_partial_updates_and_threads() {
     });
 }
 
-/// Hunt–Crossley wall contact (PROBLEMS.md B): generated forces and
+/// Hunt–Crossley wall contact (docs/problems.md, problem B): generated forces and
 /// Jacobians against the runtime's `WallContact`, on states where corners
 /// penetrate the walls.
 #[test]

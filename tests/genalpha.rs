@@ -87,7 +87,7 @@ fn ratios(e: &[f64]) -> Vec<f64> {
 
 #[test]
 fn second_order_on_the_n_link_pendulum() {
-    // PROBLEMS.md D, 3 links swinging from 0.5 rad; reference ode45 at rtol 1e-11.
+    // problem D (docs/problems.md), 3 links swinging from 0.5 rad; reference ode45 at rtol 1e-11.
     let (sys, _) = n_link_pendulum(3, 0.5, 1.0, 0.5, 9.81).unwrap();
     let (q0, qd0) = sys.initial_state();
     let reference = run(&sys, &q0, &qd0, &ode45(1e-11, 1e-13, 1.0, 0.05));
@@ -474,7 +474,7 @@ fn implicit_methods_parse_validate_and_are_not_ode_integrators() {
 
 #[test]
 fn problem_c_at_n_100_runs_the_full_second_with_contacts() {
-    // PROBLEMS.md C (the rod of B with N = 100 segments); larger N in
+    // problem C (docs/problems.md) (the rod of B with N = 100 segments); larger N in
     // benches/rod_scaling.rs.
     let (sys, info) = build_rod(&RodParams::problem_b(100)).unwrap();
     let (q0, qd0) = sys.initial_state();

@@ -31,7 +31,7 @@ fn config(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfi
 #[test]
 fn buoyant_free_fall_is_exact_and_uniform_in_x() {
     // Contact and drag off, buoyancy on: the centre of mass falls with
-    // g (1 − ρ_w/ρ) and moves uniformly in x (PROBLEMS.md B).
+    // g (1 − ρ_w/ρ) and moves uniformly in x (docs/problems.md, problem B).
     let mut p = RodParams::problem_b(8);
     p.fluid = false;
     p.contact = false;

@@ -1,4 +1,4 @@
-//! Force elements of the falling rod (PROBLEMS.md B) and the rod builders:
+//! Force elements of the falling rod (docs/problems.md, problem B) and the rod builders:
 //! hand-computed values, analytic vs finite-difference Jacobians, power
 //! balances, a static Hertz contact equilibrium and builder consistency.
 

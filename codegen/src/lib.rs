@@ -41,7 +41,7 @@ pub use expr::{Ctx, Id, Node};
 pub use gen::{emit_chain, emit_unrolled, ChainElement, Stats};
 pub use topology::{ForceDesc, ForceKind, JointDesc, JointKind, PlanarModel, Side, Topology};
 
-/// The four-bar of PROBLEMS.md A: bodies crank (0), coupler (1), rocker (2);
+/// The four-bar of problem A (docs/problems.md): bodies crank (0), coupler (1), rocker (2);
 /// revolutes A (ground–crank), B (crank–coupler), C (coupler–rocker),
 /// D (ground–rocker), in that row order.
 pub fn fourbar_topology() -> Topology {

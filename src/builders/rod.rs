@@ -1,4 +1,4 @@
-//! The falling flexible rod (PROBLEMS.md B) and the chains of PROBLEMS.md D.
+//! The falling flexible rod (docs/problems.md, problem B) and the chains of problem D (docs/problems.md).
 
 use crate::constraints::Revolute;
 use crate::forces::{
@@ -10,7 +10,7 @@ use crate::generated::{
 use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
 use serde::{Deserialize, Serialize};
 
-/// Every physical input of the falling-rod problem (PROBLEMS.md B), SI units.
+/// Every physical input of the falling-rod problem (docs/problems.md, problem B), SI units.
 ///
 /// [`RodParams::problem_b`] gives the reference values. The rod is cut into
 /// `n_segments` rigid segments of length `l_s = length / n_segments`,
@@ -97,7 +97,7 @@ fn check_value(element: &str, field: &str, v: f64, strict: bool) -> Result<(), M
 }
 
 impl RodParams {
-    /// PROBLEMS.md B exactly, with `n_segments` segments.
+    /// problem B (docs/problems.md) exactly, with `n_segments` segments.
     pub fn problem_b(n_segments: usize) -> Self {
         Self {
             length: 1.0,
@@ -454,7 +454,7 @@ fn attach_chain_kernels(
     }
 }
 
-/// Add the falling rod of PROBLEMS.md B to `builder`.
+/// Add the falling rod of problem B (docs/problems.md) to `builder`.
 ///
 /// Adds, after validating `params` ([`RodParams::validate`]):
 /// * `N` segment bodies numbered from the bottom ("segment 1" … "segment N"):
@@ -572,7 +572,7 @@ fn attach_force_kernels(
     }
 }
 
-/// The standalone falling rod of PROBLEMS.md B: [`add_rod`] plus a
+/// The standalone falling rod of problem B (docs/problems.md): [`add_rod`] plus a
 /// [`Gravity`] element `(0, −g)` on every segment (omitted when g = 0).
 pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
     let mut builder = SystemBuilder::new();
@@ -592,7 +592,7 @@ pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
     Ok((builder.build()?, info))
 }
 
-/// The finite-segment cantilever of PROBLEMS.md D.
+/// The finite-segment cantilever of problem D (docs/problems.md).
 ///
 /// The rod of `params` (length, width, density, Young's modulus, damping
 /// time, segment count and tilt are used) stands straight along the
@@ -686,7 +686,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     Ok((builder.build()?, info))
 }
 
-/// The conservative N-link pendulum of PROBLEMS.md D: `n` uniform slender
+/// The conservative N-link pendulum of problem D (docs/problems.md): `n` uniform slender
 /// links (length `link_length`, mass `link_mass`, inertia `m l²/12`), body
 /// frame y along the link with ends at local `(0, ∓l/2)`, numbered from the
 /// pivot: the top end of link 1 is pinned to the ground at the origin, the

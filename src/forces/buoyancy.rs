@@ -1,9 +1,9 @@
-//! Static buoyancy (PROBLEMS.md B).
+//! Static buoyancy (docs/problems.md, problem B).
 
 use super::{check_coordinates, ForceElement};
 use crate::model::ModelError;
 
-/// Static buoyancy of fully submerged bodies in still fluid (PROBLEMS.md B,
+/// Static buoyancy of fully submerged bodies in still fluid (docs/problems.md, problem B,
 /// "buoyancy"): a constant uplift `ρ_w g V` along +y on every listed body,
 /// applied at its centre (no torque). For a rod segment `V = w² l_s`.
 ///

@@ -1,4 +1,4 @@
-//! Contact of a rod segment's corners with the two channel walls (PROBLEMS.md B).
+//! Contact of a rod segment's corners with the two channel walls (docs/problems.md, problem B).
 
 use super::{check_coordinates, FdWorkspace, ForceElement};
 use crate::model::ModelError;
@@ -39,7 +39,7 @@ pub struct CornerState {
 }
 
 /// Penalty contact of the four corners of one rectangular rod segment with
-/// two vertical walls `x = left_wall` and `x = right_wall` (PROBLEMS.md B,
+/// two vertical walls `x = left_wall` and `x = right_wall` (docs/problems.md, problem B,
 /// "contact").
 ///
 /// Corner `c` sits at the body-fixed point [`WallContact::corner_offset`]

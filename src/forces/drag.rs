@@ -1,9 +1,9 @@
-//! Quadratic fluid drag on a rod segment (PROBLEMS.md B).
+//! Quadratic fluid drag on a rod segment (docs/problems.md, problem B).
 
 use super::{check_coordinates, FdWorkspace, ForceElement};
 use crate::model::ModelError;
 
-/// Quadratic drag of still fluid on one rod segment (PROBLEMS.md B, "drag").
+/// Quadratic drag of still fluid on one rod segment (docs/problems.md, problem B, "drag").
 ///
 /// With `v` the velocity of the segment's centre, `e_a = (−sin φ, cos φ)` the
 /// rod axis and `e_t = (cos φ, sin φ)` the transverse direction,

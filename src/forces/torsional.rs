@@ -1,10 +1,10 @@
-//! Torsional spring–damper between two bodies (bending of the rod, PROBLEMS.md B).
+//! Torsional spring–damper between two bodies (bending of the rod, problem B (docs/problems.md)).
 
 use super::{check_coordinates, FdWorkspace, ForceElement};
 use crate::model::{BodyRef, ModelError};
 
 /// Linear torsional spring–damper acting on the relative angle of two bodies
-/// (PROBLEMS.md B, "bending"; also the base spring of the cantilever of D).
+/// (docs/problems.md, problem B, "bending"; also the base spring of the cantilever of D).
 ///
 /// With `Δφ = φ_j − φ_i` and `Δφ̇ = φ̇_j − φ̇_i` it applies the torque
 /// `T = −k (Δφ − rest_angle) − c Δφ̇` to body j and `−T` to body i.

@@ -56,16 +56,16 @@
 //! values straight into precomputed slots (no search, no allocation beyond
 //! what individual elements do).
 //!
-//! [`ForceElement::jacobian_coordinates`]: crate::forces::ForceElement::jacobian_coordinates
-//! [`Constraint::hessian_pattern`]: crate::constraints::Constraint::hessian_pattern
+//! [`ForceElement::jacobian_coordinates`]: crate::model::ForceElement::jacobian_coordinates
+//! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::FormulationError;
-use crate::forces::FdWorkspace;
 use crate::integrate::SecondOrderDae;
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
     Symmetry,
 };
+use crate::model::FdWorkspace;
 use crate::model::System;
 use serde::Serialize;
 

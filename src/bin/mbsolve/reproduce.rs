@@ -1,7 +1,7 @@
 //! The studies of the paper, reproduced: `mbsolve reproduce`.
 //!
 //! * Four-bar (§4.1, fig. 2 and 3): constraint fulfilment over time for the
-//!   (α, β) sweep of PROBLEMS.md A, with the correct and the "incorrect"
+//!   (α, β) sweep of problem A (docs/problems.md), with the correct and the "incorrect"
 //!   initial state, ode23 at MATLAB's defaults.
 //! * Falling rod (§4.2, fig. 5–7), N = 10: x of segments 1, N/2, N; relative
 //!   angles φ_i − φ_1; one joint's constraint with and without Baumgarte
