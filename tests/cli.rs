@@ -374,3 +374,35 @@ fn sweep_runs_the_product_in_order_and_matches_single_runs() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("alpah"), "{}", stderr(&o));
 }
+
+/// `mbsolve run … | head -1`: a closed stdout does not crash the run; it
+/// writes its files and exits with its own status.
+#[test]
+fn a_closed_stdout_ends_quietly_with_the_runs_status() {
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args([
+            "run",
+            "scenarios/fourbar.toml",
+            "--set",
+            "time.end=0.2",
+            "--out",
+        ])
+        .arg(dir.path())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before the first line
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    assert!(dir.path().join("fourbar.summary.json").exists());
+}

@@ -1,6 +1,17 @@
 //! `mbsolve`: command-line front end of the mbsolve library.
 
 use clap::{Parser, Subcommand};
+
+/// `println!` that ignores a closed stdout (`mbsolve run … | head -1`): the
+/// run goes on, writes its files and exits with its own status instead of
+/// panicking on the broken pipe.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
 mod animate;
 mod figure;
 mod gate;
@@ -149,7 +160,7 @@ fn main() -> ExitCode {
             every,
         })
         .map(|p| {
-            println!("wrote {}", p.display());
+            say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),
         Command::Plot {
@@ -170,7 +181,7 @@ fn main() -> ExitCode {
             y_label,
         })
         .map(|p| {
-            println!("wrote {}", p.display());
+            say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),
         Command::BenchGate { json } => bench_gate(json.as_deref()),
@@ -203,9 +214,11 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
     let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     if let Some(a) = &sc.assembly {
-        println!(
+        say!(
             "assembled initial state: ‖Φ‖ = {:.2e}, ‖Φ_q q̇ + Φ_t‖ = {:.2e} ({} Newton iterations)",
-            a.position_residual, a.velocity_residual, a.iterations
+            a.position_residual,
+            a.velocity_residual,
+            a.iterations
         );
     }
     let mut contacts = sc.rod.clone().map(ContactMonitor::new);
@@ -223,7 +236,7 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
     let json = out.join(format!("{stem}.summary.json"));
     write_trajectory_csv(&csv, &sc.system, &traj).map_err(|e| e.to_string())?;
     write_summary_json(&json, &summary).map_err(|e| e.to_string())?;
-    println!(
+    say!(
         "{}: {} steps ({} failed), {} RHS evaluations, {:.3} s; max ‖Φ‖ = {:.3e}, final ‖Φ‖ = {:.3e}",
         sc.name,
         summary.steps,
@@ -235,15 +248,15 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
     );
     if let Some(c) = &contacts {
         match c.first_contact() {
-            Some(t) => println!(
+            Some(t) => say!(
                 "contacts: first at t = {t:.4} s, {} starts, peak normal force {:.1} N",
                 c.events.iter().filter(|e| e.kind == "start").count(),
                 c.peak.map_or(0.0, |p| p.force)
             ),
-            None => println!("contacts: none"),
+            None => say!("contacts: none"),
         }
     }
-    println!("wrote {} and {}", csv.display(), json.display());
+    say!("wrote {} and {}", csv.display(), json.display());
     if summary.status == "completed" {
         Ok(ExitCode::SUCCESS)
     } else {
@@ -259,16 +272,16 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
 
 fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     let cases = reproduce::fourbar_study(out).map_err(|e| e.to_string())?;
-    println!(
+    say!(
         "four-bar study (ode23, RelTol 1e-3, AbsTol 1e-6): {} runs",
         cases.len()
     );
-    print!("{}", reproduce::fourbar_table(&cases));
-    println!("wrote {}", out.join("fourbar").display());
+    say!("{}", reproduce::fourbar_table(&cases).trim_end());
+    say!("wrote {}", out.join("fourbar").display());
     let rod = reproduce::rod_study(out).map_err(|e| e.to_string())?;
-    println!("falling rod, N = 10: {} runs", rod.len());
-    print!("{}", reproduce::rod_table(&rod));
-    println!("wrote {}", out.join("falling_rod").display());
+    say!("falling rod, N = 10: {} runs", rod.len());
+    say!("{}", reproduce::rod_table(&rod).trim_end());
+    say!("wrote {}", out.join("falling_rod").display());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -277,7 +290,7 @@ fn bench_gate(json: Option<&std::path::Path>) -> Result<ExitCode, String> {
     let mut ok = true;
     for c in &checks {
         let op = if c.at_most { "<=" } else { ">=" };
-        println!(
+        say!(
             "{} {}: ratio {:.2} ({op} {}) — {}",
             if c.passed { "PASS" } else { "FAIL" },
             c.name,

@@ -253,7 +253,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                     format!("{:.6e}", s.max_constraint_norm),
                     format!("{:.6e}", s.final_constraint_norm),
                 ]);
-                println!(
+                say!(
                     "{}: {} steps, max ‖Φ‖ = {:.3e}",
                     r.point.join(" "),
                     s.steps,
@@ -264,13 +264,13 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                 failures += 1;
                 row.extend(["error".to_string(), e.clone()]);
                 row.resize(first.len(), String::new());
-                println!("{}: error: {e}", r.point.join(" "));
+                say!("{}: error: {e}", r.point.join(" "));
             }
         }
         w.write_record(&row).map_err(|e| werr(&e))?;
     }
     w.flush().map_err(|e| werr(&e))?;
-    println!("wrote {}", table.display());
+    say!("wrote {}", table.display());
     Ok(if failures == 0 {
         ExitCode::SUCCESS
     } else {
@@ -382,7 +382,7 @@ fn merge(dir: &Path, stem: &str, header: &[String], total: usize) -> Result<Exit
         w.write_record(&rec).map_err(|e| werr(&e))?;
     }
     w.flush().map_err(|e| werr(&e))?;
-    println!(
+    say!(
         "merged {n} shards, {total} runs ({failures} not completed) into {}",
         table.display()
     );
