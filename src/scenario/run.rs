@@ -1,0 +1,206 @@
+//! The run part of a scenario: `[integrator]`, `[stabilization]`,
+//! `formulation`, `linear_solver`, `[time]`, `[output]` → a [`RunConfig`].
+//! Keys that do not apply to the chosen method are errors naming the key.
+
+use super::{error, positive, RawScenario, ScenarioError};
+use crate::formulation::{Baumgarte, BaumgarteRule, Formulation, Index1Options};
+use crate::integrate::{ImplicitOptions, Method, OdeOptions, Tolerance};
+use crate::linalg::SolverKind;
+use crate::simulation::RunConfig;
+use serde::Deserialize;
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawStabilization {
+    #[serde(default)]
+    alpha: f64,
+    #[serde(default)]
+    beta: f64,
+    rule: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawIntegrator {
+    method: Option<String>,
+    rtol: Option<f64>,
+    atol: Option<f64>,
+    step: Option<f64>,
+    max_step: Option<f64>,
+    initial_step: Option<f64>,
+    // implicit methods (genalpha, hht, newmark): see `ImplicitOptions`
+    rho_inf: Option<f64>,
+    adaptive: Option<bool>,
+    newton_tol: Option<f64>,
+    max_newton: Option<i64>,
+    project: Option<bool>,
+    reuse: Option<bool>,
+    filter_error: Option<bool>,
+    check_constraints: Option<bool>,
+    min_step: Option<f64>,
+    lu: Option<bool>,
+    extrapolate: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawTime {
+    #[serde(default)]
+    start: f64,
+    end: f64,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawOutput {
+    dt: Option<f64>,
+}
+
+/// Build the run settings of `raw`; errors name keys of `file`.
+pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, ScenarioError> {
+    let err = |key: String, message: String| error(file, key, message);
+    let method: Method = match &raw.integrator.method {
+        Some(m) => m.parse().map_err(|e: crate::integrate::IntegratorError| {
+            err("integrator.method".into(), e.to_string())
+        })?,
+        None => Method::Ode23,
+    };
+    let mut ode = OdeOptions::default();
+    if let Some(r) = raw.integrator.rtol {
+        positive(r).map_err(|m| err("integrator.rtol".into(), m))?;
+        ode.rtol = r;
+    }
+    if let Some(a) = raw.integrator.atol {
+        if !(a.is_finite() && a >= 0.0) {
+            return Err(err(
+                "integrator.atol".into(),
+                format!("{a} is invalid: must be finite and ≥ 0"),
+            ));
+        }
+        ode.atol = Tolerance::Scalar(a);
+    }
+    for (k, v, slot) in [
+        ("integrator.step", raw.integrator.step, &mut ode.fixed_step),
+        (
+            "integrator.max_step",
+            raw.integrator.max_step,
+            &mut ode.max_step,
+        ),
+        (
+            "integrator.initial_step",
+            raw.integrator.initial_step,
+            &mut ode.initial_step,
+        ),
+    ] {
+        if let Some(v) = v {
+            positive(v).map_err(|m| err(k.into(), m))?;
+            *slot = Some(v);
+        }
+    }
+    let ri = &raw.integrator;
+    let mut implicit = ImplicitOptions::default();
+    if let Some(r) = ri.rho_inf {
+        let lo = if method == Method::Hht { 0.5 } else { 0.0 };
+        if !(r.is_finite() && (lo..=1.0).contains(&r)) {
+            return Err(err(
+                "integrator.rho_inf".into(),
+                format!("{r} is invalid: must be in [{lo}, 1] for {}", method.name()),
+            ));
+        }
+        implicit.rho_inf = r;
+    }
+    if let Some(v) = ri.newton_tol {
+        positive(v).map_err(|m| err("integrator.newton_tol".into(), m))?;
+        implicit.newton_tol = v;
+    }
+    if let Some(v) = ri.min_step {
+        positive(v).map_err(|m| err("integrator.min_step".into(), m))?;
+        implicit.min_step = Some(v);
+    }
+    if let Some(v) = ri.max_newton {
+        if v < 1 {
+            return Err(err(
+                "integrator.max_newton".into(),
+                format!("{v} is invalid: must be ≥ 1"),
+            ));
+        }
+        implicit.max_newton = v as usize;
+    }
+    for (flag, slot) in [
+        (ri.adaptive, &mut implicit.adaptive),
+        (ri.project, &mut implicit.project),
+        (ri.reuse, &mut implicit.reuse),
+        (ri.filter_error, &mut implicit.filter_error),
+        (ri.check_constraints, &mut implicit.check_constraints),
+        (ri.lu, &mut implicit.lu),
+        (ri.extrapolate, &mut implicit.extrapolate),
+    ] {
+        if let Some(v) = flag {
+            *slot = v;
+        }
+    }
+    implicit.step = ode.fixed_step;
+    if method.is_implicit() && ode.fixed_step.is_none() && !implicit.adaptive {
+        return Err(err(
+            "integrator.step".into(),
+            format!(
+                "{} needs a fixed integrator.step, or integrator.adaptive = true",
+                method.name()
+            ),
+        ));
+    }
+    if method == Method::Rk4 && ode.fixed_step.is_none() {
+        return Err(err(
+            "integrator.step".into(),
+            "the fixed-step method rk4 needs integrator.step".into(),
+        ));
+    }
+    let (t0, t_end) = (raw.time.start, raw.time.end);
+    if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
+        return Err(err(
+            "time.end".into(),
+            format!("{t_end} is invalid: must be finite and > time.start = {t0}"),
+        ));
+    }
+    let dt = raw.output.dt.unwrap_or((t_end - t0) / 500.0);
+    positive(dt).map_err(|m| err("output.dt".into(), m))?;
+    let rule = match &raw.stabilization.rule {
+        Some(r) => r.parse().map_err(|m| err("stabilization.rule".into(), m))?,
+        None => BaumgarteRule::Explicit,
+    };
+    for (k, v) in [
+        ("stabilization.alpha", raw.stabilization.alpha),
+        ("stabilization.beta", raw.stabilization.beta),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(err(
+                k.into(),
+                format!("{v} is invalid: must be finite and ≥ 0"),
+            ));
+        }
+    }
+    let baumgarte = Baumgarte::from_rule(rule, raw.stabilization.alpha, raw.stabilization.beta);
+    let formulation: Formulation = match &raw.formulation {
+        Some(f) => f.parse().map_err(|m| err("formulation".into(), m))?,
+        None => Formulation::Saddle,
+    };
+    let linear_solver: SolverKind = match &raw.linear_solver {
+        Some(s) => s.parse().map_err(|m| err("linear_solver".into(), m))?,
+        None => SolverKind::Auto,
+    };
+    let run = RunConfig {
+        method,
+        ode,
+        t0,
+        t_end,
+        output_dt: dt,
+        index1: Index1Options {
+            formulation,
+            baumgarte,
+            linear_solver,
+        },
+        implicit,
+    };
+
+    Ok(run)
+}
