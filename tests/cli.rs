@@ -153,8 +153,8 @@ fn bad_scenarios_name_file_key_and_problem() {
         ),
         (
             "nonnum2.toml",
-            "alpha = 0.0",
-            "alpha = \"ten\"",
+            "[stabilization]\n",
+            "[stabilization]\nalpha = \"ten\"\n",
             vec!["nonnum2.toml", "stabilization.alpha", "invalid type"],
         ),
         (

@@ -50,6 +50,9 @@ pub(super) struct RawPerturbation {
     delta: f64,
 }
 
+/// Initial positions, velocities and the assembly report (when assembled).
+pub(super) type Initial = (Vec<f64>, Vec<f64>, Option<ConsistentState>);
+
 /// Initial positions and velocities of `system` from `raw` (and the
 /// assembly report); errors name keys of `file`.
 pub(super) fn build(
@@ -58,7 +61,7 @@ pub(super) fn build(
     names: &HashMap<String, usize>,
     run: &RunConfig,
     file: &str,
-) -> Result<(Vec<f64>, Vec<f64>, Option<ConsistentState>), ScenarioError> {
+) -> Result<Initial, ScenarioError> {
     let err = |key: String, message: String| error(file, key, message);
     let body_index = |key: String, name: &str| body_index(names, file, key, name);
     let (t0, linear_solver) = (run.t0, run.index1.linear_solver);
@@ -89,7 +92,7 @@ pub(super) fn build(
     let mut assembly = None;
     if raw.consistent && system.n_constraints() > 0 {
         let st = consistent_initial_state(
-            &system,
+            system,
             t0,
             &q0,
             &qd0,

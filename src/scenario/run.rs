@@ -12,10 +12,8 @@ use serde::Deserialize;
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawStabilization {
-    #[serde(default)]
-    alpha: f64,
-    #[serde(default)]
-    beta: f64,
+    alpha: Option<f64>,
+    beta: Option<f64>,
     rule: Option<String>,
 }
 
@@ -164,22 +162,36 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     }
     let dt = raw.output.dt.unwrap_or((t_end - t0) / 500.0);
     positive(dt).map_err(|m| err("output.dt".into(), m))?;
-    let rule = match &raw.stabilization.rule {
+    let st = &raw.stabilization;
+    let rule = match &st.rule {
         Some(r) => r.parse().map_err(|m| err("stabilization.rule".into(), m))?,
         None => BaumgarteRule::Explicit,
     };
     for (k, v) in [
-        ("stabilization.alpha", raw.stabilization.alpha),
-        ("stabilization.beta", raw.stabilization.beta),
+        ("stabilization.alpha", st.alpha),
+        ("stabilization.beta", st.beta),
     ] {
-        if !(v.is_finite() && v >= 0.0) {
+        if let Some(v) = v {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(err(
+                    k.into(),
+                    format!("{v} is invalid: must be finite and ≥ 0"),
+                ));
+            }
+        }
+    }
+    if let (Some(b), Some(r)) = (st.beta, st.rule.as_deref()) {
+        if rule != BaumgarteRule::Explicit {
             return Err(err(
-                k.into(),
-                format!("{v} is invalid: must be finite and ≥ 0"),
+                "stabilization.beta".into(),
+                format!(
+                    "{b} is given, but stabilization.rule = \"{r}\" derives β from α: \
+                     remove beta, or use rule = \"explicit\""
+                ),
             ));
         }
     }
-    let baumgarte = Baumgarte::from_rule(rule, raw.stabilization.alpha, raw.stabilization.beta);
+    let baumgarte = Baumgarte::from_rule(rule, st.alpha.unwrap_or(0.0), st.beta.unwrap_or(0.0));
     let formulation: Formulation = match &raw.formulation {
         Some(f) => f.parse().map_err(|m| err("formulation".into(), m))?,
         None => Formulation::Saddle,
@@ -188,6 +200,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         Some(s) => s.parse().map_err(|m| err("linear_solver".into(), m))?,
         None => SolverKind::Auto,
     };
+    inapplicable(raw, method, implicit.adaptive, &baumgarte, formulation)
+        .map_err(|(key, why)| err(key, why))?;
     let run = RunConfig {
         method,
         ode,
@@ -203,4 +217,109 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     };
 
     Ok(run)
+}
+
+/// The first key of `raw` that does not apply to `method` (with
+/// `adaptive` for the implicit methods), and why; such a key would be
+/// silently ignored.
+fn inapplicable(
+    raw: &RawScenario,
+    method: Method,
+    adaptive: bool,
+    baumgarte: &Baumgarte,
+    formulation: Formulation,
+) -> Result<(), (String, String)> {
+    let ri = &raw.integrator;
+    let name = method.name();
+    let given = |present: bool, key: &str, why: String| {
+        if present {
+            Err((format!("integrator.{key}"), why))
+        } else {
+            Ok(())
+        }
+    };
+    if method.is_implicit() {
+        let fixed = |key: &str, present: bool| {
+            given(
+                present && !adaptive,
+                key,
+                format!(
+                    "applies to {name} with integrator.adaptive = true only \
+                     (with a fixed integrator.step it would be ignored)"
+                ),
+            )
+        };
+        fixed("rtol", ri.rtol.is_some())?;
+        fixed("atol", ri.atol.is_some())?;
+        fixed("max_step", ri.max_step.is_some())?;
+        fixed("filter_error", ri.filter_error.is_some())?;
+        fixed("min_step", ri.min_step.is_some())?;
+        given(
+            ri.initial_step.is_some(),
+            "initial_step",
+            format!("{name} starts with integrator.step: give that instead"),
+        )?;
+        if !baumgarte.is_off() {
+            let key = if raw.stabilization.alpha.unwrap_or(0.0) != 0.0 {
+                "stabilization.alpha"
+            } else {
+                "stabilization.beta"
+            };
+            return Err((
+                key.into(),
+                format!(
+                    "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, \
+                     rk4); {name} integrates the index-3 equations (use integrator.project)"
+                ),
+            ));
+        }
+        if formulation != Formulation::Saddle {
+            return Err((
+                "formulation".into(),
+                format!("applies to the index-1 methods; {name} uses the index-3 form"),
+            ));
+        }
+        return Ok(());
+    }
+    let implicit_only =
+        format!("applies to the implicit methods (genalpha, hht, newmark), not to {name}");
+    for (key, present) in [
+        ("rho_inf", ri.rho_inf.is_some()),
+        ("adaptive", ri.adaptive.is_some()),
+        ("newton_tol", ri.newton_tol.is_some()),
+        ("max_newton", ri.max_newton.is_some()),
+        ("project", ri.project.is_some()),
+        ("reuse", ri.reuse.is_some()),
+        ("filter_error", ri.filter_error.is_some()),
+        ("check_constraints", ri.check_constraints.is_some()),
+        ("min_step", ri.min_step.is_some()),
+        ("lu", ri.lu.is_some()),
+        ("extrapolate", ri.extrapolate.is_some()),
+    ] {
+        given(present, key, implicit_only.clone())?;
+    }
+    if method == Method::Rk4 {
+        for (key, present) in [
+            ("rtol", ri.rtol.is_some()),
+            ("atol", ri.atol.is_some()),
+            ("max_step", ri.max_step.is_some()),
+            ("initial_step", ri.initial_step.is_some()),
+        ] {
+            given(
+                present,
+                key,
+                "applies to the adaptive methods; rk4 takes fixed steps of integrator.step".into(),
+            )?;
+        }
+    } else {
+        given(
+            ri.step.is_some(),
+            "step",
+            format!(
+                "{name} chooses its own steps: use integrator.initial_step or \
+                 integrator.max_step"
+            ),
+        )?;
+    }
+    Ok(())
 }

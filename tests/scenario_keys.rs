@@ -1,0 +1,150 @@
+//! Scenario keys that would be silently ignored are errors naming the key:
+//! options of another method, a β that the stabilization rule overrides.
+
+use mbsolve::scenario::{self, FALLING_ROD_TOML, FOURBAR_TOML};
+
+fn fourbar(o: &[&str]) -> Result<scenario::Scenario, scenario::ScenarioError> {
+    let o: Vec<String> = o.iter().map(|s| s.to_string()).collect();
+    scenario::parse(FOURBAR_TOML, "fourbar.toml", "fourbar", &o)
+}
+
+/// The error of `o` on the four-bar: its key and message.
+fn rejected(o: &[&str]) -> (String, String) {
+    match fourbar(o) {
+        Ok(_) => panic!("{o:?} was accepted"),
+        Err(e) => (e.key, e.message),
+    }
+}
+
+#[test]
+fn options_of_another_method_are_errors_naming_the_key() {
+    let cases: &[(&[&str], &str, &str)] = &[
+        (
+            &["integrator.min_step=1e-9"],
+            "integrator.min_step",
+            "implicit methods",
+        ),
+        (
+            &["integrator.rho_inf=0.5"],
+            "integrator.rho_inf",
+            "not to ode23",
+        ),
+        (&["integrator.lu=true"], "integrator.lu", "implicit methods"),
+        (
+            &["integrator.step=1e-3"],
+            "integrator.step",
+            "ode23 chooses its own steps",
+        ),
+        (
+            &["integrator.method=\"ode45\"", "integrator.newton_tol=1e-8"],
+            "integrator.newton_tol",
+            "not to ode45",
+        ),
+        (
+            &[
+                "integrator.method=\"rk4\"",
+                "integrator.step=1e-3",
+                "integrator.rtol=1e-6",
+            ],
+            "integrator.rtol",
+            "rk4 takes fixed steps",
+        ),
+        (
+            &[
+                "integrator.method=\"genalpha\"",
+                "integrator.step=1e-3",
+                "integrator.rtol=1e-6",
+            ],
+            "integrator.rtol",
+            "adaptive = true only",
+        ),
+        (
+            &[
+                "integrator.method=\"genalpha\"",
+                "integrator.step=1e-3",
+                "integrator.initial_step=1e-4",
+            ],
+            "integrator.initial_step",
+            "starts with integrator.step",
+        ),
+        (
+            &[
+                "integrator.method=\"genalpha\"",
+                "integrator.step=1e-3",
+                "stabilization.alpha=5",
+            ],
+            "stabilization.alpha",
+            "index-1 methods",
+        ),
+        (
+            &[
+                "integrator.method=\"hht\"",
+                "integrator.step=1e-3",
+                "formulation=\"eliminated\"",
+            ],
+            "formulation",
+            "index-3 form",
+        ),
+    ];
+    for (o, key, why) in cases {
+        let (k, m) = rejected(o);
+        assert_eq!(&k, key, "{o:?}: {m}");
+        assert!(m.contains(why), "{o:?}: {m}");
+    }
+}
+
+#[test]
+fn a_beta_the_rule_would_replace_is_an_error() {
+    let (k, m) = rejected(&[
+        "stabilization.alpha=5",
+        "stabilization.beta=3",
+        "stabilization.rule=\"equal\"",
+    ]);
+    assert_eq!(k, "stabilization.beta");
+    assert!(m.contains("derives β from α"), "{m}");
+    // without beta the rule sets it
+    let sc = fourbar(&[
+        "stabilization.alpha=5",
+        "stabilization.rule=\"sqrt_2alpha\"",
+    ])
+    .unwrap();
+    assert_eq!(sc.run.index1.baumgarte.beta, 10f64.sqrt());
+    // an explicit pair stays as given
+    let sc = fourbar(&["stabilization.alpha=5", "stabilization.beta=3"]).unwrap();
+    assert_eq!(
+        (sc.run.index1.baumgarte.alpha, sc.run.index1.baumgarte.beta),
+        (5.0, 3.0)
+    );
+}
+
+#[test]
+fn options_that_apply_are_accepted() {
+    for o in [
+        &["integrator.rtol=1e-6", "integrator.max_step=0.01"][..],
+        &["integrator.method=\"rk4\"", "integrator.step=1e-3"],
+        &[
+            "integrator.method=\"genalpha\"",
+            "integrator.step=1e-3",
+            "integrator.project=true",
+        ],
+        &[
+            "integrator.method=\"genalpha\"",
+            "integrator.adaptive=true",
+            "integrator.step=1e-3",
+            "integrator.rtol=1e-5",
+            "integrator.max_step=0.01",
+        ],
+    ] {
+        fourbar(o).unwrap_or_else(|e| panic!("{o:?}: {e}"));
+    }
+    // the README's long-chain command
+    let o: Vec<String> = [
+        "rod.segments=50",
+        "integrator.method=\"genalpha\"",
+        "integrator.step=1e-4",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    scenario::parse(FALLING_ROD_TOML, "falling_rod.toml", "falling_rod", &o).unwrap();
+}
