@@ -111,6 +111,7 @@
 //! [`Termination::Failed`] after every output up to the last accepted
 //! step was delivered.
 
+use super::hermite::cubic;
 use super::Tolerance;
 use super::{common, IntegratorError, Method, Observer, OdeOptions, Report, Stats, Termination};
 use serde::Serialize;
@@ -1234,13 +1235,7 @@ impl<'g, 's> Run<'g, 's> {
 /// (s = 1): q from (q, q̇), q̇ from (q̇, q̈). Writes `[q; q̇]` into `out`.
 fn hermite(s: f64, h: f64, a: &State, b: &State, out: &mut [f64]) {
     let n = a.q.len();
-    let (s2, s3) = (s * s, s * s * s);
-    let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-    let h10 = s3 - 2.0 * s2 + s;
-    let h01 = -2.0 * s3 + 3.0 * s2;
-    let h11 = s3 - s2;
-    for i in 0..n {
-        out[i] = h00 * a.q[i] + h10 * h * a.v[i] + h01 * b.q[i] + h11 * h * b.v[i];
-        out[n + i] = h00 * a.v[i] + h10 * h * a.qdd[i] + h01 * b.v[i] + h11 * h * b.qdd[i];
-    }
+    let (q, v) = out.split_at_mut(n);
+    cubic(q, s, h, &a.q, &a.v, &b.q, &b.v);
+    cubic(v, s, h, &a.v, &a.qdd, &b.v, &b.qdd);
 }

@@ -28,6 +28,7 @@
 mod common;
 mod embedded;
 mod genalpha;
+mod hermite;
 mod rk4;
 mod tableau;
 

@@ -1,5 +1,6 @@
 //! Classic four-stage, fourth-order Runge–Kutta method with a fixed step.
 
+use super::hermite::cubic;
 use std::ops::ControlFlow;
 
 use super::common::{self, call_rhs, eval_stages, lincomb};
@@ -43,20 +44,6 @@ fn step_count(span: f64, h: f64) -> usize {
         r.ceil()
     };
     (n.max(1.0)).min(usize::MAX as f64) as usize
-}
-
-/// Cubic Hermite interpolation on `[t, t + h]` at `sigma = (t_out - t)/h`
-/// from `y0, f0` (start) and `y1, f1` (end).
-fn hermite(out: &mut [f64], sigma: f64, h: f64, y0: &[f64], f0: &[f64], y1: &[f64], f1: &[f64]) {
-    let s2 = sigma * sigma;
-    let s3 = s2 * sigma;
-    let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-    let h10 = (s3 - 2.0 * s2 + sigma) * h;
-    let h01 = -2.0 * s3 + 3.0 * s2;
-    let h11 = (s3 - s2) * h;
-    for i in 0..out.len() {
-        out[i] = h00 * y0[i] + h10 * f0[i] + h01 * y1[i] + h11 * f1[i];
-    }
 }
 
 impl Integrator for Rk4 {
@@ -154,7 +141,7 @@ impl Integrator for Rk4 {
                 tnew,
                 &ynew,
                 &mut yout,
-                |tk, out| hermite(out, (tk - t) / hs, hs, &y, f0, &ynew, f1),
+                |tk, out| cubic(out, (tk - t) / hs, hs, &y, f0, &ynew, f1),
                 obs,
             );
             if let ControlFlow::Break((ts, reason)) = flow {
