@@ -1,6 +1,11 @@
 //! Generalized-α for constrained mechanical systems in index-3 form, with
 //! HHT-α and Newmark as parameter choices.
 //!
+//! Split by idea: `params` (the method's parameters from ρ∞, the options),
+//! `newton` (Newton iteration and factorisation reuse), `step` (error
+//! estimate and step-size choice); this module holds the system trait, the
+//! integrator and its run loop.
+//!
 //! # The scheme
 //!
 //! Chung & Hulbert, "A time integration algorithm for structural dynamics
@@ -111,6 +116,16 @@
 //! [`Termination::Failed`] after every output up to the last accepted
 //! step was delivered.
 
+mod newton;
+mod params;
+mod step;
+
+pub use newton::{REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR};
+pub use params::{AlphaParameters, ImplicitOptions};
+pub use step::SAFETY;
+
+use newton::Attempt;
+
 use super::hermite::cubic;
 use super::Tolerance;
 use super::{common, IntegratorError, Method, Observer, OdeOptions, Report, Stats, Termination};
@@ -173,202 +188,6 @@ pub trait SecondOrderDae {
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), String>;
 }
 
-/// The four parameters of the generalized-α family (Chung & Hulbert 1993;
-/// Arnold & Brüls 2007, eq. (9)–(10)); see the module docs for the formulas.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct AlphaParameters {
-    /// α_m: weight of the old auxiliary acceleration.
-    pub alpha_m: f64,
-    /// α_f: weight of the old true acceleration.
-    pub alpha_f: f64,
-    /// Newmark γ.
-    pub gamma: f64,
-    /// Newmark β.
-    pub beta: f64,
-}
-
-impl AlphaParameters {
-    /// Generalized-α with spectral radius ρ∞ at infinity (Chung & Hulbert
-    /// 1993, eq. (25), (17), (20)): second order, minimal low-frequency
-    /// dissipation for the given high-frequency dissipation.
-    pub fn generalized_alpha(rho_inf: f64) -> Self {
-        let alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0);
-        let alpha_f = rho_inf / (rho_inf + 1.0);
-        let gamma = 0.5 + alpha_f - alpha_m;
-        Self {
-            alpha_m,
-            alpha_f,
-            gamma,
-            beta: 0.25 * (gamma + 0.5) * (gamma + 0.5),
-        }
-    }
-
-    /// HHT-α (Hilber, Hughes & Taylor 1977) as generalized-α with α_m = 0,
-    /// `α_f = (1 − ρ∞)/(1 + ρ∞)` (ρ∞ ∈ [½, 1]), `γ = ½ + α_f`,
-    /// `β = ¼ (1 + α_f)²`.
-    pub fn hht(rho_inf: f64) -> Self {
-        let alpha_f = (1.0 - rho_inf) / (1.0 + rho_inf);
-        Self {
-            alpha_m: 0.0,
-            alpha_f,
-            gamma: 0.5 + alpha_f,
-            beta: 0.25 * (1.0 + alpha_f) * (1.0 + alpha_f),
-        }
-    }
-
-    /// Newmark (α_m = α_f = 0) with `γ = (3 − ρ∞)/(2 (1 + ρ∞))`,
-    /// `β = ¼ (γ + ½)²`: spectral radius ρ∞ at infinity; the trapezoidal
-    /// rule for ρ∞ = 1, first order for ρ∞ < 1.
-    pub fn newmark(rho_inf: f64) -> Self {
-        let gamma = (3.0 - rho_inf) / (2.0 * (1.0 + rho_inf));
-        Self {
-            alpha_m: 0.0,
-            alpha_f: 0.0,
-            gamma,
-            beta: 0.25 * (gamma + 0.5) * (gamma + 0.5),
-        }
-    }
-
-    /// Parameters of an implicit `method` for `rho_inf`, validated
-    /// (ρ∞ ∈ [0, 1]; HHT needs ρ∞ ∈ [½, 1]).
-    pub fn for_method(method: Method, rho_inf: f64) -> Result<Self, IntegratorError> {
-        let bad = |reason: &str| IntegratorError::InvalidOption {
-            option: "rho_inf",
-            value: rho_inf.to_string(),
-            reason: reason.to_string(),
-        };
-        if !(rho_inf.is_finite() && (0.0..=1.0).contains(&rho_inf)) {
-            return Err(bad("must be in [0, 1]"));
-        }
-        match method {
-            Method::GenAlpha => Ok(Self::generalized_alpha(rho_inf)),
-            Method::Hht => {
-                if rho_inf < 0.5 {
-                    Err(bad("HHT-α needs rho_inf in [0.5, 1] (α_f ≤ 1/3)"))
-                } else {
-                    Ok(Self::hht(rho_inf))
-                }
-            }
-            Method::Newmark => Ok(Self::newmark(rho_inf)),
-            other => Err(IntegratorError::InvalidOption {
-                option: "method",
-                value: other.name().to_string(),
-                reason: "not an implicit (generalized-α family) method".into(),
-            }),
-        }
-    }
-
-    /// Error constant `C = β − γ/2 + 1/12` of the position local
-    /// truncation error `C h³ q⃛` (module docs; `β − 1/6` for γ = ½,
-    /// Zienkiewicz & Xie 1991).
-    pub fn error_constant(&self) -> f64 {
-        self.beta - 0.5 * self.gamma + 1.0 / 12.0
-    }
-}
-
-/// Options of the implicit integrators (scenario keys `integrator.<field>`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ImplicitOptions {
-    /// Spectral radius at infinity ρ∞ ∈ [0, 1] (HHT: [½, 1]): the factor by
-    /// which unresolved high-frequency components shrink per step.
-    /// Default 0.8.
-    pub rho_inf: f64,
-    /// Fixed step h; `None` falls back to [`OdeOptions::fixed_step`]. With
-    /// `adaptive` it is the initial step (else [`OdeOptions::initial_step`]
-    /// or an automatic guess).
-    pub step: Option<f64>,
-    /// Adapt the step to the local error estimate with `rtol`/`atol` of
-    /// [`OdeOptions`] (also `max_step`, `max_steps`). Default false.
-    pub adaptive: bool,
-    /// Newton tolerance on the acceleration corrections `Δq̈ = β' Δq`
-    /// (m/s², rad/s²; also bounds the velocity and position corrections),
-    /// floored at the rounding noise of q (module docs). Unconverged
-    /// remainders add up to a position error of about `T² newton_tol`
-    /// over a run of length T. Default 1e-6.
-    pub newton_tol: f64,
-    /// Newton iterations per attempt before the step is retried (fresh
-    /// factorisation) or cut. Default 8.
-    pub max_newton: usize,
-    /// Project positions and velocities onto the constraint manifold after
-    /// every step (mass-weighted, one extra factorisation per step).
-    /// Default false.
-    pub project: bool,
-    /// Keep factorisations across iterations and steps (modified Newton);
-    /// false: a fresh factorisation at every iteration (full Newton up to
-    /// the symmetrisation). Default true.
-    pub reuse: bool,
-    /// Filter the error estimate through the iteration matrix (adaptive
-    /// only; module docs). Default true.
-    pub filter_error: bool,
-    /// Also require `‖Φ(q_{n+1})‖∞` below the position-equivalent Newton
-    /// tolerance `newton_tol / max(1, γ', β')` (floored at 20 ulps of
-    /// `max |q_i|`) after the last correction (one more evaluation of Φ
-    /// per iteration). Off by default: after a
-    /// correction `Φ_q Δq = −Φ` holds exactly for the factorised Φ_q, so
-    /// the remaining `Φ` is `O(‖Δq‖²) + O(‖Φ_q − Φ_q^fact‖ ‖Δq‖)`, far
-    /// below the tolerance once `‖Δq‖` is.
-    pub check_constraints: bool,
-    /// Smallest step before the run fails; `None`: `16 eps(t)` (MATLAB's
-    /// `hmin`).
-    pub min_step: Option<f64>,
-    /// Factorise the full unsymmetric iteration matrix with a sparse LU
-    /// (exact Newton) instead of its symmetric part with the LDLᵀ
-    /// saddle-point solver (modified Newton). Read by the caller that builds
-    /// the [`SecondOrderDae`] (`simulation::simulate`:
-    /// [`crate::formulation::NewtonSolverKind`]). Default false.
-    pub lu: bool,
-    /// Newton predictor: `q̈_{n+1}` extrapolated linearly from the last
-    /// two steps (true) or kept constant (false, as `λ_{n+1}` always is;
-    /// Arnold & Brüls 2007). Measured on problem C at h = 2.5e-5 over
-    /// 0.3 s: −16 % Newton iterations at N = 1000, +14 % at N = 100, and
-    /// twice the iterations in free fall (where the constant predictor is
-    /// exact); hence off by default.
-    pub extrapolate: bool,
-}
-
-impl Default for ImplicitOptions {
-    fn default() -> Self {
-        Self {
-            rho_inf: 0.8,
-            step: None,
-            adaptive: false,
-            newton_tol: 1e-6,
-            max_newton: 8,
-            project: false,
-            reuse: true,
-            filter_error: true,
-            check_constraints: false,
-            min_step: None,
-            lu: false,
-            extrapolate: false,
-        }
-    }
-}
-
-/// A factorisation is reused while the step size stays within this
-/// relative distance of the one it was computed for.
-pub const REUSE_BAND: f64 = 0.25;
-/// Contraction factor θ above which the factorisation is renewed at the
-/// next step.
-pub const THETA_REFACTOR: f64 = 0.2;
-/// Iterations per step after which the factorisation is renewed at the
-/// next step.
-pub const SLOW_ITERATIONS: usize = 4;
-
-/// Floor of the Newton tolerance on a position correction, in ulps of
-/// `max(|q_i|, 1)`: below it corrections are rounding noise.
-pub const ROUNDING_ULPS: f64 = 20.0;
-
-/// A Newton iteration that stops contracting (θ ≥ 1) with corrections
-/// below this many tolerances (`‖Δq‖_w ≤ STAGNATION`) has reached the
-/// rounding noise of the linear solve and counts as converged (the noise
-/// of the angle corrections of a chain grows like 1/segment length: at
-/// N = 10 000, ~1e-14 rad, 50 ulps); above it, it diverges.
-pub const STAGNATION: f64 = 100.0;
-
-/// Safety factor of the step-size controller.
-pub const SAFETY: f64 = 0.9;
-
 /// Work counters of a generalized-α run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct GenAlphaStats {
@@ -424,13 +243,6 @@ impl State {
             lam: vec![0.0; m],
         }
     }
-}
-
-/// How a step attempt ended.
-enum Attempt {
-    Converged,
-    /// Newton did not converge (reason).
-    Failed(String),
 }
 
 fn invalid(option: &'static str, value: impl std::fmt::Display, reason: &str) -> IntegratorError {
@@ -1004,230 +816,6 @@ impl<'g, 's> Run<'g, 's> {
             no_growth = false;
         }
         Termination::Completed
-    }
-
-    /// Factorise the iteration matrix at the current iterate.
-    fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), String> {
-        self.stats.factorizations += 1;
-        self.h_fact = None;
-        self.sys
-            .factorize(t1, &self.new.q, &self.new.v, &self.new.lam, c)?;
-        self.h_fact = Some(h);
-        self.refactor = false;
-        self.last_attempt_fresh = true;
-        Ok(())
-    }
-
-    /// One step attempt from `(self.t, self.cur)` to `t1 = self.t + h`
-    /// into `self.new`: predictor, then (modified) Newton.
-    fn attempt(&mut self, t1: f64, h: f64) -> Attempt {
-        let p = self.p;
-        let (n, tol) = (self.n, self.opts.newton_tol);
-        let s = p.beta * h * h;
-        let c_m = (1.0 - p.alpha_m) / (1.0 - p.alpha_f);
-        let c = [c_m, p.gamma * h, s];
-        let gp = p.gamma / (p.beta * h); // ∂q̇/∂q
-        let bp = c_m / s; // ∂q̈/∂q
-        let ap = 1.0 / s; // ∂a/∂q
-        {
-            let (cur, new) = (&self.cur, &mut self.new);
-            let (am, af, g, b) = (p.alpha_m, p.alpha_f, p.gamma, p.beta);
-            // q̈_{n+1} predicted constant or extrapolated linearly from the
-            // last two steps; λ_{n+1} constant
-            let r = match self.h_prev {
-                Some(hp) if self.opts.extrapolate => h / hp,
-                _ => 0.0,
-            };
-            for i in 0..n {
-                let qdd0 = cur.qdd[i] + r * (cur.qdd[i] - self.prev_qdd[i]);
-                new.qdd[i] = qdd0;
-                new.a[i] = ((1.0 - af) * qdd0 + af * cur.qdd[i] - am * cur.a[i]) / (1.0 - am);
-                new.v[i] = cur.v[i] + h * ((1.0 - g) * cur.a[i] + g * new.a[i]);
-                new.q[i] = cur.q[i] + h * cur.v[i] + h * h * ((0.5 - b) * cur.a[i] + b * new.a[i]);
-            }
-            new.lam.copy_from_slice(&cur.lam);
-        }
-        self.last_attempt_fresh = false;
-        let stale = match self.h_fact {
-            None => true,
-            Some(hf) => (h / hf - 1.0).abs() > REUSE_BAND,
-        };
-        if self.refactor || stale || !self.opts.reuse {
-            if let Err(e) = self.factor(t1, h, c) {
-                return Attempt::Failed(e);
-            }
-        }
-        // position-equivalent tolerance of the acceleration (and velocity)
-        // corrections, floored at a few ulps of the positions
-        let tol_q = tol / gp.max(bp).max(1.0);
-        let mut prev = f64::NAN;
-        let mut theta: f64;
-        let mut eta = self.eta.max(1.0);
-        // iterations since the last factorisation, refactorisations at an
-        // iterate within this attempt
-        let (mut round, mut refreshed) = (0usize, false);
-        let mut it = 0;
-        loop {
-            if round > 0 && !self.opts.reuse {
-                if let Err(e) = self.factor(t1, h, c) {
-                    return Attempt::Failed(e);
-                }
-            }
-            self.stats.residual_evaluations += 1;
-            let new = &self.new;
-            if let Err(e) =
-                self.sys
-                    .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)
-            {
-                return Attempt::Failed(e);
-            }
-            for x in self.r.iter_mut() {
-                *x = -*x;
-            }
-            if let Err(e) = self.sys.solve(t1, &mut self.r) {
-                return Attempt::Failed(e);
-            }
-            self.stats.newton_iterations += 1;
-            it += 1;
-            let dnorm = self.r[..n]
-                .iter()
-                .zip(&self.new.q)
-                .fold(0.0_f64, |a, (d, q)| {
-                    a.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * q.abs().max(1.0)))
-                });
-            if !dnorm.is_finite() {
-                return Attempt::Failed("non-finite Newton correction".into());
-            }
-            {
-                let (new, dx) = (&mut self.new, &self.r);
-                for (i, &d) in dx[..n].iter().enumerate() {
-                    new.q[i] += d;
-                    new.v[i] += gp * d;
-                    new.qdd[i] += bp * d;
-                    new.a[i] += ap * d;
-                }
-                for (l, d) in new.lam.iter_mut().zip(&dx[n..]) {
-                    *l += d / s;
-                }
-            }
-            let mut done = if round == 0 {
-                theta = f64::NAN;
-                dnorm * eta <= 1.0
-            } else {
-                theta = dnorm / prev;
-                if theta >= 1.0 {
-                    if dnorm > STAGNATION {
-                        return Attempt::Failed(format!(
-                            "Newton diverges (contraction θ = {theta:.3}, correction {:.3e} × tol)",
-                            dnorm
-                        ));
-                    }
-                    // no contraction among corrections this small: the
-                    // iteration has reached the noise floor of the solve
-                    true
-                } else {
-                    eta = theta / (1.0 - theta);
-                    if theta > THETA_REFACTOR {
-                        self.refactor = true;
-                    }
-                    eta * dnorm <= 1.0
-                }
-            };
-            prev = dnorm;
-            round += 1;
-            if done && self.opts.check_constraints {
-                self.sys.constraints(t1, &self.new.q, &mut self.phi);
-                let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
-                let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
-                done = phi <= tol_q + ROUNDING_ULPS * f64::EPSILON * scale;
-            }
-            if done {
-                if theta.is_finite() && theta < 1.0 {
-                    self.eta = eta;
-                }
-                if it > SLOW_ITERATIONS {
-                    self.refactor = true;
-                }
-                return Attempt::Converged;
-            }
-            if round >= self.opts.max_newton {
-                // Still contracting: renew the matrix at this (much better)
-                // iterate once and carry on; otherwise give up.
-                if self.opts.reuse && !refreshed && theta < 1.0 {
-                    refreshed = true;
-                    if let Err(e) = self.factor(t1, h, c) {
-                        return Attempt::Failed(e);
-                    }
-                    round = 0;
-                    eta = 1.0;
-                    continue;
-                }
-                return Attempt::Failed(format!(
-                    "no convergence in {it} iterations (last correction {prev:.3e} × tol, θ = {theta:.3})"
-                ));
-            }
-        }
-    }
-
-    /// Norm of the local error estimate of the attempt in `self.new`
-    /// (module docs); ≤ 1 passes.
-    fn error_norm(&mut self, t1: f64, h: f64) -> Result<f64, String> {
-        let p = self.p;
-        let n = self.n;
-        // Position LTE constant; for the first-order Newmark members the
-        // velocity LTE (γ − ½) h² q⃛ is added (a heuristic for their
-        // dominant error).
-        let newmark = p.alpha_m == 0.0 && p.alpha_f == 0.0;
-        let extra = if newmark {
-            (p.gamma - 0.5).max(0.0)
-        } else {
-            0.0
-        };
-        let cst = (p.error_constant() + extra).abs() * h * h;
-        for i in 0..n {
-            self.err[i] = cst * (self.new.a[i] - self.cur.a[i]);
-        }
-        if self.opts.filter_error && self.h_fact.is_some() {
-            let c_m = (1.0 - p.alpha_m) / (1.0 - p.alpha_f);
-            let mass = self.sys.mass_diagonal();
-            for (e, m) in self.err[..n].iter_mut().zip(mass) {
-                *e *= c_m * m;
-            }
-            self.err[n..].fill(0.0);
-            self.sys
-                .solve(t1, &mut self.err)
-                .map_err(|e| format!("error filter at t = {t1}: {e}"))?;
-        }
-        let mut norm: f64 = 0.0;
-        for i in 0..n {
-            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs().max(self.new.q[i].abs());
-            let e = self.err[i].abs();
-            norm = norm.max(if w > 0.0 {
-                e / w
-            } else if e > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            });
-        }
-        Ok(norm)
-    }
-
-    fn initial_step_guess(&mut self, span: f64) -> f64 {
-        // position change ½ h² q̈ at 1 % of the tolerance
-        let mut acc: f64 = 0.0;
-        for i in 0..self.n {
-            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs();
-            if w > 0.0 {
-                acc = acc.max(self.cur.qdd[i].abs() / w);
-            }
-        }
-        let h = if acc > 0.0 {
-            (0.02 / acc).sqrt()
-        } else {
-            0.01 * span
-        };
-        h.min(0.01 * span).max(1e-6 * span)
     }
 }
 

@@ -1,0 +1,197 @@
+//! Newton iteration on the positions and reuse of factorisations (module
+//! docs of [`super`], "Newton iteration").
+
+use super::*;
+
+/// A factorisation is reused while the step size stays within this
+/// relative distance of the one it was computed for.
+pub const REUSE_BAND: f64 = 0.25;
+/// Contraction factor θ above which the factorisation is renewed at the
+/// next step.
+pub const THETA_REFACTOR: f64 = 0.2;
+/// Iterations per step after which the factorisation is renewed at the
+/// next step.
+pub const SLOW_ITERATIONS: usize = 4;
+
+/// Floor of the Newton tolerance on a position correction, in ulps of
+/// `max(|q_i|, 1)`: below it corrections are rounding noise.
+pub const ROUNDING_ULPS: f64 = 20.0;
+
+/// A Newton iteration that stops contracting (θ ≥ 1) with corrections
+/// below this many tolerances (`‖Δq‖_w ≤ STAGNATION`) has reached the
+/// rounding noise of the linear solve and counts as converged (the noise
+/// of the angle corrections of a chain grows like 1/segment length: at
+/// N = 10 000, ~1e-14 rad, 50 ulps); above it, it diverges.
+pub const STAGNATION: f64 = 100.0;
+
+/// How a step attempt ended.
+pub(super) enum Attempt {
+    Converged,
+    /// Newton did not converge (reason).
+    Failed(String),
+}
+
+impl Run<'_, '_> {
+    /// Factorise the iteration matrix at the current iterate.
+    pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), String> {
+        self.stats.factorizations += 1;
+        self.h_fact = None;
+        self.sys
+            .factorize(t1, &self.new.q, &self.new.v, &self.new.lam, c)?;
+        self.h_fact = Some(h);
+        self.refactor = false;
+        self.last_attempt_fresh = true;
+        Ok(())
+    }
+
+    /// One step attempt from `(self.t, self.cur)` to `t1 = self.t + h`
+    /// into `self.new`: predictor, then (modified) Newton.
+    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Attempt {
+        let p = self.p;
+        let (n, tol) = (self.n, self.opts.newton_tol);
+        let s = p.beta * h * h;
+        let c_m = (1.0 - p.alpha_m) / (1.0 - p.alpha_f);
+        let c = [c_m, p.gamma * h, s];
+        let gp = p.gamma / (p.beta * h); // ∂q̇/∂q
+        let bp = c_m / s; // ∂q̈/∂q
+        let ap = 1.0 / s; // ∂a/∂q
+        {
+            let (cur, new) = (&self.cur, &mut self.new);
+            let (am, af, g, b) = (p.alpha_m, p.alpha_f, p.gamma, p.beta);
+            // q̈_{n+1} predicted constant or extrapolated linearly from the
+            // last two steps; λ_{n+1} constant
+            let r = match self.h_prev {
+                Some(hp) if self.opts.extrapolate => h / hp,
+                _ => 0.0,
+            };
+            for i in 0..n {
+                let qdd0 = cur.qdd[i] + r * (cur.qdd[i] - self.prev_qdd[i]);
+                new.qdd[i] = qdd0;
+                new.a[i] = ((1.0 - af) * qdd0 + af * cur.qdd[i] - am * cur.a[i]) / (1.0 - am);
+                new.v[i] = cur.v[i] + h * ((1.0 - g) * cur.a[i] + g * new.a[i]);
+                new.q[i] = cur.q[i] + h * cur.v[i] + h * h * ((0.5 - b) * cur.a[i] + b * new.a[i]);
+            }
+            new.lam.copy_from_slice(&cur.lam);
+        }
+        self.last_attempt_fresh = false;
+        let stale = match self.h_fact {
+            None => true,
+            Some(hf) => (h / hf - 1.0).abs() > REUSE_BAND,
+        };
+        if self.refactor || stale || !self.opts.reuse {
+            if let Err(e) = self.factor(t1, h, c) {
+                return Attempt::Failed(e);
+            }
+        }
+        // position-equivalent tolerance of the acceleration (and velocity)
+        // corrections, floored at a few ulps of the positions
+        let tol_q = tol / gp.max(bp).max(1.0);
+        let mut prev = f64::NAN;
+        let mut theta: f64;
+        let mut eta = self.eta.max(1.0);
+        // iterations since the last factorisation, refactorisations at an
+        // iterate within this attempt
+        let (mut round, mut refreshed) = (0usize, false);
+        let mut it = 0;
+        loop {
+            if round > 0 && !self.opts.reuse {
+                if let Err(e) = self.factor(t1, h, c) {
+                    return Attempt::Failed(e);
+                }
+            }
+            self.stats.residual_evaluations += 1;
+            let new = &self.new;
+            if let Err(e) =
+                self.sys
+                    .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)
+            {
+                return Attempt::Failed(e);
+            }
+            for x in self.r.iter_mut() {
+                *x = -*x;
+            }
+            if let Err(e) = self.sys.solve(t1, &mut self.r) {
+                return Attempt::Failed(e);
+            }
+            self.stats.newton_iterations += 1;
+            it += 1;
+            let dnorm = self.r[..n]
+                .iter()
+                .zip(&self.new.q)
+                .fold(0.0_f64, |a, (d, q)| {
+                    a.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * q.abs().max(1.0)))
+                });
+            if !dnorm.is_finite() {
+                return Attempt::Failed("non-finite Newton correction".into());
+            }
+            {
+                let (new, dx) = (&mut self.new, &self.r);
+                for (i, &d) in dx[..n].iter().enumerate() {
+                    new.q[i] += d;
+                    new.v[i] += gp * d;
+                    new.qdd[i] += bp * d;
+                    new.a[i] += ap * d;
+                }
+                for (l, d) in new.lam.iter_mut().zip(&dx[n..]) {
+                    *l += d / s;
+                }
+            }
+            let mut done = if round == 0 {
+                theta = f64::NAN;
+                dnorm * eta <= 1.0
+            } else {
+                theta = dnorm / prev;
+                if theta >= 1.0 {
+                    if dnorm > STAGNATION {
+                        return Attempt::Failed(format!(
+                            "Newton diverges (contraction θ = {theta:.3}, correction {:.3e} × tol)",
+                            dnorm
+                        ));
+                    }
+                    // no contraction among corrections this small: the
+                    // iteration has reached the noise floor of the solve
+                    true
+                } else {
+                    eta = theta / (1.0 - theta);
+                    if theta > THETA_REFACTOR {
+                        self.refactor = true;
+                    }
+                    eta * dnorm <= 1.0
+                }
+            };
+            prev = dnorm;
+            round += 1;
+            if done && self.opts.check_constraints {
+                self.sys.constraints(t1, &self.new.q, &mut self.phi);
+                let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+                let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+                done = phi <= tol_q + ROUNDING_ULPS * f64::EPSILON * scale;
+            }
+            if done {
+                if theta.is_finite() && theta < 1.0 {
+                    self.eta = eta;
+                }
+                if it > SLOW_ITERATIONS {
+                    self.refactor = true;
+                }
+                return Attempt::Converged;
+            }
+            if round >= self.opts.max_newton {
+                // Still contracting: renew the matrix at this (much better)
+                // iterate once and carry on; otherwise give up.
+                if self.opts.reuse && !refreshed && theta < 1.0 {
+                    refreshed = true;
+                    if let Err(e) = self.factor(t1, h, c) {
+                        return Attempt::Failed(e);
+                    }
+                    round = 0;
+                    eta = 1.0;
+                    continue;
+                }
+                return Attempt::Failed(format!(
+                    "no convergence in {it} iterations (last correction {prev:.3e} × tol, θ = {theta:.3})"
+                ));
+            }
+        }
+    }
+}

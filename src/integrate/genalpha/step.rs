@@ -1,0 +1,70 @@
+//! Local error estimate and step-size choice of the adaptive mode (module
+//! docs of [`super`]).
+
+use super::*;
+
+/// Safety factor of the step-size controller.
+pub const SAFETY: f64 = 0.9;
+
+impl Run<'_, '_> {
+    /// Norm of the local error estimate of the attempt in `self.new`
+    /// (module docs); ≤ 1 passes.
+    pub(super) fn error_norm(&mut self, t1: f64, h: f64) -> Result<f64, String> {
+        let p = self.p;
+        let n = self.n;
+        // Position LTE constant; for the first-order Newmark members the
+        // velocity LTE (γ − ½) h² q⃛ is added (a heuristic for their
+        // dominant error).
+        let newmark = p.alpha_m == 0.0 && p.alpha_f == 0.0;
+        let extra = if newmark {
+            (p.gamma - 0.5).max(0.0)
+        } else {
+            0.0
+        };
+        let cst = (p.error_constant() + extra).abs() * h * h;
+        for i in 0..n {
+            self.err[i] = cst * (self.new.a[i] - self.cur.a[i]);
+        }
+        if self.opts.filter_error && self.h_fact.is_some() {
+            let c_m = (1.0 - p.alpha_m) / (1.0 - p.alpha_f);
+            let mass = self.sys.mass_diagonal();
+            for (e, m) in self.err[..n].iter_mut().zip(mass) {
+                *e *= c_m * m;
+            }
+            self.err[n..].fill(0.0);
+            self.sys
+                .solve(t1, &mut self.err)
+                .map_err(|e| format!("error filter at t = {t1}: {e}"))?;
+        }
+        let mut norm: f64 = 0.0;
+        for i in 0..n {
+            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs().max(self.new.q[i].abs());
+            let e = self.err[i].abs();
+            norm = norm.max(if w > 0.0 {
+                e / w
+            } else if e > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            });
+        }
+        Ok(norm)
+    }
+
+    pub(super) fn initial_step_guess(&mut self, span: f64) -> f64 {
+        // position change ½ h² q̈ at 1 % of the tolerance
+        let mut acc: f64 = 0.0;
+        for i in 0..self.n {
+            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs();
+            if w > 0.0 {
+                acc = acc.max(self.cur.qdd[i].abs() / w);
+            }
+        }
+        let h = if acc > 0.0 {
+            (0.02 / acc).sqrt()
+        } else {
+            0.01 * span
+        };
+        h.min(0.01 * span).max(1e-6 * span)
+    }
+}
