@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 
 use mbsolve::integrate::{
     integrator, FnSystem, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Recorder,
-    Report, RhsError, Termination, Tolerance,
+    Report, SystemError, Termination, Tolerance,
 };
 
 // ---------------------------------------------------------------- helpers
@@ -722,13 +722,16 @@ impl OdeSystem for FailingRhs {
     fn dim(&self) -> usize {
         1
     }
-    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError> {
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
         if t > self.t_fail {
             if self.nan {
                 dydt[0] = f64::NAN;
                 return Ok(());
             }
-            return Err(RhsError(format!("model undefined beyond {}", self.t_fail)));
+            return Err(SystemError::msg(format!(
+                "model undefined beyond {}",
+                self.t_fail
+            )));
         }
         dydt[0] = -y[0];
         Ok(())

@@ -1,7 +1,7 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
 use super::{Baumgarte, Formulation, FormulationError};
-use crate::integrate::{OdeSystem, RhsError};
+use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
@@ -209,12 +209,11 @@ impl OdeSystem for Index1<'_> {
     fn dim(&self) -> usize {
         2 * self.sys.n_coords()
     }
-    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError> {
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
         let n = self.sys.n_coords();
         let (q, qd) = y.split_at(n);
         let (dq, dqd) = dydt.split_at_mut(n);
         dq.copy_from_slice(qd);
-        self.accelerations(t, q, qd, dqd)
-            .map_err(|e| RhsError(e.to_string()))
+        self.accelerations(t, q, qd, dqd).map_err(SystemError::new)
     }
 }

@@ -60,7 +60,7 @@
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::FormulationError;
-use crate::integrate::SecondOrderDae;
+use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
     Symmetry,
@@ -444,8 +444,8 @@ impl SecondOrderDae for Index3<'_> {
         qd: &[f64],
         qdd: &mut [f64],
         lambda: &mut [f64],
-    ) -> Result<(), String> {
-        Index3::accelerations(self, t, q, qd, qdd, lambda).map_err(|e| e.to_string())
+    ) -> Result<(), SystemError> {
+        Index3::accelerations(self, t, q, qd, qdd, lambda).map_err(SystemError::new)
     }
     fn residual(
         &mut self,
@@ -456,9 +456,9 @@ impl SecondOrderDae for Index3<'_> {
         lambda: &[f64],
         scale: f64,
         r: &mut [f64],
-    ) -> Result<(), String> {
+    ) -> Result<(), SystemError> {
         self.residual_into(t, q, qd, qdd, lambda, scale, r)
-            .map_err(|e| e.to_string())
+            .map_err(SystemError::new)
     }
     fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]) {
         self.sys.phi(q, t, phi);
@@ -470,14 +470,14 @@ impl SecondOrderDae for Index3<'_> {
         qd: &[f64],
         lambda: &[f64],
         c: [f64; 3],
-    ) -> Result<(), String> {
+    ) -> Result<(), SystemError> {
         self.assemble_and_factorize(t, q, qd, lambda, c[0], c[1], c[2])
-            .map_err(|e| e.to_string())
+            .map_err(SystemError::new)
     }
-    fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), String> {
-        self.solve_newton(t, rhs).map_err(|e| e.to_string())
+    fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), SystemError> {
+        self.solve_newton(t, rhs).map_err(SystemError::new)
     }
-    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), String> {
-        Index3::project(self, t, q, qd).map_err(|e| e.to_string())
+    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError> {
+        Index3::project(self, t, q, qd).map_err(SystemError::new)
     }
 }

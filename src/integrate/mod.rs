@@ -47,13 +47,37 @@ pub trait OdeSystem {
     /// Number of state components.
     fn dim(&self) -> usize;
     /// Evaluate f(t, y) into dydt. An Err aborts the integration (reported as Termination::Failed at the current time).
-    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError>;
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError>;
 }
 
-/// Failure of a right-hand-side evaluation, with a human-readable reason.
-#[derive(Debug, Clone, thiserror::Error)]
+/// Failure of the system an integrator drives — a right-hand side
+/// ([`OdeSystem::rhs`]), or a residual, Newton matrix, solve or projection
+/// of a [`SecondOrderDae`]: the system's own typed error, kept as the
+/// source (recover it with [`SystemError::downcast_ref`], e.g. a
+/// `formulation::FormulationError`).
+#[derive(Debug, thiserror::Error)]
+#[error(transparent)]
+pub struct SystemError(Box<dyn std::error::Error + Send + Sync + 'static>);
+
+/// A failure described by a message only (see [`SystemError::msg`]).
+#[derive(Debug, thiserror::Error)]
 #[error("{0}")]
-pub struct RhsError(pub String);
+struct Message(String);
+
+impl SystemError {
+    /// Wrap the system's error.
+    pub fn new(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        Self(Box::new(e))
+    }
+    /// A failure with a message only (simple systems, tests).
+    pub fn msg(m: impl Into<String>) -> Self {
+        Self(Box::new(Message(m.into())))
+    }
+    /// The system's error as `T`, if it is one.
+    pub fn downcast_ref<T: std::error::Error + 'static>(&self) -> Option<&T> {
+        self.0.downcast_ref::<T>()
+    }
+}
 
 /// An [`OdeSystem`] made of a dimension and an infallible closure
 /// `f(t, y, dydt)`; convenient for simple problems and tests.
@@ -73,7 +97,7 @@ impl<F: FnMut(f64, &[f64], &mut [f64])> OdeSystem for FnSystem<F> {
     fn dim(&self) -> usize {
         self.dim
     }
-    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), RhsError> {
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
         (self.f)(t, y, dydt);
         Ok(())
     }
@@ -397,4 +421,21 @@ pub fn integrator(
             return Err(IntegratorError::ImplicitMethod(method.name()))
         }
     })
+}
+
+#[cfg(test)]
+mod system_error_tests {
+    use super::SystemError;
+
+    /// The system's error survives the integrator boundary: same message,
+    /// recoverable by type.
+    #[test]
+    fn keeps_the_source_error() {
+        let e = SystemError::new(std::io::Error::other("singular at t = 0.5"));
+        assert_eq!(e.to_string(), "singular at t = 0.5");
+        assert!(e.downcast_ref::<std::io::Error>().is_some());
+        let m = SystemError::msg("model undefined");
+        assert_eq!(m.to_string(), "model undefined");
+        assert!(m.downcast_ref::<std::io::Error>().is_none());
+    }
 }

@@ -128,7 +128,9 @@ use newton::Attempt;
 
 use super::hermite::cubic;
 use super::Tolerance;
-use super::{common, IntegratorError, Method, Observer, OdeOptions, Report, Stats, Termination};
+use super::{
+    common, IntegratorError, Method, Observer, OdeOptions, Report, Stats, SystemError, Termination,
+};
 use serde::Serialize;
 use std::ops::ControlFlow;
 
@@ -137,7 +139,8 @@ use std::ops::ControlFlow;
 /// see it (implemented for multibody systems by
 /// [`crate::formulation::Index3`]).
 ///
-/// Every method returns `Err(reason)` on failure (non-finite values, a
+/// Every method returns `Err` with the system's typed error
+/// ([`SystemError`]) on failure (non-finite values, a
 /// singular matrix); the integrator then cuts the step or stops.
 pub trait SecondOrderDae {
     /// Number of coordinates n.
@@ -155,7 +158,7 @@ pub trait SecondOrderDae {
         qd: &[f64],
         qdd: &mut [f64],
         lambda: &mut [f64],
-    ) -> Result<(), String>;
+    ) -> Result<(), SystemError>;
     /// Scaled residual: `r[..n] = scale (M q̈ + Φ_qᵀ λ − g)`, `r[n..] = Φ(q, t)`.
     #[allow(clippy::too_many_arguments)]
     fn residual(
@@ -167,7 +170,7 @@ pub trait SecondOrderDae {
         lambda: &[f64],
         scale: f64,
         r: &mut [f64],
-    ) -> Result<(), String>;
+    ) -> Result<(), SystemError>;
     /// Φ(q, t) into `phi`.
     fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]);
     /// Assemble and factorise the iteration matrix
@@ -181,11 +184,11 @@ pub trait SecondOrderDae {
         qd: &[f64],
         lambda: &[f64],
         c: [f64; 3],
-    ) -> Result<(), String>;
+    ) -> Result<(), SystemError>;
     /// Overwrite `rhs` (length n + m) with the solution of the last factorised matrix.
-    fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), String>;
+    fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), SystemError>;
     /// Project `(q, q̇)` onto `Φ = 0`, `Φ_q q̇ + Φ_t = 0`.
-    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), String>;
+    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError>;
 }
 
 /// Work counters of a generalized-α run.

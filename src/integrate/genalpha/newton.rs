@@ -28,12 +28,12 @@ pub const STAGNATION: f64 = 100.0;
 pub(super) enum Attempt {
     Converged,
     /// Newton did not converge (reason).
-    Failed(String),
+    Failed(SystemError),
 }
 
 impl Run<'_, '_> {
     /// Factorise the iteration matrix at the current iterate.
-    pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), String> {
+    pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), SystemError> {
         self.stats.factorizations += 1;
         self.h_fact = None;
         self.sys
@@ -122,7 +122,7 @@ impl Run<'_, '_> {
                     a.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * q.abs().max(1.0)))
                 });
             if !dnorm.is_finite() {
-                return Attempt::Failed("non-finite Newton correction".into());
+                return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
             }
             {
                 let (new, dx) = (&mut self.new, &self.r);
@@ -143,10 +143,10 @@ impl Run<'_, '_> {
                 theta = dnorm / prev;
                 if theta >= 1.0 {
                     if dnorm > STAGNATION {
-                        return Attempt::Failed(format!(
+                        return Attempt::Failed(SystemError::msg(format!(
                             "Newton diverges (contraction θ = {theta:.3}, correction {:.3e} × tol)",
                             dnorm
-                        ));
+                        )));
                     }
                     // no contraction among corrections this small: the
                     // iteration has reached the noise floor of the solve
@@ -188,9 +188,9 @@ impl Run<'_, '_> {
                     eta = 1.0;
                     continue;
                 }
-                return Attempt::Failed(format!(
+                return Attempt::Failed(SystemError::msg(format!(
                     "no convergence in {it} iterations (last correction {prev:.3e} × tol, θ = {theta:.3})"
-                ));
+                )));
             }
         }
     }
