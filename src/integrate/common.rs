@@ -197,27 +197,7 @@ pub(crate) fn validate_run<'a>(
     y0: &[f64],
     output_times: &'a [f64],
 ) -> Result<Run<'a>, IntegratorError> {
-    if !t0.is_finite() {
-        return Err(IntegratorError::InvalidTimeSpan {
-            t0,
-            t_end,
-            reason: "t0 must be finite".into(),
-        });
-    }
-    if !t_end.is_finite() {
-        return Err(IntegratorError::InvalidTimeSpan {
-            t0,
-            t_end,
-            reason: "t_end must be finite".into(),
-        });
-    }
-    if t_end <= t0 {
-        return Err(IntegratorError::InvalidTimeSpan {
-            t0,
-            t_end,
-            reason: "t_end must be greater than t0 (only forward integration is supported)".into(),
-        });
-    }
+    check_span(t0, t_end)?;
     let n = sys.dim();
     if y0.len() != n {
         return Err(IntegratorError::DimensionMismatch {
@@ -238,25 +218,7 @@ pub(crate) fn validate_run<'a>(
             });
         }
     }
-    for (i, &tk) in output_times.iter().enumerate() {
-        let bad = |reason: &str| IntegratorError::InvalidOutputTimes {
-            index: i,
-            value: tk,
-            reason: reason.to_string(),
-        };
-        if !tk.is_finite() {
-            return Err(bad("not finite"));
-        }
-        if tk < t0 || tk > t_end {
-            return Err(bad(&format!("outside the time span [{t0}, {t_end}]")));
-        }
-        if i > 0 && tk <= output_times[i - 1] {
-            return Err(bad(&format!(
-                "output times must be strictly increasing (previous is {})",
-                output_times[i - 1]
-            )));
-        }
-    }
+    check_output_times(t0, t_end, output_times)?;
     Ok(Run {
         t0,
         t_end,
@@ -266,6 +228,54 @@ pub(crate) fn validate_run<'a>(
             next: 0,
         },
     })
+}
+
+/// The time span of a run: finite, forward (`t_end > t0`). Shared by every
+/// integrator.
+pub(crate) fn check_span(t0: f64, t_end: f64) -> Result<(), IntegratorError> {
+    let reason = if !t0.is_finite() {
+        "t0 must be finite"
+    } else if !t_end.is_finite() {
+        "t_end must be finite"
+    } else if t_end <= t0 {
+        "t_end must be greater than t0 (only forward integration is supported)"
+    } else {
+        return Ok(());
+    };
+    Err(IntegratorError::InvalidTimeSpan {
+        t0,
+        t_end,
+        reason: reason.into(),
+    })
+}
+
+/// Requested output times: finite, inside `[t0, t_end]`, strictly
+/// increasing. Shared by every integrator.
+pub(crate) fn check_output_times(
+    t0: f64,
+    t_end: f64,
+    output_times: &[f64],
+) -> Result<(), IntegratorError> {
+    for (i, &tk) in output_times.iter().enumerate() {
+        let bad = |reason: String| IntegratorError::InvalidOutputTimes {
+            index: i,
+            value: tk,
+            reason,
+        };
+        if !tk.is_finite() {
+            return Err(bad("not finite".into()));
+        }
+        if tk < t0 || tk > t_end {
+            return Err(bad(format!("outside the time span [{t0}, {t_end}]")));
+        }
+        if i > 0 && tk <= output_times[i - 1] {
+            return Err(bad(format!(
+                "output times must be strictly increasing (previous is {})",
+                output_times[i - 1]
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Walks through the requested output times as the integration advances.

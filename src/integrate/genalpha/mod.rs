@@ -435,13 +435,7 @@ fn validate_run(
     ode: &OdeOptions,
     adaptive: bool,
 ) -> Result<(), IntegratorError> {
-    if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
-        return Err(IntegratorError::InvalidTimeSpan {
-            t0,
-            t_end,
-            reason: "t0 and t_end must be finite with t_end > t0 (only forward integration)".into(),
-        });
-    }
+    common::check_span(t0, t_end)?;
     for (what, v) in [("q0", q0), ("qd0", qd0)] {
         if v.len() != n {
             return Err(IntegratorError::DimensionMismatch {
@@ -473,25 +467,7 @@ fn validate_run(
             }
         }
     }
-    for (i, &tk) in output_times.iter().enumerate() {
-        let bad = |reason: String| IntegratorError::InvalidOutputTimes {
-            index: i,
-            value: tk,
-            reason,
-        };
-        if !tk.is_finite() {
-            return Err(bad("not finite".into()));
-        }
-        if tk < t0 || tk > t_end {
-            return Err(bad(format!("outside the time span [{t0}, {t_end}]")));
-        }
-        if i > 0 && tk <= output_times[i - 1] {
-            return Err(bad(format!(
-                "output times must be strictly increasing (previous is {})",
-                output_times[i - 1]
-            )));
-        }
-    }
+    common::check_output_times(t0, t_end, output_times)?;
     Ok(())
 }
 
