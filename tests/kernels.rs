@@ -5,7 +5,7 @@
 use mbsolve::builders::{add_rod, build_rod, n_link_pendulum, RodParams};
 use mbsolve::constraints::{Revolute, Translational};
 use mbsolve::forces::{ForceElement, Gravity};
-use mbsolve::formulation::Index3;
+use mbsolve::formulation::{Index3, NewtonSolverKind};
 use mbsolve::linalg::SolverKind;
 use mbsolve::model::{Body, BodyRef, Evaluation, FdWorkspace, System, SystemBuilder};
 use mbsolve::scenario::{self, FALLING_ROD_TOML};
@@ -207,25 +207,28 @@ fn a_rod_inside_a_mechanism_keeps_its_kernels_and_assembles_without_allocating()
     close("(Φ_qᵀλ)_q", &h_got, &h_want, 1e-7); // the slider's is by finite differences
 
     sys.set_evaluation(Evaluation::Auto).unwrap();
-    let mut ix = Index3::new(&sys, SolverKind::Sparse).unwrap();
-    ix.assemble_and_factorize(0.0, &q, &qd, &lam, 1.0, 5e-4, 2.5e-7)
-        .unwrap(); // first call: per-element caches
-    let states: Vec<Vec<f64>> = (1..4)
-        .map(|s| q.iter().map(|v| v + 1e-4 * s as f64).collect())
-        .collect();
-    let mut rhs = vec![1.0; n + m];
-    let before = allocations();
-    for q2 in &states {
-        ix.assemble_and_factorize(0.0, q2, &qd, &lam, 1.0, 5e-4, 2.5e-7)
-            .unwrap();
-        rhs.fill(1.0);
-        ix.solve_newton(0.0, &mut rhs).unwrap();
+    // symmetric LDLᵀ (modified Newton) and sparse LU (exact Newton)
+    for newton in [NewtonSolverKind::SymmetricLdlt, NewtonSolverKind::SparseLu] {
+        let mut ix = Index3::with_newton_solver(&sys, SolverKind::Sparse, newton).unwrap();
+        ix.assemble_and_factorize(0.0, &q, &qd, &lam, 1.0, 5e-4, 2.5e-7)
+            .unwrap(); // first call: per-element caches
+        let states: Vec<Vec<f64>> = (1..4)
+            .map(|s| q.iter().map(|v| v + 1e-4 * s as f64).collect())
+            .collect();
+        let mut rhs = vec![1.0; n + m];
+        let before = allocations();
+        for q2 in &states {
+            ix.assemble_and_factorize(0.0, q2, &qd, &lam, 1.0, 5e-4, 2.5e-7)
+                .unwrap();
+            rhs.fill(1.0);
+            ix.solve_newton(0.0, &mut rhs).unwrap();
+        }
+        assert_eq!(
+            allocations() - before,
+            0,
+            "{newton:?}: Newton assembly, factorisation and solve allocate"
+        );
     }
-    assert_eq!(
-        allocations() - before,
-        0,
-        "Newton assembly, factorisation and solve allocate"
-    );
 }
 
 /// A nonlinear spring between two body centres with only `add_forces`:
