@@ -41,7 +41,11 @@ fn genalpha_with(h: f64, t_end: f64, dt: f64, o: ImplicitOptions) -> RunConfig {
         method: Method::GenAlpha,
         t_end,
         output_dt: dt,
-        implicit: ImplicitOptions { step: Some(h), ..o },
+        ode: OdeOptions {
+            fixed_step: Some(h),
+            ..Default::default()
+        },
+        implicit: o,
         ..Default::default()
     }
 }

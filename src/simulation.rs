@@ -27,9 +27,10 @@ pub struct RunConfig {
     /// Formulation, Baumgarte parameters, linear solver.
     pub index1: Index1Options,
     /// Options of the implicit methods ([`Method::is_implicit`]: genalpha,
-    /// hht, newmark): ρ∞, step, adaptivity, Newton, projection. Their
+    /// hht, newmark): ρ∞, adaptivity, Newton, projection. Their step,
     /// tolerances, `max_step`, `initial_step` and `max_steps` come from
-    /// `ode`, their linear solver from `index1.linear_solver`.
+    /// `ode`, their linear solver from `index1.linear_solver`. Must stay
+    /// at its default for the explicit methods ([`ImplicitOptions::validate`]).
     pub implicit: ImplicitOptions,
 }
 
@@ -249,6 +250,7 @@ pub fn simulate(
             "component {k} of (q0, q̇0) is not finite"
         )));
     }
+    cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
     if cfg.method.is_implicit() {
         return simulate_implicit(sys, q0, qd0, cfg, monitors);
     }
@@ -318,7 +320,7 @@ fn simulate_implicit(
     let fixed_step = if opts.adaptive {
         serde_json::Value::Null
     } else {
-        opts.step.or(cfg.ode.fixed_step).into()
+        cfg.ode.fixed_step.into()
     };
     for (k, v) in [
         ("newton_iterations", gs.newton_iterations.into()),

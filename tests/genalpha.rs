@@ -16,10 +16,11 @@ fn implicit(method: Method, h: f64, t_end: f64, dt: f64, opts: ImplicitOptions) 
         method,
         t_end,
         output_dt: dt,
-        implicit: ImplicitOptions {
-            step: Some(h),
-            ..opts
+        ode: OdeOptions {
+            fixed_step: Some(h),
+            ..Default::default()
         },
+        implicit: opts,
         ..Default::default()
     }
 }
@@ -254,7 +255,7 @@ fn agrees_with_ode45_on_problem_b() {
             ..Default::default()
         },
     );
-    cfg.implicit.step = None;
+    cfg.ode.fixed_step = None;
     cfg.ode.rtol = 1e-5;
     cfg.ode.atol = Tolerance::Scalar(1e-8);
     let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
@@ -429,9 +430,13 @@ fn implicit_methods_parse_validate_and_are_not_ode_integrators() {
 
     let sys = oscillator();
     let (q0, qd0) = sys.initial_state();
-    let bad = |method: Method, o: ImplicitOptions| {
+    let bad = |method: Method, (o, h): (ImplicitOptions, Option<f64>)| {
         let cfg = RunConfig {
             method,
+            ode: OdeOptions {
+                fixed_step: h,
+                ..Default::default()
+            },
             implicit: o,
             ..Default::default()
         };
@@ -440,34 +445,39 @@ fn implicit_methods_parse_validate_and_are_not_ode_integrators() {
             .unwrap_err()
             .to_string()
     };
-    let step = |h: f64| ImplicitOptions {
-        step: Some(h),
-        ..Default::default()
-    };
-    let e = bad(Method::GenAlpha, ImplicitOptions::default());
+    let e = bad(Method::GenAlpha, (ImplicitOptions::default(), None));
     assert!(e.contains("step"), "{e}");
     let e = bad(
         Method::GenAlpha,
-        ImplicitOptions {
-            rho_inf: 1.5,
-            ..step(1e-3)
-        },
+        (
+            ImplicitOptions {
+                rho_inf: 1.5,
+                ..Default::default()
+            },
+            Some(1e-3),
+        ),
     );
     assert!(e.contains("rho_inf"), "{e}");
     let e = bad(
         Method::Hht,
-        ImplicitOptions {
-            rho_inf: 0.3,
-            ..step(1e-3)
-        },
+        (
+            ImplicitOptions {
+                rho_inf: 0.3,
+                ..Default::default()
+            },
+            Some(1e-3),
+        ),
     );
     assert!(e.contains("rho_inf") && e.contains("0.5"), "{e}");
     let e = bad(
         Method::GenAlpha,
-        ImplicitOptions {
-            newton_tol: 0.0,
-            ..step(1e-3)
-        },
+        (
+            ImplicitOptions {
+                newton_tol: 0.0,
+                ..Default::default()
+            },
+            Some(1e-3),
+        ),
     );
     assert!(e.contains("newton_tol"), "{e}");
 }

@@ -65,7 +65,7 @@ fn options_of_another_method_are_errors_naming_the_key() {
                 "integrator.initial_step=1e-4",
             ],
             "integrator.initial_step",
-            "starts with integrator.step",
+            "adaptive = true only",
         ),
         (
             &[
@@ -130,7 +130,7 @@ fn options_that_apply_are_accepted() {
         &[
             "integrator.method=\"genalpha\"",
             "integrator.adaptive=true",
-            "integrator.step=1e-3",
+            "integrator.initial_step=1e-3",
             "integrator.rtol=1e-5",
             "integrator.max_step=0.01",
         ],
@@ -147,4 +147,23 @@ fn options_that_apply_are_accepted() {
     .map(|s| s.to_string())
     .collect();
     scenario::parse(FALLING_ROD_TOML, "falling_rod.toml", "falling_rod", &o).unwrap();
+}
+
+/// The library refuses implicit-only options under an explicit method
+/// (they used to be ignored silently).
+#[test]
+fn simulate_rejects_implicit_options_for_explicit_methods() {
+    use mbsolve::integrate::{ImplicitOptions, Method};
+    let sc = fourbar(&[]).unwrap();
+    let mut cfg = sc.run.clone();
+    cfg.method = Method::Ode45;
+    cfg.implicit = ImplicitOptions {
+        min_step: Some(1e-6),
+        ..Default::default()
+    };
+    let e = mbsolve::simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &cfg, &mut [])
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("min_step") && e.contains("ode45"), "{e}");
 }

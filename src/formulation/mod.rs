@@ -97,6 +97,18 @@ impl std::str::FromStr for BaumgarteRule {
     }
 }
 
+impl BaumgarteRule {
+    /// The scenario name: `explicit`, `equal`, `alpha_sqrt2` or `sqrt_2alpha`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Explicit => "explicit",
+            Self::Equal => "equal",
+            Self::AlphaSqrt2 => "alpha_sqrt2",
+            Self::Sqrt2Alpha => "sqrt_2alpha",
+        }
+    }
+}
+
 impl Baumgarte {
     /// Parameters from a rule: `beta` is used only by [`BaumgarteRule::Explicit`].
     pub fn from_rule(rule: BaumgarteRule, alpha: f64, beta: f64) -> Self {
@@ -107,6 +119,21 @@ impl Baumgarte {
             BaumgarteRule::Sqrt2Alpha => (2.0 * alpha).sqrt(),
         };
         Self { alpha, beta }
+    }
+
+    /// Checks α and β: finite and ≥ 0
+    /// ([`FormulationError::InvalidOption`] names the field).
+    pub fn validate(&self) -> Result<(), FormulationError> {
+        for (option, v) in [("alpha", self.alpha), ("beta", self.beta)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(FormulationError::InvalidOption {
+                    option,
+                    value: v.to_string(),
+                    reason: "must be finite and ≥ 0".into(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// True for α = β = 0.
@@ -143,4 +170,14 @@ pub enum FormulationError {
     /// Newton iteration for consistent initial conditions failed.
     #[error("consistent initial conditions: {0}")]
     Initial(String),
+    /// An option has an invalid value.
+    #[error("invalid option {option} = {value}: {reason}")]
+    InvalidOption {
+        /// Option name (field of the options struct).
+        option: &'static str,
+        /// Offending value.
+        value: String,
+        /// What is required.
+        reason: String,
+    },
 }

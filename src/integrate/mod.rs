@@ -29,13 +29,15 @@ mod common;
 mod embedded;
 mod genalpha;
 mod hermite;
+mod options;
 mod rk4;
 mod tableau;
 
 pub use genalpha::{
-    AlphaParameters, GenAlpha, GenAlphaStats, ImplicitOptions, SecondOrderDae, REUSE_BAND,
-    ROUNDING_ULPS, SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, REUSE_BAND, ROUNDING_ULPS, SAFETY,
+    SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
+pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 
 use std::ops::ControlFlow;
 use std::str::FromStr;
@@ -183,49 +185,6 @@ impl FromStr for Method {
     }
 }
 
-/// Absolute tolerance: one value for all components or one per component.
-#[derive(Debug, Clone)]
-pub enum Tolerance {
-    /// Same absolute tolerance for every component.
-    Scalar(f64),
-    /// One absolute tolerance per component (length must equal the system dimension).
-    Vector(Vec<f64>),
-}
-
-/// Integration options, named and defaulted as MATLAB's `odeset`.
-#[derive(Debug, Clone)]
-pub struct OdeOptions {
-    /// Relative tolerance (`RelTol`), default 1e-3. Values below `100·eps`
-    /// are raised to `100·eps` (reported in [`Report::warnings`]).
-    pub rtol: f64,
-    /// Absolute tolerance (`AbsTol`), default `Scalar(1e-6)`; must be ≥ 0.
-    pub atol: Tolerance,
-    /// Maximal step (`MaxStep`); `None` => MATLAB default `0.1·|t_end - t0|`.
-    /// Always limited to `|t_end - t0|`.
-    pub max_step: Option<f64>,
-    /// First step to try (`InitialStep`); `None` => MATLAB's automatic choice.
-    pub initial_step: Option<f64>,
-    /// Step of [`Method::Rk4`] (required there, ignored by the adaptive methods);
-    /// the last step is shortened to end exactly on `t_end`.
-    pub fixed_step: Option<f64>,
-    /// Safety cap on accepted steps; reaching it ends the run with
-    /// [`Termination::Failed`]. Default 50 000 000.
-    pub max_steps: usize,
-}
-
-impl Default for OdeOptions {
-    fn default() -> Self {
-        Self {
-            rtol: 1e-3,
-            atol: Tolerance::Scalar(1e-6),
-            max_step: None,
-            initial_step: None,
-            fixed_step: None,
-            max_steps: 50_000_000,
-        }
-    }
-}
-
 /// Work statistics, counted as MATLAB's `nsteps`, `nfailed`, `nfevals`.
 #[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Stats {
@@ -320,11 +279,21 @@ pub enum IntegratorError {
     /// An option has an invalid value.
     #[error("invalid option {option} = {value}: {reason}")]
     InvalidOption {
-        /// Option name (field of [`OdeOptions`]).
+        /// Option name (field of [`OdeOptions`] or [`ImplicitOptions`]).
         option: &'static str,
         /// Offending value.
         value: String,
         /// What is required.
+        reason: String,
+    },
+    /// An option is set for a method that does not use it.
+    #[error("option {option} does not apply to {method}: {reason}")]
+    NotApplicable {
+        /// Option name (field of [`OdeOptions`] or [`ImplicitOptions`]).
+        option: &'static str,
+        /// The chosen method.
+        method: &'static str,
+        /// Why it does not apply.
         reason: String,
     },
     /// Unknown method name.
@@ -398,10 +367,8 @@ pub trait Integrator {
     ) -> Result<Report, IntegratorError>;
 }
 
-/// Creates an integrator for `method`, validating the options that do not
-/// depend on the system (`rtol > 0`, `atol ≥ 0`, `max_step > 0`,
-/// `initial_step > 0`, `max_steps ≥ 1`; `fixed_step > 0` for rk4).
-/// Tolerances and step limits are checked only for the methods that use them.
+/// Creates an integrator for `method`, validating the options with
+/// [`OdeOptions::validate`] (options the method does not use are an error).
 ///
 /// The implicit methods ([`Method::is_implicit`]) return
 /// [`IntegratorError::ImplicitMethod`].
@@ -412,7 +379,7 @@ pub fn integrator(
     if method.is_implicit() {
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
-    common::validate_options(method, &options)?;
+    options.validate(method, false)?;
     Ok(match method {
         Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
         Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),

@@ -3,8 +3,8 @@
 //! Keys that do not apply to the chosen method are errors naming the key.
 
 use super::{error, positive, RawScenario, ScenarioError};
-use crate::formulation::{Baumgarte, BaumgarteRule, Formulation, Index1Options};
-use crate::integrate::{ImplicitOptions, Method, OdeOptions, Tolerance};
+use crate::formulation::{Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options};
+use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
 use crate::simulation::RunConfig;
 use serde::Deserialize;
@@ -63,66 +63,32 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         })?,
         None => Method::Ode23,
     };
+    let ri = &raw.integrator;
     let mut ode = OdeOptions::default();
-    if let Some(r) = raw.integrator.rtol {
-        positive(r).map_err(|m| err("integrator.rtol".into(), m))?;
+    if let Some(r) = ri.rtol {
         ode.rtol = r;
     }
-    if let Some(a) = raw.integrator.atol {
-        if !(a.is_finite() && a >= 0.0) {
-            return Err(err(
-                "integrator.atol".into(),
-                format!("{a} is invalid: must be finite and ≥ 0"),
-            ));
-        }
+    if let Some(a) = ri.atol {
         ode.atol = Tolerance::Scalar(a);
     }
-    for (k, v, slot) in [
-        ("integrator.step", raw.integrator.step, &mut ode.fixed_step),
-        (
-            "integrator.max_step",
-            raw.integrator.max_step,
-            &mut ode.max_step,
-        ),
-        (
-            "integrator.initial_step",
-            raw.integrator.initial_step,
-            &mut ode.initial_step,
-        ),
-    ] {
-        if let Some(v) = v {
-            positive(v).map_err(|m| err(k.into(), m))?;
-            *slot = Some(v);
-        }
-    }
-    let ri = &raw.integrator;
+    ode.fixed_step = ri.step;
+    ode.max_step = ri.max_step;
+    ode.initial_step = ri.initial_step;
     let mut implicit = ImplicitOptions::default();
     if let Some(r) = ri.rho_inf {
-        let lo = if method == Method::Hht { 0.5 } else { 0.0 };
-        if !(r.is_finite() && (lo..=1.0).contains(&r)) {
-            return Err(err(
-                "integrator.rho_inf".into(),
-                format!("{r} is invalid: must be in [{lo}, 1] for {}", method.name()),
-            ));
-        }
         implicit.rho_inf = r;
     }
     if let Some(v) = ri.newton_tol {
-        positive(v).map_err(|m| err("integrator.newton_tol".into(), m))?;
         implicit.newton_tol = v;
     }
-    if let Some(v) = ri.min_step {
-        positive(v).map_err(|m| err("integrator.min_step".into(), m))?;
-        implicit.min_step = Some(v);
-    }
+    implicit.min_step = ri.min_step;
     if let Some(v) = ri.max_newton {
-        if v < 1 {
-            return Err(err(
+        implicit.max_newton = usize::try_from(v).map_err(|_| {
+            err(
                 "integrator.max_newton".into(),
                 format!("{v} is invalid: must be ≥ 1"),
-            ));
-        }
-        implicit.max_newton = v as usize;
+            )
+        })?;
     }
     for (flag, slot) in [
         (ri.adaptive, &mut implicit.adaptive),
@@ -136,22 +102,6 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         if let Some(v) = flag {
             *slot = v;
         }
-    }
-    implicit.step = ode.fixed_step;
-    if method.is_implicit() && ode.fixed_step.is_none() && !implicit.adaptive {
-        return Err(err(
-            "integrator.step".into(),
-            format!(
-                "{} needs a fixed integrator.step, or integrator.adaptive = true",
-                method.name()
-            ),
-        ));
-    }
-    if method == Method::Rk4 && ode.fixed_step.is_none() {
-        return Err(err(
-            "integrator.step".into(),
-            "the fixed-step method rk4 needs integrator.step".into(),
-        ));
     }
     let (t0, t_end) = (raw.time.start, raw.time.end);
     if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
@@ -167,19 +117,6 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         Some(r) => r.parse().map_err(|m| err("stabilization.rule".into(), m))?,
         None => BaumgarteRule::Explicit,
     };
-    for (k, v) in [
-        ("stabilization.alpha", st.alpha),
-        ("stabilization.beta", st.beta),
-    ] {
-        if let Some(v) = v {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(err(
-                    k.into(),
-                    format!("{v} is invalid: must be finite and ≥ 0"),
-                ));
-            }
-        }
-    }
     if let (Some(b), Some(r)) = (st.beta, st.rule.as_deref()) {
         if rule != BaumgarteRule::Explicit {
             return Err(err(
@@ -192,6 +129,17 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         }
     }
     let baumgarte = Baumgarte::from_rule(rule, st.alpha.unwrap_or(0.0), st.beta.unwrap_or(0.0));
+    baumgarte.validate().map_err(|e| match e {
+        FormulationError::InvalidOption {
+            option,
+            value,
+            reason,
+        } => err(
+            format!("stabilization.{option}"),
+            format!("{value} is invalid: {reason}"),
+        ),
+        other => err("stabilization".into(), other.to_string()),
+    })?;
     let formulation: Formulation = match &raw.formulation {
         Some(f) => f.parse().map_err(|m| err("formulation".into(), m))?,
         None => Formulation::Saddle,
@@ -202,6 +150,10 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     };
     inapplicable(raw, method, implicit.adaptive, &baumgarte, formulation)
         .map_err(|(key, why)| err(key, why))?;
+    // The options' own validators (values); their fields map to scenario keys.
+    ode.validate(method, implicit.adaptive)
+        .and_then(|()| implicit.validate(method, ode.fixed_step))
+        .map_err(|e| integrator_error(&err, e))?;
     let run = RunConfig {
         method,
         ode,
@@ -252,12 +204,15 @@ fn inapplicable(
         fixed("rtol", ri.rtol.is_some())?;
         fixed("atol", ri.atol.is_some())?;
         fixed("max_step", ri.max_step.is_some())?;
+        fixed("initial_step", ri.initial_step.is_some())?;
         fixed("filter_error", ri.filter_error.is_some())?;
-        fixed("min_step", ri.min_step.is_some())?;
         given(
-            ri.initial_step.is_some(),
-            "initial_step",
-            format!("{name} starts with integrator.step: give that instead"),
+            adaptive && ri.step.is_some(),
+            "step",
+            format!(
+                "{name} with integrator.adaptive = true chooses its steps: use \
+                 integrator.initial_step or integrator.max_step"
+            ),
         )?;
         if !baumgarte.is_off() {
             let key = if raw.stabilization.alpha.unwrap_or(0.0) != 0.0 {
@@ -322,4 +277,32 @@ fn inapplicable(
         )?;
     }
     Ok(())
+}
+
+/// An integrator option error as a scenario error at the option's key
+/// (`fixed_step` is `integrator.step`).
+fn integrator_error(
+    err: &impl Fn(String, String) -> ScenarioError,
+    e: IntegratorError,
+) -> ScenarioError {
+    let key = |option: &str| match option {
+        "fixed_step" => "integrator.step".to_string(),
+        o => format!("integrator.{o}"),
+    };
+    match e {
+        IntegratorError::InvalidOption {
+            option,
+            value,
+            reason,
+        } => {
+            let reason = reason.replace("fixed_step", "integrator.step");
+            err(key(option), format!("{value} is invalid: {reason}"))
+        }
+        IntegratorError::NotApplicable {
+            option,
+            method,
+            reason,
+        } => err(key(option), format!("does not apply to {method}: {reason}")),
+        other => err("integrator".into(), other.to_string()),
+    }
 }

@@ -89,7 +89,7 @@
 //!
 //! # Step size
 //!
-//! * **Fixed** ([`ImplicitOptions::step`]): steps on the grid
+//! * **Fixed** ([`OdeOptions::fixed_step`]): steps on the grid
 //!   `t_0 + k h`, the last one shortened to end on `t_end`. When Newton
 //!   fails (e.g. at a contact onset) the step is halved and the grid point
 //!   reached by sub-steps that double again after each success.
@@ -121,7 +121,7 @@ mod params;
 mod step;
 
 pub use newton::{REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR};
-pub use params::{AlphaParameters, ImplicitOptions};
+pub use params::AlphaParameters;
 pub use step::SAFETY;
 
 use newton::Attempt;
@@ -129,7 +129,8 @@ use newton::Attempt;
 use super::hermite::cubic;
 use super::Tolerance;
 use super::{
-    common, IntegratorError, Method, Observer, OdeOptions, Report, Stats, SystemError, Termination,
+    common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
+    SystemError, Termination,
 };
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -248,14 +249,6 @@ impl State {
     }
 }
 
-fn invalid(option: &'static str, value: impl std::fmt::Display, reason: &str) -> IntegratorError {
-    IntegratorError::InvalidOption {
-        option,
-        value: value.to_string(),
-        reason: reason.to_string(),
-    }
-}
-
 impl GenAlpha {
     /// Validate the options and set up the parameters of `method`
     /// ([`Method::GenAlpha`], [`Method::Hht`] or [`Method::Newmark`]).
@@ -264,83 +257,15 @@ impl GenAlpha {
         opts: ImplicitOptions,
         ode: OdeOptions,
     ) -> Result<Self, IntegratorError> {
+        ode.validate(method, opts.adaptive)?;
+        opts.validate(method, ode.fixed_step)?;
         let params = AlphaParameters::for_method(method, opts.rho_inf)?;
-        if !(opts.newton_tol > 0.0 && opts.newton_tol.is_finite()) {
-            return Err(invalid(
-                "newton_tol",
-                opts.newton_tol,
-                "must be positive and finite",
-            ));
-        }
-        if opts.max_newton == 0 {
-            return Err(invalid("max_newton", 0, "must be at least 1"));
-        }
-        if ode.max_steps == 0 {
-            return Err(invalid("max_steps", 0, "must be at least 1"));
-        }
-        if let Some(h) = opts.min_step {
-            if !(h > 0.0 && h.is_finite()) {
-                return Err(invalid("min_step", h, "must be positive and finite"));
-            }
-        }
-        let step = opts.step.or(ode.fixed_step);
-        if let Some(h) = step {
-            if !(h > 0.0 && h.is_finite()) {
-                return Err(invalid("step", h, "must be positive and finite"));
-            }
-        }
+        // `OdeOptions::validate` guarantees a step when not adaptive
         let h_fixed = if opts.adaptive {
-            if !(ode.rtol > 0.0 && ode.rtol.is_finite()) {
-                return Err(invalid("rtol", ode.rtol, "must be positive and finite"));
-            }
-            match &ode.atol {
-                Tolerance::Scalar(a) if !(*a >= 0.0 && a.is_finite()) => {
-                    return Err(invalid("atol", a, "must be non-negative and finite"))
-                }
-                Tolerance::Vector(v) if v.iter().any(|a| !(*a >= 0.0 && a.is_finite())) => {
-                    return Err(invalid(
-                        "atol",
-                        "vector",
-                        "every component must be non-negative and finite",
-                    ))
-                }
-                _ => {}
-            }
-            if let Some(h) = ode.max_step {
-                if h.is_nan() || h <= 0.0 {
-                    return Err(invalid("max_step", h, "must be positive"));
-                }
-            }
-            if let Some(h) = ode.initial_step {
-                if !(h > 0.0 && h.is_finite()) {
-                    return Err(invalid("initial_step", h, "must be positive and finite"));
-                }
-            }
             0.0
         } else {
-            match step {
-                Some(h) => h,
-                None => {
-                    return Err(invalid(
-                        "step",
-                        "None",
-                        &format!(
-                            "{} with a fixed step needs a step (or adaptive = true)",
-                            method.name()
-                        ),
-                    ))
-                }
-            }
+            ode.fixed_step.unwrap_or(0.0)
         };
-        if let (Some(hmin), false) = (opts.min_step, opts.adaptive) {
-            if hmin > h_fixed {
-                return Err(invalid(
-                    "min_step",
-                    hmin,
-                    &format!("must not exceed the fixed step {h_fixed}"),
-                ));
-            }
-        }
         Ok(Self {
             method,
             params,
@@ -599,9 +524,8 @@ impl<'g, 's> Run<'g, 's> {
             self.h_fixed
         };
         let mut h = if adaptive {
-            self.opts
-                .step
-                .or(self.ode.initial_step)
+            self.ode
+                .initial_step
                 .unwrap_or_else(|| self.initial_step_guess(span))
                 .min(max_step)
         } else {

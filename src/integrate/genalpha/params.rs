@@ -1,5 +1,5 @@
 //! The parameters of generalized-α, HHT and Newmark from ρ∞ (module docs
-//! of [`super`]) and the options of the implicit integrators.
+//! of [`super`]); the options are [`crate::integrate::ImplicitOptions`].
 
 use super::super::{IntegratorError, Method};
 use serde::Serialize;
@@ -94,84 +94,5 @@ impl AlphaParameters {
     /// Zienkiewicz & Xie 1991).
     pub fn error_constant(&self) -> f64 {
         self.beta - 0.5 * self.gamma + 1.0 / 12.0
-    }
-}
-
-/// Options of the implicit integrators (scenario keys `integrator.<field>`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ImplicitOptions {
-    /// Spectral radius at infinity ρ∞ ∈ [0, 1] (HHT: [½, 1]): the factor by
-    /// which unresolved high-frequency components shrink per step.
-    /// Default 0.8.
-    pub rho_inf: f64,
-    /// Fixed step h; `None` falls back to [`OdeOptions::fixed_step`](crate::integrate::OdeOptions::fixed_step). With
-    /// `adaptive` it is the initial step (else [`OdeOptions::initial_step`](crate::integrate::OdeOptions::initial_step)
-    /// or an automatic guess).
-    pub step: Option<f64>,
-    /// Adapt the step to the local error estimate with `rtol`/`atol` of
-    /// [`OdeOptions`](crate::integrate::OdeOptions) (also `max_step`, `max_steps`). Default false.
-    pub adaptive: bool,
-    /// Newton tolerance on the acceleration corrections `Δq̈ = β' Δq`
-    /// (m/s², rad/s²; also bounds the velocity and position corrections),
-    /// floored at the rounding noise of q (module docs). Unconverged
-    /// remainders add up to a position error of about `T² newton_tol`
-    /// over a run of length T. Default 1e-6.
-    pub newton_tol: f64,
-    /// Newton iterations per attempt before the step is retried (fresh
-    /// factorisation) or cut. Default 8.
-    pub max_newton: usize,
-    /// Project positions and velocities onto the constraint manifold after
-    /// every step (mass-weighted, one extra factorisation per step).
-    /// Default false.
-    pub project: bool,
-    /// Keep factorisations across iterations and steps (modified Newton);
-    /// false: a fresh factorisation at every iteration (full Newton up to
-    /// the symmetrisation). Default true.
-    pub reuse: bool,
-    /// Filter the error estimate through the iteration matrix (adaptive
-    /// only; module docs). Default true.
-    pub filter_error: bool,
-    /// Also require `‖Φ(q_{n+1})‖∞` below the position-equivalent Newton
-    /// tolerance `newton_tol / max(1, γ', β')` (floored at 20 ulps of
-    /// `max |q_i|`) after the last correction (one more evaluation of Φ
-    /// per iteration). Off by default: after a
-    /// correction `Φ_q Δq = −Φ` holds exactly for the factorised Φ_q, so
-    /// the remaining `Φ` is `O(‖Δq‖²) + O(‖Φ_q − Φ_q^fact‖ ‖Δq‖)`, far
-    /// below the tolerance once `‖Δq‖` is.
-    pub check_constraints: bool,
-    /// Smallest step before the run fails; `None`: `16 eps(t)` (MATLAB's
-    /// `hmin`).
-    pub min_step: Option<f64>,
-    /// Factorise the full unsymmetric iteration matrix with a sparse LU
-    /// (exact Newton) instead of its symmetric part with the LDLᵀ
-    /// saddle-point solver (modified Newton). Read by the caller that builds
-    /// the [`SecondOrderDae`](super::SecondOrderDae) (`simulation::simulate`:
-    /// [`crate::formulation::NewtonSolverKind`]). Default false.
-    pub lu: bool,
-    /// Newton predictor: `q̈_{n+1}` extrapolated linearly from the last
-    /// two steps (true) or kept constant (false, as `λ_{n+1}` always is;
-    /// Arnold & Brüls 2007). Measured on problem C at h = 2.5e-5 over
-    /// 0.3 s: −16 % Newton iterations at N = 1000, +14 % at N = 100, and
-    /// twice the iterations in free fall (where the constant predictor is
-    /// exact); hence off by default.
-    pub extrapolate: bool,
-}
-
-impl Default for ImplicitOptions {
-    fn default() -> Self {
-        Self {
-            rho_inf: 0.8,
-            step: None,
-            adaptive: false,
-            newton_tol: 1e-6,
-            max_newton: 8,
-            project: false,
-            reuse: true,
-            filter_error: true,
-            check_constraints: false,
-            min_step: None,
-            lu: false,
-            extrapolate: false,
-        }
     }
 }

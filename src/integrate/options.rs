@@ -1,0 +1,323 @@
+//! Integrator options: one struct per concern, one validator per struct.
+//!
+//! * [`OdeOptions`]: tolerances, step sizes and the step cap of every
+//!   method (MATLAB's `odeset` names); [`OdeOptions::validate`].
+//! * [`ImplicitOptions`]: what only the generalized-α family uses
+//!   (ρ∞, Newton, projection, adaptivity); [`ImplicitOptions::validate`].
+//!
+//! Validators return [`IntegratorError::InvalidOption`] (field, value, what
+//! is required) or [`IntegratorError::NotApplicable`] (a field set for a
+//! method that does not use it); callers that read the options from
+//! elsewhere (the scenario loader) map the field to their own key.
+
+use super::genalpha::AlphaParameters;
+use super::{IntegratorError, Method};
+use serde::Serialize;
+
+/// Absolute tolerance: one value for all components or one per component.
+#[derive(Debug, Clone)]
+pub enum Tolerance {
+    /// Same absolute tolerance for every component.
+    Scalar(f64),
+    /// One absolute tolerance per component (length must equal the system dimension).
+    Vector(Vec<f64>),
+}
+
+/// Integration options, named and defaulted as MATLAB's `odeset`.
+#[derive(Debug, Clone)]
+pub struct OdeOptions {
+    /// Relative tolerance (`RelTol`), default 1e-3. Values below `100·eps`
+    /// are raised to `100·eps` (reported in [`Report::warnings`](super::Report::warnings)).
+    pub rtol: f64,
+    /// Absolute tolerance (`AbsTol`), default `Scalar(1e-6)`; must be ≥ 0.
+    pub atol: Tolerance,
+    /// Maximal step (`MaxStep`, step-controlled methods only); `None` => MATLAB default `0.1·|t_end - t0|`.
+    /// Always limited to `|t_end - t0|`.
+    pub max_step: Option<f64>,
+    /// First step to try (`InitialStep`, step-controlled methods only); `None` => MATLAB's automatic choice.
+    pub initial_step: Option<f64>,
+    /// The one home of a fixed step size (scenario key `integrator.step`):
+    /// the step of [`Method::Rk4`] and of the implicit methods without
+    /// [`ImplicitOptions::adaptive`] (required there; the last step is
+    /// shortened to end exactly on `t_end`). Setting it for a
+    /// step-controlled method is an [`IntegratorError::NotApplicable`].
+    pub fixed_step: Option<f64>,
+    /// Safety cap on accepted steps; reaching it ends the run with
+    /// [`Termination::Failed`](super::Termination::Failed). Default 50 000 000.
+    pub max_steps: usize,
+}
+
+impl Default for OdeOptions {
+    fn default() -> Self {
+        Self {
+            rtol: 1e-3,
+            atol: Tolerance::Scalar(1e-6),
+            max_step: None,
+            initial_step: None,
+            fixed_step: None,
+            max_steps: 50_000_000,
+        }
+    }
+}
+
+/// Options of the implicit integrators (scenario keys `integrator.<field>`);
+/// their step, tolerances and step limits live in [`OdeOptions`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImplicitOptions {
+    /// Spectral radius at infinity ρ∞ ∈ [0, 1] (HHT: [½, 1]): the factor by
+    /// which unresolved high-frequency components shrink per step.
+    /// Default 0.8.
+    pub rho_inf: f64,
+    /// Adapt the step to the local error estimate with `rtol`/`atol` of
+    /// [`OdeOptions`] (also `max_step`, `max_steps`). Default false.
+    pub adaptive: bool,
+    /// Newton tolerance on the acceleration corrections `Δq̈ = β' Δq`
+    /// (m/s², rad/s²; also bounds the velocity and position corrections),
+    /// floored at the rounding noise of q (module docs). Unconverged
+    /// remainders add up to a position error of about `T² newton_tol`
+    /// over a run of length T. Default 1e-6.
+    pub newton_tol: f64,
+    /// Newton iterations per attempt before the step is retried (fresh
+    /// factorisation) or cut. Default 8.
+    pub max_newton: usize,
+    /// Project positions and velocities onto the constraint manifold after
+    /// every step (mass-weighted, one extra factorisation per step).
+    /// Default false.
+    pub project: bool,
+    /// Keep factorisations across iterations and steps (modified Newton);
+    /// false: a fresh factorisation at every iteration (full Newton up to
+    /// the symmetrisation). Default true.
+    pub reuse: bool,
+    /// Filter the error estimate through the iteration matrix (adaptive
+    /// only; module docs). Default true.
+    pub filter_error: bool,
+    /// Also require `‖Φ(q_{n+1})‖∞` below the position-equivalent Newton
+    /// tolerance `newton_tol / max(1, γ', β')` (floored at 20 ulps of
+    /// `max |q_i|`) after the last correction (one more evaluation of Φ
+    /// per iteration). Off by default: after a
+    /// correction `Φ_q Δq = −Φ` holds exactly for the factorised Φ_q, so
+    /// the remaining `Φ` is `O(‖Δq‖²) + O(‖Φ_q − Φ_q^fact‖ ‖Δq‖)`, far
+    /// below the tolerance once `‖Δq‖` is.
+    pub check_constraints: bool,
+    /// Smallest step before the run fails; `None`: `16 eps(t)` (MATLAB's
+    /// `hmin`). Must not exceed [`OdeOptions::fixed_step`].
+    pub min_step: Option<f64>,
+    /// Factorise the full unsymmetric iteration matrix with a sparse LU
+    /// (exact Newton) instead of its symmetric part with the LDLᵀ
+    /// saddle-point solver (modified Newton). Read by the caller that builds
+    /// the [`SecondOrderDae`](super::SecondOrderDae) (`simulation::simulate`:
+    /// [`crate::formulation::NewtonSolverKind`]). Default false.
+    pub lu: bool,
+    /// Newton predictor: `q̈_{n+1}` extrapolated linearly from the last
+    /// two steps (true) or kept constant (false, as `λ_{n+1}` always is;
+    /// Arnold & Brüls 2007). Measured on problem C at h = 2.5e-5 over
+    /// 0.3 s: −16 % Newton iterations at N = 1000, +14 % at N = 100, and
+    /// twice the iterations in free fall (where the constant predictor is
+    /// exact); hence off by default.
+    pub extrapolate: bool,
+}
+
+impl Default for ImplicitOptions {
+    fn default() -> Self {
+        Self {
+            rho_inf: 0.8,
+            adaptive: false,
+            newton_tol: 1e-6,
+            max_newton: 8,
+            project: false,
+            reuse: true,
+            filter_error: true,
+            check_constraints: false,
+            min_step: None,
+            lu: false,
+            extrapolate: false,
+        }
+    }
+}
+
+fn invalid(option: &'static str, value: impl std::fmt::Display, reason: &str) -> IntegratorError {
+    IntegratorError::InvalidOption {
+        option,
+        value: value.to_string(),
+        reason: reason.to_string(),
+    }
+}
+
+fn not_applicable(option: &'static str, method: Method, reason: &str) -> IntegratorError {
+    IntegratorError::NotApplicable {
+        option,
+        method: method.name(),
+        reason: reason.to_string(),
+    }
+}
+
+/// `Some(h)` must be positive and finite.
+fn check_positive(option: &'static str, v: Option<f64>) -> Result<(), IntegratorError> {
+    match v {
+        Some(h) if !(h > 0.0 && h.is_finite()) => {
+            Err(invalid(option, h, "must be positive and finite"))
+        }
+        _ => Ok(()),
+    }
+}
+
+impl Tolerance {
+    /// Every component non-negative and finite.
+    fn validate(&self) -> Result<(), IntegratorError> {
+        match self {
+            Tolerance::Scalar(a) if !(*a >= 0.0 && a.is_finite()) => {
+                Err(invalid("atol", a, "must be non-negative and finite"))
+            }
+            Tolerance::Vector(v) => match v
+                .iter()
+                .enumerate()
+                .find(|(_, a)| !(**a >= 0.0 && a.is_finite()))
+            {
+                Some((i, a)) => Err(IntegratorError::InvalidOption {
+                    option: "atol",
+                    value: format!("{a} (component {i})"),
+                    reason: "every component must be non-negative and finite".into(),
+                }),
+                None => Ok(()),
+            },
+            Tolerance::Scalar(_) => Ok(()),
+        }
+    }
+}
+
+impl OdeOptions {
+    /// Checks the options for `method` (`adaptive`: the implicit methods'
+    /// [`ImplicitOptions::adaptive`], ignored by the explicit methods):
+    /// `max_steps ≥ 1`; for step-controlled runs (ode23, ode45, adaptive
+    /// implicit) `rtol > 0`, `atol ≥ 0`, `max_step > 0`, `initial_step > 0`
+    /// and no `fixed_step`; for fixed-step runs (rk4, implicit without
+    /// `adaptive`) a positive, finite `fixed_step` and neither `max_step`
+    /// nor `initial_step`. (`rtol`/`atol` always have values, so their
+    /// presence under a fixed-step method cannot be detected here.)
+    pub fn validate(&self, method: Method, adaptive: bool) -> Result<(), IntegratorError> {
+        if self.max_steps == 0 {
+            return Err(invalid("max_steps", 0, "must be at least 1"));
+        }
+        let step_controlled = match method {
+            Method::Ode23 | Method::Ode45 => true,
+            Method::Rk4 => false,
+            Method::GenAlpha | Method::Hht | Method::Newmark => adaptive,
+        };
+        if step_controlled {
+            if !(self.rtol > 0.0 && self.rtol.is_finite()) {
+                return Err(invalid("rtol", self.rtol, "must be positive and finite"));
+            }
+            self.atol.validate()?;
+            if let Some(h) = self.max_step {
+                if h.is_nan() || h <= 0.0 {
+                    return Err(invalid("max_step", h, "must be positive"));
+                }
+            }
+            check_positive("initial_step", self.initial_step)?;
+            if self.fixed_step.is_some() {
+                return Err(not_applicable(
+                    "fixed_step",
+                    method,
+                    "the step size is controlled by rtol/atol (use initial_step for the first step)",
+                ));
+            }
+        } else {
+            let need = if method == Method::Rk4 {
+                "rk4 requires a positive, finite fixed_step".to_string()
+            } else {
+                format!(
+                    "{} with a fixed step needs a positive, finite fixed_step (or adaptive = true)",
+                    method.name()
+                )
+            };
+            match self.fixed_step {
+                None => return Err(invalid("fixed_step", "None", &need)),
+                Some(h) if !(h > 0.0 && h.is_finite()) => {
+                    return Err(invalid("fixed_step", h, &need))
+                }
+                Some(_) => {}
+            }
+            for (option, v) in [
+                ("max_step", self.max_step),
+                ("initial_step", self.initial_step),
+            ] {
+                if v.is_some() {
+                    return Err(not_applicable(
+                        option,
+                        method,
+                        "the method takes a fixed step",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ImplicitOptions {
+    /// Checks the options for an implicit `method` with the fixed step
+    /// `fixed_step` ([`OdeOptions::fixed_step`]): ρ∞ in the method's range
+    /// ([`AlphaParameters::for_method`]), `newton_tol > 0`,
+    /// `max_newton ≥ 1`, `min_step > 0` and, with a fixed step, not above
+    /// it. For an explicit `method` every field must keep its default
+    /// ([`IntegratorError::NotApplicable`] names the first that does not).
+    pub fn validate(&self, method: Method, fixed_step: Option<f64>) -> Result<(), IntegratorError> {
+        if !method.is_implicit() {
+            return match self.first_non_default() {
+                Some(option) => Err(not_applicable(
+                    option,
+                    method,
+                    "only the implicit methods (genalpha, hht, newmark) use it",
+                )),
+                None => Ok(()),
+            };
+        }
+        AlphaParameters::for_method(method, self.rho_inf)?;
+        if !(self.newton_tol > 0.0 && self.newton_tol.is_finite()) {
+            return Err(invalid(
+                "newton_tol",
+                self.newton_tol,
+                "must be positive and finite",
+            ));
+        }
+        if self.max_newton == 0 {
+            return Err(invalid("max_newton", 0, "must be at least 1"));
+        }
+        check_positive("min_step", self.min_step)?;
+        if let (Some(hmin), Some(h), false) = (self.min_step, fixed_step, self.adaptive) {
+            if hmin > h {
+                return Err(invalid(
+                    "min_step",
+                    hmin,
+                    &format!("must not exceed the fixed step {h}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The first field (in declaration order) whose value differs from
+    /// [`ImplicitOptions::default`].
+    pub fn first_non_default(&self) -> Option<&'static str> {
+        let d = Self::default();
+        [
+            ("rho_inf", self.rho_inf != d.rho_inf),
+            ("adaptive", self.adaptive != d.adaptive),
+            ("newton_tol", self.newton_tol != d.newton_tol),
+            ("max_newton", self.max_newton != d.max_newton),
+            ("project", self.project != d.project),
+            ("reuse", self.reuse != d.reuse),
+            ("filter_error", self.filter_error != d.filter_error),
+            (
+                "check_constraints",
+                self.check_constraints != d.check_constraints,
+            ),
+            ("min_step", self.min_step != d.min_step),
+            ("lu", self.lu != d.lu),
+            ("extrapolate", self.extrapolate != d.extrapolate),
+        ]
+        .into_iter()
+        .find(|(_, differs)| *differs)
+        .map(|(name, _)| name)
+    }
+}
