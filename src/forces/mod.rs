@@ -9,12 +9,16 @@ mod applied;
 mod buoyancy;
 mod contact;
 mod drag;
+mod law;
+mod spring;
 mod torsional;
 
 pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
 pub use contact::{CornerState, Wall, WallContact};
 pub use drag::Drag;
+pub use law::Law;
+pub use spring::PointSpringDamper;
 pub use torsional::TorsionalSpringDamper;
 
 pub use crate::model::{check_coordinates, FdWorkspace, ForceElement, Gravity};
