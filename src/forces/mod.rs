@@ -9,12 +9,14 @@ mod applied;
 mod buoyancy;
 mod contact;
 mod drag;
+mod expression;
 mod torsional;
 
 pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
 pub use contact::{CornerState, Wall, WallContact};
 pub use drag::Drag;
+pub use expression::{ExpressionError, ExpressionLoad, ExpressionLoadBuilder, LinePoint};
 pub use torsional::TorsionalSpringDamper;
 
 pub use crate::model::{check_coordinates, FdWorkspace, ForceElement, Gravity};
