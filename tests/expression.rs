@@ -174,7 +174,7 @@ fn line_spring_damper_and_jacobians() {
         body: Some("B".into()),
         point: [-0.2, 0.1],
     };
-    let load = ExpressionLoadBuilder::new("pair", &[("A", 0), ("B", 1)])
+    let load = ExpressionLoadBuilder::new("pair", &[("B", 1), ("A", 0)])
         .line_force(
             &a,
             &b,

@@ -25,7 +25,7 @@ pub enum ExpressionError {
         /// The text.
         text: String,
         /// The parser's error (with byte position).
-        source: ParseError,
+        source: Box<ParseError>,
     },
     /// A body name not given to the builder.
     #[error("expression load '{load}': unknown body '{body}'")]
@@ -44,6 +44,9 @@ pub enum ExpressionError {
         point: [f64; 2],
     },
 }
+
+/// Position, velocity and local body number of a point, symbolically.
+type PointExpr = ([Id; 2], [Id; 2], Option<usize>);
 
 /// One end of a line force: a body-fixed point (body name, point in the body
 /// frame) or a fixed point of the ground (`body = None`, global coordinates).
@@ -77,17 +80,21 @@ pub struct ExpressionLoadBuilder {
 impl ExpressionLoadBuilder {
     /// A load named `name` that may read the bodies `bodies` (name, body
     /// index); its Jacobian footprint is their coordinates.
+    /// Bodies are ordered by index (so the footprint is sorted); give each
+    /// body once.
     pub fn new(name: &str, bodies: &[(&str, usize)]) -> Self {
+        let mut bodies = bodies.to_vec();
+        bodies.sort_by_key(|b| b.1);
         let mut ctx = Ctx::new();
         let t = ctx.var("t");
         ctx.set_time(t);
         let (mut q, mut qd) = (Vec::new(), Vec::new());
-        for (n, _) in bodies {
+        for (n, _) in &bodies {
             for c in ["x", "y", "phi"] {
                 q.push(ctx.var(format!("{n}.{c}")));
             }
         }
-        for (n, _) in bodies {
+        for (n, _) in &bodies {
             for c in ["vx", "vy", "omega"] {
                 qd.push(ctx.var(format!("{n}.{c}")));
             }
@@ -147,7 +154,7 @@ impl ExpressionLoadBuilder {
             load: self.name.clone(),
             field: field.into(),
             text: text.into(),
-            source,
+            source: Box::new(source),
         })
     }
 
@@ -164,10 +171,7 @@ impl ExpressionLoadBuilder {
 
     /// Global position `r + R(φ) s` and velocity `ṙ + ω J R(φ) s` of a point,
     /// symbolically; ground points are constants.
-    fn point(
-        &mut self,
-        p: &LinePoint,
-    ) -> Result<([Id; 2], [Id; 2], Option<usize>), ExpressionError> {
+    fn point(&mut self, p: &LinePoint) -> Result<PointExpr, ExpressionError> {
         self.check_point(p.point)?;
         let c = &mut self.ctx;
         let (sx, sy) = (c.constant(p.point[0]), c.constant(p.point[1]));
