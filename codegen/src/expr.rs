@@ -683,7 +683,7 @@ pub fn eval_powi(x: f64, n: i32) -> f64 {
     }
 }
 
-fn eval_op(n: Node, mut g: impl FnMut(Id) -> f64) -> f64 {
+pub(crate) fn eval_op(n: Node, mut g: impl FnMut(Id) -> f64) -> f64 {
     use Node::*;
     match n {
         Const(_) | Var(_) => unreachable!(),

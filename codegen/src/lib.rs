@@ -34,11 +34,15 @@
 pub mod emit;
 pub mod expr;
 pub mod gen;
+pub mod parse;
+pub mod tape;
 pub mod topology;
 
 pub use emit::{Block, Store};
 pub use expr::{Ctx, Id, Node};
 pub use gen::{emit_chain, emit_unrolled, ChainElement, Stats};
+pub use parse::{parse, ParseError, ParseErrorKind};
+pub use tape::Tape;
 pub use topology::{ForceDesc, ForceKind, JointDesc, JointKind, PlanarModel, Side, Topology};
 
 /// The four-bar of problem A (docs/problems.md): bodies crank (0), coupler (1), rocker (2);

@@ -1,0 +1,387 @@
+//! A parser from text to the hash-consed DAG of [`crate::expr`], for force
+//! laws written by users (see `docs/expressions.md`).
+//!
+//! Grammar (whitespace is ignored between tokens):
+//!
+//! ```text
+//! expr    := term   (('+' | '-') term)*          left-associative
+//! term    := unary  (('*' | '/') unary)*         left-associative
+//! unary   := '-' unary | '+' unary | power
+//! power   := atom ('^' unary)?                   right-associative: 2^3^2 = 2^9
+//! atom    := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
+//! number  := digits ['.' digits] [('e' | 'E') ['+' | '-'] digits]
+//! name    := (letter | '_') (letter | digit | '_' | '.')*
+//! ```
+//!
+//! As in mathematics, `-x^2 = -(x^2)`. The exponent of `^` must reduce to
+//! an integer constant (`x^2`, `x^-1`, `x^(1+1)`) or to `0.5` (`√x`).
+//!
+//! Functions: `sin cos tan sqrt abs tanh sign min max` (`min`, `max` with two
+//! arguments). `tan x` is built as `sin x / cos x`, `min(a, b)` as
+//! `a − max(a − b, 0)` and `max(a, b)` as `a + max(b − a, 0)`, so they
+//! differentiate through the engine's rules: the non-smooth functions get
+//! their piecewise derivatives — `d|a| = sign(a)·da` (so `0` at `a = 0`
+//! only where `sign` is taken as Rust's `signum`, i.e. `±1` at `±0`),
+//! `d max(a, b)` takes the derivative of `b` where `b > a` and of `a`
+//! otherwise, `d min(a, b)` that of `b` where `a > b` and of `a` otherwise;
+//! `sign` has derivative 0.
+//!
+//! Names are resolved by a caller-supplied resolver, which returns the node
+//! for the name (a variable or any expression, e.g. a relative angle built
+//! from coordinates) or `None` for an unknown name.
+
+use crate::expr::{Ctx, Id};
+use std::fmt;
+
+/// Why a text is not an expression; `pos` is the byte offset in the text.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParseError {
+    /// Byte offset of the offending token.
+    pub pos: usize,
+    /// What is wrong.
+    pub kind: ParseErrorKind,
+}
+
+/// The kinds of [`ParseError`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ParseErrorKind {
+    /// A character that starts no token.
+    UnexpectedChar(char),
+    /// A token where another was expected (`expected`, `found`).
+    Unexpected {
+        /// What the grammar allows here.
+        expected: &'static str,
+        /// What was found.
+        found: String,
+    },
+    /// A malformed number literal.
+    BadNumber(String),
+    /// A name the resolver does not know.
+    UnknownName(String),
+    /// A function that does not exist.
+    UnknownFunction(String),
+    /// A function called with the wrong number of arguments.
+    Arity {
+        /// The function.
+        name: String,
+        /// Arguments it takes.
+        expected: usize,
+        /// Arguments given.
+        found: usize,
+    },
+    /// An exponent that is not an integer constant or 0.5.
+    BadExponent,
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use ParseErrorKind::*;
+        match &self.kind {
+            UnexpectedChar(c) => write!(f, "unexpected character '{c}'"),
+            Unexpected { expected, found } => write!(f, "expected {expected}, found {found}"),
+            BadNumber(s) => write!(f, "malformed number '{s}'"),
+            UnknownName(s) => write!(f, "unknown name '{s}'"),
+            UnknownFunction(s) => write!(f, "unknown function '{s}'"),
+            Arity {
+                name,
+                expected,
+                found,
+            } => write!(
+                f,
+                "function '{name}' takes {expected} argument(s), got {found}"
+            ),
+            BadExponent => write!(
+                f,
+                "exponent must be an integer constant or 0.5 (use sqrt or repeated products otherwise)"
+            ),
+        }?;
+        write!(f, " at {}", self.pos)
+    }
+}
+
+impl std::error::Error for ParseError {}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Tok {
+    Num(f64),
+    Name(String),
+    Op(char),
+    End,
+}
+
+impl Tok {
+    fn describe(&self) -> String {
+        match self {
+            Tok::Num(v) => format!("number {v}"),
+            Tok::Name(s) => format!("'{s}'"),
+            Tok::Op(c) => format!("'{c}'"),
+            Tok::End => "end of input".into(),
+        }
+    }
+}
+
+fn tokenize(s: &str) -> Result<Vec<(Tok, usize)>, ParseError> {
+    let b = s.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let c = b[i];
+        if c.is_ascii_whitespace() {
+            i += 1;
+        } else if c.is_ascii_digit() || (c == b'.' && b.get(i + 1).is_some_and(u8::is_ascii_digit))
+        {
+            let start = i;
+            while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+                i += 1;
+            }
+            if i < b.len() && (b[i] == b'e' || b[i] == b'E') {
+                let mut j = i + 1;
+                if j < b.len() && (b[j] == b'+' || b[j] == b'-') {
+                    j += 1;
+                }
+                if j < b.len() && b[j].is_ascii_digit() {
+                    i = j;
+                    while i < b.len() && b[i].is_ascii_digit() {
+                        i += 1;
+                    }
+                } else {
+                    return Err(ParseError {
+                        pos: start,
+                        kind: ParseErrorKind::BadNumber(s[start..j.min(b.len())].into()),
+                    });
+                }
+            }
+            let text = &s[start..i];
+            let v: f64 = text.parse().map_err(|_| ParseError {
+                pos: start,
+                kind: ParseErrorKind::BadNumber(text.into()),
+            })?;
+            out.push((Tok::Num(v), start));
+        } else if c.is_ascii_alphabetic() || c == b'_' {
+            let start = i;
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.') {
+                i += 1;
+            }
+            out.push((Tok::Name(s[start..i].into()), start));
+        } else if b"+-*/^(),".contains(&c) {
+            out.push((Tok::Op(c as char), i));
+            i += 1;
+        } else {
+            let ch = s[i..].chars().next().unwrap_or('?');
+            return Err(ParseError {
+                pos: i,
+                kind: ParseErrorKind::UnexpectedChar(ch),
+            });
+        }
+    }
+    out.push((Tok::End, s.len()));
+    Ok(out)
+}
+
+struct Parser<'a, R> {
+    toks: Vec<(Tok, usize)>,
+    at: usize,
+    ctx: &'a mut Ctx,
+    resolve: R,
+}
+
+impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
+    fn peek(&self) -> &Tok {
+        &self.toks[self.at].0
+    }
+    fn pos(&self) -> usize {
+        self.toks[self.at].1
+    }
+    fn unexpected(&self, expected: &'static str) -> ParseError {
+        ParseError {
+            pos: self.pos(),
+            kind: ParseErrorKind::Unexpected {
+                expected,
+                found: self.peek().describe(),
+            },
+        }
+    }
+    fn eat(&mut self, c: char) -> bool {
+        if *self.peek() == Tok::Op(c) {
+            self.at += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn expr(&mut self) -> Result<Id, ParseError> {
+        let mut acc = self.term()?;
+        loop {
+            if self.eat('+') {
+                let r = self.term()?;
+                acc = self.ctx.add(acc, r);
+            } else if self.eat('-') {
+                let r = self.term()?;
+                acc = self.ctx.sub(acc, r);
+            } else {
+                return Ok(acc);
+            }
+        }
+    }
+
+    fn term(&mut self) -> Result<Id, ParseError> {
+        let mut acc = self.unary()?;
+        loop {
+            if self.eat('*') {
+                let r = self.unary()?;
+                acc = self.ctx.mul(acc, r);
+            } else if self.eat('/') {
+                let r = self.unary()?;
+                acc = self.ctx.div(acc, r);
+            } else {
+                return Ok(acc);
+            }
+        }
+    }
+
+    fn unary(&mut self) -> Result<Id, ParseError> {
+        if self.eat('-') {
+            let a = self.unary()?;
+            Ok(self.ctx.neg(a))
+        } else if self.eat('+') {
+            self.unary()
+        } else {
+            self.power()
+        }
+    }
+
+    fn power(&mut self) -> Result<Id, ParseError> {
+        let base = self.atom()?;
+        if !self.eat('^') {
+            return Ok(base);
+        }
+        let pos = self.pos();
+        let e = self.unary()?;
+        let bad = ParseError {
+            pos,
+            kind: ParseErrorKind::BadExponent,
+        };
+        let v = self.ctx.as_const(e).ok_or(bad.clone())?;
+        if v == 0.5 {
+            Ok(self.ctx.sqrt(base))
+        } else if v.fract() == 0.0 && v.abs() <= 64.0 {
+            Ok(self.ctx.powi(base, v as i32))
+        } else {
+            Err(bad)
+        }
+    }
+
+    fn atom(&mut self) -> Result<Id, ParseError> {
+        let pos = self.pos();
+        match self.peek().clone() {
+            Tok::Num(v) => {
+                self.at += 1;
+                Ok(self.ctx.constant(v))
+            }
+            Tok::Op('(') => {
+                self.at += 1;
+                let e = self.expr()?;
+                if !self.eat(')') {
+                    return Err(self.unexpected("')'"));
+                }
+                Ok(e)
+            }
+            Tok::Name(name) => {
+                self.at += 1;
+                if self.eat('(') {
+                    let mut args = vec![self.expr()?];
+                    while self.eat(',') {
+                        args.push(self.expr()?);
+                    }
+                    if !self.eat(')') {
+                        return Err(self.unexpected("',' or ')'"));
+                    }
+                    self.call(&name, &args, pos)
+                } else {
+                    (self.resolve)(&name, self.ctx).ok_or(ParseError {
+                        pos,
+                        kind: ParseErrorKind::UnknownName(name),
+                    })
+                }
+            }
+            _ => Err(self.unexpected("a number, a name or '('")),
+        }
+    }
+
+    fn call(&mut self, name: &str, args: &[Id], pos: usize) -> Result<Id, ParseError> {
+        let arity = match name {
+            "sin" | "cos" | "tan" | "sqrt" | "abs" | "tanh" | "sign" => 1,
+            "min" | "max" => 2,
+            _ => {
+                return Err(ParseError {
+                    pos,
+                    kind: ParseErrorKind::UnknownFunction(name.into()),
+                })
+            }
+        };
+        if args.len() != arity {
+            return Err(ParseError {
+                pos,
+                kind: ParseErrorKind::Arity {
+                    name: name.into(),
+                    expected: arity,
+                    found: args.len(),
+                },
+            });
+        }
+        let c = &mut *self.ctx;
+        let a = args[0];
+        Ok(match name {
+            "sin" => c.sin(a),
+            "cos" => c.cos(a),
+            "tan" => {
+                let (s, co) = (c.sin(a), c.cos(a));
+                c.div(s, co)
+            }
+            "sqrt" => c.sqrt(a),
+            "abs" => c.abs(a),
+            "tanh" => c.tanh(a),
+            "sign" => c.sign(a),
+            "min" => {
+                let d = c.sub(a, args[1]);
+                let m = c.max0(d);
+                c.sub(a, m)
+            }
+            _ => {
+                let d = c.sub(args[1], a);
+                let m = c.max0(d);
+                c.add(a, m)
+            }
+        })
+    }
+}
+
+/// Parse `text` into `ctx`; names are resolved by `resolve(name, ctx)`.
+///
+/// ```
+/// use mbsolve_codegen::{parse, Ctx};
+/// let mut ctx = Ctx::new();
+/// let x = ctx.var("x");
+/// let e = parse(&mut ctx, "-x^2 + 3*sin(x)", |n, _| (n == "x").then_some(x)).unwrap();
+/// let v = ctx.eval(&[e], &[2.0])[0];
+/// assert!((v - (-4.0 + 3.0 * 2f64.sin())).abs() < 1e-15);
+/// ```
+pub fn parse(
+    ctx: &mut Ctx,
+    text: &str,
+    resolve: impl FnMut(&str, &mut Ctx) -> Option<Id>,
+) -> Result<Id, ParseError> {
+    let toks = tokenize(text)?;
+    let mut p = Parser {
+        toks,
+        at: 0,
+        ctx,
+        resolve,
+    };
+    let e = p.expr()?;
+    if *p.peek() != Tok::End {
+        return Err(p.unexpected("an operator or end of input"));
+    }
+    Ok(e)
+}

@@ -1,0 +1,217 @@
+//! The expression parser: precedence, associativity, functions, error
+//! positions, and derivatives of parsed expressions against finite differences.
+
+use mbsolve_codegen::{parse, Ctx, Id, ParseErrorKind};
+
+/// Context with variables x, y, z (values given at evaluation).
+fn ctx3() -> (Ctx, [Id; 3]) {
+    let mut c = Ctx::new();
+    let v = [c.var("x"), c.var("y"), c.var("z")];
+    (c, v)
+}
+
+fn eval(text: &str, vals: [f64; 3]) -> f64 {
+    let (mut c, v) = ctx3();
+    let e = parse(&mut c, text, |n, _| match n {
+        "x" => Some(v[0]),
+        "y" => Some(v[1]),
+        "z" => Some(v[2]),
+        _ => None,
+    })
+    .unwrap_or_else(|e| panic!("{text}: {e}"));
+    c.eval(&[e], &vals)[0]
+}
+
+fn err(text: &str) -> (usize, ParseErrorKind, String) {
+    let (mut c, v) = ctx3();
+    let e = parse(&mut c, text, |n, _| (n == "x").then_some(v[0])).unwrap_err();
+    (e.pos, e.kind.clone(), e.to_string())
+}
+
+#[test]
+fn precedence_and_associativity() {
+    let xyz = [2.0, 3.0, 5.0];
+    let cases: &[(&str, f64)] = &[
+        ("1 + 2 * 3", 7.0),
+        ("(1 + 2) * 3", 9.0),
+        ("10 - 4 - 3", 3.0),
+        ("64 / 4 / 2", 8.0),
+        ("2 ^ 3 ^ 2", 512.0),
+        ("-2 ^ 2", -4.0),
+        ("(-2) ^ 2", 4.0),
+        ("2 ^ -1", 0.5),
+        ("x * y ^ 2", 18.0),
+        ("-x * -y", 6.0),
+        ("x - -y", 5.0),
+        ("+x", 2.0),
+        ("1e-3 * 1000", 1.0),
+        ("2.5E+2", 250.0),
+        (".5 + 1.", 1.5),
+        ("z / x * y", 7.5),
+        ("x ^ (1 + 1)", 4.0),
+        ("4 ^ 0.5", 2.0),
+        ("z ^ 0.5", 5f64.sqrt()),
+    ];
+    for &(t, want) in cases {
+        let got = eval(t, xyz);
+        assert!(
+            (got - want).abs() <= 1e-15 * want.abs(),
+            "{t}: {got} ≠ {want}"
+        );
+    }
+}
+
+#[test]
+fn functions() {
+    let (x, y) = (0.7f64, -1.3f64);
+    let cases: &[(&str, f64)] = &[
+        ("sin(x)", x.sin()),
+        ("cos(x)", x.cos()),
+        ("tan(x)", x.tan()),
+        ("sqrt(x)", x.sqrt()),
+        ("abs(y)", y.abs()),
+        ("tanh(y)", y.tanh()),
+        ("sign(y)", -1.0),
+        ("min(x, y)", y),
+        ("min(y, x)", y),
+        ("max(x, y)", x),
+        ("max(y, x)", x),
+        ("max(x, x)", x),
+        (
+            "2*sin(x)^2 + cos(x*y)",
+            2.0 * x.sin().powi(2) + (x * y).cos(),
+        ),
+    ];
+    for &(t, want) in cases {
+        let got = eval(t, [x, y, 0.0]);
+        assert!(
+            (got - want).abs() <= 2e-16 * want.abs().max(1.0),
+            "{t}: {got} ≠ {want}"
+        );
+    }
+}
+
+#[test]
+fn errors_carry_position_and_message() {
+    let (pos, kind, msg) = err("1 + sinh(x)");
+    assert_eq!(pos, 4);
+    assert_eq!(kind, ParseErrorKind::UnknownFunction("sinh".into()));
+    assert_eq!(msg, "unknown function 'sinh' at 4");
+
+    let (pos, kind, _) = err("x + q");
+    assert_eq!((pos, kind), (4, ParseErrorKind::UnknownName("q".into())));
+
+    let (pos, kind, _) = err("(x + 1");
+    assert_eq!(pos, 6);
+    assert!(
+        matches!(kind, ParseErrorKind::Unexpected { .. }),
+        "{kind:?}"
+    );
+
+    let (pos, kind, _) = err("x $ 2");
+    assert_eq!((pos, kind), (2, ParseErrorKind::UnexpectedChar('$')));
+
+    let (pos, kind, _) = err("x * * 2");
+    assert_eq!(pos, 4);
+    assert!(matches!(kind, ParseErrorKind::Unexpected { .. }));
+
+    let (pos, kind, _) = err("x ^ 1.5");
+    assert_eq!((pos, kind), (4, ParseErrorKind::BadExponent));
+
+    let (pos, kind, _) = err("x ^ x");
+    assert_eq!((pos, kind), (4, ParseErrorKind::BadExponent));
+
+    let (pos, kind, _) = err("max(x)");
+    assert_eq!(pos, 0);
+    assert!(matches!(
+        kind,
+        ParseErrorKind::Arity {
+            expected: 2,
+            found: 1,
+            ..
+        }
+    ));
+
+    let (pos, kind, _) = err("2 x");
+    assert_eq!(pos, 2);
+    assert!(matches!(kind, ParseErrorKind::Unexpected { .. }));
+
+    let (pos, kind, _) = err("1e+");
+    assert_eq!(pos, 0);
+    assert!(matches!(kind, ParseErrorKind::BadNumber(_)));
+
+    let (pos, _, _) = err("");
+    assert_eq!(pos, 0);
+}
+
+#[test]
+fn resolver_may_return_expressions() {
+    // A name bound to a whole expression (as the scenario layer binds
+    // relative angles and distances).
+    let mut c = Ctx::new();
+    let (a, b) = (c.var("a"), c.var("b"));
+    let e = parse(&mut c, "2 * rel", |n, c| (n == "rel").then(|| c.sub(a, b))).unwrap();
+    assert_eq!(c.eval(&[e], &[5.0, 1.5])[0], 7.0);
+}
+
+/// Symbolic derivatives of parsed expressions agree with central differences,
+/// away from the kinks of abs, min and max (and on each side of them).
+#[test]
+fn derivatives_match_finite_differences() {
+    let texts = [
+        "x*y^3 - z/x + sin(x*z)",
+        "sqrt(x^2 + y^2) * tanh(z)",
+        "tan(x) + cos(y)^-2",
+        "abs(x - y) * z",
+        "min(x, y*z) + max(x^2, z)",
+        "-x^2 / (1 + y^2)",
+    ];
+    let points = [[0.3, 0.8, 1.7], [1.1, -0.4, 0.6], [0.45, 1.3, -0.9]];
+    for t in texts {
+        let (mut c, v) = ctx3();
+        let e = parse(&mut c, t, |n, _| {
+            ["x", "y", "z"].iter().position(|&m| m == n).map(|k| v[k])
+        })
+        .unwrap();
+        let d: Vec<Id> = v.iter().map(|&vk| c.diff(e, vk)).collect();
+        for p in points {
+            let sym = c.eval(&d, &p);
+            for k in 0..3 {
+                let h = 1e-6;
+                let (mut pp, mut pm) = (p, p);
+                pp[k] += h;
+                pm[k] -= h;
+                let fd = (c.eval(&[e], &pp)[0] - c.eval(&[e], &pm)[0]) / (2.0 * h);
+                assert!(
+                    (sym[k] - fd).abs() <= 1e-7 * (1.0 + fd.abs()),
+                    "{t} d/d{k} at {p:?}: {} vs fd {fd}",
+                    sym[k]
+                );
+            }
+        }
+    }
+}
+
+/// The piecewise derivatives of the non-smooth functions, exactly.
+#[test]
+fn nonsmooth_derivatives_are_piecewise() {
+    let (mut c, v) = ctx3();
+    let r = |n: &str, _: &mut Ctx| ["x", "y", "z"].iter().position(|&m| m == n).map(|k| v[k]);
+    let mx = parse(&mut c, "max(x, y)", r).unwrap();
+    let mn = parse(&mut c, "min(x, y)", r).unwrap();
+    let ab = parse(&mut c, "abs(x)", r).unwrap();
+    let d = [
+        c.diff(mx, v[0]),
+        c.diff(mx, v[1]),
+        c.diff(mn, v[0]),
+        c.diff(mn, v[1]),
+        c.diff(ab, v[0]),
+    ];
+    assert_eq!(c.eval(&d, &[2.0, 1.0, 0.0]), vec![1.0, 0.0, 0.0, 1.0, 1.0]);
+    assert_eq!(
+        c.eval(&d, &[-1.0, 1.0, 0.0]),
+        vec![0.0, 1.0, 1.0, 0.0, -1.0]
+    );
+    // At the tie the first argument's derivative is taken.
+    assert_eq!(c.eval(&d, &[1.0, 1.0, 0.0])[..4], [1.0, 0.0, 1.0, 0.0]);
+}
