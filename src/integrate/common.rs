@@ -147,10 +147,7 @@ pub(crate) fn validate_run<'a>(
         t0,
         t_end,
         n,
-        outputs: OutputCursor {
-            times: output_times,
-            next: 0,
-        },
+        outputs: OutputCursor::new(output_times),
     })
 }
 
@@ -208,7 +205,12 @@ pub(crate) struct OutputCursor<'a> {
     next: usize,
 }
 
-impl OutputCursor<'_> {
+impl<'a> OutputCursor<'a> {
+    /// A cursor at the first of `times` (validated by [`check_output_times`]).
+    pub fn new(times: &'a [f64]) -> Self {
+        Self { times, next: 0 }
+    }
+
     /// Delivers `output(t0, y0)` if `t0` is a requested time.
     pub fn deliver_initial(
         &mut self,
@@ -233,15 +235,34 @@ impl OutputCursor<'_> {
         t_new: f64,
         y_new: &[f64],
         buf: &mut [f64],
+        interp: impl FnMut(f64, &mut [f64]),
+        obs: &mut dyn Observer,
+    ) -> ControlFlow<(f64, String)> {
+        self.deliver_step_snapped(t_new, 0.0, false, y_new, buf, interp, obs)
+    }
+
+    /// As [`OutputCursor::deliver_step`], with a requested time within
+    /// `snap` of `t_new` — or, when `at_end`, any remaining one — taken as
+    /// the step end (gets `y_new`): generalized-α's grid steps land on the
+    /// output times only up to rounding.
+    #[allow(clippy::too_many_arguments)]
+    pub fn deliver_step_snapped(
+        &mut self,
+        t_new: f64,
+        snap: f64,
+        at_end: bool,
+        y_new: &[f64],
+        buf: &mut [f64],
         mut interp: impl FnMut(f64, &mut [f64]),
         obs: &mut dyn Observer,
     ) -> ControlFlow<(f64, String)> {
         while let Some(&tk) = self.times.get(self.next) {
-            if tk > t_new {
+            let exact = (tk - t_new).abs() <= snap || at_end && tk >= t_new;
+            if tk > t_new && !exact {
                 break;
             }
             self.next += 1;
-            let flow = if tk == t_new {
+            let flow = if exact {
                 obs.output(tk, y_new)
             } else {
                 interp(tk, buf);

@@ -495,15 +495,12 @@ impl<'g, 's> Run<'g, 's> {
     /// The main loop; returns how the run ended.
     fn go(&mut self, obs: &mut dyn Observer, times: &[f64]) -> Termination {
         let (n, t0) = (self.n, self.t0);
-        let mut next_out = 0;
+        let mut outputs = common::OutputCursor::new(times);
         // Output at t0.
         self.y[..n].copy_from_slice(&self.cur.q);
         self.y[n..].copy_from_slice(&self.cur.v);
-        if times.first() == Some(&t0) {
-            next_out = 1;
-            if let ControlFlow::Break(r) = obs.output(t0, &self.y) {
-                return Termination::Stopped { t: t0, reason: r };
-            }
+        if let ControlFlow::Break((t, reason)) = outputs.deliver_initial(t0, &self.y, obs) {
+            return Termination::Stopped { t, reason };
         }
         // Consistent accelerations and multipliers at t0; a_0 = q̈_0.
         self.stats.residual_evaluations += 1;
@@ -666,33 +663,23 @@ impl<'g, 's> Run<'g, 's> {
             self.stats.steps += 1;
             self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
             self.stats.max_step_taken = self.stats.max_step_taken.max(h_try);
-            // Outputs in (t_old, t_new].
-            while let Some(&tk) = times.get(next_out) {
-                let exact =
-                    (tk - t_new).abs() <= 1e-9 * h_try || self.t >= self.t_end && tk >= t_new;
-                if tk > t_new && !exact {
-                    break;
-                }
-                next_out += 1;
-                if exact {
-                    self.y[..n].copy_from_slice(&self.cur.q);
-                    self.y[n..].copy_from_slice(&self.cur.v);
-                } else {
-                    hermite(
-                        (tk - t_old) / h_try,
-                        h_try,
-                        &self.new,
-                        &self.cur,
-                        &mut self.ybuf,
-                    );
-                    self.y.copy_from_slice(&self.ybuf);
-                }
-                if let ControlFlow::Break(r) = obs.output(tk, &self.y) {
-                    return Termination::Stopped { t: tk, reason: r };
-                }
-            }
+            // Outputs in (t_old, t_new]: the grid lands on output times up
+            // to rounding, hence the snap of 1e-9 h.
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
+            let (start, end) = (&self.new, &self.cur);
+            let flow = outputs.deliver_step_snapped(
+                t_new,
+                1e-9 * h_try,
+                self.t >= self.t_end,
+                &self.y,
+                &mut self.ybuf,
+                |tk, buf| hermite((tk - t_old) / h_try, h_try, start, end, buf),
+                obs,
+            );
+            if let ControlFlow::Break((t, reason)) = flow {
+                return Termination::Stopped { t, reason };
+            }
             if let ControlFlow::Break(r) = obs.step(t_new, &self.y) {
                 return Termination::Stopped {
                     t: t_new,
