@@ -3,8 +3,8 @@
 
 use crate::formulation::{FormulationError, Index1, Index1Options, Index3, NewtonSolverKind};
 use crate::integrate::{
-    integrator, GenAlpha, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report,
-    Termination, Tolerance,
+    integrator, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
+    OdeOptions, Report, Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -251,41 +251,82 @@ pub fn simulate(
         )));
     }
     cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
-    if cfg.method.is_implicit() {
-        return simulate_implicit(sys, q0, qd0, cfg, monitors);
-    }
-    let mut f = Index1::new(sys, cfg.index1)?;
-    let mut integ = integrator(cfg.method, cfg.ode.clone())?;
-    let mut y0 = q0.to_vec();
-    y0.extend_from_slice(qd0);
+    let mut method: Box<dyn MethodRun + '_> = if cfg.method.is_implicit() {
+        Box::new(Implicit::new(sys, cfg)?)
+    } else {
+        Box::new(Explicit::new(sys, cfg)?)
+    };
     let mut watch = Watch::new(sys, monitors);
     let times = cfg.output_times();
     let start = Instant::now();
-    let report = integ.integrate(&mut f, cfg.t0, cfg.t_end, &y0, &times, &mut watch)?;
+    let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
     let wall_s = start.elapsed().as_secs_f64();
-    let stats = f.stats();
-    let work = Work {
-        formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
-        linear_solver: f.solver_name().to_string(),
-        baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
-        factorizations: stats.solver.factorizations,
-        regularized_pivots: stats.solver.regularized_pivots,
-    };
-    Ok(finish(
-        sys,
-        cfg,
-        watch,
-        &report,
-        wall_s,
-        work,
-        serde_json::Map::new(),
-    ))
+    let (work, extra) = method.work(cfg);
+    Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
 }
 
-/// The implicit path of [`simulate`] (methods genalpha, hht, newmark):
-/// generalized-α on the index-3 equations ([`GenAlpha`] over
-/// [`Index3`]), the same [`Trajectory`] and [`Summary`] as the explicit
-/// path. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
+/// A method bound to its formulation: the one interface [`simulate`]
+/// drives, whichever the method.
+trait MethodRun {
+    /// Integrate from `(q0, q̇0)`, delivering `times` to `obs`.
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError>;
+    /// The formulation-specific figures of the run, and extra summary
+    /// fields.
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
+}
+
+/// ode23, ode45, rk4 on the index-1 form ([`Index1`], eq. (5)).
+struct Explicit<'s> {
+    f: Index1<'s>,
+    integ: Box<dyn Integrator>,
+}
+
+impl<'s> Explicit<'s> {
+    fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        Ok(Self {
+            f: Index1::new(sys, cfg.index1)?,
+            integ: integrator(cfg.method, cfg.ode.clone())?,
+        })
+    }
+}
+
+impl MethodRun for Explicit<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        let mut y0 = q0.to_vec();
+        y0.extend_from_slice(qd0);
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let stats = self.f.stats();
+        let work = Work {
+            formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
+            factorizations: stats.solver.factorizations,
+            regularized_pivots: stats.solver.regularized_pivots,
+        };
+        (work, serde_json::Map::new())
+    }
+}
+
+/// genalpha, hht, newmark on the index-3 form ([`GenAlpha`] over
+/// [`Index3`]); the same [`Trajectory`] and [`Summary`] as the explicit
+/// methods. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
 /// `rhs_evals` = residual evaluations, `factorizations` = factorisations of
 /// the Newton matrix, `failed_steps` = error rejections + Newton failures;
 /// `extra` adds `newton_iterations`, `newton_failures`, `error_rejections`,
@@ -293,66 +334,79 @@ pub fn simulate(
 /// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
 /// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
 /// `max_step_taken`.
-fn simulate_implicit(
-    sys: &System,
-    q0: &[f64],
-    qd0: &[f64],
-    cfg: &RunConfig,
-    monitors: &mut [&mut dyn Monitor],
-) -> Result<(Trajectory, Summary), SimulationError> {
-    let mut integ = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
-    let newton = if cfg.implicit.lu {
-        NewtonSolverKind::SparseLu
-    } else {
-        NewtonSolverKind::SymmetricLdlt
-    };
-    let mut f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
-    let mut watch = Watch::new(sys, monitors);
-    let times = cfg.output_times();
-    let start = Instant::now();
-    let report = integ.integrate(&mut f, cfg.t0, cfg.t_end, q0, qd0, &times, &mut watch)?;
-    let wall_s = start.elapsed().as_secs_f64();
-    let gs = integ.stats();
-    let fs = f.stats();
-    let p = integ.params();
-    let mut extra = serde_json::Map::new();
-    let opts = integ.options();
-    let fixed_step = if opts.adaptive {
-        serde_json::Value::Null
-    } else {
-        cfg.ode.fixed_step.into()
-    };
-    for (k, v) in [
-        ("newton_iterations", gs.newton_iterations.into()),
-        ("newton_failures", gs.newton_failures.into()),
-        ("error_rejections", gs.error_rejections.into()),
-        ("jacobian_evaluations", fs.jacobians.into()),
-        ("projections", gs.projections.into()),
-        (
-            "projection_factorizations",
-            fs.mass_solver.factorizations.into(),
-        ),
-        ("rho_inf", opts.rho_inf.into()),
-        ("alpha_m", p.alpha_m.into()),
-        ("alpha_f", p.alpha_f.into()),
-        ("gamma_newmark", p.gamma.into()),
-        ("beta_newmark", p.beta.into()),
-        ("fixed_step", fixed_step),
-        ("adaptive", opts.adaptive.into()),
-        ("newton_tol", opts.newton_tol.into()),
-        ("min_step_taken", gs.min_step_taken.into()),
-        ("max_step_taken", gs.max_step_taken.into()),
-    ] {
-        extra.insert(k.to_string(), v);
+struct Implicit<'s> {
+    f: Index3<'s>,
+    integ: GenAlpha,
+}
+
+impl<'s> Implicit<'s> {
+    fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        let integ = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let newton = if cfg.implicit.lu {
+            NewtonSolverKind::SparseLu
+        } else {
+            NewtonSolverKind::SymmetricLdlt
+        };
+        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+        Ok(Self { f, integ })
     }
-    let work = Work {
-        formulation: "index3".to_string(),
-        linear_solver: f.solver_name().to_string(),
-        baumgarte: (0.0, 0.0),
-        factorizations: gs.factorizations,
-        regularized_pivots: fs.newton_solver.regularized_pivots,
-    };
-    Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
+}
+
+impl MethodRun for Implicit<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let gs = self.integ.stats();
+        let fs = self.f.stats();
+        let p = self.integ.params();
+        let opts = self.integ.options();
+        let fixed_step = if opts.adaptive {
+            serde_json::Value::Null
+        } else {
+            cfg.ode.fixed_step.into()
+        };
+        let mut extra = serde_json::Map::new();
+        for (k, v) in [
+            ("newton_iterations", gs.newton_iterations.into()),
+            ("newton_failures", gs.newton_failures.into()),
+            ("error_rejections", gs.error_rejections.into()),
+            ("jacobian_evaluations", fs.jacobians.into()),
+            ("projections", gs.projections.into()),
+            (
+                "projection_factorizations",
+                fs.mass_solver.factorizations.into(),
+            ),
+            ("rho_inf", opts.rho_inf.into()),
+            ("alpha_m", p.alpha_m.into()),
+            ("alpha_f", p.alpha_f.into()),
+            ("gamma_newmark", p.gamma.into()),
+            ("beta_newmark", p.beta.into()),
+            ("fixed_step", fixed_step),
+            ("adaptive", opts.adaptive.into()),
+            ("newton_tol", opts.newton_tol.into()),
+            ("min_step_taken", gs.min_step_taken.into()),
+            ("max_step_taken", gs.max_step_taken.into()),
+        ] {
+            extra.insert(k.to_string(), v);
+        }
+        let work = Work {
+            formulation: "index3".to_string(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (0.0, 0.0),
+            factorizations: gs.factorizations,
+            regularized_pivots: fs.newton_solver.regularized_pivots,
+        };
+        (work, extra)
+    }
 }
 
 /// Formulation-specific figures of a run, for [`finish`].
