@@ -208,6 +208,9 @@ fn animate_writes_one_frame_per_output_time() {
     let text = std::fs::read_to_string(&svg).unwrap();
     // three bodies, each with an animated translation and rotation
     assert_eq!(text.matches("<animateTransform").count(), 6);
+    // without SMIL the bodies stand at their first-frame pose
+    assert_eq!(text.matches("<g transform=\"translate(").count(), 3);
+    assert_eq!(text.matches("<g transform=\"rotate(").count(), 3);
     let key_times = text.split("keyTimes=\"").nth(1).unwrap();
     let key_times = &key_times[..key_times.find('"').unwrap()];
     assert_eq!(key_times.split(';').count(), rows);

@@ -314,9 +314,13 @@ fn write_svg(s: &Scene, path: &Path, speed: f64) -> Result<(), String> {
         };
         let _ = writeln!(
             o,
-            r#"<g><animateTransform attributeName="transform" type="translate" values="{tr}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
-<g><animateTransform attributeName="transform" type="rotate" values="{rot}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
-{shape}"#
+            r#"<g transform="translate({tr0})"><animateTransform attributeName="transform" type="translate" values="{tr}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
+<g transform="rotate({rot0})"><animateTransform attributeName="transform" type="rotate" values="{rot}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
+{shape}"#,
+            // the first frame as the static pose: what a renderer without
+            // SMIL animation (and the print) shows
+            tr0 = tr.split(';').next().unwrap_or("0,0").replace(',', " "),
+            rot0 = rot.split(';').next().unwrap_or("0"),
         );
         for j in &sh.joints {
             let _ = writeln!(
