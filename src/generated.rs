@@ -393,9 +393,8 @@ impl ConstraintKernels for ChainKernels {
             Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_phi(q, p, o),
         }
-        let q = q_all;
         if let Some(g) = &self.ground {
-            g.phi(q, out);
+            g.phi(q_all, out);
         }
     }
     fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
@@ -406,9 +405,8 @@ impl ConstraintKernels for ChainKernels {
             Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_jacobian(q, p, o),
         }
-        let q = q_all;
         if let Some(g) = &self.ground {
-            g.jacobian(q, vals);
+            g.jacobian(q_all, vals);
         }
     }
     fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
@@ -425,9 +423,8 @@ impl ConstraintKernels for ChainKernels {
             Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
             Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
         }
-        let (q, qd) = (q_all, qd_all);
         if let Some(g) = &self.ground {
-            g.gamma(q, qd, out);
+            g.gamma(q_all, qd_all, out);
         }
     }
 }

@@ -4,35 +4,10 @@
 use mbsolve::forces::{
     ExpressionError, ExpressionLoadBuilder, FdWorkspace, ForceElement, LinePoint,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 
-struct Counting;
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.alloc_zeroed(layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-fn allocations() -> usize {
-    ALLOCS.with(|c| c.get())
-}
+#[path = "common/counting.rs"]
+mod counting;
+use counting::allocations;
 
 const Q: [f64; 9] = [0.1, -0.2, 0.3, 1.2, 0.4, -0.7, 2.0, 2.0, 2.0];
 const QD: [f64; 9] = [0.5, -0.3, 0.8, -0.2, 0.6, 1.1, 0.0, 0.0, 0.0];

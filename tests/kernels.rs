@@ -10,39 +10,10 @@ use mbsolve::linalg::SolverKind;
 use mbsolve::model::{Body, BodyRef, Evaluation, FdWorkspace, System, SystemBuilder};
 use mbsolve::scenario::{self, FALLING_ROD_TOML};
 use mbsolve::simulation::simulate;
-use std::alloc::{GlobalAlloc, Layout};
-use std::cell::Cell;
 
-struct Counting;
-
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.with(|a| a.set(a.get() + 1));
-        std::alloc::System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        std::alloc::System.dealloc(ptr, layout)
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.with(|a| a.set(a.get() + 1));
-        std::alloc::System.alloc_zeroed(layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.with(|a| a.set(a.get() + 1));
-        std::alloc::System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    ALLOCS.with(|a| a.get())
-}
+#[path = "common/counting.rs"]
+mod counting;
+use counting::allocations;
 
 /// Deterministic pseudo-random numbers (xorshift).
 struct Rng(u64);
