@@ -50,6 +50,15 @@ pub trait OdeSystem {
     fn dim(&self) -> usize;
     /// Evaluate f(t, y) into dydt. An Err aborts the integration (reported as Termination::Failed at the current time).
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError>;
+    /// Called after every accepted step with the step's end state: the
+    /// system may move `y` (e.g. project it onto the constraint manifold)
+    /// and returns `Ok(true)` if it did; the integrator then re-evaluates
+    /// what it keeps of the old state (the first stage `f(t, y)` of the
+    /// next step). An `Err` ends the run as a failure at `t`. Default: no
+    /// change.
+    fn post_step(&mut self, _t: f64, _y: &mut [f64]) -> Result<bool, SystemError> {
+        Ok(false)
+    }
 }
 
 /// Failure of the system an integrator drives — a right-hand side
