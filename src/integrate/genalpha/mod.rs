@@ -301,7 +301,7 @@ impl GenAlpha {
     /// and of q̇ with q̈ between the two step ends), `step` after every
     /// accepted step. `output_times` must be strictly increasing within
     /// `[t0, t_end]`. Inputs are validated as for the explicit integrators;
-    /// a failure midway is `Ok` with [`Termination::Failed`].
+    /// a failure midway is `Ok` with [`Termination::Failed`](super::Termination::Failed).
     #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
