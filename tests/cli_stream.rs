@@ -332,7 +332,7 @@ fn memory_does_not_grow_with_the_number_of_outputs() {
             "--set",
             &format!("time.end={end}"),
             "--set",
-            "output.dt=0.002",
+            "output.dt=0.001",
             "--out",
             out,
         ]);
