@@ -357,3 +357,60 @@ fn bad_force_tables_name_file_key_and_value() {
         }
     }
 }
+
+/// Every `[[joint]]`/`[[force]]` example of docs/scenarios.md builds, and
+/// the complete example there is the shipped spring pendulum's model.
+#[test]
+fn examples_of_the_scenario_reference_build() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
+    let blocks: Vec<&str> = doc
+        .split("```toml\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .collect();
+    let mut head = String::from("gravity = [0.0, -9.81]\n[time]\nend = 1.0\n");
+    for (i, b) in [
+        "a", "b", "bob", "link1", "link2", "wheel", "float", "crank", "coupler", "slider",
+    ]
+    .iter()
+    .enumerate()
+    {
+        head +=
+            &format!("[[body]]\nname = \"{b}\"\nmass = 1.0\ninertia = 0.1\nx = {i}.0\ny = 0.5\n");
+    }
+    head += "[initial]\nconsistent = false\n";
+    let mut n = 0;
+    for b in &blocks {
+        if b.starts_with("[[force]]") || b.starts_with("[[joint]]") {
+            scenario::parse(&format!("{head}{b}"), "doc.toml", "doc", &[])
+                .unwrap_or_else(|e| panic!("{b}\n→ {e}"));
+            n += 1;
+        }
+    }
+    assert_eq!(n, 8, "examples found");
+    let complete = blocks
+        .iter()
+        .find(|b| b.starts_with("name = \"spring_pendulum\""))
+        .unwrap();
+    let doc_sc = scenario::parse(complete, "doc.toml", "doc", &[]).unwrap();
+    let shipped = scenario::load(
+        std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenarios/spring_pendulum.toml"
+        )),
+        &[],
+    )
+    .unwrap();
+    assert_eq!(doc_sc.q0, shipped.q0);
+    let q = [0.3, -0.9, 0.2];
+    let mut g1 = vec![0.0; 3];
+    let mut g2 = vec![0.0; 3];
+    doc_sc
+        .system
+        .forces_into(0.0, &q, &[0.1, 0.2, 0.3], &mut g1);
+    shipped
+        .system
+        .forces_into(0.0, &q, &[0.1, 0.2, 0.3], &mut g2);
+    assert_eq!(g1, g2);
+}
