@@ -40,12 +40,15 @@ fn check(path: &str, set: &[&str]) -> (Option<i32>, String, String) {
     )
 }
 
+/// (file, overrides, bodies, constraint equations, dof, redundant).
+type Case<'a> = (&'a str, Vec<&'a str>, usize, usize, usize, usize);
+
 #[test]
 fn check_reports_size_dof_and_redundancy() {
     // (file, overrides, bodies, constraint equations, dof, redundant)
     // (file, overrides, bodies, constraint equations, dof, redundant);
     // "" is the four-bar with joint B doubled: 10 equations, rank 8
-    let cases: Vec<(&str, Vec<&str>, usize, usize, usize, usize)> = vec![
+    let cases: Vec<Case> = vec![
         // four-bar: Grübler 3·3 − 2·4 = 1
         ("scenarios/fourbar.toml", vec![], 3, 8, 1, 0),
         // rod of 5 segments, 4 revolute joints: 15 − 8 = 7

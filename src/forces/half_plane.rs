@@ -122,7 +122,7 @@ impl HalfPlaneContact {
     /// The state in contact, `None` without penetration.
     fn eval(&self, q: &[f64], qd: &[f64]) -> Option<Eval> {
         let delta = self.penetration(q);
-        if !(delta > 0.0) {
+        if delta.is_nan() || delta <= 0.0 {
             return None;
         }
         let o = 3 * self.body;
