@@ -414,3 +414,78 @@ fn examples_of_the_scenario_reference_build() {
         .forces_into(0.0, &q, &[0.1, 0.2, 0.3], &mut g2);
     assert_eq!(g1, g2);
 }
+
+/// A uniform disc on a 20° incline through a scenario `contact` with
+/// friction (μ = 0.5 > tan θ / 3: rolling): the centre accelerates at
+/// `(2/3) g sin θ` and turns at `ω = v / R` (rolling without slip), by an
+/// explicit and by the implicit method (which uses the contact's
+/// Jacobians).
+#[test]
+fn disc_rolls_down_an_incline_at_two_thirds_g_sin_theta() {
+    let (m, r, th, g, kh) = (1.0f64, 0.1f64, 20f64.to_radians(), 9.81, 1e8);
+    let n = [-th.sin(), th.cos()];
+    let t = [-n[1], n[0]]; // downhill
+    let delta0 = (m * g * th.cos() / kh).powf(2.0 / 3.0); // static penetration
+    let p0 = [(r - delta0) * n[0], (r - delta0) * n[1]];
+    let text = format!(
+        r#"
+gravity = [0.0, -9.81]
+[[body]]
+name = "disc"
+mass = {m}
+inertia = {inertia}
+x = {x}
+y = {y}
+[[force]]
+type = "contact"
+body = "disc"
+radius = {r}
+wall_normal_deg = {deg}
+stiffness = {kh}
+damping = 2.0
+friction = 0.5
+slip_velocity = 1e-4
+[time]
+end = 1.0
+[output]
+dt = 0.1
+"#,
+        inertia = 0.5 * m * r * r,
+        x = p0[0],
+        y = p0[1],
+        deg = 90.0 + 20.0,
+    );
+    for set in [
+        vec![
+            "integrator.method=ode45",
+            "integrator.rtol=1e-8",
+            "integrator.atol=1e-10",
+        ],
+        vec!["integrator.method=genalpha", "integrator.step=2e-4"],
+    ] {
+        let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
+        let sc = scenario::parse(&text, "disc.toml", "disc", &set).unwrap();
+        let (traj, summary) =
+            mbsolve::simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+        assert_eq!(
+            summary.status, "completed",
+            "{set:?}: {:?}",
+            summary.message
+        );
+        let tf = *traj.t.last().unwrap();
+        let q = traj.q.last().unwrap();
+        let s = (q[0] - p0[0]) * t[0] + (q[1] - p0[1]) * t[1];
+        let want = 0.5 * (2.0 / 3.0) * g * th.sin() * tf * tf;
+        eprintln!("{set:?}: s = {s}, want {want}, rolled {}", q[2] * r);
+        assert!((s - want).abs() < 1e-4 * want, "{set:?}: s = {s} vs {want}");
+        // rolling without slip: rolling down-left (along t) it turns counter-clockwise by s / R
+        assert!(
+            (q[2] * r - s).abs() < 1e-4 * want,
+            "{set:?}: R φ = {} vs s = {s}",
+            q[2] * r
+        );
+        // it stays on the incline: the penetration stays near the static one
+        let gap = (q[0] * n[0] + q[1] * n[1]) - (r - delta0);
+        assert!(gap.abs() < 0.5 * delta0, "{set:?}: gap {gap}");
+    }
+}
