@@ -489,3 +489,54 @@ dt = 0.1
         assert!(gap.abs() < 0.5 * delta0, "{set:?}: gap {gap}");
     }
 }
+
+/// A body on a scenario `rotational_spring` to the ground (stiffness as a
+/// table on a straight line, linear damping) is the damped oscillator
+/// `I φ̈ + c φ̇ + k (φ − φ0) = 0`: closed form at every output.
+#[test]
+fn rotational_spring_to_ground_is_a_damped_oscillator() {
+    let (inertia, k, c, rest, a0) = (0.02f64, 3.0f64, 0.01f64, 0.2f64, 0.5f64);
+    let text = format!(
+        r#"
+[[body]]
+name = "wheel"
+mass = 1.0
+inertia = {inertia}
+phi = {phi}
+[[force]]
+type = "rotational_spring"
+body_i = "ground"
+body_j = "wheel"
+rest_angle = {rest}
+torque_angle = {{ x = [-1.0, 2.0], f = [{f0}, {f1}] }}
+damping = {c}
+[integrator]
+method = "ode45"
+rtol = 1e-10
+atol = 1e-12
+[time]
+end = 2.0
+[output]
+dt = 0.05
+"#,
+        phi = rest + a0,
+        f0 = -k,
+        f1 = 2.0 * k,
+    );
+    let sc = scenario::parse(&text, "osc.toml", "osc", &[]).unwrap();
+    let (traj, _) =
+        mbsolve::simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    let w = (k / inertia).sqrt();
+    let zeta = c / (2.0 * (k * inertia).sqrt());
+    let wd = w * (1.0 - zeta * zeta).sqrt();
+    let mut worst: f64 = 0.0;
+    for (t, q) in traj.t.iter().zip(&traj.q) {
+        let want = rest
+            + (-zeta * w * t).exp() * (a0 * (wd * t).cos() + zeta * w * a0 / wd * (wd * t).sin());
+        worst = worst.max((q[2] - want).abs());
+    }
+    assert!(
+        traj.t.len() == 41 && worst < 1e-7,
+        "largest angle error {worst}"
+    );
+}
