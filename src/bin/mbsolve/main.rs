@@ -13,6 +13,7 @@ macro_rules! say {
 }
 
 mod animate;
+mod check;
 mod figure;
 mod gate;
 mod output;
@@ -83,6 +84,18 @@ enum Command {
         /// DIR/<stem>_sweep.csv, checking that every run is there once.
         #[arg(long)]
         merge: bool,
+    },
+    /// Validate a scenario without running it and print the system's size:
+    /// bodies, coordinates, constraint equations, degrees of freedom and
+    /// redundant equations (from the rank of Φ_q at the initial state),
+    /// joints and force elements by kind, evaluation and method. Exit 0
+    /// when valid, 1 with the error otherwise.
+    Check {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable), as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
     },
     /// CI performance gate: machine-independent ratios measured in one run.
     BenchGate {
@@ -157,6 +170,7 @@ fn main() -> ExitCode {
             quiet,
         } => run(&scenario, &set, &out, progress, quiet),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
             scenario,
             csv,
