@@ -273,6 +273,27 @@ pub enum SimulationError {
     /// Initial state of the wrong length or not finite.
     #[error("initial state: {0}")]
     Initial(String),
+    /// The fixed step of an explicit method exceeds its stability limit.
+    #[error(
+        "{method} with step {h:e} s is unstable for this system: the stability limit is \
+         {limit:.3e} s ({reach} / max(ω, σ), fastest mode ω = {omega:.4e} rad/s, damping rate \
+         σ = {sigma:.4e} 1/s at t0); use a step below the limit or an implicit method \
+         (genalpha)"
+    )]
+    Unstable {
+        /// The method.
+        method: &'static str,
+        /// Its step.
+        h: f64,
+        /// The largest stable step.
+        limit: f64,
+        /// Reach of the method's stability region.
+        reach: f64,
+        /// Fastest natural frequency.
+        omega: f64,
+        /// Fastest damping rate.
+        sigma: f64,
+    },
 }
 
 struct Watch<'s, 'm, 'd, 'k> {
@@ -565,12 +586,59 @@ pub fn simulate_into(
         Box::new(Explicit::new(sys, cfg)?)
     };
     let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
+    stability_check(sys, cfg, q0, qd0, &mut watch)?;
     let times = cfg.output_times();
     let start = Instant::now();
     let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
     let wall_s = start.elapsed().as_secs_f64();
     let (work, extra) = method.work(cfg);
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
+}
+
+/// Explicit methods against the fastest modes at t0
+/// ([`crate::formulation::fastest_modes`]): a fixed step above the
+/// stability limit cannot run; an adaptive method that will need more
+/// than 10⁵ steps for stability alone gets a warning that the problem is
+/// stiff for it.
+fn stability_check(
+    sys: &System,
+    cfg: &RunConfig,
+    q0: &[f64],
+    qd0: &[f64],
+    watch: &mut Watch<'_, '_, '_, '_>,
+) -> Result<(), SimulationError> {
+    let Some(reach) = crate::formulation::explicit_reach(cfg.method) else {
+        return Ok(());
+    };
+    let Ok(modes) = crate::formulation::fastest_modes(sys, cfg.t0, q0, qd0, 60) else {
+        return Ok(()); // the run itself will report a singular matrix
+    };
+    let limit = modes.step_limit(reach);
+    if let Some(h) = cfg.ode.fixed_step {
+        if h > limit {
+            return Err(SimulationError::Unstable {
+                method: cfg.method.name(),
+                h,
+                limit,
+                reach,
+                omega: modes.omega,
+                sigma: modes.sigma,
+            });
+        }
+    } else {
+        let steps = (cfg.t_end - cfg.t0) / limit;
+        if steps > 1e5 {
+            watch.warn(format!(
+                "the problem is stiff for {}: its stability limits the step to about {limit:.2e} s \
+                 (fastest mode ω = {:.3e} rad/s, damping rate σ = {:.3e} 1/s), at least {steps:.1e} \
+                 steps over the span; an implicit method (genalpha) takes steps set by accuracy",
+                cfg.method.name(),
+                modes.omega,
+                modes.sigma
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// A method bound to its formulation: the one interface [`simulate`]

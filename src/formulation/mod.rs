@@ -14,10 +14,12 @@
 mod index1;
 mod index3;
 mod initial;
+mod stability;
 
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
+pub use stability::{explicit_reach, fastest_modes, FastestModes};
 
 use crate::linalg::LinalgError;
 use serde::Serialize;
