@@ -10,7 +10,7 @@
 //! checking that every run is present exactly once.
 
 use crate::output::write_summary_json;
-use mbsolve::scenario::{self, ScenarioError};
+use mbsolve::scenario::{self, Override, ScenarioError};
 use mbsolve::simulation::{simulate, Summary, Trajectory};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -122,16 +122,15 @@ pub fn run(
         .enumerate()
         .filter(|(k, _)| shard.is_none_or(|s| s.owns(*k)))
         .collect();
-    let with = |p: &Vec<String>| -> Vec<String> { base.iter().chain(p).cloned().collect() };
     for (_, p) in &points {
-        scenario::load(path, &with(p))?;
+        scenario::load_with(path, &overrides(base, p))?;
     }
     let total = points.len();
     let done = AtomicUsize::new(0);
     Ok(points
         .into_par_iter()
         .map(|(k, point)| {
-            let result = scenario::load(path, &with(&point))
+            let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
                 .and_then(|sc| {
                     simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
@@ -145,6 +144,16 @@ pub fn run(
             (k, SweepRun { point, result })
         })
         .collect())
+}
+
+/// The `--set` overrides, then one run's `--param` values, each labelled by
+/// its flag for the scenario's errors.
+fn overrides<'a>(base: &'a [String], point: &'a [String]) -> Vec<Override<'a>> {
+    let tag = |flag: &'static str| move |spec: &'a String| Override { flag, spec };
+    base.iter()
+        .map(tag("--set"))
+        .chain(point.iter().map(tag("--param")))
+        .collect()
 }
 
 /// What `mbsolve sweep` was asked for.
