@@ -149,7 +149,7 @@ pub(super) fn check(raw: &RawScenario, run: &RunConfig, file: &str) -> Result<()
         let count = if outputs.is_finite() {
             format!("{outputs:.4e}")
         } else {
-            "an unbounded number of".into()
+            "over 1e308".into()
         };
         return Err(error(
             file,
