@@ -129,7 +129,7 @@ fn crash_inputs_are_errors_naming_key_and_limit() {
 #[test]
 fn limits_accept_documented_runs() {
     use mbsolve::scenario::limits::{memory_estimate, memory_limit, MAX_BODIES, MAX_OUTPUT_TIMES};
-    assert!(10_000 <= MAX_BODIES && 10_001.0 <= MAX_OUTPUT_TIMES);
+    const { assert!(10_000 <= MAX_BODIES && 10_001.0 <= MAX_OUTPUT_TIMES) };
     let (model, trajectory) = memory_estimate(10_000, 19_998, 10_001.0);
     // 64 B per segment per output time (q, q̇, Φ), as measured in issue 13.
     assert!((trajectory / (10_000.0 * 10_001.0) - 64.0).abs() < 1.0);
