@@ -353,6 +353,17 @@ fn overflow_is_reported_as_such_not_as_singular() {
         );
         assert!(!e.contains("singular"), "{method}: {e}");
     }
+    // Finite inputs whose solution overflows (a torque of 1e307 N·m on a
+    // crank of inertia 6.7e-4 kg·m²): the solver cannot tell this from a
+    // singular matrix, and its message names both.
+    let p = fourbar_variant(dir.path(), "torque.toml", "torque = 0.5", "torque = 1e307");
+    let o = mbsolve(&["run", p.to_str().unwrap(), "--out", out]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("non-finite solution") && e.contains("overflows"),
+        "{e}"
+    );
 }
 
 /// Control characters and empty key segments get a message; `--param`
