@@ -161,6 +161,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             linear_solver,
         },
         implicit,
+        guards: Default::default(),
     };
 
     Ok(run)
