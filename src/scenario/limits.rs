@@ -95,15 +95,14 @@ pub fn output_count(run: &RunConfig) -> f64 {
         + 1.0
 }
 
-/// Estimated peak memory of a run \[bytes\] with `bodies` bodies, `rows`
-/// constraint equations and `outputs` output times: the model
-/// ([`MODEL_BYTES_PER_BODY`]) and the trajectory kept in memory (per output
-/// time: t, q, q̇, Φ, ‖Φ‖, ‖Φ̇‖ and the vectors' headers; 64 B per rod
-/// segment). Returns (model, trajectory).
-pub fn memory_estimate(bodies: usize, rows: usize, outputs: f64) -> (f64, f64) {
-    let n = 3.0 * bodies as f64;
-    let per_output = 8.0 * (2.0 * n + rows as f64) + 3.0 * 24.0 + 4.0 * 8.0;
-    (MODEL_BYTES_PER_BODY * bodies as f64, outputs * per_output)
+/// Estimated peak memory of a run \[bytes\] with `bodies` bodies and
+/// `outputs` output times: the model ([`MODEL_BYTES_PER_BODY`]) and the
+/// output times (8 B each). Output rows are streamed
+/// ([`crate::simulation::simulate_into`]); a caller that keeps them in
+/// memory ([`crate::simulation::Trajectory`]) adds 8 (2n + m) B per output
+/// time (64 B per rod segment), which is not counted here.
+pub fn memory_estimate(bodies: usize, outputs: f64) -> f64 {
+    MODEL_BYTES_PER_BODY * bodies as f64 + 8.0 * outputs
 }
 
 /// The memory a run may use: the machine's physical memory (`MemTotal` of
@@ -186,21 +185,22 @@ pub(super) fn check(raw: &RawScenario, run: &RunConfig, file: &str) -> Result<()
             ),
         ));
     }
-    // At most two rows per joint (revolute, translational), the rod's N − 1
-    // revolute joints included.
-    let rows = 2 * (raw.joint.len() + segments);
-    let (model, trajectory) = memory_estimate(bodies, rows, outputs);
-    let limit = memory_limit();
-    if model + trajectory > limit {
-        let (key, what) = if trajectory >= model {
-            (
-                "output.dt",
-                format!(
-                    "{} gives {outputs} output times of {bodies} bodies",
-                    num(run.output_dt)
-                ),
-            )
-        } else if segments > 0 {
+    memory(bodies, segments, outputs, memory_limit(), file)
+}
+
+/// The memory estimate of `bodies` bodies (`segments` of them a rod's) and
+/// `outputs` output times against `limit`; an error at `rod.segments`
+/// (or `body`) when it is exceeded.
+fn memory(
+    bodies: usize,
+    segments: usize,
+    outputs: f64,
+    limit: f64,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let need = memory_estimate(bodies, outputs);
+    if need > limit {
+        let (key, what) = if segments > 0 {
             ("rod.segments", format!("{segments} segments"))
         } else {
             ("body", format!("{bodies} bodies"))
@@ -209,14 +209,45 @@ pub(super) fn check(raw: &RawScenario, run: &RunConfig, file: &str) -> Result<()
             file,
             key,
             format!(
-                "{what}: the run would need an estimated {} (model {}, trajectory {}), more \
-                 than this machine's memory of {} (docs/limits.md)",
-                gb(model + trajectory),
-                gb(model),
-                gb(trajectory),
+                "{what}: the run would need an estimated {} ({} kB per body), more than this \
+                 machine's memory of {} (docs/limits.md)",
+                gb(need),
+                MODEL_BYTES_PER_BODY / 1e3,
                 gb(limit)
             ),
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn memory_beyond_the_limit_names_the_rod_or_the_bodies() {
+        // 10⁴ segments need 50 MB: accepted with 1 GB, refused with 10 MB.
+        assert!(memory(10_000, 10_000, 1e4, 1e9, "f").is_ok());
+        let e = memory(10_000, 10_000, 1e4, 1e7, "f").unwrap_err();
+        assert_eq!(e.key, "rod.segments");
+        assert!(e.message.contains("0.050 GB"), "{e}");
+        assert!(e.message.contains("0.010 GB"), "{e}");
+        let e = memory(10_000, 0, 1e4, 1e7, "f").unwrap_err();
+        assert_eq!(e.key, "body");
+        // The output times count: 10⁷ of them are 80 MB.
+        assert!(memory(1, 0, 1e7, 5e7, "f").is_err());
+    }
+
+    #[test]
+    fn output_count_matches_the_output_times() {
+        for (t0, t_end, dt) in [(0.0, 2.0, 0.002), (0.0, 1.0, 0.3), (1.0, 1.5, 1.0)] {
+            let run = RunConfig {
+                t0,
+                t_end,
+                output_dt: dt,
+                ..RunConfig::default()
+            };
+            assert_eq!(output_count(&run), run.output_times().len() as f64);
+        }
+    }
 }

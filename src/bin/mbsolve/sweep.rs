@@ -11,7 +11,7 @@
 
 use crate::output::write_summary_json;
 use mbsolve::scenario::{self, Override, ScenarioError};
-use mbsolve::simulation::{simulate, Summary, Trajectory};
+use mbsolve::simulation::{simulate_into, Sample, Sink, Summary};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -51,8 +51,18 @@ impl std::str::FromStr for SweepParam {
 pub struct SweepRun {
     /// The `KEY=VALUE` overrides of this run (sweep parameters only).
     pub point: Vec<String>,
-    /// Trajectory and summary, or why the run could not start.
-    pub result: Result<(Trajectory, Summary), String>,
+    /// The summary, or why the run could not start.
+    pub result: Result<Summary, String>,
+}
+
+/// A sweep keeps only each run's summary: its output rows are dropped as
+/// they come, so a sweep's memory does not grow with the output times.
+struct SummaryOnly;
+
+impl Sink for SummaryOnly {
+    fn output(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
 }
 
 /// All combinations, first parameter slowest.
@@ -133,8 +143,15 @@ pub fn run(
             let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
                 .and_then(|sc| {
-                    simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
-                        .map_err(|e| e.to_string())
+                    simulate_into(
+                        &sc.system,
+                        &sc.q0,
+                        &sc.qd0,
+                        &sc.run,
+                        &mut [],
+                        &mut SummaryOnly,
+                    )
+                    .map_err(|e| e.to_string())
                 });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             eprintln!(
@@ -247,7 +264,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                 .map(|p| p.split_once('=').map_or(String::new(), |x| x.1.to_string())),
         );
         match &r.result {
-            Ok((_, s)) => {
+            Ok(s) => {
                 write_summary_json(&a.out.join(format!("{stem}_sweep{k}.summary.json")), s)
                     .map_err(|e| e.to_string())?;
                 if s.status != "completed" {
