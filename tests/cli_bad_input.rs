@@ -61,12 +61,12 @@ fn crash_inputs_are_errors_naming_key_and_limit() {
         (
             &fourbar,
             "time.end=1e308",
-            &["fourbar.toml", "output.dt", "1e308", "limit is 1e7"][..],
+            &["fourbar.toml", "output.dt", "1e308", "limit is 1e8"][..],
         ),
         (
             &fourbar,
             "output.dt=5e-324",
-            &["--set output.dt", "output.dt: 5e-324", "limit is 1e7"],
+            &["--set output.dt", "output.dt: 5e-324", "limit is 1e8"],
         ),
         (
             &fourbar,
@@ -75,7 +75,7 @@ fn crash_inputs_are_errors_naming_key_and_limit() {
                 "--set output.dt",
                 "output.dt: 1e-9",
                 "2.0000e9",
-                "limit is 1e7",
+                "limit is 1e8",
             ],
         ),
         (

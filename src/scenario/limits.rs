@@ -8,8 +8,10 @@ use super::{error, RawScenario, ScenarioError};
 use crate::integrate::eps;
 use crate::simulation::RunConfig;
 
-/// Most output times of one run (10⁷; the largest documented run has 10⁴).
-pub const MAX_OUTPUT_TIMES: f64 = 1e7;
+/// Most output times of one run (10⁸; the largest documented run has 10⁴,
+/// the long-run tests of `tests/cli_stream.rs` 5·10⁷). Rows are streamed,
+/// but the output times themselves are one vector (8 B each: 800 MB here).
+pub const MAX_OUTPUT_TIMES: f64 = 1e8;
 
 /// Most bodies of one scenario, `[[body]]` tables plus rod segments (10⁶;
 /// the largest documented rod has N = 10⁴ segments).
