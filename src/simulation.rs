@@ -34,6 +34,23 @@ pub struct RunConfig {
     pub implicit: ImplicitOptions,
     /// Guards against silent nonsense: warnings and the "diverged" stop.
     pub guards: Guards,
+    /// Quantities computed at each output time besides q, q̇ and ‖Φ‖.
+    pub outputs: OutputQuantities,
+}
+
+/// Optional quantities of each output row ([`Sample`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OutputQuantities {
+    /// Velocities q̇ (always in a [`Sample`]; tells writers to include them).
+    pub velocities: bool,
+    /// Accelerations q̈ (from eq. (5) at the output state, with the run's
+    /// Baumgarte terms; index-3 runs: without).
+    pub accelerations: bool,
+    /// Multipliers λ and the joint reactions `−Φ_qᵀλ`
+    /// ([`System::joint_reactions`]).
+    pub reactions: bool,
+    /// Kinetic and potential energy.
+    pub energy: bool,
 }
 
 /// Guards watched at every accepted step. A guard that trips warns once
@@ -81,6 +98,7 @@ impl Default for RunConfig {
             index1: Index1Options::default(),
             implicit: ImplicitOptions::default(),
             guards: Guards::default(),
+            outputs: OutputQuantities::default(),
         }
     }
 }
@@ -131,6 +149,15 @@ pub struct Sample<'a> {
     pub constraint_norm: f64,
     /// ‖Φ̇‖₂ = ‖Φ_q q̇ + Φ_t‖₂.
     pub velocity_constraint_norm: f64,
+    /// Accelerations q̈, if [`OutputQuantities::accelerations`].
+    pub qdd: Option<&'a [f64]>,
+    /// Multipliers λ, if [`OutputQuantities::reactions`].
+    pub lambda: Option<&'a [f64]>,
+    /// Joint reactions `(f_x, f_y, m_z)` per joint
+    /// ([`System::joint_reactions`]), if [`OutputQuantities::reactions`].
+    pub reactions: Option<&'a [f64]>,
+    /// Kinetic and potential energy, if [`OutputQuantities::energy`].
+    pub energy: Option<[f64; 2]>,
 }
 
 /// Where a run's outputs go, as the integration delivers them: kept in
@@ -274,6 +301,12 @@ struct Watch<'s, 'm, 'd, 'k> {
     /// Why the run diverged (status "diverged").
     diverged: Option<String>,
     warnings: Vec<String>,
+    outputs: OutputQuantities,
+    /// Eq. (5) at the output states, for q̈ and λ.
+    extras: Option<Index1<'s>>,
+    qdd: Vec<f64>,
+    reactions: Vec<f64>,
+    warned_extras: bool,
 }
 
 impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
@@ -299,7 +332,23 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             .constraint_warn
             .unwrap_or(100.0 * (cfg.ode.rtol * l + atol));
         let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
+        let o = cfg.outputs;
+        let extras = if o.accelerations || o.reactions {
+            let opts = if cfg.method.is_implicit() {
+                Index1Options::default()
+            } else {
+                cfg.index1
+            };
+            Index1::new(sys, opts).ok()
+        } else {
+            None
+        };
         Self {
+            outputs: o,
+            extras,
+            qdd: vec![0.0; sys.n_coords()],
+            reactions: vec![0.0; 3 * sys.constraints().len()],
+            warned_extras: false,
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
@@ -395,6 +444,33 @@ impl Observer for Watch<'_, '_, '_, '_> {
         self.max_norm = self.max_norm.max(cn);
         self.max_velocity_norm = self.max_velocity_norm.max(vn);
         self.final_norm = cn;
+        let mut have_extras = false;
+        if let Some(f) = self.extras.as_mut() {
+            match f.accelerations(t, q, qd, &mut self.qdd) {
+                Ok(()) => {
+                    have_extras = true;
+                    if self.outputs.reactions {
+                        self.sys
+                            .joint_reactions(&self.jac, f.lambda(), &mut self.reactions);
+                    }
+                }
+                Err(e) => {
+                    self.qdd.fill(f64::NAN);
+                    self.reactions.fill(f64::NAN);
+                    if !self.warned_extras {
+                        self.warned_extras = true;
+                        let m =
+                            format!("accelerations and reactions at t = {t:e}: {e} (NaN written)");
+                        self.warn(m);
+                    }
+                }
+            }
+        }
+        let o = self.outputs;
+        let lambda = match (&self.extras, have_extras) {
+            (Some(f), true) if o.reactions => Some(f.lambda()),
+            _ => None,
+        };
         let sample = Sample {
             t,
             q,
@@ -402,6 +478,12 @@ impl Observer for Watch<'_, '_, '_, '_> {
             phi: &self.phi,
             constraint_norm: cn,
             velocity_constraint_norm: vn,
+            qdd: o.accelerations.then_some(&self.qdd[..]),
+            lambda,
+            reactions: o.reactions.then_some(&self.reactions[..]),
+            energy: o
+                .energy
+                .then(|| [self.sys.kinetic_energy(qd), self.sys.potential_energy(q)]),
         };
         match self.sink.output(&sample) {
             Ok(()) => {

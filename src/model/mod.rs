@@ -13,6 +13,7 @@ mod body;
 mod constraint;
 mod force;
 mod gravity;
+mod reaction;
 mod system;
 mod time_function;
 

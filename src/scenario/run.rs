@@ -6,7 +6,7 @@ use super::{error, positive, RawScenario, ScenarioError};
 use crate::formulation::{Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options};
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
-use crate::simulation::RunConfig;
+use crate::simulation::{OutputQuantities, RunConfig};
 use serde::Deserialize;
 
 #[derive(Debug, Default, Deserialize)]
@@ -52,6 +52,10 @@ pub(super) struct RawTime {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawOutput {
     dt: Option<f64>,
+    /// Extra quantities per output row: "velocities", "accelerations",
+    /// "reactions", "energy".
+    #[serde(default)]
+    quantities: Vec<String>,
 }
 
 /// Build the run settings of `raw`; errors name keys of `file`.
@@ -162,9 +166,36 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         },
         implicit,
         guards: Default::default(),
+        outputs: output_quantities(&raw.output.quantities)
+            .map_err(|m| err("output.quantities".into(), m))?,
     };
 
     Ok(run)
+}
+
+/// `output.quantities`: each of "velocities", "accelerations", "reactions",
+/// "energy", at most once.
+fn output_quantities(names: &[String]) -> Result<OutputQuantities, String> {
+    let mut o = OutputQuantities::default();
+    for (k, name) in names.iter().enumerate() {
+        let flag = match name.as_str() {
+            "velocities" => &mut o.velocities,
+            "accelerations" => &mut o.accelerations,
+            "reactions" => &mut o.reactions,
+            "energy" => &mut o.energy,
+            other => {
+                return Err(format!(
+                    "unknown quantity '{other}' (item {k}); expected velocities, accelerations, \
+                     reactions or energy"
+                ))
+            }
+        };
+        if *flag {
+            return Err(format!("'{name}' is listed twice"));
+        }
+        *flag = true;
+    }
+    Ok(o)
 }
 
 /// The first key of `raw` that does not apply to `method` (with
