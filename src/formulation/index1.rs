@@ -1,6 +1,6 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
-use super::{Baumgarte, Formulation, FormulationError};
+use super::{all_finite, Baumgarte, Formulation, FormulationError};
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -190,6 +190,14 @@ impl<'a> Index1<'a> {
             sys.forces_into(t, q, qd, g);
             constraint_terms();
         }
+        all_finite(
+            t,
+            &[
+                ("the forces g", &self.g),
+                ("the constraint Jacobian Φ_q", &self.jac),
+                ("γ (the right-hand side of Φ_q q̈ = γ)", &self.gamma),
+            ],
+        )?;
         self.k.set_a_diagonal(sys.mass_diagonal());
         self.k.set_jacobian(&self.jac);
         let lin = |source| FormulationError::Linear { t, source };

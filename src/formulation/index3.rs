@@ -59,7 +59,7 @@
 //! [`ForceElement::jacobian_coordinates`]: crate::model::ForceElement::jacobian_coordinates
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
-use super::FormulationError;
+use super::{all_finite, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -269,13 +269,14 @@ impl<'a> Index3<'a> {
             r[i] = scale * (mass[i] * qdd[i] + self.tmp[i] - self.g[i]);
         }
         sys.phi(q, t, &mut r[n..]);
-        if let Some(i) = r.iter().position(|v| !v.is_finite()) {
-            return Err(FormulationError::Invalid(format!(
-                "at t = {t}: the index-3 residual is not finite in component {i} \
-                 (forces or constraints at an invalid state)"
-            )));
-        }
-        Ok(())
+        all_finite(
+            t,
+            &[
+                ("the forces g", &self.g),
+                ("the constraint Jacobian Φ_q", &self.jac),
+                ("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r),
+            ],
+        )
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:
@@ -315,6 +316,15 @@ impl<'a> Index3<'a> {
             }
         }
         sys.jacobian_values(q, t, &mut self.jac);
+        all_finite(
+            t,
+            &[
+                ("the force Jacobian ∂g/∂q", &self.dq),
+                ("the force Jacobian ∂g/∂q̇", &self.dqd),
+                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess_vals),
+                ("the constraint Jacobian Φ_q", &self.jac),
+            ],
+        )?;
         self.k.set_jacobian(&self.jac);
         self.solver
             .factorize(&self.k)
@@ -333,6 +343,7 @@ impl<'a> Index3<'a> {
     /// Factorise the mass saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` at `q`.
     fn factor_mass(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
         self.sys.jacobian_values(q, t, &mut self.jac);
+        all_finite(t, &[("the constraint Jacobian Φ_q", &self.jac)])?;
         self.kp.set_a_diagonal(self.sys.mass_diagonal());
         self.kp.set_jacobian(&self.jac);
         self.psolver
@@ -357,6 +368,13 @@ impl<'a> Index3<'a> {
         self.sys.forces_into(t, q, qd, &mut self.g);
         self.x[..n].copy_from_slice(&self.g);
         self.sys.gamma(q, qd, t, &mut self.x[n..]);
+        all_finite(
+            t,
+            &[
+                ("the forces g", &self.x[..n]),
+                ("γ (the right-hand side of Φ_q q̈ = γ)", &self.x[n..]),
+            ],
+        )?;
         self.psolver
             .solve_in_place(&self.kp, &mut self.x)
             .map_err(|source| FormulationError::Linear { t, source })?;
@@ -382,6 +400,7 @@ impl<'a> Index3<'a> {
         // positions
         self.x[..n].fill(0.0);
         self.sys.phi(q, t, &mut self.phi);
+        all_finite(t, &[("the constraints Φ", &self.phi)])?;
         for (x, p) in self.x[n..].iter_mut().zip(&self.phi) {
             *x = -p;
         }

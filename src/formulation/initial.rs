@@ -1,7 +1,7 @@
 //! Consistent initial conditions (paper §2): positions on Φ(q, t₀) = 0 and
 //! velocities on Φ_q q̇ = −Φ_t, given the independent coordinates.
 
-use super::FormulationError;
+use super::{all_finite, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::System;
 use serde::Serialize;
@@ -101,6 +101,7 @@ pub fn consistent_initial_state(
             )));
         }
         sys.jacobian_values(&q, t0, &mut jac[..nsys]);
+        all_finite(t0, &[("the constraint Jacobian Φ_q", &jac)])?;
         kmat.set_jacobian(&jac);
         solver.factorize(&kmat).map_err(lin)?;
         x.fill(0.0);
@@ -116,10 +117,17 @@ pub fn consistent_initial_state(
 
     // Velocities: min ‖q̇ − q̇⁰‖ s.t. Φ_q q̇ = −Φ_t, q̇_k = q̇⁰_k.
     sys.jacobian_values(&q, t0, &mut jac[..nsys]);
-    kmat.set_jacobian(&jac);
-    solver.factorize(&kmat).map_err(lin)?;
     let mut phi_t = vec![0.0; m];
     sys.phi_t(&q, t0, &mut phi_t);
+    all_finite(
+        t0,
+        &[
+            ("the constraint Jacobian Φ_q", &jac),
+            ("Φ_t (the constraints' time derivative)", &phi_t),
+        ],
+    )?;
+    kmat.set_jacobian(&jac);
+    solver.factorize(&kmat).map_err(lin)?;
     x[..n].copy_from_slice(qd);
     for r in 0..m {
         x[n + r] = -phi_t[r];

@@ -144,6 +144,22 @@ impl Baumgarte {
     }
 }
 
+/// The first non-finite entry of the named vectors, as a
+/// [`FormulationError::NonFinite`] at time `t` (one pass, no allocation).
+pub(crate) fn all_finite(t: f64, parts: &[(&'static str, &[f64])]) -> Result<(), FormulationError> {
+    for &(what, v) in parts {
+        if let Some((index, &value)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+            return Err(FormulationError::NonFinite {
+                what,
+                index,
+                value,
+                t,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Failures of a formulation.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum FormulationError {
@@ -165,6 +181,25 @@ pub enum FormulationError {
         t: f64,
         /// The first non-finite component (e.g. `phi12` or `dx3/dt`).
         component: String,
+    },
+    /// A quantity of the model evaluation (forces, Φ, Φ_q, γ, force
+    /// Jacobians) is not finite: an overflow or an invalid value of the
+    /// model at this state, found before it reaches a factorisation (where
+    /// it would look like a singular matrix).
+    #[error(
+        "at t = {t}: {what} is not finite in component {index} ({value}): the model \
+         overflows or is undefined at this state (check the magnitudes of the scenario's \
+         values: forces, motions, geometry)"
+    )]
+    NonFinite {
+        /// What was evaluated, e.g. `the forces g`.
+        what: &'static str,
+        /// The first non-finite component.
+        index: usize,
+        /// Its value.
+        value: f64,
+        /// Time of the evaluation.
+        t: f64,
     },
     /// Invalid parameters.
     #[error("{0}")]

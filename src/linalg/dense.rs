@@ -56,9 +56,7 @@ impl SaddlePointSolver for DenseLu {
         lu.solve_in_place(MatMut::from_column_major_slice_mut(rhs, dim, 1));
         self.stats.solves += 1;
         if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::Singular(
-                "dense LU produced a non-finite solution".into(),
-            ));
+            return Err(LinalgError::NonFiniteSolution("dense LU"));
         }
         let res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
         if res > SINGULAR_RESIDUAL {

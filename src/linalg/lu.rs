@@ -116,9 +116,7 @@ impl SaddlePointSolver for SparseLu {
         }
         self.stats.solves += 1;
         if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::Singular(
-                "sparse LU produced a non-finite solution".into(),
-            ));
+            return Err(LinalgError::NonFiniteSolution("sparse LU"));
         }
         Ok(())
     }

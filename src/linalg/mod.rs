@@ -50,6 +50,14 @@ pub enum LinalgError {
     /// The matrix is numerically singular (or the solution is not finite).
     #[error("saddle-point matrix is singular: {0}")]
     Singular(String),
+    /// The solve produced a non-finite solution from a finite matrix and
+    /// right-hand side: the matrix is singular or nearly so, or the
+    /// solution overflows (the solver cannot tell these apart).
+    #[error(
+        "{0} produced a non-finite solution: the saddle-point matrix is singular or nearly so, \
+         or the solution overflows (forces or accelerations beyond the range of doubles)"
+    )]
+    NonFiniteSolution(&'static str),
     /// A non-finite value was written into the matrix.
     #[error("non-finite entry in the saddle-point matrix at ({row}, {col})")]
     NonFinite {

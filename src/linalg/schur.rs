@@ -168,9 +168,7 @@ impl SaddlePointSolver for SchurComplement {
         }
         self.stats.solves += 1;
         if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::Singular(
-                "the Schur-complement solve produced a non-finite solution".into(),
-            ));
+            return Err(LinalgError::NonFiniteSolution("the Schur-complement solve"));
         }
         Ok(())
     }

@@ -579,9 +579,7 @@ impl SaddlePointSolver for SparseLdlt {
             return if rhs.iter().all(|v| v.is_finite()) {
                 Ok(())
             } else {
-                Err(LinalgError::Singular(
-                    "sparse LDLᵀ produced a non-finite solution".into(),
-                ))
+                Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"))
             };
         }
         let mut res = k.relative_residual(rhs, &an.rhs0, &mut an.work);
@@ -602,9 +600,7 @@ impl SaddlePointSolver for SparseLdlt {
         }
         self.last_residual = res;
         if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::Singular(
-                "sparse LDLᵀ produced a non-finite solution".into(),
-            ));
+            return Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"));
         }
         Ok(())
     }

@@ -26,6 +26,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 mod initial;
+pub mod limits;
 mod model;
 mod run;
 
@@ -102,8 +103,34 @@ struct RawScenario {
     constraints: RawConstraints,
 }
 
-/// Load a scenario file and apply `KEY=VALUE` overrides.
+/// A `KEY=VALUE` override of a scenario key and the command-line flag it
+/// came from (`--set`, `--param`), which labels its errors.
+#[derive(Debug, Clone, Copy)]
+pub struct Override<'a> {
+    /// The flag, e.g. `--param`.
+    pub flag: &'a str,
+    /// `KEY=VALUE`.
+    pub spec: &'a str,
+}
+
+/// `--set` overrides.
+fn set_overrides(specs: &[String]) -> Vec<Override<'_>> {
+    specs
+        .iter()
+        .map(|spec| Override {
+            flag: "--set",
+            spec,
+        })
+        .collect()
+}
+
+/// Load a scenario file and apply `KEY=VALUE` overrides (`--set`).
 pub fn load(path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError> {
+    load_with(path, &set_overrides(overrides))
+}
+
+/// Load a scenario file and apply overrides labelled by their flag.
+pub fn load_with(path: &Path, overrides: &[Override]) -> Result<Scenario, ScenarioError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
         file: file.clone(),
@@ -114,7 +141,7 @@ pub fn load(path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scenario".into());
-    parse(&text, &file, &stem, overrides)
+    parse_with(&text, &file, &stem, overrides)
 }
 
 /// Parse scenario text. `file` names it in errors; `stem` is the default name.
@@ -124,11 +151,22 @@ pub fn parse(
     stem: &str,
     overrides: &[String],
 ) -> Result<Scenario, ScenarioError> {
+    parse_with(text, file, stem, &set_overrides(overrides))
+}
+
+/// [`parse`] with overrides labelled by their flag.
+pub fn parse_with(
+    text: &str,
+    file: &str,
+    stem: &str,
+    overrides: &[Override],
+) -> Result<Scenario, ScenarioError> {
     let err = |key: &str, message: String| ScenarioError {
         file: file.to_string(),
         key: key.to_string(),
         message,
     };
+    control_characters(text).map_err(|(line, m)| err(&format!("line {line}"), m))?;
     let mut doc: toml::Table = text.parse().map_err(|e: toml::de::Error| {
         let key = e
             .span()
@@ -137,17 +175,30 @@ pub fn parse(
                 format!("line {line}")
             })
             .unwrap_or_else(|| "-".into());
-        err(&key, e.message().to_string())
+        let m = e.message().trim();
+        err(
+            &key,
+            if m.is_empty() {
+                "invalid TOML".into()
+            } else {
+                m.to_string()
+            },
+        )
     })?;
     let mut set_keys = Vec::new();
     for o in overrides {
-        let key = apply_override(&mut doc, o).map_err(|m| ScenarioError {
-            file: "--set".into(),
-            key: o.clone(),
+        let key = apply_override(&mut doc, o.spec).map_err(|m| ScenarioError {
+            file: o.flag.into(),
+            key: escape(o.spec),
             message: m,
         })?;
-        set_keys.push(key);
+        set_keys.push((o.flag, key));
     }
+    non_finite(&doc, "").map_err(|(key, message)| ScenarioError {
+        file: attribute(file, &key, &set_keys),
+        key,
+        message,
+    })?;
     let raw: RawScenario = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             let key = e.path().to_string();
@@ -166,20 +217,79 @@ pub fn parse(
     })
 }
 
-/// The origin of an error at `key`: the file, or the file and the `--set`
-/// override that wrote the key (or a table or key below it).
-fn attribute(file: &str, key: &str, set_keys: &[String]) -> String {
-    let related = |k: &String| {
-        key == k || key.starts_with(&format!("{k}.")) || k.starts_with(&format!("{key}."))
-    };
-    match set_keys.iter().find(|k| related(k)) {
-        Some(k) => format!("{file} (--set {k})"),
+/// The origin of an error at `key`: the file, or the file and the override
+/// (`--set`, `--param`) that wrote the key (or a table or key below it).
+fn attribute(file: &str, key: &str, set_keys: &[(&str, String)]) -> String {
+    let below =
+        |a: &str, b: &str| a.starts_with(&format!("{b}.")) || a.starts_with(&format!("{b}["));
+    let related = |k: &String| key == k || below(key, k) || below(k, key);
+    match set_keys.iter().find(|(_, k)| related(k)) {
+        Some((flag, k)) => format!("{file} ({flag} {k})"),
         None => file.to_string(),
     }
 }
 
+/// The first ASCII control character of `text` that TOML forbids (all but
+/// tab, line feed and carriage return; TOML 1.0 allows none of them, not
+/// even in comments): its line and a message naming it.
+fn control_characters(text: &str) -> Result<(), (usize, String)> {
+    for (line, l) in text.split('\n').enumerate() {
+        if let Some((col, c)) = l
+            .chars()
+            .enumerate()
+            .find(|(_, c)| c.is_ascii_control() && !matches!(c, '\t' | '\r'))
+        {
+            return Err((
+                line + 1,
+                format!(
+                    "column {}: control character U+{:04X} is not allowed in TOML (not even in \
+                     a comment or a string; write it as an escape such as \\u{:04X} inside a string)",
+                    col + 1,
+                    c as u32,
+                    c as u32
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `s` with control characters escaped, for messages.
+fn escape(s: &str) -> String {
+    s.chars().flat_map(char::escape_debug).collect()
+}
+
+/// The first non-finite number (nan, ±inf) in `v`, with its key path under
+/// `path` (`joint[1].point_i[0]`): no scenario value may be non-finite, so
+/// every one is checked here, before the model sees it.
+fn non_finite(doc: &toml::Table, path: &str) -> Result<(), (String, String)> {
+    fn walk(v: &toml::Value, path: &str) -> Result<(), (String, String)> {
+        match v {
+            toml::Value::Float(f) if !f.is_finite() => {
+                Err((path.to_string(), format!("{f} is not a finite number")))
+            }
+            toml::Value::Table(t) => non_finite(t, path),
+            toml::Value::Array(a) => a
+                .iter()
+                .enumerate()
+                .try_for_each(|(i, x)| walk(x, &format!("{path}[{i}]"))),
+            _ => Ok(()),
+        }
+    }
+    doc.iter().try_for_each(|(k, v)| {
+        let p = if path.is_empty() {
+            k.clone()
+        } else {
+            format!("{path}.{k}")
+        };
+        walk(v, &p)
+    })
+}
+
 /// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
-/// TOML value (number, boolean, quoted string, array) or else as a bare string.
+/// TOML value (number, boolean, quoted string, array) or else as a bare
+/// string. Each segment of the key is a TOML bare
+/// key (letters, digits, `_`, `-`).
 fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
     let (key, value) = spec
         .split_once('=')
@@ -187,14 +297,34 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
     let key = key.trim();
     let value = value.trim();
     if key.is_empty() {
-        return Err("empty key".into());
+        return Err("empty key: expected KEY=VALUE".into());
+    }
+    let parts: Vec<&str> = key.split('.').collect();
+    for (i, p) in parts.iter().enumerate() {
+        if p.is_empty() {
+            return Err(format!(
+                "key '{}': segment {} is empty (keys are dotted names such as time.end)",
+                escape(key),
+                i + 1
+            ));
+        }
+        if let Some(c) = p
+            .chars()
+            .find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '-'))
+        {
+            return Err(format!(
+                "key '{}': '{}' is not allowed in a key segment (letters, digits, _ and -; \
+                 array elements such as body[0] cannot be set)",
+                escape(key),
+                escape(&c.to_string())
+            ));
+        }
     }
     let parsed: toml::Value = format!("v = {value}")
         .parse::<toml::Table>()
         .ok()
         .and_then(|mut t| t.remove("v"))
         .unwrap_or_else(|| toml::Value::String(value.to_string()));
-    let parts: Vec<&str> = key.split('.').collect();
     let mut table = doc;
     for p in &parts[..parts.len() - 1] {
         let entry = table
@@ -209,8 +339,11 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
 }
 
 fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioError> {
-    let model::Model { system, rod, names } = model::build(&raw, file)?;
+    // The run settings and the limits first: nothing that scales with the
+    // input (bodies, output times) is allocated before they are checked.
     let run = run::build(&raw, file)?;
+    limits::check(&raw, &run, file)?;
+    let model::Model { system, rod, names } = model::build(&raw, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),

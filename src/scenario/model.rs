@@ -63,7 +63,7 @@ pub(super) struct RawConstraints {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawRod {
-    segments: Option<i64>,
+    pub(super) segments: Option<i64>,
     length: Option<f64>,
     width: Option<f64>,
     density: Option<f64>,

@@ -108,12 +108,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         }
     }
     let (t0, t_end) = (raw.time.start, raw.time.end);
-    if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
-        return Err(err(
-            "time.end".into(),
-            format!("{t_end} is invalid: must be finite and > time.start = {t0}"),
-        ));
-    }
+    super::limits::time_span(t0, t_end, file)?;
     let dt = raw.output.dt.unwrap_or((t_end - t0) / 500.0);
     positive(dt).map_err(|m| err("output.dt".into(), m))?;
     let st = &raw.stabilization;

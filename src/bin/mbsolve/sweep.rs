@@ -10,8 +10,8 @@
 //! checking that every run is present exactly once.
 
 use crate::output::write_summary_json;
-use mbsolve::scenario::{self, ScenarioError};
-use mbsolve::simulation::{simulate, Summary, Trajectory};
+use mbsolve::scenario::{self, Override, ScenarioError};
+use mbsolve::simulation::{simulate_into, Sample, Sink, Summary};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -51,8 +51,18 @@ impl std::str::FromStr for SweepParam {
 pub struct SweepRun {
     /// The `KEY=VALUE` overrides of this run (sweep parameters only).
     pub point: Vec<String>,
-    /// Trajectory and summary, or why the run could not start.
-    pub result: Result<(Trajectory, Summary), String>,
+    /// The summary, or why the run could not start.
+    pub result: Result<Summary, String>,
+}
+
+/// A sweep keeps only each run's summary: its output rows are dropped as
+/// they come, so a sweep's memory does not grow with the output times.
+struct SummaryOnly;
+
+impl Sink for SummaryOnly {
+    fn output(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(())
+    }
 }
 
 /// All combinations, first parameter slowest.
@@ -122,20 +132,26 @@ pub fn run(
         .enumerate()
         .filter(|(k, _)| shard.is_none_or(|s| s.owns(*k)))
         .collect();
-    let with = |p: &Vec<String>| -> Vec<String> { base.iter().chain(p).cloned().collect() };
     for (_, p) in &points {
-        scenario::load(path, &with(p))?;
+        scenario::load_with(path, &overrides(base, p))?;
     }
     let total = points.len();
     let done = AtomicUsize::new(0);
     Ok(points
         .into_par_iter()
         .map(|(k, point)| {
-            let result = scenario::load(path, &with(&point))
+            let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
                 .and_then(|sc| {
-                    simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
-                        .map_err(|e| e.to_string())
+                    simulate_into(
+                        &sc.system,
+                        &sc.q0,
+                        &sc.qd0,
+                        &sc.run,
+                        &mut [],
+                        &mut SummaryOnly,
+                    )
+                    .map_err(|e| e.to_string())
                 });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             eprintln!(
@@ -145,6 +161,16 @@ pub fn run(
             (k, SweepRun { point, result })
         })
         .collect())
+}
+
+/// The `--set` overrides, then one run's `--param` values, each labelled by
+/// its flag for the scenario's errors.
+fn overrides<'a>(base: &'a [String], point: &'a [String]) -> Vec<Override<'a>> {
+    let tag = |flag: &'static str| move |spec: &'a String| Override { flag, spec };
+    base.iter()
+        .map(tag("--set"))
+        .chain(point.iter().map(tag("--param")))
+        .collect()
 }
 
 /// What `mbsolve sweep` was asked for.
@@ -238,7 +264,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                 .map(|p| p.split_once('=').map_or(String::new(), |x| x.1.to_string())),
         );
         match &r.result {
-            Ok((_, s)) => {
+            Ok(s) => {
                 write_summary_json(&a.out.join(format!("{stem}_sweep{k}.summary.json")), s)
                     .map_err(|e| e.to_string())?;
                 if s.status != "completed" {

@@ -1,0 +1,255 @@
+//! Bounded work before a run starts (issue 13, item 4): the time span must
+//! be resolvable in floating point, and the number of output times, of
+//! bodies and the estimated memory have limits, each checked before
+//! anything scales with them is allocated. Each is an error naming the key
+//! and the limit; docs/limits.md lists them.
+
+use super::{error, RawScenario, ScenarioError};
+use crate::integrate::eps;
+use crate::simulation::RunConfig;
+
+/// Most output times of one run (10⁸; the largest documented run has 10⁴,
+/// the long-run tests of `tests/cli_stream.rs` 5·10⁷). Rows are streamed,
+/// but the output times themselves are one vector (8 B each: 800 MB here).
+pub const MAX_OUTPUT_TIMES: f64 = 1e8;
+
+/// Most bodies of one scenario, `[[body]]` tables plus rod segments (10⁶;
+/// the largest documented rod has N = 10⁴ segments).
+pub const MAX_BODIES: usize = 1_000_000;
+
+/// Shortest time span, in units of the spacing of doubles at the span's
+/// largest |t| (`eps(t)`): a shorter span makes the integrators' steps
+/// (a tenth of the span at most, and not below `16·eps(t)`) round to
+/// `t + h == t`.
+pub const MIN_SPAN_ULPS: f64 = 1e4;
+
+/// Smallest step or output spacing, in units of `eps(t)`: MATLAB's smallest
+/// step `hmin = 16·eps(t)`, below which `t + h` does not advance reliably.
+pub const MIN_STEP_ULPS: f64 = 16.0;
+
+/// Memory of the model, its evaluation buffers and the linear solver per
+/// body \[bytes\], rounded up from the falling rod at N = 10⁴ (44 MB peak
+/// RSS for a run with two output times, ode23).
+pub const MODEL_BYTES_PER_BODY: f64 = 5e3;
+
+/// Memory the estimate may not exceed when the machine's is unknown \[bytes\].
+pub const FALLBACK_MEMORY: f64 = 16.0 * 1024.0 * 1024.0 * 1024.0;
+
+/// The time span `[t0, t_end]`: finite, forward and at least
+/// [`MIN_SPAN_ULPS`] spacings of doubles long; errors at `time.end`.
+pub(super) fn time_span(t0: f64, t_end: f64, file: &str) -> Result<(), ScenarioError> {
+    if !(t0.is_finite() && t_end.is_finite() && t_end > t0 && (t_end - t0).is_finite()) {
+        return Err(error(
+            file,
+            "time.end",
+            format!(
+                "{} is invalid: must be finite and > time.start = {}, with a finite span",
+                num(t_end),
+                num(t0)
+            ),
+        ));
+    }
+    let ulp = eps(t0.abs().max(t_end.abs()));
+    if t_end - t0 < MIN_SPAN_ULPS * ulp {
+        return Err(error(
+            file,
+            "time.end",
+            format!(
+                "{} is invalid: the span time.end − time.start = {} s is shorter than \
+                 {} times the spacing of doubles there ({} s): the steps would not advance \
+                 t (t + h == t) (docs/limits.md)",
+                num(t_end),
+                num(t_end - t0),
+                num(MIN_SPAN_ULPS),
+                num(ulp)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A step-like value `h` at `key`: at least [`MIN_STEP_ULPS`]·eps(t) over
+/// the span, so that `t + h` advances t.
+fn resolvable(key: &str, h: f64, run: &RunConfig, file: &str) -> Result<(), ScenarioError> {
+    let floor = MIN_STEP_ULPS * eps(run.t0.abs().max(run.t_end.abs()));
+    if h < floor {
+        return Err(error(
+            file,
+            key,
+            format!(
+                "{} is invalid: below {MIN_STEP_ULPS}·eps(t) = {} s for t up to time.end = {}, \
+                 so t + h would not advance t (docs/limits.md)",
+                num(h),
+                num(floor),
+                num(run.t_end)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The number of output times of `run` (as [`RunConfig::output_times`]
+/// makes them), computed without allocating.
+pub fn output_count(run: &RunConfig) -> f64 {
+    ((run.t_end - run.t0) / run.output_dt - 1e-9)
+        .ceil()
+        .max(1.0)
+        + 1.0
+}
+
+/// Estimated peak memory of a run \[bytes\] with `bodies` bodies and
+/// `outputs` output times: the model ([`MODEL_BYTES_PER_BODY`]) and the
+/// output times (8 B each). Output rows are streamed
+/// ([`crate::simulation::simulate_into`]); a caller that keeps them in
+/// memory ([`crate::simulation::Trajectory`]) adds 8 (2n + m) B per output
+/// time (64 B per rod segment), which is not counted here.
+pub fn memory_estimate(bodies: usize, outputs: f64) -> f64 {
+    MODEL_BYTES_PER_BODY * bodies as f64 + 8.0 * outputs
+}
+
+/// The memory a run may use: the machine's physical memory (`MemTotal` of
+/// /proc/meminfo), or [`FALLBACK_MEMORY`] where that cannot be read.
+pub fn memory_limit() -> f64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
+            let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kb * 1024.0)
+        })
+        .unwrap_or(FALLBACK_MEMORY)
+}
+
+/// `x` for messages: plain in [1e-4, 1e6), else in exponent form (`1e308`,
+/// not 309 digits).
+fn num(x: f64) -> String {
+    if x == 0.0 || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+fn gb(bytes: f64) -> String {
+    format!("{:.3} GB", bytes / 1e9)
+}
+
+/// Steps, output times, bodies and memory of `raw` with `run`, before the
+/// model is built or anything is allocated.
+pub(super) fn check(raw: &RawScenario, run: &RunConfig, file: &str) -> Result<(), ScenarioError> {
+    for (key, h) in [
+        ("integrator.step", run.ode.fixed_step),
+        ("integrator.max_step", run.ode.max_step),
+    ] {
+        if let Some(h) = h {
+            resolvable(key, h, run, file)?;
+        }
+    }
+    let outputs = output_count(run);
+    if outputs > MAX_OUTPUT_TIMES {
+        let count = if outputs.is_finite() {
+            format!("{outputs:.4e}")
+        } else {
+            "over 1e308".into()
+        };
+        return Err(error(
+            file,
+            "output.dt",
+            format!(
+                "{} over time.end − time.start = {} s gives {count} output times; the limit \
+                 is {} (docs/limits.md): raise output.dt or shorten the span",
+                num(run.output_dt),
+                num(run.t_end - run.t0),
+                num(MAX_OUTPUT_TIMES)
+            ),
+        ));
+    }
+    resolvable("output.dt", run.output_dt, run, file)?;
+    // A `[rod]` without `segments` has problem B's ten; a negative count is
+    // the model's error.
+    let segments = raw.rod.as_ref().map_or(0, |r| r.segments.unwrap_or(10));
+    if segments > MAX_BODIES as i64 {
+        return Err(error(
+            file,
+            "rod.segments",
+            format!("{segments} is invalid: the limit is {MAX_BODIES} bodies (docs/limits.md)"),
+        ));
+    }
+    let segments = usize::try_from(segments).unwrap_or(0);
+    let bodies = raw.body.len() + segments;
+    if bodies > MAX_BODIES {
+        return Err(error(
+            file,
+            "body",
+            format!(
+                "{bodies} bodies (with the rod's segments): the limit is {MAX_BODIES} \
+                 (docs/limits.md)"
+            ),
+        ));
+    }
+    memory(bodies, segments, outputs, memory_limit(), file)
+}
+
+/// The memory estimate of `bodies` bodies (`segments` of them a rod's) and
+/// `outputs` output times against `limit`; an error at `rod.segments`
+/// (or `body`) when it is exceeded.
+fn memory(
+    bodies: usize,
+    segments: usize,
+    outputs: f64,
+    limit: f64,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let need = memory_estimate(bodies, outputs);
+    if need > limit {
+        let (key, what) = if segments > 0 {
+            ("rod.segments", format!("{segments} segments"))
+        } else {
+            ("body", format!("{bodies} bodies"))
+        };
+        return Err(error(
+            file,
+            key,
+            format!(
+                "{what}: the run would need an estimated {} ({} kB per body), more than this \
+                 machine's memory of {} (docs/limits.md)",
+                gb(need),
+                MODEL_BYTES_PER_BODY / 1e3,
+                gb(limit)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn memory_beyond_the_limit_names_the_rod_or_the_bodies() {
+        // 10⁴ segments need 50 MB: accepted with 1 GB, refused with 10 MB.
+        assert!(memory(10_000, 10_000, 1e4, 1e9, "f").is_ok());
+        let e = memory(10_000, 10_000, 1e4, 1e7, "f").unwrap_err();
+        assert_eq!(e.key, "rod.segments");
+        assert!(e.message.contains("0.050 GB"), "{e}");
+        assert!(e.message.contains("0.010 GB"), "{e}");
+        let e = memory(10_000, 0, 1e4, 1e7, "f").unwrap_err();
+        assert_eq!(e.key, "body");
+        // The output times count: 10⁷ of them are 80 MB.
+        assert!(memory(1, 0, 1e7, 5e7, "f").is_err());
+    }
+
+    #[test]
+    fn output_count_matches_the_output_times() {
+        for (t0, t_end, dt) in [(0.0, 2.0, 0.002), (0.0, 1.0, 0.3), (1.0, 1.5, 1.0)] {
+            let run = RunConfig {
+                t0,
+                t_end,
+                output_dt: dt,
+                ..RunConfig::default()
+            };
+            assert_eq!(output_count(&run), run.output_times().len() as f64);
+        }
+    }
+}
