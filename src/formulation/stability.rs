@@ -129,7 +129,7 @@ pub fn fastest_modes(
                 .map(|(a, mi)| a * a * mi)
                 .sum::<f64>()
                 .sqrt();
-            if !(xm > 0.0) || !xm.is_finite() {
+            if xm <= 0.0 || !xm.is_finite() {
                 break;
             }
             x.iter_mut().for_each(|v| *v /= xm);
