@@ -1,7 +1,7 @@
 //! One run, end to end: formulation + integrator + observation of the
 //! constraint violation, with a [`Summary`] of the work done.
 
-use crate::formulation::{FormulationError, Index1, Index1Options, Index3, NewtonSolverKind};
+use crate::formulation::{ExplicitForm, FormulationError, Index1Options, Index3, NewtonSolverKind};
 use crate::integrate::{
     integrator, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
     OdeOptions, Report, Termination, Tolerance,
@@ -282,16 +282,17 @@ trait MethodRun {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
 }
 
-/// ode23, ode45, rk4 on the index-1 form ([`Index1`], eq. (5)).
+/// ode23, ode45, rk4 on the index-1 form (eq. (5)) or the penalty form
+/// ([`ExplicitForm`]).
 struct Explicit<'s> {
-    f: Index1<'s>,
+    f: ExplicitForm<'s>,
     integ: Box<dyn Integrator>,
 }
 
 impl<'s> Explicit<'s> {
     fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         Ok(Self {
-            f: Index1::new(sys, cfg.index1)?,
+            f: ExplicitForm::new(sys, cfg.index1)?,
             integ: integrator(cfg.method, cfg.ode.clone())?,
         })
     }
@@ -320,7 +321,13 @@ impl MethodRun for Explicit<'_> {
             factorizations: stats.solver.factorizations,
             regularized_pivots: stats.solver.regularized_pivots,
         };
-        (work, serde_json::Map::new())
+        let mut extra = serde_json::Map::new();
+        if cfg.index1.projection.enabled {
+            extra.insert("projections".into(), stats.projections.into());
+            let it = stats.projection_iterations;
+            extra.insert("projection_iterations".into(), it.into());
+        }
+        (work, extra)
     }
 }
 
