@@ -437,7 +437,7 @@ fn finish(
 ) -> (Trajectory, Summary) {
     let (status, message) = match &report.termination {
         Termination::Completed => ("completed", None),
-        Termination::Failed { reason, .. } => ("failed", Some(reason.clone())),
+        Termination::Failed { reason, .. } => ("failed", Some(reason.to_string())),
         Termination::Stopped { reason, .. } => ("stopped", Some(reason.clone())),
     };
     for mon in watch.monitors.iter() {

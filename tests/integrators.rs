@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 use std::ops::ControlFlow;
 
 use mbsolve::integrate::{
-    integrator, FnSystem, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Recorder,
-    Report, SystemError, Termination, Tolerance,
+    integrator, Failure, FnSystem, IntegratorError, Method, Observer, OdeOptions, OdeSystem,
+    Recorder, Report, StepCut, SystemError, Termination, Tolerance,
 };
 
 // ---------------------------------------------------------------- helpers
@@ -687,6 +687,17 @@ fn finite_time_blow_up_fails_near_one() {
             panic!("{method}: expected failure, got {:?}", rep.termination);
         };
         assert!(
+            matches!(
+                reason,
+                Failure::StepTooSmall {
+                    cause: StepCut::ErrorTest { .. },
+                    ..
+                }
+            ),
+            "{reason:?}"
+        );
+        let reason = reason.to_string();
+        assert!(
             *t > window.0 && *t < window.1,
             "{method} rtol {rtol}: failed at {t}"
         );
@@ -753,6 +764,16 @@ fn rhs_error_or_non_finite_value_fails_at_that_time() {
             let Termination::Failed { t, reason } = &rep.termination else {
                 panic!("{method}: expected failure, got {:?}", rep.termination);
             };
+            if nan {
+                assert!(matches!(reason, Failure::NonFinite { .. }), "{reason:?}");
+            } else {
+                let Failure::System { source, .. } = reason else {
+                    panic!("{method}: expected the system's error, got {reason:?}");
+                };
+                // the system's own error is kept
+                assert_eq!(source.to_string(), "model undefined beyond 0.55");
+            }
+            let reason = reason.to_string();
             assert!(*t <= 0.55 && *t >= 0.45 - 1e-12, "{method}: failed at {t}");
             if method == Method::Rk4 {
                 assert!((t - 0.5).abs() < 1e-12);
@@ -810,7 +831,13 @@ fn max_steps_cap_fails() {
     ] {
         let (rep, log) = run(method, o, &mut oscillator(), 0.0, 10.0, &[1.0, 0.0], &[]);
         assert!(
-            matches!(&rep.termination, Termination::Failed { reason, .. } if reason.contains("max_steps")),
+            matches!(
+                &rep.termination,
+                Termination::Failed {
+                    reason: Failure::MaxSteps { max_steps: 5, .. },
+                    ..
+                }
+            ),
             "{:?}",
             rep.termination
         );
@@ -1145,5 +1172,120 @@ fn observer_break_stops_the_run() {
             .unwrap();
         assert!(matches!(rep.termination, Termination::Stopped { t, .. } if t == 0.0));
         assert_eq!(rep.stats.steps, 0);
+    }
+}
+
+// ------------------------------------------------------------ post-step hook
+
+/// Rotation y' = (−y₁, y₀) on the unit circle, with a `post_step` that
+/// rescales y back onto |y| = 1 (a projection onto the invariant), or
+/// fails after `fail_after`.
+struct Circle {
+    project: bool,
+    calls: usize,
+    fail_after: Option<f64>,
+}
+
+impl OdeSystem for Circle {
+    fn dim(&self) -> usize {
+        2
+    }
+    fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) -> Result<(), SystemError> {
+        d[0] = -y[1];
+        d[1] = y[0];
+        Ok(())
+    }
+    fn post_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        self.calls += 1;
+        if self.fail_after.is_some_and(|tf| t > tf) {
+            return Err(SystemError::msg("projection did not converge"));
+        }
+        if !self.project {
+            return Ok(false);
+        }
+        let r = y[0].hypot(y[1]);
+        y[0] /= r;
+        y[1] /= r;
+        Ok(true)
+    }
+}
+
+/// Every method calls `post_step` once per accepted step; a moved state is
+/// what the next step starts from and what the step-end output shows (|y|
+/// = 1 to rounding where the unprojected run drifts), and it costs one
+/// more evaluation of f per step; a failing hook ends the run at the last
+/// accepted step with the system's error.
+#[test]
+fn post_step_moves_the_state_and_is_counted() {
+    let out = linspace(0.0, 20.0, 41);
+    for (method, o) in [
+        (Method::Ode23, opts(1e-3, 1e-6)),
+        (Method::Ode45, opts(1e-3, 1e-6)),
+        (Method::Rk4, rk4_opts(0.5)),
+    ] {
+        let mut free = Circle {
+            project: false,
+            calls: 0,
+            fail_after: None,
+        };
+        let (rep0, log0) = run(method, o.clone(), &mut free, 0.0, 20.0, &[1.0, 0.0], &out);
+        assert_eq!(rep0.termination, Termination::Completed);
+        assert_eq!(free.calls, rep0.stats.steps, "{method}: one call per step");
+        let drift0 = log0
+            .step_y
+            .iter()
+            .map(|y| (y[0].hypot(y[1]) - 1.0).abs())
+            .fold(0.0, f64::max);
+        assert!(drift0 > 1e-6, "{method}: the free run drifts ({drift0})");
+
+        let mut proj = Circle {
+            project: true,
+            calls: 0,
+            fail_after: None,
+        };
+        let (rep, log) = run(method, o.clone(), &mut proj, 0.0, 20.0, &[1.0, 0.0], &out);
+        assert_eq!(rep.termination, Termination::Completed);
+        assert_eq!(proj.calls, rep.stats.steps);
+        for y in &log.step_y {
+            assert!(
+                (y[0].hypot(y[1]) - 1.0).abs() < 4.0 * f64::EPSILON,
+                "{method}: {y:?}"
+            );
+        }
+        // f per attempt (FSAL: s − 1 for the pairs, 4 for rk4), plus one
+        // per step for the moved state, plus f(t0, y0)
+        let per_attempt = match method {
+            Method::Ode23 => 3,
+            Method::Ode45 => 6,
+            _ => 4,
+        };
+        let attempts = rep.stats.steps + rep.stats.failed_steps;
+        assert_eq!(
+            rep.stats.rhs_evals,
+            1 + per_attempt * attempts + rep.stats.steps,
+            "{method}"
+        );
+        // the projected solution is still the rotation
+        let err = max_err(&log.out_t, &log.out_y, |t| vec![t.cos(), t.sin()]);
+        let err0 = max_err(&log0.out_t, &log0.out_y, |t| vec![t.cos(), t.sin()]);
+        assert!(err < 2.0 * err0 + 1e-12, "{method}: {err} vs {err0}");
+
+        let mut failing = Circle {
+            project: true,
+            calls: 0,
+            fail_after: Some(5.0),
+        };
+        let (rep, log) = run(method, o, &mut failing, 0.0, 20.0, &[1.0, 0.0], &out);
+        let Termination::Failed { t, reason } = &rep.termination else {
+            panic!("{method}: expected failure, got {:?}", rep.termination);
+        };
+        let Failure::System { what, source, .. } = reason else {
+            panic!("{method}: {reason:?}");
+        };
+        assert_eq!(*what, "post-step projection");
+        assert_eq!(source.to_string(), "projection did not converge");
+        assert!(*t <= 5.0 && *t > 3.0, "{method}: failed at {t}");
+        assert!(log.out_t.iter().all(|s| s <= t));
+        assert_eq!(rep.t_reached, *t);
     }
 }

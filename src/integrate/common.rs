@@ -1,12 +1,13 @@
 //! Pieces shared by every integrator: input validation, right-hand-side
-//! calls with failure/non-finite detection, Runge–Kutta stage evaluation,
-//! linear combinations of stages, and delivery of requested outputs.
+//! calls with failure/non-finite detection, the post-step hook,
+//! Runge–Kutta stage evaluation, linear combinations of stages, and
+//! delivery of requested outputs (used by [`super::driver::drive`]).
 
 use std::ops::ControlFlow;
+use std::sync::Arc;
 
-use super::{
-    IntegratorError, Observer, OdeOptions, OdeSystem, Report, Stats, Termination, Tolerance,
-};
+use super::driver::Failure;
+use super::{IntegratorError, Observer, OdeOptions, OdeSystem, Stats, Tolerance};
 
 /// `out = y + h·Σ_j coeffs[j]·k_j`, where `k_j = k[j*n..(j+1)*n]`.
 /// Zero coefficients are skipped. The sum over stages is formed first and
@@ -41,22 +42,32 @@ pub(crate) fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
         .map(|(i, x)| (i, *x))
 }
 
-/// Evaluates `f(t, y)` into `dydt`, counting the evaluation. Returns the
-/// failure reason if the system reports an error or returns a non-finite value.
+/// Evaluates `f(t, y)` into `dydt`, counting the evaluation. Fails if the
+/// system reports an error or returns a non-finite value; `step_from` is
+/// the start of the step being taken, if any (named in the failure).
 pub(crate) fn call_rhs(
     sys: &mut dyn OdeSystem,
     t: f64,
     y: &[f64],
     dydt: &mut [f64],
     stats: &mut Stats,
-) -> Result<(), String> {
+    step_from: Option<f64>,
+) -> Result<(), Failure> {
     stats.rhs_evals += 1;
-    sys.rhs(t, y, dydt)
-        .map_err(|e| format!("right-hand side failed at t = {t:e}: {e}"))?;
-    if let Some((i, v)) = first_non_finite(dydt) {
-        return Err(format!(
-            "right-hand side returned a non-finite value ({v}) in component {i} at t = {t:e}"
-        ));
+    sys.rhs(t, y, dydt).map_err(|e| Failure::System {
+        what: "right-hand side",
+        t,
+        step_from,
+        source: Arc::new(e),
+    })?;
+    if let Some((index, value)) = first_non_finite(dydt) {
+        return Err(Failure::NonFinite {
+            what: "right-hand side",
+            t,
+            step_from,
+            index,
+            value,
+        });
     }
     Ok(())
 }
@@ -76,14 +87,45 @@ pub(crate) fn eval_stages(
     k: &mut [f64],
     ytmp: &mut [f64],
     stats: &mut Stats,
-) -> Result<(), String> {
+) -> Result<(), Failure> {
     let n = y.len();
     for i in stages {
         let (done, rest) = k.split_at_mut(i * n);
         lincomb(ytmp, y, h, a[i], done);
-        call_rhs(sys, t + c[i] * h, ytmp, &mut rest[..n], stats)?;
+        call_rhs(sys, t + c[i] * h, ytmp, &mut rest[..n], stats, Some(t))?;
     }
     Ok(())
+}
+
+/// The system's [`OdeSystem::post_step`] on an accepted step's end state
+/// `(t, y)`; if it moved `y`, `f(t, y)` is evaluated anew into `f`.
+/// Returns whether it moved `y`.
+pub(crate) fn post_step(
+    sys: &mut dyn OdeSystem,
+    t: f64,
+    y: &mut [f64],
+    f: &mut [f64],
+    stats: &mut Stats,
+) -> Result<bool, Failure> {
+    let changed = sys.post_step(t, y).map_err(|e| Failure::System {
+        what: "post-step projection",
+        t,
+        step_from: None,
+        source: Arc::new(e),
+    })?;
+    if changed {
+        if let Some((index, value)) = first_non_finite(y) {
+            return Err(Failure::NonFinite {
+                what: "post-step projection",
+                t,
+                step_from: None,
+                index,
+                value,
+            });
+        }
+        call_rhs(sys, t, y, f, stats, None)?;
+    }
+    Ok(changed)
 }
 
 /// Spacing of doubles at `x`, as MATLAB's `eps(x)`: the distance from `|x|`
@@ -103,24 +145,16 @@ pub fn eps(x: f64) -> f64 {
     }
 }
 
-/// Validated per-run inputs.
-pub(crate) struct Run<'a> {
-    pub t0: f64,
-    pub t_end: f64,
-    pub n: usize,
-    pub outputs: OutputCursor<'a>,
-}
-
 /// Checks the per-run inputs (time span, initial state, output times, the
 /// length of a vector `atol`).
-pub(crate) fn validate_run<'a>(
+pub(crate) fn validate_run(
     sys: &dyn OdeSystem,
     options: &OdeOptions,
     t0: f64,
     t_end: f64,
     y0: &[f64],
-    output_times: &'a [f64],
-) -> Result<Run<'a>, IntegratorError> {
+    output_times: &[f64],
+) -> Result<usize, IntegratorError> {
     check_span(t0, t_end)?;
     let n = sys.dim();
     if y0.len() != n {
@@ -143,12 +177,7 @@ pub(crate) fn validate_run<'a>(
         }
     }
     check_output_times(t0, t_end, output_times)?;
-    Ok(Run {
-        t0,
-        t_end,
-        n,
-        outputs: OutputCursor::new(output_times),
-    })
+    Ok(n)
 }
 
 /// The time span of a run: finite, forward (`t_end > t0`). Shared by every
@@ -228,23 +257,10 @@ impl<'a> OutputCursor<'a> {
     }
 
     /// Delivers every requested time in `(t, t_new]` after an accepted step
-    /// ending at `(t_new, y_new)`: a time equal to `t_new` gets `y_new`,
-    /// earlier ones get `interp(t_out, buf)` (the continuous extension).
-    pub fn deliver_step(
-        &mut self,
-        t_new: f64,
-        y_new: &[f64],
-        buf: &mut [f64],
-        interp: impl FnMut(f64, &mut [f64]),
-        obs: &mut dyn Observer,
-    ) -> ControlFlow<(f64, String)> {
-        self.deliver_step_snapped(t_new, 0.0, false, y_new, buf, interp, obs)
-    }
-
-    /// As [`OutputCursor::deliver_step`], with a requested time within
-    /// `snap` of `t_new` — or, when `at_end`, any remaining one — taken as
-    /// the step end (gets `y_new`): generalized-α's grid steps land on the
-    /// output times only up to rounding.
+    /// ending at `(t_new, y_new)`: a time within `snap` of `t_new` — or,
+    /// when `at_end`, any remaining one — gets `y_new` (generalized-α's grid
+    /// steps land on the output times only up to rounding), earlier ones
+    /// get `interp(t_out, buf)` (the continuous extension).
     #[allow(clippy::too_many_arguments)]
     pub fn deliver_step_snapped(
         &mut self,
@@ -273,20 +289,5 @@ impl<'a> OutputCursor<'a> {
             }
         }
         ControlFlow::Continue(())
-    }
-}
-
-/// Builds the final report.
-pub(crate) fn report(
-    stats: Stats,
-    termination: Termination,
-    t_reached: f64,
-    warnings: Vec<String>,
-) -> Report {
-    Report {
-        stats,
-        termination,
-        t_reached,
-        warnings,
     }
 }

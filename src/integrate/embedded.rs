@@ -24,15 +24,14 @@
 //!   `ntrp45.m`; a requested time equal to the step end gets the step's `y_new`.
 //!
 //! `rhs_evals` counts as MATLAB's `nfevals`: 1 for `f(t0, y0)` plus `s - 1`
-//! per attempted step (the FSAL stage is reused as the next first stage).
+//! per attempted step (the FSAL stage is reused as the next first stage),
+//! plus 1 per step whose end state [`OdeSystem::post_step`] moved.
 
-use std::ops::ControlFlow;
-
-use super::common::{self, call_rhs, eval_stages, lincomb, weighted_sum};
+use super::common::{self, call_rhs, eval_stages, lincomb, post_step, weighted_sum};
+use super::driver::{self, Failure, StepCut, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
 use super::{
-    Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats,
-    Termination, Tolerance,
+    Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats, Tolerance,
 };
 
 /// Adaptive embedded RK integrator with MATLAB's step-size control.
@@ -81,14 +80,59 @@ impl Integrator for EmbeddedRk {
         output_times: &[f64],
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        let opts = &self.options;
-        let tab = self.tableau;
-        let mut run = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
-        let n = run.n;
-        let s = tab.stages();
-        let pow = tab.pow;
-        let b = tab.b();
+        let n = common::validate_run(sys, &self.options, t0, t_end, y0, output_times)?;
+        let mut st = EmbeddedStepper::new(sys, &self.options, self.tableau, t0, t_end, y0, n);
+        let (termination, t_reached) =
+            driver::drive(&mut st, output_times, self.options.max_steps, t_end, obs);
+        Ok(Report {
+            stats: st.stats,
+            termination,
+            t_reached,
+            warnings: st.warnings,
+        })
+    }
+}
 
+/// One run of the embedded pair: the system, MATLAB's step-control state
+/// and the work arrays (allocated once).
+pub(crate) struct EmbeddedStepper<'a> {
+    sys: &'a mut dyn OdeSystem,
+    tab: &'static EmbeddedTableau,
+    rtol: f64,
+    threshold: Vec<f64>,
+    initial_step: Option<f64>,
+    t_end: f64,
+    hmax: f64,
+    absh: f64,
+    /// Start of the last accepted step, its (purified) size and end.
+    t: f64,
+    h: f64,
+    tnew: f64,
+    /// A step was accepted and `(tnew, ynew)` is the current state; the
+    /// next [`Stepper::step`] first advances to it.
+    pending: bool,
+    /// `post_step` changed `ynew`: `f(tnew, ynew)` is in `f_post`, not in
+    /// the last stage.
+    post_changed: bool,
+    y: Vec<f64>,
+    ynew: Vec<f64>,
+    ytmp: Vec<f64>,
+    f_post: Vec<f64>,
+    k: Vec<f64>,
+    pub(crate) stats: Stats,
+    pub(crate) warnings: Vec<String>,
+}
+
+impl<'a> EmbeddedStepper<'a> {
+    fn new(
+        sys: &'a mut dyn OdeSystem,
+        opts: &OdeOptions,
+        tab: &'static EmbeddedTableau,
+        t0: f64,
+        t_end: f64,
+        y0: &[f64],
+        n: usize,
+    ) -> Self {
         // MATLAB's odearguments: rtol below 100*eps is raised, with a warning.
         let mut warnings = Vec::new();
         let mut rtol = opts.rtol;
@@ -103,170 +147,196 @@ impl Integrator for EmbeddedRk {
             Tolerance::Scalar(a) => vec![a / rtol; n],
             Tolerance::Vector(v) => v.iter().map(|a| a / rtol).collect(),
         };
-
-        // All work arrays, allocated once per run.
-        let mut y = y0.to_vec();
-        let mut ynew = vec![0.0; n];
-        let mut ytmp = vec![0.0; n];
-        let mut yout = vec![0.0; n];
-        let mut k = vec![0.0; s * n];
-        let mut stats = Stats::default();
-
-        let stopped = |stats: Stats, t: f64, reason: String, t_reached: f64, w: Vec<String>| {
-            common::report(stats, Termination::Stopped { t, reason }, t_reached, w)
-        };
-        let failed = |stats: Stats, t: f64, reason: String, w: Vec<String>| {
-            common::report(stats, Termination::Failed { t, reason }, t, w)
-        };
-
-        let mut t = run.t0;
-        if let ControlFlow::Break((ts, r)) = run.outputs.deliver_initial(t, &y, obs) {
-            return Ok(stopped(stats, ts, r, t, warnings));
+        let htspan = (t_end - t0).abs();
+        Self {
+            sys,
+            tab,
+            rtol,
+            threshold,
+            initial_step: opts.initial_step,
+            t_end,
+            hmax: htspan.min(opts.max_step.map_or(0.1 * htspan, f64::abs)),
+            absh: 0.0,
+            t: t0,
+            h: 0.0,
+            tnew: t0,
+            pending: false,
+            post_changed: false,
+            y: y0.to_vec(),
+            ynew: vec![0.0; n],
+            ytmp: vec![0.0; n],
+            f_post: vec![0.0; n],
+            k: vec![0.0; tab.stages() * n],
+            stats: Stats::default(),
+            warnings,
         }
-        if let Err(r) = call_rhs(sys, t, &y, &mut k[..n], &mut stats) {
-            return Ok(failed(stats, t, r, warnings));
-        }
+    }
+}
 
-        let htspan = (run.t_end - run.t0).abs();
-        let hmax = htspan.min(opts.max_step.map_or(0.1 * htspan, f64::abs));
-        let mut hmin = 16.0 * common::eps(t);
-        let mut absh = match opts.initial_step {
-            Some(htry) => hmax.min(hmin.max(htry)),
+impl Stepper for EmbeddedStepper<'_> {
+    fn start(&mut self) -> Result<(), Failure> {
+        let n = self.y.len();
+        let t = self.t;
+        call_rhs(
+            self.sys,
+            t,
+            &self.y,
+            &mut self.k[..n],
+            &mut self.stats,
+            None,
+        )?;
+        let hmin = 16.0 * common::eps(t);
+        let pow = self.tab.pow;
+        self.absh = match self.initial_step {
+            Some(htry) => self.hmax.min(hmin.max(htry)),
             None => {
-                let mut absh = hmax.min(htspan);
-                let rh = error_norm(&k[..n], &y, &y, &threshold) / (0.8 * rtol.powf(pow));
+                let mut absh = self.hmax.min((self.t_end - t).abs());
+                let rh = error_norm(&self.k[..n], &self.y, &self.y, &self.threshold)
+                    / (0.8 * self.rtol.powf(pow));
                 if absh * rh > 1.0 {
                     absh = 1.0 / rh;
                 }
                 absh.max(hmin)
             }
         };
+        Ok(())
+    }
 
-        loop {
-            if stats.steps >= opts.max_steps {
-                let r = format!(
-                    "maximum number of steps (max_steps = {}) reached at t = {t:e} before t_end = {:e}",
-                    opts.max_steps, run.t_end
-                );
-                return Ok(failed(stats, t, r, warnings));
-            }
-            hmin = 16.0 * common::eps(t);
-            absh = hmax.min(hmin.max(absh));
-            let mut h = absh;
-            let mut done = false;
-            // Stretch the step if within 10% of t_end - t.
-            if 1.1 * absh >= (run.t_end - t).abs() {
-                h = run.t_end - t;
-                absh = h.abs();
-                done = true;
-            }
-
-            // Attempt the step until the error test passes.
-            let mut nofailed = true;
-            let (tnew, err) = loop {
-                if let Err(r) = eval_stages(
-                    sys,
-                    t,
-                    h,
-                    &y,
-                    tab.c,
-                    tab.a,
-                    1..=s - 2,
-                    &mut k,
-                    &mut ytmp,
-                    &mut stats,
-                ) {
-                    let r = format!("{r} (in the step from t = {t:e})");
-                    return Ok(failed(stats, t, r, warnings));
-                }
-                let tnew = if done { run.t_end } else { t + h };
-                h = tnew - t; // purify h
-                lincomb(&mut ynew, &y, h, b, &k);
-                if let Some((i, v)) = common::first_non_finite(&ynew) {
-                    let r = format!(
-                        "non-finite state ({v}) in component {i} at t = {tnew:e} (step from t = {t:e})"
-                    );
-                    return Ok(failed(stats, t, r, warnings));
-                }
-                if let Err(r) = call_rhs(sys, tnew, &ynew, &mut k[(s - 1) * n..], &mut stats) {
-                    let r = format!("{r} (in the step from t = {t:e})");
-                    return Ok(failed(stats, t, r, warnings));
-                }
-
-                weighted_sum(&mut ytmp, 1.0, tab.e, &k);
-                let err = absh * error_norm(&ytmp, &y, &ynew, &threshold);
-
-                if err > rtol {
-                    stats.failed_steps += 1;
-                    if absh <= hmin {
-                        let r = format!(
-                            "failure at t = {t:e}: unable to meet integration tolerances without \
-                             reducing the step size below the smallest value allowed \
-                             (h = {hmin:e}) at time t"
-                        );
-                        return Ok(failed(stats, t, r, warnings));
-                    }
-                    if nofailed {
-                        nofailed = false;
-                        absh = hmin
-                            .max(absh * tab.first_failure_floor.max(0.8 * (rtol / err).powf(pow)));
-                    } else {
-                        absh = hmin.max(0.5 * absh);
-                    }
-                    h = absh;
-                    done = false;
-                } else {
-                    break (tnew, err);
-                }
-            };
-            stats.steps += 1;
-
-            // Requested outputs in (t, tnew], by the continuous extension.
-            let deg = tab.interp_degree();
-            let flow = run.outputs.deliver_step(
-                tnew,
-                &ynew,
-                &mut yout,
-                |tk, out| {
-                    let sigma = (tk - t) / h;
-                    let mut w = [0.0; MAX_STAGES];
-                    for (wj, row) in w.iter_mut().zip(tab.bi) {
-                        // Σ_p BI[j][p]·σ^(p+1), as cumprod([σ;σ;…]) in ntrp23/ntrp45.
-                        let mut sp = 1.0;
-                        for &bjp in &row[..deg] {
-                            sp *= sigma;
-                            *wj += bjp * sp;
-                        }
-                    }
-                    lincomb(out, &y, h, &w[..s], &k);
-                },
-                obs,
-            );
-            if let ControlFlow::Break((ts, r)) = flow {
-                return Ok(stopped(stats, ts, r, tnew, warnings));
-            }
-            if let ControlFlow::Break(r) = obs.step(tnew, &ynew) {
-                return Ok(stopped(stats, tnew, r, tnew, warnings));
-            }
-            if done {
-                return Ok(common::report(
-                    stats,
-                    Termination::Completed,
-                    tnew,
-                    warnings,
-                ));
-            }
-
-            // If there were no failures compute a new h.
-            if nofailed {
-                let temp = 1.25 * (err / rtol).powf(pow);
-                absh = if temp > 0.2 { absh / temp } else { 5.0 * absh };
-            }
-
+    fn step(&mut self) -> Result<bool, Failure> {
+        let tab = self.tab;
+        let (n, s, pow, rtol) = (self.y.len(), tab.stages(), tab.pow, self.rtol);
+        if self.pending {
             // Advance; reuse f(tnew, ynew) as the first stage (FSAL).
-            t = tnew;
-            std::mem::swap(&mut y, &mut ynew);
-            k.copy_within((s - 1) * n.., 0);
+            self.pending = false;
+            self.t = self.tnew;
+            std::mem::swap(&mut self.y, &mut self.ynew);
+            if self.post_changed {
+                self.k[..n].copy_from_slice(&self.f_post);
+            } else {
+                self.k.copy_within((s - 1) * n.., 0);
+            }
         }
+        let t = self.t;
+        let hmin = 16.0 * common::eps(t);
+        let mut absh = self.hmax.min(hmin.max(self.absh));
+        let mut h = absh;
+        let mut done = false;
+        // Stretch the step if within 10% of t_end - t.
+        if 1.1 * absh >= (self.t_end - t).abs() {
+            h = self.t_end - t;
+            absh = h.abs();
+            done = true;
+        }
+
+        // Attempt the step until the error test passes.
+        let mut nofailed = true;
+        let (tnew, err) = loop {
+            let k = &mut self.k;
+            eval_stages(
+                self.sys,
+                t,
+                h,
+                &self.y,
+                tab.c,
+                tab.a,
+                1..=s - 2,
+                k,
+                &mut self.ytmp,
+                &mut self.stats,
+            )?;
+            let tnew = if done { self.t_end } else { t + h };
+            h = tnew - t; // purify h
+            lincomb(&mut self.ynew, &self.y, h, tab.b(), k);
+            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+                return Err(Failure::NonFinite {
+                    what: "step",
+                    t: tnew,
+                    step_from: Some(t),
+                    index,
+                    value,
+                });
+            }
+            call_rhs(
+                self.sys,
+                tnew,
+                &self.ynew,
+                &mut k[(s - 1) * n..],
+                &mut self.stats,
+                Some(t),
+            )?;
+
+            weighted_sum(&mut self.ytmp, 1.0, tab.e, k);
+            let err = absh * error_norm(&self.ytmp, &self.y, &self.ynew, &self.threshold);
+
+            if err > rtol {
+                self.stats.failed_steps += 1;
+                if absh <= hmin {
+                    return Err(Failure::StepTooSmall {
+                        t,
+                        h: absh,
+                        h_min: hmin,
+                        cause: StepCut::ErrorTest { err: err / rtol },
+                    });
+                }
+                if nofailed {
+                    nofailed = false;
+                    absh =
+                        hmin.max(absh * tab.first_failure_floor.max(0.8 * (rtol / err).powf(pow)));
+                } else {
+                    absh = hmin.max(0.5 * absh);
+                }
+                h = absh;
+                done = false;
+            } else {
+                break (tnew, err);
+            }
+        };
+        self.stats.steps += 1;
+        // If there were no failures compute a new h.
+        if nofailed && !done {
+            let temp = 1.25 * (err / rtol).powf(pow);
+            absh = if temp > 0.2 { absh / temp } else { 5.0 * absh };
+        }
+        self.absh = absh;
+        self.h = h;
+        self.tnew = tnew;
+        self.post_changed = post_step(
+            self.sys,
+            tnew,
+            &mut self.ynew,
+            &mut self.f_post,
+            &mut self.stats,
+        )?;
+        self.pending = true;
+        Ok(done)
+    }
+
+    fn state(&self) -> (f64, &[f64]) {
+        if self.pending {
+            (self.tnew, &self.ynew)
+        } else {
+            (self.t, &self.y)
+        }
+    }
+
+    /// The continuous extension of `ntrp23.m` / `ntrp45.m`.
+    fn interpolate(&self, tk: f64, out: &mut [f64]) {
+        let tab = self.tab;
+        let deg = tab.interp_degree();
+        let sigma = (tk - self.t) / self.h;
+        let mut w = [0.0; MAX_STAGES];
+        for (wj, row) in w.iter_mut().zip(tab.bi) {
+            // Σ_p BI[j][p]·σ^(p+1), as cumprod([σ;σ;…]) in ntrp23/ntrp45.
+            let mut sp = 1.0;
+            for &bjp in &row[..deg] {
+                sp *= sigma;
+                *wj += bjp * sp;
+            }
+        }
+        lincomb(out, &self.y, self.h, &w[..tab.stages()], &self.k);
+    }
+
+    fn steps(&self) -> usize {
+        self.stats.steps
     }
 }

@@ -1,4 +1,13 @@
-//! Explicit ODE integrators for first-order systems `y' = f(t, y)`.
+//! Integrators: explicit ODE methods for first-order systems
+//! `y' = f(t, y)` ([`OdeSystem`]) and the implicit generalized-α family
+//! for constrained second-order systems ([`SecondOrderDae`]).
+//!
+//! Every method is a [`Stepper`] (start, one accepted step at a time,
+//! its dense output) and [`drive`] is the one run loop: outputs at the
+//! requested times, the step cap, the observer, how the run ended
+//! ([`Termination`], with a typed [`Failure`]). After each accepted step
+//! the system may move the state ([`OdeSystem::post_step`],
+//! [`SecondOrderDae::project`]).
 //!
 //! * [`Method::Ode23`]: Bogacki–Shampine 3(2) pair (Bogacki & Shampine,
 //!   Appl. Math. Lett. 2 (1989)), FSAL, 3 evaluations per step.
@@ -22,10 +31,15 @@
 //! * A right-hand side returning an error or a non-finite value, or a
 //!   non-finite state, ends the run with [`Termination::Failed`] (MATLAB
 //!   would carry NaN/Inf along).
+//! * [`OdeSystem::post_step`] may move the accepted state (projection);
+//!   `f` is then evaluated anew at the moved state (one more evaluation per
+//!   step), outputs at the step end show the moved state and those inside
+//!   the step the method's continuous extension.
 //! * No events, mass matrix, NonNegative or NormControl options.
 //! * A cap on the number of steps ([`OdeOptions::max_steps`]).
 
 mod common;
+mod driver;
 mod embedded;
 mod genalpha;
 mod hermite;
@@ -33,6 +47,7 @@ mod options;
 mod rk4;
 mod tableau;
 
+pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
     AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, REUSE_BAND, ROUNDING_ULPS, SAFETY,
     SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
@@ -215,8 +230,8 @@ pub enum Termination {
     Failed {
         /// Time of the last accepted state.
         t: f64,
-        /// Human-readable reason, naming the time.
-        reason: String,
+        /// Why, typed; its message names the time.
+        reason: Failure,
     },
     /// The observer asked to stop.
     Stopped {

@@ -1,13 +1,9 @@
 //! Classic four-stage, fourth-order Runge–Kutta method with a fixed step.
 
+use super::common::{self, call_rhs, eval_stages, lincomb, post_step};
+use super::driver::{self, Failure, Stepper};
 use super::hermite::cubic;
-use std::ops::ControlFlow;
-
-use super::common::{self, call_rhs, eval_stages, lincomb};
-use super::{
-    Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats,
-    Termination,
-};
+use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
 
 const RK4_C: [f64; 4] = [0.0, 0.5, 0.5, 1.0];
 const RK4_A: [&[f64]; 4] = [&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]];
@@ -61,109 +57,144 @@ impl Integrator for Rk4 {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let opts = &self.options;
-        let mut run = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
+        let n = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
         let h = opts
             .fixed_step
             .expect("validated by integrator(): rk4 has a fixed_step");
-        let n = run.n;
-        let nsteps = step_count(run.t_end - run.t0, h);
-
-        let mut y = y0.to_vec();
-        let mut ynew = vec![0.0; n];
-        let mut ytmp = vec![0.0; n];
-        let mut yout = vec![0.0; n];
-        // k_1..k_4 followed by f(t_new, y_new).
-        let mut k = vec![0.0; 5 * n];
-        let mut stats = Stats::default();
-        let warnings = Vec::new();
-
-        let mut t = run.t0;
-        if let ControlFlow::Break((ts, reason)) = run.outputs.deliver_initial(t, &y, obs) {
-            return Ok(common::report(
-                stats,
-                Termination::Stopped { t: ts, reason },
-                t,
-                warnings,
-            ));
-        }
-        let failed = |stats: Stats, t: f64, reason: String| {
-            common::report(stats, Termination::Failed { t, reason }, t, Vec::new())
+        let mut st = Rk4Stepper {
+            sys,
+            t0,
+            t_end,
+            h,
+            nsteps: step_count(t_end - t0, h),
+            t: t0,
+            tnew: t0,
+            pending: false,
+            y: y0.to_vec(),
+            ynew: vec![0.0; n],
+            ytmp: vec![0.0; n],
+            k: vec![0.0; 5 * n],
+            stats: Stats::default(),
         };
-        if let Err(r) = call_rhs(sys, t, &y, &mut k[..n], &mut stats) {
-            return Ok(failed(stats, t, r));
-        }
+        let (termination, t_reached) =
+            driver::drive(&mut st, output_times, opts.max_steps, t_end, obs);
+        Ok(Report {
+            stats: st.stats,
+            termination,
+            t_reached,
+            warnings: Vec::new(),
+        })
+    }
+}
 
-        for i in 0..nsteps {
-            if stats.steps >= opts.max_steps {
-                let r = format!(
-                    "maximum number of steps (max_steps = {}) reached at t = {t:e} before t_end = {:e}",
-                    opts.max_steps, run.t_end
-                );
-                return Ok(failed(stats, t, r));
-            }
-            let tnew = if i + 1 == nsteps {
-                run.t_end
-            } else {
-                run.t0 + (i + 1) as f64 * h
-            };
-            let hs = tnew - t;
-            if let Err(r) = eval_stages(
-                sys,
-                t,
-                hs,
-                &y,
-                &RK4_C,
-                &RK4_A,
-                1..=3,
-                &mut k[..4 * n],
-                &mut ytmp,
-                &mut stats,
-            ) {
-                let r = format!("{r} (in the step from t = {t:e})");
-                return Ok(failed(stats, t, r));
-            }
-            lincomb(&mut ynew, &y, hs, &RK4_B, &k[..4 * n]);
-            if let Some((c, v)) = common::first_non_finite(&ynew) {
-                let r = format!(
-                    "non-finite state ({v}) in component {c} at t = {tnew:e} (step from t = {t:e})"
-                );
-                return Ok(failed(stats, t, r));
-            }
-            if let Err(r) = call_rhs(sys, tnew, &ynew, &mut k[4 * n..], &mut stats) {
-                let r = format!("{r} (in the step from t = {t:e})");
-                return Ok(failed(stats, t, r));
-            }
-            stats.steps += 1;
+/// One run of RK4: the system, the step grid and the work arrays.
+struct Rk4Stepper<'a> {
+    sys: &'a mut dyn OdeSystem,
+    t0: f64,
+    t_end: f64,
+    h: f64,
+    nsteps: usize,
+    /// Start and end of the last accepted step.
+    t: f64,
+    tnew: f64,
+    /// `(tnew, ynew)` is the current state; the next step first advances.
+    pending: bool,
+    y: Vec<f64>,
+    ynew: Vec<f64>,
+    ytmp: Vec<f64>,
+    /// k_1..k_4 followed by f(t_new, y_new).
+    k: Vec<f64>,
+    stats: Stats,
+}
 
-            let (f0, rest) = k.split_at(n);
-            let f1 = &rest[3 * n..];
-            let flow = run.outputs.deliver_step(
-                tnew,
-                &ynew,
-                &mut yout,
-                |tk, out| cubic(out, (tk - t) / hs, hs, &y, f0, &ynew, f1),
-                obs,
-            );
-            if let ControlFlow::Break((ts, reason)) = flow {
-                return Ok(common::report(
-                    stats,
-                    Termination::Stopped { t: ts, reason },
-                    tnew,
-                    warnings,
-                ));
-            }
-            if let ControlFlow::Break(reason) = obs.step(tnew, &ynew) {
-                return Ok(common::report(
-                    stats,
-                    Termination::Stopped { t: tnew, reason },
-                    tnew,
-                    warnings,
-                ));
-            }
-            t = tnew;
-            std::mem::swap(&mut y, &mut ynew);
-            k.copy_within(4 * n.., 0);
+impl Stepper for Rk4Stepper<'_> {
+    fn start(&mut self) -> Result<(), Failure> {
+        let n = self.y.len();
+        call_rhs(
+            self.sys,
+            self.t,
+            &self.y,
+            &mut self.k[..n],
+            &mut self.stats,
+            None,
+        )
+    }
+
+    fn step(&mut self) -> Result<bool, Failure> {
+        let n = self.y.len();
+        if self.pending {
+            self.pending = false;
+            self.t = self.tnew;
+            std::mem::swap(&mut self.y, &mut self.ynew);
+            self.k.copy_within(4 * n.., 0);
         }
-        Ok(common::report(stats, Termination::Completed, t, warnings))
+        let (i, t) = (self.stats.steps, self.t);
+        let done = i + 1 >= self.nsteps;
+        let tnew = if done {
+            self.t_end
+        } else {
+            self.t0 + (i + 1) as f64 * self.h
+        };
+        let hs = tnew - t;
+        let k = &mut self.k;
+        eval_stages(
+            self.sys,
+            t,
+            hs,
+            &self.y,
+            &RK4_C,
+            &RK4_A,
+            1..=3,
+            &mut k[..4 * n],
+            &mut self.ytmp,
+            &mut self.stats,
+        )?;
+        lincomb(&mut self.ynew, &self.y, hs, &RK4_B, &k[..4 * n]);
+        if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+            return Err(Failure::NonFinite {
+                what: "step",
+                t: tnew,
+                step_from: Some(t),
+                index,
+                value,
+            });
+        }
+        call_rhs(
+            self.sys,
+            tnew,
+            &self.ynew,
+            &mut k[4 * n..],
+            &mut self.stats,
+            Some(t),
+        )?;
+        self.stats.steps += 1;
+        // A projected end state gets its own f, so the Hermite cubic joins
+        // consistent end data.
+        let (_, f1) = self.k.split_at_mut(4 * n);
+        post_step(self.sys, tnew, &mut self.ynew, f1, &mut self.stats)?;
+        self.tnew = tnew;
+        self.pending = true;
+        Ok(done)
+    }
+
+    fn state(&self) -> (f64, &[f64]) {
+        if self.pending {
+            (self.tnew, &self.ynew)
+        } else {
+            (self.t, &self.y)
+        }
+    }
+
+    /// Cubic Hermite of `y` and `f` at both ends of the step.
+    fn interpolate(&self, tk: f64, out: &mut [f64]) {
+        let n = self.y.len();
+        let hs = self.tnew - self.t;
+        let (f0, rest) = self.k.split_at(n);
+        let f1 = &rest[3 * n..];
+        cubic(out, (tk - self.t) / hs, hs, &self.y, f0, &self.ynew, f1);
+    }
+
+    fn steps(&self) -> usize {
+        self.stats.steps
     }
 }

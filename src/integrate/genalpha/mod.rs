@@ -126,14 +126,15 @@ pub use step::SAFETY;
 
 use newton::Attempt;
 
+use super::driver::{self, Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::Tolerance;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
-    SystemError, Termination,
+    SystemError,
 };
 use serde::Serialize;
-use std::ops::ControlFlow;
+use std::sync::Arc;
 
 /// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
 /// `Φ(q, t) = 0` with a diagonal mass matrix, as the implicit integrators
@@ -300,7 +301,7 @@ impl GenAlpha {
     /// and of q̇ with q̈ between the two step ends), `step` after every
     /// accepted step. `output_times` must be strictly increasing within
     /// `[t0, t_end]`. Inputs are validated as for the explicit integrators;
-    /// a failure midway is `Ok` with [`Termination::Failed`].
+    /// a failure midway is `Ok` with [`Termination::Failed`](super::Termination::Failed).
     #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
@@ -328,16 +329,16 @@ impl GenAlpha {
             ..Default::default()
         };
         let mut run = Run::new(self, sys, n, m, t0, t_end, q0, qd0);
-        let termination = run.go(obs, output_times);
-        let t_reached = run.t;
+        let (termination, t_reached) =
+            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
         let mut stats = run.stats;
         if stats.steps == 0 {
             stats.min_step_taken = 0.0;
         }
         let warnings = run.warnings;
         self.stats = stats;
-        Ok(common::report(
-            Stats {
+        Ok(Report {
+            stats: Stats {
                 steps: stats.steps,
                 failed_steps: stats.error_rejections + stats.newton_failures,
                 rhs_evals: stats.residual_evaluations,
@@ -345,7 +346,7 @@ impl GenAlpha {
             termination,
             t_reached,
             warnings,
-        ))
+        })
     }
 }
 
@@ -413,7 +414,6 @@ struct Run<'g, 's> {
     phi: Vec<f64>,
     err: Vec<f64>,
     y: Vec<f64>,
-    ybuf: Vec<f64>,
     /// Step the current factorisation was computed for (None: none valid).
     h_fact: Option<f64>,
     /// Renew the factorisation at the next attempt.
@@ -427,6 +427,19 @@ struct Run<'g, 's> {
     h_prev: Option<f64>,
     stats: GenAlphaStats,
     warnings: Vec<String>,
+    /// Step control: the step to try next, the largest step, the index of
+    /// the next point of the fixed grid, no growth after a cut, the last
+    /// accepted (h, err) for the predictive controller.
+    h: f64,
+    max_step: f64,
+    k_grid: u64,
+    no_growth: bool,
+    last_acc: Option<(f64, f64)>,
+    /// Start and size of the last accepted step (dense output).
+    t_old: f64,
+    h_last: f64,
+    /// The last Newton failure (named when the step collapses).
+    last_newton: Option<StepCut>,
 }
 
 impl<'g, 's> Run<'g, 's> {
@@ -459,8 +472,7 @@ impl<'g, 's> Run<'g, 's> {
             r: vec![0.0; n + m],
             phi: vec![0.0; m],
             err: vec![0.0; n + m],
-            y: vec![0.0; 2 * n],
-            ybuf: vec![0.0; 2 * n],
+            y: [q0, qd0].concat(),
             h_fact: None,
             refactor: true,
             eta: 1.0,
@@ -472,6 +484,14 @@ impl<'g, 's> Run<'g, 's> {
                 ..Default::default()
             },
             warnings: Vec::new(),
+            h: 0.0,
+            max_step: 0.0,
+            k_grid: 1,
+            no_growth: false,
+            last_acc: None,
+            t_old: t0,
+            h_last: 0.0,
+            last_newton: None,
         }
     }
 
@@ -480,8 +500,14 @@ impl<'g, 's> Run<'g, 's> {
         self.opts.min_step.map_or(floor, |h| h.max(floor))
     }
 
-    fn fail(&self, reason: String) -> Termination {
-        Termination::Failed { t: self.t, reason }
+    /// The step collapsed below `h_min` on the way to `h`.
+    fn too_small(&self, h: f64, h_min: f64, cause: StepCut) -> Failure {
+        Failure::StepTooSmall {
+            t: self.t,
+            h,
+            h_min,
+            cause,
+        }
     }
 
     /// Absolute tolerance of component i (adaptive error norm).
@@ -491,62 +517,56 @@ impl<'g, 's> Run<'g, 's> {
             Tolerance::Vector(v) => v[i],
         }
     }
+}
 
-    /// The main loop; returns how the run ended.
-    fn go(&mut self, obs: &mut dyn Observer, times: &[f64]) -> Termination {
-        let (n, t0) = (self.n, self.t0);
-        let mut outputs = common::OutputCursor::new(times);
-        // Output at t0.
-        self.y[..n].copy_from_slice(&self.cur.q);
-        self.y[n..].copy_from_slice(&self.cur.v);
-        if let ControlFlow::Break((t, reason)) = outputs.deliver_initial(t0, &self.y, obs) {
-            return Termination::Stopped { t, reason };
-        }
-        // Consistent accelerations and multipliers at t0; a_0 = q̈_0.
+impl Stepper for Run<'_, '_> {
+    /// Consistent accelerations and multipliers at t0 (`a_0 = q̈_0`) and
+    /// the first step.
+    fn start(&mut self) -> Result<(), Failure> {
+        let t0 = self.t0;
         self.stats.residual_evaluations += 1;
         let (q, v) = (&self.cur.q, &self.cur.v);
-        if let Err(e) = self
-            .sys
+        self.sys
             .accelerations(t0, q, v, &mut self.cur.qdd, &mut self.cur.lam)
-        {
-            return self.fail(format!("initial accelerations at t = {t0}: {e}"));
-        }
+            .map_err(|e| Failure::System {
+                what: "initial accelerations",
+                t: t0,
+                step_from: None,
+                source: Arc::new(e),
+            })?;
         self.cur.a.copy_from_slice(&self.cur.qdd);
 
         let span = self.t_end - t0;
-        let adaptive = self.opts.adaptive;
-        let max_step = if adaptive {
+        self.max_step = if self.opts.adaptive {
             self.ode.max_step.unwrap_or(0.1 * span).min(span)
         } else {
             self.h_fixed
         };
-        let mut h = if adaptive {
+        self.h = if self.opts.adaptive {
             self.ode
                 .initial_step
                 .unwrap_or_else(|| self.initial_step_guess(span))
-                .min(max_step)
+                .min(self.max_step)
         } else {
             self.h_fixed
         };
-        // Fixed-step grid: index of the next grid point.
-        let mut k_grid: u64 = 1;
-        let mut no_growth = false;
-        // last accepted (h, err), for the predictive controller
-        let mut last_acc: Option<(f64, f64)> = None;
-        let err_exp = 1.0 / 3.0;
+        Ok(())
+    }
 
-        while self.t < self.t_end {
-            if self.stats.steps >= self.ode.max_steps {
-                return self.fail(format!(
-                    "maximum number of steps ({}) reached at t = {}",
-                    self.ode.max_steps, self.t
-                ));
-            }
+    /// Attempts until one is accepted: Newton (with one retry on a fresh
+    /// factorisation), halving on failure; the error test when adaptive;
+    /// projection; the next step size.
+    fn step(&mut self) -> Result<bool, Failure> {
+        let (n, t0) = (self.n, self.t0);
+        let adaptive = self.opts.adaptive;
+        let err_exp = 1.0 / 3.0;
+        loop {
+            let h = self.h;
             // Step to attempt.
             let target = if adaptive {
                 self.t_end
             } else {
-                (t0 + k_grid as f64 * self.h_fixed).min(self.t_end)
+                (t0 + self.k_grid as f64 * self.h_fixed).min(self.t_end)
             };
             let mut h_try = h.min(self.t_end - self.t);
             if adaptive {
@@ -568,12 +588,11 @@ impl<'g, 's> Run<'g, 's> {
             }
             let hmin = self.min_step(self.t);
             if h_try < hmin && self.t + h_try < self.t_end {
-                return self.fail(format!(
-                    "step size {h_try:.3e} below the minimum {hmin:.3e} at t = {}: \
-                     Newton does not converge (last: {})",
-                    self.t,
-                    self.warnings.last().map_or("", |s| s.as_str())
-                ));
+                let cause = self
+                    .last_newton
+                    .clone()
+                    .unwrap_or(StepCut::ErrorTest { err: f64::NAN });
+                return Err(self.too_small(h_try, hmin, cause));
             }
             let t_new = if h_try == self.t_end - self.t {
                 self.t_end
@@ -592,30 +611,30 @@ impl<'g, 's> Run<'g, 's> {
                 self.stats.newton_failures += 1;
                 let msg = format!("Newton failed at t = {t_new} with h = {h_try:.3e}: {reason}");
                 if self.warnings.len() < 20 {
-                    self.warnings.push(msg.clone());
+                    self.warnings.push(msg);
                 } else if let Some(last) = self.warnings.last_mut() {
-                    *last = msg.clone();
+                    *last = msg;
                 }
-                if h_try * 0.5 < self.min_step(self.t) {
-                    return self.fail(format!(
-                        "step size {:.3e} below the minimum {:.3e} at t = {}: {msg}",
-                        h_try * 0.5,
-                        self.min_step(self.t),
-                        self.t
-                    ));
+                let cut = StepCut::Newton {
+                    t: t_new,
+                    h: h_try,
+                    source: Arc::new(reason),
+                };
+                let h_min = self.min_step(self.t);
+                if h_try * 0.5 < h_min {
+                    return Err(self.too_small(h_try * 0.5, h_min, cut));
                 }
-                h = h_try * 0.5;
-                no_growth = true;
+                self.last_newton = Some(cut);
+                self.h = h_try * 0.5;
+                self.no_growth = true;
                 continue;
             }
             // Error control.
             let mut fac = 1.0;
             if adaptive {
-                let err = match self.error_norm(t_new, h_try) {
-                    Ok(e) => e,
-                    Err(e) => return self.fail(e),
-                };
-                fac = (SAFETY * err.powf(-err_exp)).clamp(0.2, if no_growth { 1.0 } else { 2.0 });
+                let err = self.error_norm(t_new, h_try)?;
+                fac = (SAFETY * err.powf(-err_exp))
+                    .clamp(0.2, if self.no_growth { 1.0 } else { 2.0 });
                 if !err.is_finite() {
                     fac = 0.2;
                 }
@@ -623,27 +642,23 @@ impl<'g, 's> Run<'g, 's> {
                     // Gustafsson's predictive controller (Hairer & Wanner
                     // II, §IV.8, eq. (8.21), as in RADAU5): damps the
                     // accept/reject cycles of an oscillating error.
-                    if let Some((h_acc, err_acc)) = last_acc {
+                    if let Some((h_acc, err_acc)) = self.last_acc {
                         let e = err.max(1e-10);
                         let g =
                             SAFETY * (h_try / h_acc) * (err_acc.max(1e-10) / (e * e)).powf(err_exp);
                         fac = fac.min(g.clamp(0.2, 2.0));
                     }
-                    last_acc = Some((h_try, err));
+                    self.last_acc = Some((h_try, err));
                 }
                 if err > 1.0 || !err.is_finite() {
                     self.stats.error_rejections += 1;
                     let hn = h_try * fac;
-                    if hn < self.min_step(self.t) {
-                        return self.fail(format!(
-                            "step size {hn:.3e} below the minimum {:.3e} at t = {}: \
-                             the error test fails (err = {err:.3e})",
-                            self.min_step(self.t),
-                            self.t
-                        ));
+                    let h_min = self.min_step(self.t);
+                    if hn < h_min {
+                        return Err(self.too_small(hn, h_min, StepCut::ErrorTest { err }));
                     }
-                    h = hn;
-                    no_growth = true;
+                    self.h = hn;
+                    self.no_growth = true;
                     continue;
                 }
             }
@@ -651,11 +666,15 @@ impl<'g, 's> Run<'g, 's> {
             if self.opts.project {
                 self.stats.projections += 1;
                 let (q, v) = (&mut self.new.q, &mut self.new.v);
-                if let Err(e) = self.sys.project(t_new, q, v) {
-                    return self.fail(format!("projection at t = {t_new}: {e}"));
-                }
+                self.sys.project(t_new, q, v).map_err(|e| Failure::System {
+                    what: "projection",
+                    t: t_new,
+                    step_from: Some(self.t),
+                    source: Arc::new(e),
+                })?;
             }
-            let t_old = self.t;
+            self.t_old = self.t;
+            self.h_last = h_try;
             self.prev_qdd.copy_from_slice(&self.cur.qdd);
             self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
@@ -663,32 +682,11 @@ impl<'g, 's> Run<'g, 's> {
             self.stats.steps += 1;
             self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
             self.stats.max_step_taken = self.stats.max_step_taken.max(h_try);
-            // Outputs in (t_old, t_new]: the grid lands on output times up
-            // to rounding, hence the snap of 1e-9 h.
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
-            let (start, end) = (&self.new, &self.cur);
-            let flow = outputs.deliver_step_snapped(
-                t_new,
-                1e-9 * h_try,
-                self.t >= self.t_end,
-                &self.y,
-                &mut self.ybuf,
-                |tk, buf| hermite((tk - t_old) / h_try, h_try, start, end, buf),
-                obs,
-            );
-            if let ControlFlow::Break((t, reason)) = flow {
-                return Termination::Stopped { t, reason };
-            }
-            if let ControlFlow::Break(r) = obs.step(t_new, &self.y) {
-                return Termination::Stopped {
-                    t: t_new,
-                    reason: r,
-                };
-            }
             // Next step size.
             if adaptive {
-                let mut hn = (h_try * fac).min(max_step);
+                let mut hn = (h_try * fac).min(self.max_step);
                 if (1.0..1.2).contains(&fac) && h_try >= h * 0.999 {
                     hn = h_try; // keep the factorisation
                 }
@@ -696,16 +694,35 @@ impl<'g, 's> Run<'g, 's> {
                     // a shortened final step: do not let it shrink the step
                     hn = h.max(hn);
                 }
-                h = hn;
+                self.h = hn;
             } else {
                 if (self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target {
-                    k_grid += 1;
+                    self.k_grid += 1;
                 }
-                h = (2.0 * h).min(self.h_fixed);
+                self.h = (2.0 * h).min(self.h_fixed);
             }
-            no_growth = false;
+            self.no_growth = false;
+            return Ok(self.t >= self.t_end);
         }
-        Termination::Completed
+    }
+
+    fn state(&self) -> (f64, &[f64]) {
+        (self.t, &self.y)
+    }
+
+    /// Cubic Hermite between the two ends of the last step.
+    fn interpolate(&self, tk: f64, out: &mut [f64]) {
+        let h = self.h_last;
+        hermite((tk - self.t_old) / h, h, &self.new, &self.cur, out);
+    }
+
+    /// The grid lands on output times only up to rounding: 1e-9 h.
+    fn output_snap(&self) -> f64 {
+        1e-9 * self.h_last
+    }
+
+    fn steps(&self) -> usize {
+        self.stats.steps
     }
 }
 

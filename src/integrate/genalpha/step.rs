@@ -9,7 +9,7 @@ pub const SAFETY: f64 = 0.9;
 impl Run<'_, '_> {
     /// Norm of the local error estimate of the attempt in `self.new`
     /// (module docs); ≤ 1 passes.
-    pub(super) fn error_norm(&mut self, t1: f64, h: f64) -> Result<f64, String> {
+    pub(super) fn error_norm(&mut self, t1: f64, h: f64) -> Result<f64, Failure> {
         let p = self.p;
         let n = self.n;
         // Position LTE constant; for the first-order Newmark members the
@@ -34,7 +34,12 @@ impl Run<'_, '_> {
             self.err[n..].fill(0.0);
             self.sys
                 .solve(t1, &mut self.err)
-                .map_err(|e| format!("error filter at t = {t1}: {e}"))?;
+                .map_err(|e| Failure::System {
+                    what: "error filter",
+                    t: t1,
+                    step_from: Some(self.t),
+                    source: std::sync::Arc::new(e),
+                })?;
         }
         let mut norm: f64 = 0.0;
         for i in 0..n {
