@@ -195,13 +195,17 @@ fn constraint_method(
     let key = |k: &str| format!("stabilization.{k}");
     let mut projection = Projection::default();
     if let Some(on) = st.projection {
-        if method.is_implicit() || formulation == Formulation::Penalty {
+        if formulation == Formulation::Penalty {
+            return Err((
+                key("projection"),
+                "does not apply to formulation = \"penalty\" (saddle and eliminated only)".into(),
+            ));
+        }
+        if method.is_implicit() {
             return Err((
                 key("projection"),
                 format!(
-                    "applies to the saddle-point and eliminated formulations of ode23, ode45 \
-                     and rk4 (here {} with formulation {formulation:?}; the implicit methods \
-                     project with integrator.project)",
+                    "applies to ode23, ode45 and rk4; {} projects with integrator.project",
                     method.name()
                 ),
             ));
