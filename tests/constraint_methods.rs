@@ -175,7 +175,7 @@ fn projected_runs_stay_on_the_manifold_and_on_the_reference() {
     for (method, rtol, step) in [
         (Method::Ode23, 1e-5, None),
         (Method::Ode45, 1e-6, None),
-        (Method::Rk4, 0.0, Some(2e-3)),
+        (Method::Rk4, 0.0, Some(5e-4)),
     ] {
         let mut cfg = sc.run.clone();
         cfg.method = method;
@@ -286,8 +286,7 @@ fn penalty_and_projection_from_scenario_keys() {
     let o = |sets: &[&str]| {
         let o: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
         scenario::parse(FOURBAR_TOML, "f.toml", "f", &o)
-            .err()
-            .expect("must be rejected")
+            .expect_err("must be rejected")
             .to_string()
     };
     for (sets, key, word) in [
