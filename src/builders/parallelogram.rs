@@ -7,7 +7,9 @@
 //! branch every crank turns by the same angle θ and every coupler
 //! translates; at θ = 0 and θ = π all bars lie on the ground line, Φ_q
 //! loses rank and the mechanism can leave its branch (towards an
-//! antiparallelogram). Gravity acts along −y.
+//! antiparallelogram). Gravity acts along −y. With `redundant`, one rigid
+//! coupler spans all the crank tips: for k ≥ 2 its extra pins are
+//! redundant constraints (a parallelogram with a redundant link).
 //!
 //! **Reference (minimal coordinate θ).** With uniform bars (crank mass
 //! `m_c`, inertia `m_c r²/12`; coupler mass `m_b`), the crank centres move
@@ -52,6 +54,11 @@ pub struct ParallelogramChain {
     /// Drive crank 0 at the constant rate `rate0` (θ = θ₀ + θ̇₀ t, one
     /// rheonomic [`DriveCoordinate`]) instead of letting the chain move freely.
     pub driven: bool,
+    /// One rigid coupler of length k L and mass k m_b pinned to every crank
+    /// tip instead of k separate couplers: for k ≥ 2 the k − 1 extra pins
+    /// are redundant (4k + 4 constraint rows of rank 3k + 5 away from the
+    /// singular positions) and the reference motion is the same.
+    pub redundant: bool,
 }
 
 impl Default for ParallelogramChain {
@@ -69,6 +76,7 @@ impl Default for ParallelogramChain {
             theta0: 0.3,
             rate0: 15.0,
             driven: false,
+            redundant: false,
         }
     }
 }
@@ -118,7 +126,7 @@ impl ParallelogramChain {
 
     /// The coordinates and velocities of every body on the parallelogram
     /// branch at crank angle θ and rate θ̇ (bodies: cranks 0 … k, then
-    /// couplers 0 … k − 1).
+    /// couplers 0 … k − 1, or the one coupler when `redundant`).
     pub fn state(&self, theta: f64, rate: f64) -> (Vec<f64>, Vec<f64>) {
         let (k, r, l) = (self.loops, self.crank_length, self.spacing);
         let (s, c) = theta.sin_cos();
@@ -128,8 +136,13 @@ impl ParallelogramChain {
             q.extend([i as f64 * l + 0.5 * r * c, 0.5 * r * s, theta]);
             v.extend([-0.5 * r * s * rate, 0.5 * r * c * rate, rate]);
         }
-        for j in 0..k {
-            q.extend([(j as f64 + 0.5) * l + r * c, r * s, 0.0]);
+        let (n_couplers, centre0) = if self.redundant {
+            (1, 0.5 * k as f64 * l)
+        } else {
+            (k, 0.5 * l)
+        };
+        for j in 0..n_couplers {
+            q.extend([centre0 + j as f64 * l + r * c, r * s, 0.0]);
             v.extend([-r * s * rate, r * c * rate, 0.0]);
         }
         (q, v)
@@ -189,9 +202,11 @@ impl ParallelogramChain {
 
 /// Build the chain (module docs): bodies cranks 0 … k (body x axis from
 /// pivot to tip, pins at local `(∓r/2, 0)`), then couplers 0 … k − 1 (x
-/// axis from crank j's tip to crank j + 1's, pins at `(∓L/2, 0)`); joints:
-/// the k + 1 ground pivots, then per coupler its two pins, then (when
-/// driven) the drive of crank 0's angle. Every body starts exactly on the
+/// axis from crank j's tip to crank j + 1's, pins at `(∓L/2, 0)`) or, when
+/// `redundant`, one coupler over all tips (pins at `i L − k L/2`); joints:
+/// the k + 1 ground pivots, then per coupler its two pins (or the k + 1
+/// pins of the one coupler), then (when driven) the drive of crank 0's
+/// angle. Every body starts exactly on the
 /// parallelogram branch at `(θ₀, θ̇₀)` ([`ParallelogramChain::state`]).
 pub fn parallelogram_chain(p: &ParallelogramChain) -> Result<System, ModelError> {
     p.validate()?;
@@ -210,8 +225,18 @@ pub fn parallelogram_chain(p: &ParallelogramChain) -> Result<System, ModelError>
     for i in 0..=k {
         b.add_body(body(format!("crank{i}"), p.crank_mass, r, i));
     }
-    for j in 0..k {
-        b.add_body(body(format!("coupler{j}"), p.coupler_mass, l, k + 1 + j));
+    let len = k as f64 * l;
+    if p.redundant {
+        b.add_body(body(
+            "coupler".into(),
+            k as f64 * p.coupler_mass,
+            len,
+            k + 1,
+        ));
+    } else {
+        for j in 0..k {
+            b.add_body(body(format!("coupler{j}"), p.coupler_mass, l, k + 1 + j));
+        }
     }
     for i in 0..=k {
         b.add_constraint(Revolute::new(
@@ -222,16 +247,23 @@ pub fn parallelogram_chain(p: &ParallelogramChain) -> Result<System, ModelError>
             [-0.5 * r, 0.0],
         ));
     }
-    for j in 0..k {
-        let cp = BodyRef::Body(k + 1 + j);
-        for (side, crank) in [(-1.0, j), (1.0, j + 1)] {
-            b.add_constraint(Revolute::new(
-                format!("pin{crank}-coupler{j}"),
-                BodyRef::Body(crank),
-                [0.5 * r, 0.0],
-                cp,
-                [side * 0.5 * l, 0.0],
-            ));
+    let tip = |crank: usize, coupler: usize, at: f64| {
+        Revolute::new(
+            format!("pin{crank}-body{coupler}"),
+            BodyRef::Body(crank),
+            [0.5 * r, 0.0],
+            BodyRef::Body(coupler),
+            [at, 0.0],
+        )
+    };
+    if p.redundant {
+        for i in 0..=k {
+            b.add_constraint(tip(i, k + 1, i as f64 * l - 0.5 * len));
+        }
+    } else {
+        for j in 0..k {
+            b.add_constraint(tip(j, k + 1 + j, -0.5 * l));
+            b.add_constraint(tip(j + 1, k + 1 + j, 0.5 * l));
         }
     }
     if p.driven {
