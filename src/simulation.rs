@@ -86,7 +86,7 @@ pub struct Trajectory {
 pub struct Summary {
     /// Integration method.
     pub method: String,
-    /// `saddle` (eq. (5)) or `eliminated` (eq. (9)).
+    /// `saddle` (eq. (5)), `eliminated` (eq. (9)), `penalty` or `index3`.
     pub formulation: String,
     /// Linear solver.
     pub linear_solver: String,
@@ -322,6 +322,16 @@ impl MethodRun for Explicit<'_> {
             regularized_pivots: stats.solver.regularized_pivots,
         };
         let mut extra = serde_json::Map::new();
+        if cfg.index1.formulation == crate::formulation::Formulation::Penalty {
+            let p = cfg.index1.penalty;
+            for (k, v) in [
+                ("penalty", p.alpha),
+                ("penalty_xi", p.xi),
+                ("penalty_omega", p.omega),
+            ] {
+                extra.insert(k.into(), v.into());
+            }
+        }
         if cfg.index1.projection.enabled {
             extra.insert("projections".into(), stats.projections.into());
             let it = stats.projection_iterations;

@@ -277,6 +277,8 @@ fn penalty_and_projection_from_scenario_keys() {
     assert_eq!(sc.run.index1.penalty.xi, 1.0);
     let (_, s) = run(&sc, &sc.run);
     assert_eq!(s.formulation, "penalty");
+    assert_eq!(s.extra["penalty"], 1e6);
+    assert_eq!(s.extra["penalty_omega"], 20.0);
     let sc = fourbar(&["stabilization.projection=true"]);
     assert!(sc.run.index1.projection.enabled);
     let (_, s) = run(&sc, &sc.run);
