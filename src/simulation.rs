@@ -4,7 +4,7 @@
 use crate::formulation::{ExplicitForm, FormulationError, Index1Options, Index3, NewtonSolverKind};
 use crate::integrate::{
     integrator, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
-    OdeOptions, Report, Termination, Tolerance,
+    OdeOptions, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -32,6 +32,40 @@ pub struct RunConfig {
     /// `ode`, their linear solver from `index1.linear_solver`. Must stay
     /// at its default for the explicit methods ([`ImplicitOptions::validate`]).
     pub implicit: ImplicitOptions,
+    /// Guards against silent nonsense: warnings and the "diverged" stop.
+    pub guards: Guards,
+}
+
+/// Guards watched at every accepted step. A guard that trips warns once
+/// (console through [`Sink::warning`], and the summary), with the time;
+/// past the divergence bounds the run stops with status `"diverged"`.
+///
+/// The length scale `L` is the largest position coordinate of `q0` (at
+/// least 1 mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Guards {
+    /// Warn when ‖Φ‖₂ exceeds this \[m\]; `None`: `100 (rtol L + atol)`,
+    /// the drift an accurate run at these tolerances stays far below.
+    pub constraint_warn: Option<f64>,
+    /// Stop ("diverged") when ‖Φ‖₂ exceeds this \[m\]; `None`:
+    /// `max(L, 10 × constraint_warn)` — the mechanism has come apart.
+    pub constraint_fail: Option<f64>,
+    /// Stop ("diverged") when a position coordinate exceeds this multiple
+    /// of `L` in magnitude.
+    pub position_factor: f64,
+    /// Stop on divergence (else only warn).
+    pub stop_on_divergence: bool,
+}
+
+impl Default for Guards {
+    fn default() -> Self {
+        Self {
+            constraint_warn: None,
+            constraint_fail: None,
+            position_factor: 1e6,
+            stop_on_divergence: true,
+        }
+    }
 }
 
 impl Default for RunConfig {
@@ -46,6 +80,7 @@ impl Default for RunConfig {
             output_dt: 0.01,
             index1: Index1Options::default(),
             implicit: ImplicitOptions::default(),
+            guards: Guards::default(),
         }
     }
 }
@@ -79,6 +114,54 @@ pub struct Trajectory {
     pub constraint_norm: Vec<f64>,
     /// ‖Φ̇‖₂ = ‖Φ_q q̇ + Φ_t‖₂ at each output time.
     pub velocity_constraint_norm: Vec<f64>,
+}
+
+/// One output row, as a [`Sink`] receives it at an output time.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample<'a> {
+    /// Output time.
+    pub t: f64,
+    /// Positions q.
+    pub q: &'a [f64],
+    /// Velocities q̇.
+    pub qd: &'a [f64],
+    /// Constraint values Φ(q, t).
+    pub phi: &'a [f64],
+    /// ‖Φ‖₂.
+    pub constraint_norm: f64,
+    /// ‖Φ̇‖₂ = ‖Φ_q q̇ + Φ_t‖₂.
+    pub velocity_constraint_norm: f64,
+}
+
+/// Where a run's outputs go, as the integration delivers them: kept in
+/// memory ([`Trajectory`]) or streamed to a file by the caller (the CLI
+/// writes CSV rows as they come, in bounded memory).
+pub trait Sink {
+    /// One row at an output time. An `Err` ends the run: status
+    /// `"failed"`, the message names the error; rows delivered before it
+    /// stay valid.
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+    /// After every accepted step, with the work so far: progress reports,
+    /// interrupts. `Break(reason)` ends the run with status
+    /// `"interrupted"`.
+    fn progress(&mut self, _t: f64, _stats: &Stats) -> ControlFlow<String> {
+        ControlFlow::Continue(())
+    }
+    /// A warning as it arises (it is also in [`Summary::warnings`]).
+    fn warning(&mut self, _message: &str) {}
+}
+
+impl Sink for Trajectory {
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.t.push(s.t);
+        self.q.push(s.q.to_vec());
+        self.qd.push(s.qd.to_vec());
+        self.phi.push(s.phi.to_vec());
+        self.constraint_norm.push(s.constraint_norm);
+        self.velocity_constraint_norm
+            .push(s.velocity_constraint_norm);
+        Ok(())
+    }
 }
 
 /// Work and accuracy figures of one run (written as `*.summary.json`).
@@ -128,8 +211,12 @@ pub struct Summary {
     pub t_end: f64,
     /// Time reached.
     pub t_reached: f64,
-    /// `completed`, `failed` or `stopped`.
+    /// `completed`, `failed`, `diverged` (a [`Guards`] bound) or
+    /// `interrupted` (the sink asked to stop, e.g. on SIGINT).
     pub status: String,
+    /// Output rows delivered (all complete and valid, also when the run
+    /// failed or was interrupted).
+    pub output_rows: usize,
     /// Why the run failed or stopped.
     pub message: Option<String>,
     /// Integrator notices.
@@ -161,31 +248,130 @@ pub enum SimulationError {
     Initial(String),
 }
 
-struct Watch<'s, 'm, 'd> {
+struct Watch<'s, 'm, 'd, 'k> {
     sys: &'s System,
     n: usize,
-    traj: Trajectory,
+    sink: &'k mut dyn Sink,
+    rows: usize,
+    /// The sink's error that ended the run, with the output time.
+    sink_error: Option<String>,
+    /// Max ‖Φ‖ and ‖Φ̇‖, and ‖Φ‖ at the last output.
+    max_norm: f64,
+    max_velocity_norm: f64,
+    final_norm: f64,
     phi: Vec<f64>,
     phi_t: Vec<f64>,
     jac: Vec<f64>,
     phid: Vec<f64>,
-    max_norm: f64,
     monitors: &'m mut [&'d mut dyn Monitor],
+    /// Guard bounds: ‖Φ‖ warn / fail, |position| fail.
+    phi_warn: f64,
+    phi_fail: f64,
+    pos_fail: f64,
+    stop_on_divergence: bool,
+    warned_phi: bool,
+    warned_pos: bool,
+    /// Why the run diverged (status "diverged").
+    diverged: Option<String>,
+    warnings: Vec<String>,
 }
 
-impl<'s, 'm, 'd> Watch<'s, 'm, 'd> {
-    fn new(sys: &'s System, monitors: &'m mut [&'d mut dyn Monitor]) -> Self {
+impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
+    fn new(
+        sys: &'s System,
+        cfg: &RunConfig,
+        q0: &[f64],
+        monitors: &'m mut [&'d mut dyn Monitor],
+        sink: &'k mut dyn Sink,
+    ) -> Self {
         let m = sys.n_constraints();
+        let g = &cfg.guards;
+        // length scale: the largest position coordinate of q0 (x, y of each body)
+        let l = q0
+            .chunks(3)
+            .flat_map(|b| b[..2].iter())
+            .fold(1e-3, |a: f64, v| a.max(v.abs()));
+        let atol = match &cfg.ode.atol {
+            Tolerance::Scalar(a) => *a,
+            Tolerance::Vector(v) => v.iter().cloned().fold(0.0, f64::max),
+        };
+        let phi_warn = g
+            .constraint_warn
+            .unwrap_or(100.0 * (cfg.ode.rtol * l + atol));
+        let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
         Self {
+            phi_warn,
+            phi_fail,
+            pos_fail: g.position_factor * l,
+            stop_on_divergence: g.stop_on_divergence,
+            warned_phi: false,
+            warned_pos: false,
+            diverged: None,
+            warnings: Vec::new(),
             sys,
             n: sys.n_coords(),
-            traj: Trajectory::default(),
+            sink,
+            rows: 0,
+            sink_error: None,
+            max_norm: 0.0,
+            max_velocity_norm: 0.0,
+            final_norm: f64::NAN,
             phi: vec![0.0; m],
             phi_t: vec![0.0; m],
             jac: vec![0.0; sys.jacobian_pattern().len()],
             phid: vec![0.0; m],
-            max_norm: 0.0,
             monitors,
+        }
+    }
+}
+
+impl Watch<'_, '_, '_, '_> {
+    fn warn(&mut self, message: String) {
+        self.sink.warning(&message);
+        self.warnings.push(message);
+    }
+
+    /// The guards of [`Guards`] after an accepted step.
+    fn guard(&mut self, t: f64, q: &[f64], cn: f64) -> ControlFlow<String> {
+        if cn > self.phi_warn && !self.warned_phi {
+            self.warned_phi = true;
+            self.warn(format!(
+                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} (100 (rtol L + atol)): \
+                 the solution is drifting off its constraints; tighten the tolerances, \
+                 use Baumgarte stabilization or an index-3 method",
+                self.phi_warn
+            ));
+        }
+        let pos = q
+            .chunks(3)
+            .flat_map(|b| b[..2].iter())
+            .fold(0.0, |a: f64, v| a.max(v.abs()));
+        let reason = if cn > self.phi_fail {
+            Some(format!(
+                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} \
+                 (the mechanism has come apart)",
+                self.phi_fail
+            ))
+        } else if pos > self.pos_fail {
+            Some(format!(
+                "a position coordinate reached {pos:.3e} m at t = {t:e} (more than {:.1e} m): \
+                 the integration is unstable — reduce the step",
+                self.pos_fail
+            ))
+        } else {
+            None
+        };
+        match reason {
+            Some(r) if self.stop_on_divergence => {
+                self.diverged = Some(r.clone());
+                ControlFlow::Break(r)
+            }
+            Some(r) if !self.warned_pos => {
+                self.warned_pos = true;
+                self.warn(r);
+                ControlFlow::Continue(())
+            }
+            _ => ControlFlow::Continue(()),
         }
     }
 }
@@ -194,7 +380,7 @@ fn norm2(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-impl Observer for Watch<'_, '_, '_> {
+impl Observer for Watch<'_, '_, '_, '_> {
     fn output(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
         let (q, qd) = y.split_at(self.n);
         self.sys.phi(q, t, &mut self.phi);
@@ -205,27 +391,47 @@ impl Observer for Watch<'_, '_, '_> {
             *a += b;
         }
         let cn = norm2(&self.phi);
+        let vn = norm2(&self.phid);
         self.max_norm = self.max_norm.max(cn);
-        self.traj.t.push(t);
-        self.traj.q.push(q.to_vec());
-        self.traj.qd.push(qd.to_vec());
-        self.traj.phi.push(self.phi.clone());
-        self.traj.constraint_norm.push(cn);
-        self.traj.velocity_constraint_norm.push(norm2(&self.phid));
-        ControlFlow::Continue(())
+        self.max_velocity_norm = self.max_velocity_norm.max(vn);
+        self.final_norm = cn;
+        let sample = Sample {
+            t,
+            q,
+            qd,
+            phi: &self.phi,
+            constraint_norm: cn,
+            velocity_constraint_norm: vn,
+        };
+        match self.sink.output(&sample) {
+            Ok(()) => {
+                self.rows += 1;
+                ControlFlow::Continue(())
+            }
+            Err(e) => {
+                let msg = format!("writing the output at t = {t:e} failed: {e}");
+                self.sink_error = Some(msg.clone());
+                ControlFlow::Break(msg)
+            }
+        }
     }
     fn step(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
         let (q, qd) = y.split_at(self.n);
         self.sys.phi(q, t, &mut self.phi);
-        self.max_norm = self.max_norm.max(norm2(&self.phi));
+        let cn = norm2(&self.phi);
+        self.max_norm = self.max_norm.max(cn);
         for m in self.monitors.iter_mut() {
             m.step(t, q, qd);
         }
-        ControlFlow::Continue(())
+        self.guard(t, q, cn)
+    }
+    fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
+        self.sink.progress(t, stats)
     }
 }
 
-/// Integrate the equations of motion of `sys` from `(q0, q̇0)`.
+/// Integrate the equations of motion of `sys` from `(q0, q̇0)`, keeping
+/// every output in memory ([`Trajectory`]); see [`simulate_into`].
 ///
 /// A failure midway (step-size collapse, singular matrix) is not an `Err`:
 /// the trajectory up to the failure is returned and the summary says where
@@ -237,6 +443,26 @@ pub fn simulate(
     cfg: &RunConfig,
     monitors: &mut [&mut dyn Monitor],
 ) -> Result<(Trajectory, Summary), SimulationError> {
+    let mut traj = Trajectory::default();
+    let summary = simulate_into(sys, q0, qd0, cfg, monitors, &mut traj)?;
+    Ok((traj, summary))
+}
+
+/// Integrate the equations of motion of `sys` from `(q0, q̇0)`, handing
+/// each output row to `sink` as the integration delivers it (memory
+/// bounded independently of the number of outputs).
+///
+/// A failure midway, a failing sink or an interrupt from the sink is not
+/// an `Err`: the summary says where and why (`status`, `message`) and how
+/// many rows were delivered (`output_rows`).
+pub fn simulate_into(
+    sys: &System,
+    q0: &[f64],
+    qd0: &[f64],
+    cfg: &RunConfig,
+    monitors: &mut [&mut dyn Monitor],
+    sink: &mut dyn Sink,
+) -> Result<Summary, SimulationError> {
     let n = sys.n_coords();
     if q0.len() != n || qd0.len() != n {
         return Err(SimulationError::Initial(format!(
@@ -256,7 +482,7 @@ pub fn simulate(
     } else {
         Box::new(Explicit::new(sys, cfg)?)
     };
-    let mut watch = Watch::new(sys, monitors);
+    let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
     let times = cfg.output_times();
     let start = Instant::now();
     let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
@@ -439,22 +665,40 @@ struct Work {
 fn finish(
     sys: &System,
     cfg: &RunConfig,
-    watch: Watch<'_, '_, '_>,
+    watch: Watch<'_, '_, '_, '_>,
     report: &Report,
     wall_s: f64,
     work: Work,
     mut extra: serde_json::Map<String, serde_json::Value>,
-) -> (Trajectory, Summary) {
-    let (status, message) = match &report.termination {
-        Termination::Completed => ("completed", None),
-        Termination::Failed { reason, .. } => ("failed", Some(reason.to_string())),
-        Termination::Stopped { reason, .. } => ("stopped", Some(reason.clone())),
+) -> Summary {
+    let (status, message) = match (&report.termination, &watch.sink_error, &watch.diverged) {
+        (Termination::Completed, _, _) => ("completed", None),
+        (Termination::Failed { reason, .. }, _, _) => ("failed", Some(reason.to_string())),
+        (Termination::Stopped { .. }, Some(e), _) => ("failed", Some(e.clone())),
+        (Termination::Stopped { .. }, None, Some(d)) => ("diverged", Some(d.clone())),
+        (Termination::Stopped { reason, .. }, None, None) => ("interrupted", Some(reason.clone())),
     };
+    let mut warnings = watch.warnings;
+    warnings.extend(report.warnings.iter().cloned());
+    if work.regularized_pivots > 0 {
+        warnings.push(format!(
+            "{} regularised pivots in the factorisations: Φ_q lost rank (a singular \
+             configuration or redundant constraints); the multipliers there are a \
+             regularised least-squares answer",
+            work.regularized_pivots
+        ));
+    }
+    if let Some(nf) = extra.get("newton_failures").and_then(|v| v.as_u64()) {
+        if nf > 0 {
+            warnings.push(format!(
+                "{nf} Newton failures, each cutting the step (the first ones are listed above)"
+            ));
+        }
+    }
     for mon in watch.monitors.iter() {
         mon.report(&mut extra);
     }
-    let traj = watch.traj;
-    let summary = Summary {
+    Summary {
         method: cfg.method.name().to_string(),
         formulation: work.formulation,
         linear_solver: work.linear_solver,
@@ -476,18 +720,14 @@ fn finish(
         regularized_pivots: work.regularized_pivots,
         wall_s,
         max_constraint_norm: watch.max_norm,
-        final_constraint_norm: traj.constraint_norm.last().copied().unwrap_or(f64::NAN),
-        max_velocity_constraint_norm: traj
-            .velocity_constraint_norm
-            .iter()
-            .cloned()
-            .fold(0.0, f64::max),
+        final_constraint_norm: watch.final_norm,
+        max_velocity_constraint_norm: watch.max_velocity_norm,
         t_end: cfg.t_end,
         t_reached: report.t_reached,
         status: status.to_string(),
+        output_rows: watch.rows,
         message,
-        warnings: report.warnings.clone(),
+        warnings,
         extra,
-    };
-    (traj, summary)
+    }
 }

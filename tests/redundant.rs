@@ -44,6 +44,13 @@ fn four_bar_with_a_doubled_joint_runs_like_the_plain_one() {
     assert_eq!(sr.status, "completed", "{:?}", sr.message);
     assert!(sr.regularized_pivots > 0, "no pivot regularised: {sr:?}");
     assert_eq!(sp.regularized_pivots, 0);
+    // the rank loss is reported, not only counted
+    assert!(
+        sr.warnings.iter().any(|w| w.contains("regularised pivots")),
+        "{:?}",
+        sr.warnings
+    );
+    assert!(sp.warnings.is_empty(), "{:?}", sp.warnings);
     let mut worst: f64 = 0.0;
     for (a, b) in tr.q.iter().zip(&tp.q) {
         for (x, y) in a.iter().zip(b) {

@@ -76,6 +76,52 @@ pub struct WallContact {
     pub slip_velocity: f64,
 }
 
+/// The Hunt–Crossley normal law of the contacts (docs/problems.md, problem
+/// B, "contact"): `F_n = max(0, k_h δ^{3/2} (1 + χ δ̇))` for penetration
+/// `δ > 0` and its rate `δ̇` (positive while approaching), with the elastic
+/// potential `(2/5) k_h δ^{5/2}`. One piece of code for [`WallContact`] and
+/// [`super::HalfPlaneContact`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct HuntCrossley {
+    /// Hertz stiffness k_h \[N/m^{3/2}\].
+    pub kh: f64,
+    /// Damping factor χ \[s/m\].
+    pub chi: f64,
+}
+
+impl HuntCrossley {
+    /// `F_n(δ, δ̇)` (clamped at 0), for `δ > 0`.
+    #[inline]
+    pub(crate) fn force(&self, delta: f64, delta_dot: f64) -> f64 {
+        (self.kh * delta * delta.sqrt() * (1.0 + self.chi * delta_dot)).max(0.0)
+    }
+
+    /// `(∂F_n/∂δ, ∂F_n/∂δ̇)` of the unclamped law, for `δ > 0`.
+    #[inline]
+    pub(crate) fn slopes(&self, delta: f64, delta_dot: f64) -> (f64, f64) {
+        let sq = delta.sqrt();
+        (
+            1.5 * self.kh * sq * (1.0 + self.chi * delta_dot),
+            self.kh * delta * sq * self.chi,
+        )
+    }
+
+    /// Elastic potential `(2/5) k_h δ^{5/2}`, for `δ > 0`.
+    #[inline]
+    pub(crate) fn energy(&self, delta: f64) -> f64 {
+        0.4 * self.kh * delta * delta * delta.sqrt()
+    }
+}
+
+/// Regularised Coulomb friction of the contacts: the friction force is
+/// `−μ F_n tanh(v / v_s)` for slip velocity `v`; returns
+/// `(tanh(v/v_s), d tanh(v/v_s)/dv)`.
+#[inline]
+pub(crate) fn friction_tanh(v: f64, slip_velocity: f64) -> (f64, f64) {
+    let th = (v / slip_velocity).tanh();
+    (th, (1.0 - th * th) / slip_velocity)
+}
+
 /// Per-corner contact evaluation against one wall.
 struct CornerEval {
     wall: Wall,
@@ -91,6 +137,14 @@ struct CornerEval {
 }
 
 impl WallContact {
+    /// The normal law of this element.
+    fn law(&self) -> HuntCrossley {
+        HuntCrossley {
+            kh: self.stiffness,
+            chi: self.damping,
+        }
+    }
+
     /// Body-fixed position of corner `c` (0..4): 0 = (−w/2, −l_s/2),
     /// 1 = (+w/2, −l_s/2), 2 = (+w/2, +l_s/2), 3 = (−w/2, +l_s/2)
     /// (counter-clockwise from bottom left at φ = 0). Panics for `c >= 4`.
@@ -127,10 +181,8 @@ impl WallContact {
                     continue;
                 }
                 let delta_dot = -sigma * vel[0];
-                let fn_ =
-                    (self.stiffness * delta * delta.sqrt() * (1.0 + self.damping * delta_dot))
-                        .max(0.0);
-                let tanh = (vel[1] / self.slip_velocity).tanh();
+                let fn_ = self.law().force(delta, delta_dot);
+                let (tanh, _) = friction_tanh(vel[1], self.slip_velocity);
                 f(
                     c,
                     &CornerEval {
@@ -201,12 +253,8 @@ impl ForceElement for WallContact {
         _ws: &mut FdWorkspace,
     ) {
         let w = qd[3 * self.body + 2];
-        let (kh, chi, mu, vs) = (
-            self.stiffness,
-            self.damping,
-            self.friction,
-            self.slip_velocity,
-        );
+        let (mu, vs) = (self.friction, self.slip_velocity);
+        let law = self.law();
         self.for_each_contact(self.body_q(q), self.body_q(qd), |_, e| {
             if e.fn_ <= 0.0 {
                 return; // clamped: force and derivatives vanish
@@ -220,9 +268,7 @@ impl ForceElement for WallContact {
             let d_ddelta_qd = [-sg, 0.0, sg * rs[1]];
             let d_vy_q = [0.0, 0.0, -w * rs[1]];
             let d_vy_qd = [0.0, 1.0, rs[0]];
-            let sq = e.delta.sqrt();
-            let a = 1.5 * kh * sq * (1.0 + chi * e.delta_dot); // ∂F_n/∂δ
-            let b = kh * e.delta * sq * chi; // ∂F_n/∂δ̇
+            let (a, b) = law.slopes(e.delta, e.delta_dot); // ∂F_n/∂δ, ∂F_n/∂δ̇
             let dtanh = (1.0 - e.tanh * e.tanh) / vs;
             let fx = sg * e.fn_;
             let fy = -mu * e.fn_ * e.tanh;
@@ -250,7 +296,7 @@ impl ForceElement for WallContact {
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let mut e = 0.0;
         self.for_each_contact(self.body_q(q), [0.0; 3], |_, c| {
-            e += 0.4 * self.stiffness * c.delta * c.delta * c.delta.sqrt();
+            e += self.law().energy(c.delta);
         });
         Some(e)
     }

@@ -10,7 +10,9 @@ mod buoyancy;
 mod contact;
 mod drag;
 mod expression;
+mod half_plane;
 mod law;
+mod rotational;
 mod spring;
 mod torsional;
 
@@ -19,7 +21,9 @@ pub use buoyancy::Buoyancy;
 pub use contact::{CornerState, Wall, WallContact};
 pub use drag::Drag;
 pub use expression::{ExpressionError, ExpressionLoad, ExpressionLoadBuilder, LinePoint};
+pub use half_plane::HalfPlaneContact;
 pub use law::Law;
+pub use rotational::RotationalSpringDamper;
 pub use spring::PointSpringDamper;
 pub use torsional::TorsionalSpringDamper;
 

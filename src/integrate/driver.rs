@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 use std::sync::Arc;
 
 use super::common::OutputCursor;
-use super::{Observer, SystemError, Termination};
+use super::{Observer, Stats, SystemError, Termination};
 
 /// A method bound to its system and initial state, advanced one accepted
 /// step at a time.
@@ -36,8 +36,8 @@ pub trait Stepper {
     fn output_snap(&self) -> f64 {
         0.0
     }
-    /// Accepted steps so far.
-    fn steps(&self) -> usize;
+    /// Work so far (accepted and rejected steps, evaluations).
+    fn stats(&self) -> Stats;
 }
 
 /// Why a run could not continue ([`Termination::Failed`]): typed, with the
@@ -162,7 +162,7 @@ pub fn drive(
     }
     loop {
         let t = st.state().0;
-        if st.steps() >= max_steps {
+        if st.stats().steps >= max_steps {
             let reason = Failure::MaxSteps {
                 max_steps,
                 t,
@@ -193,6 +193,9 @@ pub fn drive(
             return (Termination::Stopped { t, reason }, t_new);
         }
         if let ControlFlow::Break(reason) = obs.step(t_new, y_new) {
+            return (Termination::Stopped { t: t_new, reason }, t_new);
+        }
+        if let ControlFlow::Break(reason) = obs.progress(t_new, &st.stats()) {
             return (Termination::Stopped { t: t_new, reason }, t_new);
         }
         if done {

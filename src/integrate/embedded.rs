@@ -336,7 +336,7 @@ impl Stepper for EmbeddedStepper<'_> {
         lincomb(out, &self.y, self.h, &w[..tab.stages()], &self.k);
     }
 
-    fn steps(&self) -> usize {
-        self.stats.steps
+    fn stats(&self) -> Stats {
+        self.stats.clone()
     }
 }

@@ -266,6 +266,11 @@ pub trait Observer {
     fn step(&mut self, _t: f64, _y: &[f64]) -> ControlFlow<String> {
         ControlFlow::Continue(())
     }
+    /// After every accepted step (after [`Observer::step`]), with the work
+    /// so far: for progress reports and interrupts.
+    fn progress(&mut self, _t: f64, _stats: &Stats) -> ControlFlow<String> {
+        ControlFlow::Continue(())
+    }
 }
 
 /// The unit observer ignores everything.
@@ -277,6 +282,9 @@ impl<O: Observer + ?Sized> Observer for &mut O {
     }
     fn step(&mut self, t: f64, y: &[f64]) -> ControlFlow<String> {
         (**self).step(t, y)
+    }
+    fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
+        (**self).progress(t, stats)
     }
 }
 

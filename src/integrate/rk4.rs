@@ -194,7 +194,7 @@ impl Stepper for Rk4Stepper<'_> {
         cubic(out, (tk - self.t) / hs, hs, &self.y, f0, &self.ynew, f1);
     }
 
-    fn steps(&self) -> usize {
-        self.stats.steps
+    fn stats(&self) -> Stats {
+        self.stats.clone()
     }
 }

@@ -4,8 +4,11 @@
 use super::{error, list, RawScenario, ScenarioError};
 use crate::builders::{add_rod, RodInfo, RodParams};
 use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
-use crate::forces::{AppliedForce, AppliedTorque};
-use crate::model::{Body, BodyRef, Evaluation, System, SystemBuilder, TimeFunction};
+use crate::forces::{
+    AppliedForce, AppliedTorque, Buoyancy, Drag, ExpressionError, ExpressionLoadBuilder,
+    ForceElement, HalfPlaneContact, Law, LinePoint, PointSpringDamper, RotationalSpringDamper,
+};
+use crate::model::{Body, BodyRef, Evaluation, ModelError, System, SystemBuilder, TimeFunction};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -119,18 +122,78 @@ pub(super) struct RawJoint {
     motion: Option<RawFunction>,
 }
 
-/// `[[force]]`: `type` = torque | force.
+/// `[[force]]`: `type` = torque | force | spring | rotational_spring |
+/// contact | fluid | expression; which other keys apply depends on the type
+/// (docs/scenarios.md).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawForce {
     #[serde(rename = "type")]
     kind: String,
     name: Option<String>,
-    body: String,
-    torque: Option<RawFunction>,
+    body: Option<String>,
     point: Option<[f64; 2]>,
-    fx: Option<RawFunction>,
-    fy: Option<RawFunction>,
+    torque: Option<RawLoad>,
+    fx: Option<RawLoad>,
+    fy: Option<RawLoad>,
+    force: Option<String>,
+    body_i: Option<String>,
+    point_i: Option<[f64; 2]>,
+    body_j: Option<String>,
+    point_j: Option<[f64; 2]>,
+    free_length: Option<f64>,
+    stiffness: Option<f64>,
+    force_deflection: Option<RawTable>,
+    damping: Option<f64>,
+    force_velocity: Option<RawTable>,
+    preload: Option<f64>,
+    actuator: Option<RawFunction>,
+    rest_angle: Option<f64>,
+    rest_angle_deg: Option<f64>,
+    torque_angle: Option<RawTable>,
+    torque_rate: Option<RawTable>,
+    radius: Option<f64>,
+    wall_point: Option<[f64; 2]>,
+    wall_normal: Option<[f64; 2]>,
+    wall_normal_deg: Option<f64>,
+    friction: Option<f64>,
+    slip_velocity: Option<f64>,
+    fluid_density: Option<f64>,
+    volume: Option<f64>,
+    width: Option<f64>,
+    length: Option<f64>,
+    c_transverse: Option<f64>,
+    c_skin: Option<f64>,
+    c_end: Option<f64>,
+    end_face: Option<bool>,
+}
+
+/// A tabulated law `{ x = [...], f = [...] }` (piecewise linear, see [`Law`]).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawTable {
+    x: Vec<f64>,
+    f: Vec<f64>,
+}
+
+/// A load value: a function of time ([`RawFunction`]) or an expression
+/// string (only for `type = "expression"`).
+#[derive(Debug)]
+pub(super) enum RawLoad {
+    Function(RawFunction),
+    Text(String),
+}
+
+impl<'de> Deserialize<'de> for RawLoad {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let v = toml::Value::deserialize(d)?;
+        match v {
+            toml::Value::String(s) => Ok(RawLoad::Text(s)),
+            v => RawFunction::try_from(v)
+                .map(RawLoad::Function)
+                .map_err(serde::de::Error::custom),
+        }
+    }
 }
 
 /// A number (constant) or a table `{ polynomial = [c0, c1, …] }` or
@@ -387,57 +450,9 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             }
         }
     }
+    let gravity = raw.gravity;
     for (k, f) in raw.force.iter().enumerate() {
-        let key = |fld: &str| format!("force[{k}].{fld}");
-        let name = f.name.clone().unwrap_or_else(|| format!("force{}", k + 1));
-        let b = body_index(key("body"), &f.body)?;
-        match f.kind.as_str() {
-            "torque" => {
-                for (fld, present) in [
-                    ("point", f.point.is_some()),
-                    ("fx", f.fx.is_some()),
-                    ("fy", f.fy.is_some()),
-                ] {
-                    if present {
-                        return Err(err(key(fld), "not a key of a torque".into()));
-                    }
-                }
-                let torque = f
-                    .torque
-                    .as_ref()
-                    .ok_or_else(|| err(key("torque"), "missing: a torque needs torque".into()))?;
-                builder.add_force(AppliedTorque {
-                    name,
-                    body: b,
-                    torque: torque.to_function(),
-                });
-            }
-            "force" => {
-                if f.torque.is_some() {
-                    return Err(err(
-                        key("torque"),
-                        "not a key of a force (use type = \"torque\")".into(),
-                    ));
-                }
-                let (fx, fy) = match (&f.fx, &f.fy) {
-                    (Some(x), Some(y)) => (x.to_function(), y.to_function()),
-                    _ => return Err(err(key("fx"), "missing: a force needs fx and fy".into())),
-                };
-                builder.add_force(AppliedForce {
-                    name,
-                    body: b,
-                    point: f.point.unwrap_or_default(),
-                    fx,
-                    fy,
-                });
-            }
-            o => {
-                return Err(err(
-                    key("type"),
-                    format!("unknown force type '{o}' (expected torque or force)"),
-                ));
-            }
-        }
+        add_force(&mut builder, f, k, gravity, &names, file)?;
     }
     let mut rod = None;
     if let Some(r) = &raw.rod {
@@ -519,4 +534,571 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
 
     Ok(Model { system, rod, names })
+}
+
+/// The `[[force]]` types and the keys each takes: `(type, needed, allowed)`.
+/// An `expression` needs `body` with `torque`, or `body` with `fx` and `fy`
+/// (`point` allowed), or `body_i`, `body_j` and `force` (`point_i`,
+/// `point_j` allowed); checked in [`add_force`].
+const FORCE_TYPES: &[(&str, &[&str], &[&str])] = &[
+    ("torque", &["body", "torque"], &[]),
+    ("force", &["body", "fx", "fy"], &["point"]),
+    (
+        "spring",
+        &["body_i", "body_j"],
+        &[
+            "point_i",
+            "point_j",
+            "free_length",
+            "stiffness",
+            "force_deflection",
+            "damping",
+            "force_velocity",
+            "preload",
+            "actuator",
+        ],
+    ),
+    (
+        "rotational_spring",
+        &["body_i", "body_j"],
+        &[
+            "rest_angle",
+            "rest_angle_deg",
+            "stiffness",
+            "torque_angle",
+            "damping",
+            "torque_rate",
+        ],
+    ),
+    (
+        "contact",
+        &["body", "stiffness"],
+        &[
+            "point",
+            "radius",
+            "wall_point",
+            "wall_normal",
+            "wall_normal_deg",
+            "damping",
+            "friction",
+            "slip_velocity",
+        ],
+    ),
+    (
+        "fluid",
+        &["body", "fluid_density"],
+        &[
+            "volume",
+            "width",
+            "length",
+            "c_transverse",
+            "c_skin",
+            "c_end",
+            "end_face",
+        ],
+    ),
+    (
+        "expression",
+        &[],
+        &[
+            "body", "point", "torque", "fx", "fy", "body_i", "point_i", "body_j", "point_j",
+            "force",
+        ],
+    ),
+];
+
+/// The keys of `f` other than `type` and `name`, and whether each is given.
+fn given_keys(f: &RawForce) -> [(&'static str, bool); 36] {
+    [
+        ("body", f.body.is_some()),
+        ("point", f.point.is_some()),
+        ("torque", f.torque.is_some()),
+        ("fx", f.fx.is_some()),
+        ("fy", f.fy.is_some()),
+        ("force", f.force.is_some()),
+        ("body_i", f.body_i.is_some()),
+        ("point_i", f.point_i.is_some()),
+        ("body_j", f.body_j.is_some()),
+        ("point_j", f.point_j.is_some()),
+        ("free_length", f.free_length.is_some()),
+        ("stiffness", f.stiffness.is_some()),
+        ("force_deflection", f.force_deflection.is_some()),
+        ("damping", f.damping.is_some()),
+        ("force_velocity", f.force_velocity.is_some()),
+        ("preload", f.preload.is_some()),
+        ("actuator", f.actuator.is_some()),
+        ("rest_angle", f.rest_angle.is_some()),
+        ("rest_angle_deg", f.rest_angle_deg.is_some()),
+        ("torque_angle", f.torque_angle.is_some()),
+        ("torque_rate", f.torque_rate.is_some()),
+        ("radius", f.radius.is_some()),
+        ("wall_point", f.wall_point.is_some()),
+        ("wall_normal", f.wall_normal.is_some()),
+        ("wall_normal_deg", f.wall_normal_deg.is_some()),
+        ("friction", f.friction.is_some()),
+        ("slip_velocity", f.slip_velocity.is_some()),
+        ("fluid_density", f.fluid_density.is_some()),
+        ("volume", f.volume.is_some()),
+        ("width", f.width.is_some()),
+        ("length", f.length.is_some()),
+        ("c_transverse", f.c_transverse.is_some()),
+        ("c_skin", f.c_skin.is_some()),
+        ("c_end", f.c_end.is_some()),
+        ("end_face", f.end_face.is_some()),
+        ("name", f.name.is_some()),
+    ]
+}
+
+/// Build `force[k]` into `builder`; every error names `force[k].key`.
+fn add_force(
+    builder: &mut SystemBuilder,
+    f: &RawForce,
+    k: usize,
+    gravity: Option<[f64; 2]>,
+    names: &HashMap<String, usize>,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let key = |fld: &str| format!("force[{k}].{fld}");
+    let err = |fld: &str, message: String| error(file, key(fld), message);
+    let name = f.name.clone().unwrap_or_else(|| format!("force{}", k + 1));
+    let kind = f.kind.as_str();
+    let Some(&(_, needs, allowed)) = FORCE_TYPES.iter().find(|t| t.0 == kind) else {
+        let types: Vec<&str> = FORCE_TYPES.iter().map(|t| t.0).collect();
+        return Err(err(
+            "type",
+            format!(
+                "unknown force type '{kind}' (expected one of {})",
+                types.join(", ")
+            ),
+        ));
+    };
+    for (fld, present) in given_keys(f) {
+        if fld == "name" {
+            continue;
+        }
+        if present && !(needs.contains(&fld) || allowed.contains(&fld)) {
+            return Err(err(fld, format!("not a key of a {kind} force element")));
+        }
+        if !present && needs.contains(&fld) {
+            return Err(err(
+                fld,
+                format!("missing: a {kind} force element needs {}", needs.join(", ")),
+            ));
+        }
+    }
+    let body_ref = |fld: &str, n: &Option<String>| {
+        body_ref(names, file, key(fld), n.as_deref().unwrap_or_default())
+    };
+    let body_index = |fld: &str, n: &Option<String>| {
+        body_index(names, file, key(fld), n.as_deref().unwrap_or_default())
+    };
+    let finite = |fld: &str, v: f64| {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(err(fld, format!("{v} is not finite")))
+        }
+    };
+    let point = |fld: &str, p: Option<[f64; 2]>| {
+        let p = p.unwrap_or_default();
+        if p.iter().all(|v| v.is_finite()) {
+            Ok(p)
+        } else {
+            Err(err(fld, format!("{p:?} is not finite")))
+        }
+    };
+    // A linear coefficient or a table, at most one of the two; `monotone`:
+    // the law must be non-decreasing.
+    let law = |lin: (&str, Option<f64>), tab: (&str, &Option<RawTable>)| {
+        let law = match (lin.1, tab.1) {
+            (Some(_), Some(_)) => {
+                return Err(err(
+                    tab.0,
+                    format!("give either {} or {}, not both", lin.0, tab.0),
+                ))
+            }
+            (Some(c), None) => (lin.0, Law::Linear(c)),
+            (None, Some(t)) => (
+                tab.0,
+                Law::Table {
+                    x: t.x.clone(),
+                    f: t.f.clone(),
+                },
+            ),
+            (None, None) => (lin.0, Law::Linear(0.0)),
+        };
+        law.1
+            .validate(&name, law.0, true)
+            .map_err(|e| model_error(file, k, e, &[]))?;
+        Ok(law.1)
+    };
+    let function = |fld: &str, l: &Option<RawLoad>| match l {
+        Some(RawLoad::Function(f)) => Ok(f.to_function()),
+        Some(RawLoad::Text(s)) => Err(err(
+            fld,
+            format!(
+                "\"{s}\": expressions need type = \"expression\"; a {kind} takes a number, \
+                 {{ polynomial = [...] }} or {{ amplitude, omega, phase, offset }}"
+            ),
+        )),
+        None => Err(err(fld, "missing".into())),
+    };
+    // Validate a library element, naming the scenario key of a field.
+    let checked = |e: &dyn ForceElement, rename: &[(&str, &str)]| {
+        e.validate(usize::MAX)
+            .map_err(|e| model_error(file, k, e, rename))
+    };
+    match kind {
+        "torque" => {
+            let body = body_index("body", &f.body)?;
+            builder.add_force(AppliedTorque {
+                name,
+                body,
+                torque: function("torque", &f.torque)?,
+            });
+        }
+        "force" => {
+            let body = body_index("body", &f.body)?;
+            builder.add_force(AppliedForce {
+                name,
+                body,
+                point: point("point", f.point)?,
+                fx: function("fx", &f.fx)?,
+                fy: function("fy", &f.fy)?,
+            });
+        }
+        "spring" => {
+            let body_i = body_ref("body_i", &f.body_i)?;
+            let body_j = body_ref("body_j", &f.body_j)?;
+            if body_i == body_j {
+                return Err(err(
+                    "body_j",
+                    format!(
+                        "a spring must connect two different bodies, got '{}' twice",
+                        f.body_j.as_deref().unwrap_or_default()
+                    ),
+                ));
+            }
+            let s = PointSpringDamper {
+                body_i,
+                point_i: point("point_i", f.point_i)?,
+                body_j,
+                point_j: point("point_j", f.point_j)?,
+                free_length: finite("free_length", f.free_length.unwrap_or(0.0))?,
+                stiffness: law(
+                    ("stiffness", f.stiffness),
+                    ("force_deflection", &f.force_deflection),
+                )?,
+                damping: law(
+                    ("damping", f.damping),
+                    ("force_velocity", &f.force_velocity),
+                )?,
+                preload: finite("preload", f.preload.unwrap_or(0.0))?,
+                actuator: f.actuator.as_ref().map(RawFunction::to_function),
+            };
+            checked(&s, &[])?;
+            builder.add_force(s);
+        }
+        "rotational_spring" => {
+            let body_i = body_ref("body_i", &f.body_i)?;
+            let body_j = body_ref("body_j", &f.body_j)?;
+            if body_i == body_j {
+                return Err(err(
+                    "body_j",
+                    format!(
+                        "a rotational spring must connect two different bodies, got '{}' twice",
+                        f.body_j.as_deref().unwrap_or_default()
+                    ),
+                ));
+            }
+            let rest_angle = match (f.rest_angle, f.rest_angle_deg) {
+                (Some(_), Some(_)) => {
+                    return Err(err(
+                        "rest_angle_deg",
+                        "give either rest_angle or rest_angle_deg, not both".into(),
+                    ))
+                }
+                (Some(a), None) => finite("rest_angle", a)?,
+                (None, Some(d)) => finite("rest_angle_deg", d)?.to_radians(),
+                (None, None) => 0.0,
+            };
+            let s = RotationalSpringDamper {
+                body_i,
+                body_j,
+                rest_angle,
+                stiffness: law(
+                    ("stiffness", f.stiffness),
+                    ("torque_angle", &f.torque_angle),
+                )?,
+                damping: law(("damping", f.damping), ("torque_rate", &f.torque_rate))?,
+            };
+            checked(&s, &[])?;
+            builder.add_force(s);
+        }
+        "contact" => {
+            let body = body_index("body", &f.body)?;
+            let normal = match (f.wall_normal, f.wall_normal_deg) {
+                (Some(_), Some(_)) => {
+                    return Err(err(
+                        "wall_normal_deg",
+                        "give either wall_normal or wall_normal_deg, not both".into(),
+                    ))
+                }
+                (Some(n), None) => {
+                    let len = n[0].hypot(n[1]);
+                    if !(len.is_finite() && len > 0.0) {
+                        return Err(err(
+                            "wall_normal",
+                            format!("{n:?}: the normal must be a finite, non-zero vector"),
+                        ));
+                    }
+                    n
+                }
+                (None, Some(d)) => {
+                    let (s, c) = finite("wall_normal_deg", d)?.to_radians().sin_cos();
+                    [c, s]
+                }
+                (None, None) => {
+                    return Err(err(
+                        "wall_normal",
+                        "missing: a contact needs wall_normal or wall_normal_deg \
+                         (the outward normal of the wall)"
+                            .into(),
+                    ))
+                }
+            };
+            let c = HalfPlaneContact::new(
+                body,
+                point("point", f.point)?,
+                f.radius.unwrap_or(0.0),
+                point("wall_point", f.wall_point)?,
+                normal,
+                f.stiffness.unwrap_or_default(),
+                f.damping.unwrap_or(0.0),
+                f.friction.unwrap_or(0.0),
+                f.slip_velocity.unwrap_or(1e-3),
+            );
+            checked(&c, &[("normal", "wall_normal")])?;
+            builder.add_force(c);
+        }
+        "fluid" => {
+            let body = body_index("body", &f.body)?;
+            let rho = f.fluid_density.unwrap_or_default();
+            if f.volume.is_none() && f.width.is_none() && f.length.is_none() {
+                return Err(err(
+                    "volume",
+                    "missing: a fluid load needs volume (buoyancy) and/or width and length (drag)"
+                        .into(),
+                ));
+            }
+            if let Some(volume) = f.volume {
+                let g = gravity.unwrap_or([0.0, 0.0]);
+                if g[0] != 0.0 || g[1] > 0.0 {
+                    return Err(error(
+                        file,
+                        "gravity",
+                        format!(
+                            "{g:?}: buoyancy (force[{k}].volume) needs gravity along -y, [0, -g]"
+                        ),
+                    ));
+                }
+                let b = Buoyancy {
+                    fluid_density: rho,
+                    gravity: -g[1],
+                    bodies: vec![(body, volume)],
+                };
+                checked(&b, &[("bodies", "body")])?;
+                builder.add_force(b);
+            }
+            let drag_keys = [
+                ("width", f.width.is_some()),
+                ("length", f.length.is_some()),
+                ("c_transverse", f.c_transverse.is_some()),
+                ("c_skin", f.c_skin.is_some()),
+                ("c_end", f.c_end.is_some()),
+                ("end_face", f.end_face.is_some()),
+            ];
+            if drag_keys.iter().any(|d| d.1) {
+                for fld in ["width", "length"] {
+                    if !drag_keys.iter().any(|d| d.0 == fld && d.1) {
+                        return Err(err(
+                            fld,
+                            "missing: drag needs width and length (and optionally c_transverse, \
+                             c_skin, c_end, end_face)"
+                                .into(),
+                        ));
+                    }
+                }
+                let d = Drag {
+                    body,
+                    width: f.width.unwrap_or_default(),
+                    length: f.length.unwrap_or_default(),
+                    fluid_density: rho,
+                    c_transverse: f.c_transverse.unwrap_or(1.2),
+                    c_skin: f.c_skin.unwrap_or(0.02),
+                    c_end: f.c_end.unwrap_or(1.0),
+                    end_face: f.end_face.unwrap_or(false),
+                };
+                checked(&d, &[])?;
+                builder.add_force(d);
+            }
+        }
+        _ => add_expression(builder, f, k, &name, names, file)?,
+    }
+    Ok(())
+}
+
+/// `force[k]` of `type = "expression"`: one term of an [`crate::forces::ExpressionLoad`]
+/// (a torque, a force at a body point, or a line force); the bodies it may
+/// read are those named in its expressions (`B.x`, …) and its own.
+fn add_expression(
+    builder: &mut SystemBuilder,
+    f: &RawForce,
+    k: usize,
+    name: &str,
+    names: &HashMap<String, usize>,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let key = |fld: &str| format!("force[{k}].{fld}");
+    let err = |fld: &str, message: String| error(file, key(fld), message);
+    let text = |fld: &str, l: &Option<RawLoad>| match l {
+        Some(RawLoad::Text(s)) => Ok(s.clone()),
+        Some(RawLoad::Function(_)) => Err(err(
+            fld,
+            "an expression element takes an expression string, e.g. \"-2*A.omega\"".into(),
+        )),
+        None => Err(err(fld, "missing".into())),
+    };
+    // Which term: torque, point force or line force.
+    let term: (&[&str], &[&str]) = if f.torque.is_some() {
+        (&["body", "torque"], &[])
+    } else if f.force.is_some() {
+        (&["body_i", "body_j", "force"], &["point_i", "point_j"])
+    } else if f.fx.is_some() || f.fy.is_some() {
+        (&["body", "fx", "fy"], &["point"])
+    } else {
+        return Err(err(
+            "torque",
+            "missing: an expression element needs torque, fx and fy, or force (a line force)"
+                .into(),
+        ));
+    };
+    for (fld, present) in given_keys(f) {
+        if fld == "name" {
+            continue;
+        }
+        if present && !(term.0.contains(&fld) || term.1.contains(&fld)) {
+            return Err(err(
+                fld,
+                format!(
+                    "not a key of this expression term (it takes {})",
+                    [term.0, term.1].concat().join(", ")
+                ),
+            ));
+        }
+        if !present && term.0.contains(&fld) {
+            return Err(err(
+                fld,
+                format!("missing: this expression term needs {}", term.0.join(", ")),
+            ));
+        }
+    }
+    let texts: Vec<String> = [&f.torque, &f.fx, &f.fy]
+        .iter()
+        .filter_map(|l| match l {
+            Some(RawLoad::Text(s)) => Some(s.clone()),
+            _ => None,
+        })
+        .chain(f.force.clone())
+        .collect();
+    // the bodies read: named in the texts as `B.<coordinate>`, and the term's own
+    let mut read: Vec<(&str, usize)> = Vec::new();
+    let mut note = |n: &str| {
+        if let Some((s, &i)) = names.get_key_value(n) {
+            if !read.iter().any(|r| r.1 == i) {
+                read.push((s.as_str(), i));
+            }
+        }
+    };
+    for t in &texts {
+        for tok in t.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == '.')) {
+            if let Some((b, _)) = tok.rsplit_once('.') {
+                note(b);
+            }
+        }
+    }
+    for (fld, b) in [
+        ("body", &f.body),
+        ("body_i", &f.body_i),
+        ("body_j", &f.body_j),
+    ] {
+        if let Some(b) = b {
+            // checks the name (ground allowed only for line-force ends)
+            if fld == "body" {
+                body_index(names, file, key(fld), b)?;
+            } else {
+                body_ref(names, file, key(fld), b)?;
+            }
+            note(b);
+        }
+    }
+    let map = |e: ExpressionError| match e {
+        ExpressionError::Parse {
+            field,
+            text,
+            source,
+            ..
+        } => err(&field, format!("\"{text}\": {source}")),
+        ExpressionError::UnknownBody { body, .. } => {
+            err("body", format!("no body named '{body}' ({})", list(names)))
+        }
+        ExpressionError::BadPoint { point, .. } => err("point", format!("{point:?} is not finite")),
+    };
+    let b = ExpressionLoadBuilder::new(name, &read);
+    let b = if f.torque.is_some() {
+        b.torque(
+            f.body.as_deref().unwrap_or_default(),
+            &text("torque", &f.torque)?,
+        )
+    } else if let Some(force) = &f.force {
+        let end = |body: &Option<String>, p: Option<[f64; 2]>| LinePoint {
+            body: body.clone().filter(|b| b != "ground"),
+            point: p.unwrap_or_default(),
+        };
+        let (a, c) = (end(&f.body_i, f.point_i), end(&f.body_j, f.point_j));
+        if a.body.is_none() && c.body.is_none() {
+            return Err(err("body_j", "a line force needs at least one body".into()));
+        }
+        b.line_force(&a, &c, force)
+    } else {
+        b.force(
+            f.body.as_deref().unwrap_or_default(),
+            f.point.unwrap_or_default(),
+            &text("fx", &f.fx)?,
+            &text("fy", &f.fy)?,
+        )
+    }
+    .map_err(map)?;
+    builder.add_force(b.build());
+    Ok(())
+}
+
+/// A library element's [`ModelError`] as an error at `force[k].<key>`;
+/// `rename` maps element field names to scenario keys where they differ.
+fn model_error(file: &str, k: usize, e: ModelError, rename: &[(&str, &str)]) -> ScenarioError {
+    match e {
+        ModelError::InvalidParameter {
+            field, value, why, ..
+        } => {
+            let head_len = field.find(['.', '[']).unwrap_or(field.len());
+            let (head, tail) = field.split_at(head_len);
+            let head = rename.iter().find(|r| r.0 == head).map_or(head, |r| r.1);
+            error(
+                file,
+                format!("force[{k}].{head}{tail}"),
+                format!("{value} is invalid: {why}"),
+            )
+        }
+        other => error(file, format!("force[{k}]"), other.to_string()),
+    }
 }

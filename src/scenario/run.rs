@@ -178,6 +178,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             penalty,
         },
         implicit,
+        guards: Default::default(),
     };
 
     Ok(run)

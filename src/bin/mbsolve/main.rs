@@ -13,17 +13,19 @@ macro_rules! say {
 }
 
 mod animate;
+mod check;
 mod figure;
 mod gate;
 mod output;
 mod plot;
 mod reproduce;
+mod stream;
 mod sweep;
 
 use mbsolve::events::ContactMonitor;
 use mbsolve::simulation::Monitor;
 use mbsolve::{scenario, simulation};
-use output::{write_summary_json, write_trajectory_csv};
+use sha2::Digest as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -50,6 +52,14 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Progress on stderr: a live line on a terminal (auto), a plain
+        /// line every 10 s for logs (plain), or none (off).
+        #[arg(long, value_enum, default_value = "auto")]
+        progress: stream::ProgressMode,
+        /// No progress and no report on stdout (warnings and errors still
+        /// go to stderr).
+        #[arg(long, short)]
+        quiet: bool,
     },
     /// Run a scenario over the Cartesian product of parameter values, in
     /// parallel; writes DIR/<stem>_sweep.csv (one row per run) and a
@@ -74,6 +84,18 @@ enum Command {
         /// DIR/<stem>_sweep.csv, checking that every run is there once.
         #[arg(long)]
         merge: bool,
+    },
+    /// Validate a scenario without running it and print the system's size:
+    /// bodies, coordinates, constraint equations, degrees of freedom and
+    /// redundant equations (from the rank of Φ_q at the initial state),
+    /// joints and force elements by kind, evaluation and method. Exit 0
+    /// when valid, 1 with the error otherwise.
+    Check {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable), as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
     },
     /// CI performance gate: machine-independent ratios measured in one run.
     BenchGate {
@@ -140,8 +162,15 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, set, out } => run(&scenario, &set, &out),
+        Command::Run {
+            scenario,
+            set,
+            out,
+            progress,
+            quiet,
+        } => run(&scenario, &set, &out, progress, quiet),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
             scenario,
             csv,
@@ -210,33 +239,92 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<ExitCode, String> {
+/// `mbsolve run`: load, check the output files, run streaming the rows,
+/// write the summary whatever the end (completed, failed, interrupted).
+fn run(
+    path: &std::path::Path,
+    set: &[String],
+    out: &std::path::Path,
+    progress: stream::ProgressMode,
+    quiet: bool,
+) -> Result<ExitCode, String> {
+    macro_rules! report {
+        ($($t:tt)*) => {{ if !quiet { say!($($t)*); } }};
+    }
     let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     if let Some(a) = &sc.assembly {
-        say!(
+        report!(
             "assembled initial state: ‖Φ‖ = {:.2e}, ‖Φ_q q̇ + Φ_t‖ = {:.2e} ({} Newton iterations)",
             a.position_residual,
             a.velocity_residual,
             a.iterations
         );
     }
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| sc.name.clone());
+    // What the summary records of the input.
+    let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let digest = sha2::Sha256::digest(&text);
+    let hash: String = digest.iter().map(|b| format!("{b:02x}")).collect();
+    let provenance = [
+        ("scenario", serde_json::json!(path.display().to_string())),
+        ("scenario_sha256", serde_json::json!(hash)),
+        ("overrides", serde_json::json!(set)),
+        (
+            "mbsolve_version",
+            serde_json::json!(env!("CARGO_PKG_VERSION")),
+        ),
+    ];
+    let mut running = serde_json::Map::new();
+    running.insert("status".into(), "running".into());
+    running.insert(
+        "message".into(),
+        "the run has not ended (or was killed): the CSV is incomplete".into(),
+    );
+    for (k, v) in &provenance {
+        running.insert((*k).into(), v.clone());
+    }
+    let mut files =
+        stream::RunFiles::create(out, &stem, &sc.system, &running).map_err(|e| e.to_string())?;
+    files.progress = stream::Progress::new(
+        if quiet {
+            stream::ProgressMode::Off
+        } else {
+            progress
+        },
+        &sc.name,
+        sc.run.t0,
+        sc.run.t_end,
+    );
+    stream::install_interrupt_handler();
+
     let mut contacts = sc.rod.clone().map(ContactMonitor::new);
     let mut monitors: Vec<&mut dyn Monitor> = Vec::new();
     if let Some(c) = contacts.as_mut() {
         monitors.push(c);
     }
-    let (traj, summary) = simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut monitors)
-        .map_err(|e| e.to_string())?;
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| sc.name.clone());
-    let csv = out.join(format!("{stem}.csv"));
-    let json = out.join(format!("{stem}.summary.json"));
-    write_trajectory_csv(&csv, &sc.system, &traj).map_err(|e| e.to_string())?;
-    write_summary_json(&json, &summary).map_err(|e| e.to_string())?;
-    say!(
+    let mut summary = match simulation::simulate_into(
+        &sc.system,
+        &sc.q0,
+        &sc.qd0,
+        &sc.run,
+        &mut monitors,
+        &mut files,
+    ) {
+        Ok(s) => s,
+        Err(e) => {
+            let msg = e.to_string();
+            files.abandon(&msg).map_err(|e| e.to_string())?;
+            return Err(msg);
+        }
+    };
+    for (k, v) in provenance {
+        summary.extra.insert(k.into(), v);
+    }
+    files.finish(&summary).map_err(|e| e.to_string())?;
+    report!(
         "{}: {} steps ({} failed), {} RHS evaluations, {:.3} s; max ‖Φ‖ = {:.3e}, final ‖Φ‖ = {:.3e}",
         sc.name,
         summary.steps,
@@ -248,25 +336,37 @@ fn run(path: &std::path::Path, set: &[String], out: &std::path::Path) -> Result<
     );
     if let Some(c) = &contacts {
         match c.first_contact() {
-            Some(t) => say!(
+            Some(t) => report!(
                 "contacts: first at t = {t:.4} s, {} starts, peak normal force {:.1} N",
                 c.events.iter().filter(|e| e.kind == "start").count(),
                 c.peak.map_or(0.0, |p| p.force)
             ),
-            None => say!("contacts: none"),
+            None => report!("contacts: none"),
         }
     }
-    say!("wrote {} and {}", csv.display(), json.display());
-    if summary.status == "completed" {
-        Ok(ExitCode::SUCCESS)
-    } else {
-        eprintln!(
-            "error: run {} at t = {}: {}",
-            summary.status,
-            summary.t_reached,
-            summary.message.unwrap_or_default()
-        );
-        Ok(ExitCode::from(1))
+    for w in summary.warnings.iter().skip(files.warnings) {
+        eprintln!("warning: {w}");
+    }
+    report!(
+        "wrote {} ({} rows) and {}",
+        files.csv.display(),
+        summary.output_rows,
+        files.json.display()
+    );
+    match summary.status.as_str() {
+        "completed" => Ok(ExitCode::SUCCESS),
+        status => {
+            eprintln!(
+                "error: run {status} at t = {}: {}",
+                summary.t_reached,
+                summary.message.unwrap_or_default()
+            );
+            Ok(ExitCode::from(if status == "interrupted" {
+                130
+            } else {
+                1
+            }))
+        }
     }
 }
 

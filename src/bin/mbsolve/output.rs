@@ -1,8 +1,10 @@
 //! Outputs: time series as CSV, run summaries as JSON (figures: `figure`).
 
 use mbsolve::model::System;
-use mbsolve::simulation::{Summary, Trajectory};
-use std::path::Path;
+use mbsolve::simulation::Summary;
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 /// Output failure, naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -24,29 +26,24 @@ impl OutputError {
     }
 }
 
-/// Write `t,x1,y1,phi1,…,xN,yN,phiN,constraint_norm` (bodies 1-based), one
-/// row per output time.
-pub fn write_trajectory_csv(
-    path: &Path,
-    sys: &System,
-    traj: &Trajectory,
-) -> Result<(), OutputError> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| OutputError::new(path, e))?;
-    let mut header = vec!["t".to_string()];
-    header.extend((0..sys.n_coords()).map(System::coordinate_name));
-    header.push("constraint_norm".into());
-    w.write_record(&header)
-        .map_err(|e| OutputError::new(path, e))?;
-    let mut row = Vec::with_capacity(header.len());
-    for (k, t) in traj.t.iter().enumerate() {
-        row.clear();
-        row.push(fmt(*t));
-        row.extend(traj.q[k].iter().map(|v| fmt(*v)));
-        row.push(fmt(traj.constraint_norm[k]));
-        w.write_record(&row)
-            .map_err(|e| OutputError::new(path, e))?;
+/// Header of the trajectory CSV: `t,x1,y1,phi1,…,xN,yN,phiN,constraint_norm`
+/// (bodies 1-based).
+pub fn csv_header(sys: &System) -> String {
+    let mut h = vec!["t".to_string()];
+    h.extend((0..sys.n_coords()).map(System::coordinate_name));
+    h.push("constraint_norm".into());
+    h.join(",")
+}
+
+/// One trajectory CSV row (with its newline) into `buf`.
+pub fn csv_row(buf: &mut String, t: f64, q: &[f64], constraint_norm: f64) {
+    use std::fmt::Write as _;
+    buf.clear();
+    let _ = write!(buf, "{t:.12e}");
+    for v in q {
+        let _ = write!(buf, ",{v:.12e}");
     }
-    w.flush().map_err(|e| OutputError::new(path, e))
+    let _ = writeln!(buf, ",{constraint_norm:.12e}");
 }
 
 /// Write named columns as CSV, one row per index of the longest column;
@@ -70,8 +67,50 @@ fn fmt(v: f64) -> String {
     format!("{v:.12e}")
 }
 
-/// Write the run summary as pretty JSON.
+/// Write the run summary as pretty JSON, atomically ([`write_atomic`]).
 pub fn write_summary_json(path: &Path, summary: &Summary) -> Result<(), OutputError> {
     let text = serde_json::to_string_pretty(summary).map_err(|e| OutputError::new(path, e))?;
-    std::fs::write(path, text + "\n").map_err(|e| OutputError::new(path, e))
+    write_atomic(path, &(text + "\n"))
+}
+
+/// Remove `path` if it exists — a symlink itself, never its target; a
+/// directory in its place is an error.
+pub fn remove_stale(path: &Path) -> Result<(), OutputError> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => Err(OutputError::new(
+            path,
+            "is a directory; remove it or choose another --out",
+        )),
+        Ok(_) => std::fs::remove_file(path).map_err(|e| OutputError::new(path, e)),
+        Err(_) => Ok(()),
+    }
+}
+
+/// Create `path` fresh: never through a symlink, never appending to an
+/// old file (a stale one is removed first, then `create_new`).
+pub fn create_fresh(path: &Path) -> Result<File, OutputError> {
+    remove_stale(path)?;
+    OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .map_err(|e| OutputError::new(path, e))
+}
+
+/// Write `text` to `path` atomically: a fresh temporary file beside it,
+/// synced, renamed over `path` (which replaces a symlink, not its target).
+pub fn write_atomic(path: &Path, text: &str) -> Result<(), OutputError> {
+    let tmp = sibling(path, ".tmp");
+    let mut f = create_fresh(&tmp)?;
+    f.write_all(text.as_bytes())
+        .and_then(|_| f.sync_all())
+        .map_err(|e| OutputError::new(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| OutputError::new(path, e))
+}
+
+/// `path` with `suffix` appended to its file name.
+pub fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(suffix);
+    PathBuf::from(s)
 }

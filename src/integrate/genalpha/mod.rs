@@ -216,6 +216,18 @@ pub struct GenAlphaStats {
     pub max_step_taken: f64,
 }
 
+impl GenAlphaStats {
+    /// As the explicit methods count: accepted steps, rejected attempts
+    /// (error rejections + Newton failures), residual evaluations.
+    pub fn counts(&self) -> Stats {
+        Stats {
+            steps: self.steps,
+            failed_steps: self.error_rejections + self.newton_failures,
+            rhs_evals: self.residual_evaluations,
+        }
+    }
+}
+
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
 pub struct GenAlpha {
@@ -338,11 +350,7 @@ impl GenAlpha {
         let warnings = run.warnings;
         self.stats = stats;
         Ok(Report {
-            stats: Stats {
-                steps: stats.steps,
-                failed_steps: stats.error_rejections + stats.newton_failures,
-                rhs_evals: stats.residual_evaluations,
-            },
+            stats: stats.counts(),
             termination,
             t_reached,
             warnings,
@@ -721,8 +729,8 @@ impl Stepper for Run<'_, '_> {
         1e-9 * self.h_last
     }
 
-    fn steps(&self) -> usize {
-        self.stats.steps
+    fn stats(&self) -> Stats {
+        self.stats.counts()
     }
 }
 

@@ -1,0 +1,239 @@
+//! A run's files, written as the run goes: CSV rows streamed to a
+//! temporary name and renamed when the run ends, the summary JSON replaced
+//! atomically (a `"running"` summary at the start, the final one at the
+//! end, also on failure and interrupt), no writing through symlinks;
+//! progress on stderr; SIGINT/SIGTERM finish the step and end the run
+//! with status `"interrupted"`.
+
+use crate::output::{
+    create_fresh, csv_header, csv_row, remove_stale, sibling, write_atomic, write_summary_json,
+    OutputError,
+};
+use mbsolve::integrate::Stats;
+use mbsolve::model::System;
+use mbsolve::simulation::{Sample, Sink, Summary};
+use std::fs::File;
+use std::io::{BufWriter, IsTerminal, Write};
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Set by SIGINT/SIGTERM; the running step finishes, the files are
+/// written, the run ends with status "interrupted".
+pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Install the SIGINT/SIGTERM handler (once). A second signal while the
+/// first is being handled exits at once with 130.
+pub fn install_interrupt_handler() {
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    });
+}
+
+/// How progress is shown on stderr.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProgressMode {
+    /// A live line when stderr is a terminal, nothing otherwise.
+    Auto,
+    /// A plain line every 10 s (for logs).
+    Plain,
+    /// No progress.
+    Off,
+}
+
+/// Progress of one run on stderr: simulated time, percentage, steps,
+/// rejected steps, wall time, ETA.
+pub struct Progress {
+    live: bool,
+    every: Duration,
+    t0: f64,
+    t_end: f64,
+    start: Instant,
+    last: Option<Instant>,
+    label: String,
+}
+
+impl Progress {
+    /// Progress of a run over `[t0, t_end]`.
+    pub fn new(mode: ProgressMode, label: &str, t0: f64, t_end: f64) -> Option<Self> {
+        let live = match mode {
+            ProgressMode::Off => return None,
+            ProgressMode::Auto if !std::io::stderr().is_terminal() => return None,
+            ProgressMode::Auto => true,
+            ProgressMode::Plain => false,
+        };
+        Some(Self {
+            live,
+            every: if live {
+                Duration::from_millis(200)
+            } else {
+                Duration::from_secs(10)
+            },
+            t0,
+            t_end,
+            start: Instant::now(),
+            last: None,
+            label: label.to_string(),
+        })
+    }
+
+    fn line(&self, t: f64, stats: &Stats) -> String {
+        let frac = ((t - self.t0) / (self.t_end - self.t0)).clamp(0.0, 1.0);
+        let wall = self.start.elapsed().as_secs_f64();
+        let eta = if frac > 0.0 {
+            format!("{:.0} s", wall * (1.0 - frac) / frac)
+        } else {
+            "?".into()
+        };
+        format!(
+            "{}: t = {t:.4e} s ({:.1} %), {} steps ({} rejected), {wall:.1} s, ETA {eta}",
+            self.label,
+            100.0 * frac,
+            stats.steps,
+            stats.failed_steps
+        )
+    }
+
+    /// Show the state if it is time to.
+    pub fn update(&mut self, t: f64, stats: &Stats) {
+        let now = Instant::now();
+        let due = match self.last {
+            None => now.duration_since(self.start) >= self.every,
+            Some(l) => now.duration_since(l) >= self.every,
+        };
+        if !due {
+            return;
+        }
+        self.last = Some(now);
+        let line = self.line(t, stats);
+        let mut e = std::io::stderr().lock();
+        if self.live {
+            let _ = write!(e, "\r\x1b[2K{line}");
+        } else {
+            let _ = writeln!(e, "{line}");
+        }
+        let _ = e.flush();
+    }
+
+    /// Clear the live line (before other stderr output and at the end).
+    pub fn clear(&self) {
+        if self.live && self.last.is_some() {
+            let _ = write!(std::io::stderr(), "\r\x1b[2K");
+        }
+    }
+}
+
+/// The files of one run: `DIR/<stem>.csv` (streamed as
+/// `DIR/<stem>.csv.part`) and `DIR/<stem>.summary.json`.
+pub struct RunFiles {
+    /// Final CSV path.
+    pub csv: PathBuf,
+    /// Summary JSON path.
+    pub json: PathBuf,
+    part: PathBuf,
+    writer: Option<BufWriter<File>>,
+    rows: usize,
+    last_flush: Instant,
+    row: String,
+    /// Progress display, if any.
+    pub progress: Option<Progress>,
+    /// Warnings seen while running (printed as they come).
+    pub warnings: usize,
+}
+
+impl RunFiles {
+    /// Check and claim the output files before the run starts: the
+    /// directory exists (or is created) and is writable, a `"running"`
+    /// summary replaces any previous run's summary, a previous CSV is
+    /// removed, the CSV header is written to the temporary file.
+    pub fn create(
+        out: &Path,
+        stem: &str,
+        sys: &System,
+        running: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Self, OutputError> {
+        std::fs::create_dir_all(out).map_err(|e| OutputError::new(out, e))?;
+        let csv = out.join(format!("{stem}.csv"));
+        let json = out.join(format!("{stem}.summary.json"));
+        let part = sibling(&csv, ".part");
+        let text = serde_json::to_string_pretty(running).map_err(|e| OutputError::new(&json, e))?;
+        write_atomic(&json, &(text + "\n"))?;
+        remove_stale(&csv)?;
+        let mut w = BufWriter::with_capacity(1 << 16, create_fresh(&part)?);
+        writeln!(w, "{}", csv_header(sys)).map_err(|e| OutputError::new(&part, e))?;
+        Ok(Self {
+            csv,
+            json,
+            part,
+            writer: Some(w),
+            rows: 0,
+            last_flush: Instant::now(),
+            row: String::new(),
+            progress: None,
+            warnings: 0,
+        })
+    }
+
+    /// End of the run, whatever its status: flush the rows, rename the CSV
+    /// into place, write the final summary.
+    pub fn finish(&mut self, summary: &Summary) -> Result<(), OutputError> {
+        if let Some(p) = &self.progress {
+            p.clear();
+        }
+        if let Some(mut w) = self.writer.take() {
+            w.flush()
+                .and_then(|_| w.get_ref().sync_all())
+                .map_err(|e| OutputError::new(&self.part, e))?;
+            std::fs::rename(&self.part, &self.csv).map_err(|e| OutputError::new(&self.csv, e))?;
+        }
+        write_summary_json(&self.json, summary)
+    }
+}
+
+impl RunFiles {
+    /// The run could not start: no CSV, a summary that says so.
+    pub fn abandon(&mut self, message: &str) -> Result<(), OutputError> {
+        self.writer = None;
+        remove_stale(&self.part)?;
+        let s = serde_json::json!({"status": "failed", "message": message, "output_rows": 0});
+        let text = serde_json::to_string_pretty(&s).map_err(|e| OutputError::new(&self.json, e))?;
+        write_atomic(&self.json, &(text + "\n"))
+    }
+}
+
+impl Sink for RunFiles {
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let w = self.writer.as_mut().ok_or("output already closed")?;
+        csv_row(&mut self.row, s.t, s.q, s.constraint_norm);
+        w.write_all(self.row.as_bytes())
+            .map_err(|e| OutputError::new(&self.part, e))?;
+        self.rows += 1;
+        // whole rows on disk at least every second
+        if self.last_flush.elapsed() >= Duration::from_secs(1) {
+            w.flush().map_err(|e| OutputError::new(&self.part, e))?;
+            self.last_flush = Instant::now();
+        }
+        Ok(())
+    }
+
+    fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
+        if INTERRUPTED.load(Ordering::Relaxed) {
+            return ControlFlow::Break(format!("interrupted by a signal at t = {t:e}"));
+        }
+        if let Some(p) = self.progress.as_mut() {
+            p.update(t, stats);
+        }
+        ControlFlow::Continue(())
+    }
+
+    fn warning(&mut self, message: &str) {
+        self.warnings += 1;
+        if let Some(p) = &self.progress {
+            p.clear();
+        }
+        eprintln!("warning: {message}");
+    }
+}

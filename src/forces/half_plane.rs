@@ -1,0 +1,289 @@
+//! Contact of a body-fixed point or circle with a straight wall (a
+//! half-plane at any angle), with the rod's Hunt–Crossley normal law and
+//! regularised Coulomb friction (issue 11, item 1).
+
+use super::contact::{friction_tanh, HuntCrossley};
+use super::{check_coordinates, FdWorkspace, ForceElement};
+use crate::model::ModelError;
+
+/// Penalty contact of a circle of radius `R ≥ 0` (a point for `R = 0`),
+/// centred at the body-fixed point `s` of `body`, with the wall
+/// `{x : n·(x − a) ≤ 0}` (the line through `a`; `n` the unit outward
+/// normal, pointing into the free side).
+///
+/// With `u = A(φ) s`, centre `p = r + u`, the penetration is
+/// `δ = R − n·(p − a)` and its rate `δ̇ = −n·ṗ`. The contact point is
+/// `p_c = p − R n`, offset `c = u − R n` from the body's reference point,
+/// its material velocity `v_c = ṙ + φ̇ J c` (`J` the rotation by +90°), and
+/// the slip velocity along the wall `v_t = t·v_c` with `t = J n`. For
+/// `δ > 0` the wall applies at `p_c`
+///
+/// `F = F_n n − μ F_n tanh(v_t / v_s) t`, `F_n = max(0, k_h δ^{3/2} (1 + χ δ̇))`
+///
+/// (the laws of [`super::WallContact`]); the generalized force is
+/// `[F_x, F_y, c × F]`. Jacobians are analytic (chain rule through δ, δ̇,
+/// v_t and c). Potential energy: the elastic part `(2/5) k_h δ^{5/2}`; the
+/// damping and the friction only dissipate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HalfPlaneContact {
+    /// Body index.
+    pub body: usize,
+    /// Centre of the circle in the body frame \[m\].
+    pub point: [f64; 2],
+    /// Radius R ≥ 0 \[m\] (0: a point).
+    pub radius: f64,
+    /// A point of the wall line, global \[m\].
+    pub wall_point: [f64; 2],
+    /// Outward unit normal of the wall (into the free side); normalised by
+    /// [`HalfPlaneContact::new`].
+    pub normal: [f64; 2],
+    /// Hertz stiffness k_h > 0 \[N/m^{3/2}\].
+    pub stiffness: f64,
+    /// Hunt–Crossley damping factor χ ≥ 0 \[s/m\].
+    pub damping: f64,
+    /// Friction coefficient μ ≥ 0.
+    pub friction: f64,
+    /// Regularisation velocity v_s > 0 of the friction law \[m/s\].
+    pub slip_velocity: f64,
+}
+
+/// One evaluation in contact (δ > 0).
+struct Eval {
+    /// Rotated point `u = A s`.
+    u: [f64; 2],
+    /// Contact-point offset `c = u − R n`.
+    c: [f64; 2],
+    delta: f64,
+    delta_dot: f64,
+    fn_: f64,
+    tanh: f64,
+    dtanh: f64,
+}
+
+impl HalfPlaneContact {
+    /// A contact with the normal `normal` normalised (a zero or non-finite
+    /// normal is kept as given and rejected by `validate`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        body: usize,
+        point: [f64; 2],
+        radius: f64,
+        wall_point: [f64; 2],
+        normal: [f64; 2],
+        stiffness: f64,
+        damping: f64,
+        friction: f64,
+        slip_velocity: f64,
+    ) -> Self {
+        let len = normal[0].hypot(normal[1]);
+        let normal = if len.is_finite() && len > 0.0 {
+            [normal[0] / len, normal[1] / len]
+        } else {
+            normal
+        };
+        Self {
+            body,
+            point,
+            radius,
+            wall_point,
+            normal,
+            stiffness,
+            damping,
+            friction,
+            slip_velocity,
+        }
+    }
+
+    fn law(&self) -> HuntCrossley {
+        HuntCrossley {
+            kh: self.stiffness,
+            chi: self.damping,
+        }
+    }
+
+    /// Tangent `t = J n`.
+    fn tangent(&self) -> [f64; 2] {
+        [-self.normal[1], self.normal[0]]
+    }
+
+    /// Penetration `δ` \[m\] (negative: the gap).
+    pub fn penetration(&self, q: &[f64]) -> f64 {
+        let o = 3 * self.body;
+        let (sn, cs) = q[o + 2].sin_cos();
+        let s = self.point;
+        let p = [
+            q[o] + cs * s[0] - sn * s[1],
+            q[o + 1] + sn * s[0] + cs * s[1],
+        ];
+        let n = self.normal;
+        self.radius - (n[0] * (p[0] - self.wall_point[0]) + n[1] * (p[1] - self.wall_point[1]))
+    }
+
+    /// The state in contact, `None` without penetration.
+    fn eval(&self, q: &[f64], qd: &[f64]) -> Option<Eval> {
+        let delta = self.penetration(q);
+        if delta.is_nan() || delta <= 0.0 {
+            return None;
+        }
+        let o = 3 * self.body;
+        let (sn, cs) = q[o + 2].sin_cos();
+        let s = self.point;
+        let u = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
+        let (n, t) = (self.normal, self.tangent());
+        let c = [u[0] - self.radius * n[0], u[1] - self.radius * n[1]];
+        let w = qd[o + 2];
+        // ṗ = ṙ + ω J u; v_c = ṙ + ω J c
+        let pd = [qd[o] - w * u[1], qd[o + 1] + w * u[0]];
+        let vc = [qd[o] - w * c[1], qd[o + 1] + w * c[0]];
+        let delta_dot = -(n[0] * pd[0] + n[1] * pd[1]);
+        let vt = t[0] * vc[0] + t[1] * vc[1];
+        let fn_ = self.law().force(delta, delta_dot);
+        let (tanh, dtanh) = friction_tanh(vt, self.slip_velocity);
+        Some(Eval {
+            u,
+            c,
+            delta,
+            delta_dot,
+            fn_,
+            tanh,
+            dtanh,
+        })
+    }
+
+    /// `(F_n, F_t, δ)`: normal force, friction force along `t = J n` \[N\]
+    /// and penetration \[m\]; zeros without contact.
+    pub fn contact_forces(&self, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
+        self.eval(q, qd).map_or((0.0, 0.0, 0.0), |e| {
+            (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
+        })
+    }
+}
+
+impl ForceElement for HalfPlaneContact {
+    fn name(&self) -> String {
+        format!(
+            "half-plane contact of body {} at {:?} (radius {})",
+            self.body, self.point, self.radius
+        )
+    }
+
+    fn coordinates(&self) -> Vec<usize> {
+        let o = 3 * self.body;
+        vec![o, o + 1, o + 2]
+    }
+
+    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        let Some(e) = self.eval(q, qd) else { return };
+        if e.fn_ <= 0.0 {
+            return;
+        }
+        let (n, t) = (self.normal, self.tangent());
+        let ff = -self.friction * e.fn_ * e.tanh;
+        let f = [e.fn_ * n[0] + ff * t[0], e.fn_ * n[1] + ff * t[1]];
+        let o = 3 * self.body;
+        g[o] += f[0];
+        g[o + 1] += f[1];
+        g[o + 2] += e.c[0] * f[1] - e.c[1] * f[0];
+    }
+
+    fn add_jacobians(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        dq: &mut [f64],
+        dqd: &mut [f64],
+        _ws: &mut FdWorkspace,
+    ) {
+        let Some(e) = self.eval(q, qd) else { return };
+        if e.fn_ <= 0.0 {
+            return; // clamped: force and derivatives vanish
+        }
+        let (n, t) = (self.normal, self.tangent());
+        let w = qd[3 * self.body + 2];
+        let mu = self.friction;
+        let (a, b) = self.law().slopes(e.delta, e.delta_dot);
+        let ff = -mu * e.fn_ * e.tanh;
+        let f = [e.fn_ * n[0] + ff * t[0], e.fn_ * n[1] + ff * t[1]];
+        let ju = [-e.u[1], e.u[0]]; // ∂u/∂φ = ∂c/∂φ = J u
+        let jc = [-e.c[1], e.c[0]];
+        let n_ju = n[0] * ju[0] + n[1] * ju[1];
+        let n_u = n[0] * e.u[0] + n[1] * e.u[1];
+        let t_u = t[0] * e.u[0] + t[1] * e.u[1];
+        let t_jc = t[0] * jc[0] + t[1] * jc[1];
+        // derivatives of δ, δ̇, v_t w.r.t. (x, y, φ) and (ẋ, ẏ, φ̇):
+        // δ = R − n·(r + u − a); δ̇ = −n·(ṙ + ω J u) with ∂(J u)/∂φ = −u;
+        // v_t = t·(ṙ + ω J c) with ∂(J c)/∂φ = −u.
+        let d_delta_q = [-n[0], -n[1], -n_ju];
+        let d_ddot_q = [0.0, 0.0, w * n_u];
+        let d_vt_q = [0.0, 0.0, -w * t_u];
+        let d_ddot_qd = [-n[0], -n[1], -n_ju];
+        let d_vt_qd = [t[0], t[1], t_jc];
+        for (out, dd, ddd, dvt, is_q) in [
+            (&mut *dq, d_delta_q, d_ddot_q, d_vt_q, true),
+            (&mut *dqd, [0.0; 3], d_ddot_qd, d_vt_qd, false),
+        ] {
+            for col in 0..3 {
+                let dfn = a * dd[col] + b * ddd[col];
+                let dff = -mu * (e.tanh * dfn + e.fn_ * e.dtanh * dvt[col]);
+                let df = [dfn * n[0] + dff * t[0], dfn * n[1] + dff * t[1]];
+                let mut dm = e.c[0] * df[1] - e.c[1] * df[0];
+                if is_q && col == 2 {
+                    dm += ju[0] * f[1] - ju[1] * f[0];
+                }
+                out[col] += df[0];
+                out[3 + col] += df[1];
+                out[6 + col] += dm;
+            }
+        }
+    }
+
+    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        let delta = self.penetration(q);
+        Some(if delta > 0.0 {
+            self.law().energy(delta)
+        } else {
+            0.0
+        })
+    }
+
+    fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
+        let bad = |field: &str, value: String, why: &str| ModelError::InvalidParameter {
+            element: self.name(),
+            field: field.into(),
+            value,
+            why: why.into(),
+        };
+        for (field, p) in [("point", self.point), ("wall_point", self.wall_point)] {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(bad(field, format!("{p:?}"), "must be finite"));
+            }
+        }
+        let len = self.normal[0].hypot(self.normal[1]);
+        if !(len.is_finite() && (len - 1.0).abs() < 1e-12) {
+            return Err(bad(
+                "normal",
+                format!("{:?}", self.normal),
+                "must be a unit vector (a finite, non-zero normal given to `new`)",
+            ));
+        }
+        for (field, v, strict) in [
+            ("stiffness", self.stiffness, true),
+            ("slip_velocity", self.slip_velocity, true),
+            ("radius", self.radius, false),
+            ("damping", self.damping, false),
+            ("friction", self.friction, false),
+        ] {
+            let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
+            if !ok {
+                let why = if strict {
+                    "must be finite and > 0"
+                } else {
+                    "must be finite and >= 0"
+                };
+                return Err(bad(field, v.to_string(), why));
+            }
+        }
+        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+    }
+}

@@ -1,0 +1,349 @@
+//! `mbsolve run` writes its files as it goes and tells the truth about
+//! them: rows streamed, the CSV renamed into place at the end, the summary
+//! replaced atomically ("running" → final status), also on SIGINT/SIGTERM;
+//! a killed run leaves no file that claims completion; no writing through
+//! symlinks; unwritable outputs are refused before the run.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn exe() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_mbsolve"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn fourbar() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios/fourbar.toml")
+        .display()
+        .to_string()
+}
+
+fn run(args: &[&str]) -> Output {
+    exe().args(args).output().expect("binary runs")
+}
+
+/// A four-bar run long enough to be interrupted (10⁵ s simulated, rows
+/// every 0.01 s).
+fn spawn_long(out: &Path) -> Child {
+    exe()
+        .args([
+            "run",
+            &fourbar(),
+            "--set",
+            "time.end=1e5",
+            "--set",
+            "output.dt=0.01",
+        ])
+        .args(["--progress", "off", "--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("binary starts")
+}
+
+fn summary(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("fourbar.summary.json")).expect("summary exists");
+    serde_json::from_str(&text).expect("summary is complete JSON")
+}
+
+/// Wait until the streamed CSV has some rows on disk.
+fn wait_for_rows(part: &Path) {
+    let start = Instant::now();
+    while std::fs::metadata(part).map_or(0, |m| m.len()) < 10_000 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no rows streamed"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn signal(child: &Child, sig: &str) {
+    let ok = Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+}
+
+/// Every CSV row complete: as many numeric fields as the header.
+fn complete_rows(csv: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(csv).unwrap();
+    assert!(text.ends_with('\n'), "the last row is complete");
+    let mut lines = text.lines();
+    let width = lines.next().unwrap().split(',').count();
+    lines
+        .map(|l| {
+            let r: Vec<f64> = l.split(',').map(|v| v.parse().expect("a number")).collect();
+            assert_eq!(r.len(), width, "row {l}");
+            r
+        })
+        .collect()
+}
+
+#[test]
+fn sigint_and_sigterm_end_the_run_with_truthful_files() {
+    for sig in ["-INT", "-TERM"] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let child = spawn_long(out);
+        wait_for_rows(&out.join("fourbar.csv.part"));
+        assert_eq!(summary(out)["status"], "running");
+        signal(&child, sig);
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(130),
+            "{sig}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let s = summary(out);
+        assert_eq!(s["status"], "interrupted", "{sig}: {s}");
+        assert!(s["message"].as_str().unwrap().contains("interrupted"));
+        let rows = complete_rows(&out.join("fourbar.csv"));
+        assert!(rows.len() > 100);
+        assert_eq!(s["output_rows"].as_u64().unwrap() as usize, rows.len());
+        // rows are the output grid up to the time reached
+        let t_reached = s["t_reached"].as_f64().unwrap();
+        let last_t = rows.last().unwrap()[0];
+        assert!(
+            last_t <= t_reached && t_reached - last_t < 0.01 + 1e-9,
+            "{last_t} vs {t_reached}"
+        );
+        for (k, r) in rows.iter().enumerate() {
+            assert!(
+                (r[0] - 0.01 * k as f64).abs() < 1e-9 * (1.0 + r[0]),
+                "row {k}: t = {}",
+                r[0]
+            );
+        }
+        assert!(!out.join("fourbar.csv.part").exists());
+        assert_eq!(s["scenario"].as_str().unwrap(), fourbar());
+        assert_eq!(s["scenario_sha256"].as_str().unwrap().len(), 64);
+    }
+}
+
+#[test]
+fn a_killed_run_leaves_no_file_that_claims_completion() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    // a previous, completed run in the same directory
+    let o = run(&["run", &fourbar(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success());
+    assert_eq!(summary(out)["status"], "completed");
+    assert!(out.join("fourbar.csv").exists());
+
+    let mut child = spawn_long(out);
+    wait_for_rows(&out.join("fourbar.csv.part"));
+    signal(&child, "-KILL");
+    let _ = child.wait();
+    let s = summary(out);
+    assert_eq!(s["status"], "running", "{s}");
+    assert!(
+        !out.join("fourbar.csv").exists(),
+        "the previous run's CSV must not stay beside a newer summary"
+    );
+}
+
+#[test]
+fn a_failed_run_replaces_the_previous_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    assert!(run(&["run", &fourbar(), "--out", out]).status.success());
+    // rk4 with h = 1 blows up: failed (or diverged), never "completed"
+    let o = run(&[
+        "run",
+        &fourbar(),
+        "--set",
+        "integrator.method=rk4",
+        "--set",
+        "integrator.step=1",
+        "--set",
+        "time.end=200",
+        "--out",
+        out,
+    ]);
+    assert!(!o.status.success());
+    let s = summary(dir.path());
+    assert_ne!(s["status"], "completed", "{s}");
+    let rows = complete_rows(&dir.path().join("fourbar.csv"));
+    assert_eq!(s["output_rows"].as_u64().unwrap() as usize, rows.len());
+}
+
+#[test]
+fn outputs_never_write_through_symlinks() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let victim = dir.path().join("victim.txt");
+    std::fs::write(&victim, "keep me").unwrap();
+    for name in ["fourbar.csv", "fourbar.summary.json", "fourbar.csv.part"] {
+        std::os::unix::fs::symlink(&victim, out.join(name)).unwrap();
+    }
+    let o = run(&["run", &fourbar(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+    for name in ["fourbar.csv", "fourbar.summary.json"] {
+        let m = std::fs::symlink_metadata(out.join(name)).unwrap();
+        assert!(m.file_type().is_file(), "{name} is a regular file now");
+    }
+    assert_eq!(summary(&out)["status"], "completed");
+}
+
+#[test]
+fn unwritable_outputs_are_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a_file");
+    std::fs::write(&file, "x").unwrap();
+    let bad: Vec<PathBuf> = vec![file.join("sub"), PathBuf::from("/proc/mbsolve-no")];
+    for out in bad {
+        let start = Instant::now();
+        let o = run(&[
+            "run",
+            &fourbar(),
+            "--set",
+            "time.end=1e5",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(out.to_str().unwrap()), "names the path: {e}");
+        // refused before integrating 10⁵ s
+        assert!(start.elapsed() < Duration::from_secs(20));
+    }
+}
+
+/// The guards: a blown-up rk4 run and a four-bar drifting apart end
+/// "diverged" (exit 1) with the warning and the time on the console; the
+/// shipped scenarios stay silent and complete.
+#[test]
+fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let cases: [(&[&str], &str); 2] = [
+        (
+            &["integrator.method=rk4", "integrator.step=1"],
+            "position coordinate|constraint violation",
+        ),
+        (&["time.end=50"], "constraint violation"),
+    ];
+    for (sets, what) in cases {
+        let mut args = vec![
+            "run".to_string(),
+            fourbar(),
+            "--progress".into(),
+            "off".into(),
+        ];
+        for s in sets {
+            args.push("--set".into());
+            args.push(s.to_string());
+        }
+        args.extend(["--out".to_string(), out.to_string()]);
+        let o = exe().args(&args).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{sets:?}: {e}");
+        assert!(e.contains("diverged"), "{sets:?}: {e}");
+        assert!(what.split('|').any(|w| e.contains(w)), "{sets:?}: {e}");
+        let s = summary(dir.path());
+        assert_eq!(s["status"], "diverged");
+        let t = s["t_reached"].as_f64().unwrap();
+        assert!(
+            s["message"]
+                .as_str()
+                .unwrap()
+                .contains(&format!("t = {t:e}")),
+            "{s}"
+        );
+        if sets[0] == "time.end=50" {
+            // warned first, at the time it happened, before stopping
+            assert!(e.contains("warning: constraint violation"), "{e}");
+            assert!(t > 2.0 && t < 50.0, "{t}");
+        }
+    }
+    for scen in ["scenarios/fourbar.toml", "scenarios/falling_rod.toml"] {
+        let o = run(&["run", scen, "--progress", "off", "--out", out]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{scen}: {e}");
+        assert!(!e.contains("warning"), "{scen}: {e}");
+        let stem = Path::new(scen).file_stem().unwrap().to_str().unwrap();
+        let text =
+            std::fs::read_to_string(dir.path().join(format!("{stem}.summary.json"))).unwrap();
+        let s: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(s["status"], "completed");
+        assert!(s["warnings"].as_array().unwrap().is_empty(), "{scen}: {s}");
+    }
+}
+
+/// Peak resident memory (VmHWM, kB) of a run, polled from /proc while it
+/// runs.
+fn peak_rss_kb(args: &[&str]) -> (u64, usize) {
+    let mut child = exe()
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let status = format!("/proc/{}/status", child.id());
+    let mut peak = 0;
+    loop {
+        if let Ok(text) = std::fs::read_to_string(&status) {
+            if let Some(l) = text.lines().find(|l| l.starts_with("VmHWM:")) {
+                let kb: u64 = l.split_whitespace().nth(1).unwrap().parse().unwrap();
+                peak = peak.max(kb);
+            }
+        }
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = args[args.len() - 1];
+    let rows = std::fs::read_to_string(Path::new(out).join("fourbar.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    (peak, rows)
+}
+
+/// Streaming keeps memory bounded independently of the number of outputs:
+/// 10× the rows, not more memory (a trajectory kept in memory would grow
+/// by ≈ 150 B per row: 27 MB more here).
+#[test]
+fn memory_does_not_grow_with_the_number_of_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut peaks = Vec::new();
+    for (end, sub) in [("20", "a"), ("200", "b")] {
+        let out = dir.path().join(sub);
+        let out = out.to_str().unwrap();
+        let (kb, rows) = peak_rss_kb(&[
+            "run",
+            &fourbar(),
+            "--progress",
+            "off",
+            "--set",
+            "stabilization.alpha=10",
+            "--set",
+            "stabilization.beta=10",
+            "--set",
+            &format!("time.end={end}"),
+            "--set",
+            "output.dt=0.001",
+            "--out",
+            out,
+        ]);
+        peaks.push((kb, rows));
+    }
+    let ((small, r_small), (big, r_big)) = (peaks[0], peaks[1]);
+    assert_eq!(r_small, 20_001);
+    assert_eq!(r_big, 200_001);
+    assert!(small > 0 && big > 0, "VmHWM read: {small} {big}");
+    assert!(
+        big < small + 8_000,
+        "peak RSS {small} kB at {r_small} rows, {big} kB at {r_big} rows"
+    );
+}
