@@ -1,7 +1,9 @@
 //! One run, end to end: formulation + integrator + observation of the
 //! constraint violation, with a [`Summary`] of the work done.
 
-use crate::formulation::{FormulationError, Index1, Index1Options, Index3, NewtonSolverKind};
+use crate::formulation::{
+    ExplicitForm, Formulation, FormulationError, Index1, Index1Options, Index3, NewtonSolverKind,
+};
 use crate::integrate::{
     integrator, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
     OdeOptions, Report, Stats, Termination, Tolerance,
@@ -196,7 +198,7 @@ impl Sink for Trajectory {
 pub struct Summary {
     /// Integration method.
     pub method: String,
-    /// `saddle` (eq. (5)) or `eliminated` (eq. (9)).
+    /// `saddle` (eq. (5)), `eliminated` (eq. (9)), `penalty` or `index3`.
     pub formulation: String,
     /// Linear solver.
     pub linear_solver: String,
@@ -355,11 +357,15 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
         let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
         let o = cfg.outputs;
         let extras = if o.accelerations || o.reactions {
-            let opts = if cfg.method.is_implicit() {
-                Index1Options::default()
-            } else {
-                cfg.index1
+            // eq. (5) with the run's Baumgarte terms (none for the
+            // index-3 and penalty runs), without projection
+            let mut opts = Index1Options {
+                linear_solver: cfg.index1.linear_solver,
+                ..Index1Options::default()
             };
+            if !cfg.method.is_implicit() && cfg.index1.formulation != Formulation::Penalty {
+                opts.baumgarte = cfg.index1.baumgarte;
+            }
             Index1::new(sys, opts).ok()
         } else {
             None
@@ -658,16 +664,17 @@ trait MethodRun {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
 }
 
-/// ode23, ode45, rk4 on the index-1 form ([`Index1`], eq. (5)).
+/// ode23, ode45, rk4 on the index-1 form (eq. (5)) or the penalty form
+/// ([`ExplicitForm`]).
 struct Explicit<'s> {
-    f: Index1<'s>,
+    f: ExplicitForm<'s>,
     integ: Box<dyn Integrator>,
 }
 
 impl<'s> Explicit<'s> {
     fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         Ok(Self {
-            f: Index1::new(sys, cfg.index1)?,
+            f: ExplicitForm::new(sys, cfg.index1)?,
             integ: integrator(cfg.method, cfg.ode.clone())?,
         })
     }
@@ -696,7 +703,23 @@ impl MethodRun for Explicit<'_> {
             factorizations: stats.solver.factorizations,
             regularized_pivots: stats.solver.regularized_pivots,
         };
-        (work, serde_json::Map::new())
+        let mut extra = serde_json::Map::new();
+        if cfg.index1.formulation == crate::formulation::Formulation::Penalty {
+            let p = cfg.index1.penalty;
+            for (k, v) in [
+                ("penalty", p.alpha),
+                ("penalty_xi", p.xi),
+                ("penalty_omega", p.omega),
+            ] {
+                extra.insert(k.into(), v.into());
+            }
+        }
+        if cfg.index1.projection.enabled {
+            extra.insert("projections".into(), stats.projections.into());
+            let it = stats.projection_iterations;
+            extra.insert("projection_iterations".into(), it.into());
+        }
+        (work, extra)
     }
 }
 

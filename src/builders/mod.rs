@@ -1,6 +1,10 @@
 //! Ready-made models: the falling flexible rod of problem B (docs/problems.md) (segments,
 //! joints, bending springs, buoyancy, drag, wall contact) and the known-answer
-//! chains of problem D (docs/problems.md) (finite-segment cantilever, N-link pendulum).
+//! chains of problem D (docs/problems.md) (finite-segment cantilever, N-link pendulum);
+//! the parallelogram-loop chain through singular configurations with its
+//! one-degree-of-freedom reference (issue 10).
 
+mod parallelogram;
 mod rod;
+pub use parallelogram::{parallelogram_chain, ParallelogramChain};
 pub use rod::*;

@@ -72,7 +72,7 @@ impl Default for RodParams {
 /// Element name used in the parameter errors of this module.
 const ROD: &str = "rod parameters";
 
-fn invalid(element: &str, field: &str, value: String, why: String) -> ModelError {
+pub(super) fn invalid(element: &str, field: &str, value: String, why: String) -> ModelError {
     ModelError::InvalidParameter {
         element: element.into(),
         field: field.into(),
@@ -82,7 +82,12 @@ fn invalid(element: &str, field: &str, value: String, why: String) -> ModelError
 }
 
 /// `Err` unless `v` is finite and `> 0` (`strict`) or `≥ 0`.
-fn check_value(element: &str, field: &str, v: f64, strict: bool) -> Result<(), ModelError> {
+pub(super) fn check_value(
+    element: &str,
+    field: &str,
+    v: f64,
+    strict: bool,
+) -> Result<(), ModelError> {
     let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
     if ok {
         Ok(())

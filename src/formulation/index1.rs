@@ -1,6 +1,9 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
-use super::{all_finite, Baumgarte, Formulation, FormulationError};
+use super::{
+    all_finite, mass_orthogonal_step, Baumgarte, Formulation, FormulationError, PenaltyParams,
+    Projection,
+};
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -28,6 +31,10 @@ pub struct Index1Options {
     pub baumgarte: Baumgarte,
     /// Linear solver for the saddle-point form.
     pub linear_solver: SolverKind,
+    /// Projection onto the manifold after each accepted step (off by default).
+    pub projection: Projection,
+    /// Parameters of [`Formulation::Penalty`] (used by [`super::Penalty`] only).
+    pub penalty: PenaltyParams,
 }
 
 /// Counters of [`Index1`].
@@ -37,6 +44,10 @@ pub struct RhsStats {
     pub evaluations: usize,
     /// Linear-solver counters (the Schur complement's for eq. (9)).
     pub solver: SolverStats,
+    /// Projections onto the constraint manifold ([`Index1::project`]).
+    pub projections: usize,
+    /// Newton iterations of the position projections, summed.
+    pub projection_iterations: usize,
 }
 
 /// The equations of motion as a first-order ODE for `y = [q; q̇]`.
@@ -74,10 +85,18 @@ impl<'a> Index1<'a> {
                 b.alpha, b.beta
             )));
         }
+        opts.projection.validate()?;
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let kind = match opts.formulation {
             Formulation::Saddle => opts.linear_solver,
             Formulation::Eliminated => SolverKind::Schur,
+            Formulation::Penalty => {
+                return Err(FormulationError::Invalid(
+                    "Index1 solves the saddle-point or eliminated form; the penalty \
+                     formulation is Penalty (or ExplicitForm)"
+                        .into(),
+                ))
+            }
         };
         let mut solver = solver_for(kind, n + m, SolverOptions::default());
         let k = SaddleMatrix::with_storage(
@@ -213,6 +232,70 @@ impl<'a> Index1<'a> {
     }
 }
 
+impl Index1<'_> {
+    /// Factorise `[M Φ_qᵀ; Φ_q 0]` at `q` (Φ_q left in `self.jac`).
+    fn factor_at(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
+        self.sys.jacobian_values(q, t, &mut self.jac);
+        self.k.set_a_diagonal(self.sys.mass_diagonal());
+        self.k.set_jacobian(&self.jac);
+        self.solver
+            .factorize(&self.k)
+            .map_err(|source| FormulationError::Linear { t, source })?;
+        Ok(())
+    }
+
+    /// Mass-orthogonal projection onto the constraint manifold
+    /// ([`Projection`]; docs/constraint_methods.md): Newton on `Φ(q, t) = 0`,
+    /// each correction the smallest in the M-norm,
+    /// `Δq = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹Φ` from the saddle-point matrix at the
+    /// current iterate, until `‖Φ‖∞ ≤ tol`; then
+    /// `Δq̇ = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹(Φ_q q̇ + Φ_t)` with Φ_q at the
+    /// projected q, so `Φ_q q̇ = −Φ_t` to rounding. Returns the Newton
+    /// iterations; [`FormulationError::Projection`] when `max_iter` are not
+    /// enough (or Φ is not finite).
+    pub fn project(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<usize, FormulationError> {
+        let p = self.opts.projection;
+        let lin = |source| FormulationError::Linear { t, source };
+        let mut iterations = 0;
+        loop {
+            self.sys.phi(q, t, &mut self.phi);
+            let residual = self.phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+            if residual <= p.tol {
+                break;
+            }
+            // also catches a non-finite residual
+            if iterations == p.max_iter || !residual.is_finite() {
+                return Err(FormulationError::Projection {
+                    t,
+                    residual,
+                    tol: p.tol,
+                    iterations,
+                });
+            }
+            self.factor_at(t, q)?;
+            mass_orthogonal_step(&mut *self.solver, &self.k, &self.phi, &mut self.x, q)
+                .map_err(lin)?;
+            iterations += 1;
+        }
+        self.factor_at(t, q)?;
+        self.sys.jacobian_mul(&self.jac, qd, &mut self.phid);
+        self.sys.phi_t(q, t, &mut self.phi_t);
+        for (a, b) in self.phid.iter_mut().zip(&self.phi_t) {
+            *a += b;
+        }
+        mass_orthogonal_step(&mut *self.solver, &self.k, &self.phid, &mut self.x, qd)
+            .map_err(lin)?;
+        self.stats.projections += 1;
+        self.stats.projection_iterations += iterations;
+        Ok(iterations)
+    }
+}
+
 impl OdeSystem for Index1<'_> {
     fn dim(&self) -> usize {
         2 * self.sys.n_coords()
@@ -223,5 +306,14 @@ impl OdeSystem for Index1<'_> {
         let (dq, dqd) = dydt.split_at_mut(n);
         dq.copy_from_slice(qd);
         self.accelerations(t, q, qd, dqd).map_err(SystemError::new)
+    }
+    /// With [`Projection::enabled`]: [`Index1::project`] the step's end state.
+    fn post_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        if !self.opts.projection.enabled {
+            return Ok(false);
+        }
+        let (q, qd) = y.split_at_mut(self.sys.n_coords());
+        self.project(t, q, qd).map_err(SystemError::new)?;
+        Ok(true)
     }
 }

@@ -59,7 +59,7 @@
 //! [`ForceElement::jacobian_coordinates`]: crate::model::ForceElement::jacobian_coordinates
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
-use super::{all_finite, FormulationError};
+use super::{all_finite, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -398,32 +398,19 @@ impl<'a> Index3<'a> {
         self.stats.projections += 1;
         self.factor_mass(t, q)?;
         // positions
-        self.x[..n].fill(0.0);
         self.sys.phi(q, t, &mut self.phi);
         all_finite(t, &[("the constraints Φ", &self.phi)])?;
-        for (x, p) in self.x[n..].iter_mut().zip(&self.phi) {
-            *x = -p;
-        }
-        self.psolver
-            .solve_in_place(&self.kp, &mut self.x)
+        mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, q)
             .map_err(lin)?;
-        for (qi, d) in q.iter_mut().zip(&self.x[..n]) {
-            *qi += d;
-        }
         // velocities
         self.sys.jacobian_values(q, t, &mut self.jac);
         self.sys.jacobian_mul(&self.jac, qd, &mut self.phi);
-        self.x[..n].fill(0.0);
         self.sys.phi_t(q, t, &mut self.x[n..]);
-        for (x, p) in self.x[n..].iter_mut().zip(&self.phi) {
-            *x = -(*x + p);
+        for (p, pt) in self.phi.iter_mut().zip(&self.x[n..]) {
+            *p += pt;
         }
-        self.psolver
-            .solve_in_place(&self.kp, &mut self.x)
+        mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, qd)
             .map_err(lin)?;
-        for (v, d) in qd.iter_mut().zip(&self.x[..n]) {
-            *v += d;
-        }
         Ok(())
     }
 }

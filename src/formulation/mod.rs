@@ -8,21 +8,57 @@
 //! * [`Index3`]: the index-3 residual `M q̈ + Φ_qᵀ λ − g`, `Φ` and the
 //!   scaled, symmetrised Newton matrix of implicit integrators
 //!   (generalized-α, [`crate::integrate::GenAlpha`]).
+//! * [`Penalty`]: the penalty formulation of Bayo, García de Jalón & Serna
+//!   (1988), `(M + Φ_qᵀαΦ_q) q̈ = g + Φ_qᵀα(γ − 2ξωΦ̇ − ω²Φ)`, as the same
+//!   first-order ODE ([`Formulation::Penalty`]).
+//! * [`ExplicitForm`]: whichever of the two the options choose, for the
+//!   explicit integrators.
+//! * [`Projection`]: the mass-orthogonal projection of positions and
+//!   velocities onto the manifold after each accepted step
+//!   ([`Index1::project`], [`crate::integrate::OdeSystem::post_step`]).
 //! * [`consistent_initial_state`]: positions on Φ(q, t₀) = 0 and velocities
 //!   on Φ_q q̇ = −Φ_t, given the independent coordinates.
+//!
+//! Formulas and references: docs/constraint_methods.md.
 
 mod index1;
 mod index3;
 mod initial;
+mod penalty;
 mod stability;
 
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
+pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
 
-use crate::linalg::LinalgError;
+use crate::linalg::{LinalgError, SaddleMatrix, SaddlePointSolver};
 use serde::Serialize;
+
+/// One minimum-mass-norm correction onto `Φ_q Δ = −r` (the projections of
+/// [`Index1`] and [`Index3`]): with `[M Φ_qᵀ; Φ_q 0]` factorised in
+/// `solver`, solve `[M Φ_qᵀ; Φ_q 0][Δ; μ] = [0; −r]` — so `M Δ = −Φ_qᵀμ`,
+/// `Δ = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹ r`, the smallest `‖Δ‖_M` — and add `Δ` to
+/// `v`. `x`: scratch of length `n + m`.
+fn mass_orthogonal_step(
+    solver: &mut dyn SaddlePointSolver,
+    k: &SaddleMatrix,
+    r: &[f64],
+    x: &mut [f64],
+    v: &mut [f64],
+) -> Result<(), LinalgError> {
+    let n = v.len();
+    x[..n].fill(0.0);
+    for (xi, ri) in x[n..].iter_mut().zip(r) {
+        *xi = -ri;
+    }
+    solver.solve_in_place(k, x)?;
+    for (vi, d) in v.iter_mut().zip(&x[..n]) {
+        *vi += d;
+    }
+    Ok(())
+}
 
 /// How λ is obtained at each right-hand-side evaluation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
@@ -36,6 +72,9 @@ pub enum Formulation {
     /// `q̈ = M⁻¹ (g − Φ_qᵀ λ)`. The m × m Schur complement is formed and
     /// Cholesky-factorised densely: O(m³), for small systems and cross-checks.
     Eliminated,
+    /// No multipliers: the penalty formulation [`Penalty`] (Bayo, García de
+    /// Jalón & Serna 1988), parameters [`PenaltyParams`].
+    Penalty,
 }
 
 impl std::str::FromStr for Formulation {
@@ -44,8 +83,9 @@ impl std::str::FromStr for Formulation {
         match s {
             "saddle" => Ok(Self::Saddle),
             "eliminated" => Ok(Self::Eliminated),
+            "penalty" => Ok(Self::Penalty),
             o => Err(format!(
-                "unknown formulation '{o}' (expected saddle or eliminated)"
+                "unknown formulation '{o}' (expected saddle, eliminated or penalty)"
             )),
         }
     }
@@ -160,6 +200,55 @@ pub(crate) fn all_finite(t: f64, parts: &[(&'static str, &[f64])]) -> Result<(),
     Ok(())
 }
 
+/// Mass-orthogonal projection onto the constraint manifold after each
+/// accepted step of an explicit integrator ([`Index1::project`]): Newton on
+/// `Φ(q, t) = 0` with the corrections `Δq = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹Φ`,
+/// then the velocities onto `Φ_q q̇ = −Φ_t` the same way.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Projection {
+    /// Project after each accepted step (off: the run is bit-identical to
+    /// one without projection).
+    pub enabled: bool,
+    /// Newton tolerance on ‖Φ‖∞ (constraint units, m for joints) \[m\].
+    pub tol: f64,
+    /// Newton iterations allowed per projection (then
+    /// [`FormulationError::Projection`]).
+    pub max_iter: usize,
+}
+
+impl Default for Projection {
+    /// Off; tolerance 1e-10, 10 iterations.
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            tol: 1e-10,
+            max_iter: 10,
+        }
+    }
+}
+
+impl Projection {
+    /// Checks the tolerance (finite, > 0) and `max_iter` (≥ 1)
+    /// ([`FormulationError::InvalidOption`] names the field).
+    pub fn validate(&self) -> Result<(), FormulationError> {
+        if !(self.tol.is_finite() && self.tol > 0.0) {
+            return Err(FormulationError::InvalidOption {
+                option: "tol",
+                value: self.tol.to_string(),
+                reason: "must be finite and > 0".into(),
+            });
+        }
+        if self.max_iter == 0 {
+            return Err(FormulationError::InvalidOption {
+                option: "max_iter",
+                value: "0".into(),
+                reason: "must be ≥ 1".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
 /// Failures of a formulation.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum FormulationError {
@@ -204,6 +293,22 @@ pub enum FormulationError {
     /// Invalid parameters.
     #[error("{0}")]
     Invalid(String),
+    /// The projection onto the constraint manifold did not converge.
+    #[error(
+        "at t = {t}: projection onto the constraint manifold did not converge in \
+         {iterations} Newton iterations (‖Φ‖∞ = {residual:.3e} > tol {tol:.1e}); the step \
+         left the manifold too far (tighten the tolerances) or the position is singular"
+    )]
+    Projection {
+        /// Time of the step.
+        t: f64,
+        /// ‖Φ‖∞ after the last iteration.
+        residual: f64,
+        /// The tolerance.
+        tol: f64,
+        /// Iterations done.
+        iterations: usize,
+    },
     /// Newton iteration for consistent initial conditions failed.
     #[error("consistent initial conditions: {0}")]
     Initial(String),

@@ -6,11 +6,14 @@
 //! [`crate::constraints`]), the [`ForceElement`] trait of elements that
 //! contribute to the generalized forces g(q, q̇, t) (the elements:
 //! [`crate::forces`]), uniform [`Gravity`], and the [`System`] that fixes
-//! their numbering. `model` imports nothing from the rest of the crate:
+//! their numbering, and the terms of the energy balance (`energy.rs`:
+//! [`System::mechanical_energy`], [`System::nonconservative_power`],
+//! [`System::constraint_power`]). `model` imports nothing from the rest of the crate:
 //! joints and forces build on it, not the other way round.
 
 mod body;
 mod constraint;
+mod energy;
 mod force;
 mod gravity;
 mod reaction;
@@ -19,6 +22,7 @@ mod time_function;
 
 pub use body::{Body, BodyRef};
 pub use constraint::{check_bodies, touched_columns, Constraint, JointGeometry};
+pub use energy::EnergyWorkspace;
 pub use force::{check_coordinates, FdWorkspace, ForceElement};
 pub use gravity::Gravity;
 pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};

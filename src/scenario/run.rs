@@ -3,7 +3,10 @@
 //! Keys that do not apply to the chosen method are errors naming the key.
 
 use super::{error, positive, RawScenario, ScenarioError};
-use crate::formulation::{Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options};
+use crate::formulation::{
+    Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options, PenaltyParams,
+    Projection,
+};
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
 use crate::simulation::{OutputQuantities, RunConfig};
@@ -15,6 +18,11 @@ pub(super) struct RawStabilization {
     alpha: Option<f64>,
     beta: Option<f64>,
     rule: Option<String>,
+    // index-1 methods: `Projection`; formulation = "penalty": `PenaltyParams`
+    projection: Option<bool>,
+    penalty: Option<f64>,
+    penalty_xi: Option<f64>,
+    penalty_omega: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -149,6 +157,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     };
     inapplicable(raw, method, implicit.adaptive, &baumgarte, formulation)
         .map_err(|(key, why)| err(key, why))?;
+    let (projection, penalty) =
+        constraint_method(st, method, formulation).map_err(|(key, why)| err(key, why))?;
     // The options' own validators (values); their fields map to scenario keys.
     ode.validate(method, implicit.adaptive)
         .and_then(|()| implicit.validate(method, ode.fixed_step))
@@ -163,6 +173,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             formulation,
             baumgarte,
             linear_solver,
+            projection,
+            penalty,
         },
         implicit,
         guards: Default::default(),
@@ -196,6 +208,80 @@ fn output_quantities(names: &[String]) -> Result<OutputQuantities, String> {
         *flag = true;
     }
     Ok(o)
+}
+
+/// `stabilization.projection` (index-1 methods, not with the penalty
+/// formulation) and `stabilization.penalty`, `penalty_xi`, `penalty_omega`
+/// (`formulation = "penalty"` only, which excludes Baumgarte α, β): the
+/// offending key and why.
+fn constraint_method(
+    st: &RawStabilization,
+    method: Method,
+    formulation: Formulation,
+) -> Result<(Projection, PenaltyParams), (String, String)> {
+    let key = |k: &str| format!("stabilization.{k}");
+    let mut projection = Projection::default();
+    if let Some(on) = st.projection {
+        if formulation == Formulation::Penalty {
+            return Err((
+                key("projection"),
+                "does not apply to formulation = \"penalty\" (saddle and eliminated only)".into(),
+            ));
+        }
+        if method.is_implicit() {
+            return Err((
+                key("projection"),
+                format!(
+                    "applies to ode23, ode45 and rk4; {} projects with integrator.project",
+                    method.name()
+                ),
+            ));
+        }
+        projection.enabled = on;
+    }
+    let mut penalty = PenaltyParams::default();
+    for (k, v, slot) in [
+        ("penalty", st.penalty, &mut penalty.alpha),
+        ("penalty_xi", st.penalty_xi, &mut penalty.xi),
+        ("penalty_omega", st.penalty_omega, &mut penalty.omega),
+    ] {
+        if let Some(v) = v {
+            if formulation != Formulation::Penalty {
+                return Err((key(k), "applies to formulation = \"penalty\" only".into()));
+            }
+            *slot = v;
+        }
+    }
+    if formulation == Formulation::Penalty {
+        if st.alpha.is_some() || st.beta.is_some() || st.rule.is_some() {
+            let k = ["alpha", "beta", "rule"][[st.alpha.is_some(), st.beta.is_some(), true]
+                .iter()
+                .position(|&b| b)
+                .unwrap_or(2)];
+            return Err((
+                key(k),
+                "Baumgarte terms do not apply to formulation = \"penalty\": its \
+                 stabilization.penalty_xi and penalty_omega play their role"
+                    .into(),
+            ));
+        }
+        penalty.validate().map_err(|e| match e {
+            FormulationError::InvalidOption {
+                option,
+                value,
+                reason,
+            } => {
+                let k = if option == "alpha" {
+                    "penalty".to_string()
+                } else {
+                    format!("penalty_{option}")
+                };
+                (key(&k), format!("{value} is invalid: {reason}"))
+            }
+            other => (key("penalty"), other.to_string()),
+        })?;
+    }
+    Ok((projection, penalty))
 }
 
 /// The first key of `raw` that does not apply to `method` (with

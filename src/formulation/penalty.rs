@@ -1,0 +1,342 @@
+//! The penalty formulation (Bayo, García de Jalón & Serna, "A modified
+//! Lagrangian formulation for the dynamic analysis of constrained mechanical
+//! systems", Comput. Methods Appl. Mech. Engrg. 71 (1988) 183–195; the
+//! paper's §3.1), and [`ExplicitForm`], the formulation an explicit
+//! integrator drives.
+//!
+//! The constraints are replaced by forces `−Φ_qᵀλ` with
+//! `λ = α (Φ̈ + 2ξωΦ̇ + ω²Φ)` — a penalty α on a critically damped (ξ = 1)
+//! constraint "spring" of frequency ω. With `Φ̈ = Φ_q q̈ − γ`,
+//! `γ = −(Φ_q q̇)_q q̇ − 2Φ_qt q̇ − Φ_tt` (rheonomic terms included,
+//! [`crate::model::Constraint::gamma`]) and `Φ̇ = Φ_q q̇ + Φ_t`:
+//!
+//! ```text
+//! (M + α Φ_qᵀΦ_q) q̈ = g + α Φ_qᵀ (γ − 2ξω Φ̇ − ω² Φ)
+//! ```
+//!
+//! an ODE in `y = [q; q̇]` with no multipliers and a symmetric positive
+//! definite matrix (positive semi-definite penalty term, rank-deficient Φ_q
+//! allowed). The constraint violation obeys `Φ̈ + 2ξωΦ̇ + ω²Φ = λ/α`, so it
+//! shrinks like `1/α` (tested). The bracket is the Baumgarte γ̄ of eq. (11)
+//! with `α_B = ξω`, `β_B = ω`.
+
+use super::{Formulation, FormulationError, Index1, Index1Options, RhsStats};
+use crate::integrate::{OdeSystem, SystemError};
+use crate::linalg::{
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, Symmetry,
+};
+use crate::model::System;
+use serde::Serialize;
+
+/// Parameters of the penalty formulation: `λ = α (Φ̈ + 2ξωΦ̇ + ω²Φ)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PenaltyParams {
+    /// Penalty α > 0 (kg for position constraints in m).
+    pub alpha: f64,
+    /// Damping ratio ξ ≥ 0 of the constraint dynamics.
+    pub xi: f64,
+    /// Natural frequency ω ≥ 0 of the constraint dynamics \[rad/s\].
+    pub omega: f64,
+}
+
+impl Default for PenaltyParams {
+    /// α = 1e7, ξ = 1, ω = 10 (Bayo et al. 1988 recommend α = 1e7 … 1e9 and
+    /// report insensitivity to ξ = 1, ω = 10 for their examples).
+    fn default() -> Self {
+        Self {
+            alpha: 1e7,
+            xi: 1.0,
+            omega: 10.0,
+        }
+    }
+}
+
+impl PenaltyParams {
+    /// α finite and > 0, ξ and ω finite and ≥ 0
+    /// ([`FormulationError::InvalidOption`] names the field).
+    pub fn validate(&self) -> Result<(), FormulationError> {
+        let bad = |option, v: f64, reason: &str| {
+            Err(FormulationError::InvalidOption {
+                option,
+                value: v.to_string(),
+                reason: reason.into(),
+            })
+        };
+        if !(self.alpha.is_finite() && self.alpha > 0.0) {
+            return bad("alpha", self.alpha, "must be finite and > 0");
+        }
+        for (option, v) in [("xi", self.xi), ("omega", self.omega)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(option, v, "must be finite and ≥ 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The penalty formulation of a [`System`] as a first-order ODE for
+/// `y = [q; q̇]` (module docs). The matrix `M + αΦ_qᵀΦ_q` is the `A` block
+/// of a [`SaddleMatrix`] with no constraint rows: its pattern (the mass
+/// diagonal and, per constraint row, every pair of its Φ_q columns) is
+/// built once and factorised per evaluation by the solver of
+/// [`Index1Options::linear_solver`] ([`solver_for`]; sparse LDLᵀ by
+/// default). No allocation per evaluation.
+pub struct Penalty<'a> {
+    sys: &'a System,
+    p: PenaltyParams,
+    solver: Box<dyn SaddlePointSolver>,
+    k: SaddleMatrix,
+    /// Per registered `A` entry: the two Φ_q value positions and a weight
+    /// (2 for two entries of one row in the same column, else 1).
+    pairs: Vec<(usize, usize, f64)>,
+    jac: Vec<f64>,
+    g: Vec<f64>,
+    gamma: Vec<f64>,
+    phi: Vec<f64>,
+    phi_t: Vec<f64>,
+    phid: Vec<f64>,
+    x: Vec<f64>,
+    lambda: Vec<f64>,
+    stats: RhsStats,
+}
+
+impl<'a> Penalty<'a> {
+    /// Pattern, solver and symbolic analysis (once). Uses
+    /// `opts.penalty` and `opts.linear_solver`; Baumgarte terms, projection
+    /// and the Schur solver do not apply (errors naming the option).
+    pub fn new(sys: &'a System, opts: Index1Options) -> Result<Self, FormulationError> {
+        let p = opts.penalty;
+        p.validate()?;
+        let not_applicable = |option: &'static str, value: String| {
+            Err(FormulationError::InvalidOption {
+                option,
+                value,
+                reason: "does not apply to the penalty formulation (its ξ, ω play the role \
+                         of the Baumgarte terms)"
+                    .into(),
+            })
+        };
+        if !opts.baumgarte.is_off() {
+            return not_applicable(
+                "baumgarte",
+                format!("({}, {})", opts.baumgarte.alpha, opts.baumgarte.beta),
+            );
+        }
+        if opts.projection.enabled {
+            return not_applicable("projection", "true".into());
+        }
+        if opts.linear_solver == SolverKind::Schur {
+            return not_applicable("linear_solver", "schur".into());
+        }
+        let n = sys.n_coords();
+        let jp = sys.jacobian_pattern();
+        // Entries of Φ_q grouped by row, then every pair within a row.
+        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
+        for (e, &(r, _)) in jp.iter().enumerate() {
+            by_row[r].push(e);
+        }
+        let mut entries = Vec::new();
+        let mut pairs = Vec::new();
+        for row in &by_row {
+            for (a, &e1) in row.iter().enumerate() {
+                for &e2 in &row[a..] {
+                    let (c1, c2) = (jp[e1].1, jp[e2].1);
+                    entries.push((c1, c2));
+                    let w = if e1 != e2 && c1 == c2 { 2.0 } else { 1.0 };
+                    pairs.push((e1, e2, w));
+                }
+            }
+        }
+        let mut a = APattern::new();
+        a.push_block(&entries, Symmetry::Symmetric);
+        let mut solver = solver_for(opts.linear_solver, n, SolverOptions::default());
+        let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
+        solver
+            .analyze(&k)
+            .map_err(|source| FormulationError::Linear {
+                t: f64::NAN,
+                source,
+            })?;
+        let m = sys.n_constraints();
+        Ok(Self {
+            sys,
+            p,
+            solver,
+            k,
+            pairs,
+            jac: vec![0.0; jp.len()],
+            g: vec![0.0; n],
+            gamma: vec![0.0; m],
+            phi: vec![0.0; m],
+            phi_t: vec![0.0; m],
+            phid: vec![0.0; m],
+            x: vec![0.0; n],
+            lambda: vec![0.0; m],
+            stats: RhsStats::default(),
+        })
+    }
+
+    /// The system.
+    pub fn system(&self) -> &System {
+        self.sys
+    }
+
+    /// The penalty forces' multipliers of the last evaluation,
+    /// `λ = α (Φ̈ + 2ξωΦ̇ + ω²Φ)` (sign of `M q̈ + Φ_qᵀλ = g`).
+    pub fn lambda(&self) -> &[f64] {
+        &self.lambda
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> RhsStats {
+        let mut s = self.stats;
+        s.solver = self.solver.stats();
+        s
+    }
+
+    /// Name of the linear solver in use.
+    pub fn solver_name(&self) -> &'static str {
+        self.solver.name()
+    }
+
+    /// Accelerations from `(M + αΦ_qᵀΦ_q) q̈ = g + αΦ_qᵀ(γ − 2ξωΦ̇ − ω²Φ)`.
+    pub fn accelerations(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        let sys = self.sys;
+        let n = sys.n_coords();
+        self.stats.evaluations += 1;
+        if let Some(k) = q.iter().chain(qd).position(|v| !v.is_finite()) {
+            return Err(FormulationError::Unstable {
+                t,
+                component: if k < n {
+                    System::coordinate_name(k)
+                } else {
+                    format!("d{}/dt", System::coordinate_name(k - n))
+                },
+            });
+        }
+        let PenaltyParams { alpha, xi, omega } = self.p;
+        sys.forces_into(t, q, qd, &mut self.g);
+        sys.constraint_terms(
+            q,
+            qd,
+            t,
+            Some(&mut self.phi),
+            &mut self.jac,
+            &mut self.gamma,
+        );
+        sys.phi_t(q, t, &mut self.phi_t);
+        sys.jacobian_mul(&self.jac, qd, &mut self.phid);
+        // γ̄ = γ − 2ξωΦ̇ − ω²Φ (kept in `gamma`)
+        for r in 0..self.gamma.len() {
+            let phidot = self.phid[r] + self.phi_t[r];
+            self.gamma[r] -= 2.0 * xi * omega * phidot + omega * omega * self.phi[r];
+        }
+        self.k.set_zero();
+        for (i, &m) in sys.mass_diagonal().iter().enumerate() {
+            self.k.add_diagonal(i, m);
+        }
+        for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
+            self.k.add_a(id, alpha * w * self.jac[e1] * self.jac[e2]);
+        }
+        let lin = |source| FormulationError::Linear { t, source };
+        self.solver.factorize(&self.k).map_err(lin)?;
+        sys.jacobian_tmul(&self.jac, &self.gamma, &mut self.x);
+        for (x, g) in self.x.iter_mut().zip(&self.g) {
+            *x = g + alpha * *x;
+        }
+        self.solver
+            .solve_in_place(&self.k, &mut self.x)
+            .map_err(lin)?;
+        qdd.copy_from_slice(&self.x);
+        // λ = α (Φ_q q̈ − γ̄)
+        sys.jacobian_mul(&self.jac, qdd, &mut self.lambda);
+        for (l, gb) in self.lambda.iter_mut().zip(&self.gamma) {
+            *l = alpha * (*l - gb);
+        }
+        Ok(())
+    }
+}
+
+impl OdeSystem for Penalty<'_> {
+    fn dim(&self) -> usize {
+        2 * self.sys.n_coords()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
+        let n = self.sys.n_coords();
+        let (q, qd) = y.split_at(n);
+        let (dq, dqd) = dydt.split_at_mut(n);
+        dq.copy_from_slice(qd);
+        self.accelerations(t, q, qd, dqd).map_err(SystemError::new)
+    }
+}
+
+/// The formulation an explicit integrator (ode23, ode45, rk4) drives, as
+/// [`Index1Options::formulation`] chooses: [`Index1`] (saddle point or
+/// eliminated) or [`Penalty`].
+pub enum ExplicitForm<'a> {
+    /// Eq. (5) or eq. (9), with Baumgarte terms and optional projection.
+    Index1(Index1<'a>),
+    /// The penalty formulation.
+    Penalty(Penalty<'a>),
+}
+
+impl<'a> ExplicitForm<'a> {
+    /// Build the formulation `opts.formulation` names.
+    pub fn new(sys: &'a System, opts: Index1Options) -> Result<Self, FormulationError> {
+        Ok(match opts.formulation {
+            Formulation::Penalty => Self::Penalty(Penalty::new(sys, opts)?),
+            _ => Self::Index1(Index1::new(sys, opts)?),
+        })
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> RhsStats {
+        match self {
+            Self::Index1(f) => f.stats(),
+            Self::Penalty(f) => f.stats(),
+        }
+    }
+
+    /// Name of the linear solver in use.
+    pub fn solver_name(&self) -> &'static str {
+        match self {
+            Self::Index1(f) => f.solver_name(),
+            Self::Penalty(f) => f.solver_name(),
+        }
+    }
+
+    /// Multipliers of the last evaluation (`M q̈ + Φ_qᵀλ = g`).
+    pub fn lambda(&self) -> &[f64] {
+        match self {
+            Self::Index1(f) => f.lambda(),
+            Self::Penalty(f) => f.lambda(),
+        }
+    }
+}
+
+impl OdeSystem for ExplicitForm<'_> {
+    fn dim(&self) -> usize {
+        match self {
+            Self::Index1(f) => f.dim(),
+            Self::Penalty(f) => f.dim(),
+        }
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
+        match self {
+            Self::Index1(f) => f.rhs(t, y, dydt),
+            Self::Penalty(f) => f.rhs(t, y, dydt),
+        }
+    }
+    fn post_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
+        match self {
+            Self::Index1(f) => f.post_step(t, y),
+            Self::Penalty(f) => f.post_step(t, y),
+        }
+    }
+}
