@@ -158,8 +158,10 @@ pub struct Sample<'a> {
     /// Joint reactions `(f_x, f_y, m_z)` per joint
     /// ([`System::joint_reactions`]), if [`OutputQuantities::reactions`].
     pub reactions: Option<&'a [f64]>,
-    /// Kinetic and potential energy, if [`OutputQuantities::energy`].
-    pub energy: Option<[f64; 2]>,
+    /// Kinetic energy T, potential energy V, the work W of the
+    /// non-conservative and constraint forces since t0 and the balance
+    /// error `T + V − E0 − W`, if [`OutputQuantities::energy`].
+    pub energy: Option<[f64; 4]>,
 }
 
 /// Where a run's outputs go, as the integration delivers them: kept in
@@ -330,6 +332,29 @@ struct Watch<'s, 'm, 'd, 'k> {
     qdd: Vec<f64>,
     reactions: Vec<f64>,
     warned_extras: bool,
+    /// Energy balance (when [`OutputQuantities::energy`]): E(t0), the work
+    /// of non-conservative and constraint forces integrated over the
+    /// accepted steps (trapezoid), the power and time at the last step,
+    /// the largest |E − E0 − W| and the energy scale seen.
+    balance: Option<Balance>,
+}
+
+/// The energy balance `E(t) − E(t0) = W(t)` tracked by [`Watch`]
+/// (`crate::model::energy` docs).
+struct Balance {
+    e0: f64,
+    work: f64,
+    power: f64,
+    t: f64,
+    max_error: f64,
+    scale: f64,
+    /// Estimated error of the trapezoid quadrature of W so far, and the
+    /// last step's slope of P and size.
+    e_parts0: f64,
+    quadrature_error: f64,
+    last_slope: Option<(f64, f64)>,
+    rheonomic: bool,
+    ws: crate::model::EnergyWorkspace,
 }
 
 impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
@@ -356,7 +381,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             .unwrap_or(100.0 * (cfg.ode.rtol * l + atol));
         let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
         let o = cfg.outputs;
-        let extras = if o.accelerations || o.reactions {
+        let extras = if o.accelerations || o.reactions || o.energy {
             // eq. (5) with the run's Baumgarte terms (none for the
             // index-3 and penalty runs), without projection
             let mut opts = Index1Options {
@@ -376,6 +401,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             qdd: vec![0.0; sys.n_coords()],
             reactions: vec![0.0; 3 * sys.constraints().len()],
             warned_extras: false,
+            balance: None,
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
@@ -402,6 +428,91 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
 }
 
 impl Watch<'_, '_, '_, '_> {
+    /// `P_nc + P_c` at `(t, q, q̇)` (λ from eq. (5) only for rheonomic
+    /// systems, where the constraint forces do work).
+    fn power(&mut self, t: f64, q: &[f64], qd: &[f64]) -> f64 {
+        let Some(b) = self.balance.as_mut() else {
+            return 0.0;
+        };
+        let mut p = self.sys.nonconservative_power(t, q, qd, &mut b.ws);
+        if b.rheonomic {
+            if let Some(f) = self.extras.as_mut() {
+                if f.accelerations(t, q, qd, &mut self.qdd).is_ok() {
+                    p += self.sys.constraint_power(q, t, f.lambda(), &mut b.ws);
+                } else {
+                    p = f64::NAN;
+                }
+            }
+        }
+        p
+    }
+
+    /// Start the energy balance at `(t0, q0, q̇0)`.
+    fn start_balance(&mut self, t0: f64, q0: &[f64], qd0: &[f64]) {
+        if !self.outputs.energy {
+            return;
+        }
+        // λ at every step for the constraint power λᵀΦ_t (zero for
+        // scleronomic joints, but a drive may be at rest at t0)
+        let rheonomic = self.sys.n_constraints() > 0;
+        let e0 = self.sys.mechanical_energy(q0, qd0);
+        let e_parts0 = self.sys.kinetic_energy(qd0).abs() + self.sys.potential_energy(q0).abs();
+        self.balance = Some(Balance {
+            e0,
+            work: 0.0,
+            power: 0.0,
+            t: t0,
+            max_error: 0.0,
+            scale: e_parts0,
+            e_parts0,
+            quadrature_error: 0.0,
+            last_slope: None,
+            rheonomic,
+            ws: Default::default(),
+        });
+        let p = self.power(t0, q0, qd0);
+        if let Some(b) = self.balance.as_mut() {
+            b.power = p;
+        }
+    }
+
+    /// `E(t) − E0 − W(t)` at `(t, q, q̇)` with `W` extended from the last
+    /// step by the trapezoid; `accept` makes `t` the new last step.
+    fn balance_at(&mut self, t: f64, q: &[f64], qd: &[f64], accept: bool) -> Option<[f64; 2]> {
+        self.balance.as_ref()?;
+        let p = self.power(t, q, qd);
+        let ke = self.sys.kinetic_energy(qd);
+        let pe = self.sys.potential_energy(q);
+        let b = self.balance.as_mut()?;
+        let w = b.work + 0.5 * (b.power + p) * (t - b.t);
+        let err = ke + pe - b.e0 - w;
+        // the physical scale: |T0| + |V0| + the largest |W| (not T + V,
+        // which grows with a solution that blows up)
+        b.scale = b.scale.max(b.e_parts0 + w.abs());
+        if err.is_finite() {
+            b.max_error = b.max_error.max(err.abs());
+        }
+        if accept {
+            // trapezoid error of this step, h³/12 |P''| with P'' from the
+            // slopes of this and the previous step
+            let h = t - b.t;
+            if h > 0.0 {
+                let slope = (p - b.power) / h;
+                if let Some((s0, h0)) = b.last_slope {
+                    let curv = (slope - s0) / (0.5 * (h + h0));
+                    if curv.is_finite() {
+                        b.quadrature_error += h * h * h / 12.0 * curv.abs();
+                    }
+                }
+                b.last_slope = Some((slope, h));
+            }
+            b.work = w;
+            b.power = p;
+            b.t = t;
+        }
+        Some([w, err])
+    }
+
     fn warn(&mut self, message: String) {
         self.sink.warning(&message);
         self.warnings.push(message);
@@ -452,6 +563,11 @@ impl Watch<'_, '_, '_, '_> {
     }
 }
 
+/// Whether the outputs need q̈ and λ at every output time.
+fn o_needs_extras(o: &OutputQuantities) -> bool {
+    o.accelerations || o.reactions
+}
+
 fn norm2(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -471,8 +587,13 @@ impl Observer for Watch<'_, '_, '_, '_> {
         self.max_norm = self.max_norm.max(cn);
         self.max_velocity_norm = self.max_velocity_norm.max(vn);
         self.final_norm = cn;
+        let balance = self.balance_at(t, q, qd, false);
         let mut have_extras = false;
-        if let Some(f) = self.extras.as_mut() {
+        if let Some(f) = self
+            .extras
+            .as_mut()
+            .filter(|_| o_needs_extras(&self.outputs))
+        {
             match f.accelerations(t, q, qd, &mut self.qdd) {
                 Ok(()) => {
                     have_extras = true;
@@ -508,9 +629,15 @@ impl Observer for Watch<'_, '_, '_, '_> {
             qdd: o.accelerations.then_some(&self.qdd[..]),
             lambda,
             reactions: o.reactions.then_some(&self.reactions[..]),
-            energy: o
-                .energy
-                .then(|| [self.sys.kinetic_energy(qd), self.sys.potential_energy(q)]),
+            energy: o.energy.then(|| {
+                let [w, e] = balance.unwrap_or([f64::NAN; 2]);
+                [
+                    self.sys.kinetic_energy(qd),
+                    self.sys.potential_energy(q),
+                    w,
+                    e,
+                ]
+            }),
         };
         match self.sink.output(&sample) {
             Ok(()) => {
@@ -532,6 +659,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
         for m in self.monitors.iter_mut() {
             m.step(t, q, qd);
         }
+        self.balance_at(t, q, qd, true);
         self.guard(t, q, cn)
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
@@ -593,6 +721,7 @@ pub fn simulate_into(
     };
     let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
     stability_check(sys, cfg, q0, qd0, &mut watch)?;
+    watch.start_balance(cfg.t0, q0, qd0);
     let times = cfg.output_times();
     let start = Instant::now();
     let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
@@ -834,7 +963,25 @@ fn finish(
         (Termination::Stopped { .. }, None, Some(d)) => ("diverged", Some(d.clone())),
         (Termination::Stopped { reason, .. }, None, None) => ("interrupted", Some(reason.clone())),
     };
+    if let Some(b) = &watch.balance {
+        extra.insert("max_energy_balance_error".into(), b.max_error.into());
+        extra.insert("energy_scale".into(), b.scale.into());
+        extra.insert("energy_quadrature_error".into(), b.quadrature_error.into());
+    }
     let mut warnings = watch.warnings;
+    if let Some(b) = &watch.balance {
+        // what the tolerance and the quadrature of W explain
+        let bound = 100.0 * cfg.ode.rtol * b.scale + 10.0 * b.quadrature_error;
+        if !cfg.method.is_implicit() && b.max_error > bound {
+            warnings.push(format!(
+                "energy balance broken: |T + V − E0 − W| reached {:.3e} J, more than \
+                 100 rtol × {:.3e} J (the energy scale) + 10 × {:.3e} J (the quadrature \
+                 error of W) = {bound:.3e} J: the integration error or the constraint drift \
+                 is larger than the tolerance explains",
+                b.max_error, b.scale, b.quadrature_error
+            ));
+        }
+    }
     warnings.extend(report.warnings.iter().cloned());
     if work.regularized_pivots > 0 {
         warnings.push(format!(

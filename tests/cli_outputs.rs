@@ -179,3 +179,75 @@ step = 1e-4"#,
         assert!(spread > 0.3 * M * G, "{spread}");
     }
 }
+
+/// The energy balance from the CLI's columns on the four-bar driven by its
+/// constant torque M = 0.5 N m: the work column equals M (φ_crank − φ0)
+/// (the torque is the only non-conservative load, the joints are ideal)
+/// and T + V − E0 − W stays at the integration error.
+#[test]
+fn energy_balance_columns_on_the_torque_driven_four_bar() {
+    let dir = tempfile::tempdir().unwrap();
+    let fourbar = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .arg("run")
+        .arg(&fourbar)
+        .args([
+            "--set",
+            "integrator.method=ode45",
+            "--set",
+            "integrator.rtol=1e-10",
+        ])
+        .args([
+            "--set",
+            "integrator.atol=1e-12",
+            "--set",
+            "output.quantities=[\"energy\"]",
+        ])
+        .args(["--progress", "off", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.path().join("fourbar.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| {
+        header
+            .iter()
+            .position(|h| *h == n)
+            .unwrap_or_else(|| panic!("{n}"))
+    };
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let phi0 = rows[0][col("phi1")];
+    let e0 = rows[0][col("total_energy")];
+    let (mut max_w, mut max_e, mut max_work) = (0.0f64, 0.0f64, 0.0f64);
+    for r in &rows {
+        let w = r[col("work_nonconservative")];
+        max_w = max_w.max((w - 0.5 * (r[col("phi1")] - phi0)).abs());
+        max_e = max_e.max(r[col("energy_balance_error")].abs());
+        max_work = max_work.max(w.abs());
+        let closed = r[col("total_energy")] - e0 - w;
+        // the CSV keeps 13 significant digits
+        assert!((closed - r[col("energy_balance_error")]).abs() < 1e-10 * (1.0 + e0.abs()));
+    }
+    assert!(max_work > 1.0, "the torque does work: {max_work}");
+    // trapezoid over the accepted steps: second order in the step
+    assert!(max_w < 1e-5 * max_work, "work vs M Δφ: {max_w:e}");
+    assert!(max_e < 1e-5 * max_work, "balance error {max_e:e}");
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("fourbar.summary.json")).unwrap(),
+    )
+    .unwrap();
+    // over the accepted steps the balance error is the trapezoid's: within
+    // its own estimate (the summary's), and no warning
+    let quad = s["energy_quadrature_error"].as_f64().unwrap();
+    let max_step = s["max_energy_balance_error"].as_f64().unwrap();
+    assert!(
+        max_step >= max_e * (1.0 - 1e-9),
+        "{max_step} vs rows {max_e}"
+    );
+    assert!(max_step <= quad, "{max_step:e} vs estimate {quad:e}");
+    assert!(s["warnings"].as_array().unwrap().is_empty(), "{s}");
+}

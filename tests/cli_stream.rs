@@ -264,6 +264,23 @@ fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
             assert!(t > 2.0 && t < 50.0, "{t}");
         }
     }
+    // the energy balance breaks loudly when asked for
+    let o = run(&[
+        "run",
+        &fourbar(),
+        "--progress",
+        "off",
+        "--set",
+        "integrator.method=rk4",
+        "--set",
+        "integrator.step=0.02",
+        "--set",
+        "output.quantities=[\"energy\"]",
+        "--out",
+        out,
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("warning: energy balance broken"), "{e}");
     for scen in ["scenarios/fourbar.toml", "scenarios/falling_rod.toml"] {
         let o = run(&["run", scen, "--progress", "off", "--out", out]);
         let e = String::from_utf8_lossy(&o.stderr);

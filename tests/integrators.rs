@@ -1289,3 +1289,35 @@ fn post_step_moves_the_state_and_is_counted() {
         assert_eq!(rep.t_reached, *t);
     }
 }
+
+/// A span so short that `0.1·span` (MATLAB's default hmax) underflows: the
+/// steps would not advance t; the run fails at once instead of looping to
+/// `max_steps`.
+#[test]
+fn a_step_that_does_not_advance_t_fails() {
+    for method in [Method::Ode23, Method::Ode45] {
+        let (rep, _) = run(
+            method,
+            OdeOptions::default(),
+            &mut decay(),
+            0.0,
+            5e-324,
+            &[1.0],
+            &[],
+        );
+        let Termination::Failed { reason, .. } = &rep.termination else {
+            panic!("{method}: {:?}", rep.termination);
+        };
+        assert!(
+            matches!(
+                reason,
+                Failure::StepTooSmall {
+                    cause: StepCut::NoProgress,
+                    ..
+                }
+            ),
+            "{reason:?}"
+        );
+        assert!(rep.stats.steps <= 1, "{method}: {} steps", rep.stats.steps);
+    }
+}

@@ -112,6 +112,10 @@ pub enum StepCut {
         /// Last error norm relative to the tolerance (1 passes).
         err: f64,
     },
+    /// The step no longer advances the time (`t + h == t`: the span or the
+    /// step underflows against `t`).
+    #[error("the step does not advance t (t + h == t)")]
+    NoProgress,
     /// Newton kept failing.
     #[error("Newton does not converge (at t = {t:e} with h = {h:.3e}: {source})")]
     Newton {
@@ -178,6 +182,15 @@ pub fn drive(
             }
         };
         let (t_new, y_new) = st.state();
+        if t_new <= t {
+            let reason = Failure::StepTooSmall {
+                t,
+                h: t_new - t,
+                h_min: super::common::eps(t),
+                cause: StepCut::NoProgress,
+            };
+            return (Termination::Failed { t, reason }, t);
+        }
         let snap = st.output_snap();
         let st_ref: &dyn Stepper = st;
         let flow = outputs.deliver_step_snapped(

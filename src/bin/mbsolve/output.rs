@@ -41,7 +41,9 @@ fn joint_label(sys: &System, k: usize) -> String {
 /// `vx1,vy1,omega1,…`, accelerations `ax1,ay1,alpha1,…`, per joint
 /// `J.fx,J.fy,J.mz` (reaction on its body, global frame, moment about the
 /// centre of mass) and `J.fx_local,J.fy_local` (in that body's frame),
-/// `kinetic_energy,potential_energy,total_energy`.
+/// `kinetic_energy,potential_energy,total_energy` and the balance:
+/// `work_nonconservative` (work of non-conservative and constraint forces
+/// since t0), `energy_balance_error` (`T + V − E0 − W`).
 pub fn csv_columns(sys: &System, o: &OutputQuantities) -> Vec<(String, &'static str)> {
     let nb = sys.bodies().len();
     let mut c = vec![("t".to_string(), "s")];
@@ -81,7 +83,13 @@ pub fn csv_columns(sys: &System, o: &OutputQuantities) -> Vec<(String, &'static 
         }
     }
     if o.energy {
-        for n in ["kinetic_energy", "potential_energy", "total_energy"] {
+        for n in [
+            "kinetic_energy",
+            "potential_energy",
+            "total_energy",
+            "work_nonconservative",
+            "energy_balance_error",
+        ] {
             c.push((n.into(), "J"));
         }
     }
@@ -138,8 +146,8 @@ pub fn csv_row(buf: &mut String, sys: &System, s: &Sample<'_>, o: &OutputQuantit
         }
     }
     if o.energy {
-        let [k, p] = s.energy.unwrap_or([f64::NAN; 2]);
-        for v in [k, p, k + p] {
+        let [k, p, w, e] = s.energy.unwrap_or([f64::NAN; 4]);
+        for v in [k, p, k + p, w, e] {
             put(v);
         }
     }
