@@ -406,3 +406,33 @@ fn a_closed_stdout_ends_quietly_with_the_runs_status() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
     assert!(dir.path().join("fourbar.summary.json").exists());
 }
+
+/// A locked mechanism (the four-bar's crank angle also held by a drive)
+/// cannot take the crank rate given as independent: the velocity residual
+/// is an error naming `initial.independent`, not a note.
+#[test]
+fn an_initial_velocity_residual_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = variant(
+        dir.path(),
+        "locked.toml",
+        "[[force]]",
+        "[[joint]]\ntype = \"drive_coordinate\"\nname = \"lock\"\nbody = \"crank\"\ncoordinate = \"phi\"\nmotion = 1.0471975511965976\n\n[[force]]",
+    );
+    let o = mbsolve(&[
+        "run",
+        p.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("locked.toml") && e.contains("initial.independent"),
+        "{e}"
+    );
+    assert!(e.contains("phi1 cannot keep its given value") && e.contains("locked"), "{e}");
+    // the four-bar itself assembles
+    let o = mbsolve(&["check", fourbar_path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

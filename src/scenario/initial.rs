@@ -104,6 +104,45 @@ pub(super) fn build(
             },
         )
         .map_err(|e| err("initial".into(), e.to_string()))?;
+        // The velocity solve is least squares: a residual left means the
+        // given independent velocities are incompatible with the
+        // constraints (a locked mechanism, dependent "independent" ones).
+        let vscale = st.qd.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+        let vtol = 1e3 * raw.tol * vscale;
+        // the kept values must have been kept (least squares gives up a
+        // lock row when the constraints contradict it)
+        let moved = independent.iter().find(|&&k| {
+            (st.q[k] - q0[k]).abs() > 1e-9 * (1.0 + q0[k].abs())
+                || (st.qd[k] - qd0[k]).abs() > 1e-9 * (1.0 + qd0[k].abs())
+        });
+        if let Some(&k) = moved {
+            return Err(err(
+                "initial.independent".into(),
+                format!(
+                    "{} cannot keep its given value: position {} → {}, rate {} → {} in the \
+                     assembly; the constraints fix it (a locked mechanism, or the independent \
+                     coordinates {:?} are not independent)",
+                    System::coordinate_name(k),
+                    q0[k],
+                    st.q[k],
+                    qd0[k],
+                    st.qd[k],
+                    raw.independent
+                ),
+            ));
+        }
+        if st.velocity_residual > vtol {
+            return Err(err(
+                "initial.independent".into(),
+                format!(
+                    "the initial velocities cannot satisfy the velocity constraints Φ_q q̇ = −Φ_t: \
+                     residual ‖Φ_q q̇ + Φ_t‖ = {:.3e} > {vtol:.1e} (1e3 initial.tol max(1, |q̇|)); \
+                     the mechanism is locked or the independent coordinates {:?} are not \
+                     independent",
+                    st.velocity_residual, raw.independent
+                ),
+            ));
+        }
         q0.clone_from(&st.q);
         qd0.clone_from(&st.qd);
         assembly = Some(st);
