@@ -431,7 +431,10 @@ fn an_initial_velocity_residual_is_an_error() {
         e.contains("locked.toml") && e.contains("initial.independent"),
         "{e}"
     );
-    assert!(e.contains("phi1 cannot keep its given value") && e.contains("locked"), "{e}");
+    assert!(
+        e.contains("phi1 cannot keep its given value") && e.contains("locked"),
+        "{e}"
+    );
     // the four-bar itself assembles
     let o = mbsolve(&["check", fourbar_path().to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -137,6 +137,7 @@ pub fn run(
     }
     let total = points.len();
     let done = AtomicUsize::new(0);
+    let start = std::time::Instant::now();
     Ok(points
         .into_par_iter()
         .map(|(k, point)| {
@@ -154,8 +155,15 @@ pub fn run(
                     .map_err(|e| e.to_string())
                 });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            let wall = start.elapsed().as_secs_f64();
+            let eta = wall * (total - d) as f64 / d as f64;
+            let outcome = match &result {
+                Ok(s) if s.warnings.is_empty() => s.status.clone(),
+                Ok(s) => format!("{}, {} warnings: {}", s.status, s.warnings.len(), s.warnings[0]),
+                Err(e) => format!("error: {e}"),
+            };
             eprintln!(
-                "{progress}{d}/{total} runs done (run {k}: {})",
+                "{progress}{d}/{total} runs done, {wall:.1} s, ETA {eta:.0} s (run {k}: {}: {outcome})",
                 point.join(" ")
             );
             (k, SweepRun { point, result })
