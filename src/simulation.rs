@@ -831,6 +831,7 @@ impl MethodRun for Explicit<'_> {
             baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
             factorizations: stats.solver.factorizations,
             regularized_pivots: stats.solver.regularized_pivots,
+            first_regularized_t: stats.first_regularized_t,
         };
         let mut extra = serde_json::Map::new();
         if cfg.index1.formulation == crate::formulation::Formulation::Penalty {
@@ -932,6 +933,7 @@ impl MethodRun for Implicit<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: gs.factorizations,
             regularized_pivots: fs.newton_solver.regularized_pivots,
+            first_regularized_t: None,
         };
         (work, extra)
     }
@@ -944,6 +946,8 @@ struct Work {
     baumgarte: (f64, f64),
     factorizations: usize,
     regularized_pivots: usize,
+    /// Time of the first regularised pivot (index-1 runs).
+    first_regularized_t: Option<f64>,
 }
 
 /// Assemble the [`Summary`] of a run (both paths).
@@ -984,10 +988,18 @@ fn finish(
     }
     warnings.extend(report.warnings.iter().cloned());
     if work.regularized_pivots > 0 {
+        let first = work
+            .first_regularized_t
+            .map_or(String::new(), |t| format!(", the first at t = {t:e}"));
+        if let Some(t) = work.first_regularized_t {
+            extra.insert("first_regularized_t".into(), t.into());
+        }
         warnings.push(format!(
-            "{} regularised pivots in the factorisations: Φ_q lost rank (a singular \
+            "{} regularised pivots in the factorisations{first}: Φ_q lost rank (a singular \
              configuration or redundant constraints); the multipliers there are a \
-             regularised least-squares answer",
+             regularised least-squares answer and the motion may have left its branch — \
+             check with stabilization.projection = true or genalpha with \
+             integrator.project = true (docs/constraint_methods.md)",
             work.regularized_pivots
         ));
     }

@@ -48,6 +48,9 @@ pub struct RhsStats {
     pub projections: usize,
     /// Newton iterations of the position projections, summed.
     pub projection_iterations: usize,
+    /// Time of the first evaluation whose factorisation regularised a
+    /// pivot (Φ_q lost rank: a singular configuration or redundant joints).
+    pub first_regularized_t: Option<f64>,
 }
 
 /// The equations of motion as a first-order ODE for `y = [q; q̇]`.
@@ -220,7 +223,10 @@ impl<'a> Index1<'a> {
         self.k.set_a_diagonal(sys.mass_diagonal());
         self.k.set_jacobian(&self.jac);
         let lin = |source| FormulationError::Linear { t, source };
-        self.solver.factorize(&self.k).map_err(lin)?;
+        let info = self.solver.factorize(&self.k).map_err(lin)?;
+        if info.regularized_pivots > 0 && self.stats.first_regularized_t.is_none() {
+            self.stats.first_regularized_t = Some(t);
+        }
         self.x[..n].copy_from_slice(&self.g);
         self.x[n..].copy_from_slice(&self.gamma);
         self.solver
