@@ -1321,3 +1321,29 @@ fn a_step_that_does_not_advance_t_fails() {
         assert!(rep.stats.steps <= 1, "{method}: {} steps", rep.stats.steps);
     }
 }
+
+/// The fast finiteness scan finds the first NaN or ±inf at every position
+/// and length (the 8-lane pass and the remainder), and none in finite data
+/// with extreme values.
+#[test]
+fn first_non_finite_finds_every_position() {
+    use mbsolve::integrate::first_non_finite;
+    for len in 0..25 {
+        let v: Vec<f64> = (0..len)
+            .map(|i| [1e308, -1e308, 0.0, -0.0, 5e-324][i % 5])
+            .collect();
+        assert_eq!(first_non_finite(&v), None, "len {len}");
+        for pos in 0..len {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut w = v.clone();
+                w[pos] = bad;
+                if pos + 1 < len {
+                    w[len - 1] = f64::NAN; // a later one must not win
+                }
+                let (i, x) = first_non_finite(&w).expect("found");
+                assert_eq!(i, pos);
+                assert!(x.is_nan() == bad.is_nan() && (bad.is_nan() || x == bad));
+            }
+        }
+    }
+}

@@ -188,7 +188,7 @@ impl Baumgarte {
 /// [`FormulationError::NonFinite`] at time `t` (one pass, no allocation).
 pub(crate) fn all_finite(t: f64, parts: &[(&'static str, &[f64])]) -> Result<(), FormulationError> {
     for &(what, v) in parts {
-        if let Some((index, &value)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+        if let Some((index, value)) = crate::integrate::first_non_finite(v) {
             return Err(FormulationError::NonFinite {
                 what,
                 index,

@@ -57,7 +57,7 @@ pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 use std::ops::ControlFlow;
 use std::str::FromStr;
 
-pub use common::eps;
+pub use common::{eps, first_non_finite};
 
 /// A first-order system y' = f(t, y).
 pub trait OdeSystem {
