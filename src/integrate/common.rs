@@ -38,6 +38,7 @@ pub(crate) fn weighted_sum(out: &mut [f64], h: f64, coeffs: &[f64], k: &[f64]) {
 /// first: `x − x` is 0 for a finite `x` and NaN otherwise, summed in 8
 /// independent lanes (vectorisable); only when the sum is not 0 is the
 /// entry searched for.
+#[allow(clippy::eq_op)] // x − x is the finiteness test
 pub fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
     let mut acc = [0.0f64; 8];
     let chunks = v.chunks_exact(8);
