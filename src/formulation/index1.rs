@@ -1,8 +1,8 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
 use super::{
-    all_finite, mass_orthogonal_step, Baumgarte, Formulation, FormulationError, PenaltyParams,
-    Projection,
+    all_finite, check_state, feedback, mass_orthogonal_step, Baumgarte, Formulation,
+    FormulationError, PenaltyParams, Projection,
 };
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
@@ -170,16 +170,7 @@ impl<'a> Index1<'a> {
         let sys = self.sys;
         let n = sys.n_coords();
         self.stats.evaluations += 1;
-        if let Some(k) = q.iter().chain(qd).position(|v| !v.is_finite()) {
-            return Err(FormulationError::Unstable {
-                t,
-                component: if k < n {
-                    System::coordinate_name(k)
-                } else {
-                    format!("d{}/dt", System::coordinate_name(k - n))
-                },
-            });
-        }
+        check_state(t, q, qd)?;
         // Forces and constraint terms are independent: evaluate them
         // concurrently for large systems. Each task is sequential inside, so
         // the result is bit-identical whatever the number of threads.
@@ -200,10 +191,7 @@ impl<'a> Index1<'a> {
                 // eq. (11): γ̄ = γ − 2αΦ̇ − β²Φ with Φ̇ = Φ_q q̇ + Φ_t
                 sys.phi_t(q, t, phi_t);
                 sys.jacobian_mul(jac, qd, phid);
-                for r in 0..gamma.len() {
-                    let phidot = phid[r] + phi_t[r];
-                    gamma[r] -= 2.0 * b.alpha * phidot + b.beta * b.beta * phi[r];
-                }
+                feedback(gamma, phid, phi_t, phi, 2.0 * b.alpha, b.beta * b.beta);
             }
         };
         if n >= PARALLEL_MIN_COORDS {

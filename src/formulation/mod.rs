@@ -184,6 +184,45 @@ impl Baumgarte {
     }
 }
 
+/// The state handed to a right-hand side must be finite: else
+/// [`FormulationError::Unstable`] naming the component (`q = y[..n]`,
+/// `q̇ = y[n..]`).
+pub(crate) fn check_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
+    let n = q.len();
+    let bad = crate::integrate::first_non_finite(q)
+        .map(|(k, _)| k)
+        .or_else(|| crate::integrate::first_non_finite(qd).map(|(k, _)| n + k));
+    match bad {
+        None => Ok(()),
+        Some(k) => Err(FormulationError::Unstable {
+            t,
+            component: if k < n {
+                crate::model::System::coordinate_name(k)
+            } else {
+                format!("d{}/dt", crate::model::System::coordinate_name(k - n))
+            },
+        }),
+    }
+}
+
+/// Constraint feedback on the acceleration right-hand side:
+/// `γ̄ = γ − c₁ Φ̇ − c₀ Φ` with `Φ̇ = Φ_q q̇ + Φ_t` (`phid` = Φ_q q̇) —
+/// Baumgarte's eq. (11) (`c₁ = 2α`, `c₀ = β²`) and the penalty
+/// formulation's (`c₁ = 2ξω`, `c₀ = ω²`).
+pub(crate) fn feedback(
+    gamma: &mut [f64],
+    phid: &[f64],
+    phi_t: &[f64],
+    phi: &[f64],
+    c1: f64,
+    c0: f64,
+) {
+    for r in 0..gamma.len() {
+        let phidot = phid[r] + phi_t[r];
+        gamma[r] -= c1 * phidot + c0 * phi[r];
+    }
+}
+
 /// The first non-finite entry of the named vectors, as a
 /// [`FormulationError::NonFinite`] at time `t` (one pass, no allocation).
 pub(crate) fn all_finite(t: f64, parts: &[(&'static str, &[f64])]) -> Result<(), FormulationError> {

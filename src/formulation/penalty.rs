@@ -20,7 +20,9 @@
 //! shrinks like `1/α` (tested). The bracket is the Baumgarte γ̄ of eq. (11)
 //! with `α_B = ξω`, `β_B = ω`.
 
-use super::{Formulation, FormulationError, Index1, Index1Options, RhsStats};
+use super::{
+    check_state, feedback, Formulation, FormulationError, Index1, Index1Options, RhsStats,
+};
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, Symmetry,
@@ -208,18 +210,8 @@ impl<'a> Penalty<'a> {
         qdd: &mut [f64],
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
-        let n = sys.n_coords();
         self.stats.evaluations += 1;
-        if let Some(k) = q.iter().chain(qd).position(|v| !v.is_finite()) {
-            return Err(FormulationError::Unstable {
-                t,
-                component: if k < n {
-                    System::coordinate_name(k)
-                } else {
-                    format!("d{}/dt", System::coordinate_name(k - n))
-                },
-            });
-        }
+        check_state(t, q, qd)?;
         let PenaltyParams { alpha, xi, omega } = self.p;
         sys.forces_into(t, q, qd, &mut self.g);
         sys.constraint_terms(
@@ -233,10 +225,14 @@ impl<'a> Penalty<'a> {
         sys.phi_t(q, t, &mut self.phi_t);
         sys.jacobian_mul(&self.jac, qd, &mut self.phid);
         // γ̄ = γ − 2ξωΦ̇ − ω²Φ (kept in `gamma`)
-        for r in 0..self.gamma.len() {
-            let phidot = self.phid[r] + self.phi_t[r];
-            self.gamma[r] -= 2.0 * xi * omega * phidot + omega * omega * self.phi[r];
-        }
+        feedback(
+            &mut self.gamma,
+            &self.phid,
+            &self.phi_t,
+            &self.phi,
+            2.0 * xi * omega,
+            omega * omega,
+        );
         self.k.set_zero();
         for (i, &m) in sys.mass_diagonal().iter().enumerate() {
             self.k.add_diagonal(i, m);
