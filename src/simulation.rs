@@ -332,6 +332,9 @@ struct Watch<'s, 'm, 'd, 'k> {
     qdd: Vec<f64>,
     reactions: Vec<f64>,
     warned_extras: bool,
+    /// Integrator notices already shown through the sink (the first ones of
+    /// `Report::warnings`).
+    forwarded: usize,
     /// Energy balance (when [`OutputQuantities::energy`]): E(t0), the work
     /// of non-conservative and constraint forces integrated over the
     /// accepted steps (trapezoid), the power and time at the last step,
@@ -401,6 +404,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             qdd: vec![0.0; sys.n_coords()],
             reactions: vec![0.0; 3 * sys.constraints().len()],
             warned_extras: false,
+            forwarded: 0,
             balance: None,
             phi_warn,
             phi_fail,
@@ -664,6 +668,10 @@ impl Observer for Watch<'_, '_, '_, '_> {
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
         self.sink.progress(t, stats)
+    }
+    fn warning(&mut self, message: &str) {
+        self.sink.warning(message);
+        self.forwarded += 1;
     }
 }
 
@@ -972,7 +980,10 @@ fn finish(
         extra.insert("energy_scale".into(), b.scale.into());
         extra.insert("energy_quadrature_error".into(), b.quadrature_error.into());
     }
+    // shown as they occurred first (guards, then the integrator's notices
+    // forwarded through the sink), then the end-of-run ones
     let mut warnings = watch.warnings;
+    warnings.extend(report.warnings.iter().cloned());
     if let Some(b) = &watch.balance {
         // what the tolerance and the quadrature of W explain
         let bound = 100.0 * cfg.ode.rtol * b.scale + 10.0 * b.quadrature_error;
@@ -986,7 +997,6 @@ fn finish(
             ));
         }
     }
-    warnings.extend(report.warnings.iter().cloned());
     if work.regularized_pivots > 0 {
         let first = work
             .first_regularized_t

@@ -364,3 +364,43 @@ fn memory_does_not_grow_with_the_number_of_outputs() {
         "peak RSS {small} kB at {r_small} rows, {big} kB at {r_big} rows"
     );
 }
+
+/// The integrator's notices reach the console when they occur (through the
+/// observer, before the run ends), each once, and the summary counts them.
+#[test]
+fn newton_failures_are_printed_as_they_occur() {
+    let dir = tempfile::tempdir().unwrap();
+    let rod = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/falling_rod.toml");
+    let o = exe()
+        .arg("run")
+        .arg(&rod)
+        .args([
+            "--set",
+            "integrator.method=genalpha",
+            "--set",
+            "integrator.step=1e-3",
+        ])
+        .args([
+            "--set",
+            "integrator.rho_inf=1",
+            "--set",
+            "time.end=0.2",
+            "--progress",
+            "off",
+        ])
+        .args(["--out", dir.path().to_str().unwrap()])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    let text = std::fs::read_to_string(dir.path().join("falling_rod.summary.json")).unwrap();
+    let s: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let failures = s["newton_failures"].as_u64().unwrap() as usize;
+    assert!(failures > 0, "the contact onset cuts the step: {s}");
+    let printed = e.matches("warning: Newton failed at t = ").count();
+    assert_eq!(printed, failures.min(20), "{e}");
+    assert!(
+        e.contains(&format!("warning: {failures} Newton failures")),
+        "{e}"
+    );
+}

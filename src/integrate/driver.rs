@@ -38,6 +38,11 @@ pub trait Stepper {
     }
     /// Work so far (accepted and rejected steps, evaluations).
     fn stats(&self) -> Stats;
+    /// Notices so far (e.g. a Newton failure that cut the step); the
+    /// driver hands each new one to [`Observer::warning`] as it appears.
+    fn warnings(&self) -> &[String] {
+        &[]
+    }
 }
 
 /// Why a run could not continue ([`Termination::Failed`]): typed, with the
@@ -161,6 +166,11 @@ pub fn drive(
     if let ControlFlow::Break((t, reason)) = outputs.deliver_initial(t0, y0, obs) {
         return (Termination::Stopped { t, reason }, t0);
     }
+    let mut warned = 0;
+    for msg in st.warnings() {
+        obs.warning(msg);
+        warned += 1;
+    }
     if let Err(reason) = st.start() {
         return (Termination::Failed { t: t0, reason }, t0);
     }
@@ -174,7 +184,13 @@ pub fn drive(
             };
             return (Termination::Failed { t, reason }, t);
         }
-        let done = match st.step() {
+        let outcome = st.step();
+        let w = st.warnings();
+        for msg in w.iter().skip(warned) {
+            obs.warning(msg);
+        }
+        warned = warned.max(w.len());
+        let done = match outcome {
             Ok(done) => done,
             Err(reason) => {
                 let t = st.state().0;

@@ -336,6 +336,10 @@ impl Stepper for EmbeddedStepper<'_> {
         lincomb(out, &self.y, self.h, &w[..tab.stages()], &self.k);
     }
 
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
     fn stats(&self) -> Stats {
         self.stats.clone()
     }

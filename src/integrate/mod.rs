@@ -271,6 +271,9 @@ pub trait Observer {
     fn progress(&mut self, _t: f64, _stats: &Stats) -> ControlFlow<String> {
         ControlFlow::Continue(())
     }
+    /// A notice of the integrator as it appears (it is also in
+    /// [`Report::warnings`]).
+    fn warning(&mut self, _message: &str) {}
 }
 
 /// The unit observer ignores everything.
@@ -285,6 +288,9 @@ impl<O: Observer + ?Sized> Observer for &mut O {
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
         (**self).progress(t, stats)
+    }
+    fn warning(&mut self, message: &str) {
+        (**self).warning(message)
     }
 }
 

@@ -729,6 +729,10 @@ impl Stepper for Run<'_, '_> {
         1e-9 * self.h_last
     }
 
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
     fn stats(&self) -> Stats {
         self.stats.counts()
     }
