@@ -251,3 +251,91 @@ fn energy_balance_columns_on_the_torque_driven_four_bar() {
     assert!(max_step <= quad, "{max_step:e} vs estimate {quad:e}");
     assert!(s["warnings"].as_array().unwrap().is_empty(), "{s}");
 }
+
+/// The shipped slider-crank: every joint reaction and the drive torque from
+/// the CLI's columns against Newton–Euler inverse dynamics of the
+/// closed-form kinematics (crank angle θ = ωt, rod angle
+/// sin ψ = −r sin θ / l).
+#[test]
+fn slider_crank_reactions_match_newton_euler_inverse_dynamics() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/slider_crank.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .arg("run")
+        .arg(&scen)
+        .args(["--progress", "off", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.path().join("slider_crank.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| {
+        header
+            .iter()
+            .position(|h| *h == n)
+            .unwrap_or_else(|| panic!("{n}"))
+    };
+    let (r, l, w, g) = (0.1, 0.3, 10.0, 9.81);
+    let (mc, mr, ms) = (0.2, 0.6, 0.5);
+    let (ic, ir) = (mc * r * r / 12.0, mr * l * l / 12.0);
+    let cross = |u: [f64; 2], v: [f64; 2]| u[0] * v[1] - u[1] * v[0];
+    let mut worst: f64 = 0.0;
+    let mut rows = 0;
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let t = v[col("t")];
+        let th = w * t;
+        let (s, c) = th.sin_cos();
+        let psi = (-r * s / l).asin();
+        let (sp, cp) = psi.sin_cos();
+        let psid = -r * c * w / (l * cp);
+        let psidd = (r * s * w * w + l * sp * psid * psid) / (l * cp);
+        // accelerations of the centres of mass
+        let a_c = [-0.5 * r * w * w * c, -0.5 * r * w * w * s];
+        let a_a = [-r * w * w * c, -r * w * w * s];
+        let a_r = [
+            a_a[0] + 0.5 * l * (-sp * psidd - cp * psid * psid),
+            a_a[1] + 0.5 * l * (cp * psidd - sp * psid * psid),
+        ];
+        let a_s = -r * w * w * c - l * (sp * psidd + cp * psid * psid);
+        // slider: F_B (from the rod at B, on the slider) + (0, N) + m_s g
+        let fbx = ms * a_s;
+        // rod: F_A − F_B + m_r g = m_r a_r, I_r ψ̈ = (A − G)×F_A − (B − G)×F_B
+        let e = [0.5 * l * cp, 0.5 * l * sp]; // B − G = −(A − G)
+                                              // F_Ax = m_r a_rx + F_Bx; F_Ay = m_r (a_ry + g) + F_By
+                                              // I_r ψ̈ = −e×F_A − e×F_B, linear in F_By:
+                                              //   −e×F_A = −(e0 F_Ay − e1 F_Ax), −e×F_B = −(e0 F_By − e1 F_Bx)
+        let fax = mr * a_r[0] + fbx;
+        let k = mr * (a_r[1] + g);
+        // ir ψ̈ = −e0 (k + F_By) + e1 fax − e0 F_By + e1 fbx
+        let fby = (e[1] * fax + e[1] * fbx - e[0] * k - ir * psidd) / (2.0 * e[0]);
+        let fay = k + fby;
+        let n_slider = ms * g - fby;
+        // crank: F_O − F_A + m_c g = m_c a_c; 0 = (O − C)×F_O − (A − C)×F_A + τ
+        let fo = [mc * a_c[0] + fax, mc * (a_c[1] + g) + fay];
+        let oc = [-0.5 * r * c, -0.5 * r * s];
+        let thdd = 0.0; // constant crank speed
+        let tau = ic * thdd - (cross(oc, fo) - cross([-oc[0], -oc[1]], [fax, fay]));
+        let expect = [
+            ("O.fx", fo[0]),
+            ("O.fy", fo[1]),
+            ("A.fx", fax),
+            ("A.fy", fay),
+            ("B.fx", fbx),
+            ("B.fy", fby),
+            ("slide.fx", 0.0),
+            ("slide.fy", n_slider),
+            ("slide.mz", 0.0),
+            ("drive.mz", tau),
+        ];
+        for (name, want) in expect {
+            worst = worst.max((v[col(name)] - want).abs());
+        }
+        rows += 1;
+    }
+    assert_eq!(rows, 201);
+    // forces of order m r ω² ≈ 10 N: agreement to the integration accuracy
+    assert!(worst < 1e-6, "largest reaction error {worst:e} N");
+}
