@@ -146,6 +146,58 @@ pub(crate) fn post_step(
     Ok(changed)
 }
 
+/// The two ends of an explicit step: the state `(t, y)` at its start and,
+/// once it is accepted, its end `(tnew, ynew)` — the current state until
+/// the next step begins ([`StepEnds::advance`]), so that the dense output
+/// of the accepted step can still use both ends.
+pub(crate) struct StepEnds {
+    pub t: f64,
+    pub tnew: f64,
+    pub y: Vec<f64>,
+    pub ynew: Vec<f64>,
+    pending: bool,
+}
+
+impl StepEnds {
+    /// The state `(t0, y0)`, no step taken.
+    pub fn new(t0: f64, y0: &[f64]) -> Self {
+        Self {
+            t: t0,
+            tnew: t0,
+            y: y0.to_vec(),
+            ynew: vec![0.0; y0.len()],
+            pending: false,
+        }
+    }
+
+    /// Start of a step: an accepted end becomes the start (`true` if there
+    /// was one).
+    pub fn advance(&mut self) -> bool {
+        if !self.pending {
+            return false;
+        }
+        self.pending = false;
+        self.t = self.tnew;
+        std::mem::swap(&mut self.y, &mut self.ynew);
+        true
+    }
+
+    /// The step to `tnew` (in `ynew`) is accepted.
+    pub fn accept(&mut self, tnew: f64) {
+        self.tnew = tnew;
+        self.pending = true;
+    }
+
+    /// The current state: the accepted end, or the start before any step.
+    pub fn current(&self) -> (f64, &[f64]) {
+        if self.pending {
+            (self.tnew, &self.ynew)
+        } else {
+            (self.t, &self.y)
+        }
+    }
+}
+
 /// Spacing of doubles at `x`, as MATLAB's `eps(x)`: the distance from `|x|`
 /// to the next larger double (`eps(1) = 2^-52`, `eps(0) = 2^-1074`).
 /// NaN for non-finite `x`.

@@ -27,7 +27,7 @@
 //! per attempted step (the FSAL stage is reused as the next first stage),
 //! plus 1 per step whose end state [`OdeSystem::post_step`] moved.
 
-use super::common::{self, call_rhs, eval_stages, lincomb, post_step, weighted_sum};
+use super::common::{self, call_rhs, eval_stages, lincomb, post_step, weighted_sum, StepEnds};
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
 use super::{
@@ -104,18 +104,13 @@ pub(crate) struct EmbeddedStepper<'a> {
     t_end: f64,
     hmax: f64,
     absh: f64,
-    /// Start of the last accepted step, its (purified) size and end.
-    t: f64,
+    /// Start and end of the last accepted step (the current state).
+    ends: StepEnds,
+    /// Its (purified) size.
     h: f64,
-    tnew: f64,
-    /// A step was accepted and `(tnew, ynew)` is the current state; the
-    /// next [`Stepper::step`] first advances to it.
-    pending: bool,
     /// `post_step` changed `ynew`: `f(tnew, ynew)` is in `f_post`, not in
     /// the last stage.
     post_changed: bool,
-    y: Vec<f64>,
-    ynew: Vec<f64>,
     ytmp: Vec<f64>,
     f_post: Vec<f64>,
     k: Vec<f64>,
@@ -157,13 +152,9 @@ impl<'a> EmbeddedStepper<'a> {
             t_end,
             hmax: htspan.min(opts.max_step.map_or(0.1 * htspan, f64::abs)),
             absh: 0.0,
-            t: t0,
+            ends: StepEnds::new(t0, y0),
             h: 0.0,
-            tnew: t0,
-            pending: false,
             post_changed: false,
-            y: y0.to_vec(),
-            ynew: vec![0.0; n],
             ytmp: vec![0.0; n],
             f_post: vec![0.0; n],
             k: vec![0.0; tab.stages() * n],
@@ -175,12 +166,12 @@ impl<'a> EmbeddedStepper<'a> {
 
 impl Stepper for EmbeddedStepper<'_> {
     fn start(&mut self) -> Result<(), Failure> {
-        let n = self.y.len();
-        let t = self.t;
+        let n = self.ends.y.len();
+        let t = self.ends.t;
         call_rhs(
             self.sys,
             t,
-            &self.y,
+            &self.ends.y,
             &mut self.k[..n],
             &mut self.stats,
             None,
@@ -191,7 +182,7 @@ impl Stepper for EmbeddedStepper<'_> {
             Some(htry) => self.hmax.min(hmin.max(htry)),
             None => {
                 let mut absh = self.hmax.min((self.t_end - t).abs());
-                let rh = error_norm(&self.k[..n], &self.y, &self.y, &self.threshold)
+                let rh = error_norm(&self.k[..n], &self.ends.y, &self.ends.y, &self.threshold)
                     / (0.8 * self.rtol.powf(pow));
                 if absh * rh > 1.0 {
                     absh = 1.0 / rh;
@@ -204,19 +195,16 @@ impl Stepper for EmbeddedStepper<'_> {
 
     fn step(&mut self) -> Result<bool, Failure> {
         let tab = self.tab;
-        let (n, s, pow, rtol) = (self.y.len(), tab.stages(), tab.pow, self.rtol);
-        if self.pending {
-            // Advance; reuse f(tnew, ynew) as the first stage (FSAL).
-            self.pending = false;
-            self.t = self.tnew;
-            std::mem::swap(&mut self.y, &mut self.ynew);
+        let (n, s, pow, rtol) = (self.ends.y.len(), tab.stages(), tab.pow, self.rtol);
+        if self.ends.advance() {
+            // reuse f(tnew, ynew) as the first stage (FSAL)
             if self.post_changed {
                 self.k[..n].copy_from_slice(&self.f_post);
             } else {
                 self.k.copy_within((s - 1) * n.., 0);
             }
         }
-        let t = self.t;
+        let t = self.ends.t;
         let hmin = 16.0 * common::eps(t);
         let mut absh = self.hmax.min(hmin.max(self.absh));
         let mut h = absh;
@@ -236,7 +224,7 @@ impl Stepper for EmbeddedStepper<'_> {
                 self.sys,
                 t,
                 h,
-                &self.y,
+                &self.ends.y,
                 tab.c,
                 tab.a,
                 1..=s - 2,
@@ -246,8 +234,8 @@ impl Stepper for EmbeddedStepper<'_> {
             )?;
             let tnew = if done { self.t_end } else { t + h };
             h = tnew - t; // purify h
-            lincomb(&mut self.ynew, &self.y, h, tab.b(), k);
-            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+            lincomb(&mut self.ends.ynew, &self.ends.y, h, tab.b(), k);
+            if let Some((index, value)) = common::first_non_finite(&self.ends.ynew) {
                 return Err(Failure::NonFinite {
                     what: "step",
                     t: tnew,
@@ -259,14 +247,14 @@ impl Stepper for EmbeddedStepper<'_> {
             call_rhs(
                 self.sys,
                 tnew,
-                &self.ynew,
+                &self.ends.ynew,
                 &mut k[(s - 1) * n..],
                 &mut self.stats,
                 Some(t),
             )?;
 
             weighted_sum(&mut self.ytmp, 1.0, tab.e, k);
-            let err = absh * error_norm(&self.ytmp, &self.y, &self.ynew, &self.threshold);
+            let err = absh * error_norm(&self.ytmp, &self.ends.y, &self.ends.ynew, &self.threshold);
 
             if err > rtol {
                 self.stats.failed_steps += 1;
@@ -299,31 +287,26 @@ impl Stepper for EmbeddedStepper<'_> {
         }
         self.absh = absh;
         self.h = h;
-        self.tnew = tnew;
         self.post_changed = post_step(
             self.sys,
             tnew,
-            &mut self.ynew,
+            &mut self.ends.ynew,
             &mut self.f_post,
             &mut self.stats,
         )?;
-        self.pending = true;
+        self.ends.accept(tnew);
         Ok(done)
     }
 
     fn state(&self) -> (f64, &[f64]) {
-        if self.pending {
-            (self.tnew, &self.ynew)
-        } else {
-            (self.t, &self.y)
-        }
+        self.ends.current()
     }
 
     /// The continuous extension of `ntrp23.m` / `ntrp45.m`.
     fn interpolate(&self, tk: f64, out: &mut [f64]) {
         let tab = self.tab;
         let deg = tab.interp_degree();
-        let sigma = (tk - self.t) / self.h;
+        let sigma = (tk - self.ends.t) / self.h;
         let mut w = [0.0; MAX_STAGES];
         for (wj, row) in w.iter_mut().zip(tab.bi) {
             // Σ_p BI[j][p]·σ^(p+1), as cumprod([σ;σ;…]) in ntrp23/ntrp45.
@@ -333,7 +316,7 @@ impl Stepper for EmbeddedStepper<'_> {
                 *wj += bjp * sp;
             }
         }
-        lincomb(out, &self.y, self.h, &w[..tab.stages()], &self.k);
+        lincomb(out, &self.ends.y, self.h, &w[..tab.stages()], &self.k);
     }
 
     fn warnings(&self) -> &[String] {

@@ -1,6 +1,6 @@
 //! Classic four-stage, fourth-order Runge–Kutta method with a fixed step.
 
-use super::common::{self, call_rhs, eval_stages, lincomb, post_step};
+use super::common::{self, call_rhs, eval_stages, lincomb, post_step, StepEnds};
 use super::driver::{self, Failure, Stepper};
 use super::hermite::cubic;
 use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
@@ -67,11 +67,7 @@ impl Integrator for Rk4 {
             t_end,
             h,
             nsteps: step_count(t_end - t0, h),
-            t: t0,
-            tnew: t0,
-            pending: false,
-            y: y0.to_vec(),
-            ynew: vec![0.0; n],
+            ends: StepEnds::new(t0, y0),
             ytmp: vec![0.0; n],
             k: vec![0.0; 5 * n],
             stats: Stats::default(),
@@ -94,13 +90,8 @@ struct Rk4Stepper<'a> {
     t_end: f64,
     h: f64,
     nsteps: usize,
-    /// Start and end of the last accepted step.
-    t: f64,
-    tnew: f64,
-    /// `(tnew, ynew)` is the current state; the next step first advances.
-    pending: bool,
-    y: Vec<f64>,
-    ynew: Vec<f64>,
+    /// Start and end of the last accepted step (the current state).
+    ends: StepEnds,
     ytmp: Vec<f64>,
     /// k_1..k_4 followed by f(t_new, y_new).
     k: Vec<f64>,
@@ -109,11 +100,11 @@ struct Rk4Stepper<'a> {
 
 impl Stepper for Rk4Stepper<'_> {
     fn start(&mut self) -> Result<(), Failure> {
-        let n = self.y.len();
+        let n = self.ends.y.len();
         call_rhs(
             self.sys,
-            self.t,
-            &self.y,
+            self.ends.t,
+            &self.ends.y,
             &mut self.k[..n],
             &mut self.stats,
             None,
@@ -121,14 +112,11 @@ impl Stepper for Rk4Stepper<'_> {
     }
 
     fn step(&mut self) -> Result<bool, Failure> {
-        let n = self.y.len();
-        if self.pending {
-            self.pending = false;
-            self.t = self.tnew;
-            std::mem::swap(&mut self.y, &mut self.ynew);
+        let n = self.ends.y.len();
+        if self.ends.advance() {
             self.k.copy_within(4 * n.., 0);
         }
-        let (i, t) = (self.stats.steps, self.t);
+        let (i, t) = (self.stats.steps, self.ends.t);
         let done = i + 1 >= self.nsteps;
         let tnew = if done {
             self.t_end
@@ -141,7 +129,7 @@ impl Stepper for Rk4Stepper<'_> {
             self.sys,
             t,
             hs,
-            &self.y,
+            &self.ends.y,
             &RK4_C,
             &RK4_A,
             1..=3,
@@ -149,8 +137,8 @@ impl Stepper for Rk4Stepper<'_> {
             &mut self.ytmp,
             &mut self.stats,
         )?;
-        lincomb(&mut self.ynew, &self.y, hs, &RK4_B, &k[..4 * n]);
-        if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+        lincomb(&mut self.ends.ynew, &self.ends.y, hs, &RK4_B, &k[..4 * n]);
+        if let Some((index, value)) = common::first_non_finite(&self.ends.ynew) {
             return Err(Failure::NonFinite {
                 what: "step",
                 t: tnew,
@@ -162,7 +150,7 @@ impl Stepper for Rk4Stepper<'_> {
         call_rhs(
             self.sys,
             tnew,
-            &self.ynew,
+            &self.ends.ynew,
             &mut k[4 * n..],
             &mut self.stats,
             Some(t),
@@ -171,27 +159,30 @@ impl Stepper for Rk4Stepper<'_> {
         // A projected end state gets its own f, so the Hermite cubic joins
         // consistent end data.
         let (_, f1) = self.k.split_at_mut(4 * n);
-        post_step(self.sys, tnew, &mut self.ynew, f1, &mut self.stats)?;
-        self.tnew = tnew;
-        self.pending = true;
+        post_step(self.sys, tnew, &mut self.ends.ynew, f1, &mut self.stats)?;
+        self.ends.accept(tnew);
         Ok(done)
     }
 
     fn state(&self) -> (f64, &[f64]) {
-        if self.pending {
-            (self.tnew, &self.ynew)
-        } else {
-            (self.t, &self.y)
-        }
+        self.ends.current()
     }
 
     /// Cubic Hermite of `y` and `f` at both ends of the step.
     fn interpolate(&self, tk: f64, out: &mut [f64]) {
-        let n = self.y.len();
-        let hs = self.tnew - self.t;
+        let n = self.ends.y.len();
+        let hs = self.ends.tnew - self.ends.t;
         let (f0, rest) = self.k.split_at(n);
         let f1 = &rest[3 * n..];
-        cubic(out, (tk - self.t) / hs, hs, &self.y, f0, &self.ynew, f1);
+        cubic(
+            out,
+            (tk - self.ends.t) / hs,
+            hs,
+            &self.ends.y,
+            f0,
+            &self.ends.ynew,
+            f1,
+        );
     }
 
     fn stats(&self) -> Stats {
