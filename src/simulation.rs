@@ -330,6 +330,7 @@ struct Watch<'s, 'm, 'd, 'k> {
     /// Eq. (5) at the output states, for q̈ and λ.
     extras: Option<Index1<'s>>,
     qdd: Vec<f64>,
+    reaction_map: crate::model::ReactionMap,
     reactions: Vec<f64>,
     warned_extras: bool,
     /// Integrator notices already shown through the sink (the first ones of
@@ -402,6 +403,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             outputs: o,
             extras,
             qdd: vec![0.0; sys.n_coords()],
+            reaction_map: sys.reaction_map(),
             reactions: vec![0.0; 3 * sys.constraints().len()],
             warned_extras: false,
             forwarded: 0,
@@ -602,8 +604,12 @@ impl Observer for Watch<'_, '_, '_, '_> {
                 Ok(()) => {
                     have_extras = true;
                     if self.outputs.reactions {
-                        self.sys
-                            .joint_reactions(&self.jac, f.lambda(), &mut self.reactions);
+                        self.sys.joint_reactions(
+                            &self.reaction_map,
+                            &self.jac,
+                            f.lambda(),
+                            &mut self.reactions,
+                        );
                     }
                 }
                 Err(e) => {

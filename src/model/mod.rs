@@ -25,6 +25,7 @@ pub use constraint::{check_bodies, touched_columns, Constraint, JointGeometry};
 pub use energy::EnergyWorkspace;
 pub use force::{check_coordinates, FdWorkspace, ForceElement};
 pub use gravity::Gravity;
+pub use reaction::ReactionMap;
 pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};
 pub use time_function::TimeFunction;
 

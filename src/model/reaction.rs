@@ -8,35 +8,50 @@
 
 use super::{BodyRef, System};
 
+/// Which joint each constraint row belongs to and which body each joint's
+/// reaction is reported on: its second body (`body_j`), or the first when
+/// the second is the ground (`None` for a joint on the ground only).
+/// Computed once per system ([`System::reaction_map`]).
+#[derive(Debug, Clone)]
+pub struct ReactionMap {
+    joint_of_row: Vec<usize>,
+    bodies: Vec<Option<usize>>,
+}
+
+impl ReactionMap {
+    /// The body joint `joint`'s reaction acts on.
+    pub fn body(&self, joint: usize) -> Option<usize> {
+        self.bodies[joint]
+    }
+}
+
 impl System {
-    /// The body a joint's reaction is reported on: its second body
-    /// (`body_j`), or the first when the second is the ground. `None` for a
-    /// joint on the ground only.
-    pub fn reaction_body(&self, joint: usize) -> Option<usize> {
-        let bodies = self.constraints()[joint].bodies();
-        bodies.iter().rev().find_map(|b| match b {
-            BodyRef::Body(i) => Some(*i),
-            BodyRef::Ground => None,
-        })
+    /// The [`ReactionMap`] of this system.
+    pub fn reaction_map(&self) -> ReactionMap {
+        let mut joint_of_row = Vec::with_capacity(self.n_constraints());
+        let mut bodies = Vec::with_capacity(self.constraints().len());
+        for (k, c) in self.constraints().iter().enumerate() {
+            joint_of_row.extend(std::iter::repeat_n(k, c.n_eq()));
+            bodies.push(c.bodies().iter().rev().find_map(|b| match b {
+                BodyRef::Body(i) => Some(*i),
+                BodyRef::Ground => None,
+            }));
+        }
+        ReactionMap {
+            joint_of_row,
+            bodies,
+        }
     }
 
-    /// Reactions of every joint on its [`System::reaction_body`]:
+    /// Reactions of every joint on its [`ReactionMap::body`]:
     /// `out[3k..3k+3] = (f_x, f_y, m_z)` of joint k = `−(Φ_qᵀ λ)` restricted
     /// to its rows and that body's coordinates, from the Jacobian values
-    /// `jac` (in [`System::jacobian_pattern`] order) and `λ`.
-    pub fn joint_reactions(&self, jac: &[f64], lambda: &[f64], out: &mut [f64]) {
-        let nj = self.constraints().len();
-        out[..3 * nj].fill(0.0);
-        // joint of each constraint row
-        let mut joint_of_row = Vec::with_capacity(self.n_constraints());
-        for k in 0..nj {
-            let rows = self.constraints()[k].n_eq();
-            joint_of_row.extend(std::iter::repeat_n(k, rows));
-        }
-        let targets: Vec<Option<usize>> = (0..nj).map(|k| self.reaction_body(k)).collect();
+    /// `jac` (in [`System::jacobian_pattern`] order) and `λ`. No allocation.
+    pub fn joint_reactions(&self, map: &ReactionMap, jac: &[f64], lambda: &[f64], out: &mut [f64]) {
+        out[..3 * map.bodies.len()].fill(0.0);
         for (&(r, c), &v) in self.jacobian_pattern().iter().zip(jac) {
-            let k = joint_of_row[r];
-            if targets[k] == Some(c / 3) {
+            let k = map.joint_of_row[r];
+            if map.bodies[k] == Some(c / 3) {
                 out[3 * k + c % 3] -= v * lambda[r];
             }
         }

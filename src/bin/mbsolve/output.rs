@@ -1,6 +1,6 @@
 //! Outputs: time series as CSV, run summaries as JSON (figures: `figure`).
 
-use mbsolve::model::System;
+use mbsolve::model::{ReactionMap, System};
 use mbsolve::simulation::{OutputQuantities, Sample, Summary};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -104,7 +104,7 @@ pub fn csv_header(sys: &System, o: &OutputQuantities) -> String {
 
 /// One trajectory CSV row (with its newline) into `buf`, in the order of
 /// [`csv_columns`]; a missing value (a failed evaluation) is `NaN`.
-pub fn csv_row(buf: &mut String, sys: &System, s: &Sample<'_>, o: &OutputQuantities) {
+pub fn csv_row(buf: &mut String, map: &ReactionMap, s: &Sample<'_>, o: &OutputQuantities) {
     use std::fmt::Write as _;
     buf.clear();
     let mut put = |v: f64| {
@@ -126,13 +126,13 @@ pub fn csv_row(buf: &mut String, sys: &System, s: &Sample<'_>, o: &OutputQuantit
         }
     }
     if o.reactions {
-        let nj = sys.constraints().len();
+        let nj = s.reactions.map_or(0, |r| r.len() / 3);
         for k in 0..nj {
             let r = s
                 .reactions
                 .map_or([f64::NAN; 3], |r| [r[3 * k], r[3 * k + 1], r[3 * k + 2]]);
             // in the frame of the body the reaction acts on: rotate by −φ
-            let phi = sys.reaction_body(k).map_or(0.0, |b| s.q[3 * b + 2]);
+            let phi = map.body(k).map_or(0.0, |b| s.q[3 * b + 2]);
             let (sn, cs) = phi.sin_cos();
             for v in [
                 r[0],

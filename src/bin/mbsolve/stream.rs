@@ -10,7 +10,7 @@ use crate::output::{
     write_summary_json, OutputError,
 };
 use mbsolve::integrate::Stats;
-use mbsolve::model::System;
+use mbsolve::model::{ReactionMap, System};
 use mbsolve::simulation::{OutputQuantities, Sample, Sink, Summary};
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
@@ -128,7 +128,7 @@ impl Progress {
 
 /// The files of one run: `DIR/<stem>.csv` (streamed as
 /// `DIR/<stem>.csv.part`) and `DIR/<stem>.summary.json`.
-pub struct RunFiles<'a> {
+pub struct RunFiles {
     /// Final CSV path.
     pub csv: PathBuf,
     /// Summary JSON path.
@@ -142,11 +142,12 @@ pub struct RunFiles<'a> {
     pub progress: Option<Progress>,
     /// Warnings seen while running (printed as they come).
     pub warnings: usize,
-    system: &'a System,
+    /// The body each joint's reaction acts on (the local-frame columns).
+    reactions: ReactionMap,
     quantities: OutputQuantities,
 }
 
-impl<'a> RunFiles<'a> {
+impl RunFiles {
     /// Check and claim the output files before the run starts: the
     /// directory exists (or is created) and is writable, a `"running"`
     /// summary replaces any previous run's summary, a previous CSV is
@@ -154,7 +155,7 @@ impl<'a> RunFiles<'a> {
     pub fn create(
         out: &Path,
         stem: &str,
-        sys: &'a System,
+        sys: &System,
         quantities: OutputQuantities,
         running: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Self, OutputError> {
@@ -179,7 +180,7 @@ impl<'a> RunFiles<'a> {
             row: String::new(),
             progress: None,
             warnings: 0,
-            system: sys,
+            reactions: sys.reaction_map(),
             quantities,
         })
     }
@@ -200,7 +201,7 @@ impl<'a> RunFiles<'a> {
     }
 }
 
-impl RunFiles<'_> {
+impl RunFiles {
     /// The run could not start: no CSV, a summary that says so.
     pub fn abandon(&mut self, message: &str) -> Result<(), OutputError> {
         self.writer = None;
@@ -211,10 +212,10 @@ impl RunFiles<'_> {
     }
 }
 
-impl Sink for RunFiles<'_> {
+impl Sink for RunFiles {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let w = self.writer.as_mut().ok_or("output already closed")?;
-        csv_row(&mut self.row, self.system, s, &self.quantities);
+        csv_row(&mut self.row, &self.reactions, s, &self.quantities);
         w.write_all(self.row.as_bytes())
             .map_err(|e| OutputError::new(&self.part, e))?;
         self.rows += 1;
