@@ -24,12 +24,16 @@
 use super::{ForceElement, System};
 
 /// Scratch for [`System::nonconservative_power`] and
-/// [`System::constraint_power`] (sized at first use; no allocation after).
+/// [`System::constraint_power`]: buffers and, per force element, its
+/// coordinates and whether it has a potential (both found at first use;
+/// no allocation after).
 #[derive(Debug, Clone, Default)]
 pub struct EnergyWorkspace {
     g: Vec<f64>,
     q: Vec<f64>,
     phi_t: Vec<f64>,
+    cols: Vec<Vec<usize>>,
+    has_potential: Vec<bool>,
 }
 
 impl System {
@@ -56,18 +60,26 @@ impl System {
         if ws.g.len() != n {
             ws.g = vec![0.0; n];
         }
+        if ws.cols.len() != self.forces().len() {
+            ws.cols = self.forces().iter().map(|f| f.coordinates()).collect();
+            ws.has_potential = self
+                .forces()
+                .iter()
+                .map(|f| f.potential_energy(q).is_some())
+                .collect();
+        }
         ws.q.clear();
         ws.q.extend_from_slice(q);
         let mut p = 0.0;
-        for f in self.forces() {
-            let cols = f.coordinates();
+        for (e, f) in self.forces().iter().enumerate() {
+            let cols = &ws.cols[e];
             f.add_forces(t, q, qd, &mut ws.g);
-            for &c in &cols {
+            for &c in cols {
                 p += qd[c] * ws.g[c];
                 ws.g[c] = 0.0;
             }
-            if f.potential_energy(q).is_some() {
-                p += potential_rate(f.as_ref(), &cols, q, qd, &mut ws.q);
+            if ws.has_potential[e] {
+                p += potential_rate(f.as_ref(), cols, q, qd, &mut ws.q);
             }
         }
         p
