@@ -49,22 +49,50 @@ quantities = ["velocities", "accelerations", "reactions", "energy"]
     )
 }
 
-fn run(dir: &std::path::Path, method: &str) -> (Vec<String>, Vec<Vec<f64>>) {
-    let path = dir.join("physical_pendulum.toml");
-    std::fs::write(&path, scenario(method)).unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(["run", path.to_str().unwrap(), "--progress", "off", "--out"])
+/// A run's CSV: its header and rows, columns found by name.
+struct Table {
+    header: Vec<String>,
+    rows: Vec<Vec<f64>>,
+}
+
+impl Table {
+    fn col(&self, name: &str) -> usize {
+        self.header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("column {name} in {:?}", self.header))
+    }
+}
+
+/// `mbsolve run SCENARIO --set … --out DIR`, which must succeed, and the
+/// CSV it wrote.
+fn mbsolve_run(scenario: &std::path::Path, sets: &[&str], dir: &std::path::Path) -> Table {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_mbsolve"));
+    cmd.arg("run").arg(scenario);
+    for s in sets {
+        cmd.args(["--set", s]);
+    }
+    let o = cmd
+        .args(["--progress", "off", "--out"])
         .arg(dir)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(dir.join("physical_pendulum.csv")).unwrap();
+    let stem = scenario.file_stem().unwrap().to_str().unwrap();
+    let text = std::fs::read_to_string(dir.join(format!("{stem}.csv"))).unwrap();
     let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
     let rows = lines
         .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
         .collect();
-    (header, rows)
+    Table { header, rows }
+}
+
+fn run(dir: &std::path::Path, method: &str) -> (Vec<String>, Vec<Vec<f64>>) {
+    let path = dir.join("physical_pendulum.toml");
+    std::fs::write(&path, scenario(method)).unwrap();
+    let t = mbsolve_run(&path, &[], dir);
+    (t.header, t.rows)
 }
 
 #[test]
@@ -188,42 +216,22 @@ step = 1e-4"#,
 fn energy_balance_columns_on_the_torque_driven_four_bar() {
     let dir = tempfile::tempdir().unwrap();
     let fourbar = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .arg("run")
-        .arg(&fourbar)
-        .args([
-            "--set",
+    let table = mbsolve_run(
+        &fourbar,
+        &[
             "integrator.method=ode45",
-            "--set",
             "integrator.rtol=1e-10",
-        ])
-        .args([
-            "--set",
             "integrator.atol=1e-12",
-            "--set",
             "output.quantities=[\"energy\"]",
-        ])
-        .args(["--progress", "off", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(dir.path().join("fourbar.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |n: &str| {
-        header
-            .iter()
-            .position(|h| *h == n)
-            .unwrap_or_else(|| panic!("{n}"))
-    };
-    let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+        ],
+        dir.path(),
+    );
+    let col = |n: &str| table.col(n);
+    let rows = &table.rows;
     let phi0 = rows[0][col("phi1")];
     let e0 = rows[0][col("total_energy")];
     let (mut max_w, mut max_e, mut max_work) = (0.0f64, 0.0f64, 0.0f64);
-    for r in &rows {
+    for r in rows {
         let w = r[col("work_nonconservative")];
         max_w = max_w.max((w - 0.5 * (r[col("phi1")] - phi0)).abs());
         max_e = max_e.max(r[col("energy_balance_error")].abs());
@@ -260,31 +268,15 @@ fn energy_balance_columns_on_the_torque_driven_four_bar() {
 fn slider_crank_reactions_match_newton_euler_inverse_dynamics() {
     let dir = tempfile::tempdir().unwrap();
     let scen = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/slider_crank.toml");
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .arg("run")
-        .arg(&scen)
-        .args(["--progress", "off", "--out"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(dir.path().join("slider_crank.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |n: &str| {
-        header
-            .iter()
-            .position(|h| *h == n)
-            .unwrap_or_else(|| panic!("{n}"))
-    };
+    let table = mbsolve_run(&scen, &[], dir.path());
+    let col = |n: &str| table.col(n);
     let (r, l, w, g) = (0.1, 0.3, 10.0, 9.81);
     let (mc, mr, ms) = (0.2, 0.6, 0.5);
     let (ic, ir) = (mc * r * r / 12.0, mr * l * l / 12.0);
     let cross = |u: [f64; 2], v: [f64; 2]| u[0] * v[1] - u[1] * v[0];
     let mut worst: f64 = 0.0;
     let mut rows = 0;
-    for line in lines {
-        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+    for v in &table.rows {
         let t = v[col("t")];
         let th = w * t;
         let (s, c) = th.sin_cos();
