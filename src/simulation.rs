@@ -108,14 +108,21 @@ impl Default for RunConfig {
 impl RunConfig {
     /// Output times `t0, t0 + dt, …`, ending exactly at `t_end`.
     pub fn output_times(&self) -> Vec<f64> {
-        let n = ((self.t_end - self.t0) / self.output_dt - 1e-9)
-            .ceil()
-            .max(1.0) as usize;
+        let n = self.output_intervals() as usize;
         let mut t: Vec<f64> = (0..n)
             .map(|k| self.t0 + k as f64 * self.output_dt)
             .collect();
         t.push(self.t_end);
         t
+    }
+
+    /// Number of output times before `t_end` (at least 1), as an `f64` so
+    /// that a huge count can be checked before anything is allocated;
+    /// [`RunConfig::output_times`] has one more.
+    pub fn output_intervals(&self) -> f64 {
+        ((self.t_end - self.t0) / self.output_dt - 1e-9)
+            .ceil()
+            .max(1.0)
     }
 }
 

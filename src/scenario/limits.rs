@@ -91,10 +91,7 @@ fn resolvable(key: &str, h: f64, run: &RunConfig, file: &str) -> Result<(), Scen
 /// The number of output times of `run` (as [`RunConfig::output_times`]
 /// makes them), computed without allocating.
 pub fn output_count(run: &RunConfig) -> f64 {
-    ((run.t_end - run.t0) / run.output_dt - 1e-9)
-        .ceil()
-        .max(1.0)
-        + 1.0
+    run.output_intervals() + 1.0
 }
 
 /// Estimated peak memory of a run \[bytes\] with `bodies` bodies and
