@@ -692,6 +692,21 @@ fn add_force(
     let body_index = |fld: &str, n: &Option<String>| {
         body_index(names, file, key(fld), n.as_deref().unwrap_or_default())
     };
+    // `body_i` and `body_j` of a two-body element, which must differ
+    let two_bodies = |what: &str| {
+        let body_i = body_ref("body_i", &f.body_i)?;
+        let body_j = body_ref("body_j", &f.body_j)?;
+        if body_i == body_j {
+            return Err(err(
+                "body_j",
+                format!(
+                    "{what} must connect two different bodies, got '{}' twice",
+                    f.body_j.as_deref().unwrap_or_default()
+                ),
+            ));
+        }
+        Ok((body_i, body_j))
+    };
     let finite = |fld: &str, v: f64| {
         if v.is_finite() {
             Ok(v)
@@ -768,17 +783,7 @@ fn add_force(
             });
         }
         "spring" => {
-            let body_i = body_ref("body_i", &f.body_i)?;
-            let body_j = body_ref("body_j", &f.body_j)?;
-            if body_i == body_j {
-                return Err(err(
-                    "body_j",
-                    format!(
-                        "a spring must connect two different bodies, got '{}' twice",
-                        f.body_j.as_deref().unwrap_or_default()
-                    ),
-                ));
-            }
+            let (body_i, body_j) = two_bodies("a spring")?;
             let s = PointSpringDamper {
                 body_i,
                 point_i: point("point_i", f.point_i)?,
@@ -800,17 +805,7 @@ fn add_force(
             builder.add_force(s);
         }
         "rotational_spring" => {
-            let body_i = body_ref("body_i", &f.body_i)?;
-            let body_j = body_ref("body_j", &f.body_j)?;
-            if body_i == body_j {
-                return Err(err(
-                    "body_j",
-                    format!(
-                        "a rotational spring must connect two different bodies, got '{}' twice",
-                        f.body_j.as_deref().unwrap_or_default()
-                    ),
-                ));
-            }
+            let (body_i, body_j) = two_bodies("a rotational spring")?;
             let rest_angle = match (f.rest_angle, f.rest_angle_deg) {
                 (Some(_), Some(_)) => {
                     return Err(err(
