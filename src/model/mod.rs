@@ -27,7 +27,9 @@ pub use energy::EnergyWorkspace;
 pub use force::{check_coordinates, FdWorkspace, ForceElement};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
-pub use sensor::{evaluate_sensors, joint_short_name, point_state, Sensor, SensorKind};
+pub use sensor::{
+    drives, evaluate_sensors, joint_short_name, point_state, Drive, Sensor, SensorKind,
+};
 pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};
 pub use time_function::TimeFunction;
 

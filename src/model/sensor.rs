@@ -160,3 +160,38 @@ pub fn evaluate_sensors(
         s.evaluate(sys, t, q, qd, out);
     }
 }
+
+/// A drive of the system: its joint, its (single) constraint row and the
+/// unit of its generalized force ([`Constraint::drive_unit`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Drive {
+    /// Index into [`System::constraints`].
+    pub joint: usize,
+    /// Its row of Φ.
+    pub row: usize,
+    /// `"N"` or `"N m"`.
+    pub unit: &'static str,
+}
+
+impl Drive {
+    /// The drive's generalized force on its driven coordinate, `−λ_row`
+    /// (from `M q̈ + Φ_qᵀλ = g` with `∂Φ_row/∂q_driven = 1`): the torque
+    /// \[N m\] a relative-angle drive applies to its body j (body i gets
+    /// its opposite), the force \[N\] or torque a coordinate drive applies.
+    pub fn force(&self, lambda: &[f64]) -> f64 {
+        -lambda[self.row]
+    }
+}
+
+/// The drives of `sys`, in joint order.
+pub fn drives(sys: &System) -> Vec<Drive> {
+    let mut row = 0;
+    let mut out = Vec::new();
+    for (joint, c) in sys.constraints().iter().enumerate() {
+        if let Some(unit) = c.drive_unit() {
+            out.push(Drive { joint, row, unit });
+        }
+        row += c.n_eq();
+    }
+    out
+}

@@ -260,6 +260,10 @@ fn run(
             a.iterations
         );
     }
+    let assembly = check::assembly_moves(&sc);
+    if let Some((text, _)) = &assembly {
+        report!("assembly moved the bodies {text}");
+    }
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -268,7 +272,7 @@ fn run(
     let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let digest = sha2::Sha256::digest(&text);
     let hash: String = digest.iter().map(|b| format!("{b:02x}")).collect();
-    let provenance = [
+    let mut provenance = vec![
         ("scenario", serde_json::json!(path.display().to_string())),
         ("scenario_sha256", serde_json::json!(hash)),
         ("overrides", serde_json::json!(set)),
@@ -277,6 +281,9 @@ fn run(
             serde_json::json!(env!("CARGO_PKG_VERSION")),
         ),
     ];
+    if let Some((_, json)) = assembly {
+        provenance.push(("initial_assembly", json));
+    }
     let mut running = serde_json::Map::new();
     running.insert("status".into(), "running".into());
     running.insert(
@@ -286,8 +293,9 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
-    let mut files = stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, &running)
-        .map_err(|e| e.to_string())?;
+    let layout = output::Layout::new(&sc.system, sc.run.outputs, &sc.sensors);
+    let mut files =
+        stream::RunFiles::create(out, &stem, layout, &running).map_err(|e| e.to_string())?;
     files.progress = stream::Progress::new(
         if quiet {
             stream::ProgressMode::Off

@@ -6,12 +6,10 @@
 //! with status `"interrupted"`.
 
 use crate::output::{
-    columns_json, create_fresh, csv_header, csv_row, remove_stale, sibling, write_atomic,
-    write_summary_json, OutputError,
+    create_fresh, remove_stale, sibling, write_atomic, write_summary_json, Layout, OutputError,
 };
 use mbsolve::integrate::Stats;
-use mbsolve::model::{ReactionMap, System};
-use mbsolve::simulation::{OutputQuantities, Sample, Sink, Summary};
+use mbsolve::simulation::{Sample, Sink, Summary};
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::ops::ControlFlow;
@@ -128,7 +126,7 @@ impl Progress {
 
 /// The files of one run: `DIR/<stem>.csv` (streamed as
 /// `DIR/<stem>.csv.part`) and `DIR/<stem>.summary.json`.
-pub struct RunFiles {
+pub struct RunFiles<'s> {
     /// Final CSV path.
     pub csv: PathBuf,
     /// Summary JSON path.
@@ -142,12 +140,11 @@ pub struct RunFiles {
     pub progress: Option<Progress>,
     /// Warnings seen while running (printed as they come).
     pub warnings: usize,
-    /// The body each joint's reaction acts on (the local-frame columns).
-    reactions: ReactionMap,
-    quantities: OutputQuantities,
+    /// The CSV columns.
+    layout: Layout<'s>,
 }
 
-impl RunFiles {
+impl<'s> RunFiles<'s> {
     /// Check and claim the output files before the run starts: the
     /// directory exists (or is created) and is writable, a `"running"`
     /// summary replaces any previous run's summary, a previous CSV is
@@ -155,8 +152,7 @@ impl RunFiles {
     pub fn create(
         out: &Path,
         stem: &str,
-        sys: &System,
-        quantities: OutputQuantities,
+        layout: Layout<'s>,
         running: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Self, OutputError> {
         std::fs::create_dir_all(out).map_err(|e| OutputError::new(out, e))?;
@@ -167,9 +163,9 @@ impl RunFiles {
         write_atomic(&json, &(text + "\n"))?;
         remove_stale(&csv)?;
         let mut w = BufWriter::with_capacity(1 << 16, create_fresh(&part)?);
-        writeln!(w, "{}", csv_header(sys, &quantities)).map_err(|e| OutputError::new(&part, e))?;
+        writeln!(w, "{}", layout.header()).map_err(|e| OutputError::new(&part, e))?;
         let columns = out.join(format!("{stem}.columns.json"));
-        write_atomic(&columns, &columns_json(sys, &quantities))?;
+        write_atomic(&columns, &layout.columns_json())?;
         Ok(Self {
             csv,
             json,
@@ -180,8 +176,7 @@ impl RunFiles {
             row: String::new(),
             progress: None,
             warnings: 0,
-            reactions: sys.reaction_map(),
-            quantities,
+            layout,
         })
     }
 
@@ -201,7 +196,7 @@ impl RunFiles {
     }
 }
 
-impl RunFiles {
+impl RunFiles<'_> {
     /// The run could not start: no CSV, a summary that says so.
     pub fn abandon(&mut self, message: &str) -> Result<(), OutputError> {
         self.writer = None;
@@ -212,10 +207,10 @@ impl RunFiles {
     }
 }
 
-impl Sink for RunFiles {
+impl Sink for RunFiles<'_> {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let w = self.writer.as_mut().ok_or("output already closed")?;
-        csv_row(&mut self.row, &self.reactions, s, &self.quantities);
+        self.layout.row(&mut self.row, s);
         w.write_all(self.row.as_bytes())
             .map_err(|e| OutputError::new(&self.part, e))?;
         self.rows += 1;
