@@ -369,6 +369,9 @@ fn joint_lock(
     Ok((lock, k))
 }
 
+/// A revolute joint: its index, body i and its pin, body j and its pin.
+type Pin = (usize, BodyRef, [f64; 2], BodyRef, [f64; 2]);
+
 /// Smallest |sin| of a bend counted as bent (≈ 1.1°): closer to straight,
 /// a sign change is a pass through the stretched position, not a flip.
 const BEND_MIN: f64 = 0.02;
@@ -386,7 +389,7 @@ const BEND_MIN: f64 = 0.02;
 /// when neither it nor the joints at A and B are locked, and it counts as a
 /// flip when its bend changes with |sin| > 0.02 on both sides.
 fn branch_flip(system: &System, q_given: &[f64], q: &[f64], locked: &[usize]) -> Option<String> {
-    let pins: Vec<(usize, BodyRef, [f64; 2], BodyRef, [f64; 2])> = system
+    let pins: Vec<Pin> = system
         .constraints()
         .iter()
         .enumerate()

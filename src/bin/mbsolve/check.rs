@@ -175,31 +175,6 @@ pub fn command(path: &Path, set: &[String]) -> ExitCode {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rank_of_known_matrices_and_kinds() {
-        // rank 2: third row = first + second
-        let a = Mat::from_fn(3, 4, |i, j| match i {
-            0 => (j + 1) as f64,
-            1 => ((j * j) as f64).sin(),
-            _ => (j + 1) as f64 + ((j * j) as f64).sin(),
-        });
-        assert_eq!(rank(&a).unwrap(), 2);
-        assert_eq!(rank(&Mat::<f64>::identity(5, 5)).unwrap(), 5);
-        assert_eq!(rank(&Mat::<f64>::zeros(0, 6)).unwrap(), 0);
-        assert_eq!(kind("revolute joint 'A'"), "revolute joint");
-        assert_eq!(kind("drag on body 3"), "drag");
-        assert_eq!(
-            kind("point spring-damper Ground [0.0, 0.0] - Body(0)"),
-            "point spring-damper"
-        );
-        assert_eq!(kind("buoyancy (3 bodies)"), "buoyancy");
-    }
-}
-
 /// How far the assembly moved the bodies (`None` without an assembly): a
 /// line — the largest move of a centre of mass and the largest rotation,
 /// with their bodies — and the summary's `initial_assembly` object (those
@@ -240,4 +215,29 @@ pub fn assembly_moves(sc: &Scenario) -> Option<(String, serde_json::Value)> {
         "body_moves": moves,
     });
     Some((text, json))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rank_of_known_matrices_and_kinds() {
+        // rank 2: third row = first + second
+        let a = Mat::from_fn(3, 4, |i, j| match i {
+            0 => (j + 1) as f64,
+            1 => ((j * j) as f64).sin(),
+            _ => (j + 1) as f64 + ((j * j) as f64).sin(),
+        });
+        assert_eq!(rank(&a).unwrap(), 2);
+        assert_eq!(rank(&Mat::<f64>::identity(5, 5)).unwrap(), 5);
+        assert_eq!(rank(&Mat::<f64>::zeros(0, 6)).unwrap(), 0);
+        assert_eq!(kind("revolute joint 'A'"), "revolute joint");
+        assert_eq!(kind("drag on body 3"), "drag");
+        assert_eq!(
+            kind("point spring-damper Ground [0.0, 0.0] - Body(0)"),
+            "point spring-damper"
+        );
+        assert_eq!(kind("buoyancy (3 bodies)"), "buoyancy");
+    }
 }
