@@ -41,5 +41,6 @@ pub mod generated;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
+pub mod output;
 pub mod scenario;
 pub mod simulation;
