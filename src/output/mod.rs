@@ -13,6 +13,9 @@ pub use arrow::ArrowTable;
 
 use std::io::Write;
 
+use crate::model::{ReactionMap, System};
+use crate::simulation::{OutputQuantities, Sample};
+
 /// One output column: its name (`t`, `x1`, `B.fx`, …) and SI unit.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Column {
@@ -29,6 +32,135 @@ impl Column {
             name: name.into(),
             unit,
         }
+    }
+}
+
+/// The columns of a run's table: `t`, `x1,y1,phi1,…` (bodies 1-based),
+/// `constraint_norm`, then what `o` selects: velocities `vx1,vy1,omega1,…`,
+/// accelerations `ax1,ay1,alpha1,…`, per joint `J.fx,J.fy,J.mz` (reaction
+/// on its body, global frame, moment about the centre of mass) and
+/// `J.fx_local,J.fy_local` (in that body's frame),
+/// `kinetic_energy,potential_energy,total_energy` and the balance:
+/// `work_nonconservative` (work of non-conservative and constraint forces
+/// since t0), `energy_balance_error` (`T + V − E0 − W`).
+pub fn columns(sys: &System, o: &OutputQuantities) -> Vec<Column> {
+    let nb = sys.bodies().len();
+    let mut c = vec![Column::new("t", "s")];
+    for k in 0..sys.n_coords() {
+        c.push(Column::new(
+            System::coordinate_name(k),
+            if k % 3 == 2 { "rad" } else { "m" },
+        ));
+    }
+    c.push(Column::new("constraint_norm", "m"));
+    let per_body = |c: &mut Vec<Column>, names: [&str; 3], units: [&'static str; 3]| {
+        for i in 1..=nb {
+            for (n, u) in names.iter().zip(units) {
+                c.push(Column::new(format!("{n}{i}"), u));
+            }
+        }
+    };
+    if o.velocities {
+        per_body(&mut c, ["vx", "vy", "omega"], ["m/s", "m/s", "rad/s"]);
+    }
+    if o.accelerations {
+        per_body(&mut c, ["ax", "ay", "alpha"], ["m/s^2", "m/s^2", "rad/s^2"]);
+    }
+    if o.reactions {
+        for k in 0..sys.constraints().len() {
+            let j = joint_label(sys, k);
+            for (n, u) in [
+                ("fx", "N"),
+                ("fy", "N"),
+                ("mz", "N m"),
+                ("fx_local", "N"),
+                ("fy_local", "N"),
+            ] {
+                c.push(Column::new(format!("{j}.{n}"), u));
+            }
+        }
+    }
+    if o.energy {
+        for n in [
+            "kinetic_energy",
+            "potential_energy",
+            "total_energy",
+            "work_nonconservative",
+            "energy_balance_error",
+        ] {
+            c.push(Column::new(n, "J"));
+        }
+    }
+    c
+}
+
+/// The short name of joint `k` in column names (the quoted name in its
+/// description, else `joint<k+1>`).
+pub fn joint_label(sys: &System, k: usize) -> String {
+    let name = sys.constraints()[k].name();
+    match (name.find('\''), name.rfind('\'')) {
+        (Some(a), Some(b)) if b > a + 1 => name[a + 1..b].to_string(),
+        _ => format!("joint{}", k + 1),
+    }
+}
+
+/// The values of one row in the order of [`columns`], from a [`Sample`];
+/// a value that could not be evaluated is NaN.
+pub struct RowBuilder {
+    map: ReactionMap,
+    o: OutputQuantities,
+    row: Vec<f64>,
+}
+
+impl RowBuilder {
+    /// Rows of `sys` with the quantities `o`.
+    pub fn new(sys: &System, o: OutputQuantities) -> Self {
+        Self {
+            map: sys.reaction_map(),
+            o,
+            row: Vec::new(),
+        }
+    }
+
+    /// The row of `s` (valid until the next call).
+    pub fn row(&mut self, s: &Sample<'_>) -> &[f64] {
+        let (o, row) = (&self.o, &mut self.row);
+        row.clear();
+        row.push(s.t);
+        row.extend_from_slice(s.q);
+        row.push(s.constraint_norm);
+        if o.velocities {
+            row.extend_from_slice(s.qd);
+        }
+        if o.accelerations {
+            match s.qdd {
+                Some(a) => row.extend_from_slice(a),
+                None => row.extend(std::iter::repeat_n(f64::NAN, s.q.len())),
+            }
+        }
+        if o.reactions {
+            let nj = s.reactions.map_or(0, |r| r.len() / 3);
+            for k in 0..nj {
+                let r = s
+                    .reactions
+                    .map_or([f64::NAN; 3], |r| [r[3 * k], r[3 * k + 1], r[3 * k + 2]]);
+                // in the frame of the body the reaction acts on: rotate by −φ
+                let phi = self.map.body(k).map_or(0.0, |b| s.q[3 * b + 2]);
+                let (sn, cs) = phi.sin_cos();
+                row.extend([
+                    r[0],
+                    r[1],
+                    r[2],
+                    cs * r[0] + sn * r[1],
+                    -sn * r[0] + cs * r[1],
+                ]);
+            }
+        }
+        if o.energy {
+            let [k, p, w, e] = s.energy.unwrap_or([f64::NAN; 4]);
+            row.extend([k, p, k + p, w, e]);
+        }
+        &self.row
     }
 }
 
@@ -56,6 +188,16 @@ impl Format {
             Format::Csv => "csv",
             Format::Arrow => "arrow",
         }
+    }
+
+    /// How often a streaming writer should [`TableWriter::flush`]: every
+    /// second for CSV (whole rows on disk); a minute for Arrow, whose
+    /// short batches each carry a message header of 16 bytes per column.
+    pub fn flush_interval(self) -> std::time::Duration {
+        std::time::Duration::from_secs(match self {
+            Format::Csv => 1,
+            Format::Arrow => 60,
+        })
     }
 
     /// Whether this build can write the format (Arrow needs the `arrow`

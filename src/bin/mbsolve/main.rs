@@ -301,8 +301,9 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
-    let mut files = stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, &running)
-        .map_err(|e| e.to_string())?;
+    let mut files =
+        stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, sc.format, &running)
+            .map_err(|e| e.to_string())?;
     files.progress = stream::Progress::new(
         if quiet {
             stream::ProgressMode::Off
