@@ -76,6 +76,8 @@ pub struct Scenario {
     pub rod: Option<RodInfo>,
     /// The `[[sensor]]`s, in file order.
     pub sensors: Vec<Sensor>,
+    /// File format of the run's table (`output.format`).
+    pub format: crate::output::Format,
 }
 
 #[derive(Debug, Deserialize)]
@@ -347,6 +349,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     // The run settings and the limits first: nothing that scales with the
     // input (bodies, output times) is allocated before they are checked.
     let run = run::build(&raw, file)?;
+    let format = run::output_format(&raw, file)?;
     limits::check(&raw, &run, file)?;
     let model::Model {
         system,
@@ -366,6 +369,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         run,
         rod,
         sensors,
+        format,
     })
 }
 
