@@ -55,6 +55,13 @@ fn main() {
             cfg.ode.atol = Tolerance::Scalar(value * 1e-3);
         }
         cfg.ode.max_steps = 100_000_000;
+        // Newton settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE
+        if let Some(t) = std::env::var("MBS_NEWTON_TOL").ok().and_then(|v| v.parse().ok()) {
+            cfg.implicit.newton_tol = t;
+        }
+        if std::env::var("MBS_EXTRAPOLATE").is_ok() {
+            cfg.implicit.extrapolate = true;
+        }
         let (cpu0, wall0) = (cpu_seconds(), Instant::now());
         let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
         let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
