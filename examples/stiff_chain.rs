@@ -56,7 +56,10 @@ fn main() {
         }
         cfg.ode.max_steps = 100_000_000;
         // Newton settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE
-        if let Some(t) = std::env::var("MBS_NEWTON_TOL").ok().and_then(|v| v.parse().ok()) {
+        if let Some(t) = std::env::var("MBS_NEWTON_TOL")
+            .ok()
+            .and_then(|v| v.parse().ok())
+        {
             cfg.implicit.newton_tol = t;
         }
         if std::env::var("MBS_EXTRAPOLATE").is_ok() {

@@ -385,6 +385,29 @@ quantities = ["energy"]
     }
     assert!(drift < 1e-7, "energy drift {drift:e}");
     assert_eq!(t.units["work_drives"], "J");
+    // the assembly report: both bodies started at the origin; the lower
+    // one's centre went to (cos φ1 + ½ cos φ2, sin φ1 + ½ sin φ2)
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("double.summary.json")).unwrap(),
+    )
+    .unwrap();
+    let a = &summary["initial_assembly"];
+    let (p1, p2) = (-30f64.to_radians(), 30f64.to_radians());
+    let moved = (p1.cos() + 0.5 * p2.cos()).hypot(p1.sin() + 0.5 * p2.sin());
+    let got = a["body_moves"]["lower"][0].as_f64().unwrap();
+    assert!((got - moved).abs() < 1e-12, "{got} vs {moved}");
+    assert_eq!(a["max_displacement_body"], "lower");
+    assert!((a["max_rotation_rad"].as_f64().unwrap() - p1.abs().max(p2.abs())).abs() < 1e-12);
+    let check = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .arg("check")
+        .arg(dir.path().join("double.toml"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&check.stdout);
+    assert!(
+        out.contains("assembly moved") && out.contains("(body 'lower')"),
+        "{out}"
+    );
 }
 
 #[test]
