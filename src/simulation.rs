@@ -2,12 +2,12 @@
 //! constraint violation, with a [`Summary`] of the work done.
 
 use crate::formulation::{
-    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1,
-    Index1Options, Index3, NewtonSolverKind,
+    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
+    Index3, NewtonSolverKind,
 };
 use crate::integrate::{
-    integrator, AugmentedLagrangian, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
-    OdeOptions, Report, Stats, Termination, Tolerance,
+    integrator, AugmentedLagrangian, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
+    Method, Observer, OdeOptions, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -740,15 +740,14 @@ pub fn simulate_into(
         )));
     }
     cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
-    let mut method: Box<dyn MethodRun + '_> = if cfg.index1.formulation
-        == Formulation::AugmentedLagrangian
-    {
-        Box::new(AugmentedRun::new(sys, cfg)?)
-    } else if cfg.method.is_implicit() {
-        Box::new(Implicit::new(sys, cfg)?)
-    } else {
-        Box::new(Explicit::new(sys, cfg)?)
-    };
+    let mut method: Box<dyn MethodRun + '_> =
+        if cfg.index1.formulation == Formulation::AugmentedLagrangian {
+            Box::new(AugmentedRun::new(sys, cfg)?)
+        } else if cfg.method.is_implicit() {
+            Box::new(Implicit::new(sys, cfg)?)
+        } else {
+            Box::new(Explicit::new(sys, cfg)?)
+        };
     let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
     stability_check(sys, cfg, q0, qd0, &mut watch)?;
     watch.start_balance(cfg.t0, q0, qd0);
@@ -1071,7 +1070,26 @@ fn finish(
 ) -> Summary {
     let (status, message) = match (&report.termination, &watch.sink_error, &watch.diverged) {
         (Termination::Completed, _, _) => ("completed", None),
-        (Termination::Failed { reason, .. }, _, _) => ("failed", Some(reason.to_string())),
+        (Termination::Failed { reason, .. }, _, _) => {
+            let mut m = reason.to_string();
+            // issue 10: a Newton collapse of the index-3 form where Φ_q lost rank
+            if let (
+                "index3",
+                crate::integrate::Failure::StepTooSmall {
+                    cause: crate::integrate::StepCut::Newton { .. },
+                    ..
+                },
+            ) = (work.formulation.as_str(), reason)
+            {
+                m.push_str(&format!(
+                    " — {} regularised pivots: if the position is singular or constraints are \
+                     redundant, formulation = \"augmented_lagrangian\" passes through them \
+                     (docs/constraint_methods.md)",
+                    work.regularized_pivots
+                ));
+            }
+            ("failed", Some(m))
+        }
         (Termination::Stopped { .. }, Some(e), _) => ("failed", Some(e.clone())),
         (Termination::Stopped { .. }, None, Some(d)) => ("diverged", Some(d.clone())),
         (Termination::Stopped { reason, .. }, None, None) => ("interrupted", Some(reason.clone())),

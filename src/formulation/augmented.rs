@@ -79,8 +79,7 @@ impl AugmentedParams {
             } else {
                 1.0
             };
-            let k: f64 = std::env::var("MBS_KAPPA").ok().and_then(|v| v.parse().ok()).unwrap_or(PENALTY_SCALE);
-            k * mbar / s
+            PENALTY_SCALE * mbar / s
         })
     }
 }
@@ -97,6 +96,7 @@ pub struct AugmentedFormStats {
 /// The augmented Lagrangian form of a [`System`] (module docs).
 pub struct Augmented<'a> {
     sys: &'a System,
+    params: AugmentedParams,
     alpha: f64,
     /// Newton scale `s = β h²` of the nominal step (initial accelerations).
     s0: f64,
@@ -187,6 +187,7 @@ impl<'a> Augmented<'a> {
         let m = sys.n_constraints();
         Ok(Self {
             sys,
+            params,
             alpha: params.penalty(sys, s0),
             s0,
             k,
@@ -360,6 +361,9 @@ impl AugmentedDae for Augmented<'_> {
     fn m(&self) -> usize {
         self.sys.n_constraints()
     }
+    fn set_step_scale(&mut self, s: f64) {
+        self.alpha = self.params.penalty(self.sys, s);
+    }
     fn accelerations(
         &mut self,
         t: f64,
@@ -433,9 +437,12 @@ impl AugmentedDae for Augmented<'_> {
             .map_err(sys_err)
     }
     fn solve(&mut self, x: &mut [f64]) -> Result<(), SystemError> {
-        self.solver
-            .solve_in_place(&self.k, x)
-            .map_err(|source| sys_err(FormulationError::Linear { t: f64::NAN, source }))
+        self.solver.solve_in_place(&self.k, x).map_err(|source| {
+            sys_err(FormulationError::Linear {
+                t: f64::NAN,
+                source,
+            })
+        })
     }
     fn project(
         &mut self,
@@ -463,7 +470,10 @@ impl AugmentedDae for Augmented<'_> {
         self.correct(t, c, qdd).map_err(sys_err)?;
         all_finite(
             t,
-            &[("the projected velocities", qd), ("the projected accelerations", qdd)],
+            &[
+                ("the projected velocities", qd),
+                ("the projected accelerations", qdd),
+            ],
         )
         .map_err(sys_err)
     }

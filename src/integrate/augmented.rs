@@ -59,6 +59,9 @@ pub trait AugmentedDae {
     fn n(&self) -> usize;
     /// Number of constraint rows.
     fn m(&self) -> usize;
+    /// The Newton scale `s = β h²` of the step about to be attempted (the
+    /// default penalty follows it).
+    fn set_step_scale(&mut self, s: f64);
     /// Accelerations and multipliers at `(t, q, q̇)` (the start of a run).
     fn accelerations(
         &mut self,
@@ -230,7 +233,11 @@ impl AugmentedLagrangian {
                 });
             }
         }
-        if let Some((index, &value)) = q0.iter().chain(qd0).enumerate().find(|(_, v)| !v.is_finite())
+        if let Some((index, &value)) = q0
+            .iter()
+            .chain(qd0)
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
         {
             return Err(IntegratorError::NonFiniteInitialState { index, value });
         }
@@ -344,6 +351,7 @@ impl Run<'_, '_> {
         let gp = p.gamma / (p.beta * h);
         let bp = c_m / s;
         let ap = 1.0 / s;
+        self.sys.set_step_scale(s);
         {
             let (cur, new) = (&self.cur, &mut self.new);
             let (am, af, g, b) = (p.alpha_m, p.alpha_f, p.gamma, p.beta);

@@ -51,8 +51,8 @@ mod tableau;
 pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
-    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, REUSE_BAND, ROUNDING_ULPS, SAFETY,
-    SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
+    SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 

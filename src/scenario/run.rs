@@ -4,8 +4,8 @@
 
 use super::{error, positive, RawScenario, ScenarioError};
 use crate::formulation::{
-    AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options, PenaltyParams,
-    Projection,
+    AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options,
+    PenaltyParams, Projection,
 };
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
