@@ -2,11 +2,12 @@
 //! constraint violation, with a [`Summary`] of the work done.
 
 use crate::formulation::{
-    ExplicitForm, Formulation, FormulationError, Index1, Index1Options, Index3, NewtonSolverKind,
+    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
+    Index3, NewtonSolverKind,
 };
 use crate::integrate::{
-    integrator, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method, Observer,
-    OdeOptions, Report, Stats, Termination, Tolerance,
+    integrator, AugmentedLagrangian, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
+    Method, Observer, OdeOptions, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -34,6 +35,9 @@ pub struct RunConfig {
     /// `ode`, their linear solver from `index1.linear_solver`. Must stay
     /// at its default for the explicit methods ([`ImplicitOptions::validate`]).
     pub implicit: ImplicitOptions,
+    /// Parameters of `index1.formulation =`
+    /// [`Formulation::AugmentedLagrangian`] (implicit methods only).
+    pub augmented: AugmentedParams,
     /// Guards against silent nonsense: warnings and the "diverged" stop.
     pub guards: Guards,
     /// Quantities computed at each output time besides q, q̇ and ‖Φ‖.
@@ -126,6 +130,7 @@ impl Default for RunConfig {
             output_dt: 0.01,
             index1: Index1Options::default(),
             implicit: ImplicitOptions::default(),
+            augmented: AugmentedParams::default(),
             guards: Guards::default(),
             outputs: OutputQuantities::default(),
         }
@@ -826,11 +831,14 @@ pub fn simulate_into(
         )));
     }
     cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
-    let mut method: Box<dyn MethodRun + '_> = if cfg.method.is_implicit() {
-        Box::new(Implicit::new(sys, cfg)?)
-    } else {
-        Box::new(Explicit::new(sys, cfg)?)
-    };
+    let mut method: Box<dyn MethodRun + '_> =
+        if cfg.index1.formulation == Formulation::AugmentedLagrangian {
+            Box::new(AugmentedRun::new(sys, cfg)?)
+        } else if cfg.method.is_implicit() {
+            Box::new(Implicit::new(sys, cfg)?)
+        } else {
+            Box::new(Explicit::new(sys, cfg)?)
+        };
     let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
     stability_check(sys, cfg, q0, qd0, &mut watch)?;
     watch.start_balance(cfg.t0, q0, qd0);
@@ -1051,6 +1059,85 @@ impl MethodRun for Implicit<'_> {
     }
 }
 
+/// The index-3 augmented Lagrangian with projections ([`Augmented`],
+/// [`AugmentedLagrangian`]) on the scheme of an implicit method (newmark
+/// with ρ∞ = 1: the trapezoidal rule). Summary: `formulation =
+/// "augmented_lagrangian"`, `factorizations` of `W`; `extra` adds
+/// `penalty`, `newton_iterations`, `newton_failures`, `projections`,
+/// `initial_iterations`, the scheme's parameters and `fixed_step`.
+struct AugmentedRun<'s> {
+    f: Augmented<'s>,
+    integ: AugmentedLagrangian,
+}
+
+impl<'s> AugmentedRun<'s> {
+    fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        if !cfg.method.is_implicit() {
+            return Err(FormulationError::InvalidOption {
+                option: "formulation",
+                value: "augmented_lagrangian".into(),
+                reason: format!(
+                    "is an index-3 formulation for the implicit methods (genalpha, hht, \
+                     newmark/trapezoidal), not for {}",
+                    cfg.method.name()
+                ),
+            }
+            .into());
+        }
+        let integ = AugmentedLagrangian::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let h = cfg.ode.fixed_step.unwrap_or(f64::NAN);
+        let s0 = integ.params().beta * h * h;
+        let f = Augmented::new(sys, cfg.augmented, cfg.index1.linear_solver, s0)?;
+        Ok(Self { f, integ })
+    }
+}
+
+impl MethodRun for AugmentedRun<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let gs = self.integ.stats();
+        let fs = self.f.stats();
+        let p = self.integ.params();
+        let mut extra = serde_json::Map::new();
+        for (k, v) in [
+            ("penalty", self.f.alpha().into()),
+            ("newton_iterations", gs.newton_iterations.into()),
+            ("newton_failures", gs.newton_failures.into()),
+            ("projections", gs.projections.into()),
+            ("initial_iterations", fs.initial_iterations.into()),
+            ("rho_inf", cfg.implicit.rho_inf.into()),
+            ("alpha_m", p.alpha_m.into()),
+            ("alpha_f", p.alpha_f.into()),
+            ("gamma_newmark", p.gamma.into()),
+            ("beta_newmark", p.beta.into()),
+            ("fixed_step", cfg.ode.fixed_step.into()),
+            ("newton_tol", cfg.implicit.newton_tol.into()),
+            ("min_step_taken", gs.min_step_taken.into()),
+        ] {
+            extra.insert(k.to_string(), v);
+        }
+        let work = Work {
+            formulation: "augmented_lagrangian".to_string(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (0.0, 0.0),
+            factorizations: gs.factorizations,
+            regularized_pivots: fs.solver.regularized_pivots,
+            first_regularized_t: None,
+        };
+        (work, extra)
+    }
+}
+
 /// Formulation-specific figures of a run, for [`finish`].
 struct Work {
     formulation: String,
@@ -1074,7 +1161,26 @@ fn finish(
 ) -> Summary {
     let (status, message) = match (&report.termination, &watch.sink_error, &watch.diverged) {
         (Termination::Completed, _, _) => ("completed", None),
-        (Termination::Failed { reason, .. }, _, _) => ("failed", Some(reason.to_string())),
+        (Termination::Failed { reason, .. }, _, _) => {
+            let mut m = reason.to_string();
+            // issue 10: a Newton collapse of the index-3 form where Φ_q lost rank
+            if let (
+                "index3",
+                crate::integrate::Failure::StepTooSmall {
+                    cause: crate::integrate::StepCut::Newton { .. },
+                    ..
+                },
+            ) = (work.formulation.as_str(), reason)
+            {
+                m.push_str(&format!(
+                    " — {} regularised pivots: if the position is singular or constraints are \
+                     redundant, formulation = \"augmented_lagrangian\" passes through them \
+                     (docs/constraint_methods.md)",
+                    work.regularized_pivots
+                ));
+            }
+            ("failed", Some(m))
+        }
         (Termination::Stopped { .. }, Some(e), _) => ("failed", Some(e.clone())),
         (Termination::Stopped { .. }, None, Some(d)) => ("diverged", Some(d.clone())),
         (Termination::Stopped { reason, .. }, None, None) => ("interrupted", Some(reason.clone())),

@@ -93,10 +93,11 @@ impl<'a> Index1<'a> {
         let kind = match opts.formulation {
             Formulation::Saddle => opts.linear_solver,
             Formulation::Eliminated => SolverKind::Schur,
-            Formulation::Penalty => {
+            Formulation::Penalty | Formulation::AugmentedLagrangian => {
                 return Err(FormulationError::Invalid(
                     "Index1 solves the saddle-point or eliminated form; the penalty \
-                     formulation is Penalty (or ExplicitForm)"
+                     formulation is Penalty (or ExplicitForm), the augmented Lagrangian \
+                     Augmented"
                         .into(),
                 ))
             }

@@ -11,6 +11,10 @@
 //! * [`Penalty`]: the penalty formulation of Bayo, García de Jalón & Serna
 //!   (1988), `(M + Φ_qᵀαΦ_q) q̈ = g + Φ_qᵀα(γ − 2ξωΦ̇ − ω²Φ)`, as the same
 //!   first-order ODE ([`Formulation::Penalty`]).
+//! * [`Augmented`]: the index-3 augmented Lagrangian with mass-orthogonal
+//!   projections (Bayo & Ledesma 1996; [`Formulation::AugmentedLagrangian`]),
+//!   `M q̈ + Φ_qᵀ(αΦ + λ*) = g`, `λ*_{i+1} = λ*_i + αΦ_{i+1}`, for
+//!   [`crate::integrate::AugmentedLagrangian`].
 //! * [`ExplicitForm`]: whichever of the two the options choose, for the
 //!   explicit integrators.
 //! * [`Projection`]: the mass-orthogonal projection of positions and
@@ -21,12 +25,14 @@
 //!
 //! Formulas and references: docs/constraint_methods.md.
 
+mod augmented;
 mod index1;
 mod index3;
 mod initial;
 mod penalty;
 mod stability;
 
+pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{
@@ -78,6 +84,10 @@ pub enum Formulation {
     /// No multipliers: the penalty formulation [`Penalty`] (Bayo, García de
     /// Jalón & Serna 1988), parameters [`PenaltyParams`].
     Penalty,
+    /// The index-3 augmented Lagrangian with projections (ALI3-P, Bayo &
+    /// Ledesma 1996): [`Augmented`], integrated by
+    /// [`crate::integrate::AugmentedLagrangian`] (implicit methods only).
+    AugmentedLagrangian,
 }
 
 impl std::str::FromStr for Formulation {
@@ -87,8 +97,10 @@ impl std::str::FromStr for Formulation {
             "saddle" => Ok(Self::Saddle),
             "eliminated" => Ok(Self::Eliminated),
             "penalty" => Ok(Self::Penalty),
+            "augmented_lagrangian" => Ok(Self::AugmentedLagrangian),
             o => Err(format!(
-                "unknown formulation '{o}' (expected saddle, eliminated or penalty)"
+                "unknown formulation '{o}' (expected saddle, eliminated, penalty or \
+                 augmented_lagrangian)"
             )),
         }
     }

@@ -38,6 +38,7 @@
 //! * No events, mass matrix, NonNegative or NormControl options.
 //! * A cap on the number of steps ([`OdeOptions::max_steps`]).
 
+mod augmented;
 mod common;
 mod driver;
 mod embedded;
@@ -47,10 +48,11 @@ mod options;
 mod rk4;
 mod tableau;
 
+pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
-    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, REUSE_BAND, ROUNDING_ULPS, SAFETY,
-    SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
+    SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 

@@ -4,8 +4,8 @@
 
 use super::{error, positive, RawScenario, ScenarioError};
 use crate::formulation::{
-    Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options, PenaltyParams,
-    Projection,
+    AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options,
+    PenaltyParams, Projection,
 };
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
@@ -88,7 +88,16 @@ pub(super) fn output_format(raw: &RawScenario, file: &str) -> Result<Format, Sce
 /// Build the run settings of `raw`; errors name keys of `file`.
 pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, ScenarioError> {
     let err = |key: String, message: String| error(file, key, message);
+    // "trapezoidal" is Newmark with ρ∞ = 1 (β = ¼, γ = ½)
+    let trapezoidal = raw.integrator.method.as_deref() == Some("trapezoidal");
+    if let (true, Some(r)) = (trapezoidal, raw.integrator.rho_inf) {
+        return Err(err(
+            "integrator.rho_inf".into(),
+            format!("{r} is given, but method = \"trapezoidal\" is newmark with rho_inf = 1"),
+        ));
+    }
     let method: Method = match &raw.integrator.method {
+        Some(_) if trapezoidal => Method::Newmark,
         Some(m) => m.parse().map_err(|e: crate::integrate::IntegratorError| {
             err("integrator.method".into(), e.to_string())
         })?,
@@ -106,6 +115,9 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     ode.max_step = ri.max_step;
     ode.initial_step = ri.initial_step;
     let mut implicit = ImplicitOptions::default();
+    if trapezoidal {
+        implicit.rho_inf = 1.0;
+    }
     if let Some(r) = ri.rho_inf {
         implicit.rho_inf = r;
     }
@@ -178,6 +190,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         .map_err(|(key, why)| err(key, why))?;
     let (projection, penalty) =
         constraint_method(st, method, formulation).map_err(|(key, why)| err(key, why))?;
+    let augmented = augmented_lagrangian(raw, formulation, linear_solver)
+        .map_err(|(key, why)| err(key, why))?;
     // The options' own validators (values); their fields map to scenario keys.
     ode.validate(method, implicit.adaptive)
         .and_then(|()| implicit.validate(method, ode.fixed_step))
@@ -196,6 +210,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             penalty,
         },
         implicit,
+        augmented,
         guards: Default::default(),
         outputs: output_quantities(&raw.output.quantities)
             .map_err(|m| err("output.quantities".into(), m))?,
@@ -266,8 +281,17 @@ fn constraint_method(
         ("penalty_omega", st.penalty_omega, &mut penalty.omega),
     ] {
         if let Some(v) = v {
-            if formulation != Formulation::Penalty {
-                return Err((key(k), "applies to formulation = \"penalty\" only".into()));
+            let al = formulation == Formulation::AugmentedLagrangian && k == "penalty";
+            if formulation != Formulation::Penalty && !al {
+                return Err((
+                    key(k),
+                    "applies to formulation = \"penalty\" (penalty also to \
+                     \"augmented_lagrangian\") only"
+                        .into(),
+                ));
+            }
+            if al {
+                continue;
             }
             *slot = v;
         }
@@ -302,6 +326,62 @@ fn constraint_method(
         })?;
     }
     Ok((projection, penalty))
+}
+
+/// `formulation = "augmented_lagrangian"`: `stabilization.penalty` is its
+/// α; the integrator keys of generalized-α that it does not use, and the
+/// Schur solver, are errors.
+fn augmented_lagrangian(
+    raw: &RawScenario,
+    formulation: Formulation,
+    linear_solver: SolverKind,
+) -> Result<AugmentedParams, (String, String)> {
+    if formulation != Formulation::AugmentedLagrangian {
+        return Ok(AugmentedParams::default());
+    }
+    let ri = &raw.integrator;
+    for (key, present) in [
+        ("adaptive", ri.adaptive.is_some()),
+        ("project", ri.project.is_some()),
+        ("reuse", ri.reuse.is_some()),
+        ("filter_error", ri.filter_error.is_some()),
+        ("check_constraints", ri.check_constraints.is_some()),
+        ("lu", ri.lu.is_some()),
+        ("extrapolate", ri.extrapolate.is_some()),
+    ] {
+        if present {
+            return Err((
+                format!("integrator.{key}"),
+                "does not apply to formulation = \"augmented_lagrangian\" (fixed step, \
+                 projections of velocities and accelerations always on, symmetric Newton \
+                 matrix)"
+                    .into(),
+            ));
+        }
+    }
+    if linear_solver == SolverKind::Schur {
+        return Err((
+            "linear_solver".into(),
+            "\"schur\" does not apply to formulation = \"augmented_lagrangian\" (no \
+             multipliers to eliminate)"
+                .into(),
+        ));
+    }
+    let p = AugmentedParams {
+        alpha: raw.stabilization.penalty,
+    };
+    p.validate().map_err(|e| {
+        (
+            "stabilization.penalty".into(),
+            match e {
+                FormulationError::InvalidOption { value, reason, .. } => {
+                    format!("{value} is invalid: {reason}")
+                }
+                other => other.to_string(),
+            },
+        )
+    })?;
+    Ok(p)
 }
 
 /// The first key of `raw` that does not apply to `method` (with
@@ -361,13 +441,28 @@ fn inapplicable(
                 ),
             ));
         }
-        if formulation != Formulation::Saddle {
+        if !matches!(
+            formulation,
+            Formulation::Saddle | Formulation::AugmentedLagrangian
+        ) {
             return Err((
                 "formulation".into(),
-                format!("applies to the index-1 methods; {name} uses the index-3 form"),
+                format!(
+                    "applies to the index-1 methods; {name} uses the index-3 form (or \
+                     formulation = \"augmented_lagrangian\")"
+                ),
             ));
         }
         return Ok(());
+    }
+    if formulation == Formulation::AugmentedLagrangian {
+        return Err((
+            "formulation".into(),
+            format!(
+                "\"augmented_lagrangian\" is an index-3 formulation for the implicit methods \
+                 (trapezoidal, genalpha, hht, newmark), not for {name}"
+            ),
+        ));
     }
     let implicit_only =
         format!("applies to the implicit methods (genalpha, hht, newmark), not to {name}");

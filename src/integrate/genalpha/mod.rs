@@ -120,7 +120,9 @@ mod newton;
 mod params;
 mod step;
 
-pub use newton::{REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR};
+pub use newton::{
+    NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+};
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 

@@ -1,0 +1,480 @@
+//! The index-3 augmented Lagrangian formulation with mass-orthogonal
+//! projections (ALI3-P; Bayo & Ledesma 1996) of a [`System`]: the system
+//! side ([`crate::integrate::AugmentedDae`]) of
+//! [`crate::integrate::AugmentedLagrangian`], whose module docs give the
+//! scheme.
+//!
+//! `M q̈ + Φ_qᵀ(αΦ + λ*) = g`, `λ*_{i+1} = λ*_i + αΦ_{i+1}`: the Newton
+//! matrix `W = c_m M + c_c C + c_k (K + Φ_qᵀαΦ_q)` (`C = −∂g/∂q̇`,
+//! `K = −∂g/∂q + (Φ_qᵀλ*)_q`) is the `A` block of a [`SaddleMatrix`] with
+//! no constraint rows — mass diagonal, force Jacobian blocks, constraint
+//! Hessian blocks and, per constraint row, every pair of its Φ_q columns
+//! (as [`super::Penalty`]) — built once, factorised per assembly by the
+//! solver of [`solver_for`] (sparse LDLᵀ by default; symmetric part of an
+//! unsymmetric force Jacobian: modified Newton with the exact residual).
+//! The penalty term is positive semi-definite whatever the rank of Φ_q, so
+//! singular configurations and redundant constraints need no special
+//! treatment: the redundant rows share their multiplier in the minimum-norm
+//! way the multiplier iteration converges to.
+//!
+//! **Penalty.** The multiplier iteration converges for any α > 0, with
+//! contraction `≈ 1/(1 + c_k α σ²/m)` per iteration along a constraint
+//! direction of `Φ_q M⁻¹ Φ_qᵀ`-eigenvalue `σ²/m`; α only sets the speed
+//! (and too large a value the conditioning, `cond W ~ c_k α ‖Φ_q‖²/m`).
+//! Default ([`AugmentedParams::alpha`] = `None`): `α = κ m̄ / (β h²)`,
+//! `κ` = [`PENALTY_SCALE`], `m̄` the mean translational mass — i.e.
+//! `c_k α = κ m̄`, a step-size independent contraction; for `m̄` = 1 kg and
+//! h = 1e-3 s with the trapezoidal rule that is α = 4e10 N/m (the
+//! references' fixed α = 1e7 … 1e9 correspond to κ = 0.25 … 25 there).
+//! The consistent accelerations at the start are the same iteration at
+//! acceleration level, `(M + c_k αΦ_qᵀΦ_q) q̈ = g − Φ_qᵀλ + c_k αΦ_qᵀγ`,
+//! `λ += c_k α(Φ_q q̈ − γ)`.
+
+use super::{all_finite, check_state, FormulationError};
+use crate::integrate::{AugmentedDae, SystemError};
+use crate::linalg::{
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
+    Symmetry,
+};
+use crate::model::{FdWorkspace, System};
+use serde::Serialize;
+
+/// Default `κ` of the penalty `α = κ m̄ / (β h²)` (module docs): the
+/// multiplier iteration contracts by about `1/(1 + κ σ²)` per Newton
+/// iteration for constraint directions of unit weight.
+pub const PENALTY_SCALE: f64 = 1e4;
+
+/// Parameters of the augmented Lagrangian formulation.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct AugmentedParams {
+    /// Penalty α > 0 \[N/m for position constraints in m\]; `None`: from the
+    /// mass scale and the step, `κ m̄ / (β h²)` ([`PENALTY_SCALE`]).
+    pub alpha: Option<f64>,
+}
+
+impl AugmentedParams {
+    /// α finite and > 0 when given ([`FormulationError::InvalidOption`]).
+    pub fn validate(&self) -> Result<(), FormulationError> {
+        match self.alpha {
+            Some(a) if !(a.is_finite() && a > 0.0) => Err(FormulationError::InvalidOption {
+                option: "alpha",
+                value: a.to_string(),
+                reason: "must be finite and > 0".into(),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// The penalty in force for `sys` with the Newton scale `s = β h²`:
+    /// the given α, or `PENALTY_SCALE · m̄ / s`.
+    pub fn penalty(&self, sys: &System, s: f64) -> f64 {
+        self.alpha.unwrap_or_else(|| {
+            let m = sys.mass_diagonal();
+            let (sum, count) = m
+                .chunks(3)
+                .flat_map(|b| b[..2].iter())
+                .fold((0.0, 0usize), |(a, c), v| (a + v, c + 1));
+            let mbar = if count > 0 && sum > 0.0 {
+                sum / count as f64
+            } else {
+                1.0
+            };
+            PENALTY_SCALE * mbar / s
+        })
+    }
+}
+
+/// Counters of [`Augmented`].
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct AugmentedFormStats {
+    /// Multiplier iterations of the consistent accelerations at the start.
+    pub initial_iterations: usize,
+    /// Counters of the solver of `W`.
+    pub solver: SolverStats,
+}
+
+/// The augmented Lagrangian form of a [`System`] (module docs).
+pub struct Augmented<'a> {
+    sys: &'a System,
+    params: AugmentedParams,
+    alpha: f64,
+    /// Newton scale `s = β h²` of the nominal step (initial accelerations).
+    s0: f64,
+    k: SaddleMatrix,
+    solver: Box<dyn SaddlePointSolver>,
+    force_first: usize,
+    hess_first: usize,
+    /// Per penalty entry: the two Φ_q value positions and a weight (2 for
+    /// two entries of one row in the same column).
+    pen_first: usize,
+    pairs: Vec<(usize, usize, f64)>,
+    hess_vals: Vec<f64>,
+    dq: Vec<f64>,
+    dqd: Vec<f64>,
+    ws: FdWorkspace,
+    jac: Vec<f64>,
+    g: Vec<f64>,
+    x: Vec<f64>,
+    phi: Vec<f64>,
+    phi_t: Vec<f64>,
+    e: Vec<f64>,
+    lam_tot: Vec<f64>,
+    stats: AugmentedFormStats,
+}
+
+impl<'a> Augmented<'a> {
+    /// Pattern, solver and symbolic analysis (once). `s0 = β h²` of the
+    /// nominal step sets the default penalty ([`AugmentedParams::penalty`]);
+    /// `linear_solver` must not be [`SolverKind::Schur`] (there are no
+    /// multipliers to eliminate).
+    pub fn new(
+        sys: &'a System,
+        params: AugmentedParams,
+        linear_solver: SolverKind,
+        s0: f64,
+    ) -> Result<Self, FormulationError> {
+        params.validate()?;
+        if linear_solver == SolverKind::Schur {
+            return Err(FormulationError::InvalidOption {
+                option: "linear_solver",
+                value: "schur".into(),
+                reason: "does not apply to the augmented Lagrangian formulation (no \
+                         multipliers to eliminate)"
+                    .into(),
+            });
+        }
+        if !(s0.is_finite() && s0 > 0.0) {
+            return Err(FormulationError::InvalidOption {
+                option: "step",
+                value: s0.to_string(),
+                reason: "β h² must be finite and > 0".into(),
+            });
+        }
+        let n = sys.n_coords();
+        let mut a = APattern::new();
+        let force_first = a.push_block(sys.force_jacobian_pattern(), Symmetry::Unsymmetric);
+        let hess_first = a.push_block(sys.hessian_pattern(), Symmetry::Symmetric);
+        let jp = sys.jacobian_pattern();
+        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
+        for (e, &(r, _)) in jp.iter().enumerate() {
+            by_row[r].push(e);
+        }
+        let (mut entries, mut pairs) = (Vec::new(), Vec::new());
+        for row in &by_row {
+            for (i, &e1) in row.iter().enumerate() {
+                for &e2 in &row[i..] {
+                    let (c1, c2) = (jp[e1].1, jp[e2].1);
+                    entries.push((c1, c2));
+                    pairs.push((e1, e2, if e1 != e2 && c1 == c2 { 2.0 } else { 1.0 }));
+                }
+            }
+        }
+        let pen_first = a.push_block(&entries, Symmetry::Symmetric);
+        let mut solver = solver_for(
+            linear_solver,
+            n,
+            SolverOptions {
+                residual_check: false,
+            },
+        );
+        let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
+        solver
+            .analyze(&k)
+            .map_err(|source| FormulationError::Linear {
+                t: f64::NAN,
+                source,
+            })?;
+        let m = sys.n_constraints();
+        Ok(Self {
+            sys,
+            params,
+            alpha: params.penalty(sys, s0),
+            s0,
+            k,
+            solver,
+            force_first,
+            hess_first,
+            pen_first,
+            pairs,
+            hess_vals: vec![0.0; sys.hessian_pattern().len()],
+            dq: vec![0.0; sys.force_jacobian_pattern().len()],
+            dqd: vec![0.0; sys.force_jacobian_pattern().len()],
+            ws: FdWorkspace::default(),
+            jac: vec![0.0; jp.len()],
+            g: vec![0.0; n],
+            x: vec![0.0; n],
+            phi: vec![0.0; m],
+            phi_t: vec![0.0; m],
+            e: vec![0.0; m],
+            lam_tot: vec![0.0; m],
+            stats: AugmentedFormStats::default(),
+        })
+    }
+
+    /// The penalty α in force.
+    pub fn alpha(&self) -> f64 {
+        self.alpha
+    }
+
+    /// Name of the linear solver of `W`.
+    pub fn solver_name(&self) -> &'static str {
+        self.solver.name()
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> AugmentedFormStats {
+        let mut s = self.stats;
+        s.solver = self.solver.stats();
+        s
+    }
+
+    /// Assemble `c_m M + c_c C + c_k K + c_p Φ_qᵀΦ_q` at `(t, q, q̇, λ)`
+    /// (the Hessian term only for `c_k ≠ 0`) and factorise it.
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lam: &[f64],
+        c_m: f64,
+        c_c: f64,
+        c_k: f64,
+        c_p: f64,
+    ) -> Result<(), FormulationError> {
+        let sys = self.sys;
+        check_state(t, q, qd)?;
+        self.k.set_zero();
+        for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
+            self.k.add_diagonal(i, c_m * mi);
+        }
+        if c_c != 0.0 || c_k != 0.0 {
+            self.dq.fill(0.0);
+            self.dqd.fill(0.0);
+            sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
+            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
+                self.k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
+            }
+        }
+        if c_k != 0.0 && !self.hess_vals.is_empty() {
+            self.hess_vals.fill(0.0);
+            sys.add_constraint_hessians(q, t, lam, &mut self.hess_vals, &mut self.ws);
+            for (e, &h) in self.hess_vals.iter().enumerate() {
+                self.k.add_a(self.hess_first + e, c_k * h);
+            }
+        }
+        sys.jacobian_values(q, t, &mut self.jac);
+        all_finite(
+            t,
+            &[
+                ("the force Jacobian ∂g/∂q", &self.dq),
+                ("the force Jacobian ∂g/∂q̇", &self.dqd),
+                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess_vals),
+                ("the constraint Jacobian Φ_q", &self.jac),
+            ],
+        )?;
+        for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
+            self.k
+                .add_a(self.pen_first + id, c_p * w * self.jac[e1] * self.jac[e2]);
+        }
+        self.solver
+            .factorize(&self.k)
+            .map(|_| ())
+            .map_err(|source| FormulationError::Linear { t, source })
+    }
+
+    /// `x += −c Φ_qᵀ e` solved with `W`: `Δ = −W⁻¹ c Φ_qᵀ e` into `v`.
+    fn correct(&mut self, t: f64, c: f64, v: &mut [f64]) -> Result<(), FormulationError> {
+        self.sys.jacobian_tmul(&self.jac, &self.e, &mut self.x);
+        for x in self.x.iter_mut() {
+            *x *= -c;
+        }
+        self.solver
+            .solve_in_place(&self.k, &mut self.x)
+            .map_err(|source| FormulationError::Linear { t, source })?;
+        for (vi, d) in v.iter_mut().zip(&self.x) {
+            *vi += d;
+        }
+        Ok(())
+    }
+
+    /// Consistent accelerations and multipliers at `(t, q, q̇)` by the
+    /// multiplier iteration at acceleration level (module docs), until
+    /// `‖Φ_q q̈ − γ‖∞ ≤ 1e-12 (1 + ‖γ‖∞)` or the correction stalls (at a
+    /// singular or redundant Φ_q: the least-squares answer).
+    pub fn initial_accelerations(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &mut [f64],
+        lam: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        let sys = self.sys;
+        let cp = self.alpha * self.s0;
+        self.assemble(t, q, qd, lam, 1.0, 0.0, 0.0, cp)?;
+        sys.forces_into(t, q, qd, &mut self.g);
+        sys.gamma(q, qd, t, &mut self.phi_t);
+        all_finite(t, &[("the forces g", &self.g), ("γ", &self.phi_t)])?;
+        lam.fill(0.0);
+        qdd.fill(0.0);
+        let gmax = self.phi_t.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let mut prev = f64::INFINITY;
+        for _ in 0..100 {
+            self.stats.initial_iterations += 1;
+            // (M + cpΦ_qᵀΦ_q) q̈ = g − Φ_qᵀλ + cpΦ_qᵀγ
+            for (e, (l, gm)) in self.e.iter_mut().zip(lam.iter().zip(&self.phi_t)) {
+                *e = l - cp * gm;
+            }
+            sys.jacobian_tmul(&self.jac, &self.e, &mut self.x);
+            for (x, g) in self.x.iter_mut().zip(&self.g) {
+                *x = g - *x;
+            }
+            self.solver
+                .solve_in_place(&self.k, &mut self.x)
+                .map_err(|source| FormulationError::Linear { t, source })?;
+            qdd.copy_from_slice(&self.x);
+            sys.jacobian_mul(&self.jac, qdd, &mut self.e);
+            let mut res: f64 = 0.0;
+            for ((l, e), gm) in lam.iter_mut().zip(&mut self.e).zip(&self.phi_t) {
+                *e -= gm;
+                *l += cp * *e;
+                res = res.max(e.abs());
+            }
+            if res <= 1e-12 * (1.0 + gmax) || res >= 0.999 * prev {
+                break;
+            }
+            prev = res;
+        }
+        Ok(())
+    }
+}
+
+fn sys_err(e: FormulationError) -> SystemError {
+    SystemError::new(e)
+}
+
+impl AugmentedDae for Augmented<'_> {
+    fn n(&self) -> usize {
+        self.sys.n_coords()
+    }
+    fn m(&self) -> usize {
+        self.sys.n_constraints()
+    }
+    fn set_step_scale(&mut self, s: f64) {
+        self.alpha = self.params.penalty(self.sys, s);
+    }
+    fn accelerations(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &mut [f64],
+        lam: &mut [f64],
+    ) -> Result<(), SystemError> {
+        self.initial_accelerations(t, q, qd, qdd, lam)
+            .map_err(sys_err)
+    }
+    fn update_multipliers(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        lam: &mut [f64],
+    ) -> Result<(), SystemError> {
+        self.sys.phi(q, t, &mut self.phi);
+        all_finite(t, &[("the constraints Φ", &self.phi)]).map_err(sys_err)?;
+        for (l, p) in lam.iter_mut().zip(&self.phi) {
+            *l += self.alpha * p;
+        }
+        Ok(())
+    }
+    fn residual(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        lam: &[f64],
+        s: f64,
+        r: &mut [f64],
+    ) -> Result<(), SystemError> {
+        let sys = self.sys;
+        check_state(t, q, qd).map_err(sys_err)?;
+        sys.jacobian_values(q, t, &mut self.jac);
+        sys.phi(q, t, &mut self.phi);
+        sys.forces_into(t, q, qd, &mut self.g);
+        for ((lt, l), p) in self.lam_tot.iter_mut().zip(lam).zip(&self.phi) {
+            *lt = l + self.alpha * p;
+        }
+        sys.jacobian_tmul(&self.jac, &self.lam_tot, r);
+        for ((ri, (m, a)), g) in r
+            .iter_mut()
+            .zip(sys.mass_diagonal().iter().zip(qdd))
+            .zip(&self.g)
+        {
+            *ri = s * (m * a + *ri - g);
+        }
+        all_finite(
+            t,
+            &[
+                ("the forces g", &self.g),
+                ("the constraint Jacobian Φ_q", &self.jac),
+                ("the augmented Lagrangian residual", r),
+            ],
+        )
+        .map_err(sys_err)
+    }
+    fn factorize(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lam: &[f64],
+        c: [f64; 3],
+    ) -> Result<(), SystemError> {
+        let cp = c[2] * self.alpha;
+        self.assemble(t, q, qd, lam, c[0], c[1], c[2], cp)
+            .map_err(sys_err)
+    }
+    fn solve(&mut self, x: &mut [f64]) -> Result<(), SystemError> {
+        self.solver.solve_in_place(&self.k, x).map_err(|source| {
+            sys_err(FormulationError::Linear {
+                t: f64::NAN,
+                source,
+            })
+        })
+    }
+    fn project(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &mut [f64],
+        qdd: &mut [f64],
+        s: f64,
+    ) -> Result<(), SystemError> {
+        let sys = self.sys;
+        let c = s * self.alpha;
+        // the factorised W stays; Φ_q at the converged q
+        sys.jacobian_values(q, t, &mut self.jac);
+        sys.phi_t(q, t, &mut self.phi_t);
+        sys.jacobian_mul(&self.jac, qd, &mut self.e);
+        for (e, pt) in self.e.iter_mut().zip(&self.phi_t) {
+            *e += pt;
+        }
+        self.correct(t, c, qd).map_err(sys_err)?;
+        sys.gamma(q, qd, t, &mut self.phi_t);
+        sys.jacobian_mul(&self.jac, qdd, &mut self.e);
+        for (e, gm) in self.e.iter_mut().zip(&self.phi_t) {
+            *e -= gm;
+        }
+        self.correct(t, c, qdd).map_err(sys_err)?;
+        all_finite(
+            t,
+            &[
+                ("the projected velocities", qd),
+                ("the projected accelerations", qdd),
+            ],
+        )
+        .map_err(sys_err)
+    }
+}
