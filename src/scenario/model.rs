@@ -1,8 +1,9 @@
 //! The model part of a scenario: `[[body]]`, `[[joint]]`, `[[force]]`,
-//! `gravity`, `[rod]` and `constraints.evaluation` → a [`System`].
+//! `gravity`, the components `[rod]`/`[[rod]]`/`[[chain]]` (built in
+//! `components`) and `constraints.evaluation` → a [`System`].
 
 use super::{error, list, RawScenario, ScenarioError};
-use crate::builders::{add_rod, RodInfo, RodParams};
+use crate::builders::{ChainInfo, RodInfo};
 use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
 use crate::forces::{
     AppliedForce, AppliedTorque, Buoyancy, Drag, ExpressionError, ExpressionLoadBuilder,
@@ -16,7 +17,12 @@ use std::collections::HashMap;
 pub(super) struct Model {
     pub(super) system: System,
     pub(super) rod: Option<RodInfo>,
-    /// Body index by name.
+    /// Every rod (`[rod]`, `[[rod]]`) by name.
+    pub(super) rods: Vec<(String, RodInfo)>,
+    /// Every `[[chain]]` by name.
+    pub(super) chains: Vec<(String, ChainInfo)>,
+    /// Body index by name (components' bodies as `C.first`, `C.last`,
+    /// `C.segment[k]`, `C.link[k]`).
     pub(super) names: HashMap<String, usize>,
 }
 
@@ -30,13 +36,36 @@ pub(super) fn body_ref(
     if name == "ground" {
         return Ok(BodyRef::Ground);
     }
-    names.get(name).map(|&i| BodyRef::Body(i)).ok_or_else(|| {
-        error(
-            file,
-            key,
-            format!("no body named '{name}' (bodies: {})", list(names)),
-        )
-    })
+    names
+        .get(name)
+        .map(|&i| BodyRef::Body(i))
+        .ok_or_else(|| error(file, key, unknown_body(names, name)))
+}
+
+/// Why `name` names no body: a component part out of range
+/// (`rod1.segment[0]`), a component that does not exist (`rodX.first`), or
+/// no such body; lists what there is.
+fn unknown_body(names: &HashMap<String, usize>, name: &str) -> String {
+    let bodies = list(names);
+    if let Some((comp, part)) = name.split_once('.') {
+        if !names.contains_key(&format!("{comp}.first")) {
+            return format!(
+                "no body named '{name}': there is no rod or chain named '{comp}' (bodies: {bodies})"
+            );
+        }
+        if let Some(base) = part.strip_suffix(']').and_then(|p| p.split_once('[')) {
+            let n = (1..)
+                .take_while(|k| names.contains_key(&format!("{comp}.{}[{k}]", base.0)))
+                .count();
+            if n > 0 {
+                return format!(
+                    "no body named '{name}': {comp} has {n} {}s, {comp}.{}[k] with k = 1 .. {n}                      (1-based from its first end)",
+                    base.0, base.0
+                );
+            }
+        }
+    }
+    format!("no body named '{name}' (bodies: {bodies})")
 }
 
 /// The index of the body named `name` (not the ground), for errors at `key`.
@@ -56,32 +85,6 @@ pub(super) fn body_index(
 #[serde(deny_unknown_fields)]
 pub(super) struct RawConstraints {
     evaluation: Option<String>,
-}
-
-/// `[rod]`: the finite-segment rod of problem B (docs/problems.md); every key defaults to
-/// problem B. Segments are added after the `[[body]]` bodies.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawRod {
-    pub(super) segments: Option<i64>,
-    length: Option<f64>,
-    width: Option<f64>,
-    density: Option<f64>,
-    youngs_modulus: Option<f64>,
-    damping_time: Option<f64>,
-    tilt_deg: Option<f64>,
-    velocity: Option<[f64; 2]>,
-    channel_width: Option<f64>,
-    water_density: Option<f64>,
-    drag_transverse: Option<f64>,
-    drag_skin: Option<f64>,
-    drag_end: Option<f64>,
-    contact_stiffness: Option<f64>,
-    contact_damping: Option<f64>,
-    friction: Option<f64>,
-    friction_velocity: Option<f64>,
-    fluid: Option<bool>,
-    contact: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -338,6 +341,16 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                 .with_velocity([b.vx, b.vy, b.omega]),
         );
     }
+    // Rods and chains: their bodies after the [[body]] bodies, named before
+    // the joints and forces that attach to them.
+    let components = super::components::add(
+        &mut builder,
+        raw.rod.as_ref(),
+        &raw.chain,
+        raw.gravity,
+        &mut names,
+        file,
+    )?;
     let body_ref = |key: String, name: &str| body_ref(&names, file, key, name);
     let body_index = |key: String, name: &str| body_index(&names, file, key, name);
     for (k, j) in raw.joint.iter().enumerate() {
@@ -454,61 +467,6 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
     for (k, f) in raw.force.iter().enumerate() {
         add_force(&mut builder, f, k, gravity, &names, file)?;
     }
-    let mut rod = None;
-    if let Some(r) = &raw.rod {
-        let mut p = RodParams::problem_b(10);
-        if let Some(n) = r.segments {
-            if n < 1 {
-                return Err(err(
-                    "rod.segments".into(),
-                    format!("{n} is invalid: the rod needs at least one segment"),
-                ));
-            }
-            p.n_segments = n as usize;
-        }
-        let set = |slot: &mut f64, v: Option<f64>| {
-            if let Some(v) = v {
-                *slot = v;
-            }
-        };
-        set(&mut p.length, r.length);
-        set(&mut p.width, r.width);
-        set(&mut p.density, r.density);
-        set(&mut p.youngs_modulus, r.youngs_modulus);
-        set(&mut p.damping_time, r.damping_time);
-        set(&mut p.tilt, r.tilt_deg.map(f64::to_radians));
-        set(&mut p.channel_width, r.channel_width);
-        set(&mut p.water_density, r.water_density);
-        set(&mut p.drag_transverse, r.drag_transverse);
-        set(&mut p.drag_skin, r.drag_skin);
-        set(&mut p.drag_end, r.drag_end);
-        set(&mut p.contact_stiffness, r.contact_stiffness);
-        set(&mut p.contact_damping, r.contact_damping);
-        set(&mut p.friction_coefficient, r.friction);
-        set(&mut p.friction_velocity, r.friction_velocity);
-        if let Some(v) = r.velocity {
-            p.initial_velocity = v;
-        }
-        p.fluid = r.fluid.unwrap_or(true);
-        p.contact = r.contact.unwrap_or(true);
-        // Buoyancy uses the scenario's gravity (none without `gravity`).
-        p.gravity = raw.gravity.map_or(0.0, |g| g[0].hypot(g[1]));
-        let info = add_rod(&mut builder, &p).map_err(|e| {
-            // Name the scenario key of the offending builder field.
-            let key = match &e {
-                crate::model::ModelError::InvalidParameter { field, .. } => match field.as_str() {
-                    "n_segments" => "rod.segments".to_string(),
-                    "tilt" => "rod.tilt_deg".to_string(),
-                    "initial_velocity" => "rod.velocity".to_string(),
-                    "friction_coefficient" => "rod.friction".to_string(),
-                    f => format!("rod.{f}"),
-                },
-                _ => "rod".to_string(),
-            };
-            err(key, e.to_string())
-        })?;
-        rod = Some(info);
-    }
     if let Some(g) = raw.gravity {
         builder.gravity(g);
     }
@@ -527,13 +485,22 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         }
     };
     // Generated kernels for recognised topologies (chains, four-bar);
-    // `constraints.evaluation` decides whether they are used.
-    crate::generated::attach_generated(&mut system);
+    // `constraints.evaluation` decides whether they are used. Rods and
+    // chains attach their own (joints and force elements) when built.
+    if components.rods.is_empty() && components.chains.is_empty() {
+        crate::generated::attach_generated(&mut system);
+    }
     system
         .set_evaluation(evaluation)
         .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
 
-    Ok(Model { system, rod, names })
+    Ok(Model {
+        system,
+        rod: components.rod,
+        rods: components.rods,
+        chains: components.chains,
+        names,
+    })
 }
 
 /// The `[[force]]` types and the keys each takes: `(type, needed, allowed)`.
