@@ -121,6 +121,9 @@ pub(super) struct Components {
     pub(super) rods: Vec<(String, RodInfo)>,
     /// Every chain by name.
     pub(super) chains: Vec<(String, ChainInfo)>,
+    /// Half length of every rod segment and chain link, by body index
+    /// (`"first_end"`, `"last_end"` points).
+    pub(super) ends: HashMap<usize, f64>,
 }
 
 /// The component names in use (component name → its key), to find
@@ -313,6 +316,8 @@ pub(super) fn add(
             "segment",
             &info.bodies,
         )?;
+        out.ends
+            .extend(info.bodies.iter().map(|&b| (b, 0.5 * info.segment_length)));
         if legacy {
             out.rod = Some(info.clone());
         }
@@ -371,6 +376,8 @@ pub(super) fn add(
             builder_error(file, &key, e, &[("angle", "angle_deg"), ("mass", mass_key)])
         })?;
         register(names, &mut taken, file, &key, &name, "link", &info.bodies)?;
+        out.ends
+            .extend(info.bodies.iter().map(|&b| (b, 0.5 * chain.length)));
         out.chains.push((name, info));
     }
     Ok(out)

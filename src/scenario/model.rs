@@ -117,10 +117,10 @@ pub(super) struct RawJoint {
     name: Option<String>,
     body: Option<String>,
     body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
+    point_i: Option<RawPoint>,
     axis_i: Option<[f64; 2]>,
     body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
+    point_j: Option<RawPoint>,
     coordinate: Option<String>,
     motion: Option<RawFunction>,
 }
@@ -135,15 +135,15 @@ pub(super) struct RawForce {
     kind: String,
     name: Option<String>,
     body: Option<String>,
-    point: Option<[f64; 2]>,
+    point: Option<RawPoint>,
     torque: Option<RawLoad>,
     fx: Option<RawLoad>,
     fy: Option<RawLoad>,
     force: Option<String>,
     body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
+    point_i: Option<RawPoint>,
     body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
+    point_j: Option<RawPoint>,
     free_length: Option<f64>,
     stiffness: Option<f64>,
     force_deflection: Option<RawTable>,
@@ -169,6 +169,72 @@ pub(super) struct RawForce {
     c_skin: Option<f64>,
     c_end: Option<f64>,
     end_face: Option<bool>,
+}
+
+/// A body point: `[x, y]` in the body frame, or on a rod segment or chain
+/// link `"first_end"` = (0, −l/2) and `"last_end"` = (0, +l/2), its ends
+/// towards the component's first and last end (whatever the segment count).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(try_from = "toml::Value")]
+pub(super) enum RawPoint {
+    At([f64; 2]),
+    FirstEnd,
+    LastEnd,
+}
+
+impl TryFrom<toml::Value> for RawPoint {
+    type Error = String;
+    fn try_from(v: toml::Value) -> Result<Self, String> {
+        const EXPECTED: &str = "expected [x, y] (body frame) or, on a rod segment or chain \
+                                link, \"first_end\" or \"last_end\"";
+        match &v {
+            toml::Value::String(s) if s == "first_end" => Ok(RawPoint::FirstEnd),
+            toml::Value::String(s) if s == "last_end" => Ok(RawPoint::LastEnd),
+            toml::Value::Array(a) => {
+                let num = |x: &toml::Value| match x {
+                    toml::Value::Float(f) => Some(*f),
+                    toml::Value::Integer(i) => Some(*i as f64),
+                    _ => None,
+                };
+                match a.as_slice() {
+                    [x, y] => match (num(x), num(y)) {
+                        (Some(x), Some(y)) => Ok(RawPoint::At([x, y])),
+                        _ => Err(format!("invalid point {v}: {EXPECTED}")),
+                    },
+                    _ => Err(format!("invalid point {v}: {EXPECTED}")),
+                }
+            }
+            _ => Err(format!("invalid point {v}: {EXPECTED}")),
+        }
+    }
+}
+
+/// The body-frame coordinates of `p` on `body` (`None`: the origin); `ends`
+/// holds the half length of every rod segment and chain link by body index.
+fn body_point(
+    p: Option<RawPoint>,
+    body: BodyRef,
+    ends: &HashMap<usize, f64>,
+    file: &str,
+    key: String,
+) -> Result<[f64; 2], ScenarioError> {
+    let half = |sign: f64, what: &str| match body {
+        BodyRef::Body(b) if ends.contains_key(&b) => Ok([0.0, sign * ends[&b]]),
+        _ => Err(error(
+            file,
+            key.clone(),
+            format!(
+                "\"{what}\" is an end of a rod segment or chain link, and this body is neither"
+            ),
+        )),
+    };
+    match p {
+        None => Ok([0.0, 0.0]),
+        Some(RawPoint::At(a)) if a.iter().all(|v| v.is_finite()) => Ok(a),
+        Some(RawPoint::At(a)) => Err(error(file, key, format!("{a:?} is not finite"))),
+        Some(RawPoint::FirstEnd) => half(-1.0, "first_end"),
+        Some(RawPoint::LastEnd) => half(1.0, "last_end"),
+    }
 }
 
 /// A tabulated law `{ x = [...], f = [...] }` (piecewise linear, see [`Law`]).
@@ -406,14 +472,10 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                         ),
                     ));
                 }
+                let pi = body_point(j.point_i, bi, &components.ends, file, key("point_i"))?;
+                let pj = body_point(j.point_j, bj, &components.ends, file, key("point_j"))?;
                 if j.kind == "revolute" {
-                    builder.add_constraint(Revolute::new(
-                        name,
-                        bi,
-                        p(&j.point_i),
-                        bj,
-                        p(&j.point_j),
-                    ));
+                    builder.add_constraint(Revolute::new(name, bi, pi, bj, pj));
                 } else {
                     let axis = p(&j.axis_i);
                     let len = axis[0].hypot(axis[1]);
@@ -428,15 +490,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                         BodyRef::Body(i) => builder.bodies()[i].q0[2],
                     };
                     let theta0 = angle(bj) - angle(bi);
-                    builder.add_constraint(Translational::new(
-                        name,
-                        bi,
-                        p(&j.point_i),
-                        axis,
-                        bj,
-                        p(&j.point_j),
-                        theta0,
-                    ));
+                    builder.add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
                 }
             }
             "drive_coordinate" => {
@@ -465,7 +519,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
     }
     let gravity = raw.gravity;
     for (k, f) in raw.force.iter().enumerate() {
-        add_force(&mut builder, f, k, gravity, &names, file)?;
+        add_force(&mut builder, f, k, gravity, &names, &components.ends, file)?;
     }
     if let Some(g) = raw.gravity {
         builder.gravity(g);
@@ -623,6 +677,7 @@ fn add_force(
     k: usize,
     gravity: Option<[f64; 2]>,
     names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<(), ScenarioError> {
     let key = |fld: &str| format!("force[{k}].{fld}");
@@ -681,7 +736,8 @@ fn add_force(
             Err(err(fld, format!("{v} is not finite")))
         }
     };
-    let point = |fld: &str, p: Option<[f64; 2]>| {
+    let point = |fld: &str, p: Option<RawPoint>, b: BodyRef| body_point(p, b, ends, file, key(fld));
+    let global = |fld: &str, p: Option<[f64; 2]>| {
         let p = p.unwrap_or_default();
         if p.iter().all(|v| v.is_finite()) {
             Ok(p)
@@ -744,7 +800,7 @@ fn add_force(
             builder.add_force(AppliedForce {
                 name,
                 body,
-                point: point("point", f.point)?,
+                point: point("point", f.point, BodyRef::Body(body))?,
                 fx: function("fx", &f.fx)?,
                 fy: function("fy", &f.fy)?,
             });
@@ -753,9 +809,9 @@ fn add_force(
             let (body_i, body_j) = two_bodies("a spring")?;
             let s = PointSpringDamper {
                 body_i,
-                point_i: point("point_i", f.point_i)?,
+                point_i: point("point_i", f.point_i, body_i)?,
                 body_j,
-                point_j: point("point_j", f.point_j)?,
+                point_j: point("point_j", f.point_j, body_j)?,
                 free_length: finite("free_length", f.free_length.unwrap_or(0.0))?,
                 stiffness: law(
                     ("stiffness", f.stiffness),
@@ -831,9 +887,9 @@ fn add_force(
             };
             let c = HalfPlaneContact::new(
                 body,
-                point("point", f.point)?,
+                point("point", f.point, BodyRef::Body(body))?,
                 f.radius.unwrap_or(0.0),
-                point("wall_point", f.wall_point)?,
+                global("wall_point", f.wall_point)?,
                 normal,
                 f.stiffness.unwrap_or_default(),
                 f.damping.unwrap_or(0.0),
@@ -905,7 +961,7 @@ fn add_force(
                 builder.add_force(d);
             }
         }
-        _ => add_expression(builder, f, k, &name, names, file)?,
+        _ => add_expression(builder, f, k, &name, names, ends, file)?,
     }
     Ok(())
 }
@@ -919,6 +975,7 @@ fn add_expression(
     k: usize,
     name: &str,
     names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<(), ScenarioError> {
     let key = |fld: &str| format!("force[{k}].{fld}");
@@ -1023,19 +1080,32 @@ fn add_expression(
             &text("torque", &f.torque)?,
         )
     } else if let Some(force) = &f.force {
-        let end = |body: &Option<String>, p: Option<[f64; 2]>| LinePoint {
-            body: body.clone().filter(|b| b != "ground"),
-            point: p.unwrap_or_default(),
+        let end = |fld: &str, body: &Option<String>, p: Option<RawPoint>| {
+            let b = body_ref(names, file, key(fld), body.as_deref().unwrap_or_default())?;
+            let fld = fld.replace("body", "point");
+            Ok::<_, ScenarioError>(LinePoint {
+                body: body.clone().filter(|b| b != "ground"),
+                point: body_point(p, b, ends, file, key(&fld))?,
+            })
         };
-        let (a, c) = (end(&f.body_i, f.point_i), end(&f.body_j, f.point_j));
+        let (a, c) = (
+            end("body_i", &f.body_i, f.point_i)?,
+            end("body_j", &f.body_j, f.point_j)?,
+        );
         if a.body.is_none() && c.body.is_none() {
             return Err(err("body_j", "a line force needs at least one body".into()));
         }
         b.line_force(&a, &c, force)
     } else {
+        let body = body_index(
+            names,
+            file,
+            key("body"),
+            f.body.as_deref().unwrap_or_default(),
+        )?;
         b.force(
             f.body.as_deref().unwrap_or_default(),
-            f.point.unwrap_or_default(),
+            body_point(f.point, BodyRef::Body(body), ends, file, key("point"))?,
             &text("fx", &f.fx)?,
             &text("fy", &f.fy)?,
         )
