@@ -365,3 +365,205 @@ fn component_bodies_are_addressable_by_name() {
     sc.system.phi(&q, 0.0, &mut phi);
     assert_eq!([phi[rows - 2], phi[rows - 1]], [0.25, 0.5]);
 }
+
+/// Runs `args`; asserts exit status 2, no panic, and every needle in the
+/// message (the CLI bad-input style of tests/cli_bad_input.rs).
+fn rejects(args: &[&str], needles: &[&str]) {
+    let o = mbsolve(args);
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+    assert!(!e.contains("panicked"), "{args:?}: {e}");
+    for n in needles {
+        assert!(e.contains(n), "{args:?}: the error lacks '{n}': {e}");
+    }
+}
+
+/// Bad component input is an error naming the file (or the override), the
+/// key and the value: a segment or link that does not exist, an unknown
+/// rod, duplicate names, an end point on a plain body, a missing name, a
+/// chain without links, `rod.*` overrides on a scenario without `[rod]`.
+#[test]
+fn bad_component_input_names_file_key_and_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let rods = shipped("two_rods.toml");
+    let fourbar = shipped("fourbar.toml");
+    for (file, set, needles) in [
+        (
+            &rods,
+            "joint[1].body_j=rod2.segment[11]",
+            &[
+                "two_rods.toml (--set joint[1].body_j)",
+                "joint[1].body_j",
+                "'rod2.segment[11]'",
+                "rod2 has 10 segments",
+                "k = 1 .. 10",
+            ][..],
+        ),
+        (
+            &rods,
+            "joint[1].body_j=rod2.segment[0]",
+            &["joint[1].body_j", "'rod2.segment[0]'", "k = 1 .. 10"],
+        ),
+        (
+            &rods,
+            "force[0].body_j=rodX.last",
+            &[
+                "force[0].body_j",
+                "'rodX.last'",
+                "no rod or chain named 'rodX'",
+                "rod1.segment[1..10]",
+            ],
+        ),
+        (
+            &rods,
+            "rod[1].name=rod1",
+            &["rod[1].name", "duplicate name 'rod1'", "rod[0] has it"],
+        ),
+        (
+            &rods,
+            "rod[1].name=a.b",
+            &["rod[1].name", "'a.b' is invalid"],
+        ),
+        (
+            &rods,
+            "rod[2].segments=5",
+            &["--set", "rod[2] does not exist", "2 elements"],
+        ),
+        (
+            &rods,
+            "rod.segments=5",
+            &["--set", "rod.segments=5", "[[rod]]", "rod[0].segments"],
+        ),
+        (
+            &rods,
+            "rod[0].segments=0",
+            &["rod[0].segments", "0 is invalid", "at least one segment"],
+        ),
+        (
+            &rods,
+            "rod[0].angle_deg=nan",
+            &["rod[0].angle_deg", "NaN is not a finite number"],
+        ),
+        (
+            &fourbar,
+            "rod.segments=5",
+            &[
+                "--set",
+                "rod.segments=5",
+                "fourbar.toml has no [rod] table",
+                "cannot add one",
+            ],
+        ),
+    ] {
+        rejects(&["run", file, "--set", set, "--out", out], needles);
+    }
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_string_lossy().into_owned()
+    };
+    let body = "[[body]]\nname = \"b\"\nmass = 1.0\ninertia = 1.0\n";
+    let chain = "[[chain]]\nname = \"c\"\nlinks = 2\nlength = 1.0\nmass = 1.0\n";
+    let time = "[time]\nend = 0.1\n";
+    for (name, text, needles) in [
+        (
+            "end_on_body.toml",
+            format!(
+                "{body}{chain}[[joint]]\ntype = \"revolute\"\nbody_i = \"b\"\npoint_i = \"last_end\"\n\
+                 body_j = \"c.first\"\npoint_j = \"first_end\"\n{time}"
+            ),
+            &[
+                "end_on_body.toml",
+                "joint[0].point_i",
+                "\"last_end\" is an end of a rod segment or chain link",
+            ][..],
+        ),
+        (
+            "bad_point.toml",
+            format!(
+                "{chain}[[force]]\ntype = \"torque\"\nbody = \"c.link[3]\"\ntorque = 1.0\n{time}"
+            ),
+            &["force[0].body", "'c.link[3]'", "c has 2 links", "k = 1 .. 2"],
+        ),
+        (
+            "dup.toml",
+            format!("{body}{}{time}", chain.replace("\"c\"", "\"b\"")),
+            &["dup.toml", "chain[0].name", "duplicate name 'b': a body has it"],
+        ),
+        (
+            "noname.toml",
+            format!("[[rod]]\nsegments = 3\n{time}"),
+            &["noname.toml", "rod[0].name", "missing"],
+        ),
+        (
+            "nolinks.toml",
+            format!("{}{time}", chain.replace("links = 2", "links = 0")),
+            &["chain[0].links", "0 is invalid", "at least one link"],
+        ),
+        (
+            "nomass.toml",
+            format!("{}{time}", chain.replace("mass = 1.0", "density = 1.0")),
+            &["chain[0].area", "density and area go together"],
+        ),
+        (
+            "badlength.toml",
+            format!("{}{time}", chain.replace("length = 1.0", "length = -1.0")),
+            &["chain[0].length", "-1", "must be finite and > 0"],
+        ),
+        (
+            "endword.toml",
+            format!(
+                "{chain}[[joint]]\ntype = \"revolute\"\nbody_i = \"ground\"\npoint_i = \"middle\"\n\
+                 body_j = \"c.first\"\n{time}"
+            ),
+            &["joint[0].point_i", "invalid point \"middle\"", "first_end"],
+        ),
+    ] {
+        let f = write(name, &text);
+        rejects(&["run", &f, "--out", out], needles);
+    }
+    assert!(
+        std::fs::read_dir(dir.path()).unwrap().all(|e| e
+            .unwrap()
+            .path()
+            .extension()
+            .is_some_and(|x| x == "toml")),
+        "a rejected run wrote files"
+    );
+}
+
+/// The shipped falling rod's `[rod]` is the rod named `rod`: its segments
+/// are `rod.first`, `rod.segment[k]`, `rod.last` — here a pin of its top
+/// end to the ground, which holds that end in place while the rod swings.
+#[test]
+fn the_falling_rod_table_is_the_rod_named_rod() {
+    let text = std::fs::read_to_string(shipped("falling_rod.toml")).unwrap();
+    let text = format!(
+        "{}\n[[joint]]\ntype = \"revolute\"\nbody_i = \"ground\"\npoint_i = [-0.005236, 0.499993]\n\
+         body_j = \"rod.last\"\npoint_j = \"last_end\"\n",
+        text.replace("[initial]\nconsistent = false", "[initial]\nconsistent = true")
+    );
+    // the top end of the tilted rod is (−0.5 sin 0.6°, 0.5 cos 0.6°) ≈ above
+    let set = strings(&[
+        "rod.segments=4",
+        "rod.fluid=false",
+        "rod.contact=false",
+        "rod.velocity=[0.0, 0.0]",
+        "time.end=0.2",
+    ]);
+    let sc = scenario::parse(&text, "pinned.toml", "pinned", &set).unwrap();
+    assert_eq!(sc.rods.len(), 1);
+    assert_eq!(sc.rods[0].0, "rod");
+    let (traj, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    assert_eq!(s.status, "completed");
+    let q = traj.q.last().unwrap();
+    let (sn, c) = q[11].sin_cos();
+    let top = [q[9] - sn * 0.125, q[10] + c * 0.125];
+    assert!(
+        (top[0] + 0.005236).abs() < 1e-5 && (top[1] - 0.499993).abs() < 1e-5,
+        "top end {top:?}"
+    );
+    // the rod fell around its pin: the bottom moved
+    assert!((q[0] - sc.q0[0]).abs() > 1e-3, "{} vs {}", q[0], sc.q0[0]);
+}

@@ -406,6 +406,12 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
                 .or_insert_with(|| toml::Value::Table(toml::Table::new())),
             Some(k) => element(table, p, k)?,
         };
+        if entry.is_array() && index.is_none() {
+            return Err(format!(
+                "'{p}' is an array of tables [[{p}]]: name the element, e.g. {p}[0].{}",
+                last.0
+            ));
+        }
         table = entry
             .as_table_mut()
             .ok_or_else(|| format!("'{p}' is not a table"))?;

@@ -59,7 +59,7 @@ fn unknown_body(names: &HashMap<String, usize>, name: &str) -> String {
                 .count();
             if n > 0 {
                 return format!(
-                    "no body named '{name}': {comp} has {n} {}s, {comp}.{}[k] with k = 1 .. {n}                      (1-based from its first end)",
+                    "no body named '{name}': {comp} has {n} {}s, {comp}.{}[k] with k = 1 .. {n} (1-based from its first end)",
                     base.0, base.0
                 );
             }
