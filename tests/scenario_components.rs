@@ -185,7 +185,7 @@ fn two_rods_scenario_equals_the_library_assembly() {
         point_i: [0.0, -h1],
         body_j: BodyRef::Body(r2.bodies[n2 - 1]),
         point_j: [0.0, h2],
-        free_length: 0.7071067811865476,
+        free_length: std::f64::consts::FRAC_1_SQRT_2,
         stiffness: Law::Linear(200.0),
         damping: Law::Linear(0.0),
         preload: 0.0,

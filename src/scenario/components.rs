@@ -48,7 +48,7 @@ pub(super) struct RawRod {
 /// (TOML allows only one of the two).
 #[derive(Debug)]
 pub(super) enum RawRods {
-    One(RawRod),
+    One(Box<RawRod>),
     Many(Vec<RawRod>),
 }
 
@@ -56,7 +56,7 @@ impl RawRods {
     /// Each rod with its key prefix (`rod` or `rod[k]`).
     pub(super) fn each(&self) -> Vec<(String, &RawRod)> {
         match self {
-            RawRods::One(r) => vec![("rod".into(), r)],
+            RawRods::One(r) => vec![("rod".into(), &**r)],
             RawRods::Many(v) => v
                 .iter()
                 .enumerate()
@@ -103,7 +103,7 @@ pub(super) fn parse_rods(v: toml::Value) -> Result<RawRods, (String, String)> {
         )
     }
     match v {
-        toml::Value::Table(_) => at(v, "rod").map(RawRods::One),
+        toml::Value::Table(_) => at(v, "rod").map(|r| RawRods::One(Box::new(r))),
         toml::Value::Array(_) => at(v, "rod").map(RawRods::Many),
         other => Err((
             "rod".into(),
