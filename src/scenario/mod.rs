@@ -79,6 +79,8 @@ pub struct Scenario {
     pub rods: Vec<(String, RodInfo)>,
     /// Every `[[chain]]` with its name.
     pub chains: Vec<(String, ChainInfo)>,
+    /// File format of the run's table (`output.format`).
+    pub format: crate::output::Format,
 }
 
 #[derive(Debug, Deserialize)]
@@ -429,6 +431,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     // The run settings and the limits first: nothing that scales with the
     // input (bodies, output times) is allocated before they are checked.
     let run = run::build(&raw, file)?;
+    let format = run::output_format(&raw, file)?;
     limits::check(&raw, &run, file)?;
     let model::Model {
         system,
@@ -449,6 +452,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         rod,
         rods,
         chains,
+        format,
     })
 }
 
