@@ -9,6 +9,8 @@
 mod chain;
 mod parallelogram;
 mod rod;
+mod stiff_chain;
 pub use chain::{add_link_chain, ChainInfo, LinkChain};
 pub use parallelogram::{parallelogram_chain, ParallelogramChain};
 pub use rod::*;
+pub use stiff_chain::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};

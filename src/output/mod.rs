@@ -13,7 +13,9 @@ pub use arrow::ArrowTable;
 
 use std::io::Write;
 
-use crate::model::{ReactionMap, System};
+use crate::model::{
+    drives, evaluate_sensors, joint_short_name, Drive, ReactionMap, Sensor, System,
+};
 use crate::simulation::{OutputQuantities, Sample};
 
 /// One output column: its name (`t`, `x1`, `B.fx`, …) and SI unit.
@@ -39,11 +41,11 @@ impl Column {
 /// `constraint_norm`, then what `o` selects: velocities `vx1,vy1,omega1,…`,
 /// accelerations `ax1,ay1,alpha1,…`, per joint `J.fx,J.fy,J.mz` (reaction
 /// on its body, global frame, moment about the centre of mass) and
-/// `J.fx_local,J.fy_local` (in that body's frame),
-/// `kinetic_energy,potential_energy,total_energy` and the balance:
-/// `work_nonconservative` (work of non-conservative and constraint forces
-/// since t0), `energy_balance_error` (`T + V − E0 − W`).
-pub fn columns(sys: &System, o: &OutputQuantities) -> Vec<Column> {
+/// `J.fx_local,J.fy_local` (in that body's frame), per drive `J.drive`
+/// (its generalized force −λ, [`Drive::force`]), the energies
+/// ([`ENERGY_COLUMNS`]); then per sensor `S.QUANTITY`
+/// ([`Sensor::quantities`]).
+pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Column> {
     let nb = sys.bodies().len();
     let mut c = vec![Column::new("t", "s")];
     for k in 0..sys.n_coords() {
@@ -80,45 +82,76 @@ pub fn columns(sys: &System, o: &OutputQuantities) -> Vec<Column> {
             }
         }
     }
+    if o.drives {
+        for d in drives(sys) {
+            c.push(Column::new(
+                format!("{}.drive", joint_label(sys, d.joint)),
+                d.unit,
+            ));
+        }
+    }
     if o.energy {
-        for n in [
-            "kinetic_energy",
-            "potential_energy",
-            "total_energy",
-            "work_nonconservative",
-            "energy_balance_error",
-        ] {
+        for n in ENERGY_COLUMNS {
             c.push(Column::new(n, "J"));
+        }
+    }
+    for s in sensors {
+        for (q, u) in s.quantities(sys) {
+            c.push(Column::new(format!("{}.{q}", s.name), u));
         }
     }
     c
 }
 
+/// The energy columns \[J\], in row order: `kinetic_energy` T,
+/// `potential_energy` V = `potential_gravity` + `potential_elastic` (every
+/// other potential: springs, contacts, buoyancy), `total_energy` T + V,
+/// `work_nonconservative` W = `work_forces` (non-conservative force
+/// elements: dampers and friction — negative, the dissipated energy —,
+/// actuators, applied loads) + `work_drives` (the constraint forces,
+/// `∫λᵀΦ_t`: the drives) since t0, `energy_balance_error` T + V − E0 − W
+/// ([`crate::simulation::EnergyTerms`]).
+pub const ENERGY_COLUMNS: [&str; 9] = [
+    "kinetic_energy",
+    "potential_energy",
+    "potential_gravity",
+    "potential_elastic",
+    "total_energy",
+    "work_nonconservative",
+    "work_forces",
+    "work_drives",
+    "energy_balance_error",
+];
+
 /// The short name of joint `k` in column names (the quoted name in its
 /// description, else `joint<k+1>`).
 pub fn joint_label(sys: &System, k: usize) -> String {
-    let name = sys.constraints()[k].name();
-    match (name.find('\''), name.rfind('\'')) {
-        (Some(a), Some(b)) if b > a + 1 => name[a + 1..b].to_string(),
-        _ => format!("joint{}", k + 1),
-    }
+    joint_short_name(sys.constraints()[k].as_ref()).unwrap_or_else(|| format!("joint{}", k + 1))
 }
 
 /// The values of one row in the order of [`columns`], from a [`Sample`];
 /// a value that could not be evaluated is NaN.
-pub struct RowBuilder {
+pub struct RowBuilder<'s> {
+    sys: &'s System,
     map: ReactionMap,
     o: OutputQuantities,
+    drives: Vec<Drive>,
+    sensors: &'s [Sensor],
     row: Vec<f64>,
+    values: Vec<f64>,
 }
 
-impl RowBuilder {
-    /// Rows of `sys` with the quantities `o`.
-    pub fn new(sys: &System, o: OutputQuantities) -> Self {
+impl<'s> RowBuilder<'s> {
+    /// Rows of `sys` with the quantities `o` and `sensors`.
+    pub fn new(sys: &'s System, o: OutputQuantities, sensors: &'s [Sensor]) -> Self {
         Self {
+            sys,
             map: sys.reaction_map(),
             o,
+            drives: if o.drives { drives(sys) } else { Vec::new() },
+            sensors,
             row: Vec::new(),
+            values: Vec::new(),
         }
     }
 
@@ -156,10 +189,28 @@ impl RowBuilder {
                 ]);
             }
         }
-        if o.energy {
-            let [k, p, w, e] = s.energy.unwrap_or([f64::NAN; 4]);
-            row.extend([k, p, k + p, w, e]);
+        for d in &self.drives {
+            row.push(s.lambda.map_or(f64::NAN, |l| d.force(l)));
         }
+        if o.energy {
+            row.extend(s.energy.map_or([f64::NAN; 9], |e| {
+                let v = e.gravity + e.elastic;
+                let w = e.work_forces + e.work_drives;
+                [
+                    e.kinetic,
+                    v,
+                    e.gravity,
+                    e.elastic,
+                    e.kinetic + v,
+                    w,
+                    e.work_forces,
+                    e.work_drives,
+                    e.balance_error,
+                ]
+            }));
+        }
+        evaluate_sensors(self.sensors, self.sys, s.t, s.q, s.qd, &mut self.values);
+        row.extend_from_slice(&self.values);
         &self.row
     }
 }

@@ -19,7 +19,7 @@
 
 use crate::builders::{ChainInfo, RodInfo};
 use crate::formulation::ConsistentState;
-use crate::model::System;
+use crate::model::{Sensor, System};
 use crate::simulation::RunConfig;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -30,6 +30,7 @@ mod initial;
 pub mod limits;
 mod model;
 mod run;
+mod sensor;
 
 use components::{RawChain, RawRods};
 use initial::RawInitial;
@@ -79,6 +80,8 @@ pub struct Scenario {
     pub rods: Vec<(String, RodInfo)>,
     /// Every `[[chain]]` with its name.
     pub chains: Vec<(String, ChainInfo)>,
+    /// The `[[sensor]]`s, in file order.
+    pub sensors: Vec<Sensor>,
     /// File format of the run's table (`output.format`).
     pub format: crate::output::Format,
 }
@@ -114,6 +117,8 @@ struct RawScenario {
     chain: Vec<RawChain>,
     #[serde(default)]
     constraints: RawConstraints,
+    #[serde(default)]
+    sensor: Vec<sensor::RawSensor>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it
@@ -439,7 +444,9 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         rods,
         chains,
         names,
+        forces,
     } = model::build(&raw, file)?;
+    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),
@@ -452,6 +459,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         rod,
         rods,
         chains,
+        sensors,
         format,
     })
 }

@@ -24,6 +24,8 @@ pub(super) struct Model {
     /// Body index by name (components' bodies as `C.first`, `C.last`,
     /// `C.segment[k]`, `C.link[k]`).
     pub(super) names: HashMap<String, usize>,
+    /// Each `[[force]]`'s name and the force elements it built.
+    pub(super) forces: Vec<(String, std::ops::Range<usize>)>,
 }
 
 /// The body named `name` (or the ground), for errors at `key`.
@@ -518,8 +520,12 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         }
     }
     let gravity = raw.gravity;
+    let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
+        let start = builder.n_forces();
         add_force(&mut builder, f, k, gravity, &names, &components.ends, file)?;
+        let name = f.name.clone().unwrap_or_else(|| format!("force{}", k + 1));
+        forces.push((name, start..builder.n_forces()));
     }
     if let Some(g) = raw.gravity {
         builder.gravity(g);
@@ -554,6 +560,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         rods: components.rods,
         chains: components.chains,
         names,
+        forces,
     })
 }
 

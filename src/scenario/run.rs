@@ -214,10 +214,11 @@ fn output_quantities(names: &[String]) -> Result<OutputQuantities, String> {
             "accelerations" => &mut o.accelerations,
             "reactions" => &mut o.reactions,
             "energy" => &mut o.energy,
+            "drives" => &mut o.drives,
             other => {
                 return Err(format!(
                     "unknown quantity '{other}' (item {k}); expected velocities, accelerations, \
-                     reactions or energy"
+                     reactions, drives or energy"
                 ))
             }
         };

@@ -275,6 +275,10 @@ fn run(
             a.iterations
         );
     }
+    let assembly = check::assembly_moves(&sc);
+    if let Some((text, _)) = &assembly {
+        report!("assembly moved the bodies {text}");
+    }
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -283,7 +287,7 @@ fn run(
     let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let digest = sha2::Sha256::digest(&text);
     let hash: String = digest.iter().map(|b| format!("{b:02x}")).collect();
-    let provenance = [
+    let mut provenance = vec![
         ("scenario", serde_json::json!(path.display().to_string())),
         ("scenario_sha256", serde_json::json!(hash)),
         ("overrides", serde_json::json!(set)),
@@ -292,6 +296,9 @@ fn run(
             serde_json::json!(env!("CARGO_PKG_VERSION")),
         ),
     ];
+    if let Some((_, json)) = assembly {
+        provenance.push(("initial_assembly", json));
+    }
     let mut running = serde_json::Map::new();
     running.insert("status".into(), "running".into());
     running.insert(
@@ -301,9 +308,16 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
-    let mut files =
-        stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, sc.format, &running)
-            .map_err(|e| e.to_string())?;
+    let mut files = stream::RunFiles::create(
+        out,
+        &stem,
+        &sc.system,
+        sc.run.outputs,
+        &sc.sensors,
+        sc.format,
+        &running,
+    )
+    .map_err(|e| e.to_string())?;
     files.progress = stream::Progress::new(
         if quiet {
             stream::ProgressMode::Off

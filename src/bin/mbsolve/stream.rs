@@ -10,7 +10,7 @@ use crate::output::{
     OutputError,
 };
 use mbsolve::integrate::Stats;
-use mbsolve::model::System;
+use mbsolve::model::{Sensor, System};
 use mbsolve::output::{columns, Format, RowBuilder, TableWriter};
 use mbsolve::simulation::{OutputQuantities, Sample, Sink, Summary};
 use std::io::{IsTerminal, Write};
@@ -129,7 +129,7 @@ impl Progress {
 /// The files of one run: `DIR/<stem>.csv` or `.arrow` (streamed as
 /// `DIR/<stem>.csv.part`), `DIR/<stem>.columns.json` (names and units) and
 /// `DIR/<stem>.summary.json`.
-pub struct RunFiles {
+pub struct RunFiles<'s> {
     /// Final table path.
     pub csv: PathBuf,
     /// Summary JSON path.
@@ -139,14 +139,14 @@ pub struct RunFiles {
     rows: usize,
     last_flush: Instant,
     flush_every: Duration,
-    builder: RowBuilder,
+    builder: RowBuilder<'s>,
     /// Progress display, if any.
     pub progress: Option<Progress>,
     /// Warnings seen while running (printed as they come).
     pub warnings: usize,
 }
 
-impl RunFiles {
+impl<'s> RunFiles<'s> {
     /// Check and claim the output files before the run starts: the
     /// directory exists (or is created) and is writable, a `"running"`
     /// summary replaces any previous run's summary, a previous table is
@@ -154,8 +154,9 @@ impl RunFiles {
     pub fn create(
         out: &Path,
         stem: &str,
-        sys: &System,
+        sys: &'s System,
         quantities: OutputQuantities,
+        sensors: &'s [Sensor],
         format: Format,
         running: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Self, OutputError> {
@@ -168,7 +169,7 @@ impl RunFiles {
         for f in Format::NAMES {
             remove_stale(&out.join(format!("{stem}.{f}")))?;
         }
-        let cols = columns(sys, &quantities);
+        let cols = columns(sys, &quantities, sensors);
         let table = format
             .writer(create_fresh(&part)?, &cols)
             .map_err(|e| OutputError::new(&part, e))?;
@@ -184,7 +185,7 @@ impl RunFiles {
             rows: 0,
             last_flush: Instant::now(),
             flush_every: format.flush_interval(),
-            builder: RowBuilder::new(sys, quantities),
+            builder: RowBuilder::new(sys, quantities, sensors),
             progress: None,
             warnings: 0,
         })
@@ -209,7 +210,7 @@ impl RunFiles {
     }
 }
 
-impl RunFiles {
+impl RunFiles<'_> {
     /// The run could not start: no CSV, a summary that says so.
     pub fn abandon(&mut self, message: &str) -> Result<(), OutputError> {
         self.table = None;
@@ -220,7 +221,7 @@ impl RunFiles {
     }
 }
 
-impl Sink for RunFiles {
+impl Sink for RunFiles<'_> {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         let t = self.table.as_mut().ok_or("output already closed")?;
         t.write_row(self.builder.row(s))

@@ -174,7 +174,7 @@ impl Sink for Record {
         self.qd.push(s.qd.to_vec());
         self.norm.push(s.constraint_norm);
         self.energy_error
-            .push(s.energy.map_or(f64::NAN, |e| e[3].abs()));
+            .push(s.energy.map_or(f64::NAN, |e| e.balance_error.abs()));
         Ok(())
     }
 }
