@@ -2,11 +2,15 @@
 //! joints, bending springs, buoyancy, drag, wall contact) and the known-answer
 //! chains of problem D (docs/problems.md) (finite-segment cantilever, N-link pendulum);
 //! the parallelogram-loop chain through singular configurations with its
-//! one-degree-of-freedom reference (issue 10).
+//! one-degree-of-freedom reference (issue 10); a chain of N uniform links
+//! with torsional springs and an optional ground pivot (`add_link_chain`,
+//! the scenario's `[[chain]]`).
 
+mod chain;
 mod parallelogram;
 mod rod;
 mod stiff_chain;
+pub use chain::{add_link_chain, ChainInfo, LinkChain};
 pub use parallelogram::{parallelogram_chain, ParallelogramChain};
 pub use rod::*;
 pub use stiff_chain::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};

@@ -161,10 +161,25 @@ impl RodParams {
     /// Initial centre of segment `i` (0-based from the bottom): the rod
     /// centre at the origin, the segments along the tilted axis.
     pub fn initial_centre(&self, i: usize) -> [f64; 2] {
+        self.placed_centre(None, i)
+    }
+    /// Initial centre of segment `i` (0-based from the first end) of the
+    /// straight rod whose first end (the bottom of segment 1) is at
+    /// `first_end`: `first_end + (i + ½) l_s e_a`; `None`: the rod centre at
+    /// the origin ([`RodParams::initial_centre`]).
+    pub fn placed_centre(&self, first_end: Option<[f64; 2]>, i: usize) -> [f64; 2] {
         let ls = self.segment_length();
-        let a = (i as f64 + 0.5) * ls - 0.5 * self.length;
         let e = self.axis();
-        [a * e[0], a * e[1]]
+        match first_end {
+            None => {
+                let a = (i as f64 + 0.5) * ls - 0.5 * self.length;
+                [a * e[0], a * e[1]]
+            }
+            Some(p) => {
+                let a = (i as f64 + 0.5) * ls;
+                [p[0] + a * e[0], p[1] + a * e[1]]
+            }
+        }
     }
 
     /// The parameters shared by every chain built from a `RodParams`.
@@ -201,7 +216,23 @@ impl RodParams {
     /// rod and an initial state whose corners do not penetrate a wall.
     /// Errors name the field and its value.
     pub fn validate(&self) -> Result<(), ModelError> {
+        self.validate_at(None)
+    }
+
+    /// [`RodParams::validate`] for the rod placed with its first end at
+    /// `first_end` ([`RodParams::placed_centre`]).
+    pub fn validate_at(&self, first_end: Option<[f64; 2]>) -> Result<(), ModelError> {
         self.validate_structure()?;
+        if let Some(p) = first_end {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(invalid(
+                    ROD,
+                    "position",
+                    format!("{p:?}"),
+                    "must be finite".into(),
+                ));
+            }
+        }
         if !self.initial_velocity.iter().all(|v| v.is_finite()) {
             return Err(invalid(
                 ROD,
@@ -244,7 +275,7 @@ impl RodParams {
             let probe = self.contact_element(0, 0);
             let (sn, cs) = self.tilt.sin_cos();
             for i in 0..self.n_segments {
-                let r = self.initial_centre(i);
+                let r = self.placed_centre(first_end, i);
                 for c in 0..4 {
                     let s = probe.corner_offset(c);
                     let px = r[0] + cs * s[0] - sn * s[1];
@@ -391,15 +422,40 @@ impl RodInfo {
     }
 }
 
+/// How the bodies and joints of a chain are named: `Numbered("segment")`
+/// gives "segment 1", "segment joint 1" (the library's rod and pendulum);
+/// `Component("rod1", "segment")` gives "rod1.segment[1]", "rod1.joint[1]"
+/// (scenario components, 1-based like their scenario names).
+#[derive(Debug, Clone, Copy)]
+pub(super) enum ChainNames<'a> {
+    Numbered(&'a str),
+    Component(&'a str, &'a str),
+}
+
+impl ChainNames<'_> {
+    fn body(&self, i: usize) -> String {
+        match self {
+            ChainNames::Numbered(n) => format!("{n} {}", i + 1),
+            ChainNames::Component(c, part) => format!("{c}.{part}[{}]", i + 1),
+        }
+    }
+    fn joint(&self, i: usize) -> String {
+        match self {
+            ChainNames::Numbered(n) => format!("{n} joint {}", i + 1),
+            ChainNames::Component(c, _) => format!("{c}.joint[{}]", i + 1),
+        }
+    }
+}
+
 /// Add the segments and joints of a straight chain to `builder`.
 /// `centre(i)` gives segment i's centre; joint i connects the point
 /// `(0, hinge)` of segment i with `(0, −hinge)` of segment i+1. Returns the
 /// bodies, the joints and the joints' points `[s_i, s_j]` (for
 /// [`ChainKernels::new`]).
 #[allow(clippy::too_many_arguments)]
-fn add_chain(
+pub(super) fn add_chain(
     builder: &mut SystemBuilder,
-    name: &str,
+    name: ChainNames,
     n: usize,
     mass: f64,
     inertia: f64,
@@ -412,13 +468,11 @@ fn add_chain(
         .map(|i| {
             let c = centre(i);
             builder.add_body(
-                Body::new(
-                    format!("{name} {}", i + 1),
-                    mass,
-                    inertia,
-                    [c[0], c[1], phi],
-                )
-                .with_velocity([velocity[0], velocity[1], 0.0]),
+                Body::new(name.body(i), mass, inertia, [c[0], c[1], phi]).with_velocity([
+                    velocity[0],
+                    velocity[1],
+                    0.0,
+                ]),
             )
         })
         .collect();
@@ -427,7 +481,7 @@ fn add_chain(
         .enumerate()
         .map(|(i, b)| {
             builder.add_constraint(Revolute::new(
-                format!("{name} joint {}", i + 1),
+                name.joint(i),
                 BodyRef::Body(b[0]),
                 [0.0, hinge],
                 BodyRef::Body(b[1]),
@@ -442,7 +496,7 @@ fn add_chain(
 /// Attach the generated chain kernels ([`ChainKernels`]) to the chain's
 /// joints (and a ground pivot added right after them): the builder knows
 /// the topology, so nothing has to be recognised.
-fn attach_chain_kernels(
+pub(super) fn attach_chain_kernels(
     builder: &mut SystemBuilder,
     bodies: &[usize],
     joints: &[usize],
@@ -478,21 +532,50 @@ fn attach_chain_kernels(
 /// or add a [`Gravity`] element / [`SystemBuilder::gravity`] with
 /// `(0, −params.gravity)` yourself.
 pub fn add_rod(builder: &mut SystemBuilder, params: &RodParams) -> Result<RodInfo, ModelError> {
-    params.validate()?;
+    add_rod_with(builder, params, ChainNames::Numbered("segment"), None)
+}
+
+/// [`add_rod`] as a named component placed with its first end (the bottom
+/// end of segment 1) at `first_end` (`None`: the rod centre at the origin,
+/// as [`add_rod`]); the rod points along `(−sin φ0, cos φ0)`, φ0 =
+/// `params.tilt`. Segments are named `"{name}.segment[k]"`, joints
+/// `"{name}.joint[k]"`, k = 1 … N from the first end (the scenario's
+/// `[[rod]]`, docs/scenarios.md).
+pub fn add_named_rod(
+    builder: &mut SystemBuilder,
+    params: &RodParams,
+    name: &str,
+    first_end: Option<[f64; 2]>,
+) -> Result<RodInfo, ModelError> {
+    add_rod_with(
+        builder,
+        params,
+        ChainNames::Component(name, "segment"),
+        first_end,
+    )
+}
+
+fn add_rod_with(
+    builder: &mut SystemBuilder,
+    params: &RodParams,
+    names: ChainNames,
+    first_end: Option<[f64; 2]>,
+) -> Result<RodInfo, ModelError> {
+    params.validate_at(first_end)?;
     let p = params;
     let n = p.n_segments;
     let ls = p.segment_length();
     let (m, inertia) = (p.segment_mass(), p.segment_inertia());
     let (bodies, joints, points) = add_chain(
         builder,
-        "segment",
+        names,
         n,
         m,
         inertia,
         p.tilt,
         p.initial_velocity,
         0.5 * ls,
-        |i| p.initial_centre(i),
+        |i| p.placed_centre(first_end, i),
     );
     attach_chain_kernels(builder, &bodies, &joints, &points, None);
     let mut info = RodInfo::empty();
@@ -639,7 +722,7 @@ pub fn add_cantilever(
     let (m, inertia) = (p.segment_mass(), p.segment_inertia());
     let (bodies, joints, points) = add_chain(
         builder,
-        "segment",
+        ChainNames::Numbered("segment"),
         n,
         m,
         inertia,
@@ -746,7 +829,7 @@ pub fn n_link_pendulum(
     // "hinge" −l/2 on the upper link, +l/2 on the lower.
     let (bodies, joints, points) = add_chain(
         &mut builder,
-        "link",
+        ChainNames::Numbered("link"),
         n,
         link_mass,
         inertia,

@@ -162,47 +162,74 @@ pub(super) fn check(raw: &RawScenario, run: &RunConfig, file: &str) -> Result<()
         ));
     }
     resolvable("output.dt", run.output_dt, run, file)?;
-    // A `[rod]` without `segments` has problem B's ten; a negative count is
-    // the model's error.
-    let segments = raw.rod.as_ref().map_or(0, |r| r.segments.unwrap_or(10));
-    if segments > MAX_BODIES as i64 {
-        return Err(error(
-            file,
-            "rod.segments",
-            format!("{segments} is invalid: the limit is {MAX_BODIES} bodies (docs/limits.md)"),
-        ));
+    // The bodies of the rods (a rod without `segments` has problem B's ten)
+    // and chains, each with its key; a count < 1 is the model's error.
+    let mut parts: Vec<(String, i64)> = raw
+        .rod
+        .as_ref()
+        .map(|r| r.each())
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(key, r)| (format!("{key}.segments"), r.segments.unwrap_or(10)))
+        .collect();
+    parts.extend(
+        raw.chain
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (format!("chain[{k}].links"), c.links)),
+    );
+    let mut segments = 0usize;
+    let mut largest: Option<(String, usize)> = None;
+    for (key, n) in parts {
+        if n > MAX_BODIES as i64 {
+            return Err(error(
+                file,
+                key,
+                format!("{n} is invalid: the limit is {MAX_BODIES} bodies (docs/limits.md)"),
+            ));
+        }
+        let n = usize::try_from(n).unwrap_or(0);
+        segments += n;
+        if largest.as_ref().is_none_or(|l| n > l.1) {
+            largest = Some((key, n));
+        }
     }
-    let segments = usize::try_from(segments).unwrap_or(0);
     let bodies = raw.body.len() + segments;
     if bodies > MAX_BODIES {
         return Err(error(
             file,
             "body",
             format!(
-                "{bodies} bodies (with the rod's segments): the limit is {MAX_BODIES} \
-                 (docs/limits.md)"
+                "{bodies} bodies (with the rods' segments and chains' links): the limit is \
+                 {MAX_BODIES} (docs/limits.md)"
             ),
         ));
     }
-    memory(bodies, segments, outputs, memory_limit(), file)
+    let largest = largest.filter(|l| l.1 > 0);
+    memory(
+        bodies,
+        largest.as_ref().map(|(k, n)| (k.as_str(), *n)),
+        outputs,
+        memory_limit(),
+        file,
+    )
 }
 
-/// The memory estimate of `bodies` bodies (`segments` of them a rod's) and
-/// `outputs` output times against `limit`; an error at `rod.segments`
-/// (or `body`) when it is exceeded.
+/// The memory estimate of `bodies` bodies and `outputs` output times
+/// against `limit`; an error at the key of the largest component (`rod.segments`,
+/// `chain[0].links`, with its count) when there is one, else at `body`.
 fn memory(
     bodies: usize,
-    segments: usize,
+    component: Option<(&str, usize)>,
     outputs: f64,
     limit: f64,
     file: &str,
 ) -> Result<(), ScenarioError> {
     let need = memory_estimate(bodies, outputs);
     if need > limit {
-        let (key, what) = if segments > 0 {
-            ("rod.segments", format!("{segments} segments"))
-        } else {
-            ("body", format!("{bodies} bodies"))
+        let (key, what) = match component {
+            Some((key, n)) => (key, format!("{n} ({bodies} bodies)")),
+            None => ("body", format!("{bodies} bodies")),
         };
         return Err(error(
             file,
@@ -226,15 +253,16 @@ mod tests {
     #[test]
     fn memory_beyond_the_limit_names_the_rod_or_the_bodies() {
         // 10⁴ segments need 50 MB: accepted with 1 GB, refused with 10 MB.
-        assert!(memory(10_000, 10_000, 1e4, 1e9, "f").is_ok());
-        let e = memory(10_000, 10_000, 1e4, 1e7, "f").unwrap_err();
+        let rod = Some(("rod.segments", 10_000));
+        assert!(memory(10_000, rod, 1e4, 1e9, "f").is_ok());
+        let e = memory(10_000, rod, 1e4, 1e7, "f").unwrap_err();
         assert_eq!(e.key, "rod.segments");
         assert!(e.message.contains("0.050 GB"), "{e}");
         assert!(e.message.contains("0.010 GB"), "{e}");
-        let e = memory(10_000, 0, 1e4, 1e7, "f").unwrap_err();
+        let e = memory(10_000, None, 1e4, 1e7, "f").unwrap_err();
         assert_eq!(e.key, "body");
         // The output times count: 10⁷ of them are 80 MB.
-        assert!(memory(1, 0, 1e7, 5e7, "f").is_err());
+        assert!(memory(1, None, 1e7, 5e7, "f").is_err());
     }
 
     #[test]

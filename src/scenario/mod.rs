@@ -17,7 +17,7 @@
 //! attributes errors to the file or the `--set` that caused them, and
 //! assembles the [`Scenario`].
 
-use crate::builders::RodInfo;
+use crate::builders::{ChainInfo, RodInfo};
 use crate::formulation::ConsistentState;
 use crate::model::{Sensor, System};
 use crate::simulation::RunConfig;
@@ -25,14 +25,16 @@ use serde::Deserialize;
 use std::collections::HashMap;
 use std::path::Path;
 
+mod components;
 mod initial;
 pub mod limits;
 mod model;
 mod run;
 mod sensor;
 
+use components::{RawChain, RawRods};
 use initial::RawInitial;
-use model::{RawBody, RawConstraints, RawForce, RawJoint, RawRod};
+use model::{RawBody, RawConstraints, RawForce, RawJoint};
 use run::{RawIntegrator, RawOutput, RawStabilization, RawTime};
 
 /// The four-bar scenario shipped with the tool (docs/problems.md, problem A), embedded at
@@ -74,6 +76,10 @@ pub struct Scenario {
     pub run: RunConfig,
     /// The rod's bookkeeping when the scenario has a `[rod]` table.
     pub rod: Option<RodInfo>,
+    /// Every rod (`[rod]` and `[[rod]]`) with its name.
+    pub rods: Vec<(String, RodInfo)>,
+    /// Every `[[chain]]` with its name.
+    pub chains: Vec<(String, ChainInfo)>,
     /// The `[[sensor]]`s, in file order.
     pub sensors: Vec<Sensor>,
     /// File format of the run's table (`output.format`).
@@ -103,7 +109,12 @@ struct RawScenario {
     output: RawOutput,
     formulation: Option<String>,
     linear_solver: Option<String>,
-    rod: Option<RawRod>,
+    /// `[rod]` or `[[rod]]`: taken out of the document before
+    /// deserialisation and parsed by [`components::parse_rods`].
+    #[serde(skip)]
+    rod: Option<RawRods>,
+    #[serde(default)]
+    chain: Vec<RawChain>,
     #[serde(default)]
     constraints: RawConstraints,
     #[serde(default)]
@@ -194,11 +205,20 @@ pub fn parse_with(
     })?;
     let mut set_keys = Vec::new();
     for o in overrides {
-        let key = apply_override(&mut doc, o.spec).map_err(|m| ScenarioError {
+        let bad = |m: String| ScenarioError {
             file: o.flag.into(),
             key: escape(o.spec),
             message: m,
-        })?;
+        };
+        // An override changes the rod a scenario has; it never adds one.
+        let head = o.spec.split(['.', '[', '=']).next().unwrap_or_default();
+        if head.trim() == "rod" && !doc.contains_key("rod") {
+            return Err(bad(format!(
+                "{file} has no [rod] table: rod.* overrides change a scenario's rod and \
+                 cannot add one"
+            )));
+        }
+        let key = apply_override(&mut doc, o.spec).map_err(bad)?;
         set_keys.push((o.flag, key));
     }
     non_finite(&doc, "").map_err(|(key, message)| ScenarioError {
@@ -206,7 +226,8 @@ pub fn parse_with(
         key,
         message,
     })?;
-    let raw: RawScenario = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(
+    let rods = doc.remove("rod");
+    let mut raw: RawScenario = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
             let key = e.path().to_string();
             let origin = attribute(file, &key, &set_keys);
@@ -218,6 +239,14 @@ pub fn parse_with(
             }
         },
     )?;
+    raw.rod = rods
+        .map(components::parse_rods)
+        .transpose()
+        .map_err(|(key, message)| ScenarioError {
+            file: attribute(file, &key, &set_keys),
+            key,
+            message,
+        })?;
     build(raw, file, stem).map_err(|mut e| {
         e.file = attribute(file, &e.key, &set_keys);
         e
@@ -295,8 +324,10 @@ fn non_finite(doc: &toml::Table, path: &str) -> Result<(), (String, String)> {
 
 /// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
 /// TOML value (number, boolean, quoted string, array) or else as a bare
-/// string. Each segment of the key is a TOML bare
-/// key (letters, digits, `_`, `-`).
+/// string. Each segment of the key is a TOML bare key (letters, digits,
+/// `_`, `-`), optionally with the 0-based index of an existing array of
+/// tables (`rod[1].segments`, `body[0].mass`); tables on the way that do
+/// not exist are created.
 fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
     let (key, value) = spec
         .split_once('=')
@@ -306,8 +337,8 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
     if key.is_empty() {
         return Err("empty key: expected KEY=VALUE".into());
     }
-    let parts: Vec<&str> = key.split('.').collect();
-    for (i, p) in parts.iter().enumerate() {
+    let mut parts: Vec<(&str, Option<usize>)> = Vec::new();
+    for (i, p) in key.split('.').enumerate() {
         if p.is_empty() {
             return Err(format!(
                 "key '{}': segment {} is empty (keys are dotted names such as time.end)",
@@ -315,33 +346,89 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
                 i + 1
             ));
         }
-        if let Some(c) = p
+        let (name, index) = match p.split_once('[') {
+            None => (p, None),
+            Some((name, rest)) => {
+                let k = rest
+                    .strip_suffix(']')
+                    .filter(|k| !k.is_empty() && k.chars().all(|c| c.is_ascii_digit()))
+                    .and_then(|k| k.parse::<usize>().ok())
+                    .ok_or_else(|| {
+                        format!(
+                            "key '{}': '{}' is not a key segment with an array index \
+                             (written name[k], k = 0, 1, ...)",
+                            escape(key),
+                            escape(p)
+                        )
+                    })?;
+                (name, Some(k))
+            }
+        };
+        if let Some(c) = name
             .chars()
             .find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '-'))
         {
             return Err(format!(
-                "key '{}': '{}' is not allowed in a key segment (letters, digits, _ and -; \
-                 array elements such as body[0] cannot be set)",
+                "key '{}': '{}' is not allowed in a key segment (letters, digits, _ and -, \
+                 and an array index such as body[0])",
                 escape(key),
                 escape(&c.to_string())
             ));
         }
+        if name.is_empty() {
+            return Err(format!(
+                "key '{}': segment {} has an index but no name",
+                escape(key),
+                i + 1
+            ));
+        }
+        parts.push((name, index));
     }
     let parsed: toml::Value = format!("v = {value}")
         .parse::<toml::Table>()
         .ok()
         .and_then(|mut t| t.remove("v"))
         .unwrap_or_else(|| toml::Value::String(value.to_string()));
+    // The array element `name[k]` of `table`.
+    fn element<'a>(
+        table: &'a mut toml::Table,
+        name: &str,
+        k: usize,
+    ) -> Result<&'a mut toml::Value, String> {
+        let arr = table
+            .get_mut(name)
+            .and_then(toml::Value::as_array_mut)
+            .ok_or_else(|| format!("'{name}' is not an array (of [[{name}]] tables)"))?;
+        let n = arr.len();
+        arr.get_mut(k).ok_or_else(|| {
+            format!("{name}[{k}] does not exist: '{name}' has {n} elements (0-based)")
+        })
+    }
     let mut table = doc;
-    for p in &parts[..parts.len() - 1] {
-        let entry = table
-            .entry(p.to_string())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let (last, intermediate) = parts.split_last().expect("a key has a segment");
+    for &(p, index) in intermediate {
+        let entry = match index {
+            None => table
+                .entry(p.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new())),
+            Some(k) => element(table, p, k)?,
+        };
+        if entry.is_array() && index.is_none() {
+            return Err(format!(
+                "'{p}' is an array of tables [[{p}]]: name the element, e.g. {p}[0].{}",
+                last.0
+            ));
+        }
         table = entry
             .as_table_mut()
             .ok_or_else(|| format!("'{p}' is not a table"))?;
     }
-    table.insert(parts[parts.len() - 1].to_string(), parsed);
+    match last.1 {
+        None => {
+            table.insert(last.0.to_string(), parsed);
+        }
+        Some(k) => *element(table, last.0, k)? = parsed,
+    }
     Ok(key.to_string())
 }
 
@@ -354,6 +441,8 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     let model::Model {
         system,
         rod,
+        rods,
+        chains,
         names,
         forces,
     } = model::build(&raw, file)?;
@@ -368,6 +457,8 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         assembly,
         run,
         rod,
+        rods,
+        chains,
         sensors,
         format,
     })
@@ -390,11 +481,30 @@ fn positive(v: f64) -> Result<(), String> {
     }
 }
 
+/// The body names for messages, in body order; the numbered parts of a
+/// rod or chain (`rod1.segment[k]`) as one range `rod1.segment[1..N]`.
 fn list(names: &HashMap<String, usize>) -> String {
     let mut v: Vec<(&usize, &String)> = names.iter().map(|(k, v)| (v, k)).collect();
     v.sort();
-    v.into_iter()
-        .map(|(_, k)| k.as_str())
+    let mut out: Vec<String> = Vec::new();
+    let mut ranges: HashMap<&str, usize> = HashMap::new();
+    for (_, k) in v {
+        match k.strip_suffix(']').and_then(|p| p.split_once('[')) {
+            Some((base, _)) => {
+                let n = ranges.entry(base).or_insert(0);
+                *n += 1;
+                if *n == 1 {
+                    out.push(base.to_string());
+                }
+            }
+            None => out.push(k.clone()),
+        }
+    }
+    out.into_iter()
+        .map(|n| match ranges.get(n.as_str()) {
+            Some(c) => format!("{n}[1..{c}]"),
+            None => n,
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }

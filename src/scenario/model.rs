@@ -1,8 +1,9 @@
 //! The model part of a scenario: `[[body]]`, `[[joint]]`, `[[force]]`,
-//! `gravity`, `[rod]` and `constraints.evaluation` → a [`System`].
+//! `gravity`, the components `[rod]`/`[[rod]]`/`[[chain]]` (built in
+//! `components`) and `constraints.evaluation` → a [`System`].
 
 use super::{error, list, RawScenario, ScenarioError};
-use crate::builders::{add_rod, RodInfo, RodParams};
+use crate::builders::{ChainInfo, RodInfo};
 use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
 use crate::forces::{
     AppliedForce, AppliedTorque, Buoyancy, Drag, ExpressionError, ExpressionLoadBuilder,
@@ -16,7 +17,12 @@ use std::collections::HashMap;
 pub(super) struct Model {
     pub(super) system: System,
     pub(super) rod: Option<RodInfo>,
-    /// Body index by name.
+    /// Every rod (`[rod]`, `[[rod]]`) by name.
+    pub(super) rods: Vec<(String, RodInfo)>,
+    /// Every `[[chain]]` by name.
+    pub(super) chains: Vec<(String, ChainInfo)>,
+    /// Body index by name (components' bodies as `C.first`, `C.last`,
+    /// `C.segment[k]`, `C.link[k]`).
     pub(super) names: HashMap<String, usize>,
     /// Each `[[force]]`'s name and the force elements it built.
     pub(super) forces: Vec<(String, std::ops::Range<usize>)>,
@@ -32,13 +38,36 @@ pub(super) fn body_ref(
     if name == "ground" {
         return Ok(BodyRef::Ground);
     }
-    names.get(name).map(|&i| BodyRef::Body(i)).ok_or_else(|| {
-        error(
-            file,
-            key,
-            format!("no body named '{name}' (bodies: {})", list(names)),
-        )
-    })
+    names
+        .get(name)
+        .map(|&i| BodyRef::Body(i))
+        .ok_or_else(|| error(file, key, unknown_body(names, name)))
+}
+
+/// Why `name` names no body: a component part out of range
+/// (`rod1.segment[0]`), a component that does not exist (`rodX.first`), or
+/// no such body; lists what there is.
+fn unknown_body(names: &HashMap<String, usize>, name: &str) -> String {
+    let bodies = list(names);
+    if let Some((comp, part)) = name.split_once('.') {
+        if !names.contains_key(&format!("{comp}.first")) {
+            return format!(
+                "no body named '{name}': there is no rod or chain named '{comp}' (bodies: {bodies})"
+            );
+        }
+        if let Some(base) = part.strip_suffix(']').and_then(|p| p.split_once('[')) {
+            let n = (1..)
+                .take_while(|k| names.contains_key(&format!("{comp}.{}[{k}]", base.0)))
+                .count();
+            if n > 0 {
+                return format!(
+                    "no body named '{name}': {comp} has {n} {}s, {comp}.{}[k] with k = 1 .. {n} (1-based from its first end)",
+                    base.0, base.0
+                );
+            }
+        }
+    }
+    format!("no body named '{name}' (bodies: {bodies})")
 }
 
 /// The index of the body named `name` (not the ground), for errors at `key`.
@@ -58,32 +87,6 @@ pub(super) fn body_index(
 #[serde(deny_unknown_fields)]
 pub(super) struct RawConstraints {
     evaluation: Option<String>,
-}
-
-/// `[rod]`: the finite-segment rod of problem B (docs/problems.md); every key defaults to
-/// problem B. Segments are added after the `[[body]]` bodies.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawRod {
-    pub(super) segments: Option<i64>,
-    length: Option<f64>,
-    width: Option<f64>,
-    density: Option<f64>,
-    youngs_modulus: Option<f64>,
-    damping_time: Option<f64>,
-    tilt_deg: Option<f64>,
-    velocity: Option<[f64; 2]>,
-    channel_width: Option<f64>,
-    water_density: Option<f64>,
-    drag_transverse: Option<f64>,
-    drag_skin: Option<f64>,
-    drag_end: Option<f64>,
-    contact_stiffness: Option<f64>,
-    contact_damping: Option<f64>,
-    friction: Option<f64>,
-    friction_velocity: Option<f64>,
-    fluid: Option<bool>,
-    contact: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -116,10 +119,10 @@ pub(super) struct RawJoint {
     name: Option<String>,
     body: Option<String>,
     body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
+    point_i: Option<RawPoint>,
     axis_i: Option<[f64; 2]>,
     body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
+    point_j: Option<RawPoint>,
     coordinate: Option<String>,
     motion: Option<RawFunction>,
 }
@@ -134,15 +137,15 @@ pub(super) struct RawForce {
     kind: String,
     name: Option<String>,
     body: Option<String>,
-    point: Option<[f64; 2]>,
+    point: Option<RawPoint>,
     torque: Option<RawLoad>,
     fx: Option<RawLoad>,
     fy: Option<RawLoad>,
     force: Option<String>,
     body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
+    point_i: Option<RawPoint>,
     body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
+    point_j: Option<RawPoint>,
     free_length: Option<f64>,
     stiffness: Option<f64>,
     force_deflection: Option<RawTable>,
@@ -168,6 +171,72 @@ pub(super) struct RawForce {
     c_skin: Option<f64>,
     c_end: Option<f64>,
     end_face: Option<bool>,
+}
+
+/// A body point: `[x, y]` in the body frame, or on a rod segment or chain
+/// link `"first_end"` = (0, −l/2) and `"last_end"` = (0, +l/2), its ends
+/// towards the component's first and last end (whatever the segment count).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(try_from = "toml::Value")]
+pub(super) enum RawPoint {
+    At([f64; 2]),
+    FirstEnd,
+    LastEnd,
+}
+
+impl TryFrom<toml::Value> for RawPoint {
+    type Error = String;
+    fn try_from(v: toml::Value) -> Result<Self, String> {
+        const EXPECTED: &str = "expected [x, y] (body frame) or, on a rod segment or chain \
+                                link, \"first_end\" or \"last_end\"";
+        match &v {
+            toml::Value::String(s) if s == "first_end" => Ok(RawPoint::FirstEnd),
+            toml::Value::String(s) if s == "last_end" => Ok(RawPoint::LastEnd),
+            toml::Value::Array(a) => {
+                let num = |x: &toml::Value| match x {
+                    toml::Value::Float(f) => Some(*f),
+                    toml::Value::Integer(i) => Some(*i as f64),
+                    _ => None,
+                };
+                match a.as_slice() {
+                    [x, y] => match (num(x), num(y)) {
+                        (Some(x), Some(y)) => Ok(RawPoint::At([x, y])),
+                        _ => Err(format!("invalid point {v}: {EXPECTED}")),
+                    },
+                    _ => Err(format!("invalid point {v}: {EXPECTED}")),
+                }
+            }
+            _ => Err(format!("invalid point {v}: {EXPECTED}")),
+        }
+    }
+}
+
+/// The body-frame coordinates of `p` on `body` (`None`: the origin); `ends`
+/// holds the half length of every rod segment and chain link by body index.
+fn body_point(
+    p: Option<RawPoint>,
+    body: BodyRef,
+    ends: &HashMap<usize, f64>,
+    file: &str,
+    key: String,
+) -> Result<[f64; 2], ScenarioError> {
+    let half = |sign: f64, what: &str| match body {
+        BodyRef::Body(b) if ends.contains_key(&b) => Ok([0.0, sign * ends[&b]]),
+        _ => Err(error(
+            file,
+            key.clone(),
+            format!(
+                "\"{what}\" is an end of a rod segment or chain link, and this body is neither"
+            ),
+        )),
+    };
+    match p {
+        None => Ok([0.0, 0.0]),
+        Some(RawPoint::At(a)) if a.iter().all(|v| v.is_finite()) => Ok(a),
+        Some(RawPoint::At(a)) => Err(error(file, key, format!("{a:?} is not finite"))),
+        Some(RawPoint::FirstEnd) => half(-1.0, "first_end"),
+        Some(RawPoint::LastEnd) => half(1.0, "last_end"),
+    }
 }
 
 /// A tabulated law `{ x = [...], f = [...] }` (piecewise linear, see [`Law`]).
@@ -340,6 +409,16 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                 .with_velocity([b.vx, b.vy, b.omega]),
         );
     }
+    // Rods and chains: their bodies after the [[body]] bodies, named before
+    // the joints and forces that attach to them.
+    let components = super::components::add(
+        &mut builder,
+        raw.rod.as_ref(),
+        &raw.chain,
+        raw.gravity,
+        &mut names,
+        file,
+    )?;
     let body_ref = |key: String, name: &str| body_ref(&names, file, key, name);
     let body_index = |key: String, name: &str| body_index(&names, file, key, name);
     for (k, j) in raw.joint.iter().enumerate() {
@@ -395,14 +474,10 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                         ),
                     ));
                 }
+                let pi = body_point(j.point_i, bi, &components.ends, file, key("point_i"))?;
+                let pj = body_point(j.point_j, bj, &components.ends, file, key("point_j"))?;
                 if j.kind == "revolute" {
-                    builder.add_constraint(Revolute::new(
-                        name,
-                        bi,
-                        p(&j.point_i),
-                        bj,
-                        p(&j.point_j),
-                    ));
+                    builder.add_constraint(Revolute::new(name, bi, pi, bj, pj));
                 } else {
                     let axis = p(&j.axis_i);
                     let len = axis[0].hypot(axis[1]);
@@ -417,15 +492,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                         BodyRef::Body(i) => builder.bodies()[i].q0[2],
                     };
                     let theta0 = angle(bj) - angle(bi);
-                    builder.add_constraint(Translational::new(
-                        name,
-                        bi,
-                        p(&j.point_i),
-                        axis,
-                        bj,
-                        p(&j.point_j),
-                        theta0,
-                    ));
+                    builder.add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
                 }
             }
             "drive_coordinate" => {
@@ -456,64 +523,9 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
     let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
         let start = builder.n_forces();
-        add_force(&mut builder, f, k, gravity, &names, file)?;
+        add_force(&mut builder, f, k, gravity, &names, &components.ends, file)?;
         let name = f.name.clone().unwrap_or_else(|| format!("force{}", k + 1));
         forces.push((name, start..builder.n_forces()));
-    }
-    let mut rod = None;
-    if let Some(r) = &raw.rod {
-        let mut p = RodParams::problem_b(10);
-        if let Some(n) = r.segments {
-            if n < 1 {
-                return Err(err(
-                    "rod.segments".into(),
-                    format!("{n} is invalid: the rod needs at least one segment"),
-                ));
-            }
-            p.n_segments = n as usize;
-        }
-        let set = |slot: &mut f64, v: Option<f64>| {
-            if let Some(v) = v {
-                *slot = v;
-            }
-        };
-        set(&mut p.length, r.length);
-        set(&mut p.width, r.width);
-        set(&mut p.density, r.density);
-        set(&mut p.youngs_modulus, r.youngs_modulus);
-        set(&mut p.damping_time, r.damping_time);
-        set(&mut p.tilt, r.tilt_deg.map(f64::to_radians));
-        set(&mut p.channel_width, r.channel_width);
-        set(&mut p.water_density, r.water_density);
-        set(&mut p.drag_transverse, r.drag_transverse);
-        set(&mut p.drag_skin, r.drag_skin);
-        set(&mut p.drag_end, r.drag_end);
-        set(&mut p.contact_stiffness, r.contact_stiffness);
-        set(&mut p.contact_damping, r.contact_damping);
-        set(&mut p.friction_coefficient, r.friction);
-        set(&mut p.friction_velocity, r.friction_velocity);
-        if let Some(v) = r.velocity {
-            p.initial_velocity = v;
-        }
-        p.fluid = r.fluid.unwrap_or(true);
-        p.contact = r.contact.unwrap_or(true);
-        // Buoyancy uses the scenario's gravity (none without `gravity`).
-        p.gravity = raw.gravity.map_or(0.0, |g| g[0].hypot(g[1]));
-        let info = add_rod(&mut builder, &p).map_err(|e| {
-            // Name the scenario key of the offending builder field.
-            let key = match &e {
-                crate::model::ModelError::InvalidParameter { field, .. } => match field.as_str() {
-                    "n_segments" => "rod.segments".to_string(),
-                    "tilt" => "rod.tilt_deg".to_string(),
-                    "initial_velocity" => "rod.velocity".to_string(),
-                    "friction_coefficient" => "rod.friction".to_string(),
-                    f => format!("rod.{f}"),
-                },
-                _ => "rod".to_string(),
-            };
-            err(key, e.to_string())
-        })?;
-        rod = Some(info);
     }
     if let Some(g) = raw.gravity {
         builder.gravity(g);
@@ -533,15 +545,20 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         }
     };
     // Generated kernels for recognised topologies (chains, four-bar);
-    // `constraints.evaluation` decides whether they are used.
-    crate::generated::attach_generated(&mut system);
+    // `constraints.evaluation` decides whether they are used. Rods and
+    // chains attach their own (joints and force elements) when built.
+    if components.rods.is_empty() && components.chains.is_empty() {
+        crate::generated::attach_generated(&mut system);
+    }
     system
         .set_evaluation(evaluation)
         .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
 
     Ok(Model {
         system,
-        rod,
+        rod: components.rod,
+        rods: components.rods,
+        chains: components.chains,
         names,
         forces,
     })
@@ -667,6 +684,7 @@ fn add_force(
     k: usize,
     gravity: Option<[f64; 2]>,
     names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<(), ScenarioError> {
     let key = |fld: &str| format!("force[{k}].{fld}");
@@ -725,7 +743,8 @@ fn add_force(
             Err(err(fld, format!("{v} is not finite")))
         }
     };
-    let point = |fld: &str, p: Option<[f64; 2]>| {
+    let point = |fld: &str, p: Option<RawPoint>, b: BodyRef| body_point(p, b, ends, file, key(fld));
+    let global = |fld: &str, p: Option<[f64; 2]>| {
         let p = p.unwrap_or_default();
         if p.iter().all(|v| v.is_finite()) {
             Ok(p)
@@ -788,7 +807,7 @@ fn add_force(
             builder.add_force(AppliedForce {
                 name,
                 body,
-                point: point("point", f.point)?,
+                point: point("point", f.point, BodyRef::Body(body))?,
                 fx: function("fx", &f.fx)?,
                 fy: function("fy", &f.fy)?,
             });
@@ -797,9 +816,9 @@ fn add_force(
             let (body_i, body_j) = two_bodies("a spring")?;
             let s = PointSpringDamper {
                 body_i,
-                point_i: point("point_i", f.point_i)?,
+                point_i: point("point_i", f.point_i, body_i)?,
                 body_j,
-                point_j: point("point_j", f.point_j)?,
+                point_j: point("point_j", f.point_j, body_j)?,
                 free_length: finite("free_length", f.free_length.unwrap_or(0.0))?,
                 stiffness: law(
                     ("stiffness", f.stiffness),
@@ -875,9 +894,9 @@ fn add_force(
             };
             let c = HalfPlaneContact::new(
                 body,
-                point("point", f.point)?,
+                point("point", f.point, BodyRef::Body(body))?,
                 f.radius.unwrap_or(0.0),
-                point("wall_point", f.wall_point)?,
+                global("wall_point", f.wall_point)?,
                 normal,
                 f.stiffness.unwrap_or_default(),
                 f.damping.unwrap_or(0.0),
@@ -949,7 +968,7 @@ fn add_force(
                 builder.add_force(d);
             }
         }
-        _ => add_expression(builder, f, k, &name, names, file)?,
+        _ => add_expression(builder, f, k, &name, names, ends, file)?,
     }
     Ok(())
 }
@@ -963,6 +982,7 @@ fn add_expression(
     k: usize,
     name: &str,
     names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<(), ScenarioError> {
     let key = |fld: &str| format!("force[{k}].{fld}");
@@ -1067,19 +1087,32 @@ fn add_expression(
             &text("torque", &f.torque)?,
         )
     } else if let Some(force) = &f.force {
-        let end = |body: &Option<String>, p: Option<[f64; 2]>| LinePoint {
-            body: body.clone().filter(|b| b != "ground"),
-            point: p.unwrap_or_default(),
+        let end = |fld: &str, body: &Option<String>, p: Option<RawPoint>| {
+            let b = body_ref(names, file, key(fld), body.as_deref().unwrap_or_default())?;
+            let fld = fld.replace("body", "point");
+            Ok::<_, ScenarioError>(LinePoint {
+                body: body.clone().filter(|b| b != "ground"),
+                point: body_point(p, b, ends, file, key(&fld))?,
+            })
         };
-        let (a, c) = (end(&f.body_i, f.point_i), end(&f.body_j, f.point_j));
+        let (a, c) = (
+            end("body_i", &f.body_i, f.point_i)?,
+            end("body_j", &f.body_j, f.point_j)?,
+        );
         if a.body.is_none() && c.body.is_none() {
             return Err(err("body_j", "a line force needs at least one body".into()));
         }
         b.line_force(&a, &c, force)
     } else {
+        let body = body_index(
+            names,
+            file,
+            key("body"),
+            f.body.as_deref().unwrap_or_default(),
+        )?;
         b.force(
             f.body.as_deref().unwrap_or_default(),
-            f.point.unwrap_or_default(),
+            body_point(f.point, BodyRef::Body(body), ends, file, key("point"))?,
             &text("fx", &f.fx)?,
             &text("fy", &f.fy)?,
         )

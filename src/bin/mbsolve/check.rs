@@ -121,7 +121,19 @@ fn report(sc: &Scenario, s: &Size) -> String {
             by_kind(sys.forces().iter().map(|f| f.name()))
         ),
     );
-    line("evaluation", sys.evaluation_name());
+    let force_kernels = sys.force_kernel_names();
+    line(
+        "evaluation",
+        if force_kernels.is_empty() {
+            sys.evaluation_name()
+        } else {
+            format!(
+                "{}; force Jacobians: {}",
+                sys.evaluation_name(),
+                force_kernels.join("+")
+            )
+        },
+    );
     line(
         "method",
         format!(
