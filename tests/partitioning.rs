@@ -242,3 +242,167 @@ fn partitioned_rk4_is_fourth_order() {
         assert!((12.0..40.0).contains(&r), "ratio {r}");
     }
 }
+
+fn phi_inf(sys: &mbsolve::model::System, q: &[f64]) -> f64 {
+    let mut phi = vec![0.0; sys.n_constraints()];
+    sys.phi(q, 0.0, &mut phi);
+    phi.iter().fold(0.0, |a: f64, v| a.max(v.abs()))
+}
+
+#[test]
+fn direct_correction_leaves_a_quadratic_violation() {
+    // One M-weighted correction δq = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹Φ is one Newton
+    // step: from a violation ε the remainder is O(ε²) — dividing ε by 10
+    // divides it by ~100 — and the velocities land on Φ_q q̇ = −Φ_t.
+    let sc = fourbar(&[]);
+    let sys = &sc.system;
+    let n = sys.n_coords();
+    let opts = Index1Options {
+        projection: Projection {
+            enabled: true,
+            correction: Correction::Direct,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let mut f = Index1::new(sys, opts).unwrap();
+    let dir: Vec<f64> = (0..n).map(|k| ((k * 7 + 3) % 5) as f64 - 2.0).collect();
+    let mut remainders = Vec::new();
+    for eps in [1e-2, 1e-3, 1e-4] {
+        let mut y: Vec<f64> = sc.q0.iter().chain(&sc.qd0).cloned().collect();
+        for (yk, d) in y.iter_mut().zip(&dir) {
+            *yk += eps * d;
+        }
+        y[n + 2] += 0.3; // velocities off the manifold too
+        let before = phi_inf(sys, &y[..n]);
+        assert!(f.post_step(0.0, &mut y).unwrap());
+        let after = phi_inf(sys, &y[..n]);
+        let (q, qd) = y.split_at(n);
+        let mut jac = vec![0.0; sys.jacobian_pattern().len()];
+        let mut vr = vec![0.0; sys.n_constraints()];
+        sys.jacobian_values(q, 0.0, &mut jac);
+        sys.jacobian_mul(&jac, qd, &mut vr);
+        let vr = vr.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        eprintln!("ε = {eps:e}: ‖Φ‖∞ {before:.3e} → {after:.3e}, ‖Φ_q q̇‖∞ {vr:.1e}");
+        assert!(vr < 1e-12, "{vr:e}");
+        assert!(after < 10.0 * before * before, "{after:e} vs {before:e}²");
+        remainders.push(after);
+    }
+    for w in remainders.windows(2) {
+        let r = w[0] / w[1];
+        assert!((50.0..200.0).contains(&r), "remainder ratio {r}");
+    }
+    assert_eq!(f.stats().projection_iterations, 3, "one correction each");
+}
+
+#[test]
+fn direct_correction_and_step_rule_from_scenario_keys() {
+    // correction = "direct": ode45 from the incorrect four-bar stays on the
+    // manifold (one correction per step).
+    let sc = fourbar(&[
+        "initial.incorrect=true",
+        "stabilization.correction=\"direct\"",
+        "time.end=0.5",
+    ]);
+    assert_eq!(sc.run.index1.projection.correction, Correction::Direct);
+    assert!(sc.run.index1.projection.enabled);
+    let (traj, s) = run(&sc, &sc.run);
+    eprintln!(
+        "direct: {} steps, max‖Φ‖ {:.2e} (initial {:.2e}), final {:.2e}",
+        s.steps, s.max_constraint_norm, traj.constraint_norm[0], s.final_constraint_norm
+    );
+    assert_eq!(s.status, "completed");
+    assert!(
+        s.final_constraint_norm < 1e-9,
+        "{:e}",
+        s.final_constraint_norm
+    );
+    // rule = "step": α = β = 1/h, and the violation of the incorrect
+    // four-bar decays like (1 + t/h) e^(−t/h): by t = 0.05 s (50 steps) it
+    // is down by far more than 10³.
+    let sc = fourbar(&[
+        "initial.incorrect=true",
+        "integrator.method=\"rk4\"",
+        "integrator.step=1e-3",
+        "stabilization.rule=\"step\"",
+        "time.end=0.05",
+        "output.dt=0.05",
+    ]);
+    assert_eq!(sc.run.index1.baumgarte, Baumgarte::from_step(1e-3));
+    let (traj, s) = run(&sc, &sc.run);
+    assert_eq!((s.alpha, s.beta), (1000.0, 1000.0));
+    let (first, last) = (
+        traj.constraint_norm[0],
+        *traj.constraint_norm.last().unwrap(),
+    );
+    eprintln!("step rule: ‖Φ‖ {first:.2e} → {last:.2e} in 50 steps");
+    assert!(last < 1e-3 * first, "{first:e} → {last:e}");
+    // the rule follows h, and needs one
+    for h in [1e-4, 2.5e-3, 0.1] {
+        let b = Baumgarte::from_step(h);
+        assert!((b.alpha * h - 1.0).abs() < 1e-15 && b.beta == b.alpha);
+        assert_eq!(Baumgarte::from_rule(BaumgarteRule::Step, 1.0 / h, 7.0), b);
+    }
+    let o = |v: &[&str]| -> Vec<String> { v.iter().map(|s| s.to_string()).collect() };
+    for (sets, key, word) in [
+        (
+            vec!["stabilization.rule=\"step\""],
+            "stabilization.rule",
+            "max_step",
+        ),
+        (
+            vec![
+                "stabilization.rule=\"step\"",
+                "integrator.max_step=0.01",
+                "stabilization.alpha=5.0",
+            ],
+            "stabilization.rule",
+            "alpha",
+        ),
+        (
+            vec!["stabilization.correction=\"once\""],
+            "stabilization.correction",
+            "once",
+        ),
+        (
+            vec![
+                "stabilization.correction=\"direct\"",
+                "stabilization.projection=false",
+            ],
+            "stabilization.correction",
+            "projection",
+        ),
+        (
+            vec!["formulation=\"partitioned\"", "stabilization.alpha=5.0"],
+            "stabilization.alpha",
+            "partitioned",
+        ),
+        (
+            vec!["stabilization.partition_condition=10.0"],
+            "stabilization.partition_condition",
+            "partitioned",
+        ),
+        (
+            vec![
+                "formulation=\"partitioned\"",
+                "stabilization.partition_condition=0.5",
+            ],
+            "stabilization.partition_condition",
+            "0.5",
+        ),
+    ] {
+        let m = scenario::parse(FOURBAR_TOML, "fourbar.toml", "fourbar", &o(&sets))
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(m.contains(key) && m.contains(word), "{sets:?}: {m}");
+    }
+    // max_step gives h for the adaptive methods
+    let sc = fourbar(&["stabilization.rule=\"step\"", "integrator.max_step=0.01"]);
+    assert_eq!(sc.run.index1.baumgarte, Baumgarte::from_step(0.01));
+    let sc = fourbar(&[
+        "formulation=\"partitioned\"",
+        "stabilization.partition_condition=50.0",
+    ]);
+    assert_eq!(sc.run.index1.partition.max_condition, 50.0);
+}
