@@ -34,7 +34,10 @@ mod stability;
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
-pub use partitioning::{PartitionOptions, PartitionStats, Partitioned, MAX_PARTITION_COORDS};
+pub use partitioning::{
+    PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,
+    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS,
+};
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
 

@@ -670,3 +670,179 @@ impl Observer for FullState<'_, '_> {
         }
     }
 }
+
+/// Largest system whose rank [`SingularityMonitor`] watches at every
+/// accepted step (a dense `r × r` determinant per step: ~50 µs at 64
+/// coordinates, the mechanisms of the constraint-method study; above it
+/// only the regularised pivots of the factorisations tell).
+pub const MONITOR_MAX_COORDS: usize = 64;
+
+/// Rank measure (r-th over first complete pivot of Φ_R) below which a
+/// sign change of the split's determinant is a singular configuration.
+/// Measured: 1e-10 … 1e-4 at the crossings of the parallelogram chain
+/// (ode45 cuts its step to ~1e-7 s there), above 1e-2 along the four-bar.
+pub const SINGULAR_RATIO: f64 = 1e-3;
+
+/// What [`SingularityMonitor::step`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SingularCrossing {
+    /// Estimated time of the singular configuration (secant root of the
+    /// determinant between the two accepted steps).
+    pub t: f64,
+    /// `σ`-like rank measure there: the r-th pivot of complete pivoting on
+    /// Φ_R over the first, at the interpolated position.
+    pub ratio: f64,
+}
+
+/// Rank loss of Φ_q along a run, from accepted steps only (issue 10):
+/// the rank r₀ and independent rows R at t0 (m − r₀ > 0: redundant
+/// constraints, [`SingularityMonitor::redundant_rows`]) and, at every step,
+/// the sign of `det Φ_R,u` for a split chosen by complete pivoting. A sign
+/// change between two steps is checked at both ends and at the secant root
+/// of the determinant (positions interpolated linearly): if the r-th
+/// complete pivot of Φ_R over the first falls below [`SINGULAR_RATIO`] at
+/// one of them, every r × r block is (nearly) singular there — a singular
+/// configuration was crossed; otherwise only the split went singular and it
+/// is re-chosen.
+pub struct SingularityMonitor {
+    split: Split,
+    m: usize,
+    r: usize,
+    last: Option<(f64, f64, Vec<f64>)>,
+    crossings: usize,
+    first: Option<SingularCrossing>,
+}
+
+impl SingularityMonitor {
+    /// The rank and split at `(t0, q0)`; `None` for systems without
+    /// constraints or above [`MONITOR_MAX_COORDS`].
+    pub fn new(sys: &System, t0: f64, q0: &[f64]) -> Option<Self> {
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        if m == 0 || n > MONITOR_MAX_COORDS {
+            return None;
+        }
+        let split = Split::choose(sys, t0, q0, None).ok()?;
+        let r = split.dep.len();
+        Some(Self {
+            split,
+            m,
+            r,
+            last: None,
+            crossings: 0,
+            first: None,
+        })
+    }
+
+    /// Constraint rows that are redundant at t0 (`m − rank Φ_q`).
+    pub fn redundant_rows(&self) -> usize {
+        self.m - self.r
+    }
+
+    /// Singular configurations crossed so far.
+    pub fn crossings(&self) -> usize {
+        self.crossings
+    }
+
+    /// The first one.
+    pub fn first(&self) -> Option<SingularCrossing> {
+        self.first
+    }
+
+    /// `(sign, ln|det|)` of the current split's block at `(q, t)`, rows
+    /// scaled to unit max (Gaussian elimination, partial pivoting).
+    fn log_det(&mut self, sys: &System, t: f64, q: &[f64]) -> (f64, f64) {
+        self.split.dense_jacobian(sys, t, q);
+        let b = self.split.block();
+        let r = b.nrows();
+        let mut a: Vec<f64> = (0..r * r).map(|k| b[(k / r, k % r)]).collect();
+        let (mut sign, mut ld) = (1.0, 0.0);
+        for row in a.chunks_mut(r) {
+            let s = row.iter().fold(0.0_f64, |x, v| x.max(v.abs()));
+            if s == 0.0 {
+                return (0.0, f64::NEG_INFINITY);
+            }
+            row.iter_mut().for_each(|v| *v /= s);
+        }
+        for k in 0..r {
+            let p = (k..r)
+                .max_by(|&i, &j| a[i * r + k].abs().total_cmp(&a[j * r + k].abs()))
+                .unwrap_or(k);
+            if a[p * r + k] == 0.0 {
+                return (0.0, f64::NEG_INFINITY);
+            }
+            if p != k {
+                for c in 0..r {
+                    a.swap(k * r + c, p * r + c);
+                }
+                sign = -sign;
+            }
+            let d = a[k * r + k];
+            sign *= d.signum();
+            ld += d.abs().ln();
+            for i in k + 1..r {
+                let f = a[i * r + k] / d;
+                for c in k..r {
+                    a[i * r + c] -= f * a[k * r + c];
+                }
+            }
+        }
+        (sign, ld)
+    }
+
+    /// The r-th complete pivot of Φ_R over the first at `(q, t)`.
+    fn rank_ratio(&mut self, sys: &System, t: f64, q: &[f64]) -> f64 {
+        self.split.dense_jacobian(sys, t, q);
+        let n = self.split.n;
+        let mut a: Vec<f64> = self
+            .split
+            .rows
+            .iter()
+            .flat_map(|&i| self.split.dense[i * n..(i + 1) * n].iter().copied())
+            .collect();
+        let order = full_pivot_order(&mut a, self.r, n, 0.0);
+        if order.rank < self.r || order.pivots.is_empty() {
+            return 0.0;
+        }
+        order.pivots[self.r - 1] / order.pivots[0]
+    }
+
+    /// After an accepted step: `Some` the first time a singular
+    /// configuration is found crossed (see the type's docs).
+    pub fn step(&mut self, sys: &System, t: f64, q: &[f64]) -> Option<SingularCrossing> {
+        if self.r == 0 {
+            return None;
+        }
+        let (sign, ld) = self.log_det(sys, t, q);
+        let mut found = None;
+        if let Some((t_a, sign_a, q_a)) = self.last.take() {
+            if sign != sign_a {
+                let (_, ld_a) = self.log_det(sys, t_a, &q_a);
+                // secant root of det between the steps
+                let s = 1.0 / (1.0 + (ld - ld_a).exp());
+                let s = if s.is_finite() { s } else { 0.5 };
+                let qm: Vec<f64> = q_a.iter().zip(q).map(|(a, b)| a + s * (b - a)).collect();
+                let tm = t_a + s * (t - t_a);
+                let (ra, rb, rm) = (
+                    self.rank_ratio(sys, t_a, &q_a),
+                    self.rank_ratio(sys, t, q),
+                    self.rank_ratio(sys, tm, &qm),
+                );
+                if ra.min(rb).min(rm) < SINGULAR_RATIO {
+                    self.crossings += 1;
+                    let c = SingularCrossing { t: tm, ratio: rm };
+                    if self.first.is_none() {
+                        self.first = Some(c);
+                        found = Some(c);
+                    }
+                } else if let Ok(s) = Split::choose(sys, t, q, Some(self.r)) {
+                    self.split = s; // only this split went singular
+                    let (sign, _) = self.log_det(sys, t, q);
+                    self.last = Some((t, sign, q.to_vec()));
+                    return None;
+                }
+            }
+        }
+        self.last = Some((t, sign, q.to_vec()));
+        found
+    }
+}
