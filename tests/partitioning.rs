@@ -297,7 +297,7 @@ fn direct_correction_leaves_a_quadratic_violation() {
 
 #[test]
 fn direct_correction_and_step_rule_from_scenario_keys() {
-    // correction = "direct": ode45 from the incorrect four-bar stays on the
+    // correction = "direct": ode23 from the incorrect four-bar stays on the
     // manifold (one correction per step).
     let sc = fourbar(&[
         "initial.incorrect=true",
