@@ -36,7 +36,7 @@ pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
 pub use partitioning::{
     PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,
-    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS,
+    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS, SINGULAR_RATIO,
 };
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};

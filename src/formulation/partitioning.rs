@@ -418,7 +418,7 @@ impl<'a> Partitioned<'a> {
             (false, true) => sp.dense[sp.rows[i - n] * n + j],
             (false, false) => 0.0,
         });
-        let mut x: Vec<f64> = self.g.iter().copied().collect();
+        let mut x: Vec<f64> = self.g.to_vec();
         x.extend(sp.rows.iter().map(|&i| self.gamma[i]));
         k.partial_piv_lu()
             .solve_in_place(MatMut::from_column_major_slice_mut(&mut x, n + r, 1));

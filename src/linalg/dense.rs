@@ -115,7 +115,7 @@ pub fn full_pivot_order(a: &mut [f64], m: usize, n: usize, tol: f64) -> PivotOrd
         if k == 0 {
             first = best;
         }
-        if !(best > tol * first) || best == 0.0 {
+        if best <= tol * first || best == 0.0 || best.is_nan() {
             break;
         }
         rows.swap(k, bi);
