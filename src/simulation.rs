@@ -56,7 +56,9 @@ pub struct OutputQuantities {
     pub energy: bool,
 }
 
-/// Guards watched at every accepted step. A guard that trips warns once
+/// Guards watched at every accepted step (and ‖Φ̇‖ at every output:
+/// a warning above `100 (rtol V + atol)`, V the largest body speed seen). A
+/// guard that trips warns once
 /// (console through [`Sink::warning`], and the summary), with the time;
 /// past the divergence bounds the run stops with status `"diverged"`.
 ///
@@ -328,6 +330,12 @@ struct Watch<'s, 'm, 'd, 'k> {
     phi_warn: f64,
     phi_fail: f64,
     pos_fail: f64,
+    /// ‖Φ̇‖ warns above `100 (rtol V + atol)`, V the largest body speed
+    /// seen at an output.
+    rtol: f64,
+    atol: f64,
+    speed: f64,
+    warned_phid: bool,
     stop_on_divergence: bool,
     warned_phi: bool,
     warned_pos: bool,
@@ -431,6 +439,10 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
+            rtol: cfg.ode.rtol,
+            atol,
+            speed: 0.0,
+            warned_phid: false,
             stop_on_divergence: g.stop_on_divergence,
             warned_phi: false,
             warned_pos: false,
@@ -544,6 +556,26 @@ impl Watch<'_, '_, '_, '_> {
         self.warnings.push(message);
     }
 
+    /// The velocity-level guard at an output: ‖Φ̇‖ = ‖Φ_q q̇ + Φ_t‖ beyond
+    /// `100 (rtol V + atol)`, V the largest body speed seen so far.
+    fn guard_velocity(&mut self, t: f64, qd: &[f64], vn: f64) {
+        let v = qd.chunks(3).map(|b| b[0].hypot(b[1])).fold(0.0, f64::max);
+        if v.is_finite() {
+            self.speed = self.speed.max(v);
+        }
+        let bound = 100.0 * (self.rtol * self.speed + self.atol);
+        if vn > bound && !self.warned_phid {
+            self.warned_phid = true;
+            self.warn(format!(
+                "velocity constraint violation ‖Φ_q q̇ + Φ_t‖ = {vn:.3e} at t = {t:e} exceeds \
+                 {bound:.3e} (100 (rtol V + atol), V = {:.3e} m/s the largest body speed): the \
+                 velocities do not fit the joints; tighten the tolerances, use Baumgarte \
+                 stabilization (α > 0) or projection",
+                self.speed
+            ));
+        }
+    }
+
     /// The guards of [`Guards`] after an accepted step.
     fn guard(&mut self, t: f64, q: &[f64], cn: f64) -> ControlFlow<String> {
         if cn > self.phi_warn && !self.warned_phi {
@@ -610,6 +642,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
         }
         let cn = norm2(&self.phi);
         let vn = norm2(&self.phid);
+        self.guard_velocity(t, qd, vn);
         self.max_norm = self.max_norm.max(cn);
         self.max_velocity_norm = self.max_velocity_norm.max(vn);
         self.final_norm = cn;

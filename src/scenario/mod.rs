@@ -73,6 +73,8 @@ pub struct Scenario {
     pub run: RunConfig,
     /// The rod's bookkeeping when the scenario has a `[rod]` table.
     pub rod: Option<RodInfo>,
+    /// File format of the run's table (`output.format`).
+    pub format: crate::output::Format,
 }
 
 #[derive(Debug, Deserialize)]
@@ -342,6 +344,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     // The run settings and the limits first: nothing that scales with the
     // input (bodies, output times) is allocated before they are checked.
     let run = run::build(&raw, file)?;
+    let format = run::output_format(&raw, file)?;
     limits::check(&raw, &run, file)?;
     let model::Model { system, rod, names } = model::build(&raw, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
@@ -354,6 +357,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         assembly,
         run,
         rod,
+        format,
     })
 }
 

@@ -20,6 +20,7 @@ mod output;
 mod plot;
 mod reproduce;
 mod stream;
+mod study;
 mod sweep;
 
 use mbsolve::events::ContactMonitor;
@@ -151,6 +152,19 @@ enum Command {
         #[arg(long, value_name = "T")]
         at: Option<f64>,
     },
+    /// Studies beyond the paper's figures: `constraints` runs every
+    /// constraint-enforcement method on the four-bar (correct and incorrect
+    /// start), the falling rod, a parallelogram chain through its singular
+    /// positions and a redundant one; writes a table and figures under
+    /// DIR/constraints (docs/constraint_methods.md).
+    Study {
+        /// Which study: `constraints`.
+        #[arg(value_parser = ["constraints"])]
+        which: String,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -170,6 +184,7 @@ fn main() -> ExitCode {
             quiet,
         } => run(&scenario, &set, &out, progress, quiet),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Study { which: _, out } => study_constraints(&out),
         Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
             scenario,
@@ -286,8 +301,9 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
-    let mut files = stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, &running)
-        .map_err(|e| e.to_string())?;
+    let mut files =
+        stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, sc.format, &running)
+            .map_err(|e| e.to_string())?;
     files.progress = stream::Progress::new(
         if quiet {
             stream::ProgressMode::Off
@@ -382,6 +398,13 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     say!("falling rod, N = 10: {} runs", rod.len());
     say!("{}", reproduce::rod_table(&rod).trim_end());
     say!("wrote {}", out.join("falling_rod").display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn study_constraints(out: &std::path::Path) -> Result<ExitCode, String> {
+    let rows = study::constraints(out)?;
+    say!("{}", study::table(&rows).trim_end());
+    say!("wrote {}", out.join("constraints").display());
     Ok(ExitCode::SUCCESS)
 }
 
