@@ -672,8 +672,9 @@ impl Observer for FullState<'_, '_> {
 }
 
 /// Largest system whose rank [`SingularityMonitor`] watches at every
-/// accepted step (a dense `r × r` determinant per step: ~50 µs at 64
-/// coordinates, the mechanisms of the constraint-method study; above it
+/// accepted step (a dense `r × r` determinant per step, `O(r³)`; cost not
+/// measured separately; 64 coordinates covers the mechanisms of the
+/// constraint-method study; above it
 /// only the regularised pivots of the factorisations tell).
 pub const MONITOR_MAX_COORDS: usize = 64;
 
