@@ -3,7 +3,7 @@
 
 use crate::formulation::{
     Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
-    Index3, NewtonSolverKind,
+    Index3, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
     integrator, AugmentedLagrangian, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
@@ -385,6 +385,12 @@ struct Watch<'s, 'm, 'd, 'k> {
     /// accepted steps (trapezoid), the power and time at the last step,
     /// the largest |E − E0 − W| and the energy scale seen.
     balance: Option<Balance>,
+    /// Rank of Φ_q along the run (small systems): redundant rows at t0,
+    /// singular configurations crossed.
+    singular: Option<SingularityMonitor>,
+    /// The run projects or partitions (keeps the branch at a singular
+    /// configuration): the rank-loss warning says so instead of advising it.
+    keeps_branch: bool,
 }
 
 /// The energy balance `E(t) − E(t0) = W(t)` tracked by [`Watch`]
@@ -455,6 +461,12 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             warned_extras: false,
             forwarded: 0,
             balance: None,
+            singular: SingularityMonitor::new(sys, cfg.t0, q0),
+            keeps_branch: if cfg.method.is_implicit() {
+                cfg.implicit.project
+            } else {
+                cfg.index1.projection.enabled || cfg.index1.formulation == Formulation::Partitioned
+            },
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
@@ -773,6 +785,23 @@ impl Observer for Watch<'_, '_, '_, '_> {
             m.step(t, q, qd);
         }
         self.balance_at(t, q, qd, true);
+        if let Some(c) = self.singular.as_mut().and_then(|s| s.step(self.sys, t, q)) {
+            let advice = if self.keeps_branch {
+                "this run's projection or partitioning keeps it on its branch to the tolerance; \
+                 the energy balance (output.quantities = [\"energy\"]) confirms it"
+            } else {
+                "the solution may switch to another branch of motion with no other sign (check \
+                 the energy balance, output.quantities = [\"energy\"]); use a method that keeps \
+                 the branch: stabilization.projection = true, formulation = \"partitioned\" or \
+                 the augmented Lagrangian (docs/constraint_methods.md)"
+            };
+            self.warn(format!(
+                "Φ_q lost rank at t ≈ {:e} (rank measure {:.1e}): the mechanism passed through a \
+                 singular configuration, where the equations of motion do not fix the branch; \
+                 {advice}",
+                c.t, c.ratio
+            ));
+        }
         self.guard(t, q, cn)
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
@@ -836,6 +865,9 @@ pub fn simulate_into(
             Box::new(AugmentedRun::new(sys, cfg)?)
         } else if cfg.method.is_implicit() {
             Box::new(Implicit::new(sys, cfg)?)
+        } else if cfg.index1.formulation == Formulation::Partitioned {
+            let f = Partitioned::new(sys, cfg.index1.partition, cfg.index1, cfg.t0, q0)?;
+            Box::new(Partition { f })
         } else {
             Box::new(Explicit::new(sys, cfg)?)
         };
@@ -969,6 +1001,50 @@ impl MethodRun for Explicit<'_> {
             let it = stats.projection_iterations;
             extra.insert("projection_iterations".into(), it.into());
         }
+        (work, extra)
+    }
+}
+
+/// ode23, ode45, rk4 on the independent coordinates of coordinate
+/// partitioning ([`Partitioned`]). Extra summary fields: `dof`,
+/// `repartitions` (re-choices of the independent set, each a restart),
+/// `first_repartition_t`, `partition_newton_iterations`, `max_condition`
+/// (largest κ₁ of the dependent block at an accepted step).
+struct Partition<'s> {
+    f: Partitioned<'s>,
+}
+
+impl MethodRun for Partition<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.f
+            .integrate(cfg.method, &cfg.ode, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let ps = self.f.stats();
+        let work = Work {
+            formulation: "partitioned".into(),
+            linear_solver: "dense-lu".into(),
+            baumgarte: (0.0, 0.0),
+            factorizations: self.f.factorizations(),
+            regularized_pivots: 0,
+            first_regularized_t: None,
+        };
+        let mut extra = serde_json::Map::new();
+        extra.insert("dof".into(), self.f.dof().into());
+        extra.insert("repartitions".into(), ps.repartitions.into());
+        if let Some(t) = ps.first_repartition_t {
+            extra.insert("first_repartition_t".into(), t.into());
+        }
+        let it = ps.newton_iterations;
+        extra.insert("partition_newton_iterations".into(), it.into());
+        extra.insert("max_condition".into(), ps.max_condition.into());
         (work, extra)
     }
 }
@@ -1207,6 +1283,28 @@ fn finish(
             ));
         }
     }
+    // rank of Φ_q: redundant rows at t0, singular configurations crossed
+    // (small systems, `SingularityMonitor`), else the regularised pivots
+    let (redundant, crossings) = match &watch.singular {
+        Some(s) => {
+            extra.insert("redundant_rows".into(), s.redundant_rows().into());
+            extra.insert("singular_crossings".into(), s.crossings().into());
+            if let Some(c) = s.first() {
+                extra.insert("first_singular_t".into(), c.t.into());
+            }
+            (Some(s.redundant_rows()), s.crossings())
+        }
+        None => (None, 0),
+    };
+    if let Some(r) = redundant.filter(|&r| r > 0) {
+        warnings.push(format!(
+            "{r} of the {} constraint rows are redundant (rank of Φ_q at t0: {}): they are \
+             solved in the least-squares sense — the motion is determined, the reactions of \
+             the redundant joints are the minimum-norm split",
+            sys.n_constraints(),
+            sys.n_constraints() - r
+        ));
+    }
     if work.regularized_pivots > 0 {
         let first = work
             .first_regularized_t
@@ -1214,14 +1312,28 @@ fn finish(
         if let Some(t) = work.first_regularized_t {
             extra.insert("first_regularized_t".into(), t.into());
         }
-        warnings.push(format!(
-            "{} regularised pivots in the factorisations{first}: Φ_q lost rank (a singular \
-             configuration or redundant constraints); the multipliers there are a \
-             regularised least-squares answer and the motion may have left its branch — \
-             check with stabilization.projection = true or genalpha with \
-             integrator.project = true (docs/constraint_methods.md)",
-            work.regularized_pivots
-        ));
+        let why = match (redundant, crossings) {
+            (Some(r), 0) if r > 0 => Some("the redundant rows above".to_string()),
+            (Some(_), 0) => None,
+            (Some(_), c) => Some(format!(
+                "{c} singular configuration(s) crossed (the first reported above)"
+            )),
+            (None, _) => None,
+        };
+        match why {
+            Some(why) => warnings.push(format!(
+                "{} regularised pivots in the factorisations{first}: Φ_q lost rank — {why}",
+                work.regularized_pivots
+            )),
+            None => warnings.push(format!(
+                "{} regularised pivots in the factorisations{first}: Φ_q lost rank (a singular \
+                 configuration or redundant constraints); the multipliers there are a \
+                 regularised least-squares answer and the motion may have left its branch — \
+                 check with stabilization.projection = true, formulation = \"partitioned\" or \
+                 genalpha with integrator.project = true (docs/constraint_methods.md)",
+                work.regularized_pivots
+            )),
+        }
     }
     if let Some(nf) = extra.get("newton_failures").and_then(|v| v.as_u64()) {
         if nf > 0 {

@@ -116,6 +116,7 @@ fn projection_that_cannot_converge_is_a_typed_error() {
             enabled: true,
             tol: 1e-10,
             max_iter: 1,
+            ..Default::default()
         },
         ..Default::default()
     };
@@ -139,6 +140,7 @@ fn projection_that_cannot_converge_is_a_typed_error() {
             enabled: true,
             tol: -1.0,
             max_iter: 3,
+            ..Default::default()
         },
         ..Default::default()
     };

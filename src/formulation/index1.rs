@@ -1,8 +1,8 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
 use super::{
-    all_finite, check_state, feedback, mass_orthogonal_step, Baumgarte, Formulation,
-    FormulationError, PenaltyParams, Projection,
+    all_finite, check_state, feedback, mass_orthogonal_step, Baumgarte, Correction, Formulation,
+    FormulationError, PartitionOptions, PenaltyParams, Projection,
 };
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
@@ -35,6 +35,9 @@ pub struct Index1Options {
     pub projection: Projection,
     /// Parameters of [`Formulation::Penalty`] (used by [`super::Penalty`] only).
     pub penalty: PenaltyParams,
+    /// Parameters of [`Formulation::Partitioned`] (used by
+    /// [`super::Partitioned`] only).
+    pub partition: PartitionOptions,
 }
 
 /// Counters of [`Index1`].
@@ -93,11 +96,11 @@ impl<'a> Index1<'a> {
         let kind = match opts.formulation {
             Formulation::Saddle => opts.linear_solver,
             Formulation::Eliminated => SolverKind::Schur,
-            Formulation::Penalty | Formulation::AugmentedLagrangian => {
+            Formulation::Penalty | Formulation::AugmentedLagrangian | Formulation::Partitioned => {
                 return Err(FormulationError::Invalid(
                     "Index1 solves the saddle-point or eliminated form; the penalty \
                      formulation is Penalty (or ExplicitForm), the augmented Lagrangian \
-                     Augmented"
+                     Augmented, coordinate partitioning Partitioned"
                         .into(),
                 ))
             }
@@ -247,7 +250,9 @@ impl Index1<'_> {
     /// `Δq̇ = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹(Φ_q q̇ + Φ_t)` with Φ_q at the
     /// projected q, so `Φ_q q̇ = −Φ_t` to rounding. Returns the Newton
     /// iterations; [`FormulationError::Projection`] when `max_iter` are not
-    /// enough (or Φ is not finite).
+    /// enough (or Φ is not finite). With [`Correction::Direct`] (Yu & Chen
+    /// 2000) exactly one position correction is made whatever the
+    /// residual (none when Φ = 0), so no tolerance can fail.
     pub fn project(
         &mut self,
         t: f64,
@@ -260,7 +265,8 @@ impl Index1<'_> {
         loop {
             self.sys.phi(q, t, &mut self.phi);
             let residual = self.phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-            if residual <= p.tol {
+            let direct = p.correction == Correction::Direct;
+            if (residual <= p.tol && !direct) || residual == 0.0 || (direct && iterations == 1) {
                 break;
             }
             // also catches a non-finite residual

@@ -20,6 +20,9 @@
 //! * [`Projection`]: the mass-orthogonal projection of positions and
 //!   velocities onto the manifold after each accepted step
 //!   ([`Index1::project`], [`crate::integrate::OdeSystem::post_step`]).
+//! * [`Partitioned`]: generalized coordinate partitioning (Wehage & Haug
+//!   1982), only the independent coordinates integrated
+//!   ([`Formulation::Partitioned`]).
 //! * [`consistent_initial_state`]: positions on Φ(q, t₀) = 0 and velocities
 //!   on Φ_q q̇ = −Φ_t, given the independent coordinates.
 //!
@@ -29,6 +32,7 @@ mod augmented;
 mod index1;
 mod index3;
 mod initial;
+mod partitioning;
 mod penalty;
 mod stability;
 
@@ -38,6 +42,10 @@ pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{
     consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
     Lock, LockKind,
+};
+pub use partitioning::{
+    PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,
+    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS, SINGULAR_RATIO,
 };
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
@@ -88,6 +96,10 @@ pub enum Formulation {
     /// Ledesma 1996): [`Augmented`], integrated by
     /// [`crate::integrate::AugmentedLagrangian`] (implicit methods only).
     AugmentedLagrangian,
+    /// Generalized coordinate partitioning ([`Partitioned`], Wehage & Haug
+    /// 1982): the independent coordinates integrated, the dependent ones
+    /// solved; parameters [`PartitionOptions`].
+    Partitioned,
 }
 
 impl std::str::FromStr for Formulation {
@@ -98,9 +110,10 @@ impl std::str::FromStr for Formulation {
             "eliminated" => Ok(Self::Eliminated),
             "penalty" => Ok(Self::Penalty),
             "augmented_lagrangian" => Ok(Self::AugmentedLagrangian),
+            "partitioned" => Ok(Self::Partitioned),
             o => Err(format!(
-                "unknown formulation '{o}' (expected saddle, eliminated, penalty or \
-                 augmented_lagrangian)"
+                "unknown formulation '{o}' (expected saddle, eliminated, penalty, \
+                 augmented_lagrangian or partitioned)"
             )),
         }
     }
@@ -137,6 +150,8 @@ pub enum BaumgarteRule {
     AlphaSqrt2,
     /// β = √(2α).
     Sqrt2Alpha,
+    /// α = β = 1/h from the integration step h ([`Baumgarte::from_step`]).
+    Step,
 }
 
 impl std::str::FromStr for BaumgarteRule {
@@ -147,35 +162,51 @@ impl std::str::FromStr for BaumgarteRule {
             "equal" => Ok(Self::Equal),
             "alpha_sqrt2" => Ok(Self::AlphaSqrt2),
             "sqrt_2alpha" => Ok(Self::Sqrt2Alpha),
+            "step" => Ok(Self::Step),
             o => Err(format!(
-                "unknown Baumgarte rule '{o}' (expected explicit, equal, alpha_sqrt2 or sqrt_2alpha)"
+                "unknown Baumgarte rule '{o}' (expected explicit, equal, alpha_sqrt2, sqrt_2alpha \
+                 or step)"
             )),
         }
     }
 }
 
 impl BaumgarteRule {
-    /// The scenario name: `explicit`, `equal`, `alpha_sqrt2` or `sqrt_2alpha`.
+    /// The scenario name: `explicit`, `equal`, `alpha_sqrt2`, `sqrt_2alpha`
+    /// or `step`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Explicit => "explicit",
             Self::Equal => "equal",
             Self::AlphaSqrt2 => "alpha_sqrt2",
             Self::Sqrt2Alpha => "sqrt_2alpha",
+            Self::Step => "step",
         }
     }
 }
 
 impl Baumgarte {
-    /// Parameters from a rule: `beta` is used only by [`BaumgarteRule::Explicit`].
+    /// Parameters from a rule: `beta` is used only by
+    /// [`BaumgarteRule::Explicit`]; for [`BaumgarteRule::Step`] `alpha` is
+    /// the `1/h` of [`Baumgarte::from_step`] (β = α).
     pub fn from_rule(rule: BaumgarteRule, alpha: f64, beta: f64) -> Self {
         let beta = match rule {
             BaumgarteRule::Explicit => beta,
-            BaumgarteRule::Equal => alpha,
+            BaumgarteRule::Equal | BaumgarteRule::Step => alpha,
             BaumgarteRule::AlphaSqrt2 => alpha * std::f64::consts::SQRT_2,
             BaumgarteRule::Sqrt2Alpha => (2.0 * alpha).sqrt(),
         };
         Self { alpha, beta }
+    }
+
+    /// The step rule ([`BaumgarteRule::Step`]): `α = β = 1/h`. Eq. (10)
+    /// then has the double root `−1/h`: the violation left by one step of
+    /// size h decays with time constant h (critically damped), and `h·λ =
+    /// −1` lies inside the stability regions of rk4, ode23 and ode45, so
+    /// the feedback neither lags the step nor destabilises it
+    /// (docs/constraint_methods.md: why this rule, and what was looked up).
+    pub fn from_step(h: f64) -> Self {
+        Self::from_rule(BaumgarteRule::Step, 1.0 / h, 0.0)
     }
 
     /// Checks α and β: finite and ≥ 0
@@ -268,15 +299,46 @@ pub struct Projection {
     /// Newton iterations allowed per projection (then
     /// [`FormulationError::Projection`]).
     pub max_iter: usize,
+    /// Iterate to `tol` ([`Correction::Newton`], default) or take one
+    /// correction per step ([`Correction::Direct`]).
+    pub correction: Correction,
+}
+
+/// How the positions are corrected after a step ([`Projection`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Correction {
+    /// Newton on `Φ(q, t) = 0` until `‖Φ‖∞ ≤ tol`.
+    #[default]
+    Newton,
+    /// Direct violation correction (Yu & Chen 2000): one correction
+    /// `δq = −M⁻¹Φ_qᵀ(Φ_q M⁻¹Φ_qᵀ)⁻¹Φ` per step, no iteration and no
+    /// tolerance — the remaining violation is quadratic in the one
+    /// corrected (one Newton step); velocities as for [`Correction::Newton`].
+    Direct,
+}
+
+impl std::str::FromStr for Correction {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "newton" => Ok(Self::Newton),
+            "direct" => Ok(Self::Direct),
+            o => Err(format!(
+                "unknown correction '{o}' (expected newton or direct)"
+            )),
+        }
+    }
 }
 
 impl Default for Projection {
-    /// Off; tolerance 1e-10, 10 iterations.
+    /// Off; tolerance 1e-10, 10 iterations, Newton.
     fn default() -> Self {
         Self {
             enabled: false,
             tol: 1e-10,
             max_iter: 10,
+            correction: Correction::Newton,
         }
     }
 }

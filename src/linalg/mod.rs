@@ -33,7 +33,7 @@ mod saddle;
 mod schur;
 mod sparse;
 
-pub use dense::DenseLu;
+pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
 pub use pattern::CscPattern;
 pub use saddle::{APattern, SaddleMatrix, Storage, Symmetry};

@@ -5,6 +5,7 @@
 use super::{error, positive, RawScenario, ScenarioError};
 use crate::formulation::{
     AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options,
+    PartitionOptions,
     PenaltyParams, Projection,
 };
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
@@ -21,6 +22,9 @@ pub(super) struct RawStabilization {
     rule: Option<String>,
     // index-1 methods: `Projection`; formulation = "penalty": `PenaltyParams`
     projection: Option<bool>,
+    correction: Option<String>,
+    // formulation = "partitioned": `PartitionOptions::max_condition`
+    partition_condition: Option<f64>,
     penalty: Option<f64>,
     penalty_xi: Option<f64>,
     penalty_omega: Option<f64>,
@@ -166,7 +170,11 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             ));
         }
     }
-    let baumgarte = Baumgarte::from_rule(rule, st.alpha.unwrap_or(0.0), st.beta.unwrap_or(0.0));
+    let baumgarte = if rule == BaumgarteRule::Step {
+        step_rule(st, &ode).map_err(|m| err("stabilization.rule".into(), m))?
+    } else {
+        Baumgarte::from_rule(rule, st.alpha.unwrap_or(0.0), st.beta.unwrap_or(0.0))
+    };
     baumgarte.validate().map_err(|e| match e {
         FormulationError::InvalidOption {
             option,
@@ -192,6 +200,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         constraint_method(st, method, formulation).map_err(|(key, why)| err(key, why))?;
     let augmented = augmented_lagrangian(raw, formulation, linear_solver)
         .map_err(|(key, why)| err(key, why))?;
+    let partition = partition_options(st, formulation, &baumgarte, &projection)
+        .map_err(|(key, why)| err(key, why))?;
     // The options' own validators (values); their fields map to scenario keys.
     ode.validate(method, implicit.adaptive)
         .and_then(|()| implicit.validate(method, ode.fixed_step))
@@ -208,6 +218,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             linear_solver,
             projection,
             penalty,
+            partition,
         },
         implicit,
         augmented,
@@ -221,6 +232,69 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
 
 /// `output.quantities`: each of "velocities", "accelerations", "reactions",
 /// "energy", at most once.
+/// `rule = "step"`: α = β = 1/h ([`Baumgarte::from_step`]) with h the
+/// fixed step (`integrator.step`) or else `integrator.max_step`; α and β
+/// must not be given.
+fn step_rule(st: &RawStabilization, ode: &OdeOptions) -> Result<Baumgarte, String> {
+    if st.alpha.is_some() {
+        return Err(
+            "\"step\" derives α = β = 1/h from the step: remove stabilization.alpha".into(),
+        );
+    }
+    match ode.fixed_step.or(ode.max_step) {
+        Some(h) if h.is_finite() && h > 0.0 => Ok(Baumgarte::from_step(h)),
+        Some(h) => Err(format!("\"step\" needs a step h > 0, got {h}")),
+        None => Err(
+            "\"step\" sets α = β = 1/h from the step: give integrator.step (rk4) or \
+             integrator.max_step"
+                .into(),
+        ),
+    }
+}
+
+/// `correction` and `partition_condition` (projection and partitioning).
+fn partition_options(
+    st: &RawStabilization,
+    formulation: Formulation,
+    baumgarte: &Baumgarte,
+    projection: &Projection,
+) -> Result<PartitionOptions, (String, String)> {
+    let key = |k: &str| format!("stabilization.{k}");
+    let mut p = PartitionOptions::default();
+    if formulation != Formulation::Partitioned {
+        if st.partition_condition.is_some() {
+            return Err((
+                key("partition_condition"),
+                "applies to formulation = \"partitioned\" only".into(),
+            ));
+        }
+        return Ok(p);
+    }
+    if !baumgarte.is_off() || projection.enabled {
+        let k = if projection.enabled {
+            "projection"
+        } else {
+            "alpha"
+        };
+        return Err((
+            key(k),
+            "does not apply to formulation = \"partitioned\" (the constraints hold by \
+             construction)"
+                .into(),
+        ));
+    }
+    if let Some(c) = st.partition_condition {
+        if !(c.is_finite() && c > 1.0) {
+            return Err((
+                key("partition_condition"),
+                format!("{c} is invalid: must be finite and > 1"),
+            ));
+        }
+        p.max_condition = c;
+    }
+    Ok(p)
+}
+
 fn output_quantities(names: &[String]) -> Result<OutputQuantities, String> {
     let mut o = OutputQuantities::default();
     for (k, name) in names.iter().enumerate() {
@@ -273,6 +347,25 @@ fn constraint_method(
             ));
         }
         projection.enabled = on;
+    }
+    if let Some(c) = &st.correction {
+        projection.correction = c.parse().map_err(|m| (key("correction"), m))?;
+        if st.projection == Some(false) || formulation == Formulation::Penalty {
+            return Err((
+                key("correction"),
+                format!(
+                    "\"{c}\" corrects after each step: it applies with projection (not \
+                     projection = false, nor formulation = \"penalty\")"
+                ),
+            ));
+        }
+        if method.is_implicit() {
+            return Err((
+                key("correction"),
+                format!("applies to ode23, ode45 and rk4, not to {}", method.name()),
+            ));
+        }
+        projection.enabled = true;
     }
     let mut penalty = PenaltyParams::default();
     for (k, v, slot) in [
