@@ -16,7 +16,7 @@
 use crate::figure::{Figure, Series};
 use crate::output::OutputError;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
-use mbsolve::formulation::{Baumgarte, Formulation};
+use mbsolve::formulation::{Baumgarte, Correction, Formulation};
 use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, FALLING_ROD_TOML, FOURBAR_TOML};
@@ -31,6 +31,10 @@ const ATOL: f64 = 1e-9;
 /// Step cap of every run: an index-1 run stuck at a redundant constraint
 /// set fails here instead of taking minutes.
 const MAX_STEPS: usize = 200_000;
+/// Newton iterations per attempt of the augmented Lagrangian: its
+/// multiplier update converges linearly, and the implicit default (8)
+/// halves its step often (docs/constraint_methods.md).
+const ALM_MAX_NEWTON: usize = 30;
 /// A position within this of the reference passes \[m\] (or rad).
 const POSITION_TOL: f64 = 1e-3;
 /// Relative energy drift allowed on the conservative parallelogram chains.
@@ -102,11 +106,57 @@ pub fn methods() -> Vec<StudyMethod> {
             },
         },
         StudyMethod {
+            key: "direct",
+            label: "direct violation correction, one M-weighted step (ode45)",
+            apply: |c, _| {
+                explicit(c);
+                c.index1.projection.enabled = true;
+                c.index1.projection.correction = Correction::Direct;
+            },
+        },
+        StudyMethod {
+            key: "step_rule",
+            label: "Baumgarte α = β = 1/h, h = max step 1e-3 s (ode45)",
+            apply: |c, _| {
+                explicit(c);
+                c.ode.max_step = Some(1e-3);
+                c.index1.baumgarte = Baumgarte::from_step(1e-3);
+            },
+        },
+        StudyMethod {
+            key: "partitioned",
+            label: "coordinate partitioning, Wehage & Haug (ode45)",
+            apply: |c, _| {
+                explicit(c);
+                c.index1.formulation = Formulation::Partitioned;
+            },
+        },
+        StudyMethod {
             key: "penalty",
             label: "penalty, α = 1e7, ξ = 1, ω = 10 (ode45)",
             apply: |c, _| {
                 explicit(c);
                 c.index1.formulation = Formulation::Penalty;
+            },
+        },
+        StudyMethod {
+            key: "alm_trapezoidal",
+            label: "index-3 augmented Lagrangian + projections, trapezoidal",
+            apply: |c, h| {
+                implicit(c, h);
+                c.method = Method::Newmark;
+                c.implicit.rho_inf = 1.0;
+                c.implicit.max_newton = ALM_MAX_NEWTON;
+                c.index1.formulation = Formulation::AugmentedLagrangian;
+            },
+        },
+        StudyMethod {
+            key: "alm_genalpha",
+            label: "index-3 augmented Lagrangian + projections, generalized-α",
+            apply: |c, h| {
+                implicit(c, h);
+                c.implicit.max_newton = ALM_MAX_NEWTON;
+                c.index1.formulation = Formulation::AugmentedLagrangian;
             },
         },
         StudyMethod {
