@@ -14,6 +14,9 @@
 //! * [`Method::Ode45`]: Dormand–Prince 5(4) pair (Dormand & Prince,
 //!   J. Comput. Appl. Math. 6 (1980)), FSAL, 6 evaluations per step.
 //! * [`Method::Rk4`]: classic fixed-step fourth-order Runge–Kutta.
+//! * [`Method::Ode113`]: variable-order Adams–Bashforth–Moulton PECE
+//!   (Shampine & Gordon 1975) with MATLAB's `ode113` step and order
+//!   control and its interpolant (see the `ode113` submodule).
 //!
 //! `ode23` and `ode45` follow MATLAB's `ode23.m` / `ode45.m` and their
 //! interpolants `ntrp23.m` / `ntrp45.m` (Shampine & Reichelt, "The MATLAB ODE
@@ -43,6 +46,7 @@ mod driver;
 mod embedded;
 mod genalpha;
 mod hermite;
+mod ode113;
 mod options;
 mod rk4;
 mod tableau;
@@ -139,6 +143,9 @@ pub enum Method {
     Ode45,
     /// Classic Runge–Kutta 4, fixed step.
     Rk4,
+    /// Variable-order Adams–Bashforth–Moulton PECE (Shampine & Gordon),
+    /// adaptive, as MATLAB's `ode113`.
+    Ode113,
     /// Generalized-α on the index-3 equations (Chung & Hulbert 1993;
     /// Arnold & Brüls 2007), parameters from ρ∞ — see [`GenAlpha`]. Implicit:
     /// not an [`OdeSystem`] integrator, run through `simulation::simulate`.
@@ -153,23 +160,27 @@ pub enum Method {
 
 impl Method {
     /// All methods, in the order of [`Method::NAMES`].
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 7] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
+        Method::Ode113,
         Method::GenAlpha,
         Method::Hht,
         Method::Newmark,
     ];
     /// The valid method names.
-    pub const NAMES: [&'static str; 6] = ["ode23", "ode45", "rk4", "genalpha", "hht", "newmark"];
+    pub const NAMES: [&'static str; 7] = [
+        "ode23", "ode45", "rk4", "ode113", "genalpha", "hht", "newmark",
+    ];
 
-    /// Lower-case name: "ode23", "ode45", "rk4", "genalpha", "hht" or "newmark".
+    /// Lower-case name: "ode23", "ode45", "rk4", "ode113", "genalpha", "hht" or "newmark".
     pub fn name(&self) -> &'static str {
         match self {
             Method::Ode23 => "ode23",
             Method::Ode45 => "ode45",
             Method::Rk4 => "rk4",
+            Method::Ode113 => "ode113",
             Method::GenAlpha => "genalpha",
             Method::Hht => "hht",
             Method::Newmark => "newmark",
@@ -179,7 +190,7 @@ impl Method {
     /// Whether the method adapts its step to `rtol`/`atol` (the implicit
     /// methods only with [`ImplicitOptions::adaptive`]).
     pub fn is_adaptive(&self) -> bool {
-        matches!(self, Method::Ode23 | Method::Ode45)
+        matches!(self, Method::Ode23 | Method::Ode45 | Method::Ode113)
     }
 
     /// Whether the method is one of the implicit generalized-α family
@@ -336,7 +347,7 @@ pub enum IntegratorError {
     },
     /// Unknown method name.
     #[error(
-        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, genalpha, hht, newmark"
+        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, ode113, genalpha, hht, newmark"
     )]
     UnknownMethod(String),
     /// The method is implicit (index-3 DAE) and has no [`OdeSystem`]
@@ -422,6 +433,7 @@ pub fn integrator(
         Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
         Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
         Method::Rk4 => Box::new(rk4::Rk4::new(options)),
+        Method::Ode113 => Box::new(ode113::Ode113::new(options)),
         Method::GenAlpha | Method::Hht | Method::Newmark => {
             return Err(IntegratorError::ImplicitMethod(method.name()))
         }
