@@ -17,6 +17,8 @@
 //! * [`Method::Ode113`]: variable-order Adams–Bashforth–Moulton PECE
 //!   (Shampine & Gordon 1975) with MATLAB's `ode113` step and order
 //!   control and its interpolant (see the `ode113` submodule).
+//! * [`Method::Bdf`]: variable-order (1–5) BDF on the index-3 equations
+//!   of a [`SecondOrderDae`] ([`Bdf`]; docs/bdf.md).
 //!
 //! `ode23` and `ode45` follow MATLAB's `ode23.m` / `ode45.m` and their
 //! interpolants `ntrp23.m` / `ntrp45.m` (Shampine & Reichelt, "The MATLAB ODE
