@@ -26,7 +26,9 @@
 //!    (index-3 residual and Newton matrix) as a second-order DAE, consistent
 //!    initial conditions;
 //! 6. [`simulation`]: one run — formulation + integrator + observation — and
-//!    [`scenario`]: TOML files to validated models and run settings.
+//!    [`scenario`]: TOML files to validated models and run settings;
+//! 7. [`output`]: a run's rows as tables (CSV, Arrow IPC) streamed to any
+//!    writer in bounded memory.
 //!
 //! The `mbsolve` binary (src/bin/mbsolve/) adds the CLI, the paper's
 //! studies, sweeps, the performance gate, figures and animations.
@@ -41,5 +43,6 @@ pub mod generated;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
+pub mod output;
 pub mod scenario;
 pub mod simulation;

@@ -51,11 +51,38 @@ pub struct OutputQuantities {
     /// Multipliers λ and the joint reactions `−Φ_qᵀλ`
     /// ([`System::joint_reactions`]).
     pub reactions: bool,
-    /// Kinetic and potential energy.
+    /// The energy balance ([`EnergyTerms`]).
     pub energy: bool,
+    /// The generalized force `−λ` of each drive ([`crate::model::drives`]);
+    /// needs λ like the reactions.
+    pub drives: bool,
 }
 
-/// Guards watched at every accepted step. A guard that trips warns once
+/// The terms of the energy balance at an output time
+/// (`crate::model::energy`): `T + V_g + V_e − E0 = W_f + W_d` up to
+/// `balance_error`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnergyTerms {
+    /// Kinetic energy T = ½ q̇ᵀMq̇ \[J\].
+    pub kinetic: f64,
+    /// Potential of gravity V_g \[J\].
+    pub gravity: f64,
+    /// Every other potential V_e (springs, contacts' elastic part,
+    /// buoyancy) \[J\].
+    pub elastic: f64,
+    /// Work W_f of the non-conservative force elements since t0: dampers,
+    /// friction (negative: dissipated), actuators and applied loads \[J\].
+    pub work_forces: f64,
+    /// Work W_d of the constraint forces since t0 (`∫λᵀΦ_t`: the drives;
+    /// zero for scleronomic joints) \[J\].
+    pub work_drives: f64,
+    /// `T + V − E0 − W_f − W_d` \[J\].
+    pub balance_error: f64,
+}
+
+/// Guards watched at every accepted step (and ‖Φ̇‖ at every output:
+/// a warning above `100 (rtol V + atol)`, V the largest body speed seen). A
+/// guard that trips warns once
 /// (console through [`Sink::warning`], and the summary), with the time;
 /// past the divergence bounds the run stops with status `"diverged"`.
 ///
@@ -160,15 +187,14 @@ pub struct Sample<'a> {
     pub velocity_constraint_norm: f64,
     /// Accelerations q̈, if [`OutputQuantities::accelerations`].
     pub qdd: Option<&'a [f64]>,
-    /// Multipliers λ, if [`OutputQuantities::reactions`].
+    /// Multipliers λ, if [`OutputQuantities::reactions`] or
+    /// [`OutputQuantities::drives`] (`None` where eq. (5) failed).
     pub lambda: Option<&'a [f64]>,
     /// Joint reactions `(f_x, f_y, m_z)` per joint
     /// ([`System::joint_reactions`]), if [`OutputQuantities::reactions`].
     pub reactions: Option<&'a [f64]>,
-    /// Kinetic energy T, potential energy V, the work W of the
-    /// non-conservative and constraint forces since t0 and the balance
-    /// error `T + V − E0 − W`, if [`OutputQuantities::energy`].
-    pub energy: Option<[f64; 4]>,
+    /// The energy balance, if [`OutputQuantities::energy`].
+    pub energy: Option<EnergyTerms>,
 }
 
 /// Where a run's outputs go, as the integration delivers them: kept in
@@ -327,6 +353,12 @@ struct Watch<'s, 'm, 'd, 'k> {
     phi_warn: f64,
     phi_fail: f64,
     pos_fail: f64,
+    /// ‖Φ̇‖ warns above `100 (rtol V + atol)`, V the largest body speed
+    /// seen at an output.
+    rtol: f64,
+    atol: f64,
+    speed: f64,
+    warned_phid: bool,
     stop_on_divergence: bool,
     warned_phi: bool,
     warned_pos: bool,
@@ -354,8 +386,9 @@ struct Watch<'s, 'm, 'd, 'k> {
 /// (`crate::model::energy` docs).
 struct Balance {
     e0: f64,
-    work: f64,
-    power: f64,
+    /// Work and power of the force elements and of the constraints.
+    work: [f64; 2],
+    power: [f64; 2],
     t: f64,
     max_error: f64,
     scale: f64,
@@ -366,6 +399,8 @@ struct Balance {
     last_slope: Option<(f64, f64)>,
     rheonomic: bool,
     ws: crate::model::EnergyWorkspace,
+    /// Which force elements are gravity (V_g; the others' potentials are V_e).
+    is_gravity: Vec<bool>,
 }
 
 impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
@@ -392,7 +427,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             .unwrap_or(100.0 * (cfg.ode.rtol * l + atol));
         let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
         let o = cfg.outputs;
-        let extras = if o.accelerations || o.reactions || o.energy {
+        let extras = if o_needs_extras(&o) || o.energy {
             // eq. (5) with the run's Baumgarte terms (none for the
             // index-3 and penalty runs), without projection
             let mut opts = Index1Options {
@@ -421,6 +456,10 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
+            rtol: cfg.ode.rtol,
+            atol,
+            speed: 0.0,
+            warned_phid: false,
             stop_on_divergence: g.stop_on_divergence,
             warned_phi: false,
             warned_pos: false,
@@ -444,23 +483,38 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
 }
 
 impl Watch<'_, '_, '_, '_> {
-    /// `P_nc + P_c` at `(t, q, q̇)` (λ from eq. (5) only for rheonomic
+    /// `[P_nc, P_c]` at `(t, q, q̇)` (λ from eq. (5) only for rheonomic
     /// systems, where the constraint forces do work).
-    fn power(&mut self, t: f64, q: &[f64], qd: &[f64]) -> f64 {
+    fn power(&mut self, t: f64, q: &[f64], qd: &[f64]) -> [f64; 2] {
         let Some(b) = self.balance.as_mut() else {
-            return 0.0;
+            return [0.0; 2];
         };
-        let mut p = self.sys.nonconservative_power(t, q, qd, &mut b.ws);
+        let p = self.sys.nonconservative_power(t, q, qd, &mut b.ws);
+        let mut pc = 0.0;
         if b.rheonomic {
             if let Some(f) = self.extras.as_mut() {
-                if f.accelerations(t, q, qd, &mut self.qdd).is_ok() {
-                    p += self.sys.constraint_power(q, t, f.lambda(), &mut b.ws);
+                pc = if f.accelerations(t, q, qd, &mut self.qdd).is_ok() {
+                    self.sys.constraint_power(q, t, f.lambda(), &mut b.ws)
                 } else {
-                    p = f64::NAN;
-                }
+                    f64::NAN
+                };
             }
         }
-        p
+        [p, pc]
+    }
+
+    /// `[V_g, V_e]`: the potential of gravity and every other potential.
+    fn potentials(&self, q: &[f64]) -> [f64; 2] {
+        let mut v = [0.0; 2];
+        let Some(b) = self.balance.as_ref() else {
+            return v;
+        };
+        for (f, &g) in self.sys.forces().iter().zip(&b.is_gravity) {
+            if let Some(e) = f.potential_energy(q) {
+                v[usize::from(!g)] += e;
+            }
+        }
+        v
     }
 
     /// Start the energy balance at `(t0, q0, q̇0)`.
@@ -475,8 +529,8 @@ impl Watch<'_, '_, '_, '_> {
         let e_parts0 = self.sys.kinetic_energy(qd0).abs() + self.sys.potential_energy(q0).abs();
         self.balance = Some(Balance {
             e0,
-            work: 0.0,
-            power: 0.0,
+            work: [0.0; 2],
+            power: [0.0; 2],
             t: t0,
             max_error: 0.0,
             scale: e_parts0,
@@ -485,6 +539,12 @@ impl Watch<'_, '_, '_, '_> {
             last_slope: None,
             rheonomic,
             ws: Default::default(),
+            is_gravity: self
+                .sys
+                .forces()
+                .iter()
+                .map(|f| f.name() == "gravity")
+                .collect(),
         });
         let p = self.power(t0, q0, qd0);
         if let Some(b) = self.balance.as_mut() {
@@ -492,16 +552,18 @@ impl Watch<'_, '_, '_, '_> {
         }
     }
 
-    /// `E(t) − E0 − W(t)` at `(t, q, q̇)` with `W` extended from the last
+    /// The balance at `(t, q, q̇)` with the works extended from the last
     /// step by the trapezoid; `accept` makes `t` the new last step.
-    fn balance_at(&mut self, t: f64, q: &[f64], qd: &[f64], accept: bool) -> Option<[f64; 2]> {
+    fn balance_at(&mut self, t: f64, q: &[f64], qd: &[f64], accept: bool) -> Option<EnergyTerms> {
         self.balance.as_ref()?;
-        let p = self.power(t, q, qd);
+        let pp = self.power(t, q, qd);
         let ke = self.sys.kinetic_energy(qd);
-        let pe = self.sys.potential_energy(q);
+        let [vg, ve] = self.potentials(q);
         let b = self.balance.as_mut()?;
-        let w = b.work + 0.5 * (b.power + p) * (t - b.t);
-        let err = ke + pe - b.e0 - w;
+        let wp: [f64; 2] =
+            std::array::from_fn(|k| b.work[k] + 0.5 * (b.power[k] + pp[k]) * (t - b.t));
+        let (w, p, p_last) = (wp[0] + wp[1], pp[0] + pp[1], b.power[0] + b.power[1]);
+        let err = ke + vg + ve - b.e0 - w;
         // the physical scale: |T0| + |V0| + the largest |W| (not T + V,
         // which grows with a solution that blows up)
         b.scale = b.scale.max(b.e_parts0 + w.abs());
@@ -513,7 +575,7 @@ impl Watch<'_, '_, '_, '_> {
             // slopes of this and the previous step
             let h = t - b.t;
             if h > 0.0 {
-                let slope = (p - b.power) / h;
+                let slope = (p - p_last) / h;
                 if let Some((s0, h0)) = b.last_slope {
                     let curv = (slope - s0) / (0.5 * (h + h0));
                     if curv.is_finite() {
@@ -522,16 +584,43 @@ impl Watch<'_, '_, '_, '_> {
                 }
                 b.last_slope = Some((slope, h));
             }
-            b.work = w;
-            b.power = p;
+            b.work = wp;
+            b.power = pp;
             b.t = t;
         }
-        Some([w, err])
+        Some(EnergyTerms {
+            kinetic: ke,
+            gravity: vg,
+            elastic: ve,
+            work_forces: wp[0],
+            work_drives: wp[1],
+            balance_error: err,
+        })
     }
 
     fn warn(&mut self, message: String) {
         self.sink.warning(&message);
         self.warnings.push(message);
+    }
+
+    /// The velocity-level guard at an output: ‖Φ̇‖ = ‖Φ_q q̇ + Φ_t‖ beyond
+    /// `100 (rtol V + atol)`, V the largest body speed seen so far.
+    fn guard_velocity(&mut self, t: f64, qd: &[f64], vn: f64) {
+        let v = qd.chunks(3).map(|b| b[0].hypot(b[1])).fold(0.0, f64::max);
+        if v.is_finite() {
+            self.speed = self.speed.max(v);
+        }
+        let bound = 100.0 * (self.rtol * self.speed + self.atol);
+        if vn > bound && !self.warned_phid {
+            self.warned_phid = true;
+            self.warn(format!(
+                "velocity constraint violation ‖Φ_q q̇ + Φ_t‖ = {vn:.3e} at t = {t:e} exceeds \
+                 {bound:.3e} (100 (rtol V + atol), V = {:.3e} m/s the largest body speed): the \
+                 velocities do not fit the joints; tighten the tolerances, use Baumgarte \
+                 stabilization (α > 0) or projection",
+                self.speed
+            ));
+        }
     }
 
     /// The guards of [`Guards`] after an accepted step.
@@ -581,7 +670,7 @@ impl Watch<'_, '_, '_, '_> {
 
 /// Whether the outputs need q̈ and λ at every output time.
 fn o_needs_extras(o: &OutputQuantities) -> bool {
-    o.accelerations || o.reactions
+    o.accelerations || o.reactions || o.drives
 }
 
 fn norm2(v: &[f64]) -> f64 {
@@ -600,6 +689,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
         }
         let cn = norm2(&self.phi);
         let vn = norm2(&self.phid);
+        self.guard_velocity(t, qd, vn);
         self.max_norm = self.max_norm.max(cn);
         self.max_velocity_norm = self.max_velocity_norm.max(vn);
         self.final_norm = cn;
@@ -636,7 +726,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
         }
         let o = self.outputs;
         let lambda = match (&self.extras, have_extras) {
-            (Some(f), true) if o.reactions => Some(f.lambda()),
+            (Some(f), true) if o.reactions || o.drives => Some(f.lambda()),
             _ => None,
         };
         let sample = Sample {
@@ -650,13 +740,14 @@ impl Observer for Watch<'_, '_, '_, '_> {
             lambda,
             reactions: o.reactions.then_some(&self.reactions[..]),
             energy: o.energy.then(|| {
-                let [w, e] = balance.unwrap_or([f64::NAN; 2]);
-                [
-                    self.sys.kinetic_energy(qd),
-                    self.sys.potential_energy(q),
-                    w,
-                    e,
-                ]
+                balance.unwrap_or(EnergyTerms {
+                    kinetic: f64::NAN,
+                    gravity: f64::NAN,
+                    elastic: f64::NAN,
+                    work_forces: f64::NAN,
+                    work_drives: f64::NAN,
+                    balance_error: f64::NAN,
+                })
             }),
         };
         match self.sink.output(&sample) {

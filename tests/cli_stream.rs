@@ -281,7 +281,31 @@ fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
     ]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("warning: energy balance broken"), "{e}");
-    for scen in ["scenarios/fourbar.toml", "scenarios/falling_rod.toml"] {
+    // velocities that do not fit the joints (no consistent assembly): the
+    // crank turns, the coupler is at rest — ‖Φ̇‖ = 0.89 m/s from t = 0
+    let o = run(&[
+        "run",
+        &fourbar(),
+        "--progress",
+        "off",
+        "--set",
+        "initial.consistent=false",
+        "--set",
+        "time.end=0.01",
+        "--out",
+        out,
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("warning: velocity constraint violation") && e.contains("at t = 0e0"),
+        "{e}"
+    );
+    for scen in [
+        "scenarios/fourbar.toml",
+        "scenarios/falling_rod.toml",
+        "scenarios/slider_crank.toml",
+        "scenarios/spring_pendulum.toml",
+    ] {
         let o = run(&["run", scen, "--progress", "off", "--out", out]);
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{scen}: {e}");

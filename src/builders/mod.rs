@@ -6,5 +6,7 @@
 
 mod parallelogram;
 mod rod;
+mod stiff_chain;
 pub use parallelogram::{parallelogram_chain, ParallelogramChain};
 pub use rod::*;
+pub use stiff_chain::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};

@@ -611,6 +611,18 @@ pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
 /// Euler–Bernoulli limits: tip deflection `P l³ / (3 E I_A)`,
 /// `ω_n = (β_n l)² sqrt(E I_A / (ρ A l⁴))`, `I_A = w⁴/12`, `A = w²`.
 pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, RodInfo), ModelError> {
+    let mut builder = SystemBuilder::new();
+    let info = add_cantilever(&mut builder, params, tip_load)?;
+    Ok((builder.build()?, info))
+}
+
+/// [`cantilever`] added to `builder` (its bodies and joints after those
+/// already there), with its kernels attached to its own ranges.
+pub fn add_cantilever(
+    builder: &mut SystemBuilder,
+    params: &RodParams,
+    tip_load: [f64; 2],
+) -> Result<RodInfo, ModelError> {
     params.validate_structure()?;
     if !tip_load.iter().all(|v| v.is_finite()) {
         return Err(invalid(
@@ -624,10 +636,9 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     let n = p.n_segments;
     let ls = p.segment_length();
     let e = p.axis();
-    let mut builder = SystemBuilder::new();
     let (m, inertia) = (p.segment_mass(), p.segment_inertia());
     let (bodies, joints, points) = add_chain(
-        &mut builder,
+        builder,
         "segment",
         n,
         m,
@@ -655,7 +666,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
         body: bodies[0],
         points: [0.0, 0.0, 0.0, -0.5 * ls],
     };
-    attach_chain_kernels(&mut builder, &bodies, &joints, &points, Some((base, pivot)));
+    attach_chain_kernels(builder, &bodies, &joints, &points, Some((base, pivot)));
     info.segment_length = ls;
     info.segment_mass = m;
     info.segment_inertia = inertia;
@@ -688,7 +699,7 @@ pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, Rod
     }
     info.bodies = bodies;
     info.joints = joints;
-    Ok((builder.build()?, info))
+    Ok(info)
 }
 
 /// The conservative N-link pendulum of problem D (docs/problems.md): `n` uniform slender

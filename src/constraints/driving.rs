@@ -37,6 +37,9 @@ impl Constraint for DriveCoordinate {
     fn name(&self) -> String {
         format!("coordinate drive '{}'", self.name)
     }
+    fn drive_unit(&self) -> Option<&'static str> {
+        Some(if self.coordinate == 2 { "N m" } else { "N" })
+    }
     fn n_eq(&self) -> usize {
         1
     }
@@ -112,6 +115,9 @@ impl DriveRelativeAngle {
 impl Constraint for DriveRelativeAngle {
     fn name(&self) -> String {
         format!("relative-angle drive '{}'", self.name)
+    }
+    fn drive_unit(&self) -> Option<&'static str> {
+        Some("N m")
     }
     fn n_eq(&self) -> usize {
         1

@@ -238,6 +238,23 @@ impl ForceElement for HalfPlaneContact {
         }
     }
 
+    fn readings(&self) -> &'static [(&'static str, &'static str)] {
+        &[
+            ("normal_force", "N"),
+            ("friction_force", "N"),
+            ("penetration", "m"),
+        ]
+    }
+
+    /// [`HalfPlaneContact::contact_forces`]: `F_n`, `F_t`, and the
+    /// penetration `δ` (negative: the gap, also out of contact).
+    fn read(&self, _t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (fn_, ft, _) = self.contact_forces(q, qd);
+        out[0] = fn_;
+        out[1] = ft;
+        out[2] = self.penetration(q);
+    }
+
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let delta = self.penetration(q);
         Some(if delta > 0.0 {

@@ -121,6 +121,18 @@ impl ForceElement for RotationalSpringDamper {
         }
     }
 
+    fn readings(&self) -> &'static [(&'static str, &'static str)] {
+        &[("torque", "N m"), ("deflection", "rad"), ("rate", "rad/s")]
+    }
+
+    /// Torque `T` on body j, deflection `Δφ − rest_angle`, rate `Δφ̇`.
+    fn read(&self, _t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (d, r) = self.relative(q, qd);
+        out[0] = self.torque(q, qd);
+        out[1] = d;
+        out[2] = r;
+    }
+
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let (d, _) = self.relative(q, q);
         Some(self.stiffness.integral(d))

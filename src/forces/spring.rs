@@ -263,6 +263,27 @@ impl ForceElement for PointSpringDamper {
         }
     }
 
+    fn readings(&self) -> &'static [(&'static str, &'static str)] {
+        &[
+            ("force", "N"),
+            ("length", "m"),
+            ("deflection", "m"),
+            ("rate", "m/s"),
+        ]
+    }
+
+    /// Tension `F` (0 below the minimum length), length `L`, deflection
+    /// `L − L₀`, rate `L̇`.
+    fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (len, rate) = self
+            .kin(q, qd)
+            .map_or((self.length(q), 0.0), |k| (k.len, k.rate));
+        out[0] = self.force(t, q, qd);
+        out[1] = len;
+        out[2] = len - self.free_length;
+        out[3] = rate;
+    }
+
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let len = self.length(q);
         Some(self.stiffness.integral(len - self.free_length) + self.preload * len)

@@ -3,8 +3,134 @@
 
 use super::{all_finite, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
-use crate::model::System;
+use crate::model::{BodyRef, System};
 use serde::Serialize;
+
+/// What a lock row of the assembly holds at its given value: a body
+/// coordinate, the relative angle of two bodies (a revolute joint's angle)
+/// or the slide of a translational joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LockKind {
+    /// The coordinate `q_k`.
+    Coordinate(usize),
+    /// `θ = φ_j − φ_i` (the ground's angle is 0) \[rad\].
+    RelativeAngle {
+        /// Reference body.
+        body_i: BodyRef,
+        /// Second body.
+        body_j: BodyRef,
+    },
+    /// `d = (r_Pj − r_Pi) · R(φ_i) u_i`: the slide of point `s_j` of body j
+    /// along the unit axis `u_i` through point `s_i` of body i \[m\].
+    Slide {
+        /// Body carrying the axis.
+        body_i: BodyRef,
+        /// Point of the axis (body i frame).
+        s_i: [f64; 2],
+        /// Unit axis (body i frame).
+        u_i: [f64; 2],
+        /// Sliding body.
+        body_j: BodyRef,
+        /// Sliding point (body j frame).
+        s_j: [f64; 2],
+    },
+}
+
+/// A lock row `ℓ(q) = value` of the assembly, with the rate `ℓ̇ = ∇ℓ·q̇ =
+/// rate` imposed on the velocities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lock {
+    /// The locked quantity.
+    pub kind: LockKind,
+    /// Its value.
+    pub value: f64,
+    /// Its rate.
+    pub rate: f64,
+}
+
+/// `R(φ) s` and `∂(R(φ) s)/∂φ` (the ground: `s` and 0).
+fn rotated(q: &[f64], b: BodyRef, s: [f64; 2]) -> ([f64; 2], [f64; 2]) {
+    match b.offset() {
+        None => (s, [0.0; 2]),
+        Some(o) => {
+            let (sn, cs) = q[o + 2].sin_cos();
+            let a = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
+            (a, [-a[1], a[0]])
+        }
+    }
+}
+
+/// The position of body `b`'s origin (the ground's: 0).
+fn origin(q: &[f64], b: BodyRef) -> [f64; 2] {
+    b.offset().map_or([0.0; 2], |o| [q[o], q[o + 1]])
+}
+
+impl LockKind {
+    /// The coordinates `ℓ` depends on (the order of [`LockKind::eval`]'s
+    /// gradient).
+    pub fn columns(&self) -> Vec<usize> {
+        match *self {
+            LockKind::Coordinate(k) => vec![k],
+            LockKind::RelativeAngle { body_i, body_j } => [body_i, body_j]
+                .iter()
+                .filter_map(|b| b.offset().map(|o| o + 2))
+                .collect(),
+            LockKind::Slide { body_i, body_j, .. } => [body_i, body_j]
+                .iter()
+                .filter_map(|b| b.offset())
+                .flat_map(|o| [o, o + 1, o + 2])
+                .collect(),
+        }
+    }
+
+    /// `ℓ(q)`, and its gradient over [`LockKind::columns`] into `grad`.
+    pub fn eval(&self, q: &[f64], grad: &mut [f64]) -> f64 {
+        match *self {
+            LockKind::Coordinate(k) => {
+                grad[0] = 1.0;
+                q[k]
+            }
+            LockKind::RelativeAngle { body_i, body_j } => {
+                let ang = |b: BodyRef| b.offset().map_or(0.0, |o| q[o + 2]);
+                let mut k = 0;
+                for (b, v) in [(body_i, -1.0), (body_j, 1.0)] {
+                    if b.offset().is_some() {
+                        grad[k] = v;
+                        k += 1;
+                    }
+                }
+                ang(body_j) - ang(body_i)
+            }
+            LockKind::Slide {
+                body_i,
+                s_i,
+                u_i,
+                body_j,
+                s_j,
+            } => {
+                let (ri, rj) = (origin(q, body_i), origin(q, body_j));
+                let (ai, dai) = rotated(q, body_i, s_i);
+                let (aj, daj) = rotated(q, body_j, s_j);
+                let (u, du) = rotated(q, body_i, u_i);
+                let d = [rj[0] + aj[0] - ri[0] - ai[0], rj[1] + aj[1] - ri[1] - ai[1]];
+                let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
+                let mut k = 0;
+                if body_i.offset().is_some() {
+                    grad[0] = -u[0];
+                    grad[1] = -u[1];
+                    grad[2] = -dot(u, dai) + dot(d, du);
+                    k = 3;
+                }
+                if body_j.offset().is_some() {
+                    grad[k] = u[0];
+                    grad[k + 1] = u[1];
+                    grad[k + 2] = dot(u, daj);
+                }
+                dot(d, u)
+            }
+        }
+    }
+}
 
 /// Options of [`consistent_initial_state`].
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -40,17 +166,20 @@ pub struct ConsistentState {
     pub velocity_residual: f64,
     /// Newton iterations used.
     pub iterations: usize,
+    /// How far the assembly moved each body: `[|Δr|, |Δφ|]` of its centre
+    /// of mass \[m\] and angle \[rad\] from the given to the assembled
+    /// positions.
+    pub body_moves: Vec<[f64; 2]>,
+    /// The largest lock error after the assembly, `max |ℓ(q) − value|,
+    /// |∇ℓ·q̇ − rate|` over the lock rows (0 without locks): a lock the
+    /// constraints contradict is given up by the least-squares velocity
+    /// solve.
+    pub lock_residual: f64,
 }
 
 /// Correct `(q, q̇)` onto the constraint manifold at `t0`, keeping the
 /// coordinates listed in `independent` (and their velocities) at the given
-/// values.
-///
-/// Each Newton step is the smallest correction `Δq` (Euclidean norm) with
-/// `Φ_q Δq = −Φ` and `Δq_k = 0` for independent `k`, from the saddle-point
-/// system `[I  Φ̃_qᵀ; Φ̃_q 0]` where Φ̃ appends the locks `q_k − q_k⁰` to Φ —
-/// the same sparse machinery as the equations of motion. The velocities are
-/// the closest to the given ones with `Φ_q q̇ = −Φ_t`, `q̇_k` fixed.
+/// values ([`consistent_initial_state_locked`] with coordinate locks).
 pub fn consistent_initial_state(
     sys: &System,
     t0: f64,
@@ -59,15 +188,52 @@ pub fn consistent_initial_state(
     independent: &[usize],
     opts: InitialOptions,
 ) -> Result<ConsistentState, FormulationError> {
-    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let n = sys.n_coords();
     if let Some(&k) = independent.iter().find(|&&k| k >= n) {
         return Err(FormulationError::Initial(format!(
             "independent coordinate index {k} out of range (the system has {n} coordinates)"
         )));
     }
-    let nl = independent.len();
+    let locks: Vec<Lock> = independent
+        .iter()
+        .map(|&k| Lock {
+            kind: LockKind::Coordinate(k),
+            value: q[k],
+            rate: qd[k],
+        })
+        .collect();
+    consistent_initial_state_locked(sys, t0, q, qd, &locks, opts)
+}
+
+/// Correct `(q, q̇)` onto the constraint manifold at `t0` with every lock
+/// row `ℓ(q) = value`, `∇ℓ·q̇ = rate` ([`Lock`]) imposed.
+///
+/// Each Newton step is the smallest correction `Δq` (Euclidean norm) with
+/// `Φ_q Δq = −Φ` and `∇ℓ Δq = value − ℓ(q)` for every lock, from the
+/// saddle-point system `[I  Φ̃_qᵀ; Φ̃_q 0]` where Φ̃ appends the lock rows to
+/// Φ — the same sparse machinery as the equations of motion. The velocities
+/// are the closest to the given ones with `Φ_q q̇ = −Φ_t` and the locks'
+/// rates.
+pub fn consistent_initial_state_locked(
+    sys: &System,
+    t0: f64,
+    q: &[f64],
+    qd: &[f64],
+    locks: &[Lock],
+    opts: InitialOptions,
+) -> Result<ConsistentState, FormulationError> {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let cols: Vec<Vec<usize>> = locks.iter().map(|l| l.kind.columns()).collect();
+    if let Some(&k) = cols.iter().flatten().find(|&&k| k >= n) {
+        return Err(FormulationError::Initial(format!(
+            "a lock row reads coordinate {k}, out of range (the system has {n} coordinates)"
+        )));
+    }
+    let nl = locks.len();
     let mut pattern = sys.jacobian_pattern().to_vec();
-    pattern.extend(independent.iter().enumerate().map(|(i, &k)| (m + i, k)));
+    for (i, c) in cols.iter().enumerate() {
+        pattern.extend(c.iter().map(|&k| (m + i, k)));
+    }
     let mut kmat = SaddleMatrix::new(n, m + nl, &[], &pattern);
     let mut solver = solver_for(opts.linear_solver, n + m + nl, SolverOptions::default());
     let lin = |source| FormulationError::Linear { t: t0, source };
@@ -76,14 +242,24 @@ pub fn consistent_initial_state(
 
     let mut jac = vec![0.0; pattern.len()];
     let nsys = sys.jacobian_pattern().len();
-    jac[nsys..].fill(1.0);
+    let q_given = q;
     let mut q = q.to_vec();
-    let mut phi = vec![0.0; m];
+    // Φ and the lock residuals ℓ − value; their Jacobian rows into `jac`
+    let mut phi = vec![0.0; m + nl];
+    let eval_locks = |q: &[f64], res: &mut [f64], jac: &mut [f64]| {
+        let mut at = nsys;
+        for (i, l) in locks.iter().enumerate() {
+            let k = cols[i].len();
+            res[i] = l.kind.eval(q, &mut jac[at..at + k]) - l.value;
+            at += k;
+        }
+    };
     let mut x = vec![0.0; n + m + nl];
     let norm_inf = |v: &[f64]| v.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
     let mut iterations = 0;
     loop {
-        sys.phi(&q, t0, &mut phi);
+        sys.phi(&q, t0, &mut phi[..m]);
+        eval_locks(&q, &mut phi[m..], &mut jac);
         let r = norm_inf(&phi);
         if !r.is_finite() {
             return Err(FormulationError::Initial(format!(
@@ -105,7 +281,7 @@ pub fn consistent_initial_state(
         kmat.set_jacobian(&jac);
         solver.factorize(&kmat).map_err(lin)?;
         x.fill(0.0);
-        for (xr, p) in x[n..n + m].iter_mut().zip(&phi) {
+        for (xr, p) in x[n..].iter_mut().zip(&phi) {
             *xr = -p;
         }
         solver.solve_in_place(&kmat, &mut x).map_err(lin)?;
@@ -115,8 +291,9 @@ pub fn consistent_initial_state(
         iterations += 1;
     }
 
-    // Velocities: min ‖q̇ − q̇⁰‖ s.t. Φ_q q̇ = −Φ_t, q̇_k = q̇⁰_k.
+    // Velocities: min ‖q̇ − q̇⁰‖ s.t. Φ_q q̇ = −Φ_t, ∇ℓ q̇ = rate.
     sys.jacobian_values(&q, t0, &mut jac[..nsys]);
+    eval_locks(&q, &mut phi[m..], &mut jac);
     let mut phi_t = vec![0.0; m];
     sys.phi_t(&q, t0, &mut phi_t);
     all_finite(
@@ -132,14 +309,14 @@ pub fn consistent_initial_state(
     for r in 0..m {
         x[n + r] = -phi_t[r];
     }
-    for (i, &k) in independent.iter().enumerate() {
-        x[n + m + i] = qd[k];
+    for (i, l) in locks.iter().enumerate() {
+        x[n + m + i] = l.rate;
     }
     solver.solve_in_place(&kmat, &mut x).map_err(lin)?;
     let qd: Vec<f64> = x[..n].to_vec();
 
-    sys.phi(&q, t0, &mut phi);
-    let position_residual = phi.iter().map(|v| v * v).sum::<f64>().sqrt();
+    sys.phi(&q, t0, &mut phi[..m]);
+    let position_residual = phi[..m].iter().map(|v| v * v).sum::<f64>().sqrt();
     let mut phid = vec![0.0; m];
     sys.jacobian_mul(&jac[..nsys], &qd, &mut phid);
     let velocity_residual = phid
@@ -148,11 +325,30 @@ pub fn consistent_initial_state(
         .map(|(a, b)| (a + b) * (a + b))
         .sum::<f64>()
         .sqrt();
+    let mut lock_residual = 0.0_f64;
+    let mut at = nsys;
+    for (i, l) in locks.iter().enumerate() {
+        let k = cols[i].len();
+        let g = &mut jac[at..at + k];
+        let v = l.kind.eval(&q, g);
+        let rate: f64 = g.iter().zip(&cols[i]).map(|(a, &c)| a * qd[c]).sum();
+        lock_residual = lock_residual
+            .max((v - l.value).abs())
+            .max((rate - l.rate).abs());
+        at += k;
+    }
+    let body_moves = q_given
+        .chunks(3)
+        .zip(q.chunks(3))
+        .map(|(a, b)| [(b[0] - a[0]).hypot(b[1] - a[1]), (b[2] - a[2]).abs()])
+        .collect();
     Ok(ConsistentState {
         q,
         qd,
         position_residual,
         velocity_residual,
         iterations,
+        body_moves,
+        lock_residual,
     })
 }

@@ -29,7 +29,10 @@ mod stability;
 
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
-pub use initial::{consistent_initial_state, ConsistentState, InitialOptions};
+pub use initial::{
+    consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
+    Lock, LockKind,
+};
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
 

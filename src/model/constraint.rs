@@ -65,6 +65,13 @@ pub trait Constraint: Send + Sync + Debug {
     fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
         check_bodies(&self.name(), &self.bodies(), n_bodies)
     }
+    /// For a drive (one equation prescribing a coordinate or a relative
+    /// angle, `Φ = ± q_k − f(t)` with `∂Φ/∂q_k = 1` on the driven
+    /// coordinate): the unit of its generalized force `−λ` on that
+    /// coordinate, `"N"` or `"N m"`. Default: `None` (not a drive).
+    fn drive_unit(&self) -> Option<&'static str> {
+        None
+    }
     /// What the joint is, as data: lets code generation recognise
     /// topologies ([`crate::generated`]) and drawings show joints, without
     /// knowing the implementing type. Default: [`JointGeometry::Other`].

@@ -42,6 +42,16 @@ pub trait ForceElement: Send + Sync + Debug {
         let _ = q;
         None
     }
+    /// What the element reports of its own law for sensors, `(name,
+    /// unit)` ([`ForceElement::read`]): a spring's tension and deflection,
+    /// a contact's normal force and penetration. Default: nothing.
+    fn readings(&self) -> &'static [(&'static str, &'static str)] {
+        &[]
+    }
+    /// The values of [`ForceElement::readings`] at `(t, q, q̇)` into `out`.
+    fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let _ = (t, q, qd, out);
+    }
     /// Check parameters and that every coordinate is `< n_coords`.
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         check_coordinates(&self.name(), &self.coordinates(), n_coords)

@@ -17,6 +17,7 @@ mod energy;
 mod force;
 mod gravity;
 mod reaction;
+mod sensor;
 mod system;
 mod time_function;
 
@@ -26,6 +27,9 @@ pub use energy::EnergyWorkspace;
 pub use force::{check_coordinates, FdWorkspace, ForceElement};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
+pub use sensor::{
+    drives, evaluate_sensors, joint_short_name, point_state, Drive, Sensor, SensorKind,
+};
 pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};
 pub use time_function::TimeFunction;
 

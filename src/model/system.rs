@@ -205,6 +205,10 @@ impl SystemBuilder {
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
     }
+    /// Force elements added so far (the index the next one gets).
+    pub fn n_forces(&self) -> usize {
+        self.forces.len()
+    }
     /// Mutable access to the bodies (e.g. to set initial states).
     pub fn bodies_mut(&mut self) -> &mut [Body] {
         &mut self.bodies

@@ -19,7 +19,7 @@
 
 use crate::builders::RodInfo;
 use crate::formulation::ConsistentState;
-use crate::model::System;
+use crate::model::{Sensor, System};
 use crate::simulation::RunConfig;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -29,6 +29,7 @@ mod initial;
 pub mod limits;
 mod model;
 mod run;
+mod sensor;
 
 use initial::RawInitial;
 use model::{RawBody, RawConstraints, RawForce, RawJoint, RawRod};
@@ -73,6 +74,10 @@ pub struct Scenario {
     pub run: RunConfig,
     /// The rod's bookkeeping when the scenario has a `[rod]` table.
     pub rod: Option<RodInfo>,
+    /// The `[[sensor]]`s, in file order.
+    pub sensors: Vec<Sensor>,
+    /// File format of the run's table (`output.format`).
+    pub format: crate::output::Format,
 }
 
 #[derive(Debug, Deserialize)]
@@ -101,6 +106,8 @@ struct RawScenario {
     rod: Option<RawRod>,
     #[serde(default)]
     constraints: RawConstraints,
+    #[serde(default)]
+    sensor: Vec<sensor::RawSensor>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it
@@ -342,8 +349,15 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     // The run settings and the limits first: nothing that scales with the
     // input (bodies, output times) is allocated before they are checked.
     let run = run::build(&raw, file)?;
+    let format = run::output_format(&raw, file)?;
     limits::check(&raw, &run, file)?;
-    let model::Model { system, rod, names } = model::build(&raw, file)?;
+    let model::Model {
+        system,
+        rod,
+        names,
+        forces,
+    } = model::build(&raw, file)?;
+    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),
@@ -354,6 +368,8 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         assembly,
         run,
         rod,
+        sensors,
+        format,
     })
 }
 

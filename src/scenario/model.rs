@@ -18,6 +18,8 @@ pub(super) struct Model {
     pub(super) rod: Option<RodInfo>,
     /// Body index by name.
     pub(super) names: HashMap<String, usize>,
+    /// Each `[[force]]`'s name and the force elements it built.
+    pub(super) forces: Vec<(String, std::ops::Range<usize>)>,
 }
 
 /// The body named `name` (or the ground), for errors at `key`.
@@ -451,8 +453,12 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         }
     }
     let gravity = raw.gravity;
+    let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
+        let start = builder.n_forces();
         add_force(&mut builder, f, k, gravity, &names, file)?;
+        let name = f.name.clone().unwrap_or_else(|| format!("force{}", k + 1));
+        forces.push((name, start..builder.n_forces()));
     }
     let mut rod = None;
     if let Some(r) = &raw.rod {
@@ -533,7 +539,12 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         .set_evaluation(evaluation)
         .map_err(|e| err("constraints.evaluation".into(), e.to_string()))?;
 
-    Ok(Model { system, rod, names })
+    Ok(Model {
+        system,
+        rod,
+        names,
+        forces,
+    })
 }
 
 /// The `[[force]]` types and the keys each takes: `(type, needed, allowed)`.

@@ -9,6 +9,7 @@ use crate::formulation::{
 };
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
+use crate::output::Format;
 use crate::simulation::{OutputQuantities, RunConfig};
 use serde::Deserialize;
 
@@ -64,6 +65,24 @@ pub(super) struct RawOutput {
     /// "reactions", "energy".
     #[serde(default)]
     quantities: Vec<String>,
+    /// Table format: "csv" (default) or "arrow".
+    format: Option<String>,
+}
+
+/// `output.format`: a [`Format`] this build can write.
+pub(super) fn output_format(raw: &RawScenario, file: &str) -> Result<Format, ScenarioError> {
+    let Some(name) = &raw.output.format else {
+        return Ok(Format::default());
+    };
+    let f: Format = name.parse().map_err(|m| error(file, "output.format", m))?;
+    if !f.available() {
+        return Err(error(
+            file,
+            "output.format",
+            format!("'{name}' needs mbsolve built with the '{name}' feature"),
+        ));
+    }
+    Ok(f)
 }
 
 /// Build the run settings of `raw`; errors name keys of `file`.
@@ -195,10 +214,11 @@ fn output_quantities(names: &[String]) -> Result<OutputQuantities, String> {
             "accelerations" => &mut o.accelerations,
             "reactions" => &mut o.reactions,
             "energy" => &mut o.energy,
+            "drives" => &mut o.drives,
             other => {
                 return Err(format!(
                     "unknown quantity '{other}' (item {k}); expected velocities, accelerations, \
-                     reactions or energy"
+                     reactions, drives or energy"
                 ))
             }
         };

@@ -146,6 +146,9 @@ fn report(sc: &Scenario, s: &Size) -> String {
                 a.position_residual, a.velocity_residual, a.iterations
             ),
         );
+        if let Some((text, _)) = assembly_moves(sc) {
+            line("assembly moved", text);
+        }
     }
     out
 }
@@ -170,6 +173,48 @@ pub fn command(path: &Path, set: &[String]) -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+/// How far the assembly moved the bodies (`None` without an assembly): a
+/// line — the largest move of a centre of mass and the largest rotation,
+/// with their bodies — and the summary's `initial_assembly` object (those
+/// and `body_moves`: each body's `[|Δr| m, |Δφ| rad]`).
+pub fn assembly_moves(sc: &Scenario) -> Option<(String, serde_json::Value)> {
+    let a = sc.assembly.as_ref()?;
+    let name = |i: usize| sc.system.bodies()[i].name.clone();
+    let largest = |c: usize| {
+        a.body_moves
+            .iter()
+            .enumerate()
+            .fold(
+                (0usize, 0.0f64),
+                |m, (i, v)| if v[c] > m.1 { (i, v[c]) } else { m },
+            )
+    };
+    let ((bd, d), (br, r)) = (largest(0), largest(1));
+    let text = format!(
+        "at most {d:.3e} m (body '{}') and {:.3e}° (body '{}')",
+        name(bd),
+        r.to_degrees(),
+        name(br)
+    );
+    let moves: serde_json::Map<String, serde_json::Value> = a
+        .body_moves
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (name(i), serde_json::json!(v)))
+        .collect();
+    let json = serde_json::json!({
+        "position_residual": a.position_residual,
+        "velocity_residual": a.velocity_residual,
+        "iterations": a.iterations,
+        "max_displacement_m": d,
+        "max_displacement_body": name(bd),
+        "max_rotation_rad": r,
+        "max_rotation_body": name(br),
+        "body_moves": moves,
+    });
+    Some((text, json))
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@ mod output;
 mod plot;
 mod reproduce;
 mod stream;
+mod study;
 mod sweep;
 
 use mbsolve::events::ContactMonitor;
@@ -151,6 +152,19 @@ enum Command {
         #[arg(long, value_name = "T")]
         at: Option<f64>,
     },
+    /// Studies beyond the paper's figures: `constraints` runs every
+    /// constraint-enforcement method on the four-bar (correct and incorrect
+    /// start), the falling rod, a parallelogram chain through its singular
+    /// positions and a redundant one; writes a table and figures under
+    /// DIR/constraints (docs/constraint_methods.md).
+    Study {
+        /// Which study: `constraints`.
+        #[arg(value_parser = ["constraints"])]
+        which: String,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -170,6 +184,7 @@ fn main() -> ExitCode {
             quiet,
         } => run(&scenario, &set, &out, progress, quiet),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Study { which: _, out } => study_constraints(&out),
         Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
             scenario,
@@ -260,6 +275,10 @@ fn run(
             a.iterations
         );
     }
+    let assembly = check::assembly_moves(&sc);
+    if let Some((text, _)) = &assembly {
+        report!("assembly moved the bodies {text}");
+    }
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -268,7 +287,7 @@ fn run(
     let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let digest = sha2::Sha256::digest(&text);
     let hash: String = digest.iter().map(|b| format!("{b:02x}")).collect();
-    let provenance = [
+    let mut provenance = vec![
         ("scenario", serde_json::json!(path.display().to_string())),
         ("scenario_sha256", serde_json::json!(hash)),
         ("overrides", serde_json::json!(set)),
@@ -277,6 +296,9 @@ fn run(
             serde_json::json!(env!("CARGO_PKG_VERSION")),
         ),
     ];
+    if let Some((_, json)) = assembly {
+        provenance.push(("initial_assembly", json));
+    }
     let mut running = serde_json::Map::new();
     running.insert("status".into(), "running".into());
     running.insert(
@@ -286,8 +308,16 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
-    let mut files = stream::RunFiles::create(out, &stem, &sc.system, sc.run.outputs, &running)
-        .map_err(|e| e.to_string())?;
+    let mut files = stream::RunFiles::create(
+        out,
+        &stem,
+        &sc.system,
+        sc.run.outputs,
+        &sc.sensors,
+        sc.format,
+        &running,
+    )
+    .map_err(|e| e.to_string())?;
     files.progress = stream::Progress::new(
         if quiet {
             stream::ProgressMode::Off
@@ -382,6 +412,13 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     say!("falling rod, N = 10: {} runs", rod.len());
     say!("{}", reproduce::rod_table(&rod).trim_end());
     say!("wrote {}", out.join("falling_rod").display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn study_constraints(out: &std::path::Path) -> Result<ExitCode, String> {
+    let rows = study::constraints(out)?;
+    say!("{}", study::table(&rows).trim_end());
+    say!("wrote {}", out.join("constraints").display());
     Ok(ExitCode::SUCCESS)
 }
 

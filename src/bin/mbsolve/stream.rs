@@ -6,14 +6,14 @@
 //! with status `"interrupted"`.
 
 use crate::output::{
-    columns_json, create_fresh, csv_header, csv_row, remove_stale, sibling, write_atomic,
-    write_summary_json, OutputError,
+    columns_json, create_fresh, remove_stale, sibling, write_atomic, write_summary_json,
+    OutputError,
 };
 use mbsolve::integrate::Stats;
-use mbsolve::model::{ReactionMap, System};
+use mbsolve::model::{Sensor, System};
+use mbsolve::output::{columns, Format, RowBuilder, TableWriter};
 use mbsolve::simulation::{OutputQuantities, Sample, Sink, Summary};
-use std::fs::File;
-use std::io::{BufWriter, IsTerminal, Write};
+use std::io::{IsTerminal, Write};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -126,74 +126,83 @@ impl Progress {
     }
 }
 
-/// The files of one run: `DIR/<stem>.csv` (streamed as
-/// `DIR/<stem>.csv.part`) and `DIR/<stem>.summary.json`.
-pub struct RunFiles {
-    /// Final CSV path.
+/// The files of one run: `DIR/<stem>.csv` or `.arrow` (streamed as
+/// `DIR/<stem>.csv.part`), `DIR/<stem>.columns.json` (names and units) and
+/// `DIR/<stem>.summary.json`.
+pub struct RunFiles<'s> {
+    /// Final table path.
     pub csv: PathBuf,
     /// Summary JSON path.
     pub json: PathBuf,
     part: PathBuf,
-    writer: Option<BufWriter<File>>,
+    table: Option<Box<dyn TableWriter + Send>>,
     rows: usize,
     last_flush: Instant,
-    row: String,
+    flush_every: Duration,
+    builder: RowBuilder<'s>,
     /// Progress display, if any.
     pub progress: Option<Progress>,
     /// Warnings seen while running (printed as they come).
     pub warnings: usize,
-    /// The body each joint's reaction acts on (the local-frame columns).
-    reactions: ReactionMap,
-    quantities: OutputQuantities,
 }
 
-impl RunFiles {
+impl<'s> RunFiles<'s> {
     /// Check and claim the output files before the run starts: the
     /// directory exists (or is created) and is writable, a `"running"`
-    /// summary replaces any previous run's summary, a previous CSV is
-    /// removed, the CSV header is written to the temporary file.
+    /// summary replaces any previous run's summary, a previous table is
+    /// removed, the table's header is written to the temporary file.
     pub fn create(
         out: &Path,
         stem: &str,
-        sys: &System,
+        sys: &'s System,
         quantities: OutputQuantities,
+        sensors: &'s [Sensor],
+        format: Format,
         running: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Self, OutputError> {
         std::fs::create_dir_all(out).map_err(|e| OutputError::new(out, e))?;
-        let csv = out.join(format!("{stem}.csv"));
+        let csv = out.join(format!("{stem}.{}", format.extension()));
         let json = out.join(format!("{stem}.summary.json"));
         let part = sibling(&csv, ".part");
         let text = serde_json::to_string_pretty(running).map_err(|e| OutputError::new(&json, e))?;
         write_atomic(&json, &(text + "\n"))?;
-        remove_stale(&csv)?;
-        let mut w = BufWriter::with_capacity(1 << 16, create_fresh(&part)?);
-        writeln!(w, "{}", csv_header(sys, &quantities)).map_err(|e| OutputError::new(&part, e))?;
-        let columns = out.join(format!("{stem}.columns.json"));
-        write_atomic(&columns, &columns_json(sys, &quantities))?;
+        for f in Format::NAMES {
+            remove_stale(&out.join(format!("{stem}.{f}")))?;
+        }
+        let cols = columns(sys, &quantities, sensors);
+        let table = format
+            .writer(create_fresh(&part)?, &cols)
+            .map_err(|e| OutputError::new(&part, e))?;
+        write_atomic(
+            &out.join(format!("{stem}.columns.json")),
+            &columns_json(&cols),
+        )?;
         Ok(Self {
             csv,
             json,
             part,
-            writer: Some(w),
+            table: Some(table),
             rows: 0,
             last_flush: Instant::now(),
-            row: String::new(),
+            flush_every: format.flush_interval(),
+            builder: RowBuilder::new(sys, quantities, sensors),
             progress: None,
             warnings: 0,
-            reactions: sys.reaction_map(),
-            quantities,
         })
     }
 
-    /// End of the run, whatever its status: flush the rows, rename the CSV
-    /// into place, write the final summary.
+    /// End of the run, whatever its status: write the buffered rows and the
+    /// format's trailer, rename the table into place, write the final
+    /// summary.
     pub fn finish(&mut self, summary: &Summary) -> Result<(), OutputError> {
         if let Some(p) = &self.progress {
             p.clear();
         }
-        if let Some(mut w) = self.writer.take() {
-            w.flush()
-                .and_then(|_| w.get_ref().sync_all())
+        if let Some(mut t) = self.table.take() {
+            t.finish().map_err(|e| OutputError::new(&self.part, e))?;
+            drop(t);
+            std::fs::File::open(&self.part)
+                .and_then(|f| f.sync_all())
                 .map_err(|e| OutputError::new(&self.part, e))?;
             std::fs::rename(&self.part, &self.csv).map_err(|e| OutputError::new(&self.csv, e))?;
         }
@@ -201,10 +210,10 @@ impl RunFiles {
     }
 }
 
-impl RunFiles {
+impl RunFiles<'_> {
     /// The run could not start: no CSV, a summary that says so.
     pub fn abandon(&mut self, message: &str) -> Result<(), OutputError> {
-        self.writer = None;
+        self.table = None;
         remove_stale(&self.part)?;
         let s = serde_json::json!({"status": "failed", "message": message, "output_rows": 0});
         let text = serde_json::to_string_pretty(&s).map_err(|e| OutputError::new(&self.json, e))?;
@@ -212,16 +221,15 @@ impl RunFiles {
     }
 }
 
-impl Sink for RunFiles {
+impl Sink for RunFiles<'_> {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
-        let w = self.writer.as_mut().ok_or("output already closed")?;
-        csv_row(&mut self.row, &self.reactions, s, &self.quantities);
-        w.write_all(self.row.as_bytes())
+        let t = self.table.as_mut().ok_or("output already closed")?;
+        t.write_row(self.builder.row(s))
             .map_err(|e| OutputError::new(&self.part, e))?;
         self.rows += 1;
-        // whole rows on disk at least every second
-        if self.last_flush.elapsed() >= Duration::from_secs(1) {
-            w.flush().map_err(|e| OutputError::new(&self.part, e))?;
+        // whole rows on disk at least every second (CSV)
+        if self.last_flush.elapsed() >= self.flush_every {
+            t.flush().map_err(|e| OutputError::new(&self.part, e))?;
             self.last_flush = Instant::now();
         }
         Ok(())

@@ -1,0 +1,92 @@
+//! The cantilevered stiff chain of `../shared/peers/` (issue 12), run the
+//! way the peer scripts run it: one JSON line per method with the tip x at
+//! t = 0.1 s, its error against the peers' reference, steps, Newton
+//! iterations and failures, wall and CPU seconds.
+//!
+//! ```text
+//! cargo run --release --example stiff_chain -- N [genalpha:H | hht:H | ode45:RTOL | ode23:RTOL ...]
+//! ```
+
+use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
+use mbsolve::integrate::{Method, Tolerance};
+use mbsolve::simulation::{simulate, RunConfig};
+use std::time::Instant;
+
+/// CPU seconds of this process (user + system, from /proc; 0 elsewhere).
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // fields after the command name in parentheses: utime is the 14th field
+    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11).and_then(|u| u.parse().ok()).unwrap_or(0.0)
+        + f.get(12).and_then(|s| s.parse().ok()).unwrap_or(0.0);
+    ticks / 100.0
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(n) = args.first().and_then(|a| a.parse::<usize>().ok()) else {
+        eprintln!("usage: stiff_chain N [genalpha:H | hht:H | ode45:RTOL | ode23:RTOL ...]");
+        std::process::exit(2);
+    };
+    let specs: Vec<String> = if args.len() > 1 {
+        args[1..].to_vec()
+    } else {
+        vec!["genalpha:1e-5".into()]
+    };
+    let (sys, q0, qd0, info) = stiff_chain(n, 5f64.to_radians()).expect("valid chain");
+    let reference = stiff_chain_reference_tip(n);
+    for spec in specs {
+        let (name, value) = spec.split_once(':').unwrap_or((spec.as_str(), "1e-5"));
+        let method: Method = name.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+        let value: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+        let mut cfg = RunConfig {
+            method,
+            t_end: 0.1,
+            output_dt: 0.1,
+            ..Default::default()
+        };
+        if method.is_implicit() || method == Method::Rk4 {
+            cfg.ode.fixed_step = Some(value);
+        } else {
+            cfg.ode.rtol = value;
+            cfg.ode.atol = Tolerance::Scalar(value * 1e-3);
+        }
+        cfg.ode.max_steps = 100_000_000;
+        // Newton settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE
+        if let Some(t) = std::env::var("MBS_NEWTON_TOL")
+            .ok()
+            .and_then(|v| v.parse().ok())
+        {
+            cfg.implicit.newton_tol = t;
+        }
+        if std::env::var("MBS_EXTRAPOLATE").is_ok() {
+            cfg.implicit.extrapolate = true;
+        }
+        let (cpu0, wall0) = (cpu_seconds(), Instant::now());
+        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
+        let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
+        let tip = traj.q.last().map(|q| stiff_chain_tip_x(&info, q));
+        let get = |k: &str| s.extra.get(k).cloned().unwrap_or(serde_json::Value::Null);
+        let line = serde_json::json!({
+            "n": n,
+            "method": name,
+            "h_or_rtol": value,
+            "status": s.status,
+            "t_reached": s.t_reached,
+            "tip_x": tip,
+            "tip_error": tip.zip(reference).map(|(x, r)| x - r),
+            "steps": s.steps,
+            "failed_steps": s.failed_steps,
+            "newton_iterations": get("newton_iterations"),
+            "newton_failures": get("newton_failures"),
+            "newton_per_step": get("newton_iterations").as_f64().map(|i| i / s.steps.max(1) as f64),
+            "max_constraint_norm": s.max_constraint_norm,
+            "wall_s": wall,
+            "cpu_s": cpu,
+        });
+        println!("{line}");
+    }
+}

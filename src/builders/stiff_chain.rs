@@ -1,0 +1,73 @@
+//! The cantilevered stiff chain of the peer comparisons
+//! (`../shared/peers/`, issue 12): N rigid segments of the rod of problem B
+//! (1 m, 0.03 m square steel) hanging down from a pivot at the origin, a
+//! revolute joint and a torsional spring–damper `k = E w⁴/(12 l_s)`,
+//! `c = 10⁻⁵ s · k` at every joint (ground–1 included, rest angle 0 =
+//! straight down), gravity 9.81 along −y; released at rest, straight, every
+//! segment turned θ₀ = 5° counter-clockwise from the downward vertical.
+//! Reported: x of the free end at t = 0.1 s.
+
+use super::rod::{add_cantilever, RodInfo, RodParams};
+use crate::model::{Gravity, ModelError, System, SystemBuilder};
+
+/// Tip x at t = 0.1 s from the peers' references (`../shared/peers/README.md`):
+/// SciPy Radau at rtol 1e-10 on two independently derived minimal-coordinate
+/// right-hand sides for N = 10 and 100; Richardson extrapolation of fine
+/// fixed-step runs (±1e-6 m) for N = 1000.
+pub fn stiff_chain_reference_tip(n: usize) -> Option<f64> {
+    match n {
+        10 => Some(-0.013378720487),
+        100 => Some(-0.087394814801),
+        1000 => Some(-0.0918244),
+        _ => None,
+    }
+}
+
+/// The stiff chain of `n` segments, released at `theta0` \[rad\] from the
+/// downward vertical: the system, q0, q̇0 (at rest) and the rod's
+/// bookkeeping (segment `n − 1` carries the free end at local `(0, +l_s/2)`).
+pub fn stiff_chain(
+    n: usize,
+    theta0: f64,
+) -> Result<(System, Vec<f64>, Vec<f64>, RodInfo), ModelError> {
+    let params = RodParams {
+        n_segments: n,
+        // φ = π: segment axes (local +y) point down; the ground spring rests there
+        tilt: std::f64::consts::PI,
+        fluid: false,
+        contact: false,
+        ..RodParams::default()
+    };
+    let mut builder = SystemBuilder::new();
+    let mut info = add_cantilever(&mut builder, &params, [0.0, 0.0])?;
+    info.gravity = Some(
+        builder.add_force(Gravity {
+            g: [0.0, -9.81],
+            bodies: info
+                .bodies
+                .iter()
+                .map(|&b| (b, info.segment_mass))
+                .collect(),
+        }),
+    );
+    let sys = builder.build()?;
+    // the straight chain turned by θ₀ about the pivot
+    let ls = info.segment_length;
+    let (s, c) = theta0.sin_cos();
+    let mut q0 = vec![0.0; sys.n_coords()];
+    for (i, &b) in info.bodies.iter().enumerate() {
+        let d = (i as f64 + 0.5) * ls;
+        q0[3 * b] = d * s;
+        q0[3 * b + 1] = -d * c;
+        q0[3 * b + 2] = std::f64::consts::PI + theta0;
+    }
+    let qd0 = vec![0.0; sys.n_coords()];
+    Ok((sys, q0, qd0, info))
+}
+
+/// x of the free end (bottom of the last segment) from the coordinates `q`.
+pub fn stiff_chain_tip_x(info: &RodInfo, q: &[f64]) -> f64 {
+    let b = *info.bodies.last().expect("a chain has segments");
+    // local (0, −l_s/2) is the end towards the pivot; the free end is (0, +l_s/2)
+    q[3 * b] - 0.5 * info.segment_length * q[3 * b + 2].sin()
+}

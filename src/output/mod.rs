@@ -1,0 +1,430 @@
+//! Output tables: a run's rows written as the integration delivers them,
+//! in bounded memory, to any [`std::io::Write`] — CSV ([`CsvTable`]) or,
+//! with the `arrow` feature, Apache Arrow IPC ([`ArrowTable`], columnar
+//! binary for runs of 10⁴+ columns). A [`TableWriter`] takes the column
+//! names and units once and then one row of `f64` values at a time; it
+//! knows nothing of files: atomic renames, summaries and signals belong to
+//! the application (the `mbsolve` binary).
+
+#[cfg(feature = "arrow")]
+mod arrow;
+#[cfg(feature = "arrow")]
+pub use arrow::ArrowTable;
+
+use std::io::Write;
+
+use crate::model::{
+    drives, evaluate_sensors, joint_short_name, Drive, ReactionMap, Sensor, System,
+};
+use crate::simulation::{OutputQuantities, Sample};
+
+/// One output column: its name (`t`, `x1`, `B.fx`, …) and SI unit.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Column {
+    /// Column name.
+    pub name: String,
+    /// Unit, e.g. `"m"`, `"rad/s"`, `"N m"`, `""` for none.
+    pub unit: &'static str,
+}
+
+impl Column {
+    /// A column named `name` in `unit`.
+    pub fn new(name: impl Into<String>, unit: &'static str) -> Self {
+        Self {
+            name: name.into(),
+            unit,
+        }
+    }
+}
+
+/// The columns of a run's table: `t`, `x1,y1,phi1,…` (bodies 1-based),
+/// `constraint_norm`, then what `o` selects: velocities `vx1,vy1,omega1,…`,
+/// accelerations `ax1,ay1,alpha1,…`, per joint `J.fx,J.fy,J.mz` (reaction
+/// on its body, global frame, moment about the centre of mass) and
+/// `J.fx_local,J.fy_local` (in that body's frame), per drive `J.drive`
+/// (its generalized force −λ, [`Drive::force`]), the energies
+/// ([`ENERGY_COLUMNS`]); then per sensor `S.QUANTITY`
+/// ([`Sensor::quantities`]).
+pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Column> {
+    let nb = sys.bodies().len();
+    let mut c = vec![Column::new("t", "s")];
+    for k in 0..sys.n_coords() {
+        c.push(Column::new(
+            System::coordinate_name(k),
+            if k % 3 == 2 { "rad" } else { "m" },
+        ));
+    }
+    c.push(Column::new("constraint_norm", "m"));
+    let per_body = |c: &mut Vec<Column>, names: [&str; 3], units: [&'static str; 3]| {
+        for i in 1..=nb {
+            for (n, u) in names.iter().zip(units) {
+                c.push(Column::new(format!("{n}{i}"), u));
+            }
+        }
+    };
+    if o.velocities {
+        per_body(&mut c, ["vx", "vy", "omega"], ["m/s", "m/s", "rad/s"]);
+    }
+    if o.accelerations {
+        per_body(&mut c, ["ax", "ay", "alpha"], ["m/s^2", "m/s^2", "rad/s^2"]);
+    }
+    if o.reactions {
+        for k in 0..sys.constraints().len() {
+            let j = joint_label(sys, k);
+            for (n, u) in [
+                ("fx", "N"),
+                ("fy", "N"),
+                ("mz", "N m"),
+                ("fx_local", "N"),
+                ("fy_local", "N"),
+            ] {
+                c.push(Column::new(format!("{j}.{n}"), u));
+            }
+        }
+    }
+    if o.drives {
+        for d in drives(sys) {
+            c.push(Column::new(
+                format!("{}.drive", joint_label(sys, d.joint)),
+                d.unit,
+            ));
+        }
+    }
+    if o.energy {
+        for n in ENERGY_COLUMNS {
+            c.push(Column::new(n, "J"));
+        }
+    }
+    for s in sensors {
+        for (q, u) in s.quantities(sys) {
+            c.push(Column::new(format!("{}.{q}", s.name), u));
+        }
+    }
+    c
+}
+
+/// The energy columns \[J\], in row order: `kinetic_energy` T,
+/// `potential_energy` V = `potential_gravity` + `potential_elastic` (every
+/// other potential: springs, contacts, buoyancy), `total_energy` T + V,
+/// `work_nonconservative` W = `work_forces` (non-conservative force
+/// elements: dampers and friction — negative, the dissipated energy —,
+/// actuators, applied loads) + `work_drives` (the constraint forces,
+/// `∫λᵀΦ_t`: the drives) since t0, `energy_balance_error` T + V − E0 − W
+/// ([`crate::simulation::EnergyTerms`]).
+pub const ENERGY_COLUMNS: [&str; 9] = [
+    "kinetic_energy",
+    "potential_energy",
+    "potential_gravity",
+    "potential_elastic",
+    "total_energy",
+    "work_nonconservative",
+    "work_forces",
+    "work_drives",
+    "energy_balance_error",
+];
+
+/// The short name of joint `k` in column names (the quoted name in its
+/// description, else `joint<k+1>`).
+pub fn joint_label(sys: &System, k: usize) -> String {
+    joint_short_name(sys.constraints()[k].as_ref()).unwrap_or_else(|| format!("joint{}", k + 1))
+}
+
+/// The values of one row in the order of [`columns`], from a [`Sample`];
+/// a value that could not be evaluated is NaN.
+pub struct RowBuilder<'s> {
+    sys: &'s System,
+    map: ReactionMap,
+    o: OutputQuantities,
+    drives: Vec<Drive>,
+    sensors: &'s [Sensor],
+    row: Vec<f64>,
+    values: Vec<f64>,
+}
+
+impl<'s> RowBuilder<'s> {
+    /// Rows of `sys` with the quantities `o` and `sensors`.
+    pub fn new(sys: &'s System, o: OutputQuantities, sensors: &'s [Sensor]) -> Self {
+        Self {
+            sys,
+            map: sys.reaction_map(),
+            o,
+            drives: if o.drives { drives(sys) } else { Vec::new() },
+            sensors,
+            row: Vec::new(),
+            values: Vec::new(),
+        }
+    }
+
+    /// The row of `s` (valid until the next call).
+    pub fn row(&mut self, s: &Sample<'_>) -> &[f64] {
+        let (o, row) = (&self.o, &mut self.row);
+        row.clear();
+        row.push(s.t);
+        row.extend_from_slice(s.q);
+        row.push(s.constraint_norm);
+        if o.velocities {
+            row.extend_from_slice(s.qd);
+        }
+        if o.accelerations {
+            match s.qdd {
+                Some(a) => row.extend_from_slice(a),
+                None => row.extend(std::iter::repeat_n(f64::NAN, s.q.len())),
+            }
+        }
+        if o.reactions {
+            let nj = s.reactions.map_or(0, |r| r.len() / 3);
+            for k in 0..nj {
+                let r = s
+                    .reactions
+                    .map_or([f64::NAN; 3], |r| [r[3 * k], r[3 * k + 1], r[3 * k + 2]]);
+                // in the frame of the body the reaction acts on: rotate by −φ
+                let phi = self.map.body(k).map_or(0.0, |b| s.q[3 * b + 2]);
+                let (sn, cs) = phi.sin_cos();
+                row.extend([
+                    r[0],
+                    r[1],
+                    r[2],
+                    cs * r[0] + sn * r[1],
+                    -sn * r[0] + cs * r[1],
+                ]);
+            }
+        }
+        for d in &self.drives {
+            row.push(s.lambda.map_or(f64::NAN, |l| d.force(l)));
+        }
+        if o.energy {
+            row.extend(s.energy.map_or([f64::NAN; 9], |e| {
+                let v = e.gravity + e.elastic;
+                let w = e.work_forces + e.work_drives;
+                [
+                    e.kinetic,
+                    v,
+                    e.gravity,
+                    e.elastic,
+                    e.kinetic + v,
+                    w,
+                    e.work_forces,
+                    e.work_drives,
+                    e.balance_error,
+                ]
+            }));
+        }
+        evaluate_sensors(self.sensors, self.sys, s.t, s.q, s.qd, &mut self.values);
+        row.extend_from_slice(&self.values);
+        &self.row
+    }
+}
+
+/// The file formats of an output table.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// Comma-separated text, a header line of column names, values in
+    /// `{:.12e}` (13 significant digits). The default.
+    #[default]
+    Csv,
+    /// Apache Arrow IPC file format (Feather v2): one `Float64` column per
+    /// output column with its unit in the field metadata (`"unit"`), rows in
+    /// record batches of about 8 MB. Needs the `arrow` feature.
+    Arrow,
+}
+
+impl Format {
+    /// Every format's scenario name, in order.
+    pub const NAMES: [&'static str; 2] = ["csv", "arrow"];
+
+    /// The usual file extension (without the dot).
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Csv => "csv",
+            Format::Arrow => "arrow",
+        }
+    }
+
+    /// How often a streaming writer should [`TableWriter::flush`]: every
+    /// second for CSV (whole rows on disk); a minute for Arrow, whose
+    /// short batches each carry a message header of 16 bytes per column.
+    pub fn flush_interval(self) -> std::time::Duration {
+        std::time::Duration::from_secs(match self {
+            Format::Csv => 1,
+            Format::Arrow => 60,
+        })
+    }
+
+    /// Whether this build can write the format (Arrow needs the `arrow`
+    /// feature).
+    pub fn available(self) -> bool {
+        match self {
+            Format::Csv => true,
+            Format::Arrow => cfg!(feature = "arrow"),
+        }
+    }
+
+    /// A writer of this format on `w` with `columns`; an error if this build
+    /// lacks the format (see [`Format::available`]) or the header cannot be
+    /// written.
+    pub fn writer<W: Write + Send + 'static>(
+        self,
+        w: W,
+        columns: &[Column],
+    ) -> Result<Box<dyn TableWriter + Send>, TableError> {
+        match self {
+            Format::Csv => Ok(Box::new(CsvTable::new(w, columns)?)),
+            #[cfg(feature = "arrow")]
+            Format::Arrow => Ok(Box::new(ArrowTable::new(w, columns)?)),
+            #[cfg(not(feature = "arrow"))]
+            Format::Arrow => Err(TableError::Unavailable("arrow")),
+        }
+    }
+}
+
+impl std::str::FromStr for Format {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "csv" => Ok(Format::Csv),
+            "arrow" => Ok(Format::Arrow),
+            other => Err(format!(
+                "unknown output format '{other}'; expected csv or arrow"
+            )),
+        }
+    }
+}
+
+/// Why a table could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    /// The underlying writer failed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// A row with the wrong number of values.
+    #[error("row of {got} values for a table of {expected} columns")]
+    RowLength {
+        /// Number of columns.
+        expected: usize,
+        /// Values handed over.
+        got: usize,
+    },
+    /// The format is not compiled into this build.
+    #[error("output format '{0}' is not available: build mbsolve with the '{0}' feature")]
+    Unavailable(&'static str),
+    /// The Arrow encoder failed.
+    #[error("arrow: {0}")]
+    Arrow(String),
+    /// A row after [`TableWriter::finish`].
+    #[error("the table is already finished")]
+    Finished,
+}
+
+/// A table written row by row; memory bounded independently of the number
+/// of rows.
+pub trait TableWriter {
+    /// Append one row (one value per column, in column order). NaN marks a
+    /// value that could not be evaluated.
+    fn write_row(&mut self, row: &[f64]) -> Result<(), TableError>;
+    /// Push every complete row written so far to the underlying writer (a
+    /// columnar format may write a short batch). Rows stay valid if the
+    /// process ends after this returns.
+    fn flush(&mut self) -> Result<(), TableError>;
+    /// Write what is buffered and the format's trailer; no rows after it.
+    fn finish(&mut self) -> Result<(), TableError>;
+}
+
+/// CSV rows: a header of column names, then `{:.12e}` values.
+pub struct CsvTable<W: Write> {
+    w: Option<std::io::BufWriter<W>>,
+    ncols: usize,
+    line: String,
+}
+
+impl<W: Write> CsvTable<W> {
+    /// Write the header line of `columns` to `w`.
+    pub fn new(w: W, columns: &[Column]) -> Result<Self, TableError> {
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, w);
+        let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+        writeln!(w, "{}", names.join(","))?;
+        Ok(Self {
+            w: Some(w),
+            ncols: columns.len(),
+            line: String::new(),
+        })
+    }
+
+    /// The underlying writer, once [`TableWriter::finish`] has run.
+    pub fn into_inner(mut self) -> Option<W> {
+        self.w.take().and_then(|w| w.into_inner().ok())
+    }
+}
+
+impl<W: Write> TableWriter for CsvTable<W> {
+    fn write_row(&mut self, row: &[f64]) -> Result<(), TableError> {
+        use std::fmt::Write as _;
+        if row.len() != self.ncols {
+            return Err(TableError::RowLength {
+                expected: self.ncols,
+                got: row.len(),
+            });
+        }
+        let w = self.w.as_mut().ok_or(TableError::Finished)?;
+        self.line.clear();
+        for (k, v) in row.iter().enumerate() {
+            if k > 0 {
+                self.line.push(',');
+            }
+            let _ = write!(self.line, "{v:.12e}");
+        }
+        self.line.push('\n');
+        w.write_all(self.line.as_bytes())?;
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), TableError> {
+        if let Some(w) = self.w.as_mut() {
+            w.flush()?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self) -> Result<(), TableError> {
+        self.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cols() -> Vec<Column> {
+        vec![Column::new("t", "s"), Column::new("x1", "m")]
+    }
+
+    #[test]
+    fn csv_rows_and_errors() {
+        let mut t = CsvTable::new(Vec::new(), &cols()).unwrap();
+        t.write_row(&[0.0, 1.5]).unwrap();
+        t.write_row(&[0.25, f64::NAN]).unwrap();
+        assert!(matches!(
+            t.write_row(&[1.0]),
+            Err(TableError::RowLength {
+                expected: 2,
+                got: 1
+            })
+        ));
+        t.finish().unwrap();
+        let text = String::from_utf8(t.into_inner().unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "t,x1\n0.000000000000e0,1.500000000000e0\n2.500000000000e-1,NaN\n"
+        );
+    }
+
+    #[test]
+    fn format_names() {
+        for n in Format::NAMES {
+            let f: Format = n.parse().unwrap();
+            assert_eq!(f.extension(), n);
+        }
+        let e = "parquet".parse::<Format>().unwrap_err();
+        assert!(e.contains("'parquet'") && e.contains("csv or arrow"), "{e}");
+    }
+}
