@@ -53,6 +53,8 @@
 //! Dense output: the interpolating polynomial of the last step (through
 //! `t_{n+1}` and the k points before it).
 
+#![allow(clippy::needless_range_loop)] // index loops over parallel arrays (q, v, history)
+
 use std::collections::VecDeque;
 use std::sync::Arc;
 

@@ -33,6 +33,8 @@
 //! `φ_i(n)` (i = 1 … k + 2) contains `f_n` with coefficient 1, so the
 //! change `δ = f_new − f_n` is added to each of them.
 
+#![allow(clippy::needless_range_loop)] // 1-based transcription of STEP/INTRP
+
 use super::common::{self, call_rhs, post_step};
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
@@ -460,7 +462,7 @@ impl Stepper for Ode113Stepper<'_> {
             absh *= 2.0;
         } else if 0.5 * rtol < erk {
             let reduce = (0.5 * rtol / erk).powf(1.0 / (self.k + 1) as f64);
-            absh *= reduce.min(0.9).max(0.5);
+            absh *= reduce.clamp(0.5, 0.9);
         }
         self.absh = absh;
         self.t = tnew;
