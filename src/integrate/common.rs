@@ -361,3 +361,56 @@ impl<'a> OutputCursor<'a> {
         ControlFlow::Continue(())
     }
 }
+
+/// MATLAB's tolerance and step-limit setup shared by the step-controlled
+/// explicit methods (`odearguments.m`): `rtol` raised to `100·eps` (with a
+/// warning), `threshold = atol / rtol` per component, and
+/// `hmax = min(|tf − t0|, MaxStep)` with `MaxStep` defaulting to
+/// `0.1·|tf − t0|`.
+pub(crate) struct MatlabTolerances {
+    pub rtol: f64,
+    pub threshold: Vec<f64>,
+    pub hmax: f64,
+    pub warnings: Vec<String>,
+}
+
+impl MatlabTolerances {
+    /// The setup for a run of dimension `n` over `[t0, t_end]`.
+    pub fn new(opts: &OdeOptions, n: usize, t0: f64, t_end: f64) -> Self {
+        let mut warnings = Vec::new();
+        let mut rtol = opts.rtol;
+        if rtol < 100.0 * f64::EPSILON {
+            rtol = 100.0 * f64::EPSILON;
+            warnings.push(format!(
+                "rtol = {:e} is smaller than 100*eps; raised to {rtol:e} (as MATLAB does)",
+                opts.rtol
+            ));
+        }
+        let threshold: Vec<f64> = match &opts.atol {
+            Tolerance::Scalar(a) => vec![a / rtol; n],
+            Tolerance::Vector(v) => v.iter().map(|a| a / rtol).collect(),
+        };
+        let htspan = (t_end - t0).abs();
+        Self {
+            rtol,
+            threshold,
+            hmax: htspan.min(opts.max_step.map_or(0.1 * htspan, f64::abs)),
+            warnings,
+        }
+    }
+}
+
+/// Weighted infinity norm of MATLAB's error estimates:
+/// `max_i |est_i| / max(|y_i|, |ynew_i|, thr_i)`. A component with `0/0`
+/// (possible only with `atol = 0`) contributes 0, as MATLAB's `max`
+/// ignores the NaN it produces.
+pub(crate) fn error_norm(est: &[f64], y: &[f64], ynew: &[f64], thr: &[f64]) -> f64 {
+    let mut m: f64 = 0.0;
+    for i in 0..est.len() {
+        let r = est[i].abs() / y[i].abs().max(ynew[i].abs()).max(thr[i]);
+        if r > m {
+            m = r;
+        }
+    }
+    m
+}

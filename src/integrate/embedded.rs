@@ -27,12 +27,12 @@
 //! per attempted step (the FSAL stage is reused as the next first stage),
 //! plus 1 per step whose end state [`OdeSystem::post_step`] moved.
 
-use super::common::{self, call_rhs, eval_stages, lincomb, post_step, weighted_sum, StepEnds};
+use super::common::{
+    self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, StepEnds,
+};
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
-use super::{
-    Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats, Tolerance,
-};
+use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
 
 /// Adaptive embedded RK integrator with MATLAB's step-size control.
 pub(crate) struct EmbeddedRk {
@@ -49,21 +49,6 @@ impl EmbeddedRk {
             tableau,
         }
     }
-}
-
-/// Weighted infinity norm of MATLAB's error estimate (without the `absh`
-/// factor): `max_i |est_i| / max(|y_i|, |ynew_i|, thr_i)`. A component with
-/// `0/0` (possible only with `atol = 0`) contributes 0, as MATLAB's `max`
-/// ignores the NaN it produces.
-fn error_norm(est: &[f64], y: &[f64], ynew: &[f64], thr: &[f64]) -> f64 {
-    let mut m: f64 = 0.0;
-    for i in 0..est.len() {
-        let r = est[i].abs() / y[i].abs().max(ynew[i].abs()).max(thr[i]);
-        if r > m {
-            m = r;
-        }
-    }
-    m
 }
 
 impl Integrator for EmbeddedRk {
@@ -128,29 +113,15 @@ impl<'a> EmbeddedStepper<'a> {
         y0: &[f64],
         n: usize,
     ) -> Self {
-        // MATLAB's odearguments: rtol below 100*eps is raised, with a warning.
-        let mut warnings = Vec::new();
-        let mut rtol = opts.rtol;
-        if rtol < 100.0 * f64::EPSILON {
-            rtol = 100.0 * f64::EPSILON;
-            warnings.push(format!(
-                "rtol = {:e} is smaller than 100*eps; raised to {rtol:e} (as MATLAB does)",
-                opts.rtol
-            ));
-        }
-        let threshold: Vec<f64> = match &opts.atol {
-            Tolerance::Scalar(a) => vec![a / rtol; n],
-            Tolerance::Vector(v) => v.iter().map(|a| a / rtol).collect(),
-        };
-        let htspan = (t_end - t0).abs();
+        let tol = common::MatlabTolerances::new(opts, n, t0, t_end);
         Self {
             sys,
             tab,
-            rtol,
-            threshold,
+            rtol: tol.rtol,
+            threshold: tol.threshold,
             initial_step: opts.initial_step,
             t_end,
-            hmax: htspan.min(opts.max_step.map_or(0.1 * htspan, f64::abs)),
+            hmax: tol.hmax,
             absh: 0.0,
             ends: StepEnds::new(t0, y0),
             h: 0.0,
@@ -159,7 +130,7 @@ impl<'a> EmbeddedStepper<'a> {
             f_post: vec![0.0; n],
             k: vec![0.0; tab.stages() * n],
             stats: Stats::default(),
-            warnings,
+            warnings: tol.warnings,
         }
     }
 }

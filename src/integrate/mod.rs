@@ -14,6 +14,11 @@
 //! * [`Method::Ode45`]: Dormand–Prince 5(4) pair (Dormand & Prince,
 //!   J. Comput. Appl. Math. 6 (1980)), FSAL, 6 evaluations per step.
 //! * [`Method::Rk4`]: classic fixed-step fourth-order Runge–Kutta.
+//! * [`Method::Ode113`]: variable-order Adams–Bashforth–Moulton PECE
+//!   (Shampine & Gordon 1975) with MATLAB's `ode113` step and order
+//!   control and its interpolant (see the `ode113` submodule).
+//! * [`Method::Bdf`]: variable-order (1–5) BDF on the index-3 equations
+//!   of a [`SecondOrderDae`] ([`Bdf`]; docs/bdf.md).
 //!
 //! `ode23` and `ode45` follow MATLAB's `ode23.m` / `ode45.m` and their
 //! interpolants `ntrp23.m` / `ntrp45.m` (Shampine & Reichelt, "The MATLAB ODE
@@ -39,16 +44,19 @@
 //! * A cap on the number of steps ([`OdeOptions::max_steps`]).
 
 mod augmented;
+mod bdf;
 mod common;
 mod driver;
 mod embedded;
 mod genalpha;
 mod hermite;
+mod ode113;
 mod options;
 mod rk4;
 mod tableau;
 
 pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats};
+pub use bdf::{Bdf, BdfStats, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
     AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
@@ -141,6 +149,13 @@ pub enum Method {
     Ode45,
     /// Classic Runge–Kutta 4, fixed step.
     Rk4,
+    /// Variable-order Adams–Bashforth–Moulton PECE (Shampine & Gordon),
+    /// adaptive, as MATLAB's `ode113`.
+    Ode113,
+    /// Variable-order (1–5), variable-step BDF on the index-3 equations
+    /// ([`Bdf`], as DASSL / MATLAB's `ode15s`), adaptive. Not an
+    /// [`OdeSystem`] integrator: run through `simulation::simulate`.
+    Bdf,
     /// Generalized-α on the index-3 equations (Chung & Hulbert 1993;
     /// Arnold & Brüls 2007), parameters from ρ∞ — see [`GenAlpha`]. Implicit:
     /// not an [`OdeSystem`] integrator, run through `simulation::simulate`.
@@ -155,23 +170,29 @@ pub enum Method {
 
 impl Method {
     /// All methods, in the order of [`Method::NAMES`].
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 8] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
+        Method::Ode113,
+        Method::Bdf,
         Method::GenAlpha,
         Method::Hht,
         Method::Newmark,
     ];
     /// The valid method names.
-    pub const NAMES: [&'static str; 6] = ["ode23", "ode45", "rk4", "genalpha", "hht", "newmark"];
+    pub const NAMES: [&'static str; 8] = [
+        "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark",
+    ];
 
-    /// Lower-case name: "ode23", "ode45", "rk4", "genalpha", "hht" or "newmark".
+    /// Lower-case name: "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht" or "newmark".
     pub fn name(&self) -> &'static str {
         match self {
             Method::Ode23 => "ode23",
             Method::Ode45 => "ode45",
             Method::Rk4 => "rk4",
+            Method::Ode113 => "ode113",
+            Method::Bdf => "bdf",
             Method::GenAlpha => "genalpha",
             Method::Hht => "hht",
             Method::Newmark => "newmark",
@@ -181,7 +202,10 @@ impl Method {
     /// Whether the method adapts its step to `rtol`/`atol` (the implicit
     /// methods only with [`ImplicitOptions::adaptive`]).
     pub fn is_adaptive(&self) -> bool {
-        matches!(self, Method::Ode23 | Method::Ode45)
+        matches!(
+            self,
+            Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf
+        )
     }
 
     /// Whether the method is one of the implicit generalized-α family
@@ -338,11 +362,12 @@ pub enum IntegratorError {
     },
     /// Unknown method name.
     #[error(
-        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, genalpha, hht, newmark"
+        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, ode113, bdf, genalpha, hht, newmark"
     )]
     UnknownMethod(String),
     /// The method is implicit (index-3 DAE) and has no [`OdeSystem`]
-    /// integrator; run it through `simulation::simulate` or [`GenAlpha`].
+    /// integrator; run it through `simulation::simulate`, [`GenAlpha`] or
+    /// [`Bdf`].
     #[error(
         "'{0}' is an implicit index-3 method, not an ODE integrator: run it through \
          simulation::simulate (or integrate::GenAlpha)"
@@ -416,7 +441,7 @@ pub fn integrator(
     method: Method,
     options: OdeOptions,
 ) -> Result<Box<dyn Integrator>, IntegratorError> {
-    if method.is_implicit() {
+    if method.is_implicit() || method == Method::Bdf {
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
     options.validate(method, false)?;
@@ -424,7 +449,8 @@ pub fn integrator(
         Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
         Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
         Method::Rk4 => Box::new(rk4::Rk4::new(options)),
-        Method::GenAlpha | Method::Hht | Method::Newmark => {
+        Method::Ode113 => Box::new(ode113::Ode113::new(options)),
+        Method::Bdf | Method::GenAlpha | Method::Hht | Method::Newmark => {
             return Err(IntegratorError::ImplicitMethod(method.name()))
         }
     })

@@ -199,7 +199,7 @@ impl OdeOptions {
             return Err(invalid("max_steps", 0, "must be at least 1"));
         }
         let step_controlled = match method {
-            Method::Ode23 | Method::Ode45 => true,
+            Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf => true,
             Method::Rk4 => false,
             Method::GenAlpha | Method::Hht | Method::Newmark => adaptive,
         };

@@ -337,12 +337,18 @@ fn constraint_method(
                 "does not apply to formulation = \"penalty\" (saddle and eliminated only)".into(),
             ));
         }
-        if method.is_implicit() {
+        if method.is_implicit() || method == Method::Bdf {
             return Err((
                 key("projection"),
                 format!(
-                    "applies to ode23, ode45 and rk4; {} projects with integrator.project",
-                    method.name()
+                    "applies to ode23, ode45, ode113 and rk4; {} integrates the index-3 \
+                     equations{}",
+                    method.name(),
+                    if method == Method::Bdf {
+                        ""
+                    } else {
+                        " and projects with integrator.project"
+                    }
                 ),
             ));
         }
@@ -547,6 +553,23 @@ fn inapplicable(
             ));
         }
         return Ok(());
+    }
+    if method == Method::Bdf {
+        // bdf integrates the index-3 equations (as genalpha), adaptively
+        if !baumgarte.is_off() {
+            return Err((
+                "stabilization.alpha".into(),
+                "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, ode113, \
+                 rk4); bdf integrates the index-3 equations"
+                    .into(),
+            ));
+        }
+        if formulation != Formulation::Saddle {
+            return Err((
+                "formulation".into(),
+                "applies to the index-1 methods; bdf uses the index-3 form".into(),
+            ));
+        }
     }
     if formulation == Formulation::AugmentedLagrangian {
         return Err((

@@ -361,7 +361,7 @@ impl GenAlpha {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn validate_run(
+pub(super) fn validate_run(
     n: usize,
     t0: f64,
     t_end: f64,

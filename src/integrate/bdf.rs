@@ -1,0 +1,763 @@
+//! `bdf`: variable-order (1–5), variable-step BDF on the index-3
+//! equations of motion of a [`SecondOrderDae`]
+//! (`M q̈ + Φ_qᵀλ = g(t, q, q̇)`, `Φ(q, t) = 0`), the method family of
+//! DASSL (Brenan, Campbell & Petzold 1996) and MATLAB's `ode15s`
+//! (Shampine & Reichelt 1997) in the variable-coefficient form.
+//!
+//! **Formula.** On the nodes `τ_0 = t_{n+1}, τ_j = t_{n+1−j}` (j = 1 … k)
+//! the BDF of order k replaces a derivative at `t_{n+1}` by that of the
+//! interpolating polynomial, `ẏ_{n+1} ≈ Σ_j a_j y_{n+1−j}` with
+//! `a_j = ℓ_j′(τ_0)` (Lagrange basis). Applied to `q̇ = v`, `v̇ = q̈`:
+//! `v = a_0 q + r_q`, `q̈ = a_0 v + r_v` with the history sums `r_q, r_v`,
+//! and the unknowns `q_{n+1}, λ_{n+1}` solve
+//! `M q̈ + Φ_qᵀλ − g = 0`, `Φ(q, t_{n+1}) = 0` by (modified) Newton with the
+//! iteration matrix of [`SecondOrderDae::factorize`] at
+//! `c = [1, 1/a_0, 1/a_0²]` — the residual rows and λ scaled by `1/a_0²`
+//! (Bottasso, Bauchau & Cardona 2007), so the matrix stays `O(1)` as
+//! `h → 0`: the same sparse pattern, solver and assembly as
+//! generalized-α. Why the index-3 form and not GGL: docs/bdf.md.
+//!
+//! **Predictor**: the polynomial through the last `k + 1` accepted
+//! points (at the first step `y_0 + h ẏ_0`), λ kept constant.
+//! **Newton**: corrections `Δq` (`Δv = a_0 Δq`), converged when
+//! `θ/(1 − θ)·‖Δ‖ ≤ κ rtol` (κ = [`NEWTON_KAPPA`], θ the contraction
+//! estimate; for the first correction the last step's θ, at least
+//! [`THETA_FIRST`]) or the
+//! correction is at the rounding floor of `q`; at most [`MAX_NEWTON`]
+//! iterations, `θ > 0.9` is a failure. The factorisation is kept across
+//! steps while `a_0` stays within [`REUSE_BAND`] of the one it was made
+//! for and the iteration contracts (θ ≤ [`THETA_REFACTOR`]); a failed
+//! attempt on a stale matrix is retried at once with a fresh one, and
+//! only a failure on a fresh matrix cuts the step (×0.3, counted in
+//! `newton_failures`).
+//!
+//! **Error control** in MATLAB's norm on the positions, the differential
+//! variables of the index-3 form:
+//! `err = ‖est ./ max(|q_n|, |q_{n+1}|, atol/rtol)‖∞ ≤ rtol`, with the
+//! local error of order p estimated from the divided difference of the
+//! accepted values, `est_p = p!·h^{p+1}·q[τ_0, …, τ_{p+1}]` (for a constant
+//! step `= (q_{n+1} − q̂)/(p+1)`, q̂ the predictor; Hairer & Wanner II §III.5).
+//! `q̇ = a_0 q + r_q` is fixed by q through the formula (an index-2
+//! variable) and λ is the index-3 one: their local error estimates do not
+//! vanish as `h → 0` and are left out, as DASSL leaves out the algebraic
+//! variables (Brenan, Campbell & Petzold §5.4) — measured: with q̇ in the
+//! test the step of the pendulum collapses to `16 eps(t)`.
+//! **Order and step**: after k + 1 steps at order k the orders k − 1, k,
+//! k + 1 are compared by the steps they allow,
+//! `h_p = h·(rtol/est_p)^{1/(p+1)}/s_p` (s = 1.3, 1.2, 1.4 as `ode15s`),
+//! and the largest wins; the step grows at most 5×, is kept if it would grow
+//! by less than 20 %. A rejected step is cut by
+//! `max(0.1, 0.8 (rtol/err)^{1/(k+1)})`, the second rejection in a row
+//! halves it and lowers the order.
+//!
+//! Dense output: the interpolating polynomial of the last step (through
+//! `t_{n+1}` and the k points before it).
+
+#![allow(clippy::needless_range_loop)] // index loops over parallel arrays (q, v, history)
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use super::common;
+use super::driver::{self, Failure, StepCut, Stepper};
+use super::genalpha::validate_run;
+use super::{
+    IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
+    Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
+};
+
+/// Highest order.
+pub const MAX_ORDER: usize = 5;
+/// Newton iterations per attempt.
+pub const MAX_NEWTON: usize = 4;
+/// Newton stops when the estimated remaining error is below `κ·rtol`.
+pub const NEWTON_KAPPA: f64 = 0.1;
+/// Contraction assumed for the first correction of a step: at least this,
+/// or the last step's measured θ if larger (a tiny θ measured at the
+/// rounding floor must not accept a large first correction).
+pub const THETA_FIRST: f64 = 0.3;
+
+/// Work counters of a BDF run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct BdfStats {
+    /// Accepted steps.
+    pub steps: usize,
+    /// Steps rejected by the error test.
+    pub error_rejections: usize,
+    /// Step cuts because Newton did not converge on a fresh matrix.
+    pub newton_failures: usize,
+    /// Newton corrections (linear solves).
+    pub newton_iterations: usize,
+    /// Factorisations of the iteration matrix.
+    pub factorizations: usize,
+    /// Residual evaluations.
+    pub residual_evaluations: usize,
+    /// Accepted steps at each order 1 … 5 (index 0 unused).
+    pub steps_at_order: [usize; MAX_ORDER + 1],
+    /// Smallest accepted step.
+    pub min_step_taken: f64,
+    /// Largest accepted step.
+    pub max_step_taken: f64,
+}
+
+/// The BDF integrator (module docs).
+#[derive(Debug, Clone)]
+pub struct Bdf {
+    ode: OdeOptions,
+    stats: BdfStats,
+}
+
+impl Bdf {
+    /// Validate the options (step-controlled: `rtol`, `atol`, `max_step`,
+    /// `initial_step`, no fixed step).
+    pub fn new(ode: OdeOptions) -> Result<Self, IntegratorError> {
+        ode.validate(Method::Bdf, true)?;
+        Ok(Self {
+            ode,
+            stats: BdfStats::default(),
+        })
+    }
+
+    /// Counters of the last run.
+    pub fn stats(&self) -> BdfStats {
+        self.stats
+    }
+
+    /// Integrate from `(t0, q0, q̇0)` to `t_end`; the observer receives
+    /// `y = [q; q̇]` (as [`super::GenAlpha::integrate`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn integrate(
+        &mut self,
+        sys: &mut dyn SecondOrderDae,
+        t0: f64,
+        t_end: f64,
+        q0: &[f64],
+        qd0: &[f64],
+        output_times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        let n = sys.n();
+        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, true)?;
+        let mut run = BdfRun::new(sys, &self.ode, t0, t_end, q0, qd0);
+        let (termination, t_reached) =
+            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
+        let mut stats = run.stats;
+        if stats.steps == 0 {
+            stats.min_step_taken = 0.0;
+        }
+        self.stats = stats;
+        Ok(Report {
+            stats: Stats {
+                steps: stats.steps,
+                failed_steps: stats.error_rejections + stats.newton_failures,
+                rhs_evals: stats.residual_evaluations,
+            },
+            termination,
+            t_reached,
+            warnings: run.warnings,
+        })
+    }
+}
+
+/// Lagrange weights `ℓ_j(t)` on `nodes`.
+fn lagrange(nodes: &[f64], t: f64, w: &mut [f64]) {
+    for j in 0..nodes.len() {
+        let mut p = 1.0;
+        for m in 0..nodes.len() {
+            if m != j {
+                p *= (t - nodes[m]) / (nodes[j] - nodes[m]);
+            }
+        }
+        w[j] = p;
+    }
+}
+
+/// `a_j = ℓ_j′(τ_0)`: the BDF coefficients on `nodes = [τ_0, τ_1, …]`.
+fn bdf_coefficients(nodes: &[f64], a: &mut [f64]) {
+    let t0 = nodes[0];
+    a[0] = nodes[1..].iter().map(|&tm| 1.0 / (t0 - tm)).sum();
+    for j in 1..nodes.len() {
+        let mut num = 1.0;
+        let mut den = 1.0;
+        for m in 0..nodes.len() {
+            if m == j {
+                continue;
+            }
+            den *= nodes[j] - nodes[m];
+            if m != 0 {
+                num *= t0 - nodes[m];
+            }
+        }
+        a[j] = num / den;
+    }
+}
+
+/// Weights of the divided difference `y[τ_0, …, τ_p] = Σ_j w_j y_j`.
+fn divided_difference(nodes: &[f64], w: &mut [f64]) {
+    for j in 0..nodes.len() {
+        let mut den = 1.0;
+        for m in 0..nodes.len() {
+            if m != j {
+                den *= nodes[j] - nodes[m];
+            }
+        }
+        w[j] = 1.0 / den;
+    }
+}
+
+/// One BDF run: the history of accepted `(t, [q; v])`, newest first.
+struct BdfRun<'s> {
+    sys: &'s mut dyn SecondOrderDae,
+    n: usize,
+    rtol: f64,
+    threshold: Vec<f64>,
+    /// Components in the error test: the positions `y[..n]`.
+    err_dim: usize,
+    initial_step: Option<f64>,
+    hmax: f64,
+    t_end: f64,
+    /// Accepted points, newest first (at most `MAX_ORDER + 2`).
+    ts: VecDeque<f64>,
+    ys: VecDeque<Vec<f64>>,
+    /// `[v; q̈]` at `t0` (the first step's predictor).
+    f0: Vec<f64>,
+    lam: Vec<f64>,
+    k: usize,
+    /// Order of the last accepted step (dense output).
+    klast: usize,
+    steps_at_k: usize,
+    absh: f64,
+    /// `a_0` the factorisation was made for.
+    a0_fact: Option<f64>,
+    refactor: bool,
+    theta: f64,
+    // Newton buffers
+    q: Vec<f64>,
+    v: Vec<f64>,
+    qdd: Vec<f64>,
+    lam_new: Vec<f64>,
+    rq: Vec<f64>,
+    rv: Vec<f64>,
+    r: Vec<f64>,
+    ynew: Vec<f64>,
+    stats: BdfStats,
+    warnings: Vec<String>,
+}
+
+/// How a Newton attempt ended.
+enum Newton {
+    Converged,
+    /// Why, and whether the matrix was fresh (made for this attempt).
+    Failed(SystemError, bool),
+}
+
+impl<'s> BdfRun<'s> {
+    fn new(
+        sys: &'s mut dyn SecondOrderDae,
+        ode: &OdeOptions,
+        t0: f64,
+        t_end: f64,
+        q0: &[f64],
+        qd0: &[f64],
+    ) -> Self {
+        let (n, m) = (sys.n(), sys.m());
+        let mut tol = common::MatlabTolerances::new(ode, 2 * n, t0, t_end);
+        if let Tolerance::Vector(v) = &ode.atol {
+            if v.len() == n {
+                // one atol per coordinate, for q and q̇ alike
+                tol.threshold = v.iter().chain(v).map(|a| a / tol.rtol).collect();
+            }
+        }
+        let mut y0 = q0.to_vec();
+        y0.extend_from_slice(qd0);
+        Self {
+            sys,
+            n,
+            rtol: tol.rtol,
+            threshold: tol.threshold,
+            err_dim: n,
+            initial_step: ode.initial_step,
+            hmax: tol.hmax,
+            t_end,
+            ts: VecDeque::from([t0]),
+            ys: VecDeque::from([y0]),
+            f0: vec![0.0; 2 * n],
+            lam: vec![0.0; m],
+            k: 1,
+            klast: 1,
+            steps_at_k: 0,
+            absh: 0.0,
+            a0_fact: None,
+            refactor: true,
+            theta: 0.5,
+            q: vec![0.0; n],
+            v: vec![0.0; n],
+            qdd: vec![0.0; n],
+            lam_new: vec![0.0; m],
+            rq: vec![0.0; n],
+            rv: vec![0.0; n],
+            r: vec![0.0; n + m],
+            ynew: vec![0.0; 2 * n],
+            stats: BdfStats {
+                min_step_taken: f64::INFINITY,
+                ..Default::default()
+            },
+            warnings: tol.warnings,
+        }
+    }
+
+    /// `‖est ./ max(|y_n|, |y_new|, thr)‖∞` for the local error of order
+    /// `p` (module docs): `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and
+    /// the last `p + 1` accepted ones.
+    fn estimate(&self, p: usize, t1: f64, h: f64) -> f64 {
+        let mut nodes = [0.0; MAX_ORDER + 3];
+        let mut w = [0.0; MAX_ORDER + 3];
+        nodes[0] = t1;
+        for j in 0..=p {
+            nodes[j + 1] = self.ts[j];
+        }
+        divided_difference(&nodes[..p + 2], &mut w[..p + 2]);
+        let fact: f64 = (1..=p).map(|i| i as f64).product();
+        let c = fact * h.powi(p as i32 + 1);
+        let yn = &self.ys[0];
+        let mut m: f64 = 0.0;
+        for i in 0..self.err_dim {
+            let mut d = w[0] * self.ynew[i];
+            for j in 0..=p {
+                d += w[j + 1] * self.ys[j][i];
+            }
+            let r = (c * d).abs() / yn[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
+            if r > m {
+                m = r;
+            }
+        }
+        m
+    }
+
+    fn factor(&mut self, t1: f64, a0: f64) -> Result<(), SystemError> {
+        self.stats.factorizations += 1;
+        self.a0_fact = None;
+        self.sys.factorize(
+            t1,
+            &self.q,
+            &self.v,
+            &self.lam_new,
+            [1.0, 1.0 / a0, 1.0 / (a0 * a0)],
+        )?;
+        self.a0_fact = Some(a0);
+        self.refactor = false;
+        Ok(())
+    }
+
+    /// Predictor and Newton for the step to `t1` at order `k` (module docs).
+    fn attempt(&mut self, t1: f64, h: f64) -> Newton {
+        let (n, k) = (self.n, self.k);
+        let mut nodes = [0.0; MAX_ORDER + 2];
+        let mut a = [0.0; MAX_ORDER + 2];
+        nodes[0] = t1;
+        for j in 0..k {
+            nodes[j + 1] = self.ts[j];
+        }
+        bdf_coefficients(&nodes[..k + 1], &mut a[..k + 1]);
+        let a0 = a[0];
+        self.rq.fill(0.0);
+        self.rv.fill(0.0);
+        for j in 1..=k {
+            let y = &self.ys[j - 1];
+            for i in 0..n {
+                self.rq[i] += a[j] * y[i];
+                self.rv[i] += a[j] * y[n + i];
+            }
+        }
+        // predictor
+        if self.ts.len() == 1 {
+            let y0 = &self.ys[0];
+            for i in 0..n {
+                self.q[i] = y0[i] + h * self.f0[i];
+            }
+        } else {
+            let p = (k + 1).min(self.ts.len());
+            let mut w = [0.0; MAX_ORDER + 2];
+            let mut past = [0.0; MAX_ORDER + 2];
+            for (pj, tj) in past.iter_mut().zip(&self.ts).take(p) {
+                *pj = *tj;
+            }
+            lagrange(&past[..p], t1, &mut w[..p]);
+            self.q.fill(0.0);
+            for (j, wj) in w[..p].iter().enumerate() {
+                for (qi, yi) in self.q.iter_mut().zip(&self.ys[j][..n]) {
+                    *qi += wj * yi;
+                }
+            }
+        }
+        self.lam_new.copy_from_slice(&self.lam);
+        let set_vq = |q: &[f64], rq: &[f64], rv: &[f64], v: &mut [f64], qdd: &mut [f64]| {
+            for i in 0..q.len() {
+                v[i] = a0 * q[i] + rq[i];
+                qdd[i] = a0 * v[i] + rv[i];
+            }
+        };
+        set_vq(&self.q, &self.rq, &self.rv, &mut self.v, &mut self.qdd);
+        let stale = match self.a0_fact {
+            None => true,
+            Some(af) => (a0 / af - 1.0).abs() > REUSE_BAND,
+        };
+        let mut fresh = false;
+        if self.refactor || stale {
+            if let Err(e) = self.factor(t1, a0) {
+                return Newton::Failed(e, true);
+            }
+            fresh = true;
+        }
+        let s = 1.0 / (a0 * a0);
+        let kappa_tol = NEWTON_KAPPA * self.rtol;
+        let mut prev = f64::NAN;
+        let mut it = 0;
+        loop {
+            self.stats.residual_evaluations += 1;
+            if let Err(e) = self.sys.residual(
+                t1,
+                &self.q,
+                &self.v,
+                &self.qdd,
+                &self.lam_new,
+                s,
+                &mut self.r,
+            ) {
+                return self.newton_failed(e, fresh);
+            }
+            self.r.iter_mut().for_each(|x| *x = -*x);
+            if let Err(e) = self.sys.solve(t1, &mut self.r) {
+                return self.newton_failed(e, fresh);
+            }
+            self.stats.newton_iterations += 1;
+            it += 1;
+            // weighted norm of (Δq, a_0 Δq), and the rounding floor of q
+            let yn = &self.ys[0];
+            let mut dnorm: f64 = 0.0;
+            let mut at_floor = true;
+            for i in 0..n {
+                let d = self.r[i];
+                let wq = yn[i].abs().max(self.q[i].abs()).max(self.threshold[i]);
+                let wv = yn[n + i]
+                    .abs()
+                    .max(self.v[i].abs())
+                    .max(self.threshold[n + i]);
+                dnorm = dnorm.max(d.abs() / wq).max((a0 * d).abs() / wv);
+                if d.abs() > ROUNDING_ULPS * f64::EPSILON * self.q[i].abs().max(1.0) {
+                    at_floor = false;
+                }
+            }
+            if !dnorm.is_finite() {
+                return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
+            }
+            for i in 0..n {
+                self.q[i] += self.r[i];
+            }
+            for (l, d) in self.lam_new.iter_mut().zip(&self.r[n..]) {
+                *l += d / s;
+            }
+            set_vq(&self.q, &self.rq, &self.rv, &mut self.v, &mut self.qdd);
+            let theta = if it == 1 {
+                self.theta.max(THETA_FIRST)
+            } else {
+                dnorm / prev
+            };
+            if it > 1 && theta > 0.9 && !at_floor {
+                return self.newton_failed(
+                    SystemError::msg(format!(
+                        "Newton contracts too slowly (θ = {theta:.3}, correction {dnorm:.3e} of the weights)"
+                    )), fresh);
+            }
+            let eta = theta.min(0.9) / (1.0 - theta.min(0.9));
+            if at_floor || eta * dnorm <= kappa_tol || dnorm <= 1e-3 * kappa_tol {
+                if it > 1 {
+                    self.theta = theta;
+                    if theta > THETA_REFACTOR {
+                        self.refactor = true;
+                    }
+                }
+                return Newton::Converged;
+            }
+            prev = dnorm;
+            if it >= MAX_NEWTON {
+                return self.newton_failed(
+                    SystemError::msg(format!(
+                        "no convergence in {it} iterations (last correction {dnorm:.3e} of the weights, θ = {theta:.3})"
+                    )), fresh);
+            }
+        }
+    }
+
+    /// A failed Newton attempt: the matrix is renewed at the next one.
+    fn newton_failed(&mut self, e: SystemError, fresh: bool) -> Newton {
+        self.refactor = true;
+        Newton::Failed(e, fresh)
+    }
+}
+
+impl Stepper for BdfRun<'_> {
+    fn start(&mut self) -> Result<(), Failure> {
+        let n = self.n;
+        let t = self.ts[0];
+        let (q0, v0) = self.ys[0].split_at(n);
+        self.stats.residual_evaluations += 1;
+        self.sys
+            .accelerations(t, q0, v0, &mut self.qdd, &mut self.lam)
+            .map_err(|e| Failure::System {
+                what: "consistent accelerations",
+                t,
+                step_from: None,
+                source: Arc::new(e),
+            })?;
+        self.f0[..n].copy_from_slice(v0);
+        self.f0[n..].copy_from_slice(&self.qdd);
+        if let Some((index, value)) = common::first_non_finite(&self.f0) {
+            return Err(Failure::NonFinite {
+                what: "consistent accelerations",
+                t,
+                step_from: None,
+                index,
+                value,
+            });
+        }
+        let hmin = 16.0 * common::eps(t);
+        self.absh = match self.initial_step {
+            Some(htry) => self.hmax.min(hmin.max(htry)),
+            None => {
+                let mut absh = self.hmax.min(self.t_end - t);
+                let rh = 1.25
+                    * common::error_norm(&self.f0, &self.ys[0], &self.ys[0], &self.threshold)
+                    / self.rtol.sqrt();
+                if absh * rh > 1.0 {
+                    absh = 1.0 / rh;
+                }
+                absh.max(hmin)
+            }
+        };
+        Ok(())
+    }
+
+    fn step(&mut self) -> Result<bool, Failure> {
+        let n = self.n;
+        let t = self.ts[0];
+        let hmin = 16.0 * common::eps(t);
+        let mut absh = self.hmax.min(hmin.max(self.absh));
+        let mut done = false;
+        let mut h = absh;
+        if 1.1 * absh >= self.t_end - t {
+            h = self.t_end - t;
+            absh = h;
+            done = true;
+        }
+        let mut rejections = 0;
+        let mut newton_retry = false;
+        let (t1, err) = loop {
+            let t1 = if done { self.t_end } else { t + h };
+            h = t1 - t;
+            if t1 <= t {
+                return Err(Failure::StepTooSmall {
+                    t,
+                    h,
+                    h_min: hmin,
+                    cause: StepCut::NoProgress,
+                });
+            }
+            match self.attempt(t1, h) {
+                Newton::Failed(e, fresh) => {
+                    // a stale matrix: retry at once with a fresh one
+                    if !fresh && !newton_retry {
+                        newton_retry = true;
+                        continue;
+                    }
+                    newton_retry = false;
+                    self.stats.newton_failures += 1;
+                    if absh <= hmin {
+                        return Err(Failure::StepTooSmall {
+                            t,
+                            h: absh,
+                            h_min: hmin,
+                            cause: StepCut::Newton {
+                                t: t1,
+                                h,
+                                source: Arc::new(e),
+                            },
+                        });
+                    }
+                    absh = hmin.max(0.3 * absh);
+                    h = absh;
+                    done = false;
+                    continue;
+                }
+                Newton::Converged => {}
+            }
+            newton_retry = false;
+            self.ynew[..n].copy_from_slice(&self.q);
+            self.ynew[n..].copy_from_slice(&self.v);
+            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+                return Err(Failure::NonFinite {
+                    what: "step",
+                    t: t1,
+                    step_from: Some(t),
+                    index,
+                    value,
+                });
+            }
+            let err = if self.ts.len() == 1 {
+                // first step: y − (y_0 + h ẏ_0) estimates the Euler error
+                let y0 = &self.ys[0];
+                let mut m: f64 = 0.0;
+                for i in 0..self.err_dim {
+                    let e = self.ynew[i] - (y0[i] + h * self.f0[i]);
+                    let w = y0[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
+                    m = m.max(e.abs() / w);
+                }
+                m
+            } else {
+                self.estimate(self.k.min(self.ts.len() - 1), t1, h)
+            };
+            if err <= self.rtol {
+                break (t1, err);
+            }
+            self.stats.error_rejections += 1;
+            rejections += 1;
+            if absh <= hmin {
+                return Err(Failure::StepTooSmall {
+                    t,
+                    h: absh,
+                    h_min: hmin,
+                    cause: StepCut::ErrorTest {
+                        err: err / self.rtol,
+                    },
+                });
+            }
+            let k = self.k;
+            if rejections == 1 {
+                absh *= 0.1f64.max(0.8 * (self.rtol / err).powf(1.0 / (k as f64 + 1.0)));
+            } else {
+                absh *= 0.5;
+                if k > 1 {
+                    self.k -= 1;
+                    self.steps_at_k = 0;
+                }
+            }
+            absh = absh.max(hmin);
+            h = absh;
+            done = false;
+        };
+        // accept
+        let k = self.k;
+        self.stats.steps += 1;
+        self.stats.steps_at_order[k] += 1;
+        self.stats.min_step_taken = self.stats.min_step_taken.min(h);
+        self.stats.max_step_taken = self.stats.max_step_taken.max(h);
+        self.steps_at_k += 1;
+        // order and step for the next step
+        let mut best_p = k;
+        let mut best = (self.rtol / err.max(1e-300)).powf(1.0 / (k as f64 + 1.0)) / 1.2;
+        if rejections == 0 && self.steps_at_k > k && self.ts.len() > k {
+            if k > 1 {
+                let e = self.estimate(k - 1, t1, h);
+                let r = (self.rtol / e.max(1e-300)).powf(1.0 / k as f64) / 1.3;
+                if r > best {
+                    best = r;
+                    best_p = k - 1;
+                }
+            }
+            if k < MAX_ORDER && self.ts.len() > k + 1 {
+                let e = self.estimate(k + 1, t1, h);
+                let r = (self.rtol / e.max(1e-300)).powf(1.0 / (k as f64 + 2.0)) / 1.4;
+                if r > best {
+                    best = r;
+                    best_p = k + 1;
+                }
+            }
+        }
+        if best_p != k {
+            self.k = best_p;
+            self.steps_at_k = 0;
+        }
+        let ratio = if rejections > 0 {
+            best.min(1.0)
+        } else {
+            best.min(5.0)
+        };
+        if !(1.0..1.2).contains(&ratio) {
+            absh *= ratio.max(0.2);
+        }
+        self.absh = absh;
+        self.klast = k;
+        // push the new point
+        let mut slot = if self.ts.len() >= MAX_ORDER + 2 {
+            self.ts.pop_back();
+            self.ys.pop_back().unwrap_or_default()
+        } else {
+            vec![0.0; 2 * n]
+        };
+        slot.copy_from_slice(&self.ynew);
+        self.ts.push_front(t1);
+        self.ys.push_front(slot);
+        self.lam.copy_from_slice(&self.lam_new);
+        Ok(done)
+    }
+
+    fn state(&self) -> (f64, &[f64]) {
+        (self.ts[0], &self.ys[0])
+    }
+
+    /// The interpolating polynomial of the last step through `t_{n+1}` and
+    /// the `k` points before it.
+    fn interpolate(&self, t: f64, out: &mut [f64]) {
+        let p = (self.klast + 1).min(self.ts.len());
+        let mut nodes = [0.0; MAX_ORDER + 2];
+        let mut w = [0.0; MAX_ORDER + 2];
+        for (j, nj) in nodes[..p].iter_mut().enumerate() {
+            *nj = self.ts[j];
+        }
+        lagrange(&nodes[..p], t, &mut w[..p]);
+        out.fill(0.0);
+        for (j, wj) in w[..p].iter().enumerate() {
+            for (o, y) in out.iter_mut().zip(&self.ys[j]) {
+                *o += wj * y;
+            }
+        }
+    }
+
+    fn stats(&self) -> Stats {
+        Stats {
+            steps: self.stats.steps,
+            failed_steps: self.stats.error_rejections + self.stats.newton_failures,
+            rhs_evals: self.stats.residual_evaluations,
+        }
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Constant step: the coefficients are those of the classical BDF
+    /// (order 2: (3/2, −2, 1/2)/h), and they differentiate polynomials of
+    /// degree k exactly on an uneven grid.
+    #[test]
+    fn coefficients_are_exact_on_polynomials() {
+        let mut a = [0.0; 3];
+        bdf_coefficients(&[2.0, 1.0, 0.0], &mut a);
+        assert!((a[0] - 1.5).abs() < 1e-15 && (a[1] + 2.0).abs() < 1e-15);
+        assert!((a[2] - 0.5).abs() < 1e-15);
+        let nodes = [1.0, 0.9, 0.75, 0.7, 0.4, 0.35];
+        for k in 1..=5 {
+            let mut a = [0.0; 6];
+            bdf_coefficients(&nodes[..k + 1], &mut a[..k + 1]);
+            // y = t^k: y'(1) = k
+            let d: f64 = (0..=k).map(|j| a[j] * nodes[j].powi(k as i32)).sum();
+            assert!((d - k as f64).abs() < 1e-9, "order {k}: {d}");
+        }
+    }
+}
