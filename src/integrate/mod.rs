@@ -55,7 +55,7 @@ mod options;
 mod rk4;
 mod tableau;
 
-pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats};
+pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats, ALM_MAX_NEWTON};
 pub use bdf::{Bdf, BdfStats, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{

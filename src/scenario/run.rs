@@ -190,6 +190,10 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         Some(f) => f.parse().map_err(|m| err("formulation".into(), m))?,
         None => Formulation::Saddle,
     };
+    if formulation == Formulation::AugmentedLagrangian && ri.max_newton.is_none() {
+        // its multiplier update converges linearly (docs/constraint_methods.md)
+        implicit.max_newton = crate::integrate::ALM_MAX_NEWTON;
+    }
     let linear_solver: SolverKind = match &raw.linear_solver {
         Some(s) => s.parse().map_err(|m| err("linear_solver".into(), m))?,
         None => SolverKind::Auto,
