@@ -81,6 +81,13 @@ fn constraint_study_table_and_figures() {
     // Through the parallelogram's singular positions, projection keeps the
     // branch; unstabilized eq. (5) leaves it (the study says so).
     assert!(get("parallelogram", "projection").pass);
+    assert!(get("parallelogram", "direct").pass);
+    // Only the augmented Lagrangian keeps the redundant chain on its branch.
+    assert!(get("parallelogram_redundant", "alm_trapezoidal").pass);
+    assert!(!get("parallelogram_redundant", "projection").pass);
+    // Partitioning holds the constraints to round-off on the four-bar.
+    assert!(get("fourbar_correct", "partitioned").pass);
+    assert!(get("fourbar_correct", "partitioned").max_phi < 1e-10);
     let r = get("parallelogram", "none");
     assert!(!r.pass && r.status == "completed");
     assert!(std::fs::read_to_string(d.join("table.md"))
