@@ -42,7 +42,6 @@
 //! step and the grid point is reached by sub-steps that double again.
 //! The system side is [`AugmentedDae`] (`formulation::Augmented`).
 
-
 /// Newton iterations per attempt that scenarios give the augmented
 /// Lagrangian when `integrator.max_newton` is not set (the implicit
 /// default, 8, is for generalized-α): the multiplier update after every

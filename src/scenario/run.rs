@@ -5,8 +5,7 @@
 use super::{error, positive, RawScenario, ScenarioError};
 use crate::formulation::{
     AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options,
-    PartitionOptions,
-    PenaltyParams, Projection,
+    PartitionOptions, PenaltyParams, Projection,
 };
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
