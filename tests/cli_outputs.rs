@@ -325,6 +325,11 @@ fn slider_crank_reactions_match_newton_euler_inverse_dynamics() {
         for (name, want) in expect {
             worst = worst.max((v[col(name)] - want).abs());
         }
+        // the multipliers of the ground pin O, Φ = r_ground − r_crank(point):
+        // its Φ_q on the crank's x, y is −I, so −Φ_qᵀλ = λ is the force on
+        // the crank
+        worst = worst.max((v[col("O.lambda1")] - fo[0]).abs());
+        worst = worst.max((v[col("O.lambda2")] - fo[1]).abs());
         rows += 1;
     }
     assert_eq!(rows, 201);

@@ -23,6 +23,14 @@ impl ReactionMap {
     pub fn body(&self, joint: usize) -> Option<usize> {
         self.bodies[joint]
     }
+
+    /// The constraint rows of joint `joint` (its multipliers λ): rows
+    /// follow joint order, so they are one range, found by bisection.
+    pub fn rows_of(&self, joint: usize) -> std::ops::Range<usize> {
+        let start = self.joint_of_row.partition_point(|&j| j < joint);
+        let end = self.joint_of_row.partition_point(|&j| j <= joint);
+        start..end
+    }
 }
 
 impl System {

@@ -41,7 +41,8 @@ impl Column {
 /// `constraint_norm`, then what `o` selects: velocities `vx1,vy1,omega1,…`,
 /// accelerations `ax1,ay1,alpha1,…`, per joint `J.fx,J.fy,J.mz` (reaction
 /// on its body, global frame, moment about the centre of mass) and
-/// `J.fx_local,J.fy_local` (in that body's frame), per drive `J.drive`
+/// `J.fx_local,J.fy_local` (in that body's frame) and the joint's
+/// multipliers `J.lambda1,…`, per drive `J.drive`
 /// (its generalized force −λ, [`Drive::force`]), the energies
 /// ([`ENERGY_COLUMNS`]); then per sensor `S.QUANTITY`
 /// ([`Sensor::quantities`]).
@@ -69,6 +70,7 @@ pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Co
         per_body(&mut c, ["ax", "ay", "alpha"], ["m/s^2", "m/s^2", "rad/s^2"]);
     }
     if o.reactions {
+        let map = sys.reaction_map();
         for k in 0..sys.constraints().len() {
             let j = joint_label(sys, k);
             for (n, u) in [
@@ -79,6 +81,13 @@ pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Co
                 ("fy_local", "N"),
             ] {
                 c.push(Column::new(format!("{j}.{n}"), u));
+            }
+            // the multipliers of its rows (M q̈ + Φ_qᵀλ = g)
+            for (i, _) in map.rows_of(k).enumerate() {
+                c.push(Column::new(
+                    format!("{j}.lambda{}", i + 1),
+                    "N (position row) or N m (angle row)",
+                ));
             }
         }
     }
@@ -172,8 +181,7 @@ impl<'s> RowBuilder<'s> {
             }
         }
         if o.reactions {
-            let nj = s.reactions.map_or(0, |r| r.len() / 3);
-            for k in 0..nj {
+            for k in 0..self.sys.constraints().len() {
                 let r = s
                     .reactions
                     .map_or([f64::NAN; 3], |r| [r[3 * k], r[3 * k + 1], r[3 * k + 2]]);
@@ -187,6 +195,9 @@ impl<'s> RowBuilder<'s> {
                     cs * r[0] + sn * r[1],
                     -sn * r[0] + cs * r[1],
                 ]);
+                for i in self.map.rows_of(k) {
+                    row.push(s.lambda.map_or(f64::NAN, |l| l[i]));
+                }
             }
         }
         for d in &self.drives {
