@@ -30,13 +30,14 @@
 //! acceleration level, `(M + c_k αΦ_qᵀΦ_q) q̈ = g − Φ_qᵀλ + c_k αΦ_qᵀγ`,
 //! `λ += c_k α(Φ_q q̈ − γ)`.
 
+use super::dynamic_blocks::DynamicBlocks;
 use super::{all_finite, check_state, FormulationError};
 use crate::integrate::{AugmentedDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
     Symmetry,
 };
-use crate::model::{FdWorkspace, System};
+use crate::model::System;
 use serde::Serialize;
 
 /// Default `κ` of the penalty `α = κ m̄ / (β h²)` (module docs): the
@@ -102,16 +103,12 @@ pub struct Augmented<'a> {
     s0: f64,
     k: SaddleMatrix,
     solver: Box<dyn SaddlePointSolver>,
-    force_first: usize,
-    hess_first: usize,
+    /// The mass, force-Jacobian and (Φ_qᵀλ)_q blocks of `k`.
+    blocks: DynamicBlocks,
     /// Per penalty entry: the two Φ_q value positions and a weight (2 for
     /// two entries of one row in the same column).
     pen_first: usize,
     pairs: Vec<(usize, usize, f64)>,
-    hess_vals: Vec<f64>,
-    dq: Vec<f64>,
-    dqd: Vec<f64>,
-    ws: FdWorkspace,
     jac: Vec<f64>,
     g: Vec<f64>,
     x: Vec<f64>,
@@ -152,8 +149,7 @@ impl<'a> Augmented<'a> {
         }
         let n = sys.n_coords();
         let mut a = APattern::new();
-        let force_first = a.push_block(sys.force_jacobian_pattern(), Symmetry::Unsymmetric);
-        let hess_first = a.push_block(sys.hessian_pattern(), Symmetry::Symmetric);
+        let blocks = DynamicBlocks::register(sys, &mut a);
         let jp = sys.jacobian_pattern();
         let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
         for (e, &(r, _)) in jp.iter().enumerate() {
@@ -192,14 +188,9 @@ impl<'a> Augmented<'a> {
             s0,
             k,
             solver,
-            force_first,
-            hess_first,
+            blocks,
             pen_first,
             pairs,
-            hess_vals: vec![0.0; sys.hessian_pattern().len()],
-            dq: vec![0.0; sys.force_jacobian_pattern().len()],
-            dqd: vec![0.0; sys.force_jacobian_pattern().len()],
-            ws: FdWorkspace::default(),
             jac: vec![0.0; jp.len()],
             g: vec![0.0; n],
             x: vec![0.0; n],
@@ -244,34 +235,15 @@ impl<'a> Augmented<'a> {
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
         check_state(t, q, qd)?;
-        self.k.set_zero();
-        for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
-            self.k.add_diagonal(i, c_m * mi);
-        }
-        if c_c != 0.0 || c_k != 0.0 {
-            self.dq.fill(0.0);
-            self.dqd.fill(0.0);
-            sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
-            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
-                self.k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
-            }
-        }
-        if c_k != 0.0 && !self.hess_vals.is_empty() {
-            self.hess_vals.fill(0.0);
-            sys.add_constraint_hessians(q, t, lam, &mut self.hess_vals, &mut self.ws);
-            for (e, &h) in self.hess_vals.iter().enumerate() {
-                self.k.add_a(self.hess_first + e, c_k * h);
-            }
-        }
-        sys.jacobian_values(q, t, &mut self.jac);
-        all_finite(
+        self.blocks.assemble(
+            sys,
+            &mut self.k,
             t,
-            &[
-                ("the force Jacobian ∂g/∂q", &self.dq),
-                ("the force Jacobian ∂g/∂q̇", &self.dqd),
-                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess_vals),
-                ("the constraint Jacobian Φ_q", &self.jac),
-            ],
+            q,
+            qd,
+            lam,
+            [c_m, c_c, c_k],
+            &mut self.jac,
         )?;
         for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
             self.k

@@ -59,13 +59,12 @@
 //! [`ForceElement::jacobian_coordinates`]: crate::model::ForceElement::jacobian_coordinates
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
+use super::dynamic_blocks::DynamicBlocks;
 use super::{all_finite, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
-    Symmetry,
 };
-use crate::model::FdWorkspace;
 use crate::model::System;
 use serde::Serialize;
 
@@ -102,16 +101,8 @@ pub struct Index3<'a> {
     solver: Box<dyn SaddlePointSolver>,
     kp: SaddleMatrix,
     psolver: Box<dyn SaddlePointSolver>,
-    /// Id of the first force-Jacobian entry among the `A` entries of `k`
-    /// ([`System::force_jacobian_pattern`] order).
-    force_first: usize,
-    /// Id of the first (Φ_qᵀλ)_q entry among the `A` entries of `k`
-    /// ([`System::hessian_pattern`] order).
-    hess_first: usize,
-    hess_vals: Vec<f64>,
-    dq: Vec<f64>,
-    dqd: Vec<f64>,
-    ws: FdWorkspace,
+    /// The mass, force-Jacobian and (Φ_qᵀλ)_q blocks of `k`.
+    blocks: DynamicBlocks,
     jac: Vec<f64>,
     g: Vec<f64>,
     tmp: Vec<f64>,
@@ -165,14 +156,9 @@ impl<'a> Index3<'a> {
     ) -> Result<Self, FormulationError> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let mut a = APattern::new();
-        // ∂g/∂q, ∂g/∂q̇: every force element's block, evaluated by the system
-        // (generated kernels where attached, the elements' own otherwise).
-        let force_first = a.push_block(sys.force_jacobian_pattern(), Symmetry::Unsymmetric);
-        let n_force = sys.force_jacobian_pattern().len();
-        // (Φ_qᵀλ)_q: every joint's block, evaluated by the system (generated
-        // kernels where attached, the joints' own otherwise).
-        let hess_first = a.push_block(sys.hessian_pattern(), Symmetry::Symmetric);
-        let n_hess = sys.hessian_pattern().len();
+        // ∂g/∂q, ∂g/∂q̇ and (Φ_qᵀλ)_q: every force element's and joint's
+        // block, evaluated by the system (generated kernels where attached).
+        let blocks = DynamicBlocks::register(sys, &mut a);
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
         let kind = match newton {
@@ -206,12 +192,7 @@ impl<'a> Index3<'a> {
             solver,
             kp,
             psolver,
-            force_first,
-            hess_first,
-            hess_vals: vec![0.0; n_hess],
-            dq: vec![0.0; n_force],
-            dqd: vec![0.0; n_force],
-            ws: FdWorkspace::default(),
+            blocks,
             jac: vec![0.0; sys.jacobian_pattern().len()],
             g: vec![0.0; n],
             tmp: vec![0.0; n],
@@ -297,33 +278,15 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         self.stats.jacobians += 1;
         finite_state(t, q, qd)?;
-        let mass = sys.mass_diagonal();
-        self.k.set_zero();
-        for (i, &mi) in mass.iter().enumerate() {
-            self.k.add_diagonal(i, c_m * mi);
-        }
-        self.dq.fill(0.0);
-        self.dqd.fill(0.0);
-        sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
-        for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
-            self.k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
-        }
-        if !self.hess_vals.is_empty() {
-            self.hess_vals.fill(0.0);
-            sys.add_constraint_hessians(q, t, lambda, &mut self.hess_vals, &mut self.ws);
-            for (e, &h) in self.hess_vals.iter().enumerate() {
-                self.k.add_a(self.hess_first + e, c_k * h);
-            }
-        }
-        sys.jacobian_values(q, t, &mut self.jac);
-        all_finite(
+        self.blocks.assemble(
+            sys,
+            &mut self.k,
             t,
-            &[
-                ("the force Jacobian ∂g/∂q", &self.dq),
-                ("the force Jacobian ∂g/∂q̇", &self.dqd),
-                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess_vals),
-                ("the constraint Jacobian Φ_q", &self.jac),
-            ],
+            q,
+            qd,
+            lambda,
+            [c_m, c_c, c_k],
+            &mut self.jac,
         )?;
         self.k.set_jacobian(&self.jac);
         self.solver
