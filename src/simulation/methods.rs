@@ -1,0 +1,354 @@
+//! The methods [`super::simulate_into`] drives, each bound to its
+//! formulation behind one interface, [`MethodRun`]: the explicit methods on
+//! the index-1 or penalty form, coordinate partitioning, generalized-α on
+//! the index-3 form, the augmented Lagrangian, bdf.
+
+use super::*;
+
+/// A method bound to its formulation: the one interface [`simulate`]
+/// drives, whichever the method.
+pub(super) trait MethodRun {
+    /// Integrate from `(q0, q̇0)`, delivering `times` to `obs`.
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError>;
+    /// The formulation-specific figures of the run, and extra summary
+    /// fields.
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
+}
+
+/// ode23, ode45, rk4 on the index-1 form (eq. (5)) or the penalty form
+/// ([`ExplicitForm`]).
+pub(super) struct Explicit<'s> {
+    f: ExplicitForm<'s>,
+    integ: Box<dyn Integrator>,
+}
+
+impl<'s> Explicit<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        Ok(Self {
+            f: ExplicitForm::new(sys, cfg.index1)?,
+            integ: integrator(cfg.method, cfg.ode.clone())?,
+        })
+    }
+}
+
+impl MethodRun for Explicit<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        let mut y0 = q0.to_vec();
+        y0.extend_from_slice(qd0);
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let stats = self.f.stats();
+        let work = Work {
+            formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
+            factorizations: stats.solver.factorizations,
+            regularized_pivots: stats.solver.regularized_pivots,
+            first_regularized_t: stats.first_regularized_t,
+        };
+        let mut extra = serde_json::Map::new();
+        if cfg.index1.formulation == crate::formulation::Formulation::Penalty {
+            let p = cfg.index1.penalty;
+            for (k, v) in [
+                ("penalty", p.alpha),
+                ("penalty_xi", p.xi),
+                ("penalty_omega", p.omega),
+            ] {
+                extra.insert(k.into(), v.into());
+            }
+        }
+        if cfg.index1.projection.enabled {
+            extra.insert("projections".into(), stats.projections.into());
+            let it = stats.projection_iterations;
+            extra.insert("projection_iterations".into(), it.into());
+        }
+        (work, extra)
+    }
+}
+
+/// ode23, ode45, rk4 on the independent coordinates of coordinate
+/// partitioning ([`Partitioned`]). Extra summary fields: `dof`,
+/// `repartitions` (re-choices of the independent set, each a restart),
+/// `first_repartition_t`, `partition_newton_iterations`, `max_condition`
+/// (largest κ₁ of the dependent block at an accepted step).
+pub(super) struct Partition<'s> {
+    pub(super) f: Partitioned<'s>,
+}
+
+impl MethodRun for Partition<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.f
+            .integrate(cfg.method, &cfg.ode, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let ps = self.f.stats();
+        let work = Work {
+            formulation: "partitioned".into(),
+            linear_solver: "dense-lu".into(),
+            baumgarte: (0.0, 0.0),
+            factorizations: self.f.factorizations(),
+            regularized_pivots: 0,
+            first_regularized_t: None,
+        };
+        let mut extra = serde_json::Map::new();
+        extra.insert("dof".into(), self.f.dof().into());
+        extra.insert("repartitions".into(), ps.repartitions.into());
+        if let Some(t) = ps.first_repartition_t {
+            extra.insert("first_repartition_t".into(), t.into());
+        }
+        let it = ps.newton_iterations;
+        extra.insert("partition_newton_iterations".into(), it.into());
+        extra.insert("max_condition".into(), ps.max_condition.into());
+        (work, extra)
+    }
+}
+
+/// genalpha, hht, newmark on the index-3 form ([`GenAlpha`] over
+/// [`Index3`]); the same [`Trajectory`] and [`Summary`] as the explicit
+/// methods. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
+/// `rhs_evals` = residual evaluations, `factorizations` = factorisations of
+/// the Newton matrix, `failed_steps` = error rejections + Newton failures;
+/// `extra` adds `newton_iterations`, `newton_failures`, `error_rejections`,
+/// `jacobian_evaluations`, `projections`, `projection_factorizations`,
+/// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
+/// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
+/// `max_step_taken`.
+pub(super) struct Implicit<'s> {
+    f: Index3<'s>,
+    integ: GenAlpha,
+}
+
+impl<'s> Implicit<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        let integ = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let newton = if cfg.implicit.lu {
+            NewtonSolverKind::SparseLu
+        } else {
+            NewtonSolverKind::SymmetricLdlt
+        };
+        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+        Ok(Self { f, integ })
+    }
+}
+
+impl MethodRun for Implicit<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let gs = self.integ.stats();
+        let fs = self.f.stats();
+        let p = self.integ.params();
+        let opts = self.integ.options();
+        let fixed_step = if opts.adaptive {
+            serde_json::Value::Null
+        } else {
+            cfg.ode.fixed_step.into()
+        };
+        let mut extra = serde_json::Map::new();
+        for (k, v) in [
+            ("newton_iterations", gs.newton_iterations.into()),
+            ("newton_failures", gs.newton_failures.into()),
+            ("error_rejections", gs.error_rejections.into()),
+            ("jacobian_evaluations", fs.jacobians.into()),
+            ("projections", gs.projections.into()),
+            (
+                "projection_factorizations",
+                fs.mass_solver.factorizations.into(),
+            ),
+            ("rho_inf", opts.rho_inf.into()),
+            ("alpha_m", p.alpha_m.into()),
+            ("alpha_f", p.alpha_f.into()),
+            ("gamma_newmark", p.gamma.into()),
+            ("beta_newmark", p.beta.into()),
+            ("fixed_step", fixed_step),
+            ("adaptive", opts.adaptive.into()),
+            ("newton_tol", opts.newton_tol.into()),
+            ("min_step_taken", gs.min_step_taken.into()),
+            ("max_step_taken", gs.max_step_taken.into()),
+        ] {
+            extra.insert(k.to_string(), v);
+        }
+        let work = Work {
+            formulation: "index3".to_string(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (0.0, 0.0),
+            factorizations: gs.factorizations,
+            regularized_pivots: fs.newton_solver.regularized_pivots,
+            first_regularized_t: None,
+        };
+        (work, extra)
+    }
+}
+
+/// The index-3 augmented Lagrangian with projections ([`Augmented`],
+/// [`AugmentedLagrangian`]) on the scheme of an implicit method (newmark
+/// with ρ∞ = 1: the trapezoidal rule). Summary: `formulation =
+/// "augmented_lagrangian"`, `factorizations` of `W`; `extra` adds
+/// `penalty`, `newton_iterations`, `newton_failures`, `projections`,
+/// `initial_iterations`, the scheme's parameters and `fixed_step`.
+pub(super) struct AugmentedRun<'s> {
+    f: Augmented<'s>,
+    integ: AugmentedLagrangian,
+}
+
+impl<'s> AugmentedRun<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        if !cfg.method.is_implicit() {
+            return Err(FormulationError::InvalidOption {
+                option: "formulation",
+                value: "augmented_lagrangian".into(),
+                reason: format!(
+                    "is an index-3 formulation for the implicit methods (genalpha, hht, \
+                     newmark/trapezoidal), not for {}",
+                    cfg.method.name()
+                ),
+            }
+            .into());
+        }
+        let integ = AugmentedLagrangian::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let h = cfg.ode.fixed_step.unwrap_or(f64::NAN);
+        let s0 = integ.params().beta * h * h;
+        let f = Augmented::new(sys, cfg.augmented, cfg.index1.linear_solver, s0)?;
+        Ok(Self { f, integ })
+    }
+}
+
+impl MethodRun for AugmentedRun<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let gs = self.integ.stats();
+        let fs = self.f.stats();
+        let p = self.integ.params();
+        let mut extra = serde_json::Map::new();
+        for (k, v) in [
+            ("penalty", self.f.alpha().into()),
+            ("newton_iterations", gs.newton_iterations.into()),
+            ("newton_failures", gs.newton_failures.into()),
+            ("projections", gs.projections.into()),
+            ("initial_iterations", fs.initial_iterations.into()),
+            ("rho_inf", cfg.implicit.rho_inf.into()),
+            ("alpha_m", p.alpha_m.into()),
+            ("alpha_f", p.alpha_f.into()),
+            ("gamma_newmark", p.gamma.into()),
+            ("beta_newmark", p.beta.into()),
+            ("fixed_step", cfg.ode.fixed_step.into()),
+            ("newton_tol", cfg.implicit.newton_tol.into()),
+            ("min_step_taken", gs.min_step_taken.into()),
+        ] {
+            extra.insert(k.to_string(), v);
+        }
+        let work = Work {
+            formulation: "augmented_lagrangian".to_string(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (0.0, 0.0),
+            factorizations: gs.factorizations,
+            regularized_pivots: fs.solver.regularized_pivots,
+            first_regularized_t: None,
+        };
+        (work, extra)
+    }
+}
+
+/// bdf on the index-3 form ([`Bdf`] over [`Index3`], the symmetric LDLᵀ
+/// Newton matrix). Summary fields as [`Implicit`]'s: `formulation =
+/// "index3"`, `rhs_evals` = residual evaluations; `extra` adds
+/// `newton_iterations`, `newton_failures`, `error_rejections`,
+/// `jacobian_evaluations`, `steps_at_order` (orders 1–5),
+/// `min_step_taken`, `max_step_taken`.
+pub(super) struct BdfRun<'s> {
+    f: Index3<'s>,
+    integ: Bdf,
+}
+
+impl<'s> BdfRun<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        let integ = Bdf::new(cfg.ode.clone())?;
+        let f = Index3::with_newton_solver(
+            sys,
+            cfg.index1.linear_solver,
+            NewtonSolverKind::SymmetricLdlt,
+        )?;
+        Ok(Self { f, integ })
+    }
+}
+
+impl MethodRun for BdfRun<'_> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.integ
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let bs = self.integ.stats();
+        let fs = self.f.stats();
+        let mut extra = serde_json::Map::new();
+        for (k, v) in [
+            ("newton_iterations", bs.newton_iterations.into()),
+            ("newton_failures", bs.newton_failures.into()),
+            ("error_rejections", bs.error_rejections.into()),
+            ("jacobian_evaluations", fs.jacobians.into()),
+            ("steps_at_order", bs.steps_at_order[1..].to_vec().into()),
+            ("min_step_taken", bs.min_step_taken.into()),
+            ("max_step_taken", bs.max_step_taken.into()),
+        ] {
+            extra.insert(k.to_string(), v);
+        }
+        let work = Work {
+            formulation: "index3".to_string(),
+            linear_solver: self.f.solver_name().to_string(),
+            baumgarte: (0.0, 0.0),
+            factorizations: bs.factorizations,
+            regularized_pivots: fs.newton_solver.regularized_pivots,
+            first_regularized_t: None,
+        };
+        (work, extra)
+    }
+}
