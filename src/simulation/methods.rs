@@ -4,6 +4,7 @@
 //! the index-3 form, the augmented Lagrangian, bdf.
 
 use super::*;
+use crate::integrate::AlphaParameters;
 
 /// A method bound to its formulation: the one interface [`simulate`]
 /// drives, whichever the method.
@@ -187,11 +188,6 @@ impl MethodRun for Implicit<'_> {
                 "projection_factorizations",
                 fs.mass_solver.factorizations.into(),
             ),
-            ("rho_inf", opts.rho_inf.into()),
-            ("alpha_m", p.alpha_m.into()),
-            ("alpha_f", p.alpha_f.into()),
-            ("gamma_newmark", p.gamma.into()),
-            ("beta_newmark", p.beta.into()),
             ("fixed_step", fixed_step),
             ("adaptive", opts.adaptive.into()),
             ("newton_tol", opts.newton_tol.into()),
@@ -200,6 +196,7 @@ impl MethodRun for Implicit<'_> {
         ] {
             extra.insert(k.to_string(), v);
         }
+        scheme_fields(&mut extra, &p, opts.rho_inf);
         let work = Work {
             formulation: "index3".to_string(),
             linear_solver: self.f.solver_name().to_string(),
@@ -268,17 +265,13 @@ impl MethodRun for AugmentedRun<'_> {
             ("newton_failures", gs.newton_failures.into()),
             ("projections", gs.projections.into()),
             ("initial_iterations", fs.initial_iterations.into()),
-            ("rho_inf", cfg.implicit.rho_inf.into()),
-            ("alpha_m", p.alpha_m.into()),
-            ("alpha_f", p.alpha_f.into()),
-            ("gamma_newmark", p.gamma.into()),
-            ("beta_newmark", p.beta.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
             ("min_step_taken", gs.min_step_taken.into()),
         ] {
             extra.insert(k.to_string(), v);
         }
+        scheme_fields(&mut extra, &p, cfg.implicit.rho_inf);
         let work = Work {
             formulation: "augmented_lagrangian".to_string(),
             linear_solver: self.f.solver_name().to_string(),
@@ -350,5 +343,23 @@ impl MethodRun for BdfRun<'_> {
             first_regularized_t: None,
         };
         (work, extra)
+    }
+}
+
+/// The generalized-α scheme of a run in the summary's `extra`: `rho_inf`,
+/// `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`.
+fn scheme_fields(
+    extra: &mut serde_json::Map<String, serde_json::Value>,
+    p: &AlphaParameters,
+    rho_inf: f64,
+) {
+    for (k, v) in [
+        ("rho_inf", rho_inf),
+        ("alpha_m", p.alpha_m),
+        ("alpha_f", p.alpha_f),
+        ("gamma_newmark", p.gamma),
+        ("beta_newmark", p.beta),
+    ] {
+        extra.insert(k.to_string(), v.into());
     }
 }
