@@ -30,12 +30,11 @@
 //! acceleration level, `(M + c_k αΦ_qᵀΦ_q) q̈ = g − Φ_qᵀλ + c_k αΦ_qᵀγ`,
 //! `λ += c_k α(Φ_q q̈ − γ)`.
 
-use super::dynamic_blocks::DynamicBlocks;
+use super::dynamic_blocks::{DynamicBlocks, PenaltyBlock};
 use super::{all_finite, check_state, FormulationError};
 use crate::integrate::{AugmentedDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
-    Symmetry,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -105,10 +104,8 @@ pub struct Augmented<'a> {
     solver: Box<dyn SaddlePointSolver>,
     /// The mass, force-Jacobian and (Φ_qᵀλ)_q blocks of `k`.
     blocks: DynamicBlocks,
-    /// Per penalty entry: the two Φ_q value positions and a weight (2 for
-    /// two entries of one row in the same column).
-    pen_first: usize,
-    pairs: Vec<(usize, usize, f64)>,
+    /// The penalty block `Φ_qᵀαΦ_q` of `k`.
+    penalty: PenaltyBlock,
     jac: Vec<f64>,
     g: Vec<f64>,
     x: Vec<f64>,
@@ -151,21 +148,7 @@ impl<'a> Augmented<'a> {
         let mut a = APattern::new();
         let blocks = DynamicBlocks::register(sys, &mut a);
         let jp = sys.jacobian_pattern();
-        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
-        for (e, &(r, _)) in jp.iter().enumerate() {
-            by_row[r].push(e);
-        }
-        let (mut entries, mut pairs) = (Vec::new(), Vec::new());
-        for row in &by_row {
-            for (i, &e1) in row.iter().enumerate() {
-                for &e2 in &row[i..] {
-                    let (c1, c2) = (jp[e1].1, jp[e2].1);
-                    entries.push((c1, c2));
-                    pairs.push((e1, e2, if e1 != e2 && c1 == c2 { 2.0 } else { 1.0 }));
-                }
-            }
-        }
-        let pen_first = a.push_block(&entries, Symmetry::Symmetric);
+        let penalty = PenaltyBlock::register(sys, &mut a);
         let mut solver = solver_for(
             linear_solver,
             n,
@@ -189,8 +172,7 @@ impl<'a> Augmented<'a> {
             k,
             solver,
             blocks,
-            pen_first,
-            pairs,
+            penalty,
             jac: vec![0.0; jp.len()],
             g: vec![0.0; n],
             x: vec![0.0; n],
@@ -245,10 +227,7 @@ impl<'a> Augmented<'a> {
             [c_m, c_c, c_k],
             &mut self.jac,
         )?;
-        for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
-            self.k
-                .add_a(self.pen_first + id, c_p * w * self.jac[e1] * self.jac[e2]);
-        }
+        self.penalty.add(&mut self.k, c_p, &self.jac);
         self.solver
             .factorize(&self.k)
             .map(|_| ())

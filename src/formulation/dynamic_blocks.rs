@@ -86,3 +86,45 @@ impl DynamicBlocks {
         )
     }
 }
+
+/// The penalty block `c Φ_qᵀΦ_q` of an `A`-only matrix ([`super::Penalty`],
+/// [`super::Augmented`]): per constraint row, every pair of its Φ_q
+/// entries, registered once in an [`APattern`].
+pub(crate) struct PenaltyBlock {
+    /// Id of its first entry among the `A` entries.
+    first: usize,
+    /// Per entry: the two Φ_q value positions and a weight (2 for two
+    /// entries of one row in the same column).
+    pairs: Vec<(usize, usize, f64)>,
+}
+
+impl PenaltyBlock {
+    /// Register the pattern of `Φ_qᵀΦ_q` in `a` (symmetric).
+    pub(crate) fn register(sys: &System, a: &mut APattern) -> Self {
+        let jp = sys.jacobian_pattern();
+        // entries of Φ_q grouped by row, then every pair within a row
+        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
+        for (e, &(r, _)) in jp.iter().enumerate() {
+            by_row[r].push(e);
+        }
+        let (mut entries, mut pairs) = (Vec::new(), Vec::new());
+        for row in &by_row {
+            for (i, &e1) in row.iter().enumerate() {
+                for &e2 in &row[i..] {
+                    let (c1, c2) = (jp[e1].1, jp[e2].1);
+                    entries.push((c1, c2));
+                    pairs.push((e1, e2, if e1 != e2 && c1 == c2 { 2.0 } else { 1.0 }));
+                }
+            }
+        }
+        let first = a.push_block(&entries, Symmetry::Symmetric);
+        Self { first, pairs }
+    }
+
+    /// Add `c Φ_qᵀΦ_q` to the `A` block of `k`, Φ_q's values in `jac`.
+    pub(crate) fn add(&self, k: &mut SaddleMatrix, c: f64, jac: &[f64]) {
+        for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
+            k.add_a(self.first + id, c * w * jac[e1] * jac[e2]);
+        }
+    }
+}

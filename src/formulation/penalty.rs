@@ -20,12 +20,13 @@
 //! shrinks like `1/α` (tested). The bracket is the Baumgarte γ̄ of eq. (11)
 //! with `α_B = ξω`, `β_B = ω`.
 
+use super::dynamic_blocks::PenaltyBlock;
 use super::{
     check_state, feedback, Formulation, FormulationError, Index1, Index1Options, RhsStats,
 };
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
-    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, Symmetry,
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -88,9 +89,8 @@ pub struct Penalty<'a> {
     p: PenaltyParams,
     solver: Box<dyn SaddlePointSolver>,
     k: SaddleMatrix,
-    /// Per registered `A` entry: the two Φ_q value positions and a weight
-    /// (2 for two entries of one row in the same column, else 1).
-    pairs: Vec<(usize, usize, f64)>,
+    /// The `α Φ_qᵀΦ_q` block (the mass is the diagonal).
+    block: PenaltyBlock,
     jac: Vec<f64>,
     g: Vec<f64>,
     gamma: Vec<f64>,
@@ -132,25 +132,8 @@ impl<'a> Penalty<'a> {
         }
         let n = sys.n_coords();
         let jp = sys.jacobian_pattern();
-        // Entries of Φ_q grouped by row, then every pair within a row.
-        let mut by_row: Vec<Vec<usize>> = vec![Vec::new(); sys.n_constraints()];
-        for (e, &(r, _)) in jp.iter().enumerate() {
-            by_row[r].push(e);
-        }
-        let mut entries = Vec::new();
-        let mut pairs = Vec::new();
-        for row in &by_row {
-            for (a, &e1) in row.iter().enumerate() {
-                for &e2 in &row[a..] {
-                    let (c1, c2) = (jp[e1].1, jp[e2].1);
-                    entries.push((c1, c2));
-                    let w = if e1 != e2 && c1 == c2 { 2.0 } else { 1.0 };
-                    pairs.push((e1, e2, w));
-                }
-            }
-        }
         let mut a = APattern::new();
-        a.push_block(&entries, Symmetry::Symmetric);
+        let block = PenaltyBlock::register(sys, &mut a);
         let mut solver = solver_for(opts.linear_solver, n, SolverOptions::default());
         let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
         solver
@@ -165,7 +148,7 @@ impl<'a> Penalty<'a> {
             p,
             solver,
             k,
-            pairs,
+            block,
             jac: vec![0.0; jp.len()],
             g: vec![0.0; n],
             gamma: vec![0.0; m],
@@ -237,9 +220,7 @@ impl<'a> Penalty<'a> {
         for (i, &m) in sys.mass_diagonal().iter().enumerate() {
             self.k.add_diagonal(i, m);
         }
-        for (id, &(e1, e2, w)) in self.pairs.iter().enumerate() {
-            self.k.add_a(id, alpha * w * self.jac[e1] * self.jac[e2]);
-        }
+        self.block.add(&mut self.k, alpha, &self.jac);
         let lin = |source| FormulationError::Linear { t, source };
         self.solver.factorize(&self.k).map_err(lin)?;
         sys.jacobian_tmul(&self.jac, &self.gamma, &mut self.x);
