@@ -709,7 +709,14 @@ pub struct SingularityMonitor {
     split: Split,
     m: usize,
     r: usize,
-    last: Option<(f64, f64, Vec<f64>)>,
+    /// Time and determinant sign of the last accepted step (`None` before
+    /// the first), its positions in `last_q`.
+    last: Option<(f64, f64)>,
+    last_q: Vec<f64>,
+    /// Scratch of the r × r elimination and the interpolated positions:
+    /// no allocation per step.
+    lu: Vec<f64>,
+    qm: Vec<f64>,
     crossings: usize,
     first: Option<SingularCrossing>,
 }
@@ -729,6 +736,9 @@ impl SingularityMonitor {
             m,
             r,
             last: None,
+            last_q: vec![0.0; n],
+            lu: vec![0.0; r * r],
+            qm: vec![0.0; n],
             crossings: 0,
             first: None,
         })
@@ -753,9 +763,13 @@ impl SingularityMonitor {
     /// scaled to unit max (Gaussian elimination, partial pivoting).
     fn log_det(&mut self, sys: &System, t: f64, q: &[f64]) -> (f64, f64) {
         self.split.dense_jacobian(sys, t, q);
-        let b = self.split.block();
-        let r = b.nrows();
-        let mut a: Vec<f64> = (0..r * r).map(|k| b[(k / r, k % r)]).collect();
+        let (r, n, sp) = (self.r, self.split.n, &self.split);
+        let a = &mut self.lu;
+        for (i, &row) in sp.rows.iter().enumerate() {
+            for (j, &col) in sp.dep.iter().enumerate() {
+                a[i * r + j] = sp.dense[row * n + col];
+            }
+        }
         let (mut sign, mut ld) = (1.0, 0.0);
         for row in a.chunks_mut(r) {
             let s = row.iter().fold(0.0_f64, |x, v| x.max(v.abs()));
@@ -815,19 +829,24 @@ impl SingularityMonitor {
         }
         let (sign, ld) = self.log_det(sys, t, q);
         let mut found = None;
-        if let Some((t_a, sign_a, q_a)) = self.last.take() {
+        if let Some((t_a, sign_a)) = self.last.take() {
             if sign != sign_a {
+                let q_a = std::mem::take(&mut self.last_q);
                 let (_, ld_a) = self.log_det(sys, t_a, &q_a);
                 // secant root of det between the steps
                 let s = 1.0 / (1.0 + (ld - ld_a).exp());
                 let s = if s.is_finite() { s } else { 0.5 };
-                let qm: Vec<f64> = q_a.iter().zip(q).map(|(a, b)| a + s * (b - a)).collect();
+                let mut qm = std::mem::take(&mut self.qm);
+                for ((m, a), b) in qm.iter_mut().zip(&q_a).zip(q) {
+                    *m = a + s * (b - a);
+                }
                 let tm = t_a + s * (t - t_a);
                 let (ra, rb, rm) = (
                     self.rank_ratio(sys, t_a, &q_a),
                     self.rank_ratio(sys, t, q),
                     self.rank_ratio(sys, tm, &qm),
                 );
+                (self.last_q, self.qm) = (q_a, qm);
                 if ra.min(rb).min(rm) < SINGULAR_RATIO {
                     self.crossings += 1;
                     let c = SingularCrossing { t: tm, ratio: rm };
@@ -838,12 +857,14 @@ impl SingularityMonitor {
                 } else if let Ok(s) = Split::choose(sys, t, q, Some(self.r)) {
                     self.split = s; // only this split went singular
                     let (sign, _) = self.log_det(sys, t, q);
-                    self.last = Some((t, sign, q.to_vec()));
+                    self.last = Some((t, sign));
+                    self.last_q.copy_from_slice(q);
                     return None;
                 }
             }
         }
-        self.last = Some((t, sign, q.to_vec()));
+        self.last = Some((t, sign));
+        self.last_q.copy_from_slice(q);
         found
     }
 }
