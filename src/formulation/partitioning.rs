@@ -41,10 +41,14 @@ use crate::integrate::{
 };
 use crate::linalg::full_pivot_order;
 use crate::model::System;
-use faer::linalg::solvers::{DenseSolveCore, PartialPivLu, Solve};
-use faer::{Mat, MatMut};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::lu::partial_pivoting::{factor, solve};
+use faer::perm::PermRef;
+use faer::{Mat, MatMut, Par};
 use serde::Serialize;
+use std::cell::RefCell;
 use std::ops::ControlFlow;
+use std::rc::Rc;
 
 /// Largest system [`Partitioned`] accepts (dense matrices).
 pub const MAX_PARTITION_COORDS: usize = 600;
@@ -89,6 +93,126 @@ pub struct PartitionStats {
     pub first_repartition_t: Option<f64>,
 }
 
+/// Dense LU with partial pivoting in buffers kept between factorisations
+/// (faer's in-place kernels): no allocation per evaluation.
+struct LuBuf {
+    a: Mat<f64>,
+    fwd: Vec<usize>,
+    bwd: Vec<usize>,
+    mem: MemBuffer,
+}
+
+impl LuBuf {
+    fn new(dim: usize) -> Self {
+        let req = StackReq::any_of(&[
+            factor::lu_in_place_scratch::<usize, f64>(dim, dim, Par::Seq, Default::default()),
+            solve::solve_in_place_scratch::<usize, f64>(dim, 1, Par::Seq),
+        ]);
+        Self {
+            a: Mat::zeros(dim, dim),
+            fwd: vec![0; dim],
+            bwd: vec![0; dim],
+            mem: MemBuffer::new(req),
+        }
+    }
+
+    /// Factor the matrix `a(i, j) = f(i, j)` (partial pivoting).
+    fn factor(&mut self, f: impl Fn(usize, usize) -> f64) {
+        let dim = self.a.nrows();
+        for j in 0..dim {
+            for i in 0..dim {
+                self.a[(i, j)] = f(i, j);
+            }
+        }
+        factor::lu_in_place(
+            self.a.as_mut(),
+            &mut self.fwd,
+            &mut self.bwd,
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+    }
+
+    /// Solve with the last factorisation, in place.
+    fn solve(&mut self, x: &mut [f64]) {
+        let dim = self.a.nrows();
+        // SAFETY: `fwd` and `bwd` are the mutually inverse permutations
+        // written by `lu_in_place` on a matrix of this dimension
+        let perm = unsafe { PermRef::new_unchecked(&self.fwd, &self.bwd, dim) };
+        solve::solve_in_place(
+            self.a.as_ref(),
+            self.a.as_ref(),
+            perm,
+            MatMut::from_column_major_slice_mut(x, dim, 1),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+        );
+    }
+}
+
+impl Clone for LuBuf {
+    fn clone(&self) -> Self {
+        Self::new(self.a.nrows())
+    }
+}
+
+/// The full states `(t, q, q̇)` of the last two accepted steps (`[0]` the
+/// earlier), written by [`Partitioned`]'s `post_step` and read by the
+/// observer of the run: the predictor of the dependent coordinates at an
+/// output between them is the cubic Hermite interpolant of the two, so an
+/// output next to a singular configuration lands on the branch of the
+/// steps around it (a one-sided predictor put one output of the two-loop
+/// chain on the other branch, 7.3 mm off).
+#[derive(Default)]
+struct Accepted {
+    t: [f64; 2],
+    q: [Vec<f64>; 2],
+    qd: [Vec<f64>; 2],
+}
+
+impl Accepted {
+    fn push(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        self.t.swap(0, 1);
+        self.q.swap(0, 1);
+        self.qd.swap(0, 1);
+        self.t[1] = t;
+        self.q[1].clear();
+        self.q[1].extend_from_slice(q);
+        self.qd[1].clear();
+        self.qd[1].extend_from_slice(qd);
+    }
+
+    fn reset(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        self.push(t, q, qd);
+        self.push(t, q, qd);
+    }
+
+    /// The cubic Hermite interpolant of the two states at `t` into `q[k]`,
+    /// `k ∈ dep` (the nearer state when they coincide in time).
+    fn predict(&self, t: f64, dep: &[usize], q: &mut [f64]) {
+        let h = self.t[1] - self.t[0];
+        if h <= 0.0 || self.q[0].len() != q.len() {
+            for &k in dep {
+                q[k] = self.q[1][k] + self.qd[1][k] * (t - self.t[1]);
+            }
+            return;
+        }
+        let s = (t - self.t[0]) / h;
+        let (s2, s3) = (s * s, s * s * s);
+        let (h00, h10, h01, h11) = (
+            2.0 * s3 - 3.0 * s2 + 1.0,
+            s3 - 2.0 * s2 + s,
+            -2.0 * s3 + 3.0 * s2,
+            s3 - s2,
+        );
+        let (qa, qb, va, vb) = (&self.q[0], &self.q[1], &self.qd[0], &self.qd[1]);
+        for &k in dep {
+            q[k] = h00 * qa[k] + h10 * h * va[k] + h01 * qb[k] + h11 * h * vb[k];
+        }
+    }
+}
+
 /// One split of the coordinates and the solves that complete a state from
 /// its independent part (cloned into the observer of a run).
 #[derive(Clone)]
@@ -104,10 +228,14 @@ struct Split {
     phi: Vec<f64>,
     phi_t: Vec<f64>,
     rhs: Vec<f64>,
-    /// Last known full state: the Newton predictor `q + q̇ (t − t_base)`.
+    /// LU of the dependent block Φ_R,u (r × r).
+    lu: LuBuf,
+    /// Last accepted full state: the Newton predictor
+    /// `q + q̇ Δt + ½ q̈ Δt²` (Δt = t − t_base).
     base_t: f64,
     base_q: Vec<f64>,
     base_qd: Vec<f64>,
+    base_qdd: Vec<f64>,
 }
 
 impl Split {
@@ -130,9 +258,11 @@ impl Split {
             phi: vec![0.0; m],
             phi_t: vec![0.0; m],
             rhs: Vec::new(),
+            lu: LuBuf::new(0),
             base_t: t,
             base_q: q.to_vec(),
             base_qd: vec![0.0; n],
+            base_qdd: vec![0.0; n],
         };
         s.dense_jacobian(sys, t, q);
         let mut a = s.dense.clone();
@@ -152,6 +282,7 @@ impl Split {
             v.sort_unstable();
         }
         s.rhs = vec![0.0; r];
+        s.lu = LuBuf::new(r);
         Ok(s)
     }
 
@@ -159,10 +290,11 @@ impl Split {
         self.indep.len()
     }
 
-    fn set_base(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+    fn set_base(&mut self, t: f64, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.base_t = t;
         self.base_q.copy_from_slice(q);
         self.base_qd.copy_from_slice(qd);
+        self.base_qdd.copy_from_slice(qdd);
     }
 
     /// Φ_q at `(q, t)` as a dense row-major `m × n` matrix.
@@ -174,18 +306,16 @@ impl Split {
         }
     }
 
-    /// The dependent block Φ_R,u of the last [`Split::dense_jacobian`].
-    fn block(&self) -> Mat<f64> {
-        let n = self.n;
-        Mat::from_fn(self.rows.len(), self.dep.len(), |i, j| {
-            self.dense[self.rows[i] * n + self.dep[j]]
-        })
+    /// Factor the dependent block of the last [`Split::dense_jacobian`]
+    /// into `self.lu`.
+    fn factor_block(&mut self) {
+        let (n, rows, dep, dense) = (self.n, &self.rows, &self.dep, &self.dense);
+        self.lu.factor(|i, j| dense[rows[i] * n + dep[j]]);
     }
 
     /// Solve `B x = self.rhs` in place with the LU of the block.
-    fn solve(&mut self, lu: &PartialPivLu<f64>, t: f64) -> Result<(), FormulationError> {
-        let r = self.rhs.len();
-        lu.solve_in_place(MatMut::from_column_major_slice_mut(&mut self.rhs, r, 1));
+    fn solve(&mut self, t: f64) -> Result<(), FormulationError> {
+        self.lu.solve(&mut self.rhs);
         if let Some((index, value)) = crate::integrate::first_non_finite(&self.rhs) {
             return Err(FormulationError::NonFinite {
                 what: "the dependent-coordinate solve of coordinate partitioning",
@@ -198,7 +328,7 @@ impl Split {
     }
 
     /// The full state from the independent part `v`, `v̇`: Newton on
-    /// `Φ_R(u, v, t) = 0` from the predictor, then the dependent
+    /// `Φ_R(u, v, t) = 0` from the base's predictor, then the dependent
     /// velocities. Returns the Newton iterations.
     fn expand(
         &mut self,
@@ -209,12 +339,25 @@ impl Split {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<usize, FormulationError> {
-        let d = self.dof();
-        let (v, vd) = y.split_at(d);
         let dt = t - self.base_t;
         for &k in &self.dep {
-            q[k] = self.base_q[k] + self.base_qd[k] * dt;
+            q[k] = self.base_q[k] + dt * (self.base_qd[k] + 0.5 * dt * self.base_qdd[k]);
         }
+        self.complete(sys, opts, t, y, q, qd)
+    }
+
+    /// [`Split::expand`] from the predictor already in `q[dep]`.
+    fn complete(
+        &mut self,
+        sys: &System,
+        opts: &PartitionOptions,
+        t: f64,
+        y: &[f64],
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<usize, FormulationError> {
+        let d = self.dof();
+        let (v, vd) = y.split_at(d);
         for (i, &k) in self.indep.iter().enumerate() {
             q[k] = v[i];
             qd[k] = vd[i];
@@ -238,11 +381,11 @@ impl Split {
                 });
             }
             self.dense_jacobian(sys, t, q);
-            let lu = self.block().partial_piv_lu();
+            self.factor_block();
             for (x, &i) in self.rhs.iter_mut().zip(&self.rows) {
                 *x = -self.phi[i];
             }
-            self.solve(&lu, t)?;
+            self.solve(t)?;
             let mut step = 0.0_f64;
             for (&k, dx) in self.dep.iter().zip(&self.rhs) {
                 q[k] += dx;
@@ -255,14 +398,14 @@ impl Split {
         }
         // Φ_R,u u̇ = −Φ_R,t − Φ_R,v v̇ at the converged q
         self.dense_jacobian(sys, t, q);
-        let lu = self.block().partial_piv_lu();
+        self.factor_block();
         sys.phi_t(q, t, &mut self.phi_t);
         let n = self.n;
         for (x, &i) in self.rhs.iter_mut().zip(&self.rows) {
             let row = &self.dense[i * n..(i + 1) * n];
             *x = -self.phi_t[i] - self.indep.iter().map(|&k| row[k] * qd[k]).sum::<f64>();
         }
-        self.solve(&lu, t)?;
+        self.solve(t)?;
         for (&k, &x) in self.dep.iter().zip(&self.rhs) {
             qd[k] = x;
         }
@@ -272,17 +415,29 @@ impl Split {
     /// κ₁(Φ_R,u) = ‖B‖₁ ‖B⁻¹‖₁ at `(q, t)` (∞ when B is singular).
     fn condition(&mut self, sys: &System, t: f64, q: &[f64]) -> f64 {
         self.dense_jacobian(sys, t, q);
-        let b = self.block();
-        let norm1 = |a: &Mat<f64>| {
-            (0..a.ncols())
-                .map(|j| (0..a.nrows()).map(|i| a[(i, j)].abs()).sum::<f64>())
-                .fold(0.0, f64::max)
-        };
-        if b.nrows() == 0 {
+        let (r, n) = (self.rows.len(), self.n);
+        if r == 0 {
             return 1.0;
         }
-        let inv = b.partial_piv_lu().inverse();
-        let k = norm1(&b) * norm1(&inv);
+        let norm_b = self
+            .dep
+            .iter()
+            .map(|&c| self.rows.iter().map(|&i| self.dense[i * n + c].abs()).sum())
+            .fold(0.0, f64::max);
+        // ‖B⁻¹‖₁: the largest column sum of B⁻¹, column by column
+        self.factor_block();
+        let mut norm_inv = 0.0_f64;
+        for j in 0..r {
+            self.rhs.fill(0.0);
+            self.rhs[j] = 1.0;
+            self.lu.solve(&mut self.rhs);
+            let c: f64 = self.rhs.iter().map(|v| v.abs()).sum();
+            if !c.is_finite() {
+                return f64::INFINITY;
+            }
+            norm_inv = norm_inv.max(c);
+        }
+        let k = norm_b * norm_inv;
         if k.is_finite() {
             k
         } else {
@@ -304,6 +459,16 @@ pub struct Partitioned<'a> {
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
+    /// LU of eq. (5) on the rows R (dimension n + r) and its right-hand
+    /// side: buffers kept between evaluations.
+    kkt: LuBuf,
+    x: Vec<f64>,
+    /// `(t, y)` of the last evaluation whose `q`, `q̇`, `q̈` are in the
+    /// buffers above (the accepted step's end is usually the last stage).
+    last_t: Option<f64>,
+    last_y: Vec<f64>,
+    dydt: Vec<f64>,
+    accepted: Rc<RefCell<Accepted>>,
     stats: PartitionStats,
 }
 
@@ -350,6 +515,12 @@ impl<'a> Partitioned<'a> {
         let split = Split::choose(sys, t0, q0, None)?;
         let rank = split.dep.len();
         Ok(Self {
+            kkt: LuBuf::new(n + rank),
+            x: vec![0.0; n + rank],
+            last_t: None,
+            last_y: Vec::new(),
+            dydt: Vec::new(),
+            accepted: Rc::default(),
             sys,
             opts,
             split,
@@ -395,7 +566,7 @@ impl<'a> Partitioned<'a> {
         qdd: &mut [f64],
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
-        let (n, r) = (sys.n_coords(), self.split.rows.len());
+        let n = sys.n_coords();
         sys.forces_into(t, q, qd, &mut self.g);
         sys.gamma(q, qd, t, &mut self.gamma);
         all_finite(
@@ -406,7 +577,7 @@ impl<'a> Partitioned<'a> {
             ],
         )?;
         let (mass, sp) = (sys.mass_diagonal(), &self.split);
-        let k = Mat::from_fn(n + r, n + r, |i, j| match (i < n, j < n) {
+        self.kkt.factor(|i, j| match (i < n, j < n) {
             (true, true) => {
                 if i == j {
                     mass[i]
@@ -418,12 +589,14 @@ impl<'a> Partitioned<'a> {
             (false, true) => sp.dense[sp.rows[i - n] * n + j],
             (false, false) => 0.0,
         });
-        let mut x: Vec<f64> = self.g.to_vec();
-        x.extend(sp.rows.iter().map(|&i| self.gamma[i]));
-        k.partial_piv_lu()
-            .solve_in_place(MatMut::from_column_major_slice_mut(&mut x, n + r, 1));
+        let x = &mut self.x;
+        x[..n].copy_from_slice(&self.g);
+        for (xi, &i) in x[n..].iter_mut().zip(&sp.rows) {
+            *xi = self.gamma[i];
+        }
+        self.kkt.solve(x);
         self.factorizations += 1;
-        if let Some((index, value)) = crate::integrate::first_non_finite(&x) {
+        if let Some((index, value)) = crate::integrate::first_non_finite(x) {
             return Err(FormulationError::NonFinite {
                 what: "the accelerations of eq. (5) (singular configuration?)",
                 index,
@@ -452,6 +625,21 @@ impl<'a> Partitioned<'a> {
         let it = self.split.expand(self.sys, &self.opts, t, y, q, qd)?;
         self.stats.newton_iterations += it;
         Ok(it)
+    }
+
+    /// A segment starts at the full state `(t, q, q̇)`: the predictor's
+    /// base (with `q̈` there; zero if eq. (5) fails, which the first
+    /// evaluation then reports) and both accepted states.
+    fn start_segment(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        self.split.dense_jacobian(self.sys, t, q);
+        let mut qdd = std::mem::take(&mut self.qdd);
+        if self.accelerations(t, q, qd, &mut qdd).is_err() {
+            qdd.fill(0.0);
+        }
+        self.split.set_base(t, q, qd, &qdd);
+        self.qdd = qdd;
+        self.last_t = None;
+        self.accepted.borrow_mut().reset(t, q, qd);
     }
 
     /// `[q[v]; q̇[v]]` of a full state.
@@ -508,7 +696,7 @@ impl<'a> Partitioned<'a> {
                     }
                 }
             }
-            self.split.set_base(t, &q, &qd);
+            self.start_segment(t, &q, &qd);
             let y0 = self.reduce(&q, &qd);
             let seg_times: Vec<f64> = times
                 .iter()
@@ -522,6 +710,7 @@ impl<'a> Partitioned<'a> {
                 sys,
                 opts: self.opts,
                 split: self.split.clone(),
+                accepted: Rc::clone(&self.accepted),
                 inner: &mut *obs,
                 full: vec![0.0; 2 * n],
                 seen: &mut warnings,
@@ -588,18 +777,29 @@ impl OdeSystem for Partitioned<'_> {
             })
         });
         (self.q, self.qd) = (q, qd);
+        if r.is_ok() {
+            self.last_t = Some(t);
+            self.last_y.clear();
+            self.last_y.extend_from_slice(y);
+        } else {
+            self.last_t = None;
+        }
         r.map_err(SystemError::new)
     }
-    /// The accepted state becomes the Newton predictor's base (`y` is not
-    /// moved).
+    /// The accepted state (`q`, `q̇`, `q̈`: those of the last evaluation
+    /// when it was at this `(t, y)`) becomes the Newton predictor's base
+    /// and the newest accepted state (`y` is not moved).
     fn post_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {
-        let (mut q, mut qd) = (std::mem::take(&mut self.q), std::mem::take(&mut self.qd));
-        let r = self.expand(t, y, &mut q, &mut qd);
-        if r.is_ok() {
-            self.split.set_base(t, &q, &qd);
+        if self.last_t != Some(t) || self.last_y != y {
+            let mut dydt = std::mem::take(&mut self.dydt);
+            dydt.resize(y.len(), 0.0);
+            let r = self.rhs(t, y, &mut dydt);
+            self.dydt = dydt;
+            r?;
         }
-        (self.q, self.qd) = (q, qd);
-        r.map(|_| false).map_err(SystemError::new)
+        self.split.set_base(t, &self.q, &self.qd, &self.qdd);
+        self.accepted.borrow_mut().push(t, &self.q, &self.qd);
+        Ok(false)
     }
 }
 
@@ -610,6 +810,7 @@ struct FullState<'o, 's> {
     sys: &'s System,
     opts: PartitionOptions,
     split: Split,
+    accepted: Rc<RefCell<Accepted>>,
     inner: &'o mut dyn Observer,
     full: Vec<f64>,
     seen: &'o mut Vec<String>,
@@ -619,11 +820,31 @@ struct FullState<'o, 's> {
 }
 
 impl FullState<'_, '_> {
+    /// `[q; q̇]` at `(t, y)` into `self.full`: the accepted state itself at
+    /// its time, else Newton from the Hermite predictor of the two accepted
+    /// states around `t` ([`Accepted`]).
     fn complete(&mut self, t: f64, y: &[f64]) -> Result<(), String> {
         let n = self.split.n;
         let (q, qd) = self.full.split_at_mut(n);
+        let acc = self.accepted.borrow();
+        let d = self.split.dof();
+        let at_step = acc.t[1] == t
+            && acc.q[1].len() == n
+            && self
+                .split
+                .indep
+                .iter()
+                .enumerate()
+                .all(|(i, &k)| acc.q[1][k] == y[i] && acc.qd[1][k] == y[d + i]);
+        if at_step {
+            q.copy_from_slice(&acc.q[1]);
+            qd.copy_from_slice(&acc.qd[1]);
+            return Ok(());
+        }
+        acc.predict(t, &self.split.dep, q);
+        drop(acc);
         self.split
-            .expand(self.sys, &self.opts, t, y, q, qd)
+            .complete(self.sys, &self.opts, t, y, q, qd)
             .map(|_| ())
             .map_err(|e| format!("coordinate partitioning: {e}"))
     }
@@ -641,14 +862,12 @@ impl Observer for FullState<'_, '_> {
             return ControlFlow::Break(e);
         }
         let n = self.split.n;
-        let (q, qd) = self.full.split_at(n);
-        self.split.set_base(t, q, qd);
         self.inner.step(t, &self.full)?;
-        let q = self.full[..n].to_vec();
-        let kappa = self.split.condition(self.sys, t, &q);
+        let q = &self.full[..n];
+        let kappa = self.split.condition(self.sys, t, q);
         self.max_condition = self.max_condition.max(kappa);
         if kappa > self.opts.max_condition {
-            if let Ok(s) = Split::choose(self.sys, t, &q, Some(self.rank)) {
+            if let Ok(s) = Split::choose(self.sys, t, q, Some(self.rank)) {
                 if s.dep != self.split.dep {
                     self.repartition = true;
                     return ControlFlow::Break(format!(
