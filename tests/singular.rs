@@ -137,3 +137,85 @@ fn doubled_joint_is_reported_as_redundant_not_singular() {
     assert!(has(&s, &["regularised pivots", "the redundant rows above"]));
     assert!(!has(&s, &["lost rank at"]), "{:?}", s.warnings);
 }
+
+/// The chain of `loops` parallelogram loops, its state and the time of its
+/// first singular position (θ through π) from the 1-DOF reference.
+fn long_chain(loops: usize, redundant: bool) -> (ParallelogramChain, f64) {
+    let p = ParallelogramChain {
+        loops,
+        redundant,
+        ..Default::default()
+    };
+    let times: Vec<f64> = (0..=5_000).map(|k| k as f64 * 1e-4).collect();
+    let th = p.reference(&times, 1e-5);
+    let k = th
+        .iter()
+        .position(|(t, _)| *t >= std::f64::consts::PI)
+        .unwrap();
+    (p, times[k])
+}
+
+#[test]
+fn long_chain_crossing_is_reported_above_64_coordinates() {
+    // 31 loops (189 coordinates, 188 rows of rank 188; Φ_q loses 31 ranks
+    // at θ = π — odd, so the determinant's sign tells): the monitor runs
+    // on its cadence (more than one step per check) and still reports the
+    // first crossing at the reference's time.
+    let (p, t_sing) = long_chain(31, false);
+    let sys = parallelogram_chain(&p).unwrap();
+    assert!(sys.n_coords() > 64);
+    let (q0, v0) = p.state(p.theta0, p.rate0);
+    let mut cfg = RunConfig {
+        method: Method::Ode45,
+        t_end: 0.3,
+        output_dt: 0.01,
+        ..Default::default()
+    };
+    cfg.ode.rtol = 1e-8;
+    cfg.ode.atol = Tolerance::Scalar(1e-10);
+    let mon = mbsolve::formulation::SingularityMonitor::new(&sys, 0.0, &q0).unwrap();
+    assert!(mon.stride() > 1, "stride {}", mon.stride());
+    let (_, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
+    for w in &s.warnings {
+        eprintln!("  - {w}");
+    }
+    let t_found = extra(&s, "first_singular_t");
+    eprintln!(
+        "31 loops, {} coordinates, stride {}: {} steps, first singular position: reference \
+         {t_sing:.4} s, reported {t_found:.6} s",
+        sys.n_coords(),
+        mon.stride(),
+        s.steps
+    );
+    assert_eq!(extra(&s, "redundant_rows"), 0.0);
+    assert!(extra(&s, "singular_crossings") >= 1.0);
+    assert!((t_found - t_sing).abs() < 2e-3, "{t_found} vs {t_sing}");
+    assert!(has(&s, &["Φ_q lost rank at t ≈"]), "{:?}", s.warnings);
+}
+
+#[test]
+fn long_redundant_chain_reports_its_redundant_rows_above_64_coordinates() {
+    // 30 loops under one rigid coupler (96 coordinates, 124 rows of rank
+    // 95: 29 redundant pins), stopped before the first singular position:
+    // the redundant rows are reported, no crossing.
+    let (p, t_sing) = long_chain(30, true);
+    let sys = parallelogram_chain(&p).unwrap();
+    assert!(sys.n_coords() > 64);
+    let (q0, v0) = p.state(p.theta0, p.rate0);
+    let mut cfg = RunConfig {
+        method: Method::Ode45,
+        t_end: 0.5 * t_sing,
+        ..Default::default()
+    };
+    cfg.ode.rtol = 1e-8;
+    cfg.ode.atol = Tolerance::Scalar(1e-10);
+    let (_, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
+    for w in &s.warnings {
+        eprintln!("  - {w}");
+    }
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    assert_eq!(extra(&s, "redundant_rows"), 29.0);
+    assert_eq!(extra(&s, "singular_crossings"), 0.0);
+    assert!(has(&s, &["29 of the 124 constraint rows are redundant"]));
+    assert!(!has(&s, &["lost rank at"]), "{:?}", s.warnings);
+}
