@@ -46,8 +46,7 @@ pub use initial::{
 };
 pub use partitioning::{
     PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,
-    MAX_PARTITION_COORDS, MONITOR_EVERY_STEP_COORDS, MONITOR_FLOPS_PER_COORD, MONITOR_MAX_COORDS,
-    SINGULAR_RATIO,
+    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS, SINGULAR_RATIO,
 };
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};

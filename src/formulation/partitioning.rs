@@ -890,25 +890,12 @@ impl Observer for FullState<'_, '_> {
     }
 }
 
-/// Largest system whose rank [`SingularityMonitor`] watches (dense: the
-/// rank at t0 by complete pivoting, `O(m² n)` once, then an `r × r`
-/// determinant, `O(r³/3 + m n)` per check, every
-/// [`SingularityMonitor::stride`]-th accepted step, [`MONITOR_FLOPS_PER_COORD`]);
-/// above it only the
-/// regularised pivots of the factorisations tell (the rod at N ≥ 200 and
-/// the stiff chains are never watched, so their runs do not pay for it).
-pub const MONITOR_MAX_COORDS: usize = 600;
-
-/// Systems of up to this many coordinates are checked at every accepted
-/// step (the mechanisms of the constraint-method study).
-pub const MONITOR_EVERY_STEP_COORDS: usize = 64;
-
-/// Work budget of [`SingularityMonitor`] per accepted step and coordinate
-/// (floating point operations) above [`MONITOR_EVERY_STEP_COORDS`]: a
-/// check costing more is made every `⌈cost / (budget · n)⌉`-th step, so the
-/// monitor's work per step stays a bounded fraction of a step of a sparse
-/// formulation, which is itself `O(n)` with a constant of some 10³.
-pub const MONITOR_FLOPS_PER_COORD: f64 = 50.0;
+/// Largest system whose rank [`SingularityMonitor`] watches at every
+/// accepted step (a dense `r × r` determinant per step, `O(r³)`; cost not
+/// measured separately; 64 coordinates covers the mechanisms of the
+/// constraint-method study; above it
+/// only the regularised pivots of the factorisations tell).
+pub const MONITOR_MAX_COORDS: usize = 64;
 
 /// Rank measure (r-th over first complete pivot of Φ_R) below which a
 /// sign change of the split's determinant is a singular configuration.
@@ -929,26 +916,18 @@ pub struct SingularCrossing {
 
 /// Rank loss of Φ_q along a run, from accepted steps only (issue 10):
 /// the rank r₀ and independent rows R at t0 (m − r₀ > 0: redundant
-/// constraints, [`SingularityMonitor::redundant_rows`]) and, at every
-/// checked step (every step up to [`MONITOR_EVERY_STEP_COORDS`]
-/// coordinates, on a bounded-cost cadence above), the sign of
-/// `det Φ_R,u` for a split chosen by complete pivoting. A sign
-/// change between two checks is checked at both ends and at the secant root
+/// constraints, [`SingularityMonitor::redundant_rows`]) and, at every step,
+/// the sign of `det Φ_R,u` for a split chosen by complete pivoting. A sign
+/// change between two steps is checked at both ends and at the secant root
 /// of the determinant (positions interpolated linearly): if the r-th
 /// complete pivot of Φ_R over the first falls below [`SINGULAR_RATIO`] at
 /// one of them, every r × r block is (nearly) singular there — a singular
 /// configuration was crossed; otherwise only the split went singular and it
-/// is re-chosen. A sign test sees an odd number of singular directions
-/// crossed between two checks: k identical loops crossing together with k
-/// even (the two-loop parallelogram chain) are not reported.
+/// is re-chosen.
 pub struct SingularityMonitor {
     split: Split,
     m: usize,
     r: usize,
-    /// Check every `stride`-th accepted step ([`MONITOR_FLOPS_PER_COORD`]);
-    /// `skipped` counts the steps since the last check.
-    stride: usize,
-    skipped: usize,
     /// Time and determinant sign of the last accepted step (`None` before
     /// the first), its positions in `last_q`.
     last: Option<(f64, f64)>,
@@ -971,19 +950,10 @@ impl SingularityMonitor {
         }
         let split = Split::choose(sys, t0, q0, None).ok()?;
         let r = split.dep.len();
-        let cost = (r as f64).powi(3) / 3.0 + (m * n) as f64;
         Some(Self {
             split,
             m,
             r,
-            stride: if n <= MONITOR_EVERY_STEP_COORDS {
-                1
-            } else {
-                (cost / (MONITOR_FLOPS_PER_COORD * n as f64))
-                    .ceil()
-                    .max(1.0) as usize
-            },
-            skipped: 0,
             last: None,
             last_q: vec![0.0; n],
             lu: vec![0.0; r * r],
@@ -991,11 +961,6 @@ impl SingularityMonitor {
             crossings: 0,
             first: None,
         })
-    }
-
-    /// Accepted steps per check (1: every step).
-    pub fn stride(&self) -> usize {
-        self.stride
     }
 
     /// Constraint rows that are redundant at t0 (`m − rank Φ_q`).
@@ -1081,11 +1046,6 @@ impl SingularityMonitor {
         if self.r == 0 {
             return None;
         }
-        self.skipped += 1;
-        if self.last.is_some() && self.skipped < self.stride {
-            return None;
-        }
-        self.skipped = 0;
         let (sign, ld) = self.log_det(sys, t, q);
         let mut found = None;
         if let Some((t_a, sign_a)) = self.last.take() {
