@@ -213,8 +213,7 @@ struct BdfRun<'s> {
     n: usize,
     rtol: f64,
     threshold: Vec<f64>,
-    /// Components in the error test: the positions `y[..n]`.
-    err_dim: usize,
+
     initial_step: Option<f64>,
     hmax: f64,
     t_end: f64,
@@ -277,7 +276,6 @@ impl<'s> BdfRun<'s> {
             n,
             rtol: tol.rtol,
             threshold: tol.threshold,
-            err_dim: n,
             initial_step: ode.initial_step,
             hmax: tol.hmax,
             t_end,
@@ -321,14 +319,29 @@ impl<'s> BdfRun<'s> {
         divided_difference(&nodes[..p + 2], &mut w[..p + 2]);
         let fact: f64 = (1..=p).map(|i| i as f64).product();
         let c = fact * h.powi(p as i32 + 1);
-        let yn = &self.ys[0];
+        let (n, yn) = (self.n, &self.ys[0]);
         let mut m: f64 = 0.0;
-        for i in 0..self.err_dim {
+        for i in 0..n {
             let mut d = w[0] * self.ynew[i];
             for j in 0..=p {
                 d += w[j + 1] * self.ys[j][i];
             }
             let r = (c * d).abs() / yn[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
+            if r > m {
+                m = r;
+            }
+        }
+        // velocities, an index-2 variable of the index-3 form: `h·est_v`,
+        // the position error they make over the step, in the positions'
+        // weights (Hairer & Wanner II §VII.3; Brenan, Campbell & Petzold
+        // §5.4 scale index-2 components by h)
+        for i in 0..n {
+            let mut d = w[0] * self.ynew[n + i];
+            for j in 0..=p {
+                d += w[j + 1] * self.ys[j][n + i];
+            }
+            let wq = yn[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
+            let r = h * (c * d).abs() / wq;
             if r > m {
                 m = r;
             }
@@ -527,12 +540,15 @@ impl Stepper for BdfRun<'_> {
         self.absh = match self.initial_step {
             Some(htry) => self.hmax.min(hmin.max(htry)),
             None => {
+                // the first step's error is the Euler error ½h²q̈ of the
+                // positions: at a quarter of rtol in the error test's norm
+                let (q0, thr) = (&self.ys[0][..n], &self.threshold[..n]);
+                let acc = (0..n)
+                    .map(|i| self.f0[n + i].abs() / q0[i].abs().max(thr[i]))
+                    .fold(0.0f64, f64::max);
                 let mut absh = self.hmax.min(self.t_end - t);
-                let rh = 1.25
-                    * common::error_norm(&self.f0, &self.ys[0], &self.ys[0], &self.threshold)
-                    / self.rtol.sqrt();
-                if absh * rh > 1.0 {
-                    absh = 1.0 / rh;
+                if acc > 0.0 {
+                    absh = absh.min((0.5 * self.rtol / acc).sqrt());
                 }
                 absh.max(hmin)
             }
@@ -607,12 +623,14 @@ impl Stepper for BdfRun<'_> {
             }
             let err = if self.ts.len() == 1 {
                 // first step: y − (y_0 + h ẏ_0) estimates the Euler error
+                // (velocities times h, as in `estimate`)
                 let y0 = &self.ys[0];
                 let mut m: f64 = 0.0;
-                for i in 0..self.err_dim {
+                for i in 0..n {
                     let e = self.ynew[i] - (y0[i] + h * self.f0[i]);
+                    let ev = self.ynew[n + i] - (y0[n + i] + h * self.f0[n + i]);
                     let w = y0[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
-                    m = m.max(e.abs() / w);
+                    m = m.max(e.abs().max(h * ev.abs()) / w);
                 }
                 m
             } else {
