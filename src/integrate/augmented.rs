@@ -41,6 +41,23 @@
 //! from the projected `q̈_{n+1}`. Fixed step; a Newton failure halves the
 //! step and the grid point is reached by sub-steps that double again.
 //! The system side is [`AugmentedDae`] (`formulation::Augmented`).
+//! An inconsistent initial state is first projected onto the manifold
+//! ([`AugmentedDae::consistent_state`], a warning of the run).
+//!
+//! **Penalty growth.** The multiplier update contracts by about
+//! `1/(1 + x)` per iteration along a constraint direction, `x = c_k α σ²/m`
+//! with `σ²/m` its eigenvalue of `Φ_q M⁻¹Φ_qᵀ`; near a singular position σ
+//! goes to zero and the iteration crawls (two parallelogram loops crossing
+//! together: θ ≈ 0.87 … 0.99, so the default Newton tolerance was never
+//! reached and the step collapsed). When the contraction θ stays above
+//! [`SLOW_CONTRACTION`] after the matrix was renewed at the iterate, α is
+//! multiplied for the rest of the attempt by `(1/0.1 − 1)/(1/θ − 1)`
+//! (the factor that turns θ into 0.1), at most [`MAX_PENALTY_FACTOR`] in
+//! all, and `W` is refactorised; the next step starts from the default α
+//! again (a large α everywhere costs conditioning and, measured, branch
+//! changes at the singular positions). A stagnating iteration whose
+//! corrections are below `NOISE_REL` of the positions has converged to the
+//! noise of the solve, as in generalized-α.
 
 /// Newton iterations per attempt that scenarios give the augmented
 /// Lagrangian when `integrator.max_newton` is not set (the implicit
