@@ -422,8 +422,9 @@ fn solve_dense(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
         b.swap(k, p);
         for i in k + 1..n {
             let f = a[i][k] / a[k][k];
-            for j in k..n {
-                a[i][j] -= f * a[k][j];
+            let (top, bottom) = a.split_at_mut(i);
+            for (x, y) in bottom[0][k..].iter_mut().zip(&top[k][k..]) {
+                *x -= f * y;
             }
             b[i] -= f * b[k];
         }

@@ -359,7 +359,7 @@ impl<'a> Augmented<'a> {
             let mut res = out.phi;
             let mut it = 0;
             loop {
-                if it == START_MAX_ITER || !(res <= 10.0 * out.phi) {
+                if it == START_MAX_ITER || res > 10.0 * out.phi {
                     return Err(FormulationError::Initial(format!(
                         "the initial positions violate the constraints (‖Φ‖∞ = {:.3e} at t = \
                          {t}) and the augmented Lagrangian's mass-orthogonal projection did not \
@@ -413,7 +413,7 @@ impl<'a> Augmented<'a> {
             let mut res = out.phi_dot;
             let mut it = 0;
             loop {
-                if it == START_MAX_ITER || !(res <= 10.0 * out.phi_dot) {
+                if it == START_MAX_ITER || res > 10.0 * out.phi_dot {
                     return Err(FormulationError::Initial(format!(
                         "the initial velocities violate the velocity constraints (‖Φ_q q̇ + \
                          Φ_t‖∞ = {:.3e} at t = {t}) and the mass-orthogonal projection did not \
