@@ -119,3 +119,75 @@ fn parallelogram_passes_its_singular_position_without_nans() {
     );
     assert_eq!(s.status, "completed", "{:?}", s.message);
 }
+
+/// Largest distance of the marked point from the chain's independent
+/// one-degree-of-freedom reference over the trajectory.
+fn branch_error(
+    p: &mbsolve::builders::ParallelogramChain,
+    traj: &mbsolve::simulation::Trajectory,
+) -> f64 {
+    let reference = p.reference(&traj.t, 1e-4);
+    traj.q
+        .iter()
+        .zip(&reference)
+        .map(|(q, (th, _))| {
+            let (a, b) = (p.marked_point_of(q), p.marked_point(*th));
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn genalpha_small_step_on_the_redundant_parallelogram_chain_is_on_its_branch_or_says_why() {
+    // Issue 10 item 6: two parallelogram loops with one redundant coupler
+    // (Φ_q rank-deficient everywhere, and singular at every crossing of the
+    // aligned position), generalized-α (index 3) at h = 1e-4 over 10 s.
+    // Either the run completes on its branch (the marked point within
+    // 1e-3 m of the independent 1-DOF reference) or the summary says where
+    // and why it may not be: the time of the singular configuration and
+    // the Newton failures. (Measured: it completes, 0.4 m off the branch,
+    // with both warnings; see the lead's notes — not yet fixed.)
+    use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
+    use mbsolve::integrate::Method;
+    use mbsolve::simulation::RunConfig;
+    let p = ParallelogramChain {
+        loops: 2,
+        redundant: true,
+        ..Default::default()
+    };
+    let sys = parallelogram_chain(&p).unwrap();
+    let (q0, v0) = sys.initial_state();
+    let mut cfg = RunConfig {
+        method: Method::GenAlpha,
+        t_end: 10.0,
+        output_dt: 0.005,
+        ..Default::default()
+    };
+    cfg.ode.fixed_step = Some(1e-4);
+    let (traj, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
+    let worst = branch_error(&p, &traj);
+    eprintln!(
+        "redundant chain, genalpha h = 1e-4: {} ({:?}) at t = {}, {} steps, {:?} Newton \
+         iterations, {:?} failures, branch error {worst:.3e} m",
+        s.status,
+        s.message,
+        s.t_reached,
+        s.steps,
+        s.extra.get("newton_iterations"),
+        s.extra.get("newton_failures"),
+    );
+    if s.status == "completed" && worst < 1e-3 {
+        return;
+    }
+    let said = |what: &str| s.warnings.iter().any(|w| w.contains(what));
+    assert!(
+        said("Φ_q lost rank at t ≈") && said("another branch"),
+        "off the branch by {worst:e} m without the singular configuration's time: {:?}",
+        s.warnings
+    );
+    assert!(
+        s.status != "completed" || said("Newton failures"),
+        "{:?}",
+        s.warnings
+    );
+}
