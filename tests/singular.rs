@@ -95,6 +95,48 @@ fn projected_chain_crossing_is_reported_as_kept() {
 }
 
 #[test]
+fn two_loops_crossing_together_are_reported() {
+    // Two identical loops lose rank together: det of the split changes sign
+    // twice between two steps (an even crossing), which the sign test cannot
+    // see; the local minimum of |det| finds it. The time must be the
+    // 1-DOF reference's first singular position.
+    let p = ParallelogramChain {
+        loops: 2,
+        ..Default::default()
+    };
+    let sys = parallelogram_chain(&p).unwrap();
+    let (q0, v0) = sys.initial_state();
+    let mut cfg = RunConfig {
+        method: Method::Ode45,
+        t_end: 2.0,
+        ..Default::default()
+    };
+    cfg.ode.rtol = 1e-8;
+    cfg.ode.atol = Tolerance::Scalar(1e-10);
+    cfg.index1.projection.enabled = true;
+    let (_, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
+    let times: Vec<f64> = (0..=20_000).map(|k| k as f64 * 1e-4).collect();
+    let th = p.reference(&times, 1e-5);
+    let k = th
+        .iter()
+        .position(|(t, _)| *t >= std::f64::consts::PI)
+        .unwrap();
+    let t_found = extra(&s, "first_singular_t");
+    eprintln!(
+        "two loops: reference {:.4} s, reported {t_found:.6} s, {} crossings",
+        times[k],
+        extra(&s, "singular_crossings")
+    );
+    assert!(
+        (t_found - times[k]).abs() < 1e-3,
+        "{t_found} vs {}",
+        times[k]
+    );
+    assert!(extra(&s, "singular_crossings") >= 2.0);
+    assert!(has(&s, &["lost rank"]), "{:?}", s.warnings);
+}
+
+#[test]
 fn four_bar_through_full_turns_reports_no_rank_loss() {
     // Full crank revolutions: the monitor's split goes singular and is
     // re-chosen, Φ_q never loses rank — no warning.

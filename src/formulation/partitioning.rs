@@ -932,6 +932,12 @@ pub struct SingularityMonitor {
     /// the first), its positions in `last_q`.
     last: Option<(f64, f64)>,
     last_q: Vec<f64>,
+    /// `ln|det|` of the last accepted step and `(t, ln|det|)` of the one
+    /// before it with its positions in `before_q` (same sign): a local
+    /// minimum of `|det|` between them is checked for an even crossing.
+    last_ld: f64,
+    before: Option<(f64, f64)>,
+    before_q: Vec<f64>,
     /// Scratch of the r × r elimination and the interpolated positions:
     /// no allocation per step.
     lu: Vec<f64>,
@@ -956,6 +962,9 @@ impl SingularityMonitor {
             r,
             last: None,
             last_q: vec![0.0; n],
+            last_ld: 0.0,
+            before: None,
+            before_q: vec![0.0; n],
             lu: vec![0.0; r * r],
             qm: vec![0.0; n],
             crossings: 0,
@@ -1075,15 +1084,86 @@ impl SingularityMonitor {
                     }
                 } else if let Ok(s) = Split::choose(sys, t, q, Some(self.r)) {
                     self.split = s; // only this split went singular
-                    let (sign, _) = self.log_det(sys, t, q);
+                    let (sign, ld) = self.log_det(sys, t, q);
                     self.last = Some((t, sign));
                     self.last_q.copy_from_slice(q);
+                    self.last_ld = ld;
+                    self.before = None;
                     return None;
                 }
+                self.before = None;
+            } else if let Some(c) = self.even_crossing(sys, t_a, t, ld, q) {
+                found = Some(c);
+            }
+            if sign == sign_a {
+                self.before = Some((t_a, self.last_ld));
+                std::mem::swap(&mut self.before_q, &mut self.last_q);
             }
         }
         self.last = Some((t, sign));
         self.last_q.copy_from_slice(q);
+        self.last_ld = ld;
         found
+    }
+
+    /// An even number of singular directions crossed together (k identical
+    /// loops, k even) leaves the determinant's sign unchanged: `det` then
+    /// behaves like `c (t − t_s)²` near `t_s`. When `|det|` of the middle
+    /// of the last three accepted steps is a local minimum, the vertex of
+    /// the parabola through the three determinants (scaled by the middle
+    /// one) estimates `t_s`; the rank measure there (positions interpolated
+    /// linearly), or at the middle step, below [`SINGULAR_RATIO`] is a
+    /// crossing.
+    fn even_crossing(
+        &mut self,
+        sys: &System,
+        t1: f64,
+        t2: f64,
+        ld2: f64,
+        q2: &[f64],
+    ) -> Option<SingularCrossing> {
+        let (t0, ld0) = self.before?;
+        let ld1 = self.last_ld;
+        if !(ld1 < ld0 && ld1 < ld2) {
+            return None;
+        }
+        let (d0, d2) = ((ld0 - ld1).exp(), (ld2 - ld1).exp());
+        // vertex of the parabola through (t0, d0), (t1, 1), (t2, d2)
+        let (a0, a2) = ((d0 - 1.0) / (t0 - t1), (d2 - 1.0) / (t2 - t1));
+        let curv = (a2 - a0) / (t2 - t0);
+        let tv = if curv > 0.0 && curv.is_finite() {
+            0.5 * (t1 + t0 - a0 / curv)
+        } else {
+            t1
+        };
+        let tv = tv.clamp(t0, t2);
+        let mut qm = std::mem::take(&mut self.qm);
+        let (ta, qa, tb, qb) = if tv <= t1 {
+            (t0, &self.before_q[..], t1, &self.last_q[..])
+        } else {
+            (t1, &self.last_q[..], t2, q2)
+        };
+        let s = if tb > ta { (tv - ta) / (tb - ta) } else { 0.0 };
+        for ((m, a), b) in qm.iter_mut().zip(qa.iter()).zip(qb.iter()) {
+            *m = a + s * (b - a);
+        }
+        let rm = self.rank_ratio(sys, tv, &qm);
+        self.qm = qm;
+        let q1 = std::mem::take(&mut self.last_q);
+        let r1 = self.rank_ratio(sys, t1, &q1);
+        self.last_q = q1;
+        if rm.min(r1) >= SINGULAR_RATIO {
+            return None;
+        }
+        self.crossings += 1;
+        let c = SingularCrossing {
+            t: tv,
+            ratio: rm.min(r1),
+        };
+        if self.first.is_none() {
+            self.first = Some(c);
+            return Some(c);
+        }
+        None
     }
 }
