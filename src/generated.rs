@@ -349,12 +349,14 @@ impl ChainKernels {
             Some(g) if g.row0 == 0 => (1, 0),
             _ => (0, nh),
         };
-        kernels::revolute_chain_hessian(
-            self.chain_q(q),
-            &self.params,
-            &lambda[self.chain_rows()],
-            &mut vals[chain_at..chain_at + nh],
-        );
+        let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
+        let o = &mut vals[chain_at..chain_at + nh];
+        // memoised sines and cosines (shared with Φ, Φ_q, γ at the same q);
+        // computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_hessian_sc(qc, m.update(qc), p, l, o),
+            Err(_) => kernels::revolute_chain_hessian(qc, p, l, o),
+        }
         if let Some(g) = &self.ground {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }

@@ -161,7 +161,12 @@ impl<'a> Index3<'a> {
         let blocks = DynamicBlocks::register(sys, &mut a);
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
+        // `Auto`: the envelope LDLᵀ when the pattern is a chain, faer's
+        // sparse LDLᵀ otherwise (`ChainLdlt`).
         let kind = match newton {
+            NewtonSolverKind::SymmetricLdlt if linear_solver == SolverKind::Auto => {
+                SolverKind::Chain
+            }
             NewtonSolverKind::SymmetricLdlt => linear_solver,
             NewtonSolverKind::SparseLu => SolverKind::SparseLu,
         };
