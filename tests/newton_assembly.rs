@@ -260,3 +260,52 @@ fn whole_runs_agree_generated_and_generic() {
     // the tip moved (from x = 1 m · sin 5°)
     assert!((tips[0] - 5f64.to_radians().sin()).abs() > 1e-6, "{tips:?}");
 }
+
+/// The generated kernels' `sin_cos` (one reduction for both) is within
+/// 1 ulp of libm's `sin` and `cos` over ±2000 rad and at the edges of the
+/// reduction (multiples of π/4, tiny and huge arguments, NaN).
+#[test]
+fn fast_sin_cos_is_within_one_ulp_of_libm() {
+    let ulp = |a: f64, b: f64| {
+        if a == b {
+            0.0
+        } else {
+            (a - b).abs() / (f64::EPSILON * a.abs().max(b.abs()).max(f64::MIN_POSITIVE))
+        }
+    };
+    let mut xs: Vec<f64> = (0..200_000)
+        .map(|i| -2000.0 + 4000.0 * (i as f64) / 200_000.0 + 1e-7 * (i as f64).sin())
+        .collect();
+    for k in -64..=64 {
+        let a = k as f64 * std::f64::consts::FRAC_PI_4;
+        xs.extend([a, a.next_up(), a.next_down(), a + 1e-9]);
+    }
+    xs.extend([0.0, 1e-300, -1e-20, 3.0e5, -1.6e6, 1e7, 1e300]);
+    let mut worst = 0.0_f64;
+    for &x in &xs {
+        let (s, c) = mbsolve::generated::sin_cos(x);
+        // relative to max(|value|, ulp of 1 × |x|-scaled reduction error)
+        let (es, ec) = (ulp(s, x.sin()), ulp(c, x.cos()));
+        let tiny = |v: f64| v.abs() < 1e-9; // near a zero: absolute error
+        let e = if tiny(x.sin()) {
+            (s - x.sin()).abs() / f64::EPSILON
+        } else {
+            es
+        }
+        .max(if tiny(x.cos()) {
+            (c - x.cos()).abs() / f64::EPSILON
+        } else {
+            ec
+        });
+        worst = worst.max(e);
+        assert!(
+            e <= 1.0,
+            "x = {x:e}: ({s:e}, {c:e}) vs ({:e}, {:e})",
+            x.sin(),
+            x.cos()
+        );
+    }
+    let (s, c) = mbsolve::generated::sin_cos(f64::NAN);
+    assert!(s.is_nan() && c.is_nan());
+    assert!(worst > 0.0, "differs from libm somewhere (else it is libm)");
+}

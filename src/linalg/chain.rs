@@ -65,6 +65,8 @@ struct Envelope {
     /// Expected pivot signs (permuted numbering).
     positive: Vec<bool>,
     scale: Vec<f64>,
+    /// `scale` in elimination order.
+    pscale: Vec<f64>,
     /// Permuted right-hand side.
     w: Vec<f64>,
 }
@@ -151,6 +153,7 @@ impl Envelope {
             slot_to,
             positive,
             scale: vec![1.0; dim],
+            pscale: vec![1.0; dim],
             w: vec![0.0; dim],
         })
     }
@@ -163,6 +166,9 @@ impl Envelope {
         delta: f64,
     ) -> Result<usize, LinalgError> {
         saddle_scaling(k, &mut self.scale);
+        for (ps, &p) in self.pscale.iter_mut().zip(&self.perm) {
+            *ps = self.scale[p];
+        }
         let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
         self.env.fill(0.0);
         for c in 0..self.dim {
@@ -220,32 +226,40 @@ impl Envelope {
         Ok(regularized)
     }
 
-    /// `x ← S (S K S)⁻¹ S x` with the last factorisation.
+    /// `x ← S (S K S)⁻¹ S x` with the last factorisation: `L y = P S x`,
+    /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`.
     fn solve(&mut self, x: &mut [f64]) {
-        let w = &mut self.w;
-        for (wi, &p) in w.iter_mut().zip(&self.perm) {
-            *wi = x[p] * self.scale[p];
+        let (w, first, ptr, env) = (&mut self.w, &self.first, &self.ptr, &self.env);
+        for ((wi, &p), &s) in w.iter_mut().zip(&self.perm).zip(&self.pscale) {
+            *wi = x[p] * s;
         }
-        // L y = b
+        assert!(ptr[self.dim] <= env.len() && w.len() == self.dim);
         for i in 0..self.dim {
-            let fi = self.first[i];
-            let li = &self.env[self.ptr[i]..self.ptr[i + 1]];
-            let dot: f64 = li.iter().zip(&w[fi..i]).map(|(a, b)| a * b).sum();
+            let (fi, pi) = (first[i], ptr[i]);
+            let mut dot = 0.0;
+            for o in 0..i - fi {
+                // SAFETY: row i's entries are env[pi..ptr[i + 1]] (within
+                // env, checked above) and columns fi + o < i < dim.
+                unsafe {
+                    dot += env.get_unchecked(pi + o) * w.get_unchecked(fi + o);
+                }
+            }
             w[i] -= dot;
         }
         for (wi, &di) in w.iter_mut().zip(&self.dinv) {
             *wi *= di;
         }
-        // Lᵀ x = y, by rows of L from the last
         for i in (0..self.dim).rev() {
-            let (fi, wi) = (self.first[i], w[i]);
-            let li = &self.env[self.ptr[i]..self.ptr[i + 1]];
-            for (wk, &l) in w[fi..i].iter_mut().zip(li) {
-                *wk -= l * wi;
+            let (fi, pi, wi) = (first[i], ptr[i], w[i]);
+            for o in 0..i - fi {
+                // SAFETY: as in the forward loop
+                unsafe {
+                    *w.get_unchecked_mut(fi + o) -= env.get_unchecked(pi + o) * wi;
+                }
             }
         }
-        for (&wi, &p) in w.iter().zip(&self.perm) {
-            x[p] = wi * self.scale[p];
+        for ((&wi, &p), &s) in w.iter().zip(&self.perm).zip(&self.pscale) {
+            x[p] = wi * s;
         }
     }
 }
