@@ -147,6 +147,8 @@ impl GroundJoint {
 /// `__kernel_cos` on `[−π/4, π/4]` (Sun Microsystems 1993, as in musl's
 /// `__sin.c`, `__cos.c`, `__rem_pio2.c`); within 1 ulp of the libm values
 /// for `|x| < 2²⁰ π/2` (tested), libm beyond.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
 pub fn sin_cos(x: f64) -> (f64, f64) {
     const INV_PIO2: f64 = 6.366_197_723_675_813_824_33e-1;
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
@@ -155,11 +157,13 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     const PIO2_2T: f64 = 2.022_266_248_795_950_631_54e-21;
     const PIO2_3: f64 = 2.022_266_248_711_166_455_80e-21;
     const PIO2_3T: f64 = 8.478_427_660_368_899_569_97e-32;
-    if !(x.abs() < 1_647_099.0) {
+    if x.is_nan() || x.abs() >= 1_647_099.0 {
         return x.sin_cos();
     }
     // x = n π/2 + (y0 + y1), the remainder in two doubles
-    let n = (x * INV_PIO2).round();
+    // round to nearest (even) without a libm call: 1.5·2⁵² forces it
+    const TOINT: f64 = 6_755_399_441_055_744.0;
+    let n = (x * INV_PIO2 + TOINT) - TOINT;
     let mut r = x - n * PIO2_1;
     let mut w = n * PIO2_1T;
     let mut y0 = r - w;
@@ -192,6 +196,8 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 }
 
 /// fdlibm `__kernel_sin(x, y, 1)`: sin(x + y) on `|x| ≤ π/4`, `|y| ≤ ulp(x)/2`.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
 #[inline(always)]
 fn kernel_sin(x: f64, y: f64) -> f64 {
     const S1: f64 = -1.666_666_666_666_663_243_48e-01;
@@ -208,6 +214,8 @@ fn kernel_sin(x: f64, y: f64) -> f64 {
 }
 
 /// fdlibm `__kernel_cos(x, y)`: cos(x + y) on `|x| ≤ π/4`, `|y| ≤ ulp(x)/2`.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
 #[inline(always)]
 fn kernel_cos(x: f64, y: f64) -> f64 {
     const C1: f64 = 4.166_666_666_666_660_190_37e-02;

@@ -96,7 +96,7 @@ impl Envelope {
                 }
             }
         }
-        if group.iter().any(|&g| g == usize::MAX) {
+        if group.contains(&usize::MAX) {
             return None;
         }
         let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n_groups];
