@@ -29,6 +29,19 @@
 //! The consistent accelerations at the start are the same iteration at
 //! acceleration level, `(M + c_k αΦ_qᵀΦ_q) q̈ = g − Φ_qᵀλ + c_k αΦ_qᵀγ`,
 //! `λ += c_k α(Φ_q q̈ − γ)`.
+//!
+//! **Inconsistent start.** Index-3 Newton with the penalty cannot move the
+//! positions onto the manifold in the first step when they start far from
+//! it (the four-bar with its coupler 0.05 rad off: the corrections grow,
+//! θ ≈ 2, for every step size). So [`Augmented::consistent_start`] first
+//! projects `(q₀, q̇₀)` at t0 (Bayo & Ledesma's mass-orthogonal projection
+//! as an augmented Lagrangian, on the same matrix pattern): the closest
+//! consistent positions in the mass norm,
+//! `min ½(q − q₀)ᵀM(q − q₀)` s.t. `Φ(q, t0) = 0`, by
+//! `(M + cΦ_qᵀΦ_q) Δq = −[M(q − q₀) + Φ_qᵀ(μ + cΦ)]`, `μ += cΦ(q + Δq)`
+//! (Gauss–Newton on the KKT conditions, `c = αβh²` as at the start), then
+//! the velocities the same way on `Φ_q q̇ + Φ_t = 0`. A semi-definite
+//! `Φ_qᵀΦ_q` needs nothing special here either.
 
 use super::dynamic_blocks::{DynamicBlocks, PenaltyBlock};
 use super::{all_finite, check_state, FormulationError};
@@ -84,11 +97,44 @@ impl AugmentedParams {
     }
 }
 
+/// Tolerance on ‖Φ‖∞ \[m\] (and on `‖Φ_q q̇ + Φ_t‖∞ / max(1, ‖q̇‖∞)`)
+/// below which the initial state counts as consistent: the default of the
+/// index-1 projection ([`super::Projection`]).
+pub const START_TOL: f64 = 1e-10;
+
+/// Iterations allowed to each projection of the start
+/// ([`Augmented::consistent_start`]).
+pub const START_MAX_ITER: usize = 100;
+
+/// What [`Augmented::consistent_start`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct StartCorrection {
+    /// ‖Φ(q₀)‖∞ before.
+    pub phi: f64,
+    /// `‖Φ_q q̇₀ + Φ_t‖∞` before (at the projected positions).
+    pub phi_dot: f64,
+    /// Largest change of a position coordinate.
+    pub moved_q: f64,
+    /// Largest change of a velocity coordinate.
+    pub moved_qd: f64,
+    /// Iterations (positions + velocities).
+    pub iterations: usize,
+}
+
+impl StartCorrection {
+    /// Whether anything was changed.
+    pub fn changed(&self) -> bool {
+        self.moved_q > 0.0 || self.moved_qd > 0.0
+    }
+}
+
 /// Counters of [`Augmented`].
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct AugmentedFormStats {
     /// Multiplier iterations of the consistent accelerations at the start.
     pub initial_iterations: usize,
+    /// Iterations of the projection of an inconsistent start.
+    pub start_iterations: usize,
     /// Counters of the solver of `W`.
     pub solver: SolverStats,
 }
@@ -249,6 +295,154 @@ impl<'a> Augmented<'a> {
         Ok(())
     }
 
+    /// `x ← −[M(v − v₀) + Φ_qᵀ(μ + c e)]` solved with the factorised
+    /// `M + cΦ_qᵀΦ_q`; `v += x`; returns `max |x_i|`.
+    fn start_correction(
+        &mut self,
+        t: f64,
+        c: f64,
+        v: &mut [f64],
+        v0: &[f64],
+        mu: &[f64],
+    ) -> Result<f64, FormulationError> {
+        for ((e, m), p) in self.e.iter_mut().zip(mu).zip(&self.phi) {
+            *e = m + c * p;
+        }
+        self.sys.jacobian_tmul(&self.jac, &self.e, &mut self.x);
+        for (((x, m), a), b) in self
+            .x
+            .iter_mut()
+            .zip(self.sys.mass_diagonal())
+            .zip(v.iter())
+            .zip(v0)
+        {
+            *x = -(*x + m * (a - b));
+        }
+        self.solver
+            .solve_in_place(&self.k, &mut self.x)
+            .map_err(|source| FormulationError::Linear { t, source })?;
+        let mut dmax: f64 = 0.0;
+        for (vi, d) in v.iter_mut().zip(&self.x) {
+            *vi += d;
+            dmax = dmax.max(d.abs());
+        }
+        Ok(dmax)
+    }
+
+    /// Put an inconsistent initial state onto the constraint manifold
+    /// (module docs, "Inconsistent start"): positions to the closest
+    /// consistent ones in the mass norm, then velocities to the closest
+    /// ones on `Φ_q q̇ + Φ_t = 0`, each until its residual is below
+    /// [`START_TOL`] and the last correction below it too. A consistent
+    /// state is left untouched (bit for bit). If the iteration does not
+    /// get there in [`START_MAX_ITER`] iterations, or ‖Φ‖ grows tenfold,
+    /// [`FormulationError::Initial`] says why: no consistent configuration
+    /// near the given one (or a locked-up one at a singular position).
+    pub fn consistent_start(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<StartCorrection, FormulationError> {
+        let sys = self.sys;
+        check_state(t, q, qd)?;
+        let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let c = self.alpha * self.s0;
+        let mut out = StartCorrection::default();
+        let m = sys.n_constraints();
+        let mut mu = vec![0.0; m];
+        sys.phi(q, t, &mut self.phi);
+        all_finite(t, &[("the constraints Φ", &self.phi)])?;
+        out.phi = norm(&self.phi);
+        if out.phi > START_TOL {
+            let q0 = q.to_vec();
+            let mut res = out.phi;
+            let mut it = 0;
+            loop {
+                if it == START_MAX_ITER || res > 10.0 * out.phi {
+                    return Err(FormulationError::Initial(format!(
+                        "the initial positions violate the constraints (‖Φ‖∞ = {:.3e} at t = \
+                         {t}) and the augmented Lagrangian's mass-orthogonal projection did not \
+                         reach the manifold ({}: ‖Φ‖∞ = {res:.3e} after {it} iterations): there is \
+                         no consistent configuration near the given one (check the initial \
+                         positions and the joint geometry) or the mechanism locks up there",
+                        out.phi,
+                        if it == START_MAX_ITER {
+                            "no convergence"
+                        } else {
+                            "diverged"
+                        }
+                    )));
+                }
+                it += 1;
+                self.assemble(t, q, qd, &mu, 1.0, 0.0, 0.0, c)?;
+                let dmax = self.start_correction(t, c, q, &q0, &mu)?;
+                sys.phi(q, t, &mut self.phi);
+                all_finite(t, &[("the constraints Φ", &self.phi)])?;
+                for (u, p) in mu.iter_mut().zip(&self.phi) {
+                    *u += c * p;
+                }
+                res = norm(&self.phi);
+                if res <= START_TOL && dmax <= START_TOL {
+                    break;
+                }
+            }
+            out.moved_q = q
+                .iter()
+                .zip(&q0)
+                .fold(0.0_f64, |a, (x, y)| a.max((x - y).abs()));
+            out.iterations += it;
+        }
+        // velocities at the (projected) positions: Φ̇ = Φ_q q̇ + Φ_t
+        sys.jacobian_values(q, t, &mut self.jac);
+        sys.phi_t(q, t, &mut self.phi_t);
+        let vel_residual = |this: &mut Self, qd: &[f64]| {
+            sys.jacobian_mul(&this.jac, qd, &mut this.phi);
+            for (p, pt) in this.phi.iter_mut().zip(&this.phi_t) {
+                *p += pt;
+            }
+            norm(&this.phi)
+        };
+        let vscale = norm(qd).max(1.0);
+        out.phi_dot = vel_residual(self, qd);
+        all_finite(t, &[("the velocity constraints Φ̇", &self.phi)])?;
+        if out.phi_dot > START_TOL * vscale {
+            let qd0 = qd.to_vec();
+            mu.fill(0.0);
+            self.assemble(t, q, qd, &mu, 1.0, 0.0, 0.0, c)?;
+            let mut res = out.phi_dot;
+            let mut it = 0;
+            loop {
+                if it == START_MAX_ITER || res > 10.0 * out.phi_dot {
+                    return Err(FormulationError::Initial(format!(
+                        "the initial velocities violate the velocity constraints (‖Φ_q q̇ + \
+                         Φ_t‖∞ = {:.3e} at t = {t}) and the mass-orthogonal projection did not \
+                         converge (‖Φ̇‖∞ = {res:.3e} after {it} iterations): the positions are \
+                         at or near a singular configuration",
+                        out.phi_dot
+                    )));
+                }
+                it += 1;
+                let dmax = self.start_correction(t, c, qd, &qd0, &mu)?;
+                res = vel_residual(self, qd);
+                all_finite(t, &[("the velocity constraints Φ̇", &self.phi)])?;
+                for (u, p) in mu.iter_mut().zip(&self.phi) {
+                    *u += c * p;
+                }
+                if res <= START_TOL * vscale && dmax <= START_TOL * vscale {
+                    break;
+                }
+            }
+            out.moved_qd = qd
+                .iter()
+                .zip(&qd0)
+                .fold(0.0_f64, |a, (x, y)| a.max((x - y).abs()));
+            out.iterations += it;
+        }
+        self.stats.start_iterations += out.iterations;
+        Ok(out)
+    }
+
     /// Consistent accelerations and multipliers at `(t, q, q̇)` by the
     /// multiplier iteration at acceleration level (module docs), until
     /// `‖Φ_q q̈ − γ‖∞ ≤ 1e-12 (1 + ‖γ‖∞)` or the correction stalls (at a
@@ -314,6 +508,25 @@ impl AugmentedDae for Augmented<'_> {
     }
     fn set_step_scale(&mut self, s: f64) {
         self.alpha = self.params.penalty(self.sys, s);
+    }
+    fn scale_penalty(&mut self, factor: f64) {
+        self.alpha *= factor;
+    }
+    fn consistent_state(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SystemError> {
+        let c = self.consistent_start(t, q, qd).map_err(sys_err)?;
+        Ok(c.changed().then(|| {
+            format!(
+                "initial state off the constraint manifold (‖Φ‖∞ = {:.3e}, ‖Φ̇‖∞ = {:.3e}): \
+                 projected at t = {t} (mass-orthogonal, {} augmented-Lagrangian iterations; \
+                 positions moved by up to {:.3e}, velocities by up to {:.3e})",
+                c.phi, c.phi_dot, c.iterations, c.moved_q, c.moved_qd
+            )
+        }))
     }
     fn accelerations(
         &mut self,

@@ -37,7 +37,10 @@ mod partitioning;
 mod penalty;
 mod stability;
 
-pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
+pub use augmented::{
+    Augmented, AugmentedFormStats, AugmentedParams, StartCorrection, PENALTY_SCALE, START_MAX_ITER,
+    START_TOL,
+};
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{

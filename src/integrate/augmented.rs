@@ -41,6 +41,23 @@
 //! from the projected `q̈_{n+1}`. Fixed step; a Newton failure halves the
 //! step and the grid point is reached by sub-steps that double again.
 //! The system side is [`AugmentedDae`] (`formulation::Augmented`).
+//! An inconsistent initial state is first projected onto the manifold
+//! ([`AugmentedDae::consistent_state`], a warning of the run).
+//!
+//! **Penalty growth.** The multiplier update contracts by about
+//! `1/(1 + x)` per iteration along a constraint direction, `x = c_k α σ²/m`
+//! with `σ²/m` its eigenvalue of `Φ_q M⁻¹Φ_qᵀ`; near a singular position σ
+//! goes to zero and the iteration crawls (two parallelogram loops crossing
+//! together: θ ≈ 0.87 … 0.99, so the default Newton tolerance was never
+//! reached and the step collapsed). When the contraction θ stays above
+//! [`SLOW_CONTRACTION`] after the matrix was renewed at the iterate, α is
+//! multiplied for the rest of the attempt by `(1/0.1 − 1)/(1/θ − 1)`
+//! (the factor that turns θ into 0.1), at most [`MAX_PENALTY_FACTOR`] in
+//! all, and `W` is refactorised; the next step starts from the default α
+//! again (a large α everywhere costs conditioning and, measured, branch
+//! changes at the singular positions). A stagnating iteration whose
+//! corrections are below `NOISE_REL` of the positions has converged to the
+//! noise of the solve, as in generalized-α.
 
 /// Newton iterations per attempt that scenarios give the augmented
 /// Lagrangian when `integrator.max_newton` is not set (the implicit
@@ -49,10 +66,21 @@
 /// h = 1e-3 s had 35 Newton failures (each halving the step) in 2035
 /// steps; `mbsolve study constraints` runs it with 30.
 pub const ALM_MAX_NEWTON: usize = 30;
+
+/// A Newton contraction `θ` above this with a fresh matrix raises the
+/// penalty for the rest of the attempt (module docs, "Penalty growth").
+pub const SLOW_CONTRACTION: f64 = 0.5;
+/// The contraction the raised penalty aims at: the multiplier iteration
+/// contracts by `1/(1 + x)` with `x = c_k α σ²/m`, so α is multiplied by
+/// `(1/TARGET − 1)/(1/θ − 1)`.
+const TARGET_CONTRACTION: f64 = 0.1;
+/// Largest factor over the default penalty within one attempt (the
+/// conditioning of `W` grows with it).
+pub const MAX_PENALTY_FACTOR: f64 = 1e4;
 use std::sync::Arc;
 
 use super::driver::{self, Failure, StepCut, Stepper};
-use super::genalpha::{AlphaParameters, ROUNDING_ULPS, STAGNATION};
+use super::genalpha::{AlphaParameters, NOISE_REL, ROUNDING_ULPS, STAGNATION};
 use super::hermite::cubic;
 use super::{common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report};
 use super::{Stats, SystemError};
@@ -67,8 +95,21 @@ pub trait AugmentedDae {
     /// Number of constraint rows.
     fn m(&self) -> usize;
     /// The Newton scale `s = β h²` of the step about to be attempted (the
-    /// default penalty follows it).
+    /// default penalty follows it; this also undoes
+    /// [`AugmentedDae::scale_penalty`]).
     fn set_step_scale(&mut self, s: f64);
+    /// Multiply the penalty α by `factor` for the rest of the attempt: the
+    /// integrator's answer to a slowly contracting multiplier iteration.
+    fn scale_penalty(&mut self, factor: f64);
+    /// Move an inconsistent initial state `(q, q̇)` onto the constraint
+    /// manifold (unchanged if consistent); `Some(what was done)` if it
+    /// moved (a warning of the run).
+    fn consistent_state(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SystemError>;
     /// Accelerations and multipliers at `(t, q, q̇)` (the start of a run).
     fn accelerations(
         &mut self,
@@ -132,6 +173,10 @@ pub struct AugmentedStats {
     pub residual_evaluations: usize,
     /// Velocity + acceleration projections (one per accepted step).
     pub projections: usize,
+    /// Times the penalty was raised within an attempt (slow contraction).
+    pub penalty_increases: usize,
+    /// Largest factor over the default penalty used in an attempt.
+    pub max_penalty_factor: f64,
     /// Smallest step taken.
     pub min_step_taken: f64,
 }
@@ -268,6 +313,7 @@ impl AugmentedLagrangian {
             h_last: 0.0,
             stats: AugmentedStats {
                 min_step_taken: f64::INFINITY,
+                max_penalty_factor: 1.0,
                 ..Default::default()
             },
             warnings: Vec::new(),
@@ -375,6 +421,7 @@ impl Run<'_, '_> {
         let mut prev = f64::NAN;
         let mut refreshed = 0;
         let mut fresh = false;
+        let mut boost = 1.0;
         for it in 0.. {
             if it > 0 {
                 let new = &mut self.new;
@@ -401,6 +448,11 @@ impl Run<'_, '_> {
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
+            let drel = self
+                .r
+                .iter()
+                .zip(&self.new.q)
+                .fold(0.0_f64, |a, (d, q)| a.max(d.abs() / q.abs().max(1.0)));
             let new = &mut self.new;
             for (i, &d) in self.r.iter().enumerate() {
                 new.q[i] += d;
@@ -410,9 +462,10 @@ impl Run<'_, '_> {
             }
             let theta = dnorm / prev;
             prev = dnorm;
-            if dnorm <= 1.0 || (theta >= 1.0 && dnorm <= STAGNATION) {
-                // converged (or at the noise floor of the solve): the last
-                // multiplier update at the converged positions
+            if dnorm <= 1.0 || (theta >= 1.0 && (dnorm <= STAGNATION || drel <= NOISE_REL)) {
+                // converged (or at the noise floor of the solve, as
+                // generalized-α's Newton): the last multiplier update at
+                // the converged positions
                 let new = &mut self.new;
                 return self.sys.update_multipliers(t1, &new.q, &mut new.lam);
             }
@@ -421,9 +474,25 @@ impl Run<'_, '_> {
                     "Newton diverges (contraction θ = {theta:.3}, correction {dnorm:.3e} × tol)"
                 )));
             }
-            if theta > 0.5 && refreshed < 2 {
-                refreshed += 1;
-                fresh = false;
+            if theta > SLOW_CONTRACTION {
+                if refreshed == 0 {
+                    // first: the matrix of the predictor may be stale
+                    refreshed += 1;
+                    fresh = false;
+                } else if boost < 0.5 * MAX_PENALTY_FACTOR {
+                    // still slow with a fresh matrix: a nearly lost
+                    // constraint direction (module docs, "Penalty growth")
+                    let f = ((1.0 / TARGET_CONTRACTION - 1.0) / (1.0 / theta - 1.0))
+                        .max(2.0)
+                        .min(MAX_PENALTY_FACTOR / boost);
+                    boost *= f;
+                    self.sys.scale_penalty(f);
+                    self.stats.penalty_increases += 1;
+                    self.stats.max_penalty_factor = self.stats.max_penalty_factor.max(boost);
+                    refreshed += 1;
+                    fresh = false;
+                    prev = f64::NAN;
+                }
             }
             if it + 1 >= self.opts.max_newton {
                 return Err(SystemError::msg(format!(
@@ -442,6 +511,21 @@ impl Stepper for Run<'_, '_> {
         let t0 = self.t0;
         self.stats.residual_evaluations += 1;
         let cur = &mut self.cur;
+        let moved = self
+            .sys
+            .consistent_state(t0, &mut cur.q, &mut cur.v)
+            .map_err(|e| Failure::System {
+                what: "consistent initial state",
+                t: t0,
+                step_from: None,
+                source: Arc::new(e),
+            })?;
+        if let Some(msg) = moved {
+            let n = self.n;
+            self.y[..n].copy_from_slice(&cur.q);
+            self.y[n..].copy_from_slice(&cur.v);
+            self.warnings.push(msg);
+        }
         self.sys
             .accelerations(t0, &cur.q, &cur.v, &mut cur.qdd, &mut cur.lam)
             .map_err(|e| Failure::System {

@@ -55,7 +55,10 @@ mod options;
 mod rk4;
 mod tableau;
 
-pub use augmented::{AugmentedDae, AugmentedLagrangian, AugmentedStats, ALM_MAX_NEWTON};
+pub use augmented::{
+    AugmentedDae, AugmentedLagrangian, AugmentedStats, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR,
+    SLOW_CONTRACTION,
+};
 pub use bdf::{Bdf, BdfStats, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{

@@ -264,6 +264,8 @@ impl MethodRun for AugmentedRun<'_> {
             ("newton_iterations", gs.newton_iterations.into()),
             ("newton_failures", gs.newton_failures.into()),
             ("projections", gs.projections.into()),
+            ("penalty_increases", gs.penalty_increases.into()),
+            ("max_penalty_factor", gs.max_penalty_factor.into()),
             ("initial_iterations", fs.initial_iterations.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),

@@ -103,10 +103,12 @@
 //!   which leaves non-stiff components unchanged and damps the stiff ones
 //!   and the constraint-normal ones (as the error filter of Hairer &
 //!   Wanner's RADAU5). Error norm `max_i |e_i| / (atol_i + rtol max(|q_i^n|,
-//!   |q_i^{n+1}|))`, accepted for ≤ 1; new step `h · min(2, max(0.2,
-//!   0.9 err^{−1/3}))` (no growth right after a rejection; changes below
-//!   20 % upwards are not made, to keep the factorisation), after an
-//!   accepted step limited further by Gustafsson's predictive controller
+//!   |q_i^{n+1}|))` times `√(1e-3/rtol)` below rtol 1e-3 (tolerance
+//!   proportionality, `step::proportionality`), accepted for ≤ 1; new
+//!   step `h · min(2, max(0.2, 0.9 err^{−1/3}))` (no growth right after a
+//!   rejection; changes below 20 % upwards are not made, to keep the
+//!   factorisation), after an accepted step limited further by
+//!   Gustafsson's predictive controller
 //!   `0.9 (h_n/h_{n−1}) (err_{n−1}/err_n²)^{1/3}` (Hairer & Wanner II,
 //!   eq. (8.21)), which damps the accept/reject cycles of an oscillating
 //!   error. A Newton failure halves the step.

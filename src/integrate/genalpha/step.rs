@@ -6,6 +6,22 @@ use super::*;
 /// Safety factor of the step-size controller.
 pub const SAFETY: f64 = 0.9;
 
+/// The rtol at which the local error per step is taken as it is
+/// (MATLAB's default rtol); see [`proportionality`].
+pub(super) const PROPORTIONAL_FROM: f64 = 1e-3;
+
+/// Tolerance proportionality of a second-order method: with the local
+/// error per step held at `tol`, the global error grows like the number of
+/// steps times `tol`, i.e. like `tol^{2/3}` (steps `∝ tol^{−1/3}`), so at
+/// rtol 1e-7 the global error of the stiff chain was 28× rtol. The test
+/// runs at `tol = rtol·√(rtol/PROPORTIONAL_FROM)` below
+/// [`PROPORTIONAL_FROM`], which makes the global error `∝ rtol` (as
+/// Hairer's RADAU5 transforms its tolerance, Hairer & Wanner II §IV.8):
+/// the error norm is multiplied by the returned factor.
+pub(super) fn proportionality(rtol: f64) -> f64 {
+    (PROPORTIONAL_FROM / rtol).sqrt().max(1.0)
+}
+
 impl Run<'_, '_> {
     /// Norm of the local error estimate of the attempt in `self.new`
     /// (module docs); ≤ 1 passes.
@@ -53,7 +69,7 @@ impl Run<'_, '_> {
                 0.0
             });
         }
-        Ok(norm)
+        Ok(norm * proportionality(self.ode.rtol))
     }
 
     pub(super) fn initial_step_guess(&mut self, span: f64) -> f64 {

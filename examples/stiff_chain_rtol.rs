@@ -1,0 +1,91 @@
+//! Accuracy against work of the adaptive implicit methods on the stiff
+//! chain of issue 12: for each `METHOD:RTOL` one JSON line with the tip x
+//! error at t = 0.1 s against the peers' reference
+//! (`stiff_chain_reference_tip`), the error in units of rtol, steps,
+//! Newton iterations per step, factorisations and CPU seconds.
+//!
+//! ```text
+//! cargo run --release --example stiff_chain_rtol -- N [bdf:RTOL | genalpha:RTOL ...]
+//! ```
+//!
+//! `genalpha:RTOL` is adaptive generalized-α (ρ∞ = 0.9 as the fixed-step
+//! runs of `examples/stiff_chain.rs`); `atol = 1e-3 rtol` for both.
+
+use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
+use mbsolve::integrate::{Method, Tolerance};
+use mbsolve::simulation::{simulate, RunConfig};
+
+/// CPU seconds of this process (user + system, from /proc; 0 elsewhere).
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11).and_then(|u| u.parse().ok()).unwrap_or(0.0)
+        + f.get(12).and_then(|s| s.parse().ok()).unwrap_or(0.0);
+    ticks / 100.0
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some(n) = args.first().and_then(|a| a.parse::<usize>().ok()) else {
+        eprintln!("usage: stiff_chain_rtol N [bdf:RTOL | genalpha:RTOL ...]");
+        std::process::exit(2);
+    };
+    let specs: Vec<String> = if args.len() > 1 {
+        args[1..].to_vec()
+    } else {
+        ["bdf:1e-3", "bdf:1e-5", "bdf:1e-7"]
+            .map(String::from)
+            .to_vec()
+    };
+    let (sys, q0, qd0, info) = stiff_chain(n, 5f64.to_radians()).expect("valid chain");
+    let reference = stiff_chain_reference_tip(n);
+    for spec in specs {
+        let Some((name, value)) = spec.split_once(':') else {
+            eprintln!("{spec}: expected METHOD:RTOL");
+            std::process::exit(2);
+        };
+        let method: Method = name.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+        let rtol: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+        let mut cfg = RunConfig {
+            method,
+            t_end: 0.1,
+            output_dt: 0.1,
+            ..Default::default()
+        };
+        cfg.ode.rtol = rtol;
+        cfg.ode.atol = Tolerance::Scalar(rtol * 1e-3);
+        cfg.ode.max_steps = 100_000_000;
+        cfg.ode.initial_step = std::env::var("H5_H0").ok().and_then(|v| v.parse().ok());
+        if method.is_implicit() {
+            cfg.implicit.adaptive = true;
+            cfg.implicit.rho_inf = 0.9;
+        }
+        let cpu0 = cpu_seconds();
+        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
+        let cpu = cpu_seconds() - cpu0;
+        let tip = traj.q.last().map(|q| stiff_chain_tip_x(&info, q));
+        let err = tip.zip(reference).map(|(x, r)| x - r);
+        let get = |k: &str| s.extra.get(k).cloned().unwrap_or(serde_json::Value::Null);
+        let line = serde_json::json!({
+            "n": n,
+            "method": name,
+            "rtol": rtol,
+            "status": s.status,
+            "t_reached": s.t_reached,
+            "tip_x": tip,
+            "tip_error": err,
+            "error_over_rtol": err.map(|e| e.abs() / rtol),
+            "steps": s.steps,
+            "failed_steps": s.failed_steps,
+            "newton_iterations": get("newton_iterations"),
+            "newton_per_step": get("newton_iterations").as_f64().map(|i| i / s.steps.max(1) as f64),
+            "factorizations": s.factorizations,
+            "steps_at_order": get("steps_at_order"),
+            "cpu_s": cpu,
+        });
+        println!("{line}");
+    }
+}
