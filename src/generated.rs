@@ -141,10 +141,101 @@ impl GroundJoint {
     }
 }
 
+/// `(sin x, cos x)` with one argument reduction for both (the standard
+/// library calls libm's `sin` and `cos`, each reducing on its own): Cody–Waite
+/// reduction by π/2 in three parts and fdlibm's minimax kernels `__kernel_sin`,
+/// `__kernel_cos` on `[−π/4, π/4]` (Sun Microsystems 1993, as in musl's
+/// `__sin.c`, `__cos.c`, `__rem_pio2.c`); within 1 ulp of the libm values
+/// for `|x| < 2²⁰ π/2` (tested), libm beyond.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    const INV_PIO2: f64 = 6.366_197_723_675_813_824_33e-1;
+    const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
+    const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
+    const PIO2_2: f64 = 6.077_100_506_303_965_976_60e-11;
+    const PIO2_2T: f64 = 2.022_266_248_795_950_631_54e-21;
+    const PIO2_3: f64 = 2.022_266_248_711_166_455_80e-21;
+    const PIO2_3T: f64 = 8.478_427_660_368_899_569_97e-32;
+    if x.is_nan() || x.abs() >= 1_647_099.0 {
+        return x.sin_cos();
+    }
+    // x = n π/2 + (y0 + y1), the remainder in two doubles
+    // round to nearest (even) without a libm call: 1.5·2⁵² forces it
+    const TOINT: f64 = 6_755_399_441_055_744.0;
+    let n = (x * INV_PIO2 + TOINT) - TOINT;
+    let mut r = x - n * PIO2_1;
+    let mut w = n * PIO2_1T;
+    let mut y0 = r - w;
+    let ey = (y0.to_bits() >> 52) as i32 & 0x7ff;
+    let ex = (x.to_bits() >> 52) as i32 & 0x7ff;
+    if ex - ey > 16 {
+        // cancellation: second and, if needed, third part of π/2
+        let t = r;
+        w = n * PIO2_2;
+        r = t - w;
+        w = n * PIO2_2T - ((t - r) - w);
+        y0 = r - w;
+        let ey = (y0.to_bits() >> 52) as i32 & 0x7ff;
+        if ex - ey > 49 {
+            let t = r;
+            w = n * PIO2_3;
+            r = t - w;
+            w = n * PIO2_3T - ((t - r) - w);
+            y0 = r - w;
+        }
+    }
+    let y1 = (r - y0) - w;
+    let (s, c) = (kernel_sin(y0, y1), kernel_cos(y0, y1));
+    match (n as i64) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// fdlibm `__kernel_sin(x, y, 1)`: sin(x + y) on `|x| ≤ π/4`, `|y| ≤ ulp(x)/2`.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
+#[inline(always)]
+fn kernel_sin(x: f64, y: f64) -> f64 {
+    const S1: f64 = -1.666_666_666_666_663_243_48e-01;
+    const S2: f64 = 8.333_333_333_322_489_461_24e-03;
+    const S3: f64 = -1.984_126_982_985_794_931_34e-04;
+    const S4: f64 = 2.755_731_370_707_006_767_89e-06;
+    const S5: f64 = -2.505_076_025_340_686_341_95e-08;
+    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
+    let z = x * x;
+    let w = z * z;
+    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let v = z * x;
+    x - ((z * (0.5 * y - v * r) - y) - v * S1)
+}
+
+/// fdlibm `__kernel_cos(x, y)`: cos(x + y) on `|x| ≤ π/4`, `|y| ≤ ulp(x)/2`.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
+#[inline(always)]
+fn kernel_cos(x: f64, y: f64) -> f64 {
+    const C1: f64 = 4.166_666_666_666_660_190_37e-02;
+    const C2: f64 = -1.388_888_888_887_410_957_49e-03;
+    const C3: f64 = 2.480_158_728_947_672_941_78e-05;
+    const C4: f64 = -2.755_731_435_139_066_330_35e-07;
+    const C5: f64 = 2.087_572_321_298_174_827_90e-09;
+    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    let z = x * x;
+    let w = z * z;
+    let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let w = 1.0 - hz;
+    w + (((1.0 - w) - hz) + (z * r - x * y))
+}
+
 /// Sines and cosines of the chain's body angles, memoised per body on the
 /// exact bits of φ: the formulation asks for Φ_q, γ, Φ and Φ_t at the same
-/// q one after the other, and the trigonometry is most of their cost. The
-/// values are those `sin_cos` returns, so results do not change.
+/// q one after the other, and the trigonometry is most of their cost
+/// ([`sin_cos`]: one argument reduction for both).
 #[derive(Debug)]
 struct TrigMemo {
     phi_bits: Vec<u64>,
@@ -163,7 +254,7 @@ impl TrigMemo {
         for (b, bits) in self.phi_bits.iter_mut().enumerate() {
             let phi = q[3 * b + 2];
             if *bits != phi.to_bits() {
-                let (s, c) = phi.sin_cos();
+                let (s, c) = sin_cos(phi);
                 self.sc[2 * b] = s;
                 self.sc[2 * b + 1] = c;
                 *bits = phi.to_bits();
@@ -349,12 +440,14 @@ impl ChainKernels {
             Some(g) if g.row0 == 0 => (1, 0),
             _ => (0, nh),
         };
-        kernels::revolute_chain_hessian(
-            self.chain_q(q),
-            &self.params,
-            &lambda[self.chain_rows()],
-            &mut vals[chain_at..chain_at + nh],
-        );
+        let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
+        let o = &mut vals[chain_at..chain_at + nh];
+        // memoised sines and cosines (shared with Φ, Φ_q, γ at the same q);
+        // computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_hessian_sc(qc, m.update(qc), p, l, o),
+            Err(_) => kernels::revolute_chain_hessian(qc, p, l, o),
+        }
         if let Some(g) = &self.ground {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }

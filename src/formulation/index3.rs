@@ -161,7 +161,12 @@ impl<'a> Index3<'a> {
         let blocks = DynamicBlocks::register(sys, &mut a);
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
+        // `Auto`: the envelope LDLᵀ when the pattern is a chain, faer's
+        // sparse LDLᵀ otherwise (`ChainLdlt`).
         let kind = match newton {
+            NewtonSolverKind::SymmetricLdlt if linear_solver == SolverKind::Auto => {
+                SolverKind::Chain
+            }
             NewtonSolverKind::SymmetricLdlt => linear_solver,
             NewtonSolverKind::SparseLu => SolverKind::SparseLu,
         };
@@ -380,6 +385,12 @@ impl<'a> Index3<'a> {
 
 fn finite_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
     let n = q.len();
+    // the vectorised scan first; the entry is searched for only on failure
+    if crate::integrate::first_non_finite(q).is_none()
+        && crate::integrate::first_non_finite(qd).is_none()
+    {
+        return Ok(());
+    }
     if let Some(k) = q.iter().chain(qd).position(|v| !v.is_finite()) {
         return Err(FormulationError::Invalid(format!(
             "at t = {t}: state component {} is not finite",

@@ -18,6 +18,7 @@
 //! | [`SolverKind`] | solver | storage | use |
 //! | --- | --- | --- | --- |
 //! | `Auto`, `Sparse` | [`SparseLdlt`] (regularised sparse LDLᵀ) | symmetric | default everywhere |
+//! | `Chain` | [`ChainLdlt`] (envelope LDLᵀ for chain patterns, else [`SparseLdlt`]) | symmetric | Newton matrix of `Index3` |
 //! | `Dense` | [`DenseLu`] | symmetric | cross-checks |
 //! | `SparseLu` | [`SparseLu`] | full | exact Newton with unsymmetric Jacobians |
 //! | `Schur` | [`SchurComplement`] (eq. (9), dense Cholesky) | symmetric | diagonal `A`, λ eliminated |
@@ -26,6 +27,7 @@
 //! unknown vector is `[q̈; λ]`. The paper's eq. (5) writes the same system
 //! with unknowns `[q̈; −λ]`, so its multipliers are our `−λ`.
 
+mod chain;
 mod dense;
 mod lu;
 mod pattern;
@@ -33,6 +35,7 @@ mod saddle;
 mod schur;
 mod sparse;
 
+pub use chain::{ChainLdlt, MAX_BANDWIDTH};
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
 pub use pattern::CscPattern;
@@ -147,6 +150,9 @@ pub enum SolverKind {
     SparseLu,
     /// λ eliminated by the Schur complement of a diagonal `A`, eq. (9).
     Schur,
+    /// [`ChainLdlt`]: the envelope LDLᵀ when the pattern is a chain in
+    /// body order, [`SparseLdlt`] otherwise (chosen at `analyze`).
+    Chain,
 }
 
 /// Options passed to the solver [`solver_for`] creates.
@@ -173,8 +179,9 @@ impl std::str::FromStr for SolverKind {
             "auto" => Ok(Self::Auto),
             "dense" => Ok(Self::Dense),
             "sparse" => Ok(Self::Sparse),
+            "chain" => Ok(Self::Chain),
             other => Err(format!(
-                "unknown linear solver '{other}' (expected auto, sparse or dense)"
+                "unknown linear solver '{other}' (expected auto, sparse, chain or dense)"
             )),
         }
     }
@@ -210,5 +217,8 @@ pub fn solver_for(kind: SolverKind, dim: usize, opts: SolverOptions) -> Box<dyn 
         SolverKind::Auto => ldlt(),
         SolverKind::SparseLu => Box::new(SparseLu::default()),
         SolverKind::Schur => Box::new(SchurComplement::default()),
+        SolverKind::Chain => {
+            Box::new(ChainLdlt::default().with_residual_check(opts.residual_check))
+        }
     }
 }

@@ -168,9 +168,6 @@ struct Analysis {
     scale: Vec<f64>,
     /// Workspace for the numeric factorisation and for the solve.
     mem: MemBuffer,
-    rhs0: Vec<f64>,
-    work: Vec<f64>,
-    corr: Vec<f64>,
 }
 
 /// Sparse LDLᵀ of the saddle-point matrix (faer), symbolic analysis once per
@@ -184,6 +181,7 @@ pub struct SparseLdlt {
     last_info: FactorInfo,
     last_residual: f64,
     check_residual: bool,
+    bufs: RefineBuffers,
     stats: SolverStats,
 }
 
@@ -217,6 +215,7 @@ impl SparseLdlt {
             last_info: FactorInfo::default(),
             last_residual: 0.0,
             check_residual: true,
+            bufs: RefineBuffers::default(),
             stats: SolverStats::default(),
         }
     }
@@ -453,10 +452,8 @@ impl SaddlePointSolver for SparseLdlt {
             l_values,
             scale: vec![1.0; dim],
             mem,
-            rhs0: vec![0.0; dim],
-            work: vec![0.0; dim],
-            corr: vec![0.0; dim],
         });
+        self.bufs.resize(dim);
         self.factorized = false;
         self.stats.analyses += 1;
         Ok(())
@@ -475,32 +472,13 @@ impl SaddlePointSolver for SparseLdlt {
         }
         k.check_finite()?;
         self.factorized = false;
-        let (dim, n) = (an.dim, an.n);
+        let dim = an.dim;
         let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
-        let diag = k.diag_slots();
 
-        // Symmetric scaling S: unit coordinate diagonal, unit-max Jacobian rows.
-        let scale = &mut an.scale;
-        for c in 0..n {
-            let a = vals[diag[c]].abs();
-            scale[c] = if a > 0.0 { 1.0 / a.sqrt() } else { 1.0 };
-        }
-        for r in n..dim {
-            scale[r] = vals[diag[r]].abs().sqrt();
-        }
-        for c in 0..n {
-            for s in col_ptr[c]..col_ptr[c + 1] {
-                let r = row_idx[s];
-                if r >= n {
-                    scale[r] = scale[r].max(vals[s].abs() * scale[c]);
-                }
-            }
-        }
-        for s in &mut scale[n..] {
-            *s = if *s > 0.0 { 1.0 / *s } else { 1.0 };
-        }
+        saddle_scaling(k, &mut an.scale);
 
         // Scatter the scaled values into the permuted pattern.
+        let scale = &an.scale;
         for c in 0..dim {
             let sc = scale[c];
             for s in col_ptr[c]..col_ptr[c + 1] {
@@ -571,34 +549,15 @@ impl SaddlePointSolver for SparseLdlt {
                 got: rhs.len(),
             });
         }
-        an.rhs0.copy_from_slice(rhs);
-        scaled_solve(an, rhs);
         self.stats.solves += 1;
-        if !self.check_residual {
+        if self.check_residual {
+            let refined = self.bufs.solve_checked(k, rhs, |x| scaled_solve(an, x));
+            self.stats.refinements += usize::from(refined);
+            self.last_residual = self.bufs.last_residual;
+        } else {
+            scaled_solve(an, rhs);
             self.last_residual = f64::NAN;
-            return if rhs.iter().all(|v| v.is_finite()) {
-                Ok(())
-            } else {
-                Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"))
-            };
         }
-        let mut res = k.relative_residual(rhs, &an.rhs0, &mut an.work);
-        if (res.is_nan() || res > REFINE_THRESHOLD) && rhs.iter().all(|v| v.is_finite()) {
-            // One step of iterative refinement: x += K⁻¹ (b − K x);
-            // `work` holds K x after `relative_residual`.
-            let mut corr = std::mem::take(&mut an.corr);
-            for ((c, &b), &kx) in corr.iter_mut().zip(&an.rhs0).zip(&an.work) {
-                *c = b - kx;
-            }
-            scaled_solve(an, &mut corr);
-            for (x, c) in rhs.iter_mut().zip(&corr) {
-                *x += c;
-            }
-            an.corr = corr;
-            self.stats.refinements += 1;
-            res = k.relative_residual(rhs, &an.rhs0, &mut an.work);
-        }
-        self.last_residual = res;
         if rhs.iter().any(|v| !v.is_finite()) {
             return Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"));
         }
@@ -607,6 +566,84 @@ impl SaddlePointSolver for SparseLdlt {
 
     fn stats(&self) -> SolverStats {
         self.stats
+    }
+}
+
+/// The symmetric scaling `S` of [`SparseLdlt`] (module docs): `s_i =
+/// 1/√|A_ii|` for the coordinates, `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)`
+/// for the multipliers (1 where that is 0); shared with
+/// [`super::ChainLdlt`].
+pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
+    let (n, dim) = (k.n(), k.dim());
+    let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
+    let diag = k.diag_slots();
+    for c in 0..n {
+        let a = vals[diag[c]].abs();
+        scale[c] = if a > 0.0 { 1.0 / a.sqrt() } else { 1.0 };
+    }
+    for r in n..dim {
+        scale[r] = vals[diag[r]].abs().sqrt();
+    }
+    for c in 0..n {
+        for s in col_ptr[c]..col_ptr[c + 1] {
+            let r = row_idx[s];
+            if r >= n {
+                scale[r] = scale[r].max(vals[s].abs() * scale[c]);
+            }
+        }
+    }
+    for s in &mut scale[n..dim] {
+        *s = if *s > 0.0 { 1.0 / *s } else { 1.0 };
+    }
+}
+
+/// Buffers of the residual check and the one step of iterative refinement
+/// the LDLᵀ solvers apply after a solve when it is on.
+#[derive(Debug, Default)]
+pub(super) struct RefineBuffers {
+    rhs0: Vec<f64>,
+    work: Vec<f64>,
+    corr: Vec<f64>,
+    /// Relative residual of the last checked solve (after refinement).
+    pub(super) last_residual: f64,
+}
+
+impl RefineBuffers {
+    pub(super) fn resize(&mut self, dim: usize) {
+        for v in [&mut self.rhs0, &mut self.work, &mut self.corr] {
+            v.clear();
+            v.resize(dim, 0.0);
+        }
+    }
+
+    /// `rhs ← K⁻¹ rhs` by `solve`, then the relative residual
+    /// `‖K x − b‖∞/‖b‖∞` and, above [`REFINE_THRESHOLD`] (or NaN) with a
+    /// finite solution, one step `x += K⁻¹ (b − K x)`. Returns whether it
+    /// refined.
+    pub(super) fn solve_checked(
+        &mut self,
+        k: &SaddleMatrix,
+        rhs: &mut [f64],
+        mut solve: impl FnMut(&mut [f64]),
+    ) -> bool {
+        self.rhs0.copy_from_slice(rhs);
+        solve(rhs);
+        let mut res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
+        let mut refined = false;
+        if (res.is_nan() || res > REFINE_THRESHOLD) && rhs.iter().all(|v| v.is_finite()) {
+            // `work` holds K x after `relative_residual`.
+            for ((c, &b), &kx) in self.corr.iter_mut().zip(&self.rhs0).zip(&self.work) {
+                *c = b - kx;
+            }
+            solve(&mut self.corr);
+            for (x, c) in rhs.iter_mut().zip(&self.corr) {
+                *x += c;
+            }
+            refined = true;
+            res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
+        }
+        self.last_residual = res;
+        refined
     }
 }
 
