@@ -55,15 +55,23 @@ fn main() {
             cfg.ode.atol = Tolerance::Scalar(value * 1e-3);
         }
         cfg.ode.max_steps = 100_000_000;
-        // Newton settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE
+        // settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE (0/1),
+        // MBS_RHO_INF, MBS_SPARSE (faer's LDLᵀ instead of the chain solver), MBS_T_END (s)
         if let Some(t) = std::env::var("MBS_NEWTON_TOL")
             .ok()
             .and_then(|v| v.parse().ok())
         {
             cfg.implicit.newton_tol = t;
         }
-        if std::env::var("MBS_EXTRAPOLATE").is_ok() {
-            cfg.implicit.extrapolate = true;
+        if let Ok(v) = std::env::var("MBS_EXTRAPOLATE") {
+            cfg.implicit.extrapolate = v != "0";
+        }
+        if std::env::var("MBS_SPARSE").is_ok() {
+            cfg.index1.linear_solver = mbsolve::linalg::SolverKind::Sparse;
+        }
+        if let Some(t) = std::env::var("MBS_T_END").ok().and_then(|v| v.parse().ok()) {
+            cfg.t_end = t;
+            cfg.output_dt = t;
         }
         if let Some(r) = std::env::var("MBS_RHO_INF")
             .ok()
