@@ -73,12 +73,6 @@ fn main() {
             cfg.t_end = t;
             cfg.output_dt = t;
         }
-        if let Some(r) = std::env::var("MBS_RHO_INF")
-            .ok()
-            .and_then(|v| v.parse().ok())
-        {
-            cfg.implicit.rho_inf = r;
-        }
         let (cpu0, wall0) = (cpu_seconds(), Instant::now());
         let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
         let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
@@ -93,7 +87,6 @@ fn main() {
             "tip_x": tip,
             "tip_error": tip.zip(reference).map(|(x, r)| x - r),
             "steps": s.steps,
-            "factorizations": s.factorizations,
             "failed_steps": s.failed_steps,
             "newton_iterations": get("newton_iterations"),
             "newton_failures": get("newton_failures"),

@@ -62,8 +62,8 @@ pub use augmented::{
 pub use bdf::{Bdf, BdfStats, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
-    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, MAX_REFRESH, NOISE_REL, REUSE_BAND,
-    ROUNDING_ULPS, SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR, THETA_SLOW,
+    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
+    SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 

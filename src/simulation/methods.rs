@@ -132,7 +132,7 @@ impl MethodRun for Partition<'_> {
 /// methods. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
 /// `rhs_evals` = residual evaluations, `factorizations` = factorisations of
 /// the Newton matrix, `failed_steps` = error rejections + Newton failures;
-/// `extra` adds `newton_iterations`, `newton_failures`, `newton_refreshes`, `error_rejections`,
+/// `extra` adds `newton_iterations`, `newton_failures`, `error_rejections`,
 /// `jacobian_evaluations`, `projections`, `projection_factorizations`,
 /// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
 /// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
@@ -181,7 +181,6 @@ impl MethodRun for Implicit<'_> {
         for (k, v) in [
             ("newton_iterations", gs.newton_iterations.into()),
             ("newton_failures", gs.newton_failures.into()),
-            ("newton_refreshes", gs.newton_refreshes.into()),
             ("error_rejections", gs.error_rejections.into()),
             ("jacobian_evaluations", fs.jacobians.into()),
             ("projections", gs.projections.into()),

@@ -45,18 +45,9 @@
 //!
 //! # Newton iteration
 //!
-//! The unknowns are the positions. **Predictor** (from the method's
-//! history): candidates are `q̈_{n+1}` constant,
-//! or extrapolated by the polynomial of degree 1 or 2 through the last
-//! accelerations ([`ImplicitOptions::extrapolate`]; `λ_{n+1}` likewise),
-//! and the position predictor `q_{n+1} = q_n + h q̇_n + ½ h² ã` (`ã` from
-//! `q_{n−1}`; `λ_{n+1} = λ_n`), which is exact in the limit of infinitely
-//! stiff components where the acceleration predictors are off by `(ωh)²`
-//! times their displacement. Each step uses the candidate that came
-//! closest to the converged positions of the step before (the first step:
-//! constant acceleration; a failed attempt is retried from the position
-//! predictor on a fresh matrix before the step is cut). The predicted
-//! `q̈` gives `q`, `q̇`, `a` by the formulas above, and every Newton correction
+//! The unknowns are the positions: with the predictor `q̈_{n+1} = q̈_n`
+//! (or extrapolated, [`ImplicitOptions::extrapolate`]), `λ_{n+1} = λ_n`
+//! the formulas above give `q`, `q̇`, `a`, and every Newton correction
 //! `Δq` moves `q̇` by `γ' Δq`, `q̈` by `β' Δq`, `a` by `Δq/(β h²)`, with
 //! `γ' = γ/(β h)`, `β' = (1 − α_m)/(β h² (1 − α_f))` (Arnold & Brüls 2007,
 //! Algorithm 1). The linear systems are those of the scaled iteration
@@ -69,15 +60,12 @@
 //!   [`REUSE_BAND`] since it was computed, or when the previous step saw a
 //!   contraction factor `θ = ‖Δq_k‖/‖Δq_{k−1}‖` above [`THETA_REFACTOR`] or
 //!   needed more than [`SLOW_ITERATIONS`] corrections;
-//! * at the current iterate, at most [`MAX_REFRESH`] times per attempt,
-//!   when the contraction is slower than [`THETA_SLOW`] or `max_newton`
-//!   corrections did not suffice but the iteration still contracts
-//!   (counted as `newton_refreshes`);
+//! * at the current iterate, once per attempt, when `max_newton`
+//!   corrections did not suffice but the iteration still contracts;
 //! * at the predictor, retrying the step once, when a stale factorisation
 //!   made the iteration diverge (`θ ≥ 1`) or fail.
 //!
-//! Only then is the step cut; every cut is counted (`newton_failures`) and
-//! reported in the summary's warnings with its time, step and reason. With `reuse = false` every correction gets a
+//! Only then is the step cut. With `reuse = false` every correction gets a
 //! fresh factorisation (full Newton up to the symmetrisation).
 //!
 //! **Convergence test** (Hairer & Wanner, Solving ODEs II, §IV.8, eq. (8.10)):
@@ -135,13 +123,12 @@ mod params;
 mod step;
 
 pub use newton::{
-    MAX_REFRESH, NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
-    THETA_SLOW,
+    NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 
-use newton::{Attempt, Predictor};
+use newton::Attempt;
 
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::hermite::cubic;
@@ -223,9 +210,6 @@ pub struct GenAlphaStats {
     pub newton_iterations: usize,
     /// Factorisations of the iteration matrix.
     pub factorizations: usize,
-    /// Factorisations at an iterate within an attempt (diverging or slow
-    /// iteration) instead of giving up the attempt.
-    pub newton_refreshes: usize,
     /// Residual evaluations.
     pub residual_evaluations: usize,
     /// Projections onto the constraint manifold.
@@ -450,18 +434,9 @@ struct Run<'g, 's> {
     eta: f64,
     /// Whether the last attempt computed its own factorisation.
     last_attempt_fresh: bool,
-    /// History for the predictors: q̈ and λ at the last two accepted step
-    /// starts before the current one, q at the last, the sizes of the last
-    /// two accepted steps, how many of them there are (≤ 2).
-    prev_qdd: [Vec<f64>; 2],
-    prev_lam: [Vec<f64>; 2],
-    prev_q: Vec<f64>,
-    hist_h: [f64; 2],
-    hist: usize,
-    /// Positions of every predictor candidate ([`Predictor::ALL`]) and the
-    /// predictor of the next step.
-    cand_q: [Vec<f64>; 4],
-    predictor: Predictor,
+    /// q̈ and step of the previous accepted step (predictor).
+    prev_qdd: Vec<f64>,
+    h_prev: Option<f64>,
     stats: GenAlphaStats,
     warnings: Vec<String>,
     /// Step control: the step to try next, the largest step, the index of
@@ -514,13 +489,8 @@ impl<'g, 's> Run<'g, 's> {
             refactor: true,
             eta: 1.0,
             last_attempt_fresh: false,
-            prev_qdd: [vec![0.0; n], vec![0.0; n]],
-            prev_lam: [vec![0.0; m], vec![0.0; m]],
-            prev_q: vec![0.0; n],
-            hist_h: [1.0; 2],
-            hist: 0,
-            cand_q: std::array::from_fn(|_| vec![0.0; n]),
-            predictor: Predictor::Acceleration(0),
+            prev_qdd: vec![0.0; n],
+            h_prev: None,
             stats: GenAlphaStats {
                 min_step_taken: f64::INFINITY,
                 ..Default::default()
@@ -641,14 +611,12 @@ impl Stepper for Run<'_, '_> {
             } else {
                 self.t + h_try
             };
-            // Attempt, with one retry on a fresh factorisation from the
-            // position predictor (stiff-safe) before the step is cut.
-            let pred = self.predictor;
-            let mut outcome = self.attempt(t_new, h_try, pred);
+            // Attempt, with one retry on a fresh factorisation.
+            let mut outcome = self.attempt(t_new, h_try);
             if let Attempt::Failed(_) = &outcome {
-                if !self.last_attempt_fresh || pred != Predictor::Position {
+                if !self.last_attempt_fresh {
                     self.refactor = true;
-                    outcome = self.attempt(t_new, h_try, Predictor::Position);
+                    outcome = self.attempt(t_new, h_try);
                 }
             }
             if let Attempt::Failed(reason) = outcome {
@@ -719,13 +687,8 @@ impl Stepper for Run<'_, '_> {
             }
             self.t_old = self.t;
             self.h_last = h_try;
-            self.prev_qdd.swap(0, 1);
-            self.prev_qdd[0].copy_from_slice(&self.cur.qdd);
-            self.prev_lam.swap(0, 1);
-            self.prev_lam[0].copy_from_slice(&self.cur.lam);
-            self.prev_q.copy_from_slice(&self.cur.q);
-            self.hist_h = [h_try, self.hist_h[0]];
-            self.hist = (self.hist + 1).min(2);
+            self.prev_qdd.copy_from_slice(&self.cur.qdd);
+            self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
             self.stats.steps += 1;
