@@ -15,17 +15,8 @@ use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_
 use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::simulation::{simulate, RunConfig};
 
-/// CPU seconds of this process (user + system, from /proc; 0 elsewhere).
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: f64 = f.get(11).and_then(|u| u.parse().ok()).unwrap_or(0.0)
-        + f.get(12).and_then(|s| s.parse().ok()).unwrap_or(0.0);
-    ticks / 100.0
-}
+mod common;
+use common::cpu_seconds;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
