@@ -69,7 +69,7 @@ impl Run<'_, '_> {
             let (cur, new) = (&self.cur, &mut self.new);
             let (am, af, g, b) = (p.alpha_m, p.alpha_f, p.gamma, p.beta);
             // q̈_{n+1} predicted constant or extrapolated linearly from the
-            // last two steps; λ_{n+1} constant
+            // last two steps; λ_n for a factorisation at the predictor
             let r = match self.h_prev {
                 Some(hp) if self.opts.extrapolate => h / hp,
                 _ => 0.0,
@@ -93,6 +93,12 @@ impl Run<'_, '_> {
                 return Attempt::Failed(e);
             }
         }
+        // The multipliers start from 0 (module docs of [`super`], "Newton
+        // iteration"): the first correction computes λ_{n+1} whole, in the
+        // representative the regularised solve picks, instead of adding an
+        // increment to λ_n that carries the previous steps' components in
+        // the (near-)null space of Φ_qᵀ.
+        self.new.lam.fill(0.0);
         // position-equivalent tolerance of the acceleration (and velocity)
         // corrections, floored at a few ulps of the positions
         let tol_q = tol / gp.max(bp).max(1.0);
