@@ -2,8 +2,9 @@
 //! constraint violation, with a [`Summary`] of the work done.
 
 use crate::formulation::{
-    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
-    Index3, NewtonSolverKind, Partitioned, SingularityMonitor,
+    index3_consistent_start, Augmented, AugmentedParams, ExplicitForm, Formulation,
+    FormulationError, Index1, Index1Options, Index3, NewtonSolverKind, Partitioned,
+    SingularityMonitor,
 };
 use crate::integrate::{
     integrator, AugmentedLagrangian, Bdf, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
@@ -401,8 +402,9 @@ struct Watch<'s, 'm, 'd, 'k> {
 /// bdf) warns that its energy balance broke: their numerical damping only
 /// removes energy (issue 10, item 7). The constraint study's passing
 /// implicit runs from consistent starts drift by at most 1.7e-4 of E0,
-/// either sign; generalized-α from the four-bar's incorrect start gains
-/// 1.0e4 J on a scale of 14 J (tests/redundant.rs).
+/// either sign; the trapezoidal rule (newmark, ρ∞ = 1) on the four-bar at
+/// h = 5e-3 gains 1.5 J on a scale of 5.5 J by t = 0.5 s, its
+/// constraint-velocity error undamped (tests/redundant.rs).
 pub const IMPLICIT_ENERGY_GAIN: f64 = 1e-2;
 
 /// The energy balance `E(t) − E(t0) = W(t)` tracked by [`Watch`]
@@ -892,12 +894,17 @@ pub fn simulate_into(
         } else {
             Box::new(Explicit::new(sys, cfg)?)
         };
-    let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
-    stability_check(sys, cfg, q0, qd0, &mut watch)?;
-    watch.start_balance(cfg.t0, q0, qd0);
+    let (mut q0, mut qd0) = (q0.to_vec(), qd0.to_vec());
+    let moved = method.consistent_start(cfg, &mut q0, &mut qd0)?;
+    let mut watch = Watch::new(sys, cfg, &q0, monitors, sink);
+    if let Some(message) = moved {
+        watch.warn(message);
+    }
+    stability_check(sys, cfg, &q0, &qd0, &mut watch)?;
+    watch.start_balance(cfg.t0, &q0, &qd0);
     let times = cfg.output_times();
     let start = Instant::now();
-    let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
+    let report = method.integrate(cfg, &q0, &qd0, &times, &mut watch)?;
     let wall_s = start.elapsed().as_secs_f64();
     let (work, extra) = method.work(cfg);
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
@@ -1024,7 +1031,10 @@ fn finish(
         let gain_bound = IMPLICIT_ENERGY_GAIN * b.scale + 10.0 * b.quadrature_error;
         if (cfg.method.is_implicit() || cfg.method == Method::Bdf) && b.max_gain > gain_bound {
             warnings.push(format!(
-                "energy balance broken: the run gained energy, T + V − E0 − W reached                  +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the                  quadrature error of W); the numerical damping of {} only removes energy,                  so the run left its constraint manifold or its branch of motion",
+                "energy balance broken: the run gained energy, T + V − E0 − W reached \
+                 +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the \
+                 quadrature error of W); the numerical damping of {} only removes energy, \
+                 so the run left its constraint manifold or its branch of motion",
                 b.max_gain,
                 IMPLICIT_ENERGY_GAIN,
                 b.scale,
