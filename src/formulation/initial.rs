@@ -448,7 +448,7 @@ pub fn index3_consistent_start(
     let (q_in, qd_in) = (q.to_vec(), qd.to_vec());
     let mut p = p0;
     while p > START_TOL || vrel > START_TOL {
-        if out.iterations == START_MAX_ITER || !(p <= 10.0 * p0.max(START_TOL)) {
+        if out.iterations == START_MAX_ITER || p.is_nan() || p > 10.0 * p0.max(START_TOL) {
             return Err(FormulationError::Initial(format!(
                 "the initial state violates the constraints (‖Φ‖∞ = {p0:.3e}, ‖Φ_q q̇ + Φ_t‖∞ \
                  = {v0:.3e} at t = {t}) and the mass-orthogonal projection did not reach the \
