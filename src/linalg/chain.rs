@@ -44,7 +44,23 @@ use super::{
 /// springs between neighbours has 8.
 pub const MAX_BANDWIDTH: usize = 24;
 
+/// Smallest dimension at which [`ChainLdlt`] splits the chain in two
+/// halves (module docs, "Two halves"). Fixed, never the thread count: the
+/// same matrix is always factorised by the same operations in the same
+/// order.
+pub const SPLIT_MIN_DIM: usize = 1000;
+
+/// Longest row of the separator (its two segments together).
+const MAX_SEPARATOR_ROW: usize = 4 * MAX_BANDWIDTH;
+
 /// The envelope factorisation of one pattern.
+///
+/// Elimination order `T, B, S` (module docs): rows `0..s0` (top half,
+/// eliminated downward), `s0..sb` (bottom half, from the chain's end
+/// towards the middle), `sb..dim` (the separator). Rows of `T` and `B` are
+/// plain envelope rows `[first[i], i)` inside their own half; a separator
+/// row has two segments, `[fa, s0)` in the tail of `T` and `[first[i], i)`
+/// over the tail of `B` and the separator. Unsplit: `s0 = sb = dim`.
 #[derive(Debug)]
 struct Envelope {
     dim: usize,
@@ -52,9 +68,14 @@ struct Envelope {
     nnz: usize,
     /// `perm[i]`: row/column of `K` eliminated `i`-th.
     perm: Vec<usize>,
-    /// First column of row `i`'s envelope (permuted numbering).
+    s0: usize,
+    sb: usize,
+    /// First column of row `i`'s (last) envelope segment.
     first: Vec<usize>,
-    /// Row `i`'s entries left of the diagonal: `env[ptr[i] + (j − first[i])]`.
+    /// Separator row `sb + r`: first column of its segment in `T`.
+    fa: Vec<usize>,
+    /// Row `i`'s entries left of the diagonal start at `env[ptr[i]]`
+    /// (separator rows: the `T` segment, then the other).
     ptr: Vec<usize>,
     /// `L` by rows (envelope), then the pivots `d` (`env[ptr[dim] + i]`).
     env: Vec<f64>,
@@ -71,61 +92,134 @@ struct Envelope {
     w: Vec<f64>,
 }
 
+/// Group (body) range of each multiplier row: lowest and highest body among
+/// its coordinate columns, `None` when a row has no coordinate column.
+fn row_groups(k: &SaddleMatrix) -> Option<Vec<(usize, usize)>> {
+    let (dim, n) = (k.dim(), k.n());
+    let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    let mut group = vec![(usize::MAX, 0usize); dim - n];
+    for c in 0..n {
+        for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+            if r >= n {
+                let g = &mut group[r - n];
+                *g = (g.0.min(c / 3), g.1.max(c / 3));
+            }
+        }
+    }
+    (!group.iter().any(|g| g.0 == usize::MAX)).then_some(group)
+}
+
+/// The one-sided body-by-body order: group after group, each group's
+/// coordinates, then the multiplier rows whose highest body it is.
+fn plain_order(n: usize, groups: &[(usize, usize)]) -> Vec<usize> {
+    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n / 3];
+    for (r, &(_, hi)) in groups.iter().enumerate() {
+        rows_of[hi].push(n + r);
+    }
+    let mut perm = Vec::with_capacity(n + groups.len());
+    for (g, rows) in rows_of.iter().enumerate() {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(rows);
+    }
+    perm
+}
+
+/// The two-sided order `T, B, S` about the middle body `gm`: `T` the
+/// bodies below `gm` in the one-sided order, `B` the bodies above it from
+/// the last down, each body's coordinates before the multiplier rows whose
+/// lowest body it is, `S` body `gm` and every row touching it or spanning
+/// it. Returns `(perm, s0, sb)`.
+fn split_order(n: usize, groups: &[(usize, usize)]) -> (Vec<usize>, usize, usize) {
+    let ng = n / 3;
+    let gm = ng / 2;
+    let (mut t_rows, mut b_rows) = (vec![Vec::new(); ng], vec![Vec::new(); ng]);
+    let mut s_rows = Vec::new();
+    for (r, &(lo, hi)) in groups.iter().enumerate() {
+        if hi < gm {
+            t_rows[hi].push(n + r);
+        } else if lo > gm {
+            b_rows[lo].push(n + r);
+        } else {
+            s_rows.push(n + r);
+        }
+    }
+    let mut perm = Vec::with_capacity(n + groups.len());
+    for (g, rows) in t_rows.iter().enumerate().take(gm) {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(rows);
+    }
+    let s0 = perm.len();
+    for g in (gm + 1..ng).rev() {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(&b_rows[g]);
+    }
+    let sb = perm.len();
+    perm.extend(3 * gm..3 * gm + 3);
+    perm.extend_from_slice(&s_rows);
+    (perm, s0, sb)
+}
+
 impl Envelope {
-    /// The envelope of `k` in the body-by-body order, or `None` when a
-    /// multiplier row has no coordinate column or a row is wider than
-    /// [`MAX_BANDWIDTH`].
-    fn analyze(k: &SaddleMatrix) -> Option<Self> {
-        let (dim, n) = (k.dim(), k.n());
-        let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    /// The envelope of `k` in the body-by-body order (two-sided when
+    /// `split` and the pattern allows it), or `None` when a multiplier row
+    /// has no coordinate column or a row is wider than [`MAX_BANDWIDTH`].
+    fn analyze(k: &SaddleMatrix, split: bool) -> Option<Self> {
+        let n = k.n();
         if n % 3 != 0 {
             return None;
         }
-        let n_groups = n / 3;
-        // group of each multiplier row: the highest body of its columns
-        let mut group = vec![usize::MAX; dim - n];
-        for c in 0..n {
-            for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
-                if r >= n {
-                    let g = &mut group[r - n];
-                    *g = if *g == usize::MAX {
-                        c / 3
-                    } else {
-                        (*g).max(c / 3)
-                    };
-                }
+        let groups = row_groups(k)?;
+        if split && k.dim() >= SPLIT_MIN_DIM && n / 3 >= 3 {
+            let (perm, s0, sb) = split_order(n, &groups);
+            if let Some(e) = Self::layout(k, perm, s0, sb) {
+                return Some(e);
             }
         }
-        if group.contains(&usize::MAX) {
-            return None;
-        }
-        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n_groups];
-        for (r, &g) in group.iter().enumerate() {
-            rows_of[g].push(n + r);
-        }
-        let mut perm = Vec::with_capacity(dim);
-        for (g, rows) in rows_of.iter().enumerate() {
-            perm.extend(3 * g..3 * g + 3);
-            perm.extend_from_slice(rows);
-        }
+        let dim = k.dim();
+        Self::layout(k, plain_order(n, &groups), dim, dim)
+    }
+
+    /// Envelope rows, storage and slot map of `k` in the order `perm` with
+    /// the halves ending at `s0`, `sb`; `None` when an entry couples the
+    /// two halves or a row is too wide.
+    fn layout(k: &SaddleMatrix, perm: Vec<usize>, s0: usize, sb: usize) -> Option<Self> {
+        let (dim, n) = (k.dim(), k.n());
+        let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
         let mut inv = vec![0usize; dim];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new;
         }
         let mut first: Vec<usize> = (0..dim).collect();
+        let mut fa = vec![s0; dim - sb];
         for c in 0..dim {
             for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
                 let (a, b) = (inv[r], inv[c]);
                 let (hi, lo) = (a.max(b), a.min(b));
-                first[hi] = first[hi].min(lo);
+                if hi >= sb && lo < s0 {
+                    fa[hi - sb] = fa[hi - sb].min(lo);
+                } else if hi >= s0 && hi < sb && lo < s0 {
+                    return None; // B coupled to T: no separator here
+                } else {
+                    first[hi] = first[hi].min(lo);
+                }
             }
         }
-        if (0..dim).any(|i| i - first[i] > MAX_BANDWIDTH) {
+        let len = |i: usize| {
+            (i - first[i])
+                + if i >= sb {
+                    s0 - fa[i - sb] // fa = s0: no T segment
+                } else {
+                    0
+                }
+        };
+        if (0..sb).any(|i| i - first[i] > MAX_BANDWIDTH)
+            || (sb..dim).any(|i| len(i) > MAX_SEPARATOR_ROW)
+        {
             return None;
         }
         let mut ptr = vec![0usize; dim + 1];
         for i in 0..dim {
-            ptr[i + 1] = ptr[i] + (i - first[i]);
+            ptr[i + 1] = ptr[i] + len(i);
         }
         let profile = ptr[dim];
         let mut slot_to = vec![0usize; k.nnz()];
@@ -135,6 +229,10 @@ impl Envelope {
                 let (hi, lo) = (a.max(b), a.min(b));
                 slot_to[s] = if hi == lo {
                     profile + hi
+                } else if hi >= sb && lo < s0 {
+                    ptr[hi] + (lo - fa[hi - sb])
+                } else if hi >= sb {
+                    ptr[hi] + (s0 - fa[hi - sb]) + (lo - first[hi])
                 } else {
                     ptr[hi] + (lo - first[hi])
                 };
@@ -146,7 +244,10 @@ impl Envelope {
             n,
             nnz: k.nnz(),
             perm,
+            s0,
+            sb,
             first,
+            fa,
             ptr,
             env: vec![0.0; profile + dim],
             dinv: vec![0.0; dim],
@@ -158,7 +259,14 @@ impl Envelope {
         })
     }
 
-    /// Scaled, regularised LDLᵀ of the values of `k` (module docs).
+    /// Is the order two-sided?
+    fn is_split(&self) -> bool {
+        self.s0 < self.dim
+    }
+
+    /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
+    /// halves `T` and `B` concurrently (`rayon::join`; each is sequential
+    /// inside and touches only its own rows), then the separator.
     fn factorize(
         &mut self,
         k: &SaddleMatrix,
@@ -177,49 +285,63 @@ impl Envelope {
                 self.env[self.slot_to[s]] += vals[s] * self.scale[row_idx[s]] * sc;
             }
         }
-        let profile = self.ptr[self.dim];
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let rule = Pivots {
+            positive: &self.positive,
+            epsilon,
+            delta,
+        };
+        let (first, ptr, fa) = (&self.first, &self.ptr, &self.fa);
+        let profile = ptr[dim];
         let (lower, diag) = self.env.split_at_mut(profile);
-        let (first, ptr, dinv) = (&self.first, &self.ptr, &mut self.dinv);
-        let mut regularized = 0;
-        for i in 0..self.dim {
-            let (fi, pi) = (first[i], ptr[i]);
-            assert!(ptr[i + 1] <= lower.len() && i < dinv.len());
-            // t_ij = a_ij − Σ_k t_ik L_jk over the overlap of rows i and j
+        let mut regularized = {
+            let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
+            let lower_b = &mut lower_rest[..ptr[sb] - ptr[s0]];
+            let (diag_t, diag_rest) = diag.split_at_mut(s0);
+            let (dinv_t, dinv_rest) = self.dinv.split_at_mut(s0);
+            let (diag_b, dinv_b) = (&mut diag_rest[..sb - s0], &mut dinv_rest[..sb - s0]);
+            let (rt, rb) = rayon::join(
+                || crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule),
+                || crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule),
+            );
+            rt? + rb?
+        };
+        // the separator: two-segment rows against every row before them
+        let dinv = &mut self.dinv;
+        for i in sb..dim {
+            let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+            let la = s0 - fai;
+            // t_ij = a_ij − Σ_k t_ik L_jk over the overlap of rows i and j:
+            // the T segment against plain rows j of T
+            for j in fai..s0 {
+                let k0 = fai.max(first[j]);
+                let d = dot(lower, pi + (k0 - fai), ptr[j] + (k0 - first[j]), j - k0);
+                lower[pi + (j - fai)] -= d;
+            }
+            // the second segment against rows of B (plain) and of S (two segments)
             for j in fi..i {
-                let fj = first[j];
-                let k0 = fi.max(fj);
-                let (ti, lj) = (pi + (k0 - fi), ptr[j] + (k0 - fj));
-                let mut dot = 0.0;
-                for o in 0..j - k0 {
-                    // SAFETY: rows j < i lie before row i in `lower`
-                    // (ptr is increasing, ptr[i + 1] ≤ len checked above),
-                    // and k0 + o < j stays inside both rows' envelopes.
-                    unsafe {
-                        dot += lower.get_unchecked(ti + o) * lower.get_unchecked(lj + o);
-                    }
+                let la_j = if j >= sb { s0 - fa[j - sb] } else { 0 };
+                let k0 = fi.max(first[j]);
+                let mut d = dot(
+                    lower,
+                    pi + la + (k0 - fi),
+                    ptr[j] + la_j + (k0 - first[j]),
+                    j - k0,
+                );
+                if j >= sb {
+                    let k0 = fai.max(fa[j - sb]);
+                    d += dot(lower, pi + (k0 - fai), ptr[j] + (k0 - fa[j - sb]), s0 - k0);
                 }
-                lower[pi + (j - fi)] -= dot;
+                lower[pi + la + (j - fi)] -= d;
             }
             let mut d = diag[i];
-            for (t, &dj) in lower[pi..ptr[i + 1]].iter_mut().zip(&dinv[fi..i]) {
-                let l = *t * dj;
-                d -= *t * l;
-                *t = l;
+            for (o, j) in (fai..s0).chain(fi..i).enumerate() {
+                let t = lower[pi + o];
+                let l = t * dinv[j];
+                d -= t * l;
+                lower[pi + o] = l;
             }
-            if self.positive[i] {
-                if d <= epsilon {
-                    d = delta;
-                    regularized += 1;
-                }
-            } else if d >= -epsilon {
-                d = -delta;
-                regularized += 1;
-            }
-            if !d.is_finite() {
-                return Err(LinalgError::Singular(format!(
-                    "envelope LDLᵀ: non-finite pivot at elimination step {i}"
-                )));
-            }
+            let d = rule.pivot(i, d, &mut regularized)?;
             diag[i] = d;
             dinv[i] = 1.0 / d;
         }
@@ -227,39 +349,197 @@ impl Envelope {
     }
 
     /// `x ← S (S K S)⁻¹ S x` with the last factorisation: `L y = P S x`,
-    /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`.
+    /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`; the
+    /// halves concurrently as in `factorize`, the separator between them.
     fn solve(&mut self, x: &mut [f64]) {
-        let (w, first, ptr, env) = (&mut self.w, &self.first, &self.ptr, &self.env);
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
+        let env = &self.env[..ptr[dim]];
         for ((wi, &p), &s) in w.iter_mut().zip(&self.perm).zip(&self.pscale) {
             *wi = x[p] * s;
         }
-        assert!(ptr[self.dim] <= env.len() && w.len() == self.dim);
-        for i in 0..self.dim {
-            let (fi, pi) = (first[i], ptr[i]);
-            let mut dot = 0.0;
-            for o in 0..i - fi {
-                // SAFETY: row i's entries are env[pi..ptr[i + 1]] (within
-                // env, checked above) and columns fi + o < i < dim.
-                unsafe {
-                    dot += env.get_unchecked(pi + o) * w.get_unchecked(fi + o);
-                }
-            }
-            w[i] -= dot;
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            rayon::join(
+                || forward_rows(first, ptr, env, 0, 0..s0, w_t),
+                || forward_rows(first, ptr, env, s0, s0..sb, w_b),
+            );
+        }
+        for i in sb..dim {
+            let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+            let la = s0 - fai;
+            let d = dot2(&env[pi..pi + la], &w[fai..s0])
+                + dot2(&env[pi + la..ptr[i + 1]], &w[fi..i]);
+            w[i] -= d;
         }
         for (wi, &di) in w.iter_mut().zip(&self.dinv) {
             *wi *= di;
         }
-        for i in (0..self.dim).rev() {
-            let (fi, pi, wi) = (first[i], ptr[i], w[i]);
-            for o in 0..i - fi {
-                // SAFETY: as in the forward loop
-                unsafe {
-                    *w.get_unchecked_mut(fi + o) -= env.get_unchecked(pi + o) * wi;
-                }
+        for i in (sb..dim).rev() {
+            let (fai, fi, pi, wi) = (fa[i - sb], first[i], ptr[i], w[i]);
+            let la = s0 - fai;
+            for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
+                *v -= l * wi;
             }
+            for (v, &l) in w[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
+                *v -= l * wi;
+            }
+        }
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            rayon::join(
+                || backward_rows(first, ptr, env, 0, 0..s0, w_t),
+                || backward_rows(first, ptr, env, s0, s0..sb, w_b),
+            );
         }
         for ((&wi, &p), &s) in w.iter().zip(&self.perm).zip(&self.pscale) {
             x[p] = wi * s;
+        }
+    }
+}
+
+/// The expected pivot signs and the regularisation of [`SparseLdlt`].
+struct Pivots<'a> {
+    positive: &'a [bool],
+    epsilon: f64,
+    delta: f64,
+}
+
+impl Pivots<'_> {
+    /// Pivot `d` of row `i` (global numbering): `δ` with the expected sign
+    /// when `d` has the wrong sign or is within `ε` of 0 (counted).
+    fn pivot(&self, i: usize, d: f64, regularized: &mut usize) -> Result<f64, LinalgError> {
+        let d = if self.positive[i] {
+            if d <= self.epsilon {
+                *regularized += 1;
+                self.delta
+            } else {
+                d
+            }
+        } else if d >= -self.epsilon {
+            *regularized += 1;
+            -self.delta
+        } else {
+            d
+        };
+        if !d.is_finite() {
+            return Err(LinalgError::Singular(format!(
+                "envelope LDLᵀ: non-finite pivot at elimination step {i}"
+            )));
+        }
+        Ok(d)
+    }
+}
+
+/// `Σ_o v[a + o] v[b + o]`, `o < len`.
+fn dot(v: &[f64], a: usize, b: usize, len: usize) -> f64 {
+    dot2(&v[a..a + len], &v[b..b + len])
+}
+
+/// `Σ_i a_i b_i` in index order.
+fn dot2(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0, |s, (x, y)| s + x * y)
+}
+
+/// Crout (up-looking) LDLᵀ of the plain envelope rows `rows` of one half,
+/// whose envelopes stay inside the half: `lower`, `diag`, `dinv` hold that
+/// half only (from row `base`, at `env[ptr[base]..]`).
+///
+/// ```text
+/// t_ij = a_ij − Σ_{k<j} t_ik L_jk,   L_ij = t_ij / d_j,   d_i = a_ii − Σ_{j<i} t_ij L_ij
+/// ```
+#[allow(clippy::too_many_arguments)]
+fn crout_rows(
+    first: &[usize],
+    ptr: &[usize],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    lower: &mut [f64],
+    diag: &mut [f64],
+    dinv: &mut [f64],
+    rule: &Pivots<'_>,
+) -> Result<usize, LinalgError> {
+    let p0 = ptr[base];
+    let mut regularized = 0;
+    for i in rows {
+        let (fi, pi) = (first[i], ptr[i] - p0);
+        assert!(ptr[i + 1] - p0 <= lower.len() && i - base < dinv.len() && fi >= base);
+        for j in fi..i {
+            let fj = first[j];
+            let k0 = fi.max(fj);
+            let (ti, lj) = (pi + (k0 - fi), ptr[j] - p0 + (k0 - fj));
+            let mut dot = 0.0;
+            for o in 0..j - k0 {
+                // SAFETY: rows base ≤ j < i lie before row i in `lower`
+                // (ptr is increasing, ptr[i + 1] − p0 ≤ len checked above),
+                // and k0 + o < j stays inside both rows' envelopes.
+                unsafe {
+                    dot += lower.get_unchecked(ti + o) * lower.get_unchecked(lj + o);
+                }
+            }
+            lower[pi + (j - fi)] -= dot;
+        }
+        let mut d = diag[i - base];
+        for (t, &dj) in lower[pi..ptr[i + 1] - p0]
+            .iter_mut()
+            .zip(&dinv[fi - base..i - base])
+        {
+            let l = *t * dj;
+            d -= *t * l;
+            *t = l;
+        }
+        let d = rule.pivot(i, d, &mut regularized)?;
+        diag[i - base] = d;
+        dinv[i - base] = 1.0 / d;
+    }
+    Ok(regularized)
+}
+
+/// Forward substitution `L y = w` over the plain rows `rows` of one half
+/// (`w` from row `base`).
+fn forward_rows(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    w: &mut [f64],
+) {
+    for i in rows {
+        let (fi, pi) = (first[i], ptr[i]);
+        assert!(ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
+        let mut dot = 0.0;
+        for o in 0..i - fi {
+            // SAFETY: row i's entries are env[pi..ptr[i + 1]] (checked
+            // above) and its columns base ≤ fi + o < i lie in `w`.
+            unsafe {
+                dot += env.get_unchecked(pi + o) * w.get_unchecked(fi - base + o);
+            }
+        }
+        w[i - base] -= dot;
+    }
+}
+
+/// Backward substitution `Lᵀ z = w` over the plain rows `rows` of one
+/// half, from the last (`w` from row `base`).
+fn backward_rows(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    w: &mut [f64],
+) {
+    for i in rows.rev() {
+        let (fi, pi, wi) = (first[i], ptr[i], w[i - base]);
+        assert!(ptr[i + 1] <= env.len() && fi >= base);
+        for o in 0..i - fi {
+            // SAFETY: as in `forward_rows`
+            unsafe {
+                *w.get_unchecked_mut(fi - base + o) -= env.get_unchecked(pi + o) * wi;
+            }
         }
     }
 }
@@ -274,6 +554,7 @@ pub struct ChainLdlt {
     delta: f64,
     envelope: Option<Envelope>,
     fallback: SparseLdlt,
+    split: bool,
     analyzed: bool,
     factorized: bool,
     check_residual: bool,
@@ -288,6 +569,7 @@ impl Default for ChainLdlt {
             delta: DEFAULT_DELTA,
             envelope: None,
             fallback: SparseLdlt::default(),
+            split: true,
             analyzed: false,
             factorized: false,
             check_residual: true,
@@ -305,6 +587,19 @@ impl ChainLdlt {
         self.check_residual = on;
         self.fallback = self.fallback.with_residual_check(on);
         self
+    }
+
+    /// Allow the two-sided order of the module docs ("Two halves") from
+    /// [`SPLIT_MIN_DIM`] on (default on); off: always the one-sided order.
+    pub fn with_split(mut self, on: bool) -> Self {
+        self.split = on;
+        self
+    }
+
+    /// Did `analyze` choose the two-sided order (`None` before `analyze`
+    /// or on the fallback path)?
+    pub fn is_split(&self) -> Option<bool> {
+        self.envelope.as_ref().map(Envelope::is_split)
     }
 
     /// Did `analyze` choose the envelope path (`None` before `analyze`)?
@@ -337,7 +632,7 @@ impl SaddlePointSolver for ChainLdlt {
         }
         self.factorized = false;
         self.analyzed = true;
-        self.envelope = Envelope::analyze(k);
+        self.envelope = Envelope::analyze(k, self.split);
         match &self.envelope {
             Some(e) => {
                 self.bufs.resize(e.dim);

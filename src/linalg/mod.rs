@@ -35,7 +35,7 @@ mod saddle;
 mod schur;
 mod sparse;
 
-pub use chain::{ChainLdlt, MAX_BANDWIDTH};
+pub use chain::{ChainLdlt, MAX_BANDWIDTH, SPLIT_MIN_DIM};
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
 pub use pattern::CscPattern;
