@@ -39,7 +39,12 @@ fn random_chain(nb: usize, seed: u64) -> SaddleMatrix {
     for k in 0..nb - 1 {
         let (r, i, j) = (2 + 2 * k, 3 * k, 3 * k + 3);
         jac.extend([(r, i), (r, i + 2), (r, j), (r, j + 2)]);
-        jac.extend([(r + 1, i + 1), (r + 1, i + 2), (r + 1, j + 1), (r + 1, j + 2)]);
+        jac.extend([
+            (r + 1, i + 1),
+            (r + 1, i + 2),
+            (r + 1, j + 1),
+            (r + 1, j + 2),
+        ]);
     }
     let m = 2 * nb;
     let mut k = SaddleMatrix::new(n, m, &a_pat, &jac);
@@ -79,7 +84,10 @@ fn solve(k: &SaddleMatrix, split: bool, b: &[f64]) -> (Vec<f64>, bool) {
 }
 
 fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
-    let num = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+    let num = a
+        .iter()
+        .zip(b)
+        .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
     num / b.iter().fold(0.0_f64, |m, y| m.max(y.abs()))
 }
 

@@ -33,7 +33,7 @@
 //! same scaled units, same sign rule), so the two solvers agree to rounding
 //! on every matrix both accept.
 
-use super::sparse::{saddle_scaling, RefineBuffers};
+use super::sparse::RefineBuffers;
 use super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLdlt, Storage,
     DEFAULT_DELTA, DEFAULT_EPSILON,
@@ -81,12 +81,21 @@ struct Envelope {
     env: Vec<f64>,
     /// `1/d_i`.
     dinv: Vec<f64>,
-    /// Slot of `K` → position in `env`.
-    slot_to: Vec<usize>,
+    /// Where each value of `K` goes, by the part (`T`, `B`, `S`) of its
+    /// envelope row: `K`'s slot, its position in that part's storage,
+    /// the permuted row and column.
+    fill: [Vec<Fill>; 3],
+    /// `inv[j]`: elimination position of row/column `j` of `K`.
+    inv: Vec<usize>,
+    /// Slot of each permuted row's diagonal entry in `K`.
+    dslot: Vec<usize>,
+    /// A multiplier row's Φ_q entries (slot, diagonal slot of the
+    /// column): `phi_ent[phi_ptr[i]..phi_ptr[i + 1]]` (permuted numbering).
+    phi_ptr: Vec<usize>,
+    phi_ent: Vec<(usize, usize)>,
     /// Expected pivot signs (permuted numbering).
     positive: Vec<bool>,
-    scale: Vec<f64>,
-    /// `scale` in elimination order.
+    /// The scaling of [`SparseLdlt`] (`saddle_scaling`) in elimination order.
     pscale: Vec<f64>,
     /// Permuted right-hand side.
     w: Vec<f64>,
@@ -222,22 +231,53 @@ impl Envelope {
             ptr[i + 1] = ptr[i] + len(i);
         }
         let profile = ptr[dim];
-        let mut slot_to = vec![0usize; k.nnz()];
+        if profile + dim > u32::MAX as usize {
+            return None;
+        }
+        // each value's part and its position in that part: L rows from
+        // ptr[part start], then the part's pivots
+        let parts = [0..s0, s0..sb, sb..dim];
+        let part_of = |i: usize| usize::from(i >= s0) + usize::from(i >= sb);
+        let mut fill: [Vec<Fill>; 3] = Default::default();
         for c in 0..dim {
             for s in col_ptr[c]..col_ptr[c + 1] {
                 let (a, b) = (inv[row_idx[s]], inv[c]);
                 let (hi, lo) = (a.max(b), a.min(b));
-                slot_to[s] = if hi == lo {
-                    profile + hi
+                let part = part_of(hi);
+                let r = &parts[part];
+                let p0 = ptr[r.start];
+                let pos = if hi == lo {
+                    (ptr[r.end] - p0) + (hi - r.start)
                 } else if hi >= sb && lo < s0 {
-                    ptr[hi] + (lo - fa[hi - sb])
+                    ptr[hi] - p0 + (lo - fa[hi - sb])
                 } else if hi >= sb {
-                    ptr[hi] + (s0 - fa[hi - sb]) + (lo - first[hi])
+                    ptr[hi] - p0 + (s0 - fa[hi - sb]) + (lo - first[hi])
                 } else {
-                    ptr[hi] + (lo - first[hi])
+                    ptr[hi] - p0 + (lo - first[hi])
                 };
+                fill[part].push(Fill {
+                    slot: s as u32,
+                    pos: pos as u32,
+                    row: a as u32,
+                    col: b as u32,
+                });
             }
         }
+        let diag_slots = k.diag_slots();
+        let dslot: Vec<usize> = perm.iter().map(|&j| diag_slots[j]).collect();
+        let mut phi_rows: Vec<Vec<(usize, usize)>> = vec![Vec::new(); dim];
+        for c in 0..n {
+            for s in col_ptr[c]..col_ptr[c + 1] {
+                if row_idx[s] >= n {
+                    phi_rows[inv[row_idx[s]]].push((s, diag_slots[c]));
+                }
+            }
+        }
+        let mut phi_ptr = vec![0usize; dim + 1];
+        for (i, r) in phi_rows.iter().enumerate() {
+            phi_ptr[i + 1] = phi_ptr[i] + r.len();
+        }
+        let phi_ent = phi_rows.concat();
         let positive = perm.iter().map(|&i| i < n).collect();
         Some(Self {
             dim,
@@ -251,9 +291,12 @@ impl Envelope {
             ptr,
             env: vec![0.0; profile + dim],
             dinv: vec![0.0; dim],
-            slot_to,
+            fill,
+            inv,
+            dslot,
+            phi_ptr,
+            phi_ent,
             positive,
-            scale: vec![1.0; dim],
             pscale: vec![1.0; dim],
             w: vec![0.0; dim],
         })
@@ -273,39 +316,64 @@ impl Envelope {
         epsilon: f64,
         delta: f64,
     ) -> Result<usize, LinalgError> {
-        saddle_scaling(k, &mut self.scale);
-        for (ps, &p) in self.pscale.iter_mut().zip(&self.perm) {
-            *ps = self.scale[p];
-        }
-        let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
-        self.env.fill(0.0);
-        for c in 0..self.dim {
-            let sc = self.scale[c];
-            for s in col_ptr[c]..col_ptr[c + 1] {
-                self.env[self.slot_to[s]] += vals[s] * self.scale[row_idx[s]] * sc;
-            }
-        }
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let rule = Pivots {
             positive: &self.positive,
             epsilon,
             delta,
         };
+        let vals = k.values();
         let (first, ptr, fa) = (&self.first, &self.ptr, &self.fa);
         let profile = ptr[dim];
-        let (lower, diag) = self.env.split_at_mut(profile);
-        let mut regularized = {
-            let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
-            let lower_b = &mut lower_rest[..ptr[sb] - ptr[s0]];
-            let (diag_t, diag_rest) = diag.split_at_mut(s0);
-            let (dinv_t, dinv_rest) = self.dinv.split_at_mut(s0);
-            let (diag_b, dinv_b) = (&mut diag_rest[..sb - s0], &mut dinv_rest[..sb - s0]);
-            let (rt, rb) = rayon::join(
-                || crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule),
-                || crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule),
-            );
-            rt? + rb?
+        let perm = &self.perm;
+        let scaling = Scaling {
+            n: self.n,
+            perm: &self.perm,
+            dslot: &self.dslot,
+            phi_ptr: &self.phi_ptr,
+            phi_ent: &self.phi_ent,
+            vals,
         };
+        // each part: its scaling, its values (checked finite) and the
+        // LDLᵀ of its rows; T and B concurrently (`rayon::join`; each
+        // sequential inside, touching only its own rows), then S
+        let (lower, diag) = self.env.split_at_mut(profile);
+        let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
+        let (lower_b, _) = lower_rest.split_at_mut(ptr[sb] - ptr[s0]);
+        let (diag_t, diag_rest) = diag.split_at_mut(s0);
+        let (diag_b, _) = diag_rest.split_at_mut(sb - s0);
+        let (dinv_t, dinv_rest) = self.dinv.split_at_mut(s0);
+        let dinv_b = &mut dinv_rest[..sb - s0];
+        let (ps_t, ps_rest) = self.pscale.split_at_mut(s0);
+        let ps_b = &mut ps_rest[..sb - s0];
+        let (fill_t, fill_b) = (&self.fill[0], &self.fill[1]);
+        let (rt, rb) = rayon::join(
+            || {
+                scaling.rows(0..s0, ps_t);
+                load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
+                crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule)
+            },
+            || {
+                scaling.rows(s0..sb, ps_b);
+                load(fill_b, perm, vals, ps_b, s0, lower_b, diag_b)?;
+                crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule)
+            },
+        );
+        let mut regularized = rt? + rb?;
+        scaling.rows(sb..dim, &mut self.pscale[sb..]);
+        let (lower, diag) = self.env.split_at_mut(profile);
+        {
+            let (lower_s, diag_s) = (&mut lower[ptr[sb]..], &mut diag[sb..]);
+            load(
+                &self.fill[2],
+                &self.perm,
+                vals,
+                &self.pscale,
+                0,
+                lower_s,
+                diag_s,
+            )?;
+        }
         // the separator: two-segment rows against every row before them
         let dinv = &mut self.dinv;
         for i in sb..dim {
@@ -354,27 +422,49 @@ impl Envelope {
     fn solve(&mut self, x: &mut [f64]) {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
+        let (perm, pscale, dinv) = (&self.perm, &self.pscale, &self.dinv);
         let env = &self.env[..ptr[dim]];
-        for ((wi, &p), &s) in w.iter_mut().zip(&self.perm).zip(&self.pscale) {
-            *wi = x[p] * s;
-        }
+        let xr: &[f64] = x;
+        // gather, forward substitution and D⁻¹ of one half; the separator's
+        // forward rows need the halves' y before D⁻¹, so D⁻¹ comes after
+        let gather = |rows: std::ops::Range<usize>, w: &mut [f64]| {
+            let base = rows.start;
+            for i in rows {
+                w[i - base] = xr[perm[i]] * pscale[i];
+            }
+        };
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             rayon::join(
-                || forward_rows(first, ptr, env, 0, 0..s0, w_t),
-                || forward_rows(first, ptr, env, s0, s0..sb, w_b),
+                || {
+                    gather(0..s0, w_t);
+                    forward_rows(first, ptr, env, 0, 0..s0, w_t);
+                },
+                || {
+                    gather(s0..sb, w_b);
+                    forward_rows(first, ptr, env, s0, s0..sb, w_b);
+                },
             );
         }
+        gather(sb..dim, &mut w[sb..]);
         for i in sb..dim {
             let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
             let la = s0 - fai;
-            let d = dot2(&env[pi..pi + la], &w[fai..s0])
-                + dot2(&env[pi + la..ptr[i + 1]], &w[fi..i]);
+            let d =
+                dot2(&env[pi..pi + la], &w[fai..s0]) + dot2(&env[pi + la..ptr[i + 1]], &w[fi..i]);
             w[i] -= d;
         }
-        for (wi, &di) in w.iter_mut().zip(&self.dinv) {
-            *wi *= di;
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let scale = |w: &mut [f64], d: &[f64]| {
+                for (wi, &di) in w.iter_mut().zip(d) {
+                    *wi *= di;
+                }
+            };
+            let (w_b, w_s) = w_rest.split_at_mut(sb - s0);
+            rayon::join(|| scale(w_t, &dinv[..s0]), || scale(w_b, &dinv[s0..sb]));
+            scale(w_s, &dinv[sb..]);
         }
         for i in (sb..dim).rev() {
             let (fai, fi, pi, wi) = (fa[i - sb], first[i], ptr[i], w[i]);
@@ -394,10 +484,109 @@ impl Envelope {
                 || backward_rows(first, ptr, env, s0, s0..sb, w_b),
             );
         }
-        for ((&wi, &p), &s) in w.iter().zip(&self.perm).zip(&self.pscale) {
-            x[p] = wi * s;
+        // x = S Pᵀ z as a gather over x's two halves
+        let (w, inv) = (&self.w, &self.inv);
+        let scatter = |x: &mut [f64], base: usize| {
+            for (j, xj) in x.iter_mut().enumerate() {
+                let i = inv[base + j];
+                *xj = w[i] * pscale[i];
+            }
+        };
+        let (x_lo, x_hi) = x.split_at_mut(dim / 2);
+        rayon::join(|| scatter(x_lo, 0), || scatter(x_hi, dim / 2));
+    }
+}
+
+/// One value of `K` in the envelope: slot, position in its part's
+/// storage, permuted row and column (of `K`'s lower-triangle entry).
+#[derive(Debug, Clone, Copy)]
+struct Fill {
+    slot: u32,
+    pos: u32,
+    row: u32,
+    col: u32,
+}
+
+/// The symmetric scaling of [`SparseLdlt`] (`saddle_scaling`: `s_i =
+/// 1/√|A_ii|` for the coordinates, `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)`
+/// for the multipliers, 1 where that is 0), row by row in elimination
+/// order, so each part computes its own (the maximum is exact: any order
+/// gives the same bits).
+struct Scaling<'a> {
+    n: usize,
+    perm: &'a [usize],
+    dslot: &'a [usize],
+    phi_ptr: &'a [usize],
+    phi_ent: &'a [(usize, usize)],
+    vals: &'a [f64],
+}
+
+impl Scaling<'_> {
+    fn coordinate(a: f64) -> f64 {
+        let a = a.abs();
+        if a > 0.0 {
+            1.0 / a.sqrt()
+        } else {
+            1.0
         }
     }
+
+    /// `pscale[i − rows.start]` for the rows `rows`.
+    fn rows(&self, rows: std::ops::Range<usize>, pscale: &mut [f64]) {
+        let base = rows.start;
+        for i in rows {
+            let d = self.vals[self.dslot[i]];
+            pscale[i - base] = if self.perm[i] < self.n {
+                Self::coordinate(d)
+            } else {
+                let mut s = d.abs().sqrt();
+                for &(slot, dc) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
+                    s = s.max(self.vals[slot].abs() * Self::coordinate(self.vals[dc]));
+                }
+                if s > 0.0 {
+                    1.0 / s
+                } else {
+                    1.0
+                }
+            };
+        }
+    }
+}
+
+/// Write the scaled values `K_rc s_r s_c` of one part into its zeroed
+/// storage (`lower`, then `diag` at positions from `lower.len()`), `pscale`
+/// from permuted row `base`; a non-finite value of `K` is an error naming
+/// its row and column.
+#[allow(clippy::too_many_arguments)]
+fn load(
+    fill: &[Fill],
+    perm: &[usize],
+    vals: &[f64],
+    pscale: &[f64],
+    base: usize,
+    lower: &mut [f64],
+    diag: &mut [f64],
+) -> Result<(), LinalgError> {
+    lower.fill(0.0);
+    diag.fill(0.0);
+    let nl = lower.len();
+    for f in fill {
+        let v = vals[f.slot as usize];
+        let x = v * pscale[f.row as usize - base] * pscale[f.col as usize - base];
+        if !v.is_finite() {
+            return Err(LinalgError::NonFinite {
+                row: perm[f.row as usize],
+                col: perm[f.col as usize],
+            });
+        }
+        let p = f.pos as usize;
+        if p < nl {
+            lower[p] += x;
+        } else {
+            diag[p - nl] += x;
+        }
+    }
+    Ok(())
 }
 
 /// The expected pivot signs and the regularisation of [`SparseLdlt`].
@@ -653,7 +842,6 @@ impl SaddlePointSolver for ChainLdlt {
                 got: k.dim(),
             });
         }
-        k.check_finite()?;
         self.factorized = false;
         let regularized_pivots = e.factorize(k, self.epsilon, self.delta)?;
         self.factorized = true;
