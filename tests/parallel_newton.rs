@@ -5,7 +5,10 @@
 use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::Index3;
 use mbsolve::integrate::{Method, OdeOptions};
-use mbsolve::linalg::{ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, SPLIT_MIN_DIM};
+use mbsolve::formulation::PARALLEL_MIN_COORDS;
+use mbsolve::linalg::{
+    ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, PARALLEL_MIN_DIM, SPLIT_MIN_DIM,
+};
 use mbsolve::simulation::{simulate, RunConfig};
 
 /// Deterministic pseudo-random numbers in [−1, 1) (64-bit LCG).
@@ -115,13 +118,14 @@ fn split_envelope_solves_random_chains_like_the_one_sided_one() {
     }
 }
 
-/// The stiff chain's Newton matrix (N = 400, gen-α's coefficients at
+/// The stiff chain's Newton matrix (N = 2000, its halves concurrent, gen-α's coefficients at
 /// h = 1e-5, a state away from rest): split against one-sided, and the
 /// split one bit-identical in one- and two-thread pools.
 #[test]
 fn split_envelope_solves_the_stiff_chain_newton_matrix() {
-    let (sys, q0, _, _) = stiff_chain(400, 5f64.to_radians()).unwrap();
+    let (sys, q0, _, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
     let (n, m) = (sys.n_coords(), sys.n_constraints());
+    assert!(n + m >= PARALLEL_MIN_DIM);
     let q: Vec<f64> = q0
         .iter()
         .enumerate()
@@ -141,7 +145,11 @@ fn split_envelope_solves_the_stiff_chain_newton_matrix() {
     assert!(split);
     let mut work = vec![0.0; n + m];
     let rs = k.relative_residual(&xs, &b, &mut work);
-    assert!(rs <= 1e-12, "split residual {rs:e}");
+    let ro = k.relative_residual(&xo, &b, &mut work);
+    eprintln!("stiff chain N = 2000: relative residual split {rs:e}, one-sided {ro:e}");
+    // at rounding: the one-sided factorisation's own residual is 2.2e-12
+    // here (the chain's conditioning grows with N; 1e-12 holds at N = 400)
+    assert!(rs <= 1e-11 && rs <= 2.0 * ro, "split {rs:e}, one-sided {ro:e}");
     let d = rel_diff(&xs, &xo);
     assert!(d < 1e-10, "split vs one-sided {d:e}");
     let in_pool = |threads: usize| {
@@ -155,17 +163,17 @@ fn split_envelope_solves_the_stiff_chain_newton_matrix() {
     assert!(x1.iter().zip(&x2).all(|(a, b)| a.to_bits() == b.to_bits()));
 }
 
-/// Whole gen-α runs of a 300-segment stiff chain (its Newton matrix split,
-/// its assembly concurrent) in one- and two-thread pools: every output
+/// Whole gen-α runs of a 2000-segment stiff chain (its Newton matrix split,
+/// the halves and the residual's forces and constraint terms concurrent) in one- and two-thread pools: every output
 /// bit-identical, and the run moved.
 #[test]
 fn genalpha_stiff_chain_is_bit_identical_with_one_and_two_threads() {
-    let (sys, q0, qd0, _) = stiff_chain(300, 5f64.to_radians()).unwrap();
-    assert!(5 * 300 >= SPLIT_MIN_DIM);
+    let (sys, q0, qd0, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
+    assert!(3 * 2000 >= PARALLEL_MIN_COORDS && 5 * 2000 >= PARALLEL_MIN_DIM);
     let cfg = RunConfig {
         method: Method::GenAlpha,
-        t_end: 2e-4,
-        output_dt: 5e-5,
+        t_end: 4e-5,
+        output_dt: 1e-5,
         ode: OdeOptions {
             fixed_step: Some(1e-5),
             ..Default::default()

@@ -33,6 +33,7 @@
 //! same scaled units, same sign rule), so the two solvers agree to rounding
 //! on every matrix both accept.
 
+use super::join_if;
 use super::sparse::RefineBuffers;
 use super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLdlt, Storage,
@@ -49,6 +50,10 @@ pub const MAX_BANDWIDTH: usize = 24;
 /// same matrix is always factorised by the same operations in the same
 /// order.
 pub const SPLIT_MIN_DIM: usize = 1000;
+
+/// Smallest dimension at which the two halves are factorised and solved
+/// concurrently (below it, one after the other: the same operations).
+pub const PARALLEL_MIN_DIM: usize = 10_000;
 
 /// Longest row of the separator (its two segments together).
 const MAX_SEPARATOR_ROW: usize = 4 * MAX_BANDWIDTH;
@@ -317,6 +322,7 @@ impl Envelope {
         delta: f64,
     ) -> Result<usize, LinalgError> {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
         let rule = Pivots {
             positive: &self.positive,
             epsilon,
@@ -347,7 +353,8 @@ impl Envelope {
         let (ps_t, ps_rest) = self.pscale.split_at_mut(s0);
         let ps_b = &mut ps_rest[..sb - s0];
         let (fill_t, fill_b) = (&self.fill[0], &self.fill[1]);
-        let (rt, rb) = rayon::join(
+        let (rt, rb) = join_if(
+            par,
             || {
                 scaling.rows(0..s0, ps_t);
                 load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
@@ -421,6 +428,7 @@ impl Envelope {
     /// halves concurrently as in `factorize`, the separator between them.
     fn solve(&mut self, x: &mut [f64]) {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
         let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
         let (perm, pscale, dinv) = (&self.perm, &self.pscale, &self.dinv);
         let env = &self.env[..ptr[dim]];
@@ -436,7 +444,8 @@ impl Envelope {
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
-            rayon::join(
+            join_if(
+                par,
                 || {
                     gather(0..s0, w_t);
                     forward_rows(first, ptr, env, 0, 0..s0, w_t);
@@ -463,7 +472,11 @@ impl Envelope {
                 }
             };
             let (w_b, w_s) = w_rest.split_at_mut(sb - s0);
-            rayon::join(|| scale(w_t, &dinv[..s0]), || scale(w_b, &dinv[s0..sb]));
+            join_if(
+                par,
+                || scale(w_t, &dinv[..s0]),
+                || scale(w_b, &dinv[s0..sb]),
+            );
             scale(w_s, &dinv[sb..]);
         }
         for i in (sb..dim).rev() {
@@ -479,7 +492,8 @@ impl Envelope {
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
-            rayon::join(
+            join_if(
+                par,
                 || backward_rows(first, ptr, env, 0, 0..s0, w_t),
                 || backward_rows(first, ptr, env, s0, s0..sb, w_b),
             );
@@ -493,7 +507,7 @@ impl Envelope {
             }
         };
         let (x_lo, x_hi) = x.split_at_mut(dim / 2);
-        rayon::join(|| scatter(x_lo, 0), || scatter(x_hi, dim / 2));
+        join_if(par, || scatter(x_lo, 0), || scatter(x_hi, dim / 2));
     }
 }
 
