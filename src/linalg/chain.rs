@@ -34,7 +34,7 @@
 //! on every matrix both accept.
 
 use super::join_if;
-use super::sparse::RefineBuffers;
+use super::sparse::{coordinate_scale, multiplier_scale, RefineBuffers};
 use super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLdlt, Storage,
     DEFAULT_DELTA, DEFAULT_EPSILON,
@@ -94,8 +94,9 @@ struct Envelope {
     inv: Vec<usize>,
     /// Slot of each permuted row's diagonal entry in `K`.
     dslot: Vec<usize>,
-    /// A multiplier row's Φ_q entries (slot, diagonal slot of the
-    /// column): `phi_ent[phi_ptr[i]..phi_ptr[i + 1]]` (permuted numbering).
+    /// A multiplier row's Φ_q entries (slot, permuted column, always
+    /// eliminated before the row and in the same part or an earlier one):
+    /// `phi_ent[phi_ptr[i]..phi_ptr[i + 1]]` (permuted numbering).
     phi_ptr: Vec<usize>,
     phi_ent: Vec<(usize, usize)>,
     /// Expected pivot signs (permuted numbering).
@@ -274,7 +275,7 @@ impl Envelope {
         for c in 0..n {
             for s in col_ptr[c]..col_ptr[c + 1] {
                 if row_idx[s] >= n {
-                    phi_rows[inv[row_idx[s]]].push((s, diag_slots[c]));
+                    phi_rows[inv[row_idx[s]]].push((s, inv[c]));
                 }
             }
         }
@@ -356,18 +357,18 @@ impl Envelope {
         let (rt, rb) = join_if(
             par,
             || {
-                scaling.rows(0..s0, ps_t);
+                scaling.rows(0..s0, 0, ps_t);
                 load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
                 crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule)
             },
             || {
-                scaling.rows(s0..sb, ps_b);
+                scaling.rows(s0..sb, s0, ps_b);
                 load(fill_b, perm, vals, ps_b, s0, lower_b, diag_b)?;
                 crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule)
             },
         );
         let mut regularized = rt? + rb?;
-        scaling.rows(sb..dim, &mut self.pscale[sb..]);
+        scaling.rows(sb..dim, 0, &mut self.pscale);
         let (lower, diag) = self.env.split_at_mut(profile);
         {
             let (lower_s, diag_s) = (&mut lower[ptr[sb]..], &mut diag[sb..]);
@@ -426,7 +427,8 @@ impl Envelope {
     /// `x ← S (S K S)⁻¹ S x` with the last factorisation: `L y = P S x`,
     /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`; the
     /// halves concurrently as in `factorize`, the separator between them.
-    fn solve(&mut self, x: &mut [f64]) {
+    /// Returns whether every entry of the solution is finite.
+    fn solve(&mut self, x: &mut [f64]) -> bool {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let par = dim >= PARALLEL_MIN_DIM;
         let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
@@ -505,9 +507,11 @@ impl Envelope {
                 let i = inv[base + j];
                 *xj = w[i] * pscale[i];
             }
+            x.iter().all(|v| v.is_finite())
         };
         let (x_lo, x_hi) = x.split_at_mut(dim / 2);
-        join_if(par, || scatter(x_lo, 0), || scatter(x_hi, dim / 2));
+        let (lo, hi) = join_if(par, || scatter(x_lo, 0), || scatter(x_hi, dim / 2));
+        lo && hi
     }
 }
 
@@ -521,9 +525,8 @@ struct Fill {
     col: u32,
 }
 
-/// The symmetric scaling of [`SparseLdlt`] (`saddle_scaling`: `s_i =
-/// 1/√|A_ii|` for the coordinates, `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)`
-/// for the multipliers, 1 where that is 0), row by row in elimination
+/// The symmetric scaling of [`SparseLdlt`] (`saddle_scaling`,
+/// `coordinate_scale`, `multiplier_scale`) row by row in elimination
 /// order, so each part computes its own (the maximum is exact: any order
 /// gives the same bits).
 struct Scaling<'a> {
@@ -536,32 +539,19 @@ struct Scaling<'a> {
 }
 
 impl Scaling<'_> {
-    fn coordinate(a: f64) -> f64 {
-        let a = a.abs();
-        if a > 0.0 {
-            1.0 / a.sqrt()
-        } else {
-            1.0
-        }
-    }
-
-    /// `pscale[i − rows.start]` for the rows `rows`.
-    fn rows(&self, rows: std::ops::Range<usize>, pscale: &mut [f64]) {
-        let base = rows.start;
+    /// `pscale[i − base]` for the rows `rows` (`pscale` from permuted row
+    /// `base`, covering the columns of their Φ_q entries).
+    fn rows(&self, rows: std::ops::Range<usize>, base: usize, pscale: &mut [f64]) {
         for i in rows {
             let d = self.vals[self.dslot[i]];
             pscale[i - base] = if self.perm[i] < self.n {
-                Self::coordinate(d)
+                coordinate_scale(d)
             } else {
                 let mut s = d.abs().sqrt();
-                for &(slot, dc) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
-                    s = s.max(self.vals[slot].abs() * Self::coordinate(self.vals[dc]));
+                for &(slot, c) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
+                    s = s.max(self.vals[slot].abs() * pscale[c - base]);
                 }
-                if s > 0.0 {
-                    1.0 / s
-                } else {
-                    1.0
-                }
+                multiplier_scale(s)
             };
         }
     }
@@ -878,13 +868,16 @@ impl SaddlePointSolver for ChainLdlt {
             });
         }
         self.stats.solves += 1;
-        if self.check_residual {
-            let refined = self.bufs.solve_checked(k, rhs, |x| e.solve(x));
+        let finite = if self.check_residual {
+            let refined = self.bufs.solve_checked(k, rhs, |x| {
+                e.solve(x);
+            });
             self.stats.refinements += usize::from(refined);
+            rhs.iter().all(|v| v.is_finite())
         } else {
-            e.solve(rhs);
-        }
-        if rhs.iter().all(|v| v.is_finite()) {
+            e.solve(rhs)
+        };
+        if finite {
             Ok(())
         } else {
             Err(LinalgError::NonFiniteSolution("envelope LDLᵀ"))

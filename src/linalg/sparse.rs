@@ -578,8 +578,7 @@ pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
     let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
     let diag = k.diag_slots();
     for c in 0..n {
-        let a = vals[diag[c]].abs();
-        scale[c] = if a > 0.0 { 1.0 / a.sqrt() } else { 1.0 };
+        scale[c] = coordinate_scale(vals[diag[c]]);
     }
     for r in n..dim {
         scale[r] = vals[diag[r]].abs().sqrt();
@@ -593,7 +592,27 @@ pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
         }
     }
     for s in &mut scale[n..dim] {
-        *s = if *s > 0.0 { 1.0 / *s } else { 1.0 };
+        *s = multiplier_scale(*s);
+    }
+}
+
+/// `1/√|A_ii|` (1 for a zero diagonal), the scaling of a coordinate.
+pub(super) fn coordinate_scale(a_ii: f64) -> f64 {
+    let a = a_ii.abs();
+    if a > 0.0 {
+        1.0 / a.sqrt()
+    } else {
+        1.0
+    }
+}
+
+/// `1/max` (1 where it is 0) of `max = max(maxᵢ |Φ_ri| s_i, √|D_rr|)`,
+/// the scaling of a multiplier row.
+pub(super) fn multiplier_scale(max: f64) -> f64 {
+    if max > 0.0 {
+        1.0 / max
+    } else {
+        1.0
     }
 }
 
