@@ -32,6 +32,30 @@
 //! Scaling and dynamic regularisation are [`SparseLdlt`]'s (same `ε`, `δ`,
 //! same scaled units, same sign rule), so the two solvers agree to rounding
 //! on every matrix both accept.
+//!
+//! # Two halves
+//!
+//! From [`SPLIT_MIN_DIM`] on (and when the pattern allows it) the order is
+//! two-sided, a one-level nested dissection of the chain (George 1973;
+//! the "twisted" factorisation of tridiagonal matrices): with `gm` the
+//! middle body, `T` = the bodies below `gm` in the order above (eliminated
+//! towards the middle), `B` = the bodies above `gm` from the last one
+//! down, each body's coordinates before the multiplier rows whose *lowest*
+//! body it is (the mirror image: again every multiplier row after a body
+//! it couples to), and last the separator `S` = body `gm` and every row
+//! touching or spanning it. `T` and `B` do not couple, so their Crout
+//! recurrences are independent (the envelope fill of each stays in its
+//! half); the rows of `S` have two envelope segments (the tail of `T`,
+//! then the tail of `B` and `S`) and are factorised after both. The solve
+//! follows: forward substitution of `T` and `B`, of `S`; `D⁻¹`; backward
+//! substitution of `S`, then of `T` and `B`. From [`PARALLEL_MIN_DIM`] on
+//! the two halves (with their scaling, loading of values, gathers and
+//! scatters) run concurrently (`rayon::join`). The split point is fixed by
+//! the pattern, never by the thread count, and each half is sequential
+//! inside: one thread and two compute the same operations in the same
+//! order, so the results are bit-identical (tests/parallel_newton.rs). The
+//! two-sided order rounds differently from the one-sided one (a different
+//! elimination order), at rounding level.
 
 use super::join_if;
 use super::sparse::{coordinate_scale, multiplier_scale, RefineBuffers};

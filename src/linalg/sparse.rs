@@ -571,8 +571,9 @@ impl SaddlePointSolver for SparseLdlt {
 
 /// The symmetric scaling `S` of [`SparseLdlt`] (module docs): `s_i =
 /// 1/√|A_ii|` for the coordinates, `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)`
-/// for the multipliers (1 where that is 0); shared with
-/// [`super::ChainLdlt`].
+/// for the multipliers (1 where that is 0); [`super::ChainLdlt`] computes
+/// the same row by row in its elimination order (`coordinate_scale`,
+/// `multiplier_scale`).
 pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
     let (n, dim) = (k.n(), k.dim());
     let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
