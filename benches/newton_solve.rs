@@ -352,14 +352,22 @@ fn threads() {
     one_sided.analyze(&c.k).expect("analyses");
     let pools: Vec<rayon::ThreadPool> = [1, 2]
         .iter()
-        .map(|&n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap())
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
         .collect();
     let mut xs = Vec::new();
     for p in &pools {
         p.install(|| c.env());
         xs.push(c.x.clone());
     }
-    assert!(xs[0].iter().zip(&xs[1]).all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(xs[0]
+        .iter()
+        .zip(&xs[1])
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
     let batch = 20;
     let (mut t1, mut t2, mut to) = (f64::MAX, f64::MAX, f64::MAX);
     for _ in 0..30 {
@@ -385,7 +393,12 @@ fn threads() {
 fn bench(c: &mut Criterion) {
     let pools: Vec<rayon::ThreadPool> = [1, 2]
         .iter()
-        .map(|&n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap())
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
         .collect();
     let mut case = Case::new(10_000);
     let mut g = c.benchmark_group("newton_factor_solve_threads/N=10000");

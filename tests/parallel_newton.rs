@@ -4,8 +4,8 @@
 
 use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::Index3;
-use mbsolve::integrate::{Method, OdeOptions};
 use mbsolve::formulation::PARALLEL_MIN_COORDS;
+use mbsolve::integrate::{Method, OdeOptions};
 use mbsolve::linalg::{
     ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, PARALLEL_MIN_DIM, SPLIT_MIN_DIM,
 };
@@ -149,7 +149,10 @@ fn split_envelope_solves_the_stiff_chain_newton_matrix() {
     eprintln!("stiff chain N = 2000: relative residual split {rs:e}, one-sided {ro:e}");
     // at rounding: the one-sided factorisation's own residual is 2.2e-12
     // here (the chain's conditioning grows with N; 1e-12 holds at N = 400)
-    assert!(rs <= 1e-11 && rs <= 2.0 * ro, "split {rs:e}, one-sided {ro:e}");
+    assert!(
+        rs <= 1e-11 && rs <= 2.0 * ro,
+        "split {rs:e}, one-sided {ro:e}"
+    );
     let d = rel_diff(&xs, &xo);
     assert!(d < 1e-10, "split vs one-sided {d:e}");
     let in_pool = |threads: usize| {
