@@ -421,22 +421,25 @@ pub fn index3_consistent_start(
     // (‖Φ‖∞, ‖Φ_q q̇ + Φ_t‖∞ / max(1, ‖q̇‖∞)) at (q, q̇)
     let mut residuals = |q: &[f64], qd: &[f64]| {
         sys.phi(q, t, &mut phi);
+        all_finite(t, &[("the constraints Φ", &phi)])?;
         let p = norm(&phi);
         sys.jacobian_values(q, t, &mut jac);
-        sys.jacobian_mul(&jac, qd, &mut phi);
         sys.phi_t(q, t, &mut phi_t);
+        all_finite(
+            t,
+            &[
+                ("Φ_q", &jac),
+                ("Φ_t (the constraints' time derivative)", &phi_t),
+            ],
+        )?;
+        sys.jacobian_mul(&jac, qd, &mut phi);
         let v = phi
             .iter()
             .zip(&phi_t)
             .fold(0.0_f64, |a, (x, y)| a.max((x + y).abs()));
-        (p, v, v / norm(qd).max(1.0))
+        Ok::<_, FormulationError>((p, v, v / norm(qd).max(1.0)))
     };
-    let (p0, v0, mut vrel) = residuals(q, qd);
-    if !(p0.is_finite() && v0.is_finite()) {
-        return Err(FormulationError::Initial(format!(
-            "the constraints or their rates are not finite at the initial state (t = {t})"
-        )));
-    }
+    let (p0, v0, mut vrel) = residuals(q, qd)?;
     let mut out = StartCorrection {
         phi: p0,
         phi_dot: v0,
@@ -465,7 +468,7 @@ pub fn index3_consistent_start(
         }
         f.project(t, q, qd)?;
         out.iterations += 1;
-        (p, _, vrel) = residuals(q, qd);
+        (p, _, vrel) = residuals(q, qd)?;
     }
     let moved = |a: &[f64], b: &[f64]| {
         a.iter()
