@@ -13,8 +13,8 @@
 //!   Newton assembly against the generic per-joint, per-element one
 //!   (fails below [`IMPLICIT_GENERATED_MIN`]; [`implicit_generated_over_generic`]).
 //! * the two-sided chain LDLᵀ over the one-sided one on one thread: factor
-//!   + solve of the stiff chain's Newton matrix at N = 10 000 (fails above
-//!   [`SPLIT_SOLVE_MAX`]; [`split_chain_solve_over_one_sided`]).
+//!   and solve of the stiff chain's Newton matrix at N = 10 000 (fails
+//!   above [`SPLIT_SOLVE_MAX`]; [`split_chain_solve_over_one_sided`]).
 //!
 //! Timings are the minimum over interleaved repetitions (robust to a shared
 //! machine) on a single thread (so the ratio measures algorithmic scaling,
