@@ -367,7 +367,6 @@ impl<'s> BdfRun<'s> {
             let r = c * d.abs().max(h * dv.abs()) / wq;
             if r > m {
                 m = r;
-                ARG.with(|a| a.set(i as i64));
             }
         }
         m
@@ -619,73 +618,7 @@ impl Stepper for BdfRun<'_> {
             }
             match self.attempt(t1, h) {
                 Newton::Failed(e, fresh) => {
-                    if trace_on() {
-                        eprintln!("F t={t:.6e} h={h:.3e} k={} fresh={fresh} {e}", self.k);
-                    }
-                    // a stale matrix: retry at once with a fresh one
-                    if !fresh && !newton_retry {
-                        newton_retry = true;
-                        continue;
-                    }
-                    newton_retry = false;
-                    self.stats.newton_failures += 1;
-                    if absh <= hmin {
-                        return Err(Failure::StepTooSmall {
-                            t,
-                            h: absh,
-                            h_min: hmin,
-                            cause: StepCut::Newton {
-                                t: t1,
-                                h,
-                                source: Arc::new(e),
-                            },
-                        });
-                    }
-                    absh = hmin.max(0.3 * absh);
-                    h = absh;
-                    done = false;
-                    continue;
-                }
-                Newton::Converged => {}
-            }
-            newton_retry = false;
-            self.ynew[..n].copy_from_slice(&self.q);
-            self.ynew[n..].copy_from_slice(&self.v);
-            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
-                return Err(Failure::NonFinite {
-                    what: "step",
-                    t: t1,
-                    step_from: Some(t),
-                    index,
-                    value,
-                });
-            }
-            let err = if self.ts.len() == 1 {
-                // first step: y − (y_0 + h ẏ_0) estimates the Euler error
-                // (velocities times h, as in `estimate`)
-                let y0 = &self.ys[0];
-                let mut m: f64 = 0.0;
-                for i in 0..n {
-                    let e = self.ynew[i] - (y0[i] + h * self.f0[i]);
-                    let ev = self.ynew[n + i] - (y0[n + i] + h * self.f0[n + i]);
-                    let w = y0[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
-                    m = m.max(e.abs().max(h * ev.abs()) / w);
-                }
-                m
-            } else {
-                self.estimate(self.k.min(self.ts.len() - 1), t1, h)
-            };
-            if trace_on() {
-                eprintln!(
-                    "T t={t:.6e} h={h:.3e} k={} err={:.3e} arg={} its={} fact={}",
-                    self.k,
-                    err / self.rtol,
-                    ARG.with(|a| a.get()),
-                    self.stats.newton_iterations,
-                    self.stats.factorizations
-                );
-            }
-            if err <= self.rtol {
+                    if err <= self.rtol {
                 break (t1, err);
             }
             self.stats.error_rejections += 1;
