@@ -47,12 +47,7 @@ fn main() {
             ..Default::default()
         };
         cfg.ode.rtol = rtol;
-        cfg.ode.atol = Tolerance::Scalar(
-            rtol * std::env::var("H2_ATOL")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(1e-3),
-        );
+        cfg.ode.atol = Tolerance::Scalar(rtol * 1e-3);
         cfg.ode.max_steps = 100_000_000;
         cfg.ode.initial_step = std::env::var("H5_H0").ok().and_then(|v| v.parse().ok());
         if method.is_implicit() {

@@ -85,10 +85,6 @@ use super::{
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
 };
 
-thread_local! { static ARG: std::cell::Cell<i64> = const { std::cell::Cell::new(0) }; }
-fn trace_on() -> bool {
-    std::env::var("MBS_BDF_TRACE").is_ok()
-}
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
 /// Newton iterations per attempt.
@@ -618,7 +614,60 @@ impl Stepper for BdfRun<'_> {
             }
             match self.attempt(t1, h) {
                 Newton::Failed(e, fresh) => {
-                    if err <= self.rtol {
+                    // a stale matrix: retry at once with a fresh one
+                    if !fresh && !newton_retry {
+                        newton_retry = true;
+                        continue;
+                    }
+                    newton_retry = false;
+                    self.stats.newton_failures += 1;
+                    if absh <= hmin {
+                        return Err(Failure::StepTooSmall {
+                            t,
+                            h: absh,
+                            h_min: hmin,
+                            cause: StepCut::Newton {
+                                t: t1,
+                                h,
+                                source: Arc::new(e),
+                            },
+                        });
+                    }
+                    absh = hmin.max(0.3 * absh);
+                    h = absh;
+                    done = false;
+                    continue;
+                }
+                Newton::Converged => {}
+            }
+            newton_retry = false;
+            self.ynew[..n].copy_from_slice(&self.q);
+            self.ynew[n..].copy_from_slice(&self.v);
+            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+                return Err(Failure::NonFinite {
+                    what: "step",
+                    t: t1,
+                    step_from: Some(t),
+                    index,
+                    value,
+                });
+            }
+            let err = if self.ts.len() == 1 {
+                // first step: y − (y_0 + h ẏ_0) estimates the Euler error
+                // (velocities times h, as in `estimate`)
+                let y0 = &self.ys[0];
+                let mut m: f64 = 0.0;
+                for i in 0..n {
+                    let e = self.ynew[i] - (y0[i] + h * self.f0[i]);
+                    let ev = self.ynew[n + i] - (y0[n + i] + h * self.f0[n + i]);
+                    let w = y0[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
+                    m = m.max(e.abs().max(h * ev.abs()) / w);
+                }
+                m
+            } else {
+                self.estimate(self.k.min(self.ts.len() - 1), t1, h)
+            };
+            if err <= self.rtol {
                 break (t1, err);
             }
             self.stats.error_rejections += 1;
@@ -666,12 +715,7 @@ impl Stepper for BdfRun<'_> {
                     best_p = k - 1;
                 }
             }
-            if k < std::env::var("MBS_BDF_MAXK")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(MAX_ORDER)
-                && self.ts.len() > k + 1
-            {
+            if k < MAX_ORDER && self.ts.len() > k + 1 {
                 let e = self.estimate(k + 1, t1, h);
                 let r = (self.rtol / e.max(1e-300)).powf(1.0 / (k as f64 + 2.0)) / 1.4;
                 if r > best {
