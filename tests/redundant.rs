@@ -196,20 +196,20 @@ fn genalpha_small_step_on_the_redundant_parallelogram_chain_is_on_its_branch_or_
 fn an_implicit_run_that_gains_energy_says_so() {
     // Issue 10 item 7 for the implicit methods: their numerical damping
     // only removes energy, so a gain beyond 1 % of the scale is a warning.
-    // The four-bar from its incorrect start (coupler turned by 0.05 rad):
-    // generalized-α pulls it onto the manifold in its first step, which
-    // changes T + V with no work done — the balance breaks and must say so;
-    // from the consistent start it must not.
-    for incorrect in [false, true] {
-        let flag = format!("initial.incorrect={incorrect}");
+    // The trapezoidal rule (newmark, ρ∞ = 1) on the index-3 four-bar at
+    // h = 5e-3 has no damping of the constraint-velocity error, which
+    // grows (‖Φ̇‖ 0.45 by t = 0.41 s) and pumps energy in: T + V − E0 − W
+    // reached +1.5 J on a scale of 5.5 J. Generalized-α (ρ∞ = 0.8) at the
+    // same step damps it and must stay silent.
+    for (method, rho, gains) in [("newmark", "1.0", true), ("genalpha", "0.8", false)] {
         let sc = with_extra(
             FOURBAR_TOML,
             &[
-                "integrator.method=\"genalpha\"",
-                "integrator.step=5e-5",
-                "time.end=1.0",
+                &format!("integrator.method=\"{method}\""),
+                &format!("integrator.rho_inf={rho}"),
+                "integrator.step=5e-3",
+                "time.end=0.5",
                 "output.quantities=[\"energy\"]",
-                &flag,
             ],
         );
         let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
@@ -217,7 +217,90 @@ fn an_implicit_run_that_gains_energy_says_so() {
         let gained = s.warnings.iter().any(|w| w.contains("gained energy"));
         let err = s.extra["max_energy_balance_error"].as_f64().unwrap();
         let scale = s.extra["energy_scale"].as_f64().unwrap();
-        eprintln!("incorrect start {incorrect}: balance error {err:.3e} J of {scale:.3e} J, warned {gained}");
-        assert_eq!(gained, incorrect, "{:?}", s.warnings);
+        eprintln!("{method}: balance error {err:.3e} J of {scale:.3e} J, warned {gained}");
+        assert_eq!(gained, gains, "{:?}", s.warnings);
+        if gains {
+            assert!(err > 0.01 * scale);
+        }
+    }
+}
+
+#[test]
+fn index3_methods_project_an_inconsistent_start() {
+    // The four-bar's incorrect start (coupler turned by 0.05 rad, ‖Φ‖∞ ≈
+    // 1e-2): generalized-α and bdf move it onto the manifold before the
+    // first step (Gauss–Newton with mass-orthogonal steps, a warning),
+    // where before generalized-α snapped onto it in its first step and
+    // gained 1.0e4 J on a scale of 14 J, and bdf failed at t0. Checks: the
+    // first output row is consistent (‖Φ‖, ‖Φ_q q̇‖ ≤ 1e-10) and moved by
+    // about the perturbation; no energy gain; and the motion from it is
+    // the one ode45 computes from the same projected state (independent
+    // index-1 formulation, rtol 1e-10; generalized-α only, see below).
+    for (method, knob) in [
+        ("genalpha", "integrator.step=2e-5"),
+        ("bdf", "integrator.rtol=1e-8"),
+    ] {
+        let sets = [
+            &format!("integrator.method=\"{method}\"") as &str,
+            knob,
+            "time.end=1.0",
+            "initial.incorrect=true",
+            "output.quantities=[\"energy\"]",
+        ];
+        let sc = with_extra(FOURBAR_TOML, &sets);
+        let (tr, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+        assert_eq!(s.status, "completed", "{method}: {:?}", s.message);
+        assert!(
+            s.warnings
+                .iter()
+                .any(|w| w.contains("initial state off the constraint manifold")),
+            "{method}: {:?}",
+            s.warnings
+        );
+        assert!(
+            !s.warnings.iter().any(|w| w.contains("gained energy")),
+            "{:?}",
+            s.warnings
+        );
+        let sys = &sc.system;
+        let (q0, qd0) = (&tr.q[0], &tr.qd[0]);
+        let mut phi = vec![0.0; sys.n_constraints()];
+        sys.phi(q0, 0.0, &mut phi);
+        let pn = phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let mut jac = vec![0.0; sys.jacobian_pattern().len()];
+        sys.jacobian_values(q0, 0.0, &mut jac);
+        sys.jacobian_mul(&jac, qd0, &mut phi);
+        let vn = phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let moved = q0
+            .iter()
+            .zip(&sc.q0)
+            .fold(0.0_f64, |a, (x, y)| a.max((x - y).abs()));
+        eprintln!("{method}: start ‖Φ‖ {pn:.2e}, ‖Φ̇‖ {vn:.2e}, moved {moved:.3e}");
+        assert!(pn <= 1e-10 && vn <= 1e-10, "{method}: {pn:e} {vn:e}");
+        assert!((0.01..0.1).contains(&moved), "{method}: moved {moved}");
+        // the same motion by ode45 from the projected state (bdf: its
+        // accuracy on the four-bar is an open item of issue 12 — 3.2e-3
+        // off at rtol 1e-8 — so only the start is checked here)
+        if method == "bdf" {
+            continue;
+        }
+        let reference = with_extra(
+            FOURBAR_TOML,
+            &[
+                "integrator.method=ode45",
+                "integrator.rtol=1e-10",
+                "integrator.atol=1e-12",
+                "time.end=1.0",
+            ],
+        );
+        let (rt, rs) = simulate(&sc.system, q0, qd0, &reference.run, &mut []).unwrap();
+        assert_eq!(rs.status, "completed");
+        let (a, b) = (tr.q.last().unwrap(), rt.q.last().unwrap());
+        let dev = a
+            .iter()
+            .zip(b)
+            .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+        eprintln!("{method}: deviation from ode45 at t = 1 s: {dev:.3e}");
+        assert!(dev < 1e-4, "{method}: {dev:e}");
     }
 }

@@ -44,7 +44,9 @@
 //! `Φ_qᵀΦ_q` needs nothing special here either.
 
 use super::dynamic_blocks::{DynamicBlocks, PenaltyBlock};
-use super::{all_finite, check_state, FormulationError};
+use super::{
+    all_finite, check_state, FormulationError, StartCorrection, START_MAX_ITER, START_TOL,
+};
 use crate::integrate::{AugmentedDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -94,37 +96,6 @@ impl AugmentedParams {
             };
             PENALTY_SCALE * mbar / s
         })
-    }
-}
-
-/// Tolerance on ‖Φ‖∞ \[m\] (and on `‖Φ_q q̇ + Φ_t‖∞ / max(1, ‖q̇‖∞)`)
-/// below which the initial state counts as consistent: the default of the
-/// index-1 projection ([`super::Projection`]).
-pub const START_TOL: f64 = 1e-10;
-
-/// Iterations allowed to each projection of the start
-/// ([`Augmented::consistent_start`]).
-pub const START_MAX_ITER: usize = 100;
-
-/// What [`Augmented::consistent_start`] did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct StartCorrection {
-    /// ‖Φ(q₀)‖∞ before.
-    pub phi: f64,
-    /// `‖Φ_q q̇₀ + Φ_t‖∞` before (at the projected positions).
-    pub phi_dot: f64,
-    /// Largest change of a position coordinate.
-    pub moved_q: f64,
-    /// Largest change of a velocity coordinate.
-    pub moved_qd: f64,
-    /// Iterations (positions + velocities).
-    pub iterations: usize,
-}
-
-impl StartCorrection {
-    /// Whether anything was changed.
-    pub fn changed(&self) -> bool {
-        self.moved_q > 0.0 || self.moved_qd > 0.0
     }
 }
 
@@ -519,14 +490,7 @@ impl AugmentedDae for Augmented<'_> {
         qd: &mut [f64],
     ) -> Result<Option<String>, SystemError> {
         let c = self.consistent_start(t, q, qd).map_err(sys_err)?;
-        Ok(c.changed().then(|| {
-            format!(
-                "initial state off the constraint manifold (‖Φ‖∞ = {:.3e}, ‖Φ̇‖∞ = {:.3e}): \
-                 projected at t = {t} (mass-orthogonal, {} augmented-Lagrangian iterations; \
-                 positions moved by up to {:.3e}, velocities by up to {:.3e})",
-                c.phi, c.phi_dot, c.iterations, c.moved_q, c.moved_qd
-            )
-        }))
+        Ok(c.changed().then(|| c.describe(t, "augmented-Lagrangian")))
     }
     fn accelerations(
         &mut self,

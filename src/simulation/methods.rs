@@ -18,6 +18,19 @@ pub(super) trait MethodRun {
         times: &[f64],
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError>;
+    /// Move an inconsistent initial state onto the constraint manifold
+    /// before the run, where the method needs it (the index-3 forms:
+    /// [`index3_consistent_start`], [`Augmented::consistent_start`]);
+    /// `Some(warning)` if it moved. The index-1 forms keep the given
+    /// state: their stabilization or projection treats the violation.
+    fn consistent_start(
+        &mut self,
+        _cfg: &RunConfig,
+        _q: &mut [f64],
+        _qd: &mut [f64],
+    ) -> Result<Option<String>, SimulationError> {
+        Ok(None)
+    }
     /// The formulation-specific figures of the run, and extra summary
     /// fields.
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
@@ -138,6 +151,7 @@ impl MethodRun for Partition<'_> {
 /// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
 /// `max_step_taken`.
 pub(super) struct Implicit<'s> {
+    sys: &'s System,
     f: Index3<'s>,
     integ: GenAlpha,
 }
@@ -151,7 +165,7 @@ impl<'s> Implicit<'s> {
             NewtonSolverKind::SymmetricLdlt
         };
         let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
-        Ok(Self { f, integ })
+        Ok(Self { sys, f, integ })
     }
 }
 
@@ -166,6 +180,15 @@ impl MethodRun for Implicit<'_> {
     ) -> Result<Report, IntegratorError> {
         self.integ
             .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn consistent_start(
+        &mut self,
+        cfg: &RunConfig,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SimulationError> {
+        let c = index3_consistent_start(self.sys, &mut self.f, cfg.t0, q, qd)?;
+        Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
     }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
@@ -254,6 +277,16 @@ impl MethodRun for AugmentedRun<'_> {
         self.integ
             .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
     }
+    fn consistent_start(
+        &mut self,
+        cfg: &RunConfig,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SimulationError> {
+        let c = self.f.consistent_start(cfg.t0, q, qd)?;
+        Ok(c.changed()
+            .then(|| c.describe(cfg.t0, "augmented-Lagrangian")))
+    }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
         let fs = self.f.stats();
@@ -293,6 +326,7 @@ impl MethodRun for AugmentedRun<'_> {
 /// `jacobian_evaluations`, `steps_at_order` (orders 1–5),
 /// `min_step_taken`, `max_step_taken`.
 pub(super) struct BdfRun<'s> {
+    sys: &'s System,
     f: Index3<'s>,
     integ: Bdf,
 }
@@ -305,7 +339,7 @@ impl<'s> BdfRun<'s> {
             cfg.index1.linear_solver,
             NewtonSolverKind::SymmetricLdlt,
         )?;
-        Ok(Self { f, integ })
+        Ok(Self { sys, f, integ })
     }
 }
 
@@ -320,6 +354,15 @@ impl MethodRun for BdfRun<'_> {
     ) -> Result<Report, IntegratorError> {
         self.integ
             .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn consistent_start(
+        &mut self,
+        cfg: &RunConfig,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SimulationError> {
+        let c = index3_consistent_start(self.sys, &mut self.f, cfg.t0, q, qd)?;
+        Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
     }
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let bs = self.integ.stats();

@@ -2,8 +2,9 @@
 //! constraint violation, with a [`Summary`] of the work done.
 
 use crate::formulation::{
-    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
-    Index3, NewtonSolverKind, Partitioned, SingularityMonitor,
+    index3_consistent_start, Augmented, AugmentedParams, ExplicitForm, Formulation,
+    FormulationError, Index1, Index1Options, Index3, NewtonSolverKind, Partitioned,
+    SingularityMonitor,
 };
 use crate::integrate::{
     integrator, AugmentedLagrangian, Bdf, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
@@ -372,6 +373,10 @@ struct Watch<'s, 'm, 'd, 'k> {
     warned_pos: bool,
     /// Why the run diverged (status "diverged").
     diverged: Option<String>,
+    /// A fixed-step run's step budget ([`STALL_FACTOR`] × its nominal
+    /// step count) and why it was exceeded (status "failed").
+    step_budget: Option<(usize, f64, f64)>,
+    stalled: Option<String>,
     warnings: Vec<String>,
     outputs: OutputQuantities,
     /// Eq. (5) at the output states, for q̈ and λ.
@@ -401,9 +406,23 @@ struct Watch<'s, 'm, 'd, 'k> {
 /// bdf) warns that its energy balance broke: their numerical damping only
 /// removes energy (issue 10, item 7). The constraint study's passing
 /// implicit runs from consistent starts drift by at most 1.7e-4 of E0,
-/// either sign; generalized-α from the four-bar's incorrect start gains
-/// 1.0e4 J on a scale of 14 J (tests/redundant.rs).
+/// either sign; the trapezoidal rule (newmark, ρ∞ = 1) on the four-bar at
+/// h = 5e-3 gains 1.5 J on a scale of 5.5 J by t = 0.5 s, its
+/// constraint-velocity error undamped (tests/redundant.rs).
 pub const IMPLICIT_ENERGY_GAIN: f64 = 1e-2;
+
+/// A fixed-step implicit run that has taken this many times the steps its
+/// step `h` needs for the whole span (plus [`STALL_SLACK`]) stops with
+/// status "failed": the step keeps being cut (each Newton failure halves
+/// it, and it grows back by doubling), so the run crawls. Measured: the
+/// stiff chain's runs take at most 1.003 × the nominal count (N = 10 000,
+/// h = 1e-5: 10 026 steps, 28 cuts); the four-bar with the trapezoidal
+/// rule at h = 5e-3, whose energy blows up by t = 0.6 s, took 2.0 million
+/// steps at h ≈ 5.7e-10 s without failing or finishing before this guard.
+pub const STALL_FACTOR: f64 = 10.0;
+
+/// Steps allowed beyond [`STALL_FACTOR`] × the nominal count (short runs).
+pub const STALL_SLACK: usize = 1000;
 
 /// The energy balance `E(t) − E(t0) = W(t)` tracked by [`Watch`]
 /// (`crate::model::energy` docs).
@@ -495,6 +514,15 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             warned_phi: false,
             warned_pos: false,
             diverged: None,
+            step_budget: cfg
+                .ode
+                .fixed_step
+                .filter(|_| cfg.method.is_implicit() && !cfg.implicit.adaptive)
+                .map(|h| {
+                    let nominal = ((cfg.t_end - cfg.t0) / h).ceil().max(1.0);
+                    ((STALL_FACTOR * nominal) as usize + STALL_SLACK, h, cfg.t0)
+                }),
+            stalled: None,
             warnings: Vec::new(),
             sys,
             n: sys.n_coords(),
@@ -824,6 +852,23 @@ impl Observer for Watch<'_, '_, '_, '_> {
         self.guard(t, q, cn)
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
+        if let Some((budget, h, t0)) = self.step_budget {
+            if stats.steps > budget {
+                let r = format!(
+                    "the fixed step h = {h:e} s keeps being cut: {} steps ({} failed attempts) \
+                     reached only t = {t:e} s, {budget} steps being {STALL_FACTOR} times what \
+                     h needs for the whole run (mean step {:.3e} s) — Newton keeps failing \
+                     here (the warnings list the first failures): the motion is too fast or \
+                     the position singular for this step; reduce it, or use \
+                     integrator.adaptive = true",
+                    stats.steps,
+                    stats.failed_steps,
+                    (t - t0) / stats.steps as f64
+                );
+                self.stalled = Some(r.clone());
+                return ControlFlow::Break(r);
+            }
+        }
         self.sink.progress(t, stats)
     }
     fn warning(&mut self, message: &str) {
@@ -892,12 +937,17 @@ pub fn simulate_into(
         } else {
             Box::new(Explicit::new(sys, cfg)?)
         };
-    let mut watch = Watch::new(sys, cfg, q0, monitors, sink);
-    stability_check(sys, cfg, q0, qd0, &mut watch)?;
-    watch.start_balance(cfg.t0, q0, qd0);
+    let (mut q0, mut qd0) = (q0.to_vec(), qd0.to_vec());
+    let moved = method.consistent_start(cfg, &mut q0, &mut qd0)?;
+    let mut watch = Watch::new(sys, cfg, &q0, monitors, sink);
+    if let Some(message) = moved {
+        watch.warn(message);
+    }
+    stability_check(sys, cfg, &q0, &qd0, &mut watch)?;
+    watch.start_balance(cfg.t0, &q0, &qd0);
     let times = cfg.output_times();
     let start = Instant::now();
-    let report = method.integrate(cfg, q0, qd0, &times, &mut watch)?;
+    let report = method.integrate(cfg, &q0, &qd0, &times, &mut watch)?;
     let wall_s = start.elapsed().as_secs_f64();
     let (work, extra) = method.work(cfg);
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
@@ -993,6 +1043,9 @@ fn finish(
             ("failed", Some(m))
         }
         (Termination::Stopped { .. }, Some(e), _) => ("failed", Some(e.clone())),
+        (Termination::Stopped { .. }, None, _) if watch.stalled.is_some() => {
+            ("failed", watch.stalled.clone())
+        }
         (Termination::Stopped { .. }, None, Some(d)) => ("diverged", Some(d.clone())),
         (Termination::Stopped { reason, .. }, None, None) => ("interrupted", Some(reason.clone())),
     };
@@ -1024,7 +1077,10 @@ fn finish(
         let gain_bound = IMPLICIT_ENERGY_GAIN * b.scale + 10.0 * b.quadrature_error;
         if (cfg.method.is_implicit() || cfg.method == Method::Bdf) && b.max_gain > gain_bound {
             warnings.push(format!(
-                "energy balance broken: the run gained energy, T + V − E0 − W reached                  +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the                  quadrature error of W); the numerical damping of {} only removes energy,                  so the run left its constraint manifold or its branch of motion",
+                "energy balance broken: the run gained energy, T + V − E0 − W reached \
+                 +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the \
+                 quadrature error of W); the numerical damping of {} only removes energy, \
+                 so the run left its constraint manifold or its branch of motion",
                 b.max_gain,
                 IMPLICIT_ENERGY_GAIN,
                 b.scale,

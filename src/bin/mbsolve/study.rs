@@ -465,6 +465,12 @@ fn judge(p: &Problem, r: &Record, s: &Summary, dev: &[f64]) -> (f64, bool, Strin
             worst
         }
     };
+    // an implicit run that gained energy left its manifold or branch,
+    // whatever its final ‖Φ‖ (the four-bar's incorrect start before the
+    // index-3 start projection: +1.0e4 J on 14 J with ‖Φ(t_end)‖ tiny)
+    if s.warnings.iter().any(|w| w.contains("gained energy")) {
+        fail(&mut why, "gained energy".into());
+    }
     (deviation, completed && why.is_empty(), why)
 }
 
