@@ -31,9 +31,9 @@
 //! is a failure; a correction at the rounding floor of `q` or below
 //! [`NEWTON_FLOOR`]·rtol ends it. The velocity weights `a_0 Δq ./ w_v`
 //! used before asked 3.8 iterations per step of the stiff chain
-//! (N = 1000) against 1.8 now, at the same tip error, and at N = 10 000
-//! made the rounding noise of the angles (×`a_0` ≈ 1e10 at the first
-//! steps) look like divergence. The factorisation is kept across
+//! (N = 1000) against 2.1 now, at the same tip error, and at N = 10 000
+//! made the rounding noise of the angles (×`a_0` ≈ 3e9 at the first
+//! steps) look like divergence (docs/bdf.md). The factorisation is kept across
 //! steps while `a_0` stays within [`REUSE_BAND`] of the one it was made
 //! for and the iteration contracts (θ ≤ [`THETA_REFACTOR`]); a failed
 //! attempt on a stale matrix is retried at once with a fresh one, and
