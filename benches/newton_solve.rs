@@ -8,7 +8,13 @@
 //! ```text
 //! cargo bench --bench newton_solve            # criterion, N = 1000 and 10 000
 //! cargo bench --bench newton_solve -- ratio   # only the printed ratios
+//! cargo bench --bench newton_solve -- threads # split envelope, 1 vs 2 threads
 //! ```
+//!
+//! `threads`: the envelope factor + solve at N = 10 000 (two-sided order,
+//! halves concurrent: `ChainLdlt`, `PARALLEL_MIN_DIM`) in a one-thread and
+//! a two-thread rayon pool, and the one-sided order in one thread; wall
+//! time (what two threads speed up), interleaved, minimum over batches.
 //!
 //! The ratios are printed from interleaved repetitions (minimum over
 //! batches) in the same run, so they do not depend on the machine's speed.
@@ -336,7 +342,70 @@ fn ratios() {
     }
 }
 
+/// The envelope factor + solve at N = 10 000: split (two-sided) in pools
+/// of 1 and 2 threads, one-sided in one thread; bit-identical x checked.
+fn threads() {
+    let mut c = Case::new(10_000);
+    let mut one_sided = mbsolve::linalg::ChainLdlt::default()
+        .with_residual_check(false)
+        .with_split(false);
+    one_sided.analyze(&c.k).expect("analyses");
+    let pools: Vec<rayon::ThreadPool> = [1, 2]
+        .iter()
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
+        .collect();
+    let mut xs = Vec::new();
+    for p in &pools {
+        p.install(|| c.env());
+        xs.push(c.x.clone());
+    }
+    assert!(xs[0]
+        .iter()
+        .zip(&xs[1])
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    let batch = 20;
+    let (mut t1, mut t2, mut to) = (f64::MAX, f64::MAX, f64::MAX);
+    for _ in 0..30 {
+        t1 = t1.min(pools[0].install(|| min_time(&mut c, Case::env, batch)));
+        t2 = t2.min(pools[1].install(|| min_time(&mut c, Case::env, batch)));
+        let t = Instant::now();
+        for _ in 0..batch {
+            factor_solve(&mut one_sided, &c.k, &c.b, &mut c.x);
+        }
+        to = to.min(t.elapsed().as_secs_f64() / batch as f64);
+    }
+    println!(
+        "N = 10000: factor+solve split 1 thread {:.1} µs, 2 threads {:.1} µs (speed-up {:.2}); \
+         one-sided 1 thread {:.1} µs (split/one-sided {:.2})",
+        t1 * 1e6,
+        t2 * 1e6,
+        t1 / t2,
+        to * 1e6,
+        t1 / to
+    );
+}
+
 fn bench(c: &mut Criterion) {
+    let pools: Vec<rayon::ThreadPool> = [1, 2]
+        .iter()
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
+        .collect();
+    let mut case = Case::new(10_000);
+    let mut g = c.benchmark_group("newton_factor_solve_threads/N=10000");
+    for (p, name) in pools.iter().zip(["split, 1 thread", "split, 2 threads"]) {
+        g.bench_function(name, |b| p.install(|| b.iter(|| case.env())));
+    }
+    g.finish();
     for nb in [1000, 10_000] {
         let mut case = Case::new(nb);
         let mut g = c.benchmark_group(format!("newton_factor_solve/N={nb}"));
@@ -350,6 +419,10 @@ fn bench(c: &mut Criterion) {
 criterion_group!(benches, bench);
 
 fn main() {
+    if std::env::args().any(|a| a == "threads") {
+        threads();
+        return;
+    }
     let only_ratio = std::env::args().any(|a| a == "ratio");
     if !only_ratio {
         benches();

@@ -251,16 +251,39 @@ impl TrigMemo {
         }
     }
     fn update(&mut self, q: &[f64]) -> &[f64] {
-        for (b, bits) in self.phi_bits.iter_mut().enumerate() {
-            let phi = q[3 * b + 2];
-            if *bits != phi.to_bits() {
-                let (s, c) = sin_cos(phi);
-                self.sc[2 * b] = s;
-                self.sc[2 * b + 1] = c;
-                *bits = phi.to_bits();
-            }
+        // two halves concurrently for long chains: each angle's sin_cos is
+        // independent of the others, so the bits do not depend on threads
+        let nb = self.phi_bits.len();
+        let half = nb / 2;
+        let (bits_lo, bits_hi) = self.phi_bits.split_at_mut(half);
+        let (sc_lo, sc_hi) = self.sc.split_at_mut(2 * half);
+        if nb >= TRIG_PARALLEL_MIN_BODIES {
+            rayon::join(
+                || trig_update(q, 0, bits_lo, sc_lo),
+                || trig_update(q, half, bits_hi, sc_hi),
+            );
+        } else {
+            trig_update(q, 0, &mut self.phi_bits, &mut self.sc);
         }
         &self.sc
+    }
+}
+
+/// Chains of at least this many bodies update their sines and cosines in
+/// two concurrent halves ([`TrigMemo`]).
+const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
+
+/// Sines and cosines of the angles of bodies `b0, b0 + 1, …` whose angle
+/// changed since the last call (bits compared).
+fn trig_update(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
+    for (k, bits) in phi_bits.iter_mut().enumerate() {
+        let phi = q[3 * (b0 + k) + 2];
+        if *bits != phi.to_bits() {
+            let (s, c) = sin_cos(phi);
+            sc[2 * k] = s;
+            sc[2 * k + 1] = c;
+            *bits = phi.to_bits();
+        }
     }
 }
 

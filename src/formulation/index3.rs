@@ -60,10 +60,12 @@
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::dynamic_blocks::DynamicBlocks;
+use super::index1::PARALLEL_MIN_COORDS;
 use super::{all_finite, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
-    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
+    join_if, solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
+    SolverStats,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -246,23 +248,40 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         let n = self.n;
         self.stats.residuals += 1;
-        finite_state(t, q, qd)?;
-        sys.jacobian_values(q, t, &mut self.jac);
-        sys.forces_into(t, q, qd, &mut self.g);
-        sys.jacobian_tmul(&self.jac, lambda, &mut self.tmp);
+        // forces and constraint terms concurrently (`rayon::join`; each
+        // task sequential inside, so the bits do not depend on the thread
+        // count); errors in the order: state, g, Φ_q, residual
+        let (g, tmp, jac) = (&mut self.g, &mut self.tmp, &mut self.jac);
+        let (r_dyn, r_phi) = r.split_at_mut(n);
+        let par = n >= PARALLEL_MIN_COORDS;
+        let (ra, rb) = join_if(
+            par,
+            || {
+                finite_state(t, q, qd)?;
+                sys.forces_into(t, q, qd, g);
+                all_finite(t, &[("the forces g", g)])
+            },
+            || {
+                sys.jacobian_values(q, t, jac);
+                sys.jacobian_tmul(jac, lambda, tmp);
+                sys.phi(q, t, r_phi);
+                all_finite(t, &[("the constraint Jacobian Φ_q", jac)])
+            },
+        );
+        ra?;
+        rb?;
         let mass = sys.mass_diagonal();
-        for i in 0..n {
-            r[i] = scale * (mass[i] * qdd[i] + self.tmp[i] - self.g[i]);
-        }
-        sys.phi(q, t, &mut r[n..]);
-        all_finite(
-            t,
-            &[
-                ("the forces g", &self.g),
-                ("the constraint Jacobian Φ_q", &self.jac),
-                ("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r),
-            ],
-        )
+        let (g, tmp) = (&self.g, &self.tmp);
+        let half = n / 2;
+        let fill = |r: &mut [f64], base: usize| {
+            for (i, ri) in r.iter_mut().enumerate() {
+                let k = base + i;
+                *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
+            }
+        };
+        let (r_lo, r_hi) = r_dyn.split_at_mut(half);
+        join_if(par, || fill(r_lo, 0), || fill(r_hi, half));
+        all_finite(t, &[("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r)])
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:

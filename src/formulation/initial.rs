@@ -396,7 +396,7 @@ impl StartCorrection {
 }
 
 /// Put an inconsistent initial state of an index-3 run (generalized-α,
-/// HHT, Newmark, bdf) onto the constraint manifold: [`Index3::project`]
+/// HHT, Newmark, bdf) onto the constraint manifold: [`Index3::project`](super::Index3::project)
 /// (one mass-orthogonal Newton step on Φ(q, t) = 0, then the velocities
 /// onto `Φ_q q̇ + Φ_t = 0`, paper §3.3) repeated until ‖Φ‖∞ ≤ [`START_TOL`]
 /// and `‖Φ_q q̇ + Φ_t‖∞ ≤ START_TOL · max(1, ‖q̇‖∞)`. A consistent state is

@@ -32,8 +32,33 @@
 //! Scaling and dynamic regularisation are [`SparseLdlt`]'s (same `ε`, `δ`,
 //! same scaled units, same sign rule), so the two solvers agree to rounding
 //! on every matrix both accept.
+//!
+//! # Two halves
+//!
+//! From [`SPLIT_MIN_DIM`] on (and when the pattern allows it) the order is
+//! two-sided, a one-level nested dissection of the chain (George 1973;
+//! the "twisted" factorisation of tridiagonal matrices): with `gm` the
+//! middle body, `T` = the bodies below `gm` in the order above (eliminated
+//! towards the middle), `B` = the bodies above `gm` from the last one
+//! down, each body's coordinates before the multiplier rows whose *lowest*
+//! body it is (the mirror image: again every multiplier row after a body
+//! it couples to), and last the separator `S` = body `gm` and every row
+//! touching or spanning it. `T` and `B` do not couple, so their Crout
+//! recurrences are independent (the envelope fill of each stays in its
+//! half); the rows of `S` have two envelope segments (the tail of `T`,
+//! then the tail of `B` and `S`) and are factorised after both. The solve
+//! follows: forward substitution of `T` and `B`, of `S`; `D⁻¹`; backward
+//! substitution of `S`, then of `T` and `B`. From [`PARALLEL_MIN_DIM`] on
+//! the two halves (with their scaling, loading of values, gathers and
+//! scatters) run concurrently (`rayon::join`). The split point is fixed by
+//! the pattern, never by the thread count, and each half is sequential
+//! inside: one thread and two compute the same operations in the same
+//! order, so the results are bit-identical (tests/parallel_newton.rs). The
+//! two-sided order rounds differently from the one-sided one (a different
+//! elimination order), at rounding level.
 
-use super::sparse::{saddle_scaling, RefineBuffers};
+use super::join_if;
+use super::sparse::{coordinate_scale, multiplier_scale, RefineBuffers};
 use super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLdlt, Storage,
     DEFAULT_DELTA, DEFAULT_EPSILON,
@@ -44,7 +69,27 @@ use super::{
 /// springs between neighbours has 8.
 pub const MAX_BANDWIDTH: usize = 24;
 
+/// Smallest dimension at which [`ChainLdlt`] splits the chain in two
+/// halves (module docs, "Two halves"). Fixed, never the thread count: the
+/// same matrix is always factorised by the same operations in the same
+/// order.
+pub const SPLIT_MIN_DIM: usize = 1000;
+
+/// Smallest dimension at which the two halves are factorised and solved
+/// concurrently (below it, one after the other: the same operations).
+pub const PARALLEL_MIN_DIM: usize = 10_000;
+
+/// Longest row of the separator (its two segments together).
+const MAX_SEPARATOR_ROW: usize = 4 * MAX_BANDWIDTH;
+
 /// The envelope factorisation of one pattern.
+///
+/// Elimination order `T, B, S` (module docs): rows `0..s0` (top half,
+/// eliminated downward), `s0..sb` (bottom half, from the chain's end
+/// towards the middle), `sb..dim` (the separator). Rows of `T` and `B` are
+/// plain envelope rows `[first[i], i)` inside their own half; a separator
+/// row has two segments, `[fa, s0)` in the tail of `T` and `[first[i], i)`
+/// over the tail of `B` and the separator. Unsplit: `s0 = sb = dim`.
 #[derive(Debug)]
 struct Envelope {
     dim: usize,
@@ -52,174 +97,351 @@ struct Envelope {
     nnz: usize,
     /// `perm[i]`: row/column of `K` eliminated `i`-th.
     perm: Vec<usize>,
-    /// First column of row `i`'s envelope (permuted numbering).
+    s0: usize,
+    sb: usize,
+    /// First column of row `i`'s (last) envelope segment.
     first: Vec<usize>,
-    /// Row `i`'s entries left of the diagonal: `env[ptr[i] + (j − first[i])]`.
+    /// Separator row `sb + r`: first column of its segment in `T`.
+    fa: Vec<usize>,
+    /// Row `i`'s entries left of the diagonal start at `env[ptr[i]]`
+    /// (separator rows: the `T` segment, then the other).
     ptr: Vec<usize>,
     /// `L` by rows (envelope), then the pivots `d` (`env[ptr[dim] + i]`).
     env: Vec<f64>,
     /// `1/d_i`.
     dinv: Vec<f64>,
-    /// Slot of `K` → position in `env`.
-    slot_to: Vec<usize>,
+    /// Where each value of `K` goes, by the part (`T`, `B`, `S`) of its
+    /// envelope row: `K`'s slot, its position in that part's storage,
+    /// the permuted row and column.
+    fill: [Vec<Fill>; 3],
+    /// `inv[j]`: elimination position of row/column `j` of `K`.
+    inv: Vec<usize>,
+    /// Slot of each permuted row's diagonal entry in `K`.
+    dslot: Vec<usize>,
+    /// A multiplier row's Φ_q entries (slot, permuted column, always
+    /// eliminated before the row and in the same part or an earlier one):
+    /// `phi_ent[phi_ptr[i]..phi_ptr[i + 1]]` (permuted numbering).
+    phi_ptr: Vec<usize>,
+    phi_ent: Vec<(usize, usize)>,
     /// Expected pivot signs (permuted numbering).
     positive: Vec<bool>,
-    scale: Vec<f64>,
-    /// `scale` in elimination order.
+    /// The scaling of [`SparseLdlt`] (`saddle_scaling`) in elimination order.
     pscale: Vec<f64>,
     /// Permuted right-hand side.
     w: Vec<f64>,
 }
 
+/// Group (body) range of each multiplier row: lowest and highest body among
+/// its coordinate columns, `None` when a row has no coordinate column.
+fn row_groups(k: &SaddleMatrix) -> Option<Vec<(usize, usize)>> {
+    let (dim, n) = (k.dim(), k.n());
+    let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    let mut group = vec![(usize::MAX, 0usize); dim - n];
+    for c in 0..n {
+        for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+            if r >= n {
+                let g = &mut group[r - n];
+                *g = (g.0.min(c / 3), g.1.max(c / 3));
+            }
+        }
+    }
+    (!group.iter().any(|g| g.0 == usize::MAX)).then_some(group)
+}
+
+/// The one-sided body-by-body order: group after group, each group's
+/// coordinates, then the multiplier rows whose highest body it is.
+fn plain_order(n: usize, groups: &[(usize, usize)]) -> Vec<usize> {
+    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n / 3];
+    for (r, &(_, hi)) in groups.iter().enumerate() {
+        rows_of[hi].push(n + r);
+    }
+    let mut perm = Vec::with_capacity(n + groups.len());
+    for (g, rows) in rows_of.iter().enumerate() {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(rows);
+    }
+    perm
+}
+
+/// The two-sided order `T, B, S` about the middle body `gm`: `T` the
+/// bodies below `gm` in the one-sided order, `B` the bodies above it from
+/// the last down, each body's coordinates before the multiplier rows whose
+/// lowest body it is, `S` body `gm` and every row touching it or spanning
+/// it. Returns `(perm, s0, sb)`.
+fn split_order(n: usize, groups: &[(usize, usize)]) -> (Vec<usize>, usize, usize) {
+    let ng = n / 3;
+    let gm = ng / 2;
+    let (mut t_rows, mut b_rows) = (vec![Vec::new(); ng], vec![Vec::new(); ng]);
+    let mut s_rows = Vec::new();
+    for (r, &(lo, hi)) in groups.iter().enumerate() {
+        if hi < gm {
+            t_rows[hi].push(n + r);
+        } else if lo > gm {
+            b_rows[lo].push(n + r);
+        } else {
+            s_rows.push(n + r);
+        }
+    }
+    let mut perm = Vec::with_capacity(n + groups.len());
+    for (g, rows) in t_rows.iter().enumerate().take(gm) {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(rows);
+    }
+    let s0 = perm.len();
+    for g in (gm + 1..ng).rev() {
+        perm.extend(3 * g..3 * g + 3);
+        perm.extend_from_slice(&b_rows[g]);
+    }
+    let sb = perm.len();
+    perm.extend(3 * gm..3 * gm + 3);
+    perm.extend_from_slice(&s_rows);
+    (perm, s0, sb)
+}
+
 impl Envelope {
-    /// The envelope of `k` in the body-by-body order, or `None` when a
-    /// multiplier row has no coordinate column or a row is wider than
-    /// [`MAX_BANDWIDTH`].
-    fn analyze(k: &SaddleMatrix) -> Option<Self> {
-        let (dim, n) = (k.dim(), k.n());
-        let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    /// The envelope of `k` in the body-by-body order (two-sided when
+    /// `split` and the pattern allows it), or `None` when a multiplier row
+    /// has no coordinate column or a row is wider than [`MAX_BANDWIDTH`].
+    fn analyze(k: &SaddleMatrix, split: bool) -> Option<Self> {
+        let n = k.n();
         if n % 3 != 0 {
             return None;
         }
-        let n_groups = n / 3;
-        // group of each multiplier row: the highest body of its columns
-        let mut group = vec![usize::MAX; dim - n];
-        for c in 0..n {
-            for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
-                if r >= n {
-                    let g = &mut group[r - n];
-                    *g = if *g == usize::MAX {
-                        c / 3
-                    } else {
-                        (*g).max(c / 3)
-                    };
-                }
+        let groups = row_groups(k)?;
+        if split && k.dim() >= SPLIT_MIN_DIM && n / 3 >= 3 {
+            let (perm, s0, sb) = split_order(n, &groups);
+            if let Some(e) = Self::layout(k, perm, s0, sb) {
+                return Some(e);
             }
         }
-        if group.contains(&usize::MAX) {
-            return None;
-        }
-        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n_groups];
-        for (r, &g) in group.iter().enumerate() {
-            rows_of[g].push(n + r);
-        }
-        let mut perm = Vec::with_capacity(dim);
-        for (g, rows) in rows_of.iter().enumerate() {
-            perm.extend(3 * g..3 * g + 3);
-            perm.extend_from_slice(rows);
-        }
+        let dim = k.dim();
+        Self::layout(k, plain_order(n, &groups), dim, dim)
+    }
+
+    /// Envelope rows, storage and slot map of `k` in the order `perm` with
+    /// the halves ending at `s0`, `sb`; `None` when an entry couples the
+    /// two halves or a row is too wide.
+    fn layout(k: &SaddleMatrix, perm: Vec<usize>, s0: usize, sb: usize) -> Option<Self> {
+        let (dim, n) = (k.dim(), k.n());
+        let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
         let mut inv = vec![0usize; dim];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new;
         }
         let mut first: Vec<usize> = (0..dim).collect();
+        let mut fa = vec![s0; dim - sb];
         for c in 0..dim {
             for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
                 let (a, b) = (inv[r], inv[c]);
                 let (hi, lo) = (a.max(b), a.min(b));
-                first[hi] = first[hi].min(lo);
+                if hi >= sb && lo < s0 {
+                    fa[hi - sb] = fa[hi - sb].min(lo);
+                } else if hi >= s0 && hi < sb && lo < s0 {
+                    return None; // B coupled to T: no separator here
+                } else {
+                    first[hi] = first[hi].min(lo);
+                }
             }
         }
-        if (0..dim).any(|i| i - first[i] > MAX_BANDWIDTH) {
+        let len = |i: usize| {
+            (i - first[i])
+                + if i >= sb {
+                    s0 - fa[i - sb] // fa = s0: no T segment
+                } else {
+                    0
+                }
+        };
+        if (0..sb).any(|i| i - first[i] > MAX_BANDWIDTH)
+            || (sb..dim).any(|i| len(i) > MAX_SEPARATOR_ROW)
+        {
             return None;
         }
         let mut ptr = vec![0usize; dim + 1];
         for i in 0..dim {
-            ptr[i + 1] = ptr[i] + (i - first[i]);
+            ptr[i + 1] = ptr[i] + len(i);
         }
         let profile = ptr[dim];
-        let mut slot_to = vec![0usize; k.nnz()];
+        if profile + dim > u32::MAX as usize {
+            return None;
+        }
+        // each value's part and its position in that part: L rows from
+        // ptr[part start], then the part's pivots
+        let parts = [0..s0, s0..sb, sb..dim];
+        let part_of = |i: usize| usize::from(i >= s0) + usize::from(i >= sb);
+        let mut fill: [Vec<Fill>; 3] = Default::default();
         for c in 0..dim {
             for s in col_ptr[c]..col_ptr[c + 1] {
                 let (a, b) = (inv[row_idx[s]], inv[c]);
                 let (hi, lo) = (a.max(b), a.min(b));
-                slot_to[s] = if hi == lo {
-                    profile + hi
+                let part = part_of(hi);
+                let r = &parts[part];
+                let p0 = ptr[r.start];
+                let pos = if hi == lo {
+                    (ptr[r.end] - p0) + (hi - r.start)
+                } else if hi >= sb && lo < s0 {
+                    ptr[hi] - p0 + (lo - fa[hi - sb])
+                } else if hi >= sb {
+                    ptr[hi] - p0 + (s0 - fa[hi - sb]) + (lo - first[hi])
                 } else {
-                    ptr[hi] + (lo - first[hi])
+                    ptr[hi] - p0 + (lo - first[hi])
                 };
+                fill[part].push(Fill {
+                    slot: s as u32,
+                    pos: pos as u32,
+                    row: a as u32,
+                    col: b as u32,
+                });
             }
         }
+        let diag_slots = k.diag_slots();
+        let dslot: Vec<usize> = perm.iter().map(|&j| diag_slots[j]).collect();
+        let mut phi_rows: Vec<Vec<(usize, usize)>> = vec![Vec::new(); dim];
+        for c in 0..n {
+            for s in col_ptr[c]..col_ptr[c + 1] {
+                if row_idx[s] >= n {
+                    phi_rows[inv[row_idx[s]]].push((s, inv[c]));
+                }
+            }
+        }
+        let mut phi_ptr = vec![0usize; dim + 1];
+        for (i, r) in phi_rows.iter().enumerate() {
+            phi_ptr[i + 1] = phi_ptr[i] + r.len();
+        }
+        let phi_ent = phi_rows.concat();
         let positive = perm.iter().map(|&i| i < n).collect();
         Some(Self {
             dim,
             n,
             nnz: k.nnz(),
             perm,
+            s0,
+            sb,
             first,
+            fa,
             ptr,
             env: vec![0.0; profile + dim],
             dinv: vec![0.0; dim],
-            slot_to,
+            fill,
+            inv,
+            dslot,
+            phi_ptr,
+            phi_ent,
             positive,
-            scale: vec![1.0; dim],
             pscale: vec![1.0; dim],
             w: vec![0.0; dim],
         })
     }
 
-    /// Scaled, regularised LDLᵀ of the values of `k` (module docs).
+    /// Is the order two-sided?
+    fn is_split(&self) -> bool {
+        self.s0 < self.dim
+    }
+
+    /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
+    /// halves `T` and `B` concurrently (`rayon::join`; each is sequential
+    /// inside and touches only its own rows), then the separator.
     fn factorize(
         &mut self,
         k: &SaddleMatrix,
         epsilon: f64,
         delta: f64,
     ) -> Result<usize, LinalgError> {
-        saddle_scaling(k, &mut self.scale);
-        for (ps, &p) in self.pscale.iter_mut().zip(&self.perm) {
-            *ps = self.scale[p];
-        }
-        let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
-        self.env.fill(0.0);
-        for c in 0..self.dim {
-            let sc = self.scale[c];
-            for s in col_ptr[c]..col_ptr[c + 1] {
-                self.env[self.slot_to[s]] += vals[s] * self.scale[row_idx[s]] * sc;
-            }
-        }
-        let profile = self.ptr[self.dim];
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
+        let rule = Pivots {
+            positive: &self.positive,
+            epsilon,
+            delta,
+        };
+        let vals = k.values();
+        let (first, ptr, fa) = (&self.first, &self.ptr, &self.fa);
+        let profile = ptr[dim];
+        let perm = &self.perm;
+        let scaling = Scaling {
+            n: self.n,
+            perm: &self.perm,
+            dslot: &self.dslot,
+            phi_ptr: &self.phi_ptr,
+            phi_ent: &self.phi_ent,
+            vals,
+        };
+        // each part: its scaling, its values (checked finite) and the
+        // LDLᵀ of its rows; T and B concurrently (`rayon::join`; each
+        // sequential inside, touching only its own rows), then S
         let (lower, diag) = self.env.split_at_mut(profile);
-        let (first, ptr, dinv) = (&self.first, &self.ptr, &mut self.dinv);
-        let mut regularized = 0;
-        for i in 0..self.dim {
-            let (fi, pi) = (first[i], ptr[i]);
-            assert!(ptr[i + 1] <= lower.len() && i < dinv.len());
-            // t_ij = a_ij − Σ_k t_ik L_jk over the overlap of rows i and j
+        let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
+        let (lower_b, _) = lower_rest.split_at_mut(ptr[sb] - ptr[s0]);
+        let (diag_t, diag_rest) = diag.split_at_mut(s0);
+        let (diag_b, _) = diag_rest.split_at_mut(sb - s0);
+        let (dinv_t, dinv_rest) = self.dinv.split_at_mut(s0);
+        let dinv_b = &mut dinv_rest[..sb - s0];
+        let (ps_t, ps_rest) = self.pscale.split_at_mut(s0);
+        let ps_b = &mut ps_rest[..sb - s0];
+        let (fill_t, fill_b) = (&self.fill[0], &self.fill[1]);
+        let (rt, rb) = join_if(
+            par,
+            || {
+                scaling.rows(0..s0, 0, ps_t);
+                load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
+                crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule)
+            },
+            || {
+                scaling.rows(s0..sb, s0, ps_b);
+                load(fill_b, perm, vals, ps_b, s0, lower_b, diag_b)?;
+                crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule)
+            },
+        );
+        let mut regularized = rt? + rb?;
+        scaling.rows(sb..dim, 0, &mut self.pscale);
+        let (lower, diag) = self.env.split_at_mut(profile);
+        {
+            let (lower_s, diag_s) = (&mut lower[ptr[sb]..], &mut diag[sb..]);
+            load(
+                &self.fill[2],
+                &self.perm,
+                vals,
+                &self.pscale,
+                0,
+                lower_s,
+                diag_s,
+            )?;
+        }
+        // the separator: two-segment rows against every row before them
+        let dinv = &mut self.dinv;
+        for i in sb..dim {
+            let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+            let la = s0 - fai;
+            // t_ij = a_ij − Σ_k t_ik L_jk over the overlap of rows i and j:
+            // the T segment against plain rows j of T
+            for j in fai..s0 {
+                let k0 = fai.max(first[j]);
+                let d = dot(lower, pi + (k0 - fai), ptr[j] + (k0 - first[j]), j - k0);
+                lower[pi + (j - fai)] -= d;
+            }
+            // the second segment against rows of B (plain) and of S (two segments)
             for j in fi..i {
-                let fj = first[j];
-                let k0 = fi.max(fj);
-                let (ti, lj) = (pi + (k0 - fi), ptr[j] + (k0 - fj));
-                let mut dot = 0.0;
-                for o in 0..j - k0 {
-                    // SAFETY: rows j < i lie before row i in `lower`
-                    // (ptr is increasing, ptr[i + 1] ≤ len checked above),
-                    // and k0 + o < j stays inside both rows' envelopes.
-                    unsafe {
-                        dot += lower.get_unchecked(ti + o) * lower.get_unchecked(lj + o);
-                    }
+                let la_j = if j >= sb { s0 - fa[j - sb] } else { 0 };
+                let k0 = fi.max(first[j]);
+                let mut d = dot(
+                    lower,
+                    pi + la + (k0 - fi),
+                    ptr[j] + la_j + (k0 - first[j]),
+                    j - k0,
+                );
+                if j >= sb {
+                    let k0 = fai.max(fa[j - sb]);
+                    d += dot(lower, pi + (k0 - fai), ptr[j] + (k0 - fa[j - sb]), s0 - k0);
                 }
-                lower[pi + (j - fi)] -= dot;
+                lower[pi + la + (j - fi)] -= d;
             }
             let mut d = diag[i];
-            for (t, &dj) in lower[pi..ptr[i + 1]].iter_mut().zip(&dinv[fi..i]) {
-                let l = *t * dj;
-                d -= *t * l;
-                *t = l;
+            for (o, j) in (fai..s0).chain(fi..i).enumerate() {
+                let t = lower[pi + o];
+                let l = t * dinv[j];
+                d -= t * l;
+                lower[pi + o] = l;
             }
-            if self.positive[i] {
-                if d <= epsilon {
-                    d = delta;
-                    regularized += 1;
-                }
-            } else if d >= -epsilon {
-                d = -delta;
-                regularized += 1;
-            }
-            if !d.is_finite() {
-                return Err(LinalgError::Singular(format!(
-                    "envelope LDLᵀ: non-finite pivot at elimination step {i}"
-                )));
-            }
+            let d = rule.pivot(i, d, &mut regularized)?;
             diag[i] = d;
             dinv[i] = 1.0 / d;
         }
@@ -227,39 +449,314 @@ impl Envelope {
     }
 
     /// `x ← S (S K S)⁻¹ S x` with the last factorisation: `L y = P S x`,
-    /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`.
-    fn solve(&mut self, x: &mut [f64]) {
-        let (w, first, ptr, env) = (&mut self.w, &self.first, &self.ptr, &self.env);
-        for ((wi, &p), &s) in w.iter_mut().zip(&self.perm).zip(&self.pscale) {
-            *wi = x[p] * s;
+    /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`; the
+    /// halves concurrently as in `factorize`, the separator between them.
+    /// Returns whether every entry of the solution is finite.
+    fn solve(&mut self, x: &mut [f64]) -> bool {
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
+        let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
+        let (perm, pscale, dinv) = (&self.perm, &self.pscale, &self.dinv);
+        let env = &self.env[..ptr[dim]];
+        let xr: &[f64] = x;
+        // gather, forward substitution and D⁻¹ of one half; the separator's
+        // forward rows need the halves' y before D⁻¹, so D⁻¹ comes after
+        let gather = |rows: std::ops::Range<usize>, w: &mut [f64]| {
+            let base = rows.start;
+            for i in rows {
+                w[i - base] = xr[perm[i]] * pscale[i];
+            }
+        };
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            join_if(
+                par,
+                || {
+                    gather(0..s0, w_t);
+                    forward_rows(first, ptr, env, 0, 0..s0, w_t);
+                },
+                || {
+                    gather(s0..sb, w_b);
+                    forward_rows(first, ptr, env, s0, s0..sb, w_b);
+                },
+            );
         }
-        assert!(ptr[self.dim] <= env.len() && w.len() == self.dim);
-        for i in 0..self.dim {
-            let (fi, pi) = (first[i], ptr[i]);
+        gather(sb..dim, &mut w[sb..]);
+        for i in sb..dim {
+            let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+            let la = s0 - fai;
+            let d =
+                dot2(&env[pi..pi + la], &w[fai..s0]) + dot2(&env[pi + la..ptr[i + 1]], &w[fi..i]);
+            w[i] -= d;
+        }
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let scale = |w: &mut [f64], d: &[f64]| {
+                for (wi, &di) in w.iter_mut().zip(d) {
+                    *wi *= di;
+                }
+            };
+            let (w_b, w_s) = w_rest.split_at_mut(sb - s0);
+            join_if(
+                par,
+                || scale(w_t, &dinv[..s0]),
+                || scale(w_b, &dinv[s0..sb]),
+            );
+            scale(w_s, &dinv[sb..]);
+        }
+        for i in (sb..dim).rev() {
+            let (fai, fi, pi, wi) = (fa[i - sb], first[i], ptr[i], w[i]);
+            let la = s0 - fai;
+            for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
+                *v -= l * wi;
+            }
+            for (v, &l) in w[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
+                *v -= l * wi;
+            }
+        }
+        {
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            join_if(
+                par,
+                || backward_rows(first, ptr, env, 0, 0..s0, w_t),
+                || backward_rows(first, ptr, env, s0, s0..sb, w_b),
+            );
+        }
+        // x = S Pᵀ z as a gather over x's two halves
+        let (w, inv) = (&self.w, &self.inv);
+        let scatter = |x: &mut [f64], base: usize| {
+            for (j, xj) in x.iter_mut().enumerate() {
+                let i = inv[base + j];
+                *xj = w[i] * pscale[i];
+            }
+            x.iter().all(|v| v.is_finite())
+        };
+        let (x_lo, x_hi) = x.split_at_mut(dim / 2);
+        let (lo, hi) = join_if(par, || scatter(x_lo, 0), || scatter(x_hi, dim / 2));
+        lo && hi
+    }
+}
+
+/// One value of `K` in the envelope: slot, position in its part's
+/// storage, permuted row and column (of `K`'s lower-triangle entry).
+#[derive(Debug, Clone, Copy)]
+struct Fill {
+    slot: u32,
+    pos: u32,
+    row: u32,
+    col: u32,
+}
+
+/// The symmetric scaling of [`SparseLdlt`] (`saddle_scaling`,
+/// `coordinate_scale`, `multiplier_scale`) row by row in elimination
+/// order, so each part computes its own (the maximum is exact: any order
+/// gives the same bits).
+struct Scaling<'a> {
+    n: usize,
+    perm: &'a [usize],
+    dslot: &'a [usize],
+    phi_ptr: &'a [usize],
+    phi_ent: &'a [(usize, usize)],
+    vals: &'a [f64],
+}
+
+impl Scaling<'_> {
+    /// `pscale[i − base]` for the rows `rows` (`pscale` from permuted row
+    /// `base`, covering the columns of their Φ_q entries).
+    fn rows(&self, rows: std::ops::Range<usize>, base: usize, pscale: &mut [f64]) {
+        for i in rows {
+            let d = self.vals[self.dslot[i]];
+            pscale[i - base] = if self.perm[i] < self.n {
+                coordinate_scale(d)
+            } else {
+                let mut s = d.abs().sqrt();
+                for &(slot, c) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
+                    s = s.max(self.vals[slot].abs() * pscale[c - base]);
+                }
+                multiplier_scale(s)
+            };
+        }
+    }
+}
+
+/// Write the scaled values `K_rc s_r s_c` of one part into its zeroed
+/// storage (`lower`, then `diag` at positions from `lower.len()`), `pscale`
+/// from permuted row `base`; a non-finite value of `K` is an error naming
+/// its row and column.
+#[allow(clippy::too_many_arguments)]
+fn load(
+    fill: &[Fill],
+    perm: &[usize],
+    vals: &[f64],
+    pscale: &[f64],
+    base: usize,
+    lower: &mut [f64],
+    diag: &mut [f64],
+) -> Result<(), LinalgError> {
+    lower.fill(0.0);
+    diag.fill(0.0);
+    let nl = lower.len();
+    for f in fill {
+        let v = vals[f.slot as usize];
+        let x = v * pscale[f.row as usize - base] * pscale[f.col as usize - base];
+        if !v.is_finite() {
+            return Err(LinalgError::NonFinite {
+                row: perm[f.row as usize],
+                col: perm[f.col as usize],
+            });
+        }
+        let p = f.pos as usize;
+        if p < nl {
+            lower[p] += x;
+        } else {
+            diag[p - nl] += x;
+        }
+    }
+    Ok(())
+}
+
+/// The expected pivot signs and the regularisation of [`SparseLdlt`].
+struct Pivots<'a> {
+    positive: &'a [bool],
+    epsilon: f64,
+    delta: f64,
+}
+
+impl Pivots<'_> {
+    /// Pivot `d` of row `i` (global numbering): `δ` with the expected sign
+    /// when `d` has the wrong sign or is within `ε` of 0 (counted).
+    fn pivot(&self, i: usize, d: f64, regularized: &mut usize) -> Result<f64, LinalgError> {
+        let d = if self.positive[i] {
+            if d <= self.epsilon {
+                *regularized += 1;
+                self.delta
+            } else {
+                d
+            }
+        } else if d >= -self.epsilon {
+            *regularized += 1;
+            -self.delta
+        } else {
+            d
+        };
+        if !d.is_finite() {
+            return Err(LinalgError::Singular(format!(
+                "envelope LDLᵀ: non-finite pivot at elimination step {i}"
+            )));
+        }
+        Ok(d)
+    }
+}
+
+/// `Σ_o v[a + o] v[b + o]`, `o < len`.
+fn dot(v: &[f64], a: usize, b: usize, len: usize) -> f64 {
+    dot2(&v[a..a + len], &v[b..b + len])
+}
+
+/// `Σ_i a_i b_i` in index order.
+fn dot2(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0, |s, (x, y)| s + x * y)
+}
+
+/// Crout (up-looking) LDLᵀ of the plain envelope rows `rows` of one half,
+/// whose envelopes stay inside the half: `lower`, `diag`, `dinv` hold that
+/// half only (from row `base`, at `env[ptr[base]..]`).
+///
+/// ```text
+/// t_ij = a_ij − Σ_{k<j} t_ik L_jk,   L_ij = t_ij / d_j,   d_i = a_ii − Σ_{j<i} t_ij L_ij
+/// ```
+#[allow(clippy::too_many_arguments)]
+fn crout_rows(
+    first: &[usize],
+    ptr: &[usize],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    lower: &mut [f64],
+    diag: &mut [f64],
+    dinv: &mut [f64],
+    rule: &Pivots<'_>,
+) -> Result<usize, LinalgError> {
+    let p0 = ptr[base];
+    let mut regularized = 0;
+    for i in rows {
+        let (fi, pi) = (first[i], ptr[i] - p0);
+        assert!(ptr[i + 1] - p0 <= lower.len() && i - base < dinv.len() && fi >= base);
+        for j in fi..i {
+            let fj = first[j];
+            let k0 = fi.max(fj);
+            let (ti, lj) = (pi + (k0 - fi), ptr[j] - p0 + (k0 - fj));
             let mut dot = 0.0;
-            for o in 0..i - fi {
-                // SAFETY: row i's entries are env[pi..ptr[i + 1]] (within
-                // env, checked above) and columns fi + o < i < dim.
+            for o in 0..j - k0 {
+                // SAFETY: rows base ≤ j < i lie before row i in `lower`
+                // (ptr is increasing, ptr[i + 1] − p0 ≤ len checked above),
+                // and k0 + o < j stays inside both rows' envelopes.
                 unsafe {
-                    dot += env.get_unchecked(pi + o) * w.get_unchecked(fi + o);
+                    dot += lower.get_unchecked(ti + o) * lower.get_unchecked(lj + o);
                 }
             }
-            w[i] -= dot;
+            lower[pi + (j - fi)] -= dot;
         }
-        for (wi, &di) in w.iter_mut().zip(&self.dinv) {
-            *wi *= di;
+        let mut d = diag[i - base];
+        for (t, &dj) in lower[pi..ptr[i + 1] - p0]
+            .iter_mut()
+            .zip(&dinv[fi - base..i - base])
+        {
+            let l = *t * dj;
+            d -= *t * l;
+            *t = l;
         }
-        for i in (0..self.dim).rev() {
-            let (fi, pi, wi) = (first[i], ptr[i], w[i]);
-            for o in 0..i - fi {
-                // SAFETY: as in the forward loop
-                unsafe {
-                    *w.get_unchecked_mut(fi + o) -= env.get_unchecked(pi + o) * wi;
-                }
+        let d = rule.pivot(i, d, &mut regularized)?;
+        diag[i - base] = d;
+        dinv[i - base] = 1.0 / d;
+    }
+    Ok(regularized)
+}
+
+/// Forward substitution `L y = w` over the plain rows `rows` of one half
+/// (`w` from row `base`).
+fn forward_rows(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    w: &mut [f64],
+) {
+    for i in rows {
+        let (fi, pi) = (first[i], ptr[i]);
+        assert!(ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
+        let mut dot = 0.0;
+        for o in 0..i - fi {
+            // SAFETY: row i's entries are env[pi..ptr[i + 1]] (checked
+            // above) and its columns base ≤ fi + o < i lie in `w`.
+            unsafe {
+                dot += env.get_unchecked(pi + o) * w.get_unchecked(fi - base + o);
             }
         }
-        for ((&wi, &p), &s) in w.iter().zip(&self.perm).zip(&self.pscale) {
-            x[p] = wi * s;
+        w[i - base] -= dot;
+    }
+}
+
+/// Backward substitution `Lᵀ z = w` over the plain rows `rows` of one
+/// half, from the last (`w` from row `base`).
+fn backward_rows(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    rows: std::ops::Range<usize>,
+    w: &mut [f64],
+) {
+    for i in rows.rev() {
+        let (fi, pi, wi) = (first[i], ptr[i], w[i - base]);
+        assert!(ptr[i + 1] <= env.len() && fi >= base);
+        for o in 0..i - fi {
+            // SAFETY: as in `forward_rows`
+            unsafe {
+                *w.get_unchecked_mut(fi - base + o) -= env.get_unchecked(pi + o) * wi;
+            }
         }
     }
 }
@@ -274,6 +771,7 @@ pub struct ChainLdlt {
     delta: f64,
     envelope: Option<Envelope>,
     fallback: SparseLdlt,
+    split: bool,
     analyzed: bool,
     factorized: bool,
     check_residual: bool,
@@ -288,6 +786,7 @@ impl Default for ChainLdlt {
             delta: DEFAULT_DELTA,
             envelope: None,
             fallback: SparseLdlt::default(),
+            split: true,
             analyzed: false,
             factorized: false,
             check_residual: true,
@@ -305,6 +804,19 @@ impl ChainLdlt {
         self.check_residual = on;
         self.fallback = self.fallback.with_residual_check(on);
         self
+    }
+
+    /// Allow the two-sided order of the module docs ("Two halves") from
+    /// [`SPLIT_MIN_DIM`] on (default on); off: always the one-sided order.
+    pub fn with_split(mut self, on: bool) -> Self {
+        self.split = on;
+        self
+    }
+
+    /// Did `analyze` choose the two-sided order (`None` before `analyze`
+    /// or on the fallback path)?
+    pub fn is_split(&self) -> Option<bool> {
+        self.envelope.as_ref().map(Envelope::is_split)
     }
 
     /// Did `analyze` choose the envelope path (`None` before `analyze`)?
@@ -337,7 +849,7 @@ impl SaddlePointSolver for ChainLdlt {
         }
         self.factorized = false;
         self.analyzed = true;
-        self.envelope = Envelope::analyze(k);
+        self.envelope = Envelope::analyze(k, self.split);
         match &self.envelope {
             Some(e) => {
                 self.bufs.resize(e.dim);
@@ -358,7 +870,6 @@ impl SaddlePointSolver for ChainLdlt {
                 got: k.dim(),
             });
         }
-        k.check_finite()?;
         self.factorized = false;
         let regularized_pivots = e.factorize(k, self.epsilon, self.delta)?;
         self.factorized = true;
@@ -381,13 +892,16 @@ impl SaddlePointSolver for ChainLdlt {
             });
         }
         self.stats.solves += 1;
-        if self.check_residual {
-            let refined = self.bufs.solve_checked(k, rhs, |x| e.solve(x));
+        let finite = if self.check_residual {
+            let refined = self.bufs.solve_checked(k, rhs, |x| {
+                e.solve(x);
+            });
             self.stats.refinements += usize::from(refined);
+            rhs.iter().all(|v| v.is_finite())
         } else {
-            e.solve(rhs);
-        }
-        if rhs.iter().all(|v| v.is_finite()) {
+            e.solve(rhs)
+        };
+        if finite {
             Ok(())
         } else {
             Err(LinalgError::NonFiniteSolution("envelope LDLᵀ"))

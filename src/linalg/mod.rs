@@ -35,7 +35,7 @@ mod saddle;
 mod schur;
 mod sparse;
 
-pub use chain::{ChainLdlt, MAX_BANDWIDTH};
+pub use chain::{ChainLdlt, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM};
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
 pub use pattern::CscPattern;
@@ -46,6 +46,25 @@ pub use sparse::{
 };
 
 use serde::Serialize;
+
+/// `rayon::join(a, b)` when `parallel`, else `a()` then `b()` on this
+/// thread: the same operations either way, so the results do not depend
+/// on the choice or on the thread count (the callers' determinism rests
+/// on each task being sequential inside). Small problems run sequentially:
+/// a join from outside a rayon pool costs tens of microseconds.
+pub(crate) fn join_if<A, B, RA, RB>(parallel: bool, a: A, b: B) -> (RA, RB)
+where
+    A: FnOnce() -> RA + Send,
+    B: FnOnce() -> RB + Send,
+    RA: Send,
+    RB: Send,
+{
+    if parallel {
+        rayon::join(a, b)
+    } else {
+        (a(), b())
+    }
+}
 
 /// Failure of a saddle-point factorisation or solve.
 #[derive(Debug, Clone, thiserror::Error)]

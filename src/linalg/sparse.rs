@@ -571,15 +571,15 @@ impl SaddlePointSolver for SparseLdlt {
 
 /// The symmetric scaling `S` of [`SparseLdlt`] (module docs): `s_i =
 /// 1/√|A_ii|` for the coordinates, `s_r = 1/max(maxᵢ |Φ_ri| s_i, √|D_rr|)`
-/// for the multipliers (1 where that is 0); shared with
-/// [`super::ChainLdlt`].
+/// for the multipliers (1 where that is 0); [`super::ChainLdlt`] computes
+/// the same row by row in its elimination order (`coordinate_scale`,
+/// `multiplier_scale`).
 pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
     let (n, dim) = (k.n(), k.dim());
     let (col_ptr, row_idx, vals) = (k.col_ptr(), k.row_idx(), k.values());
     let diag = k.diag_slots();
     for c in 0..n {
-        let a = vals[diag[c]].abs();
-        scale[c] = if a > 0.0 { 1.0 / a.sqrt() } else { 1.0 };
+        scale[c] = coordinate_scale(vals[diag[c]]);
     }
     for r in n..dim {
         scale[r] = vals[diag[r]].abs().sqrt();
@@ -593,7 +593,27 @@ pub(super) fn saddle_scaling(k: &SaddleMatrix, scale: &mut [f64]) {
         }
     }
     for s in &mut scale[n..dim] {
-        *s = if *s > 0.0 { 1.0 / *s } else { 1.0 };
+        *s = multiplier_scale(*s);
+    }
+}
+
+/// `1/√|A_ii|` (1 for a zero diagonal), the scaling of a coordinate.
+pub(super) fn coordinate_scale(a_ii: f64) -> f64 {
+    let a = a_ii.abs();
+    if a > 0.0 {
+        1.0 / a.sqrt()
+    } else {
+        1.0
+    }
+}
+
+/// `1/max` (1 where it is 0) of `max = max(maxᵢ |Φ_ri| s_i, √|D_rr|)`,
+/// the scaling of a multiplier row.
+pub(super) fn multiplier_scale(max: f64) -> f64 {
+    if max > 0.0 {
+        1.0 / max
+    } else {
+        1.0
     }
 }
 

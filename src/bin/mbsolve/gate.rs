@@ -12,6 +12,9 @@
 //!   steps of the stiff chain at N = 1000 (issue 12) with the generated
 //!   Newton assembly against the generic per-joint, per-element one
 //!   (fails below [`IMPLICIT_GENERATED_MIN`]; [`implicit_generated_over_generic`]).
+//! * the two-sided chain LDLᵀ over the one-sided one on one thread: factor
+//!   and solve of the stiff chain's Newton matrix at N = 10 000 (fails
+//!   above [`SPLIT_SOLVE_MAX`]; [`split_chain_solve_over_one_sided`]).
 //!
 //! Timings are the minimum over interleaved repetitions (robust to a shared
 //! machine) on a single thread (so the ratio measures algorithmic scaling,
@@ -186,6 +189,7 @@ pub fn run() -> Vec<Check> {
         };
         let r = tg / tgen;
         checks.push(implicit_generated_over_generic());
+        checks.push(split_chain_solve_over_one_sided());
         checks.push(Check {
             name: "Φ, Φ_q, γ of the rod chain N = 1000, generated over generic".into(),
             ratio: r,
@@ -280,6 +284,60 @@ pub fn implicit_generated_over_generic() -> Check {
         detail: format!(
             "generic {:.2} s vs generated {:.2} s of CPU",
             best.0, best.1
+        ),
+    }
+}
+
+/// Bound of [`split_chain_solve_over_one_sided`].
+pub const SPLIT_SOLVE_MAX: f64 = 1.2;
+
+/// Factor + solve of the stiff chain's Newton matrix (N = 10 000) by the
+/// two-sided envelope LDLᵀ `Index3` uses (`ChainLdlt`, its halves
+/// concurrent with more threads) over the one-sided one, on the gate's one
+/// thread: the split must cost (almost) nothing where it cannot run in
+/// parallel. Wall time, minimum over interleaved batches.
+pub fn split_chain_solve_over_one_sided() -> Check {
+    use mbsolve::formulation::Index3;
+    use mbsolve::linalg::{ChainLdlt, SaddlePointSolver};
+    let (sys, q, _, _) = stiff_chain(10_000, 5f64.to_radians()).expect("stiff chain builds");
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let mut f = Index3::new(&sys, SolverKind::Auto).expect("formulation");
+    let (qd, lam) = (vec![0.0; n], vec![1.0; m]);
+    f.assemble_and_factorize(0.0, &q, &qd, &lam, 1.2, 6e-6, 3e-11)
+        .expect("factorises");
+    let k = f.newton_matrix();
+    let b: Vec<f64> = (0..n + m).map(|i| (i as f64 * 0.37).sin()).collect();
+    let mut x = b.clone();
+    let mut solvers = [true, false].map(|split| {
+        let mut s = ChainLdlt::default()
+            .with_residual_check(false)
+            .with_split(split);
+        s.analyze(k).expect("analyses");
+        s
+    });
+    let mut best = [f64::MAX; 2];
+    for _ in 0..15 {
+        for (s, t) in solvers.iter_mut().zip(&mut best) {
+            let t0 = Instant::now();
+            for _ in 0..4 {
+                s.factorize(k).expect("factorises");
+                x.copy_from_slice(&b);
+                s.solve_in_place(k, &mut x).expect("solves");
+            }
+            *t = t.min(t0.elapsed().as_secs_f64() / 4.0);
+        }
+    }
+    let r = best[0] / best[1];
+    Check {
+        name: "chain Newton factor + solve N = 10 000, two-sided over one-sided, 1 thread".into(),
+        ratio: r,
+        threshold: SPLIT_SOLVE_MAX,
+        at_most: true,
+        passed: r <= SPLIT_SOLVE_MAX,
+        detail: format!(
+            "split {:.0} µs vs one-sided {:.0} µs",
+            best[0] * 1e6,
+            best[1] * 1e6
         ),
     }
 }
