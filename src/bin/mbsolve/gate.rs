@@ -257,7 +257,10 @@ pub fn implicit_generated_over_generic() -> Check {
         Ok(cpu_seconds() - t)
     };
     let mut best = (f64::MAX, f64::MAX);
-    for _ in 0..3 {
+    // best of 5 pairs: on the shared 2-core machine one CI run measured
+    // 1.25 with best of 3 (every generated run slowed), where runs just
+    // before and after gave 1.61 and 1.64
+    for _ in 0..5 {
         let tg = time(&mut sys, Evaluation::Generic);
         let tk = time(&mut sys, Evaluation::Generated);
         match (tg, tk) {
