@@ -621,6 +621,36 @@ fn add_rod_with(
     Ok(info)
 }
 
+/// Attach [`TorsionalChainJacobians`] to the torsional spring–dampers
+/// (stiffness and damping of `info`) between consecutive `bodies`: the
+/// `bodies.len() − 1` force elements from id `first` on, which must couple
+/// `bodies[k]` and `bodies[k + 1]` in that order.
+pub(super) fn attach_spring_chain_kernels(
+    builder: &mut SystemBuilder,
+    bodies: &[usize],
+    first: usize,
+    info: &RodInfo,
+) {
+    let Some(&body0) = bodies.first() else {
+        return;
+    };
+    let springs: Vec<TorsionalSpringDamper> = bodies
+        .windows(2)
+        .map(|b| {
+            TorsionalSpringDamper::new(
+                BodyRef::Body(b[0]),
+                BodyRef::Body(b[1]),
+                info.spring_stiffness,
+                info.spring_damping,
+            )
+        })
+        .collect();
+    builder.attach_force_kernels(
+        first..first + springs.len(),
+        Box::new(TorsionalChainJacobians::new(body0, &springs)),
+    );
+}
+
 /// Attach the generated force-Jacobian kernels of the rod's springs, drags
 /// and contacts (each a contiguous run of elements on consecutive bodies).
 fn attach_force_kernels(
@@ -633,19 +663,8 @@ fn attach_force_kernels(
     let Some(&body0) = bodies.first() else {
         return;
     };
-    if let Some(r) = range(&info.springs) {
-        let springs: Vec<TorsionalSpringDamper> = bodies
-            .windows(2)
-            .map(|b| {
-                TorsionalSpringDamper::new(
-                    BodyRef::Body(b[0]),
-                    BodyRef::Body(b[1]),
-                    info.spring_stiffness,
-                    info.spring_damping,
-                )
-            })
-            .collect();
-        builder.attach_force_kernels(r, Box::new(TorsionalChainJacobians::new(body0, &springs)));
+    if let Some(&first) = info.springs.first() {
+        attach_spring_chain_kernels(builder, bodies, first, info);
     }
     if let Some(r) = range(&info.drag) {
         let drags: Vec<Drag> = bodies

@@ -8,9 +8,7 @@
 //! Reported: x of the free end at t = 0.1 s.
 
 use super::rod::{add_cantilever, RodInfo, RodParams};
-use crate::forces::TorsionalSpringDamper;
-use crate::generated::TorsionalChainJacobians;
-use crate::model::{BodyRef, Gravity, ModelError, System, SystemBuilder};
+use crate::model::{Gravity, ModelError, System, SystemBuilder};
 
 /// Tip x at t = 0.1 s. N = 10 and 100: the peers' references
 /// (`../shared/peers/README.md`), SciPy Radau at rtol 1e-10 on two
@@ -72,32 +70,16 @@ pub fn stiff_chain(
     Ok((sys, q0, qd0, info))
 }
 
-/// Attach the generated Jacobians ([`TorsionalChainJacobians`]) to the
+/// Attach the generated Jacobians ([`TorsionalChainJacobians`](crate::generated::TorsionalChainJacobians)) to the
 /// chain's springs between neighbouring segments (`info.springs[1..]`,
 /// consecutive elements on bodies `b, b + 1`); the ground spring keeps its
 /// own (one element). [`add_cantilever`] attaches the chain's joint kernels
 /// but none for its springs; without these the implicit path evaluates
 /// ∂g/∂q, ∂g/∂q̇ of N − 1 springs one virtual call at a time.
 fn attach_spring_kernels(builder: &mut SystemBuilder, info: &RodInfo) {
-    let (Some(&first), Some(&body0)) = (info.springs.get(1), info.bodies.first()) else {
-        return;
-    };
-    let springs: Vec<TorsionalSpringDamper> = info
-        .bodies
-        .windows(2)
-        .map(|b| {
-            TorsionalSpringDamper::new(
-                BodyRef::Body(b[0]),
-                BodyRef::Body(b[1]),
-                info.spring_stiffness,
-                info.spring_damping,
-            )
-        })
-        .collect();
-    builder.attach_force_kernels(
-        first..first + springs.len(),
-        Box::new(TorsionalChainJacobians::new(body0, &springs)),
-    );
+    if let Some(&first) = info.springs.get(1) {
+        super::rod::attach_spring_chain_kernels(builder, &info.bodies, first, info);
+    }
 }
 
 /// x of the free end (bottom of the last segment) from the coordinates `q`.

@@ -370,6 +370,21 @@ impl<'a> Index3<'a> {
         Ok(())
     }
 
+    /// Move an inconsistent initial state onto the constraint manifold
+    /// (`initial.rs`: [`Index3::project`]
+    /// repeated to [`super::START_TOL`]); a consistent state is left
+    /// untouched, bit for bit. [`FormulationError::Initial`] when there is
+    /// no consistent configuration nearby.
+    pub fn consistent_start(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<super::StartCorrection, FormulationError> {
+        let sys = self.sys;
+        super::initial::index3_consistent_start(sys, self, t, q, qd)
+    }
+
     /// Mass-weighted projection onto the constraint manifold: one Newton
     /// step `min ‖Δq‖_M` s.t. `Φ_q Δq = −Φ(q, t)` on the positions, then
     /// `min ‖Δq̇‖_M` s.t. `Φ_q Δq̇ = −(Φ_q q̇ + Φ_t)` on the velocities (with

@@ -356,7 +356,7 @@ pub fn consistent_initial_state_locked(
 /// below which the initial state counts as consistent: the default of the
 /// index-1 projection ([`super::Projection`]), and of every
 /// start projection ([`super::Augmented::consistent_start`],
-/// [`index3_consistent_start`]).
+/// [`super::Index3::consistent_start`]).
 pub const START_TOL: f64 = 1e-10;
 
 /// Iterations allowed to each projection of the start.
@@ -406,7 +406,7 @@ impl StartCorrection {
 /// the four-bar's incorrect start gained 1.0e4 J on a scale of 14 J).
 /// [`FormulationError::Initial`] if [`START_MAX_ITER`] iterations do not
 /// get there or ‖Φ‖ grows tenfold.
-pub fn index3_consistent_start(
+pub(super) fn index3_consistent_start(
     sys: &System,
     f: &mut super::Index3<'_>,
     t: f64,

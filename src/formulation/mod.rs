@@ -41,8 +41,8 @@ pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCAL
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use initial::{
-    consistent_initial_state, consistent_initial_state_locked, index3_consistent_start,
-    ConsistentState, InitialOptions, Lock, LockKind, StartCorrection, START_MAX_ITER, START_TOL,
+    consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
+    Lock, LockKind, StartCorrection, START_MAX_ITER, START_TOL,
 };
 pub use partitioning::{
     PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,

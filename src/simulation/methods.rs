@@ -20,7 +20,7 @@ pub(super) trait MethodRun {
     ) -> Result<Report, IntegratorError>;
     /// Move an inconsistent initial state onto the constraint manifold
     /// before the run, where the method needs it (the index-3 forms:
-    /// [`index3_consistent_start`], [`Augmented::consistent_start`]);
+    /// [`Index3::consistent_start`], [`Augmented::consistent_start`]);
     /// `Some(warning)` if it moved. The index-1 forms keep the given
     /// state: their stabilization or projection treats the violation.
     fn consistent_start(
@@ -151,7 +151,6 @@ impl MethodRun for Partition<'_> {
 /// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
 /// `max_step_taken`.
 pub(super) struct Implicit<'s> {
-    sys: &'s System,
     f: Index3<'s>,
     integ: GenAlpha,
 }
@@ -165,7 +164,7 @@ impl<'s> Implicit<'s> {
             NewtonSolverKind::SymmetricLdlt
         };
         let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
-        Ok(Self { sys, f, integ })
+        Ok(Self { f, integ })
     }
 }
 
@@ -187,7 +186,7 @@ impl MethodRun for Implicit<'_> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        let c = index3_consistent_start(self.sys, &mut self.f, cfg.t0, q, qd)?;
+        let c = self.f.consistent_start(cfg.t0, q, qd)?;
         Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
     }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
@@ -326,7 +325,6 @@ impl MethodRun for AugmentedRun<'_> {
 /// `jacobian_evaluations`, `steps_at_order` (orders 1–5),
 /// `min_step_taken`, `max_step_taken`.
 pub(super) struct BdfRun<'s> {
-    sys: &'s System,
     f: Index3<'s>,
     integ: Bdf,
 }
@@ -339,7 +337,7 @@ impl<'s> BdfRun<'s> {
             cfg.index1.linear_solver,
             NewtonSolverKind::SymmetricLdlt,
         )?;
-        Ok(Self { sys, f, integ })
+        Ok(Self { f, integ })
     }
 }
 
@@ -361,7 +359,7 @@ impl MethodRun for BdfRun<'_> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        let c = index3_consistent_start(self.sys, &mut self.f, cfg.t0, q, qd)?;
+        let c = self.f.consistent_start(cfg.t0, q, qd)?;
         Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
     }
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {

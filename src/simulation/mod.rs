@@ -2,9 +2,8 @@
 //! constraint violation, with a [`Summary`] of the work done.
 
 use crate::formulation::{
-    index3_consistent_start, Augmented, AugmentedParams, ExplicitForm, Formulation,
-    FormulationError, Index1, Index1Options, Index3, NewtonSolverKind, Partitioned,
-    SingularityMonitor,
+    Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
+    Index3, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
     integrator, AugmentedLagrangian, Bdf, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
