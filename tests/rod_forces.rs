@@ -359,6 +359,55 @@ fn contact_free_inside_the_channel() {
     }
 }
 
+/// The early exit for segments away from the walls never drops a contact:
+/// for poses at any angle whose centre lies near the reach `w/2 + l_s/2`
+/// from either wall, the element reports a corner state (and a force) exactly
+/// when an independently computed corner `r + R(φ) s` penetrates a wall.
+#[test]
+fn contact_found_exactly_when_a_corner_penetrates() {
+    let mut rng = Rng(29);
+    let (mut touching, mut clear) = (0, 0);
+    for length in [0.1, 1e-4] {
+        let c = WallContact {
+            length,
+            ..contact()
+        };
+        let reach = 0.5 * (c.width + length);
+        let mut states = Vec::new();
+        for _ in 0..4000 {
+            let phi = rng.next(-std::f64::consts::PI, std::f64::consts::PI);
+            let side = if rng.next(0.0, 1.0) < 0.5 { -1.0 } else { 1.0 };
+            // centres from just inside the exit bound to past the wall
+            let x = side * (0.025 - reach + rng.next(-2e-3, 2e-2) * reach);
+            let (q, qd) = state(0, 1, [x, 0.2, phi], [0.0, 0.0, 0.0]);
+            let (sn, cs) = (phi.sin(), phi.cos());
+            let penetrates = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+                .iter()
+                .any(|(a, b)| {
+                    let px = x + cs * a * 0.5 * c.width - sn * b * 0.5 * length;
+                    px > 0.025 || px < -0.025
+                });
+            states.clear();
+            c.corner_states(&q, &qd, &mut states);
+            assert_eq!(
+                !states.is_empty(),
+                penetrates,
+                "x = {x}, phi = {phi}, l_s = {length}: {states:?}"
+            );
+            assert_eq!(forces(&c, &q, &qd)[0] != 0.0, penetrates);
+            if penetrates {
+                touching += 1;
+            } else {
+                clear += 1;
+            }
+        }
+    }
+    assert!(
+        touching > 1000 && clear > 1000,
+        "{touching} touching, {clear} clear"
+    );
+}
+
 #[test]
 fn contact_hand_values_vertical_segment_on_the_right_wall() {
     let c = contact();

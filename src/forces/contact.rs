@@ -156,6 +156,18 @@ impl WallContact {
         ]
     }
 
+    /// Whether no corner of a segment centred at `x` can reach either wall,
+    /// whatever its angle: every corner lies within `|R(φ) s|_x ≤ w/2 + l_s/2`
+    /// of the centre (the bound widened by 1e-12 relative against rounding,
+    /// so a corner this test clears has δ ≤ 0 exactly as computed below).
+    /// Skips the sine, cosine and corner loop for the segments away from the
+    /// walls, which are most of a long rod's.
+    #[inline]
+    fn clear_of_walls(&self, x: f64) -> bool {
+        let reach = 0.5 * (self.width + self.length) * (1.0 + 1e-12);
+        x - reach > self.left_wall && x + reach < self.right_wall
+    }
+
     /// The body's three entries of a full coordinate or velocity vector.
     fn body_q(&self, v: &[f64]) -> [f64; 3] {
         let o = 3 * self.body;
@@ -165,6 +177,9 @@ impl WallContact {
     /// Calls `f` for every (corner, wall) pair with δ > 0.
     /// `qb`, `vb`: the body's `[x, y, φ]` and `[ẋ, ẏ, φ̇]`.
     fn for_each_contact(&self, qb: [f64; 3], vb: [f64; 3], mut f: impl FnMut(usize, &CornerEval)) {
+        if self.clear_of_walls(qb[0]) {
+            return;
+        }
         let (sn, cs) = qb[2].sin_cos();
         let w = vb[2];
         for c in 0..4 {
