@@ -117,6 +117,35 @@ fn main() {
         );
         return;
     }
+    if args.first().map(String::as_str) == Some("slope") {
+        let (Some(spec), Some(n1), Some(n2)) = (
+            args.get(1),
+            args.get(2).and_then(|a| a.parse::<usize>().ok()),
+            args.get(3).and_then(|a| a.parse::<usize>().ok()),
+        ) else {
+            eprintln!("usage: falling_rod_speed slope METHOD:H_OR_RTOL N1 N2");
+            std::process::exit(2);
+        };
+        let per_s = |line: &serde_json::Value| {
+            line["cpu_s"].as_f64().unwrap_or(f64::NAN)
+                / line["t_reached"].as_f64().unwrap_or(f64::NAN)
+        };
+        let a = run(n1, spec);
+        println!("{a}");
+        let b = run(n2, spec);
+        println!("{b}");
+        let (ca, cb) = (per_s(&a), per_s(&b));
+        println!(
+            "{}",
+            serde_json::json!({
+                "spec": spec,
+                "n": [n1, n2],
+                "cpu_per_simulated_s": [ca, cb],
+                "slope": (cb / ca).ln() / (n2 as f64 / n1 as f64).ln(),
+            })
+        );
+        return;
+    }
     let Some(n) = args.first().and_then(|a| a.parse::<usize>().ok()) else {
         eprintln!("usage: falling_rod_speed N [genalpha:H | agenalpha:RTOL | bdf:RTOL ...]");
         std::process::exit(2);
@@ -126,91 +155,95 @@ fn main() {
     } else {
         vec!["genalpha:5e-5".into()]
     };
+    for spec in &specs {
+        println!("{}", run(n, spec));
+    }
+}
+
+/// One run of problem B at `n` segments with `spec` = `METHOD:H_OR_RTOL`:
+/// its JSON line (and the trace file of `MBS_TRACE`).
+fn run(n: usize, spec: &str) -> serde_json::Value {
     let (sys, info) = build_rod(&RodParams::problem_b(n)).expect("problem B builds");
     let (q0, qd0) = sys.initial_state();
     let t_end = env("MBS_T_END").unwrap_or(1.0);
     let dt = env("MBS_DT").unwrap_or(1e-3);
-    for spec in specs {
-        let Some((name, value)) = spec.split_once(':') else {
-            eprintln!("{spec}: expected METHOD:H_OR_RTOL");
-            std::process::exit(2);
-        };
-        let adaptive_ga = name == "agenalpha";
-        let method: Method = if adaptive_ga { "genalpha" } else { name }
-            .parse()
-            .unwrap_or_else(|e| panic!("{spec}: {e}"));
-        let value: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
-        let mut cfg = RunConfig {
-            method,
-            t_end,
-            output_dt: dt,
-            ..Default::default()
-        };
-        cfg.ode.max_steps = 100_000_000;
-        if (method.is_implicit() && !adaptive_ga && method == Method::GenAlpha)
-            || method == Method::Rk4
-        {
-            cfg.ode.fixed_step = Some(value);
-        } else {
-            cfg.ode.rtol = value;
-            cfg.ode.atol = Tolerance::Scalar(env("MBS_ATOL").unwrap_or(value * 1e-3));
-            cfg.implicit.adaptive = adaptive_ga;
-        }
-        if let Some(r) = env("MBS_RHO_INF") {
-            cfg.implicit.rho_inf = r;
-        }
-        let mut mon = ContactMonitor::new(info.clone());
-        let mut sink = Marks {
-            info: &info,
-            rows: Vec::new(),
-        };
-        let (cpu0, wall0) = (cpu_seconds(), Instant::now());
-        let s = simulate_into(
-            &sys,
-            &q0,
-            &qd0,
-            &cfg,
-            &mut [&mut mon as &mut dyn Monitor],
-            &mut sink,
-        )
-        .expect("run starts");
-        let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
-        if let Ok(path) = std::env::var("MBS_TRACE") {
-            let mut f = std::io::BufWriter::new(
-                std::fs::File::create(&path).unwrap_or_else(|e| panic!("{path}: {e}")),
-            );
-            for (t, m) in &sink.rows {
-                writeln!(
-                    f,
-                    "{t:.9} {:.15e} {:.15e} {:.15e} {:.15e} {:.15e} {:.15e}",
-                    m[0], m[1], m[2], m[3], m[4], m[5]
-                )
-                .expect("trace written");
-            }
-        }
-        let get = |k: &str| s.extra.get(k).cloned().unwrap_or(serde_json::Value::Null);
-        let first = mon.events.first();
-        let line = serde_json::json!({
-            "n": n,
-            "method": name,
-            "h_or_rtol": value,
-            "status": s.status,
-            "message": s.message,
-            "t_reached": s.t_reached,
-            "steps": s.steps,
-            "failed_steps": s.failed_steps,
-            "newton_iterations": get("newton_iterations"),
-            "newton_failures": get("newton_failures"),
-            "newton_per_step": get("newton_iterations").as_f64().map(|i| i / s.steps.max(1) as f64),
-            "factorizations": s.factorizations,
-            "first_contact_time": first.map(|e| e.t),
-            "first_contact": first.map(|e| format!("segment {} corner {} {} wall", e.segment, e.corner, e.wall)),
-            "contact_starts": mon.events.iter().filter(|e| e.kind == "start").count(),
-            "tip": sink.rows.last().map(|r| [r.1[4], r.1[5]]),
-            "max_constraint_norm": s.max_constraint_norm,
-            "wall_s": wall,
-            "cpu_s": cpu,
-        });
-        println!("{line}");
+    let Some((name, value)) = spec.split_once(':') else {
+        eprintln!("{spec}: expected METHOD:H_OR_RTOL");
+        std::process::exit(2);
+    };
+    let adaptive_ga = name == "agenalpha";
+    let method: Method = if adaptive_ga { "genalpha" } else { name }
+        .parse()
+        .unwrap_or_else(|e| panic!("{spec}: {e}"));
+    let value: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+    let mut cfg = RunConfig {
+        method,
+        t_end,
+        output_dt: dt,
+        ..Default::default()
+    };
+    cfg.ode.max_steps = 100_000_000;
+    if (method.is_implicit() && !adaptive_ga && method == Method::GenAlpha) || method == Method::Rk4
+    {
+        cfg.ode.fixed_step = Some(value);
+    } else {
+        cfg.ode.rtol = value;
+        cfg.ode.atol = Tolerance::Scalar(env("MBS_ATOL").unwrap_or(value * 1e-3));
+        cfg.implicit.adaptive = adaptive_ga;
     }
+    if let Some(r) = env("MBS_RHO_INF") {
+        cfg.implicit.rho_inf = r;
+    }
+    let mut mon = ContactMonitor::new(info.clone());
+    let mut sink = Marks {
+        info: &info,
+        rows: Vec::new(),
+    };
+    let (cpu0, wall0) = (cpu_seconds(), Instant::now());
+    let s = simulate_into(
+        &sys,
+        &q0,
+        &qd0,
+        &cfg,
+        &mut [&mut mon as &mut dyn Monitor],
+        &mut sink,
+    )
+    .expect("run starts");
+    let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
+    if let Ok(path) = std::env::var("MBS_TRACE") {
+        let mut f = std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap_or_else(|e| panic!("{path}: {e}")),
+        );
+        for (t, m) in &sink.rows {
+            writeln!(
+                f,
+                "{t:.9} {:.15e} {:.15e} {:.15e} {:.15e} {:.15e} {:.15e}",
+                m[0], m[1], m[2], m[3], m[4], m[5]
+            )
+            .expect("trace written");
+        }
+    }
+    let get = |k: &str| s.extra.get(k).cloned().unwrap_or(serde_json::Value::Null);
+    let first = mon.events.first();
+    serde_json::json!({
+        "n": n,
+        "method": name,
+        "h_or_rtol": value,
+        "status": s.status,
+        "message": s.message,
+        "t_reached": s.t_reached,
+        "steps": s.steps,
+        "failed_steps": s.failed_steps,
+        "newton_iterations": get("newton_iterations"),
+        "newton_failures": get("newton_failures"),
+        "newton_per_step": get("newton_iterations").as_f64().map(|i| i / s.steps.max(1) as f64),
+        "factorizations": s.factorizations,
+        "first_contact_time": first.map(|e| e.t),
+        "first_contact": first.map(|e| format!("segment {} corner {} {} wall", e.segment, e.corner, e.wall)),
+        "contact_starts": mon.events.iter().filter(|e| e.kind == "start").count(),
+        "tip": sink.rows.last().map(|r| [r.1[4], r.1[5]]),
+        "max_constraint_norm": s.max_constraint_norm,
+        "wall_s": wall,
+        "cpu_s": cpu,
+    })
 }
