@@ -15,7 +15,8 @@
 //!
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
 //! 1e-3 s), `MBS_ATOL` (absolute tolerance of the adaptive runs, default
-//! 1e-3·rtol), `MBS_RHO_INF`, `MBS_TRACE` (file).
+//! 1e-3·rtol), `MBS_RHO_INF`, `MBS_TRACE` (file), `MBS_THREADS` (the rayon
+//! pool the run is installed in, default 1; CPU time counts every thread).
 
 use mbsolve::builders::{build_rod, RodInfo, RodParams};
 use mbsolve::events::ContactMonitor;
@@ -160,6 +161,19 @@ fn main() {
     }
 }
 
+/// Run `f` inside a rayon pool of `MBS_THREADS` threads (default 1), so
+/// that the joins of the parallel paths (above `PARALLEL_MIN_COORDS`) run
+/// on the pool instead of handing work from the main thread to the global
+/// pool and waiting for it (ARCHITECTURE.md, "Concurrency").
+fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    let threads = env("MBS_THREADS").unwrap_or(1);
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+        .install(f)
+}
+
 /// One run of problem B at `n` segments with `spec` = `METHOD:H_OR_RTOL`:
 /// its JSON line (and the trace file of `MBS_TRACE`).
 fn run(n: usize, spec: &str) -> serde_json::Value {
@@ -200,14 +214,16 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         rows: Vec::new(),
     };
     let (cpu0, wall0) = (cpu_seconds(), Instant::now());
-    let s = simulate_into(
-        &sys,
-        &q0,
-        &qd0,
-        &cfg,
-        &mut [&mut mon as &mut dyn Monitor],
-        &mut sink,
-    )
+    let s = in_pool(|| {
+        simulate_into(
+            &sys,
+            &q0,
+            &qd0,
+            &cfg,
+            &mut [&mut mon as &mut dyn Monitor],
+            &mut sink,
+        )
+    })
     .expect("run starts");
     let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
     if let Ok(path) = std::env::var("MBS_TRACE") {
