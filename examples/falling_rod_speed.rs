@@ -15,7 +15,8 @@
 //!
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
 //! 1e-3 s), `MBS_ATOL` (absolute tolerance of the adaptive runs, default
-//! 1e-3·rtol), `MBS_RHO_INF`, `MBS_TRACE` (file), `MBS_THREADS` (the rayon
+//! 1e-3·rtol), `MBS_RHO_INF`, `MBS_LU` (1: exact Newton with the sparse
+//! LU of the full iteration matrix), `MBS_TRACE` (file), `MBS_THREADS` (the rayon
 //! pool the run is installed in, default 1; CPU time counts every thread).
 
 use mbsolve::builders::{build_rod, RodInfo, RodParams};
@@ -204,6 +205,9 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         cfg.ode.rtol = value;
         cfg.ode.atol = Tolerance::Scalar(env("MBS_ATOL").unwrap_or(value * 1e-3));
         cfg.implicit.adaptive = adaptive_ga;
+    }
+    if let Some(lu) = env::<u8>("MBS_LU") {
+        cfg.implicit.lu = lu != 0;
     }
     if let Some(r) = env("MBS_RHO_INF") {
         cfg.implicit.rho_inf = r;
