@@ -385,7 +385,7 @@ fn contact_found_exactly_when_a_corner_penetrates() {
                 .iter()
                 .any(|(a, b)| {
                     let px = x + cs * a * 0.5 * c.width - sn * b * 0.5 * length;
-                    px > 0.025 || px < -0.025
+                    !(-0.025..=0.025).contains(&px)
                 });
             states.clear();
             c.corner_states(&q, &qd, &mut states);
