@@ -11,6 +11,8 @@
 //! cargo run --release --example falling_rod_speed -- compare RUN.txt REF.txt T_C
 //!     max over output times t ≤ T_C of the largest of the three position
 //!     differences (run against reference) [m]
+//! cargo run --release --example falling_rod_speed -- slope METHOD:H_OR_RTOL N1 N2
+//!     both runs, then the log-log slope of CPU per simulated second
 //! ```
 //!
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
