@@ -12,8 +12,9 @@
 //! `ndf` is bdf with `integrator.ndf = true` (ode15s's NDF), `MAXORDER`
 //! its `integrator.max_order` (default 5); `genalpha:RTOL` is adaptive
 //! generalized-α (ρ∞ = 0.9 as the fixed-step runs of
-//! `examples/stiff_chain.rs`); `atol = 1e-3 rtol` for all. Env `MBS_T_END`
-//! ends the run earlier (no reference then).
+//! `examples/stiff_chain.rs`); `atol = 1e-3 rtol` for all unless env
+//! `MBS_ATOL` gives it. Env `MBS_T_END` ends the run earlier (no
+//! reference then).
 
 use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
 use mbsolve::integrate::{Method, Tolerance};
@@ -41,6 +42,8 @@ fn main() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(0.1);
     let reference = stiff_chain_reference_tip(n).filter(|_| t_end == 0.1);
+    // MBS_ATOL: an absolute tolerance instead of 1e-3 rtol
+    let atol_factor: Option<f64> = std::env::var("MBS_ATOL").ok().and_then(|v| v.parse().ok());
     for spec in specs {
         let parts: Vec<&str> = spec.split(':').collect();
         let (name, value) = match parts[..] {
@@ -66,7 +69,7 @@ fn main() {
             cfg.ode.max_order = k.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
         }
         cfg.ode.rtol = rtol;
-        cfg.ode.atol = Tolerance::Scalar(rtol * 1e-3);
+        cfg.ode.atol = Tolerance::Scalar(atol_factor.map_or(rtol * 1e-3, |a| a));
         cfg.ode.max_steps = 100_000_000;
         cfg.ode.initial_step = std::env::var("H5_H0").ok().and_then(|v| v.parse().ok());
         if method.is_implicit() {
@@ -84,6 +87,7 @@ fn main() {
             "method": name,
             "rtol": rtol,
             "max_order": cfg.ode.max_order,
+            "atol": format!("{:?}", cfg.ode.atol),
             "status": s.status,
             "t_reached": s.t_reached,
             "tip_x": tip,

@@ -303,6 +303,8 @@ struct BdfRun<'s> {
     r: Vec<f64>,
     /// `1 / max(|q_n|, |q̂|, atol/rtol)`: the Newton norm's weights.
     inv_w: Vec<f64>,
+    /// `Σ_j w_j y_j` of the error estimates (up to three orders).
+    est_buf: [Vec<f64>; 3],
     ynew: Vec<f64>,
     stats: BdfStats,
     warnings: Vec<String>,
@@ -363,6 +365,7 @@ impl<'s> BdfRun<'s> {
             rv: vec![0.0; n],
             r: vec![0.0; n + m],
             inv_w: vec![0.0; n],
+            est_buf: Default::default(),
             ynew: vec![0.0; 2 * n],
             stats: BdfStats {
                 min_step_taken: f64::INFINITY,
@@ -388,7 +391,7 @@ impl<'s> BdfRun<'s> {
     /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
     /// accepted ones, times [`Self::error_factor`]; one pass over the
     /// history for all of them.
-    fn estimates(&self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
+    fn estimates(&mut self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
         let mut len = 0;
@@ -406,32 +409,30 @@ impl<'s> BdfRun<'s> {
         }
         let no = ps.len();
         let n = self.n;
-        let mut hist: [&[f64]; L] = [&[]; L];
-        hist[0] = &self.ynew;
-        for j in 1..len {
-            hist[j] = &self.ys[j - 1];
+        // Σ_j w_oj y_j for each order o, history point by history point
+        // (vectorised axpys over [q; q̇]), then one pass for the norms
+        let mut bufs = std::mem::take(&mut self.est_buf);
+        for (o, buf) in bufs.iter_mut().enumerate().take(no) {
+            buf.clear();
+            buf.extend(self.ynew.iter().map(|y| w[o][0] * y));
+            for j in 1..len {
+                axpy(w[o][j], &self.ys[j - 1], buf);
+            }
         }
         let (yn, ynew) = (&self.ys[0], &self.ynew);
         let mut m = [0.0f64; 3];
         for i in 0..n {
-            let mut d = [0.0f64; 3];
-            let mut dv = [0.0f64; 3];
-            for (j, y) in hist[..len].iter().enumerate() {
-                let (yq, yv) = (y[i], y[n + i]);
-                for o in 0..no {
-                    d[o] += w[o][j] * yq;
-                    dv[o] += w[o][j] * yv;
-                }
-            }
             // velocities, an index-2 variable of the index-3 form: `h·est_v`,
             // the position error they make over the step, in the positions'
             // weights (Hairer & Wanner II §VII.3; Brenan, Campbell & Petzold
             // §5.4 scale index-2 components by h)
             let inv = 1.0 / yn[i].abs().max(ynew[i].abs()).max(self.threshold[i]);
             for o in 0..no {
-                m[o] = m[o].max(d[o].abs().max(h * dv[o].abs()) * inv);
+                let (d, dv) = (bufs[o][i], bufs[o][n + i]);
+                m[o] = m[o].max(d.abs().max(h * dv.abs()) * inv);
             }
         }
+        self.est_buf = bufs;
         m
     }
 
