@@ -73,8 +73,8 @@
 //! threshold), where `v = a_0 q + r_q` is rounding noise of q: the tip
 //! error at N = 100 was 1600 rtol at rtol 1e-7 and grew as rtol fell.
 //! **Order and step**: after k + 1 steps at order k the orders k − 1, k,
-//! k + 1 (≤ `max_order`) are compared (their estimates in the same pass
-//! over the history as the error test's) by the steps they allow,
+//! k + 1 (≤ `max_order`) are compared (their estimates computed with the
+//! error test's, one norm pass for all) by the steps they allow,
 //! `h_p = h·(rtol/est_p)^{1/(p+1)}/s_p` (s = 1.3, 1.2, 1.4 as `ode15s`),
 //! and the largest wins; the step grows at most 5×, is kept if it would grow
 //! by less than 20 %. A rejected step is cut by
@@ -389,8 +389,8 @@ impl<'s> BdfRun<'s> {
     /// `‖est_p ./ max(|y_n|, |y_new|, thr)‖∞` for the local errors of the
     /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
     /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
-    /// accepted ones, times [`Self::error_factor`]; one pass over the
-    /// history for all of them.
+    /// accepted ones, times [`Self::error_factor`]; the sums as axpys over
+    /// the history points, one pass for all the norms.
     fn estimates(&mut self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
