@@ -509,8 +509,8 @@ fn growth_run(p: usize, ndf: bool, rtol: f64, h: Option<f64>) -> (usize, f64, us
 /// Order of convergence of the BDF and of ode15s's NDF at orders 1 and 2
 /// (`max_order` = p) on `q̈ = q` (closed form `e^t`): the error at t = 1
 /// falls like `steps^{−p}` (slope of log error over log steps between
-/// rtol 1e-5 and 1e-8 within 0.25 of p), all but the first 3 steps at
-/// order p; the error constant `error·steps^p` of the NDF is that of the
+/// rtol 1e-5 and 1e-8 within 0.25 of p), all but ≤ 5 starting steps at
+/// order p (measured: 3); the error constant `error·steps^p` of the NDF is that of the
 /// BDF times `(κ_p γ_p + 1/(p+1))·(p+1)` = 0.63 (p = 1), 0.50 (p = 2),
 /// within 10 % (κ = −0.185, −1/9; Shampine & Reichelt 1997; measured
 /// 0.630, 0.505); and at the same constant step NDF1's error is 0.63 of
@@ -533,7 +533,7 @@ fn ndf_and_bdf_converge_at_their_order() {
                 "p {p} ndf {ndf}: slope {slope}"
             );
             for (steps, _, at_p) in &runs {
-                assert!(at_p + 3 >= *steps, "p {p} ndf {ndf}: {runs:?}");
+                assert!(at_p + 5 >= *steps, "p {p} ndf {ndf}: {runs:?}");
             }
             constant[usize::from(ndf)] = e1 * (s1 as f64).powi(p as i32);
         }
