@@ -451,6 +451,16 @@ struct Run<'g, 's> {
     eta: f64,
     /// Whether the last attempt computed its own factorisation.
     last_attempt_fresh: bool,
+    /// Quadratic convergence constant `C = ‖Δq₂‖/‖Δq₁‖²` (tolerance units)
+    /// of the last attempt on a matrix factorised at its predictor, the
+    /// step it was measured at and the single-correction acceptances made
+    /// on it since.
+    quad: Option<(f64, f64, usize)>,
+    /// Corrections of the last converged attempt on a matrix factorised at
+    /// its predictor and on an older one; renewals at consecutive
+    /// predictors.
+    newton_its: (Option<usize>, Option<usize>),
+    renewals: usize,
     /// q̈ and step of the previous accepted step (predictor).
     prev_qdd: Vec<f64>,
     h_prev: Option<f64>,
@@ -506,6 +516,9 @@ impl<'g, 's> Run<'g, 's> {
             refactor: true,
             eta: 1.0,
             last_attempt_fresh: false,
+            quad: None,
+            newton_its: (None, None),
+            renewals: 0,
             prev_qdd: vec![0.0; n],
             h_prev: None,
             stats: GenAlphaStats {
