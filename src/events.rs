@@ -1,4 +1,5 @@
-//! Contact events of the falling rod: starts and ends of corner–wall
+//! Contact events of the rods' wall contacts (the falling rod, or every
+//! `[rod]`/`[[rod]]` of a scenario): starts and ends of corner–wall
 //! contacts and the peak normal force, observed at accepted steps.
 
 use crate::builders::RodInfo;
@@ -10,6 +11,8 @@ use serde_json::{Map, Value};
 /// One contact start or end.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ContactEvent {
+    /// The rod (its scenario name; `rod` for [`ContactMonitor::new`]).
+    pub rod: String,
     /// Time of the first accepted step at which the new state was seen \[s\].
     pub t: f64,
     /// `start` or `end`.
@@ -23,8 +26,10 @@ pub struct ContactEvent {
 }
 
 /// The largest normal force seen.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct PeakForce {
+    /// The rod.
+    pub rod: String,
     /// Normal force \[N\].
     pub force: f64,
     /// When \[s\].
@@ -41,10 +46,11 @@ pub struct PeakForce {
 /// accurate to one step and a contact shorter than a step may be missed.
 #[derive(Debug)]
 pub struct ContactMonitor {
-    rod: RodInfo,
-    active: Vec<(usize, usize, &'static str)>,
+    rods: Vec<(String, RodInfo)>,
+    /// (rod index, segment, corner, wall) of the contacts in force.
+    active: Vec<(usize, usize, usize, &'static str)>,
     scratch: Vec<CornerState>,
-    now: Vec<(usize, usize, &'static str)>,
+    now: Vec<(usize, usize, usize, &'static str)>,
     /// Events in time order.
     pub events: Vec<ContactEvent>,
     /// Peak normal force.
@@ -59,10 +65,20 @@ fn wall_name(w: Wall) -> &'static str {
 }
 
 impl ContactMonitor {
-    /// Monitor the contacts of `rod`.
+    /// Monitor the contacts of `rod` (named `rod` in the events).
     pub fn new(rod: RodInfo) -> Self {
+        Self::with_rods(vec![("rod".to_string(), rod)])
+    }
+
+    /// Monitor the contacts of several named rods (a scenario's
+    /// `[rod]`/`[[rod]]`s); `None` without rods.
+    pub fn for_rods(rods: &[(String, RodInfo)]) -> Option<Self> {
+        (!rods.is_empty()).then(|| Self::with_rods(rods.to_vec()))
+    }
+
+    fn with_rods(rods: Vec<(String, RodInfo)>) -> Self {
         Self {
-            rod,
+            rods,
             active: Vec::new(),
             scratch: Vec::new(),
             now: Vec::new(),
@@ -79,42 +95,45 @@ impl ContactMonitor {
 
 impl Monitor for ContactMonitor {
     fn step(&mut self, t: f64, q: &[f64], qd: &[f64]) {
-        self.rod.corner_states(q, qd, &mut self.scratch);
         self.now.clear();
-        for c in &self.scratch {
-            let key = (c.segment + 1, c.corner, wall_name(c.wall));
-            self.now.push(key);
-            if self.peak.is_none_or(|p| c.normal_force > p.force) {
-                self.peak = Some(PeakForce {
-                    force: c.normal_force,
-                    t,
-                    segment: c.segment + 1,
-                    corner: c.corner,
-                });
+        for (r, (name, rod)) in self.rods.iter().enumerate() {
+            rod.corner_states(q, qd, &mut self.scratch);
+            for c in &self.scratch {
+                self.now
+                    .push((r, c.segment + 1, c.corner, wall_name(c.wall)));
+                if self.peak.as_ref().is_none_or(|p| c.normal_force > p.force) {
+                    self.peak = Some(PeakForce {
+                        rod: name.clone(),
+                        force: c.normal_force,
+                        t,
+                        segment: c.segment + 1,
+                        corner: c.corner,
+                    });
+                }
             }
         }
-        for &(segment, corner, wall) in &self.now {
-            if !self.active.contains(&(segment, corner, wall)) {
-                self.events.push(ContactEvent {
-                    t,
-                    kind: "start",
-                    segment,
-                    corner,
-                    wall,
-                });
+        let event = |kind, &(r, segment, corner, wall): &(usize, usize, usize, &'static str)| {
+            ContactEvent {
+                rod: self.rods[r].0.clone(),
+                t,
+                kind,
+                segment,
+                corner,
+                wall,
+            }
+        };
+        let mut new_events = Vec::new();
+        for key in &self.now {
+            if !self.active.contains(key) {
+                new_events.push(event("start", key));
             }
         }
-        for &(segment, corner, wall) in &self.active {
-            if !self.now.contains(&(segment, corner, wall)) {
-                self.events.push(ContactEvent {
-                    t,
-                    kind: "end",
-                    segment,
-                    corner,
-                    wall,
-                });
+        for key in &self.active {
+            if !self.now.contains(key) {
+                new_events.push(event("end", key));
             }
         }
+        self.events.extend(new_events);
         std::mem::swap(&mut self.active, &mut self.now);
     }
 
@@ -129,7 +148,7 @@ impl Monitor for ContactMonitor {
         );
         extra.insert(
             "peak_normal_force".into(),
-            serde_json::to_value(self.peak).unwrap_or(Value::Null),
+            serde_json::to_value(&self.peak).unwrap_or(Value::Null),
         );
         extra.insert(
             "contact_events".into(),

@@ -121,6 +121,14 @@ fn parallelogram_chain_keeps_its_branch_through_singular_configurations() {
             assert!(worst < 1e-3, "point error {worst:e} m");
             assert!(de < 1e-4, "energy error {de:e}");
             assert!(s.max_constraint_norm < 1e-8, "{}", s.max_constraint_norm);
+            // the summary's penalty is the step's, not a value raised at a
+            // crossing: that of a short run before the first crossing
+            let (_, s0) = chain_run(&p, &alm(method, rho, 5e-4, 0.01, 0.005));
+            assert_eq!(s.extra["penalty"], s0.extra["penalty"]);
+            if loops == 2 && !redundant {
+                assert!(s.extra["penalty_increases"].as_u64().unwrap() > 0);
+                assert!(s.extra["max_penalty_factor"].as_f64().unwrap() > 1.0);
+            }
         }
     }
 }

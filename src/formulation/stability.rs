@@ -47,13 +47,18 @@ impl FastestModes {
 /// How far the stability regions of the explicit methods reach along the
 /// imaginary axis (rk4: 2√2; Dormand–Prince 5(4): ≈ 3.3 — Hairer, Nørsett &
 /// Wanner I, §IV.2; Bogacki–Shampine 3(2): √3) and the negative real
-/// axis (rk4: 2.785; DP: 3.3; BS: 2.5): the smaller of the two.
+/// axis (rk4: 2.785; DP: 3.3; BS: 2.5): the smaller of the two. For
+/// ode113's Adams–Bashforth–Moulton PECE pairs the largest reach over its
+/// orders, 2 (order 1, Heun's method, along the negative real axis; the
+/// higher orders reach less — Shampine & Gordon 1975): its limit is never
+/// stricter than the truth, so a "stiff for ode113" warning is certain.
 pub fn explicit_reach(method: crate::integrate::Method) -> Option<f64> {
     use crate::integrate::Method;
     match method {
         Method::Rk4 => Some(2.785),
         Method::Ode45 => Some(3.3),
         Method::Ode23 => Some(3f64.sqrt()),
+        Method::Ode113 => Some(2.0),
         _ => None,
     }
 }

@@ -235,11 +235,15 @@ impl MethodRun for Implicit<'_> {
 /// [`AugmentedLagrangian`]) on the scheme of an implicit method (newmark
 /// with ρ∞ = 1: the trapezoidal rule). Summary: `formulation =
 /// "augmented_lagrangian"`, `factorizations` of `W`; `extra` adds
-/// `penalty`, `newton_iterations`, `newton_failures`, `projections`,
-/// `initial_iterations`, the scheme's parameters and `fixed_step`.
+/// `penalty` (that of the step; growth within attempts is in
+/// `max_penalty_factor`), `newton_iterations`, `newton_failures`,
+/// `projections`, `initial_iterations`, the scheme's parameters and
+/// `fixed_step`.
 pub(super) struct AugmentedRun<'s> {
     f: Augmented<'s>,
     integ: AugmentedLagrangian,
+    /// The penalty of the run's step (before any growth within an attempt).
+    penalty: f64,
 }
 
 impl<'s> AugmentedRun<'s> {
@@ -260,7 +264,8 @@ impl<'s> AugmentedRun<'s> {
         let h = cfg.ode.fixed_step.unwrap_or(f64::NAN);
         let s0 = integ.params().beta * h * h;
         let f = Augmented::new(sys, cfg.augmented, cfg.index1.linear_solver, s0)?;
-        Ok(Self { f, integ })
+        let penalty = f.alpha();
+        Ok(Self { f, integ, penalty })
     }
 }
 
@@ -292,7 +297,7 @@ impl MethodRun for AugmentedRun<'_> {
         let p = self.integ.params();
         let mut extra = serde_json::Map::new();
         for (k, v) in [
-            ("penalty", self.f.alpha().into()),
+            ("penalty", self.penalty.into()),
             ("newton_iterations", gs.newton_iterations.into()),
             ("newton_failures", gs.newton_failures.into()),
             ("projections", gs.projections.into()),

@@ -320,7 +320,7 @@ pub enum SimulationError {
     Initial(String),
     /// The fixed step of an explicit method exceeds its stability limit.
     #[error(
-        "{method} with step {h:e} s is unstable for this system: the stability limit is \
+        "{method} with step {h:e} s (integrator.step) is unstable for this system: the stability limit is \
          {limit:.3e} s ({reach} / max(ω, σ), fastest mode ω = {omega:.4e} rad/s, damping rate \
          σ = {sigma:.4e} 1/s at t0); use a step below the limit or an implicit method \
          (genalpha)"

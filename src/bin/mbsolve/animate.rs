@@ -105,7 +105,7 @@ fn scene(sc: &scenario::Scenario, csv: &Path) -> Result<Scene, String> {
     }
     let mut outlines: Vec<Option<Vec<[f64; 2]>>> = vec![None; nb];
     let mut walls = Vec::new();
-    if let Some(rod) = &sc.rod {
+    for (_, rod) in &sc.rods {
         for c in &rod.contacts {
             let (w, l) = (0.5 * c.width, 0.5 * c.length);
             outlines[c.body] = Some(vec![[-w, -l], [w, -l], [w, l], [-w, l]]);

@@ -330,7 +330,7 @@ fn run(
     );
     stream::install_interrupt_handler();
 
-    let mut contacts = sc.rod.clone().map(ContactMonitor::new);
+    let mut contacts = ContactMonitor::for_rods(&sc.rods);
     let mut monitors: Vec<&mut dyn Monitor> = Vec::new();
     if let Some(c) = contacts.as_mut() {
         monitors.push(c);
@@ -369,7 +369,7 @@ fn run(
             Some(t) => report!(
                 "contacts: first at t = {t:.4} s, {} starts, peak normal force {:.1} N",
                 c.events.iter().filter(|e| e.kind == "start").count(),
-                c.peak.map_or(0.0, |p| p.force)
+                c.peak.as_ref().map_or(0.0, |p| p.force)
             ),
             None => report!("contacts: none"),
         }
