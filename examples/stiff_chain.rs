@@ -77,6 +77,7 @@ fn main() {
             "tip_x": tip,
             "tip_error": tip.zip(reference).map(|(x, r)| x - r),
             "steps": s.steps,
+            "factorizations": s.factorizations,
             "failed_steps": s.failed_steps,
             "newton_iterations": get("newton_iterations"),
             "newton_failures": get("newton_failures"),

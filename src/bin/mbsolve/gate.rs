@@ -15,6 +15,9 @@
 //! * the two-sided chain LDLᵀ over the one-sided one on one thread: factor
 //!   and solve of the stiff chain's Newton matrix at N = 10 000 (fails
 //!   above [`SPLIT_SOLVE_MAX`]; [`split_chain_solve_over_one_sided`]).
+//! * Newton iterations per step of generalized-α and BDF on the stiff chain
+//!   (N = 100, 0.02 s; fails above [`NEWTON_PER_STEP_MAX`]; a deterministic
+//!   count, [`newton_iterations_per_step`]).
 //!
 //! Timings are the minimum over interleaved repetitions (robust to a shared
 //! machine) on a single thread (so the ratio measures algorithmic scaling,
@@ -130,7 +133,7 @@ pub fn run() -> Vec<Check> {
         .build()
         .expect("a one-thread pool");
     pool.install(|| {
-        let mut checks = Vec::new();
+        let mut checks = newton_iterations_per_step();
         let sparse = Index1Options {
             linear_solver: SolverKind::Sparse,
             ..Default::default()
@@ -379,4 +382,64 @@ pub fn split_chain_solve_over_one_sided() -> Check {
             best[1] * 1e6
         ),
     }
+}
+
+/// Most Newton iterations per accepted step on the stiff chain (issue 12).
+pub const NEWTON_PER_STEP_MAX: f64 = 2.5;
+
+/// Newton iterations per accepted step of generalized-α (h = 1e-5) and
+/// BDF (rtol 1e-6, atol 1e-9) on the stiff chain of the peer comparisons,
+/// N = 100 released from rest, over 0.02 s (the start transient included);
+/// iteration counts are deterministic, so no repetitions.
+fn newton_iterations_per_step() -> Vec<Check> {
+    [
+        (Method::GenAlpha, "genalpha, h = 1e-5"),
+        (Method::Bdf, "bdf, rtol 1e-6"),
+    ]
+    .into_iter()
+    .map(|(method, what)| {
+        let mut cfg = RunConfig {
+            method,
+            t_end: 0.02,
+            output_dt: 0.02,
+            ..Default::default()
+        };
+        if method == Method::GenAlpha {
+            cfg.ode.fixed_step = Some(1e-5);
+        } else {
+            cfg.ode.rtol = 1e-6;
+            cfg.ode.atol = mbsolve::integrate::Tolerance::Scalar(1e-9);
+        }
+        let run = stiff_chain(100, 5f64.to_radians())
+            .map_err(|e| e.to_string())
+            .and_then(|(sys, q0, qd0, _)| {
+                simulate(&sys, &q0, &qd0, &cfg, &mut []).map_err(|e| e.to_string())
+            });
+        let (ratio, detail) = match run {
+            Ok((_, s)) if s.status == "completed" => {
+                let get = |k: &str| s.extra.get(k).and_then(|v| v.as_u64()).unwrap_or(0);
+                let its = get("newton_iterations");
+                (
+                    its as f64 / s.steps.max(1) as f64,
+                    format!(
+                        "{its} iterations, {} steps, {} factorisations, {} Newton failures",
+                        s.steps,
+                        s.factorizations,
+                        get("newton_failures")
+                    ),
+                )
+            }
+            Ok((_, s)) => (f64::INFINITY, format!("run {}: {:?}", s.status, s.message)),
+            Err(e) => (f64::INFINITY, e),
+        };
+        Check {
+            name: format!("Newton iterations per step, {what}, stiff chain N = 100"),
+            ratio,
+            threshold: NEWTON_PER_STEP_MAX,
+            at_most: true,
+            passed: ratio <= NEWTON_PER_STEP_MAX,
+            detail,
+        }
+    })
+    .collect()
 }

@@ -34,6 +34,27 @@ pub const STAGNATION: f64 = 100.0;
 /// (measured: h = 1e-4 on the parallelogram chains of tests/augmented_lagrangian.rs).
 pub const NOISE_REL: f64 = 1e-10;
 
+/// Corrections a matrix renewed at every predictor must save per step
+/// (against the last step on an older matrix) to be renewed there: about
+/// the cost of a factorisation (measured on the stiff chain, N = 1000:
+/// ≈ 2 corrections). The fresh matrix's count is the smaller of its last
+/// two attempts (single corrections come and go with the quadratic
+/// model): on the stiff chain a fresh matrix takes 1–2 corrections where
+/// an older one takes 3–5; on problem C (N = 100) 2 against 3, and reuse
+/// stays.
+pub(super) const RENEW_SAVING: usize = 2;
+
+/// A single Newton correction is accepted on a matrix factorised at the
+/// predictor when the quadratic model `C ‖Δq₁‖²` of the remainder (module
+/// docs of [`super`], "Convergence test") is at most this many tolerances.
+pub(super) const SINGLE_CORRECTION: f64 = 1.0;
+/// Single-correction acceptances on one measured constant `C` before the
+/// next attempt on a fresh matrix makes a second correction to measure it
+/// again (the constant follows the curvature of the residual, which moves
+/// with the state); likewise renewals of the matrix at consecutive
+/// predictors before one step runs on the older matrix again.
+pub(super) const QUAD_REUSE: usize = 10;
+
 /// How a step attempt ended.
 pub(super) enum Attempt {
     Converged,
@@ -42,6 +63,35 @@ pub(super) enum Attempt {
 }
 
 impl Run<'_, '_> {
+    /// After an attempt converged in `it` corrections on a matrix
+    /// factorised at its predictor (`fresh`) or an older one: whether a
+    /// matrix renewed at the next predictor saves at least
+    /// [`RENEW_SAVING`] corrections, judged by the last converged attempts
+    /// of the other kind. Every [`QUAD_REUSE`]-th renewal in a row is
+    /// skipped, so that the corrections an older matrix needs are measured
+    /// again.
+    fn renew_pays(&mut self, fresh: bool, it: usize) -> bool {
+        let (fresh_its, stale_its) = if fresh {
+            let f = self.newton_its.0.map_or(it, |(last, _)| last.min(it));
+            self.newton_its.0 = Some((it, f));
+            (Some(f), self.newton_its.1)
+        } else {
+            self.newton_its.1 = Some(it);
+            (self.newton_its.0.map(|(_, f)| f), Some(it))
+        };
+        let pays = matches!((fresh_its, stale_its), (Some(f), Some(s)) if s >= f + RENEW_SAVING);
+        if !pays || !fresh {
+            self.renewals = 0;
+            return pays;
+        }
+        self.renewals += 1;
+        if self.renewals > QUAD_REUSE {
+            self.renewals = 0;
+            return false;
+        }
+        true
+    }
+
     /// Factorise the iteration matrix at the current iterate.
     pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), SystemError> {
         self.stats.factorizations += 1;
@@ -99,6 +149,9 @@ impl Run<'_, '_> {
         // increment to λ_n that carries the previous steps' components in
         // the (near-)null space of Φ_qᵀ.
         self.new.lam.fill(0.0);
+        // the matrix was factorised at this step's predictor: Newton
+        // converges quadratically from the first correction on
+        let fresh = self.last_attempt_fresh;
         // position-equivalent tolerance of the acceleration (and velocity)
         // corrections, floored at a few ulps of the positions
         let tol_q = tol / gp.max(bp).max(1.0);
@@ -156,9 +209,27 @@ impl Run<'_, '_> {
                     *l += d / s;
                 }
             }
+            if fresh && it == 2 {
+                // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)
+                self.quad = Some((dnorm / (prev * prev), h, 0));
+            }
             let mut done = if round == 0 {
                 theta = f64::NAN;
-                dnorm * eta <= 1.0
+                // a single correction on a fresh matrix whose remainder the
+                // quadratic model puts at the tolerance: the second
+                // correction would only iterate into the rounding floor
+                let single = match &mut self.quad {
+                    // measured at this step size (the tolerance units move with h)
+                    Some((quad, hq, uses))
+                        if fresh && it == 1 && *uses < QUAD_REUSE && *hq == h =>
+                    {
+                        let single = *quad * dnorm * dnorm <= SINGLE_CORRECTION;
+                        *uses += single as usize;
+                        single
+                    }
+                    _ => false,
+                };
+                single || dnorm * eta <= 1.0
             } else {
                 theta = dnorm / prev;
                 if theta >= 1.0 {
@@ -191,7 +262,7 @@ impl Run<'_, '_> {
                 if theta.is_finite() && theta < 1.0 {
                     self.eta = eta;
                 }
-                if it > SLOW_ITERATIONS {
+                if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
                     self.refactor = true;
                 }
                 return Attempt::Converged;
