@@ -553,9 +553,6 @@ impl Run<'_, '_> {
                     }
                 }
             }
-            if std::env::var("DBG_IT").is_ok() && self.stats.steps < 3 {
-                eprintln!("t={} h={h:e} round={round} dnorm={dnorm:e}", self.t);
-            }
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }

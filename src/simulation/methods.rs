@@ -427,19 +427,11 @@ pub(super) struct RadauRun<'s> {
 
 impl<'s> RadauRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
-        let mut io = cfg.implicit.clone();
-        if std::env::var("DBG_NOREUSE").is_ok() {
-            io.reuse = false;
-        }
-        let integ = Radau5::new(io, cfg.ode.clone())?;
+        let integ = Radau5::new(cfg.implicit.clone(), cfg.ode.clone())?;
         let f = Index3::with_newton_solver(
             sys,
             cfg.index1.linear_solver,
-            if std::env::var("DBG_LU").is_ok() {
-                NewtonSolverKind::SparseLu
-            } else {
-                NewtonSolverKind::SymmetricLdlt
-            },
+            NewtonSolverKind::SymmetricLdlt,
         )?;
         let c = Index3Complex::new(sys)?;
         Ok(Self { f, c, integ })
