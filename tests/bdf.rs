@@ -240,10 +240,18 @@ fn stiff_chain_tip_error_within_ten_rtol() {
     for n in [10, 100] {
         let (sys, q0, qd0, info) = mbsolve::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
         let reference = mbsolve::builders::stiff_chain_reference_tip(n).unwrap();
-        for method in [Method::Bdf, Method::GenAlpha] {
+        // (method, ndf, max_order): bdf, ode15s's NDF, NDF capped at order 3
+        for (method, ndf, max_order) in [
+            (Method::Bdf, false, 5),
+            (Method::Bdf, true, 5),
+            (Method::Bdf, true, 3),
+            (Method::GenAlpha, false, 5),
+        ] {
             for rtol in [1e-3, 1e-5, 1e-7] {
                 let mut cfg = adaptive(method, rtol, rtol * 1e-3, 0.1, 0.1);
                 cfg.ode.max_steps = 10_000_000;
+                cfg.ode.ndf = ndf;
+                cfg.ode.max_order = max_order;
                 if method == Method::GenAlpha {
                     cfg.implicit.adaptive = true;
                     cfg.implicit.rho_inf = 0.9;
@@ -253,13 +261,16 @@ fn stiff_chain_tip_error_within_ten_rtol() {
                 let ratio = (tip - reference).abs() / rtol;
                 let per_step = s.extra["newton_iterations"].as_f64().unwrap() / s.steps as f64;
                 eprintln!(
-                    "stiff chain N {n} {method} rtol {rtol:e}: tip error {:.2e} = {ratio:.2} rtol, \
+                    "stiff chain N {n} {method} ndf {ndf} k ≤ {max_order} rtol {rtol:e}: tip error {:.2e} = {ratio:.2} rtol, \
                      {} steps, {} failed, {per_step:.2} Newton iterations per step",
                     tip - reference,
                     s.steps,
                     s.failed_steps
                 );
-                assert!(ratio <= 10.0, "N {n} {method} rtol {rtol:e}: {ratio} rtol");
+                assert!(
+                    ratio <= 10.0,
+                    "N {n} {method} ndf {ndf} k ≤ {max_order} rtol {rtol:e}: {ratio} rtol"
+                );
                 if method == Method::Bdf {
                     assert!(per_step <= 2.5, "N {n} rtol {rtol:e}: {per_step} per step");
                 }
@@ -319,4 +330,228 @@ fn stiff_chain_start_at_n_4000() {
     );
     assert_eq!(s.extra["newton_failures"].as_u64(), Some(0));
     assert!(e < 3e-5, "{e:e} of {moved:e}");
+}
+
+/// `integrator.max_order` and `integrator.ndf`: values outside 1 … 5 and
+/// the keys under another method are errors naming the key (and the
+/// value); `max_order = 2` keeps every step of the four-bar at order ≤ 2
+/// (it reaches 3–5 without the cap), `ndf = true` is accepted.
+#[test]
+fn max_order_and_ndf_keys() {
+    let parse = |o: &[&str]| {
+        let overrides: Vec<String> = o.iter().map(|s| s.to_string()).collect();
+        scenario::parse(
+            FOURBAR_TOML,
+            "scenarios/fourbar.toml",
+            "fourbar",
+            &overrides,
+        )
+    };
+    for (o, value) in [
+        ("integrator.max_order=0", "0"),
+        ("integrator.max_order=6", "6"),
+        ("integrator.max_order=-1", "-1"),
+    ] {
+        let e = parse(&["integrator.method=\"bdf\"", o])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("integrator.max_order") && e.contains(value) && e.contains("fourbar.toml"),
+            "{o}: {e}"
+        );
+    }
+    for (o, key) in [
+        ("integrator.max_order=3", "integrator.max_order"),
+        ("integrator.ndf=true", "integrator.ndf"),
+    ] {
+        for m in ["ode45", "genalpha"] {
+            let e = parse(&[&format!("integrator.method=\"{m}\""), o])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key) && e.contains(m), "{m} {o}: {e}");
+        }
+    }
+    // the API's validator too
+    let o = OdeOptions {
+        max_order: 7,
+        ..Default::default()
+    };
+    assert!(mbsolve::integrate::Bdf::new(o).is_err());
+    for (k, ndf) in [(2, false), (5, false), (2, true)] {
+        let sc = parse(&[
+            "integrator.method=\"bdf\"",
+            "integrator.rtol=1e-7",
+            &format!("integrator.max_order={k}"),
+            &format!("integrator.ndf={ndf}"),
+        ])
+        .unwrap();
+        assert_eq!((sc.run.ode.max_order, sc.run.ode.ndf), (k, ndf));
+        let (_, s) = run(&sc.system, &sc.q0, &sc.qd0, &sc.run);
+        let orders: Vec<u64> = s.extra["steps_at_order"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect();
+        eprintln!("four-bar max_order {k} ndf {ndf}: steps at orders 1–5 {orders:?}");
+        let above: u64 = orders[k..].iter().sum();
+        if k < 5 {
+            assert_eq!(above, 0, "max_order {k}: {orders:?}");
+        } else {
+            assert!(orders[2..].iter().sum::<u64>() > 0, "{orders:?}");
+        }
+    }
+}
+
+/// `q̈ = q` (n = 1, no constraint), `q(0) = q̇(0) = 1`: `q = e^t`, whose
+/// relative local error is the same at every step, so the controller
+/// keeps the step nearly constant.
+struct Growth {
+    m: [f64; 1],
+    mat: f64,
+}
+
+impl mbsolve::integrate::SecondOrderDae for Growth {
+    fn n(&self) -> usize {
+        1
+    }
+    fn m(&self) -> usize {
+        0
+    }
+    fn mass_diagonal(&self) -> &[f64] {
+        &self.m
+    }
+    fn accelerations(
+        &mut self,
+        _t: f64,
+        q: &[f64],
+        _qd: &[f64],
+        qdd: &mut [f64],
+        _l: &mut [f64],
+    ) -> Result<(), mbsolve::integrate::SystemError> {
+        qdd[0] = q[0];
+        Ok(())
+    }
+    fn residual(
+        &mut self,
+        _t: f64,
+        q: &[f64],
+        _qd: &[f64],
+        qdd: &[f64],
+        _l: &[f64],
+        scale: f64,
+        r: &mut [f64],
+    ) -> Result<(), mbsolve::integrate::SystemError> {
+        r[0] = scale * (qdd[0] - q[0]);
+        Ok(())
+    }
+    fn constraints(&mut self, _t: f64, _q: &[f64], _phi: &mut [f64]) {}
+    fn factorize(
+        &mut self,
+        _t: f64,
+        _q: &[f64],
+        _qd: &[f64],
+        _l: &[f64],
+        c: [f64; 3],
+    ) -> Result<(), mbsolve::integrate::SystemError> {
+        // M = 1, C_t = 0, K_t = −∂g/∂q = −1
+        self.mat = c[0] - c[2];
+        Ok(())
+    }
+    fn solve(&mut self, _t: f64, rhs: &mut [f64]) -> Result<(), mbsolve::integrate::SystemError> {
+        rhs[0] /= self.mat;
+        Ok(())
+    }
+    fn project(
+        &mut self,
+        _t: f64,
+        _q: &mut [f64],
+        _qd: &mut [f64],
+    ) -> Result<(), mbsolve::integrate::SystemError> {
+        Ok(())
+    }
+}
+
+/// `(steps, |q(1) − e|, steps at order p)` of bdf (`ndf`) capped at
+/// order `p` on [`Growth`]; with `h = Some(h)` at the constant step h
+/// (`initial_step = max_step = h`, rtol 1: the error test always passes).
+fn growth_run(p: usize, ndf: bool, rtol: f64, h: Option<f64>) -> (usize, f64, usize) {
+    let ode = OdeOptions {
+        rtol,
+        atol: Tolerance::Scalar(rtol * 1e-3),
+        max_order: p,
+        ndf,
+        initial_step: h,
+        max_step: h,
+        ..Default::default()
+    };
+    let mut bdf = mbsolve::integrate::Bdf::new(ode).unwrap();
+    let mut sys = Growth { m: [1.0], mat: 1.0 };
+    struct Last(Vec<f64>);
+    impl mbsolve::integrate::Observer for Last {
+        fn output(&mut self, _t: f64, y: &[f64]) -> std::ops::ControlFlow<String> {
+            self.0 = y.to_vec();
+            std::ops::ControlFlow::Continue(())
+        }
+    }
+    let mut last = Last(vec![]);
+    let r = bdf
+        .integrate(&mut sys, 0.0, 1.0, &[1.0], &[1.0], &[1.0], &mut last)
+        .unwrap();
+    let st = bdf.stats();
+    (
+        r.stats.steps,
+        (last.0[0] - 1f64.exp()).abs(),
+        st.steps_at_order[p],
+    )
+}
+
+/// Order of convergence of the BDF and of ode15s's NDF at orders 1 and 2
+/// (`max_order` = p) on `q̈ = q` (closed form `e^t`): the error at t = 1
+/// falls like `steps^{−p}` (slope of log error over log steps between
+/// rtol 1e-5 and 1e-8 within 0.25 of p), all but ≤ 5 starting steps at
+/// order p (measured: 3); the error constant `error·steps^p` of the NDF is that of the
+/// BDF times `(κ_p γ_p + 1/(p+1))·(p+1)` = 0.63 (p = 1), 0.50 (p = 2),
+/// within 10 % (κ = −0.185, −1/9; Shampine & Reichelt 1997; measured
+/// 0.630, 0.505); and at the same constant step NDF1's error is 0.63 of
+/// BDF1's.
+#[test]
+fn ndf_and_bdf_converge_at_their_order() {
+    for (p, ratio_expected) in [(1, 0.63), (2, 0.5)] {
+        let mut constant = [0.0; 2];
+        for ndf in [false, true] {
+            let runs: Vec<(usize, f64, usize)> = [1e-5, 1e-6, 1e-7, 1e-8]
+                .iter()
+                .map(|&rtol| growth_run(p, ndf, rtol, None))
+                .collect();
+            let (s0, e0, _) = runs[0];
+            let (s1, e1, _) = runs[runs.len() - 1];
+            let slope = -(e1 / e0).ln() / (s1 as f64 / s0 as f64).ln();
+            eprintln!("order ≤ {p} ndf {ndf}: (steps, error, steps at order p) {runs:?}, slope {slope:.2}");
+            assert!(
+                (slope - p as f64).abs() < 0.25,
+                "p {p} ndf {ndf}: slope {slope}"
+            );
+            for (steps, _, at_p) in &runs {
+                assert!(at_p + 5 >= *steps, "p {p} ndf {ndf}: {runs:?}");
+            }
+            constant[usize::from(ndf)] = e1 * (s1 as f64).powi(p as i32);
+        }
+        let ratio = constant[1] / constant[0];
+        eprintln!("order {p}: error constant NDF/BDF {ratio:.3}");
+        assert!(
+            (ratio / ratio_expected - 1.0).abs() < 0.1,
+            "p {p}: NDF/BDF error constant {ratio}"
+        );
+    }
+    for h in [1e-2, 5e-3] {
+        let (sb, eb, _) = growth_run(1, false, 1.0, Some(h));
+        let (sn, en, _) = growth_run(1, true, 1.0, Some(h));
+        let ratio = en / eb;
+        eprintln!(
+            "constant step {h}: BDF1 {eb:.3e} ({sb} steps), NDF1 {en:.3e} ({sn}), ratio {ratio:.3}"
+        );
+        assert_eq!(sb, sn);
+        assert!((ratio - 0.63).abs() < 0.03, "h {h}: NDF1/BDF1 {ratio}");
+    }
 }

@@ -17,6 +17,19 @@
 //! `h → 0`: the same sparse pattern, solver and assembly as
 //! generalized-α. Why the index-3 form and not GGL: docs/bdf.md.
 //!
+//! **NDF** ([`OdeOptions::ndf`], `ode15s`'s default; Shampine & Reichelt
+//! 1997): the derivative of order k becomes
+//! `Σ_j a_j y_{n+1−j} − κ_k γ_k (y_{n+1} − ŷ_{n+1})/h` with
+//! `γ_k = Σ_{i≤k} 1/i`, κ = [`NDF_KAPPA`] and ŷ the predictor below (at a
+//! constant step `y_{n+1} − ŷ = ∇^{k+1} y_{n+1}`, ode15s's backward-
+//! difference form; on an uneven grid the term still vanishes on
+//! polynomials of degree k, so the order stays k). It changes `a_0` by
+//! `−κγ/h` and adds `κγ/h·ŷ` to the history sums — nothing else — and
+//! multiplies the error constant `1/(k+1)` by `1 + (k+1)κ_kγ_k`
+//! (0.63, 0.50, 0.40, 0.57, 1 for k = 1 … 5; tests/bdf.rs measures 0.630
+//! and 0.505 at k = 1, 2). **Highest order** [`OdeOptions::max_order`]
+//! (`ode15s`'s `MaxOrder`).
+//!
 //! **Predictor**: the polynomial through the last `k + 1` accepted
 //! points (at the first step `y_0 + h ẏ_0`), λ kept constant.
 //! **Newton**: corrections `Δq` (`Δv = a_0 Δq`, `Δλ`), measured in the
@@ -60,7 +73,8 @@
 //! threshold), where `v = a_0 q + r_q` is rounding noise of q: the tip
 //! error at N = 100 was 1600 rtol at rtol 1e-7 and grew as rtol fell.
 //! **Order and step**: after k + 1 steps at order k the orders k − 1, k,
-//! k + 1 are compared by the steps they allow,
+//! k + 1 (≤ `max_order`) are compared (their estimates computed with the
+//! error test's, one norm pass for all) by the steps they allow,
 //! `h_p = h·(rtol/est_p)^{1/(p+1)}/s_p` (s = 1.3, 1.2, 1.4 as `ode15s`),
 //! and the largest wins; the step grows at most 5×, is kept if it would grow
 //! by less than 20 %. A rejected step is cut by
@@ -87,6 +101,22 @@ use super::{
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
+/// κ_k of the NDF of order k = 1 … 5 (Shampine & Reichelt 1997, as
+/// `ode15s`; index 0 unused): κ_5 = 0 is BDF5.
+pub const NDF_KAPPA: [f64; MAX_ORDER + 1] = [0.0, -0.1850, -1.0 / 9.0, -0.0823, -0.0415, 0.0];
+
+/// `κ_k γ_k` with `γ_k = Σ_{j=1}^k 1/j`: the NDF of order k is the BDF's
+/// derivative minus `κ_k γ_k (y_{n+1} − ŷ_{n+1}) / h` (ŷ the predictor).
+fn ndf_shift(k: usize) -> f64 {
+    NDF_KAPPA[k] * (1..=k).map(|j| 1.0 / j as f64).sum::<f64>()
+}
+
+/// `y += a x`.
+fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += a * xi;
+    }
+}
 /// Newton iterations per attempt.
 pub const MAX_NEWTON: usize = 4;
 /// Newton stops when the estimated remaining error `θ/(1 − θ)·‖Δ‖` is
@@ -240,7 +270,10 @@ struct BdfRun<'s> {
     n: usize,
     rtol: f64,
     threshold: Vec<f64>,
-
+    /// Highest order ([`OdeOptions::max_order`]).
+    max_order: usize,
+    /// NDF instead of BDF ([`OdeOptions::ndf`]).
+    ndf: bool,
     initial_step: Option<f64>,
     hmax: f64,
     t_end: f64,
@@ -268,6 +301,10 @@ struct BdfRun<'s> {
     rq: Vec<f64>,
     rv: Vec<f64>,
     r: Vec<f64>,
+    /// `1 / max(|q_n|, |q̂|, atol/rtol)`: the Newton norm's weights.
+    inv_w: Vec<f64>,
+    /// `Σ_j w_j y_j` of the error estimates (up to three orders).
+    est_buf: [Vec<f64>; 3],
     ynew: Vec<f64>,
     stats: BdfStats,
     warnings: Vec<String>,
@@ -304,6 +341,8 @@ impl<'s> BdfRun<'s> {
             n,
             rtol: tol.rtol,
             threshold: tol.threshold,
+            max_order: ode.max_order.clamp(1, MAX_ORDER),
+            ndf: ode.ndf,
             initial_step: ode.initial_step,
             hmax: tol.hmax,
             t_end,
@@ -325,6 +364,8 @@ impl<'s> BdfRun<'s> {
             rq: vec![0.0; n],
             rv: vec![0.0; n],
             r: vec![0.0; n + m],
+            inv_w: vec![0.0; n],
+            est_buf: Default::default(),
             ynew: vec![0.0; 2 * n],
             stats: BdfStats {
                 min_step_taken: f64::INFINITY,
@@ -334,37 +375,64 @@ impl<'s> BdfRun<'s> {
         }
     }
 
-    /// `‖est ./ max(|y_n|, |y_new|, thr)‖∞` for the local error of order
-    /// `p` (module docs): `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and
-    /// the last `p + 1` accepted ones.
-    fn estimate(&self, p: usize, t1: f64, h: f64) -> f64 {
-        let mut nodes = [0.0; MAX_ORDER + 3];
-        let mut w = [0.0; MAX_ORDER + 3];
-        nodes[0] = t1;
-        for j in 0..=p {
-            nodes[j + 1] = self.ts[j];
+    /// Error constant of order `p` relative to the BDF's `1/(p+1)`: 1 for
+    /// the BDF, `1 + (p+1) κ_p γ_p` for the NDF (`ode15s`'s
+    /// `erconst = κγ + 1/(p+1)`; Shampine & Reichelt 1997).
+    fn error_factor(&self, p: usize) -> f64 {
+        if self.ndf {
+            1.0 + (p as f64 + 1.0) * ndf_shift(p)
+        } else {
+            1.0
         }
-        divided_difference(&nodes[..p + 2], &mut w[..p + 2]);
-        let fact: f64 = (1..=p).map(|i| i as f64).product();
-        let c = fact * h.powi(p as i32 + 1);
-        let (n, yn) = (self.n, &self.ys[0]);
-        let mut m: f64 = 0.0;
-        for i in 0..n {
-            let (mut d, mut dv) = (w[0] * self.ynew[i], w[0] * self.ynew[n + i]);
+    }
+
+    /// `‖est_p ./ max(|y_n|, |y_new|, thr)‖∞` for the local errors of the
+    /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
+    /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
+    /// accepted ones, times [`Self::error_factor`]; the sums as axpys over
+    /// the history points, one pass for all the norms.
+    fn estimates(&mut self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
+        const L: usize = MAX_ORDER + 3;
+        let mut w = [[0.0; L]; 3];
+        let mut len = 0;
+        for (o, &p) in ps.iter().enumerate() {
+            let mut nodes = [0.0; L];
+            nodes[0] = t1;
             for j in 0..=p {
-                d += w[j + 1] * self.ys[j][i];
-                dv += w[j + 1] * self.ys[j][n + i];
+                nodes[j + 1] = self.ts[j];
             }
+            divided_difference(&nodes[..p + 2], &mut w[o][..p + 2]);
+            let fact: f64 = (1..=p).map(|i| i as f64).product();
+            let c = fact * h.powi(p as i32 + 1) * self.error_factor(p);
+            w[o][..p + 2].iter_mut().for_each(|x| *x *= c);
+            len = len.max(p + 2);
+        }
+        let no = ps.len();
+        let n = self.n;
+        // Σ_j w_oj y_j for each order o, history point by history point
+        // (vectorised axpys over [q; q̇]), then one pass for the norms
+        let mut bufs = std::mem::take(&mut self.est_buf);
+        for (o, buf) in bufs.iter_mut().enumerate().take(no) {
+            buf.clear();
+            buf.extend(self.ynew.iter().map(|y| w[o][0] * y));
+            for j in 1..len {
+                axpy(w[o][j], &self.ys[j - 1], buf);
+            }
+        }
+        let (yn, ynew) = (&self.ys[0], &self.ynew);
+        let mut m = [0.0f64; 3];
+        for i in 0..n {
             // velocities, an index-2 variable of the index-3 form: `h·est_v`,
             // the position error they make over the step, in the positions'
             // weights (Hairer & Wanner II §VII.3; Brenan, Campbell & Petzold
             // §5.4 scale index-2 components by h)
-            let wq = yn[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
-            let r = c * d.abs().max(h * dv.abs()) / wq;
-            if r > m {
-                m = r;
+            let inv = 1.0 / yn[i].abs().max(ynew[i].abs()).max(self.threshold[i]);
+            for o in 0..no {
+                let (d, dv) = (bufs[o][i], bufs[o][n + i]);
+                m[o] = m[o].max(d.abs().max(h * dv.abs()) * inv);
             }
         }
+        self.est_buf = bufs;
         m
     }
 
@@ -394,45 +462,63 @@ impl<'s> BdfRun<'s> {
             nodes[j + 1] = self.ts[j];
         }
         bdf_coefficients(&nodes[..k + 1], &mut a[..k + 1]);
-        let a0 = a[0];
-        self.rq.fill(0.0);
-        self.rv.fill(0.0);
-        for j in 1..=k {
-            let y = &self.ys[j - 1];
-            for i in 0..n {
-                self.rq[i] += a[j] * y[i];
-                self.rv[i] += a[j] * y[n + i];
-            }
-        }
-        // predictor
-        if self.ts.len() == 1 {
-            let y0 = &self.ys[0];
-            for i in 0..n {
-                self.q[i] = y0[i] + h * self.f0[i];
-            }
+        // NDF: ẏ ≈ Σ_j a_j y_{n+1−j} − (κγ/h)(y_{n+1} − ŷ), with ŷ the
+        // predictor, a polynomial in the history: a_0 → a_0 − κγ/h and the
+        // history sums gain (κγ/h)·ŷ
+        let g = if self.ndf { ndf_shift(k) / h } else { 0.0 };
+        let a0 = a[0] - g;
+        // predictor ŷ = Σ_j cp_j y_j over the last `np` accepted points (at
+        // the first step y_0 + h ẏ_0); history sums r = Σ_j cr_j y_j (+ g h ẏ_0)
+        let first = self.ts.len() == 1;
+        let mut cp = [0.0; MAX_ORDER + 2];
+        let np = if first {
+            cp[0] = 1.0;
+            1
         } else {
-            let p = (k + 1).min(self.ts.len());
-            let mut w = [0.0; MAX_ORDER + 2];
+            let np = (k + 1).min(self.ts.len());
             let mut past = [0.0; MAX_ORDER + 2];
-            for (pj, tj) in past.iter_mut().zip(&self.ts).take(p) {
+            for (pj, tj) in past.iter_mut().zip(&self.ts).take(np) {
                 *pj = *tj;
             }
-            lagrange(&past[..p], t1, &mut w[..p]);
-            self.q.fill(0.0);
-            for (j, wj) in w[..p].iter().enumerate() {
-                for (qi, yi) in self.q.iter_mut().zip(&self.ys[j][..n]) {
-                    *qi += wj * yi;
-                }
-            }
+            lagrange(&past[..np], t1, &mut cp[..np]);
+            np
+        };
+        self.rq.fill(0.0);
+        self.rv.fill(0.0);
+        self.q.fill(0.0);
+        for j in 0..np.max(k) {
+            let cr = if j < k { a[j + 1] } else { 0.0 } + g * cp[j];
+            let (yq, yv) = self.ys[j].split_at(n);
+            axpy(cr, yq, &mut self.rq);
+            axpy(cr, yv, &mut self.rv);
+            axpy(cp[j], yq, &mut self.q);
+        }
+        if first {
+            let (fq, fv) = self.f0.split_at(n);
+            axpy(h, fq, &mut self.q);
+            axpy(g * h, fq, &mut self.rq);
+            axpy(g * h, fv, &mut self.rv);
         }
         self.lam_new.copy_from_slice(&self.lam);
         let set_vq = |q: &[f64], rq: &[f64], rv: &[f64], v: &mut [f64], qdd: &mut [f64]| {
-            for i in 0..q.len() {
-                v[i] = a0 * q[i] + rq[i];
-                qdd[i] = a0 * v[i] + rv[i];
+            for ((((vi, ai), qi), rqi), rvi) in
+                v.iter_mut().zip(qdd.iter_mut()).zip(q).zip(rq).zip(rv)
+            {
+                *vi = a0 * qi + rqi;
+                *ai = a0 * *vi + rvi;
             }
         };
         set_vq(&self.q, &self.rq, &self.rv, &mut self.v, &mut self.qdd);
+        // the Newton norm's weights, from q_n and the predictor
+        for (((w, yn), q), thr) in self
+            .inv_w
+            .iter_mut()
+            .zip(&self.ys[0][..n])
+            .zip(&self.q)
+            .zip(&self.threshold)
+        {
+            *w = 1.0 / yn.abs().max(q.abs()).max(*thr);
+        }
         let stale = match self.a0_fact {
             None => true,
             Some(af) => (a0 / af - 1.0).abs() > REUSE_BAND,
@@ -446,8 +532,9 @@ impl<'s> BdfRun<'s> {
         }
         let s = 1.0 / (a0 * a0);
         // a position error δ makes a velocity error a_0 δ, which the error
-        // test weighs as h·a_0·δ (`estimate`): one factor on the q-norm
+        // test weighs as h·a_0·δ (`estimates`): one factor on the q-norm
         let vfac = (a0 * h).max(1.0);
+        let floor = ROUNDING_ULPS * f64::EPSILON;
         let mut prev = f64::NAN;
         let mut it = 0;
         loop {
@@ -470,24 +557,17 @@ impl<'s> BdfRun<'s> {
             self.stats.newton_iterations += 1;
             it += 1;
             // the error test's norm of Δq (velocities through `vfac`), and
-            // the rounding floor of q
-            let yn = &self.ys[0];
+            // the rounding floor of q; then q += Δq
             let mut dnorm: f64 = 0.0;
             let mut at_floor = true;
-            for i in 0..n {
-                let d = self.r[i];
-                let wq = yn[i].abs().max(self.q[i].abs()).max(self.threshold[i]);
-                dnorm = dnorm.max(d.abs() / wq);
-                if d.abs() > ROUNDING_ULPS * f64::EPSILON * self.q[i].abs().max(1.0) {
-                    at_floor = false;
-                }
+            for ((q, d), w) in self.q.iter_mut().zip(&self.r[..n]).zip(&self.inv_w) {
+                dnorm = dnorm.max(d.abs() * w);
+                at_floor &= d.abs() <= floor * q.abs().max(1.0);
+                *q += d;
             }
             dnorm *= vfac;
             if !dnorm.is_finite() {
                 return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
-            }
-            for i in 0..n {
-                self.q[i] += self.r[i];
             }
             for (l, d) in self.lam_new.iter_mut().zip(&self.r[n..]) {
                 *l += d / s;
@@ -601,7 +681,7 @@ impl Stepper for BdfRun<'_> {
         }
         let mut rejections = 0;
         let mut newton_retry = false;
-        let (t1, err) = loop {
+        let (t1, err, est_lower, est_higher) = loop {
             let t1 = if done { self.t_end } else { t + h };
             h = t1 - t;
             if t1 <= t {
@@ -652,9 +732,9 @@ impl Stepper for BdfRun<'_> {
                     value,
                 });
             }
-            let err = if self.ts.len() == 1 {
+            let (err, est_lower, est_higher) = if self.ts.len() == 1 {
                 // first step: y − (y_0 + h ẏ_0) estimates the Euler error
-                // (velocities times h, as in `estimate`)
+                // (velocities times h, as in `estimates`)
                 let y0 = &self.ys[0];
                 let mut m: f64 = 0.0;
                 for i in 0..n {
@@ -663,12 +743,26 @@ impl Stepper for BdfRun<'_> {
                     let w = y0[i].abs().max(self.ynew[i].abs()).max(self.threshold[i]);
                     m = m.max(e.abs().max(h * ev.abs()) / w);
                 }
-                m
+                (m * self.error_factor(1), None, None)
             } else {
-                self.estimate(self.k.min(self.ts.len() - 1), t1, h)
+                // the order k's estimate, and those of k ∓ 1 where the order
+                // may change after this step (in the same pass)
+                let (k, len) = (self.k, self.ts.len());
+                let change = rejections == 0 && self.steps_at_k >= k && len > k;
+                let lower = change && k > 1;
+                let higher = change && k < self.max_order && len > k + 1;
+                let mut ps = vec![k.min(len - 1)];
+                if lower {
+                    ps.push(k - 1);
+                }
+                if higher {
+                    ps.push(k + 1);
+                }
+                let e = self.estimates(&ps, t1, h);
+                (e[0], lower.then_some(e[1]), higher.then(|| e[ps.len() - 1]))
             };
             if err <= self.rtol {
-                break (t1, err);
+                break (t1, err, est_lower, est_higher);
             }
             self.stats.error_rejections += 1;
             rejections += 1;
@@ -706,22 +800,18 @@ impl Stepper for BdfRun<'_> {
         // order and step for the next step
         let mut best_p = k;
         let mut best = (self.rtol / err.max(1e-300)).powf(1.0 / (k as f64 + 1.0)) / 1.2;
-        if rejections == 0 && self.steps_at_k > k && self.ts.len() > k {
-            if k > 1 {
-                let e = self.estimate(k - 1, t1, h);
-                let r = (self.rtol / e.max(1e-300)).powf(1.0 / k as f64) / 1.3;
-                if r > best {
-                    best = r;
-                    best_p = k - 1;
-                }
+        if let Some(e) = est_lower {
+            let r = (self.rtol / e.max(1e-300)).powf(1.0 / k as f64) / 1.3;
+            if r > best {
+                best = r;
+                best_p = k - 1;
             }
-            if k < MAX_ORDER && self.ts.len() > k + 1 {
-                let e = self.estimate(k + 1, t1, h);
-                let r = (self.rtol / e.max(1e-300)).powf(1.0 / (k as f64 + 2.0)) / 1.4;
-                if r > best {
-                    best = r;
-                    best_p = k + 1;
-                }
+        }
+        if let Some(e) = est_higher {
+            let r = (self.rtol / e.max(1e-300)).powf(1.0 / (k as f64 + 2.0)) / 1.4;
+            if r > best {
+                best = r;
+                best_p = k + 1;
             }
         }
         if best_p != k {
@@ -745,7 +835,7 @@ impl Stepper for BdfRun<'_> {
         } else {
             vec![0.0; 2 * n]
         };
-        slot.copy_from_slice(&self.ynew);
+        std::mem::swap(&mut slot, &mut self.ynew);
         self.ts.push_front(t1);
         self.ys.push_front(slot);
         self.lam.copy_from_slice(&self.lam_new);

@@ -45,6 +45,16 @@ pub struct OdeOptions {
     /// Safety cap on accepted steps; reaching it ends the run with
     /// [`Termination::Failed`](super::Termination::Failed). Default 50 000 000.
     pub max_steps: usize,
+    /// Highest order of [`Method::Bdf`], 1 … 5 (`ode15s`'s `MaxOrder`;
+    /// scenario key `integrator.max_order`). Default 5. BDF3–5 are not
+    /// A-stable: lightly damped oscillations in their instability wedge
+    /// make the error test cut the step (docs/bdf.md).
+    pub max_order: usize,
+    /// [`Method::Bdf`] with the numerical differentiation formulas of
+    /// `ode15s` (NDF; Shampine & Reichelt 1997) instead of the BDF
+    /// (scenario key `integrator.ndf`; MATLAB's `BDF` option the other way
+    /// round). Default false.
+    pub ndf: bool,
 }
 
 impl Default for OdeOptions {
@@ -56,6 +66,8 @@ impl Default for OdeOptions {
             initial_step: None,
             fixed_step: None,
             max_steps: 50_000_000,
+            max_order: 5,
+            ndf: false,
         }
     }
 }
@@ -194,9 +206,32 @@ impl OdeOptions {
     /// `adaptive`) a positive, finite `fixed_step` and neither `max_step`
     /// nor `initial_step`. (`rtol`/`atol` always have values, so their
     /// presence under a fixed-step method cannot be detected here.)
+    /// `max_order` in 1 … 5 and `ndf` only for [`Method::Bdf`] (elsewhere
+    /// they must keep their defaults).
     pub fn validate(&self, method: Method, adaptive: bool) -> Result<(), IntegratorError> {
         if self.max_steps == 0 {
             return Err(invalid("max_steps", 0, "must be at least 1"));
+        }
+        let d = Self::default();
+        if method == Method::Bdf {
+            if !(1..=5).contains(&self.max_order) {
+                return Err(invalid(
+                    "max_order",
+                    self.max_order,
+                    "must be 1, 2, 3, 4 or 5 (the highest BDF/NDF order)",
+                ));
+            }
+        } else if self.max_order != d.max_order || self.ndf != d.ndf {
+            let option = if self.max_order != d.max_order {
+                "max_order"
+            } else {
+                "ndf"
+            };
+            return Err(not_applicable(
+                option,
+                method,
+                "only bdf has an order cap and the NDF variant",
+            ));
         }
         let step_controlled = match method {
             Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf => true,

@@ -50,6 +50,9 @@ pub(super) struct RawIntegrator {
     min_step: Option<f64>,
     lu: Option<bool>,
     extrapolate: Option<bool>,
+    // bdf only: see `OdeOptions::max_order`, `OdeOptions::ndf`
+    max_order: Option<i64>,
+    ndf: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -117,6 +120,16 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     ode.fixed_step = ri.step;
     ode.max_step = ri.max_step;
     ode.initial_step = ri.initial_step;
+    if let Some(v) = ri.max_order {
+        // a negative value is out of 1 … 5 (OdeOptions::validate names it)
+        ode.max_order = usize::try_from(v).map_err(|_| {
+            err(
+                "integrator.max_order".into(),
+                format!("{v} is invalid: must be 1, 2, 3, 4 or 5"),
+            )
+        })?;
+    }
+    ode.ndf = ri.ndf.unwrap_or(false);
     let mut implicit = ImplicitOptions::default();
     if trapezoidal {
         implicit.rho_inf = 1.0;
@@ -505,6 +518,15 @@ fn inapplicable(
             Ok(())
         }
     };
+    if method != Method::Bdf {
+        for (key, present) in [("max_order", ri.max_order), ("ndf", ri.ndf.map(i64::from))] {
+            given(
+                present.is_some(),
+                key,
+                format!("applies to bdf only, not to {name}"),
+            )?;
+        }
+    }
     if method.is_implicit() {
         let fixed = |key: &str, present: bool| {
             given(
