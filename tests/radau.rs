@@ -97,7 +97,11 @@ fn stiff_chain_n10_against_reference() {
     assert!(eb < 1e-6, "error at h = 2e-4: {eb:e}");
     let slope = (ea / eb).ln() / 2.5f64.ln();
     assert!(slope > 3.0, "observed order {slope} ({ea:e} → {eb:e})");
-    assert!(s.max_constraint_norm < 1e-12, "‖Φ‖ {}", s.max_constraint_norm);
+    assert!(
+        s.max_constraint_norm < 1e-12,
+        "‖Φ‖ {}",
+        s.max_constraint_norm
+    );
 }
 
 /// Bad input is a clear error: no step, the adaptive option.
@@ -109,7 +113,9 @@ fn radau5_needs_a_fixed_step() {
         t_end: 0.01,
         ..Default::default()
     };
-    let e = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap_err().to_string();
+    let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("fixed_step") && e.contains("radau5"), "{e}");
     let e = mbsolve::integrate::Radau5::new(
         mbsolve::integrate::ImplicitOptions {
@@ -123,5 +129,8 @@ fn radau5_needs_a_fixed_step() {
     )
     .unwrap_err()
     .to_string();
-    assert!(e.contains("adaptive") && e.contains("integrator.step"), "{e}");
+    assert!(
+        e.contains("adaptive") && e.contains("integrator.step"),
+        "{e}"
+    );
 }

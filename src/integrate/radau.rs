@@ -56,6 +56,9 @@
 //! failure (after one retry on fresh factorisations) halves the step and
 //! the grid point is reached by sub-steps that double again.
 
+// 3×3 tableau algebra reads clearest with indices
+#![allow(clippy::needless_range_loop)]
+
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::genalpha::validate_run;
 use super::{
@@ -794,6 +797,6 @@ mod tests {
         assert!((1.0 / g - 3.637834252744496).abs() < 1e-12);
         let d = al * al + be * be;
         assert!((al / d - 2.681082873627752).abs() < 1e-12);
-        assert!((be / d - 3.050430199247410).abs() < 1e-12);
+        assert!((be / d - 3.05043019924741).abs() < 1e-12);
     }
 }
