@@ -52,6 +52,7 @@ mod genalpha;
 mod hermite;
 mod ode113;
 mod options;
+mod radau;
 mod rk4;
 mod tableau;
 
@@ -66,6 +67,7 @@ pub use genalpha::{
     SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
+pub use radau::{ComplexNewton, Radau5, RadauStats, RadauTableau};
 
 use std::ops::ControlFlow;
 use std::str::FromStr;
@@ -169,11 +171,15 @@ pub enum Method {
     /// Newmark (α_m = α_f = 0) with dissipation from ρ∞ — see
     /// [`AlphaParameters::newmark`]. Implicit.
     Newmark,
+    /// Radau IIA of order 5 (three stages, L-stable) on the index-3
+    /// equations, fixed step ([`Radau5`]; docs/radau.md). Not an
+    /// [`OdeSystem`] integrator: run through `simulation::simulate`.
+    Radau5,
 }
 
 impl Method {
     /// All methods, in the order of [`Method::NAMES`].
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
@@ -182,13 +188,14 @@ impl Method {
         Method::GenAlpha,
         Method::Hht,
         Method::Newmark,
+        Method::Radau5,
     ];
     /// The valid method names.
-    pub const NAMES: [&'static str; 8] = [
-        "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark",
+    pub const NAMES: [&'static str; 9] = [
+        "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark", "radau5",
     ];
 
-    /// Lower-case name: "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht" or "newmark".
+    /// Lower-case name: "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark" or "radau5".
     pub fn name(&self) -> &'static str {
         match self {
             Method::Ode23 => "ode23",
@@ -199,6 +206,7 @@ impl Method {
             Method::GenAlpha => "genalpha",
             Method::Hht => "hht",
             Method::Newmark => "newmark",
+            Method::Radau5 => "radau5",
         }
     }
 
@@ -365,7 +373,7 @@ pub enum IntegratorError {
     },
     /// Unknown method name.
     #[error(
-        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, ode113, bdf, genalpha, hht, newmark"
+        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, ode113, bdf, genalpha, hht, newmark, radau5"
     )]
     UnknownMethod(String),
     /// The method is implicit (index-3 DAE) and has no [`OdeSystem`]
@@ -444,7 +452,7 @@ pub fn integrator(
     method: Method,
     options: OdeOptions,
 ) -> Result<Box<dyn Integrator>, IntegratorError> {
-    if method.is_implicit() || method == Method::Bdf {
+    if method.is_implicit() || matches!(method, Method::Bdf | Method::Radau5) {
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
     options.validate(method, false)?;
@@ -453,7 +461,7 @@ pub fn integrator(
         Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
         Method::Rk4 => Box::new(rk4::Rk4::new(options)),
         Method::Ode113 => Box::new(ode113::Ode113::new(options)),
-        Method::Bdf | Method::GenAlpha | Method::Hht | Method::Newmark => {
+        Method::Bdf | Method::GenAlpha | Method::Hht | Method::Newmark | Method::Radau5 => {
             return Err(IntegratorError::ImplicitMethod(method.name()))
         }
     })

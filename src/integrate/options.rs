@@ -235,7 +235,7 @@ impl OdeOptions {
         }
         let step_controlled = match method {
             Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf => true,
-            Method::Rk4 => false,
+            Method::Rk4 | Method::Radau5 => false,
             Method::GenAlpha | Method::Hht | Method::Newmark => adaptive,
         };
         if step_controlled {

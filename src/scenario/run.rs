@@ -579,20 +579,22 @@ fn inapplicable(
         }
         return Ok(());
     }
-    if method == Method::Bdf {
-        // bdf integrates the index-3 equations (as genalpha), adaptively
+    if matches!(method, Method::Bdf | Method::Radau5) {
+        // bdf and radau5 integrate the index-3 equations (as genalpha)
+        let name = method.name();
         if !baumgarte.is_off() {
             return Err((
                 "stabilization.alpha".into(),
-                "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, ode113, \
-                 rk4); bdf integrates the index-3 equations"
-                    .into(),
+                format!(
+                    "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, \
+                     ode113, rk4); {name} integrates the index-3 equations"
+                ),
             ));
         }
         if formulation != Formulation::Saddle {
             return Err((
                 "formulation".into(),
-                "applies to the index-1 methods; bdf uses the index-3 form".into(),
+                format!("applies to the index-1 methods; {name} uses the index-3 form"),
             ));
         }
     }
@@ -622,7 +624,7 @@ fn inapplicable(
     ] {
         given(present, key, implicit_only.clone())?;
     }
-    if method == Method::Rk4 {
+    if matches!(method, Method::Rk4 | Method::Radau5) {
         for (key, present) in [
             ("rtol", ri.rtol.is_some()),
             ("atol", ri.atol.is_some()),
@@ -632,7 +634,9 @@ fn inapplicable(
             given(
                 present,
                 key,
-                "applies to the adaptive methods; rk4 takes fixed steps of integrator.step".into(),
+                format!(
+                    "applies to the adaptive methods; {name} takes fixed steps of integrator.step"
+                ),
             )?;
         }
     } else {

@@ -3,11 +3,11 @@
 
 use crate::formulation::{
     Augmented, AugmentedParams, ExplicitForm, Formulation, FormulationError, Index1, Index1Options,
-    Index3, NewtonSolverKind, Partitioned, SingularityMonitor,
+    Index3, Index3Complex, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
     integrator, AugmentedLagrangian, Bdf, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
-    Method, Observer, OdeOptions, Report, Stats, Termination, Tolerance,
+    Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use serde::Serialize;
@@ -15,7 +15,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 mod methods;
-use methods::{AugmentedRun, BdfRun, Explicit, Implicit, MethodRun, Partition};
+use methods::{AugmentedRun, BdfRun, Explicit, Implicit, MethodRun, Partition, RadauRun};
 
 /// What to integrate and how.
 #[derive(Debug, Clone)]
@@ -930,6 +930,8 @@ pub fn simulate_into(
             Box::new(Implicit::new(sys, cfg)?)
         } else if cfg.method == Method::Bdf {
             Box::new(BdfRun::new(sys, cfg)?)
+        } else if cfg.method == Method::Radau5 {
+            Box::new(RadauRun::new(sys, cfg)?)
         } else if cfg.index1.formulation == Formulation::Partitioned {
             let f = Partitioned::new(sys, cfg.index1.partition, cfg.index1, cfg.t0, q0)?;
             Box::new(Partition { f })

@@ -1,0 +1,802 @@
+//! Radau IIA of order 5 (s = 3 stages) on the index-3 equations of a
+//! [`SecondOrderDae`], fixed step (docs/radau.md).
+//!
+//! Hairer & Wanner, Solving ODEs II, §IV.5, §IV.8 (RADAU5) and §VII.4;
+//! Hairer, Lubich & Roche, LNM 1409 (1989): on index-3 problems the
+//! positions converge with order `2s − 1 = 5`, the velocities with order
+//! `s = 3`, the multipliers with order `s − 1 = 2`; the method is
+//! L-stable (its stability function is the (2,3) Padé approximant of eᶻ,
+//! error constant `3!2!/(5!6!) ≈ 1.4e-4`).
+//!
+//! # Stages
+//!
+//! Unknowns: stage accelerations `A_i` and multipliers `Λ_i`, i = 1..3, at
+//! `t_i = t_n + c_i h`, `c = ((4 − √6)/10, (4 + √6)/10, 1)`:
+//!
+//! ```text
+//! Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j,     V_i = v_n + h Σ_j 𝔄_ij A_j
+//! M A_i + Φ_qᵀ(Q_i) Λ_i − g(Q_i, V_i, t_i) = 0,    Φ(Q_i, t_i) = 0
+//! ```
+//!
+//! (Radau IIA applied to `q̇ = v`, `v̇ = a` with `𝔄` the Radau IIA matrix:
+//! `Q_i = q_n + h Σ 𝔄_ij V_j` gives the form above since `Σ_j 𝔄_ij = c_i`.)
+//! Stiffly accurate: `q_{n+1} = Q_3`, `v_{n+1} = V_3`, `q̈_{n+1} = A_3`,
+//! `λ_{n+1} = Λ_3`. Dense output: the collocation polynomials — `V` of
+//! degree 3 with `V(t_n) = v_n`, `V̇(t_i) = A_i`, and `Q` the cubic through
+//! `q_n` and the `Q_i`.
+//!
+//! # Simplified Newton
+//!
+//! The Jacobians are frozen at `(t_n, q_n, v_n, λ_n)`. With
+//! `T⁻¹ 𝔄 T = diag(γ, [α −β; β α])` (γ real, `μ = α + iβ` the complex
+//! eigenvalue pair of 𝔄) and the transformed unknowns `(T⁻¹ ⊗ I) ΔA`,
+//! `(T⁻¹ ⊗ I) ΔΛ`, the `3(n + m)` Newton system splits into one real
+//! system and one complex system, each of the form
+//!
+//! ```text
+//! [ M + hμ C_t + h²μ² K_t   Φ_qᵀ ] [ΔÂ]   [ −F̂        ]
+//! [ Φ_q                     0    ] [ΔΛ̂] = [ −Φ̂/(h²μ²) ]
+//! ```
+//!
+//! (the constraint rows divided by `h²μ²`: the same balance of blocks as
+//! the scaled matrix of [`SecondOrderDae::factorize`], Bottasso, Bauchau &
+//! Cardona 2007). The real one (μ = γ) is
+//! `SecondOrderDae::factorize(c = [1, hγ, h²γ²])`, the complex one
+//! [`ComplexNewton::factorize_complex`]. Factorisations are kept across
+//! iterations and steps while Newton contracts fast (θ ≤
+//! [`THETA_REFACTOR`]); convergence test as generalized-α's (Hairer &
+//! Wanner II, eq. (8.10)) on the position-equivalent corrections
+//! `h² ΔA_i` against `h² newton_tol`, floored at [`ROUNDING_ULPS`] of `q`.
+//! The predictor extrapolates the previous step's stage polynomials
+//! (`A`, `Λ`) to the new stage times.
+//!
+//! # Step size
+//!
+//! Fixed ([`OdeOptions::fixed_step`]), on the grid `t_0 + k h`; a Newton
+//! failure (after one retry on fresh factorisations) halves the step and
+//! the grid point is reached by sub-steps that double again.
+
+// 3×3 tableau algebra reads clearest with indices
+#![allow(clippy::needless_range_loop)]
+
+use super::driver::{self, Failure, StepCut, Stepper};
+use super::genalpha::validate_run;
+use super::{
+    common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
+    Stats, SystemError, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR,
+};
+use serde::Serialize;
+use std::sync::Arc;
+
+/// The complex Newton matrix of the transformed Radau stages:
+/// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` with complex coefficients `c`
+/// (`[re, im]`, `c₀` real), factorised and solved (implemented for
+/// multibody systems by [`crate::formulation::Index3Complex`]).
+pub trait ComplexNewton {
+    /// Assemble and factorise at `(t, q, q̇, λ)`.
+    fn factorize_complex(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lambda: &[f64],
+        c: [[f64; 2]; 3],
+    ) -> Result<(), SystemError>;
+    /// Overwrite `re + i·im` (each of length n + m) with the solution.
+    fn solve_complex(&mut self, t: f64, re: &mut [f64], im: &mut [f64]) -> Result<(), SystemError>;
+}
+
+/// The Radau IIA (s = 3) coefficients and the transformation of its
+/// matrix, computed from the nodes.
+#[derive(Debug, Clone)]
+pub struct RadauTableau {
+    /// Nodes `c_i`.
+    pub c: [f64; 3],
+    /// `𝔄_ij = ∫₀^{c_i} ℓ_j`.
+    pub a: [[f64; 3]; 3],
+    /// `(𝔄²)_ij`.
+    pub a2: [[f64; 3]; 3],
+    /// Monomial coefficients of the Lagrange basis `ℓ_j` on `c`.
+    pub lag: [[f64; 3]; 3],
+    /// Real eigenvalue γ of 𝔄.
+    pub gamma: f64,
+    /// Complex eigenvalue `α + iβ` of 𝔄.
+    pub mu: [f64; 2],
+    /// `T` with `T⁻¹ 𝔄 T = diag(γ, [α −β; β α])`.
+    pub t: [[f64; 3]; 3],
+    /// `T⁻¹`.
+    pub t_inv: [[f64; 3]; 3],
+}
+
+fn inv3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            let (i1, i2) = ((j + 1) % 3, (j + 2) % 3);
+            let (j1, j2) = ((i + 1) % 3, (i + 2) % 3);
+            r[i][j] = (m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]) / det;
+        }
+    }
+    r
+}
+
+/// Complex product.
+fn cmul(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
+}
+
+impl RadauTableau {
+    /// The coefficients of Radau IIA with three stages.
+    pub fn new() -> Self {
+        let s6 = 6f64.sqrt();
+        let c = [(4.0 - s6) / 10.0, (4.0 + s6) / 10.0, 1.0];
+        // Lagrange basis: solve the Vandermonde system V x = e_j
+        let v = [
+            [1.0, c[0], c[0] * c[0]],
+            [1.0, c[1], c[1] * c[1]],
+            [1.0, c[2], c[2] * c[2]],
+        ];
+        let vi = inv3(&v);
+        let mut lag = [[0.0; 3]; 3];
+        for (j, l) in lag.iter_mut().enumerate() {
+            for (k, lk) in l.iter_mut().enumerate() {
+                *lk = vi[k][j];
+            }
+        }
+        let int1 = |l: &[f64; 3], x: f64| l[0] * x + l[1] * x * x / 2.0 + l[2] * x.powi(3) / 3.0;
+        let mut a = [[0.0; 3]; 3];
+        let mut a2 = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                a[i][j] = int1(&lag[j], c[i]);
+            }
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                a2[i][j] = (0..3).map(|k| a[i][k] * a[k][j]).sum();
+            }
+        }
+        // eigenvalues of 𝔄 (RADAU5's constants, Hairer & Wanner II, §IV.8)
+        let (c81, c9) = (81f64.cbrt(), 9f64.cbrt());
+        let gamma = (6.0 + c81 - c9) / 30.0;
+        let alpha = (12.0 - c81 + c9) / 60.0;
+        let beta = (c81 + c9) * 3f64.sqrt() / 60.0;
+        // real eigenvector: cross product of two rows of 𝔄 − γI
+        let r = |m: [f64; 2], i: usize| -> [[f64; 2]; 3] {
+            let mut row = [[0.0; 2]; 3];
+            for (j, x) in row.iter_mut().enumerate() {
+                *x = [a[i][j], 0.0];
+            }
+            row[i][0] -= m[0];
+            row[i][1] -= m[1];
+            row
+        };
+        let cross = |x: [[f64; 2]; 3], y: [[f64; 2]; 3]| -> [[f64; 2]; 3] {
+            let mut z = [[0.0; 2]; 3];
+            for (k, zk) in z.iter_mut().enumerate() {
+                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                let p = cmul(x[i], y[j]);
+                let q = cmul(x[j], y[i]);
+                *zk = [p[0] - q[0], p[1] - q[1]];
+            }
+            z
+        };
+        let u = cross(r([gamma, 0.0], 0), r([gamma, 0.0], 1));
+        let w = cross(r([alpha, beta], 0), r([alpha, beta], 1));
+        // 𝔄 w = μ w, w = x + iy: T = [u, x, −y] gives the block [α −β; β α]
+        let mut t = [[0.0; 3]; 3];
+        for i in 0..3 {
+            t[i] = [u[i][0], w[i][0], -w[i][1]];
+        }
+        let t_inv = inv3(&t);
+        Self {
+            c,
+            a,
+            a2,
+            lag,
+            gamma,
+            mu: [alpha, beta],
+            t,
+            t_inv,
+        }
+    }
+
+    /// `ℓ_j(τ)` for j = 0..3.
+    fn basis(&self, tau: f64) -> [f64; 3] {
+        self.lag.map(|l| l[0] + l[1] * tau + l[2] * tau * tau)
+    }
+}
+
+impl Default for RadauTableau {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Work counters of a Radau IIA run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct RadauStats {
+    /// Accepted steps.
+    pub steps: usize,
+    /// Step attempts abandoned because Newton did not converge.
+    pub newton_failures: usize,
+    /// Newton iterations (each: three residuals, one real and one complex solve).
+    pub newton_iterations: usize,
+    /// Factorisations of the real Newton matrix.
+    pub factorizations: usize,
+    /// Factorisations of the complex Newton matrix.
+    pub complex_factorizations: usize,
+    /// Residual evaluations.
+    pub residual_evaluations: usize,
+    /// Projections onto the constraint manifold.
+    pub projections: usize,
+    /// Smallest accepted step.
+    pub min_step_taken: f64,
+}
+
+impl RadauStats {
+    /// As the explicit methods count.
+    pub fn counts(&self) -> Stats {
+        Stats {
+            steps: self.steps,
+            failed_steps: self.newton_failures,
+            rhs_evals: self.residual_evaluations,
+        }
+    }
+}
+
+/// Radau IIA, s = 3, fixed step, on the index-3 equations (module docs).
+#[derive(Debug, Clone)]
+pub struct Radau5 {
+    opts: ImplicitOptions,
+    ode: OdeOptions,
+    tab: RadauTableau,
+    stats: RadauStats,
+}
+
+impl Radau5 {
+    /// Validate the options: a fixed step ([`OdeOptions::fixed_step`]);
+    /// of [`ImplicitOptions`] it reads `newton_tol`, `max_newton`,
+    /// `reuse`, `project` and `min_step`; `adaptive` is not available yet.
+    pub fn new(opts: ImplicitOptions, ode: OdeOptions) -> Result<Self, IntegratorError> {
+        ode.validate(Method::Radau5, false)?;
+        if opts.adaptive {
+            return Err(IntegratorError::NotApplicable {
+                option: "adaptive",
+                method: "radau5",
+                reason: "radau5 takes a fixed step (integrator.step)".into(),
+            });
+        }
+        if !(opts.newton_tol > 0.0 && opts.newton_tol.is_finite()) {
+            return Err(IntegratorError::InvalidOption {
+                option: "newton_tol",
+                value: opts.newton_tol.to_string(),
+                reason: "must be positive and finite".into(),
+            });
+        }
+        if opts.max_newton == 0 {
+            return Err(IntegratorError::InvalidOption {
+                option: "max_newton",
+                value: "0".into(),
+                reason: "must be at least 1".into(),
+            });
+        }
+        Ok(Self {
+            opts,
+            ode,
+            tab: RadauTableau::new(),
+            stats: RadauStats::default(),
+        })
+    }
+
+    /// Counters of the last run.
+    pub fn stats(&self) -> RadauStats {
+        self.stats
+    }
+
+    /// Integrate from `(t0, q0, q̇0)` to `t_end`; `cplx` is the complex
+    /// Newton matrix of the same system. Outputs as [`super::GenAlpha::integrate`]
+    /// (`y = [q; q̇]`, dense output from the collocation polynomials).
+    #[allow(clippy::too_many_arguments)]
+    pub fn integrate(
+        &mut self,
+        sys: &mut dyn SecondOrderDae,
+        cplx: &mut dyn ComplexNewton,
+        t0: f64,
+        t_end: f64,
+        q0: &[f64],
+        qd0: &[f64],
+        output_times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        let (n, m) = (sys.n(), sys.m());
+        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, false)?;
+        let h = self.ode.fixed_step.unwrap_or(0.0);
+        let mut run = Run {
+            tab: &self.tab,
+            opts: &self.opts,
+            sys,
+            cplx,
+            n,
+            m,
+            t0,
+            t_end,
+            h_fixed: h,
+            h,
+            k_grid: 1,
+            t: t0,
+            q: q0.to_vec(),
+            v: qd0.to_vec(),
+            qdd: vec![0.0; n],
+            lam: vec![0.0; m],
+            q_old: q0.to_vec(),
+            v_old: qd0.to_vec(),
+            a: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            l: [vec![0.0; m], vec![0.0; m], vec![0.0; m]],
+            a_prev: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            l_prev: [vec![0.0; m], vec![0.0; m], vec![0.0; m]],
+            qs: vec![0.0; n],
+            vs: vec![0.0; n],
+            r: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
+            x: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
+            y: [q0, qd0].concat(),
+            h_fact: None,
+            refactor: true,
+            fresh: false,
+            eta: 1.0,
+            h_last: 0.0,
+            h_prev: None,
+            stats: RadauStats {
+                min_step_taken: f64::INFINITY,
+                ..Default::default()
+            },
+            warnings: Vec::new(),
+            last_newton: None,
+        };
+        let (termination, t_reached) =
+            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
+        let mut stats = run.stats;
+        if stats.steps == 0 {
+            stats.min_step_taken = 0.0;
+        }
+        let warnings = run.warnings;
+        self.stats = stats;
+        Ok(Report {
+            stats: stats.counts(),
+            termination,
+            t_reached,
+            warnings,
+        })
+    }
+}
+
+struct Run<'g, 's> {
+    tab: &'g RadauTableau,
+    opts: &'g ImplicitOptions,
+    sys: &'s mut dyn SecondOrderDae,
+    cplx: &'s mut dyn ComplexNewton,
+    n: usize,
+    m: usize,
+    t0: f64,
+    t_end: f64,
+    h_fixed: f64,
+    h: f64,
+    k_grid: u64,
+    t: f64,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    qdd: Vec<f64>,
+    lam: Vec<f64>,
+    /// State at the start of the last accepted step (dense output).
+    q_old: Vec<f64>,
+    v_old: Vec<f64>,
+    /// Stage accelerations and multipliers of the current attempt.
+    a: [Vec<f64>; 3],
+    l: [Vec<f64>; 3],
+    /// Those of the last accepted step (predictor, dense output).
+    a_prev: [Vec<f64>; 3],
+    l_prev: [Vec<f64>; 3],
+    qs: Vec<f64>,
+    vs: Vec<f64>,
+    r: [Vec<f64>; 3],
+    x: [Vec<f64>; 3],
+    y: Vec<f64>,
+    h_fact: Option<f64>,
+    refactor: bool,
+    fresh: bool,
+    eta: f64,
+    h_last: f64,
+    h_prev: Option<f64>,
+    stats: RadauStats,
+    warnings: Vec<String>,
+    last_newton: Option<StepCut>,
+}
+
+impl Run<'_, '_> {
+    /// Stage i's position and velocity into `qs`, `vs`.
+    fn stage_state(&mut self, i: usize, h: f64) {
+        let tab = self.tab;
+        let (ci, a, a2) = (tab.c[i], tab.a[i], tab.a2[i]);
+        let (s0, s1, s2) = (&self.a[0], &self.a[1], &self.a[2]);
+        for k in 0..self.n {
+            let (x0, x1, x2) = (s0[k], s1[k], s2[k]);
+            self.qs[k] =
+                self.q[k] + ci * h * self.v[k] + h * h * (a2[0] * x0 + a2[1] * x1 + a2[2] * x2);
+            self.vs[k] = self.v[k] + h * (a[0] * x0 + a[1] * x1 + a[2] * x2);
+        }
+    }
+
+    /// Factorise the real and the complex matrix at the step's start.
+    fn factor(&mut self, h: f64) -> Result<(), SystemError> {
+        let tab = self.tab;
+        let (g, mu) = (tab.gamma, tab.mu);
+        let hmu = [h * mu[0], h * mu[1]];
+        let h2mu2 = cmul(hmu, hmu);
+        self.h_fact = None;
+        self.stats.factorizations += 1;
+        self.sys.factorize(
+            self.t,
+            &self.q,
+            &self.v,
+            &self.lam,
+            [1.0, h * g, h * h * g * g],
+        )?;
+        self.stats.complex_factorizations += 1;
+        self.cplx.factorize_complex(
+            self.t,
+            &self.q,
+            &self.v,
+            &self.lam,
+            [[1.0, 0.0], hmu, h2mu2],
+        )?;
+        self.h_fact = Some(h);
+        self.refactor = false;
+        self.fresh = true;
+        Ok(())
+    }
+
+    /// One attempt of the step `h` from `(t, q, v)` into `a`, `l`.
+    fn attempt(&mut self, h: f64) -> Result<(), SystemError> {
+        let (n, m) = (self.n, self.m);
+        let tab = self.tab;
+        // predictor: the previous step's stage polynomials extrapolated
+        match self.h_prev {
+            Some(hp) => {
+                for i in 0..3 {
+                    let w = tab.basis(1.0 + tab.c[i] * h / hp);
+                    for k in 0..n {
+                        self.a[i][k] = w[0] * self.a_prev[0][k]
+                            + w[1] * self.a_prev[1][k]
+                            + w[2] * self.a_prev[2][k];
+                    }
+                    for k in 0..m {
+                        self.l[i][k] = w[0] * self.l_prev[0][k]
+                            + w[1] * self.l_prev[1][k]
+                            + w[2] * self.l_prev[2][k];
+                    }
+                }
+            }
+            None => {
+                for i in 0..3 {
+                    self.a[i].copy_from_slice(&self.qdd);
+                    self.l[i].copy_from_slice(&self.lam);
+                }
+            }
+        }
+        self.fresh = false;
+        if self.refactor || self.h_fact != Some(h) || !self.opts.reuse {
+            self.factor(h)?;
+        }
+        let (g, mu) = (tab.gamma, tab.mu);
+        let hmu = [h * mu[0], h * mu[1]];
+        let d = cmul(hmu, hmu); // h²μ²
+        let dd = d[0] * d[0] + d[1] * d[1];
+        let inv_d = [d[0] / dd, -d[1] / dd];
+        let inv_g = 1.0 / (h * h * g * g);
+        let tol_q = self.opts.newton_tol * h * h;
+        let mut eta = self.eta.max(1.0);
+        let mut prev = f64::NAN;
+        let mut round = 0usize;
+        loop {
+            if round > 0 && !self.opts.reuse {
+                self.factor(h)?;
+            }
+            // residuals of the three stages
+            for i in 0..3 {
+                self.stage_state(i, h);
+                self.stats.residual_evaluations += 1;
+                let ti = self.t + tab.c[i] * h;
+                self.sys.residual(
+                    ti,
+                    &self.qs,
+                    &self.vs,
+                    &self.a[i],
+                    &self.l[i],
+                    1.0,
+                    &mut self.r[i],
+                )?;
+            }
+            // transformed right-hand sides: x_k = −Σ_i T⁻¹_ki r_i, the
+            // constraint rows divided by h²μ_k²
+            let ti = tab.t_inv;
+            for k in 0..n + m {
+                let (r0, r1, r2) = (self.r[0][k], self.r[1][k], self.r[2][k]);
+                for (j, x) in self.x.iter_mut().enumerate() {
+                    x[k] = -(ti[j][0] * r0 + ti[j][1] * r1 + ti[j][2] * r2);
+                }
+            }
+            for k in n..n + m {
+                self.x[0][k] *= inv_g;
+                let z = cmul([self.x[1][k], self.x[2][k]], inv_d);
+                self.x[1][k] = z[0];
+                self.x[2][k] = z[1];
+            }
+            self.sys.solve(self.t, &mut self.x[0])?;
+            {
+                let [_, x1, x2] = &mut self.x;
+                self.cplx.solve_complex(self.t, x1, x2)?;
+            }
+            self.stats.newton_iterations += 1;
+            // back-transform, update, norm of the position-equivalent corrections
+            let tt = tab.t;
+            let mut dnorm = 0.0_f64;
+            for k in 0..n + m {
+                let (x0, x1, x2) = (self.x[0][k], self.x[1][k], self.x[2][k]);
+                for i in 0..3 {
+                    let dv = tt[i][0] * x0 + tt[i][1] * x1 + tt[i][2] * x2;
+                    if k < n {
+                        self.a[i][k] += dv;
+                        let w = tol_q + ROUNDING_ULPS * f64::EPSILON * self.q[k].abs().max(1.0);
+                        dnorm = dnorm.max((h * h * dv).abs() / w);
+                    } else {
+                        self.l[i][k - n] += dv;
+                    }
+                }
+            }
+            if !dnorm.is_finite() {
+                return Err(SystemError::msg("non-finite Newton correction"));
+            }
+            let done = if round == 0 {
+                dnorm * eta <= 1.0
+            } else {
+                let theta = dnorm / prev;
+                if theta >= 1.0 {
+                    if dnorm > STAGNATION {
+                        return Err(SystemError::msg(format!(
+                            "Newton diverges (contraction θ = {theta:.3}, correction {dnorm:.3e} × tol)"
+                        )));
+                    }
+                    true
+                } else {
+                    eta = theta / (1.0 - theta);
+                    if theta > THETA_REFACTOR {
+                        self.refactor = true;
+                    }
+                    if eta * dnorm <= 1.0 {
+                        self.eta = eta;
+                    }
+                    eta * dnorm <= 1.0
+                }
+            };
+            prev = dnorm;
+            round += 1;
+            if done {
+                return Ok(());
+            }
+            if round >= self.opts.max_newton {
+                return Err(SystemError::msg(format!(
+                    "no convergence in {round} iterations (last correction {prev:.3e} × tol)"
+                )));
+            }
+        }
+    }
+}
+
+impl Stepper for Run<'_, '_> {
+    fn start(&mut self) -> Result<(), Failure> {
+        self.stats.residual_evaluations += 1;
+        self.sys
+            .accelerations(self.t0, &self.q, &self.v, &mut self.qdd, &mut self.lam)
+            .map_err(|e| Failure::System {
+                what: "initial accelerations",
+                t: self.t0,
+                step_from: None,
+                source: Arc::new(e),
+            })
+    }
+
+    fn step(&mut self) -> Result<bool, Failure> {
+        let n = self.n;
+        loop {
+            let target = (self.t0 + self.k_grid as f64 * self.h_fixed).min(self.t_end);
+            let mut h = self.h.min(target - self.t);
+            if target - (self.t + h) <= 1e-9 * self.h_fixed {
+                h = target - self.t;
+            }
+            let floor = 16.0 * common::eps(self.t);
+            let h_min = self.opts.min_step.map_or(floor, |m| m.max(floor));
+            if h < h_min && self.t + h < self.t_end {
+                let cause = self
+                    .last_newton
+                    .clone()
+                    .unwrap_or(StepCut::ErrorTest { err: f64::NAN });
+                return Err(Failure::StepTooSmall {
+                    t: self.t,
+                    h,
+                    h_min,
+                    cause,
+                });
+            }
+            let t_new = if (target - self.t_end).abs() <= 1e-9 * self.h_fixed
+                && (self.t + h - target).abs() <= 1e-9 * self.h_fixed
+            {
+                self.t_end
+            } else {
+                self.t + h
+            };
+            let mut outcome = self.attempt(h);
+            if outcome.is_err() && !self.fresh {
+                self.refactor = true;
+                outcome = self.attempt(h);
+            }
+            if let Err(reason) = outcome {
+                self.stats.newton_failures += 1;
+                let msg = format!("Newton failed at t = {t_new} with h = {h:.3e}: {reason}");
+                if self.warnings.len() < 20 {
+                    self.warnings.push(msg);
+                }
+                self.refactor = true;
+                let cut = StepCut::Newton {
+                    t: t_new,
+                    h,
+                    source: Arc::new(reason),
+                };
+                if 0.5 * h < h_min {
+                    return Err(Failure::StepTooSmall {
+                        t: self.t,
+                        h: 0.5 * h,
+                        h_min,
+                        cause: cut,
+                    });
+                }
+                self.last_newton = Some(cut);
+                self.h = 0.5 * h;
+                continue;
+            }
+            // accept: stiffly accurate, the last stage is the step's end
+            self.q_old.copy_from_slice(&self.q);
+            self.v_old.copy_from_slice(&self.v);
+            self.stage_state(2, h);
+            self.q.copy_from_slice(&self.qs);
+            self.v.copy_from_slice(&self.vs);
+            self.qdd.copy_from_slice(&self.a[2]);
+            self.lam.copy_from_slice(&self.l[2]);
+            if self.opts.project {
+                self.stats.projections += 1;
+                let (q, v) = (&mut self.q, &mut self.v);
+                self.sys.project(t_new, q, v).map_err(|e| Failure::System {
+                    what: "projection",
+                    t: t_new,
+                    step_from: Some(self.t),
+                    source: Arc::new(e),
+                })?;
+            }
+            for i in 0..3 {
+                self.a_prev[i].copy_from_slice(&self.a[i]);
+                self.l_prev[i].copy_from_slice(&self.l[i]);
+            }
+            self.h_prev = Some(h);
+            self.h_last = h;
+            self.t = t_new;
+            self.stats.steps += 1;
+            self.stats.min_step_taken = self.stats.min_step_taken.min(h);
+            self.y[..n].copy_from_slice(&self.q);
+            self.y[n..].copy_from_slice(&self.v);
+            if (self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target {
+                self.k_grid += 1;
+            }
+            self.h = (2.0 * h).min(self.h_fixed);
+            return Ok(self.t >= self.t_end);
+        }
+    }
+
+    fn state(&self) -> (f64, &[f64]) {
+        (self.t, &self.y)
+    }
+
+    /// The collocation polynomials of the last step.
+    fn interpolate(&self, t: f64, out: &mut [f64]) {
+        let (n, h) = (self.n, self.h_last);
+        let th = (t - (self.t - h)) / h;
+        let w1 = self
+            .tab
+            .lag
+            .map(|l| l[0] * th + l[1] * th * th / 2.0 + l[2] * th.powi(3) / 3.0);
+        // Q: the cubic through q_old and the stage positions Q_i at c_i,
+        // Q_i = q_old + c_i h v_old + h² Σ_j (𝔄²)_ij A_j
+        let c = self.tab.c;
+        let nodes = [0.0, c[0], c[1], c[2]];
+        let lag3 = |i: usize| {
+            (0..4)
+                .filter(|&k| k != i + 1)
+                .map(|k| (th - nodes[k]) / (nodes[i + 1] - nodes[k]))
+                .product::<f64>()
+        };
+        let li = [lag3(0), lag3(1), lag3(2)];
+        let a2 = self.tab.a2;
+        let w2: [f64; 3] =
+            std::array::from_fn(|j| li[0] * a2[0][j] + li[1] * a2[1][j] + li[2] * a2[2][j]);
+        let a = &self.a_prev;
+        for k in 0..n {
+            let (x0, x1, x2) = (a[0][k], a[1][k], a[2][k]);
+            out[k] = self.q_old[k]
+                + th * h * self.v_old[k]
+                + h * h * (w2[0] * x0 + w2[1] * x1 + w2[2] * x2);
+            out[n + k] = self.v_old[k] + h * (w1[0] * x0 + w1[1] * x1 + w1[2] * x2);
+        }
+    }
+
+    fn output_snap(&self) -> f64 {
+        1e-9 * self.h_last
+    }
+
+    fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    fn stats(&self) -> Stats {
+        self.stats.counts()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RadauTableau;
+
+    /// The tableau against the closed form of Radau IIA (s = 3) and the
+    /// transformation against 𝔄.
+    #[test]
+    fn tableau_and_transformation() {
+        let tab = RadauTableau::new();
+        let s6 = 6f64.sqrt();
+        let exact = [
+            [
+                (88.0 - 7.0 * s6) / 360.0,
+                (296.0 - 169.0 * s6) / 1800.0,
+                (-2.0 + 3.0 * s6) / 225.0,
+            ],
+            [
+                (296.0 + 169.0 * s6) / 1800.0,
+                (88.0 + 7.0 * s6) / 360.0,
+                (-2.0 - 3.0 * s6) / 225.0,
+            ],
+            [(16.0 - s6) / 36.0, (16.0 + s6) / 36.0, 1.0 / 9.0],
+        ];
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((tab.a[i][j] - exact[i][j]).abs() < 1e-14, "A[{i}][{j}]");
+                let sq: f64 = (0..3).map(|k| exact[i][k] * exact[k][j]).sum();
+                assert!((tab.a2[i][j] - sq).abs() < 1e-14, "A²[{i}][{j}]");
+            }
+        }
+        let (g, [al, be]) = (tab.gamma, tab.mu);
+        let b = [[g, 0.0, 0.0], [0.0, al, -be], [0.0, be, al]];
+        for i in 0..3 {
+            for j in 0..3 {
+                let tbt: f64 = (0..3)
+                    .flat_map(|k| (0..3).map(move |l| (k, l)))
+                    .map(|(k, l)| tab.t[i][k] * b[k][l] * tab.t_inv[l][j])
+                    .sum();
+                assert!((tbt - exact[i][j]).abs() < 1e-13, "T B T⁻¹ [{i}][{j}]");
+            }
+        }
+        // eigenvalues of 𝔄⁻¹ as in RADAU5
+        assert!((1.0 / g - 3.637834252744496).abs() < 1e-12);
+        let d = al * al + be * be;
+        assert!((al / d - 2.681082873627752).abs() < 1e-12);
+        assert!((be / d - 3.05043019924741).abs() < 1e-12);
+    }
+}
