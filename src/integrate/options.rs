@@ -297,6 +297,37 @@ impl ImplicitOptions {
     /// it. For an explicit `method` every field must keep its default
     /// ([`IntegratorError::NotApplicable`] names the first that does not).
     pub fn validate(&self, method: Method, fixed_step: Option<f64>) -> Result<(), IntegratorError> {
+        if method == Method::Radau5 {
+            // Radau IIA reads the Newton settings, projection, reuse and
+            // the smallest step; the α-family options do not apply
+            let d = Self::default();
+            let other = Self {
+                newton_tol: d.newton_tol,
+                max_newton: d.max_newton,
+                project: d.project,
+                reuse: d.reuse,
+                min_step: d.min_step,
+                ..self.clone()
+            };
+            if let Some(option) = other.first_non_default() {
+                return Err(not_applicable(
+                    option,
+                    method,
+                    "radau5 reads newton_tol, max_newton, project, reuse and min_step only",
+                ));
+            }
+            if !(self.newton_tol > 0.0 && self.newton_tol.is_finite()) {
+                return Err(invalid(
+                    "newton_tol",
+                    self.newton_tol,
+                    "must be positive and finite",
+                ));
+            }
+            if self.max_newton == 0 {
+                return Err(invalid("max_newton", 0, "must be at least 1"));
+            }
+            return check_positive("min_step", self.min_step);
+        }
         if !method.is_implicit() {
             return match self.first_non_default() {
                 Some(option) => Err(not_applicable(

@@ -622,6 +622,14 @@ fn inapplicable(
         ("lu", ri.lu.is_some()),
         ("extrapolate", ri.extrapolate.is_some()),
     ] {
+        // radau5 reads the Newton settings, projection, reuse and min_step
+        let radau_reads = matches!(
+            key,
+            "newton_tol" | "max_newton" | "project" | "reuse" | "min_step"
+        );
+        if method == Method::Radau5 && radau_reads {
+            continue;
+        }
         given(present, key, implicit_only.clone())?;
     }
     if matches!(method, Method::Rk4 | Method::Radau5) {
