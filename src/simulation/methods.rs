@@ -6,6 +6,18 @@
 use super::*;
 use crate::integrate::AlphaParameters;
 
+/// The index-3 methods' consistent start ([`Index3::consistent_start`]),
+/// with the warning that says how far it moved the state.
+fn index3_start(
+    f: &mut Index3<'_>,
+    cfg: &RunConfig,
+    q: &mut [f64],
+    qd: &mut [f64],
+) -> Result<Option<String>, SimulationError> {
+    let c = f.consistent_start(cfg.t0, q, qd)?;
+    Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
+}
+
 /// A method bound to its formulation: the one interface [`simulate`]
 /// drives, whichever the method.
 pub(super) trait MethodRun {
@@ -186,8 +198,7 @@ impl MethodRun for Implicit<'_> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        let c = self.f.consistent_start(cfg.t0, q, qd)?;
-        Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
+        index3_start(&mut self.f, cfg, q, qd)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
@@ -364,8 +375,7 @@ impl MethodRun for BdfRun<'_> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        let c = self.f.consistent_start(cfg.t0, q, qd)?;
-        Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
+        index3_start(&mut self.f, cfg, q, qd)
     }
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let bs = self.integ.stats();
@@ -464,8 +474,7 @@ impl MethodRun for RadauRun<'_> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        let c = self.f.consistent_start(cfg.t0, q, qd)?;
-        Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
+        index3_start(&mut self.f, cfg, q, qd)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let rs = self.integ.stats();
