@@ -225,6 +225,13 @@ impl Method {
     pub fn is_implicit(&self) -> bool {
         matches!(self, Method::GenAlpha | Method::Hht | Method::Newmark)
     }
+
+    /// The methods that integrate the index-3 equations (the implicit α
+    /// family, bdf and radau5): no Baumgarte terms, numerical damping that
+    /// only removes energy.
+    pub fn is_index3(&self) -> bool {
+        self.is_implicit() || matches!(self, Method::Bdf | Method::Radau5)
+    }
 }
 
 impl std::fmt::Display for Method {

@@ -402,7 +402,7 @@ struct Watch<'s, 'm, 'd, 'k> {
 
 /// Energy gain, as a fraction of the run's energy scale, above which an
 /// implicit run (generalized-α, HHT, Newmark, the augmented Lagrangian,
-/// bdf) warns that its energy balance broke: their numerical damping only
+/// bdf, radau5) warns that its energy balance broke: their numerical damping only
 /// removes energy (issue 10, item 7). The constraint study's passing
 /// implicit runs from consistent starts drift by at most 1.7e-4 of E0,
 /// either sign; the trapezoidal rule (newmark, ρ∞ = 1) on the four-bar at
@@ -477,10 +477,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
                 linear_solver: cfg.index1.linear_solver,
                 ..Index1Options::default()
             };
-            if !cfg.method.is_implicit()
-                && cfg.method != Method::Bdf
-                && cfg.index1.formulation != Formulation::Penalty
-            {
+            if !cfg.method.is_index3() && cfg.index1.formulation != Formulation::Penalty {
                 opts.baumgarte = cfg.index1.baumgarte;
             }
             Index1::new(sys, opts).ok()
@@ -1062,7 +1059,7 @@ fn finish(
     if let Some(b) = &watch.balance {
         // what the tolerance and the quadrature of W explain
         let bound = 100.0 * cfg.ode.rtol * b.scale + 10.0 * b.quadrature_error;
-        if !cfg.method.is_implicit() && cfg.method != Method::Bdf && b.max_error > bound {
+        if !cfg.method.is_index3() && b.max_error > bound {
             warnings.push(format!(
                 "energy balance broken: |T + V − E0 − W| reached {:.3e} J, more than \
                  100 rtol × {:.3e} J (the energy scale) + 10 × {:.3e} J (the quadrature \
@@ -1076,7 +1073,7 @@ fn finish(
         // beyond IMPLICIT_ENERGY_GAIN of the scale (plus the quadrature
         // error of W) means the run left its manifold or its branch.
         let gain_bound = IMPLICIT_ENERGY_GAIN * b.scale + 10.0 * b.quadrature_error;
-        if (cfg.method.is_implicit() || cfg.method == Method::Bdf) && b.max_gain > gain_bound {
+        if cfg.method.is_index3() && b.max_gain > gain_bound {
             warnings.push(format!(
                 "energy balance broken: the run gained energy, T + V − E0 − W reached \
                  +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the \
