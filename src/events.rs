@@ -112,9 +112,10 @@ impl Monitor for ContactMonitor {
                 }
             }
         }
+        let (rods, events) = (&self.rods, &mut self.events);
         let event = |kind, &(r, segment, corner, wall): &(usize, usize, usize, &'static str)| {
             ContactEvent {
-                rod: self.rods[r].0.clone(),
+                rod: rods[r].0.clone(),
                 t,
                 kind,
                 segment,
@@ -122,18 +123,16 @@ impl Monitor for ContactMonitor {
                 wall,
             }
         };
-        let mut new_events = Vec::new();
         for key in &self.now {
             if !self.active.contains(key) {
-                new_events.push(event("start", key));
+                events.push(event("start", key));
             }
         }
         for key in &self.active {
             if !self.now.contains(key) {
-                new_events.push(event("end", key));
+                events.push(event("end", key));
             }
         }
-        self.events.extend(new_events);
         std::mem::swap(&mut self.active, &mut self.now);
     }
 

@@ -394,7 +394,6 @@ impl<'s> BdfRun<'s> {
     fn estimates(&mut self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
-        let mut len = 0;
         for (o, &p) in ps.iter().enumerate() {
             let mut nodes = [0.0; L];
             nodes[0] = t1;
@@ -405,18 +404,18 @@ impl<'s> BdfRun<'s> {
             let fact: f64 = (1..=p).map(|i| i as f64).product();
             let c = fact * h.powi(p as i32 + 1) * self.error_factor(p);
             w[o][..p + 2].iter_mut().for_each(|x| *x *= c);
-            len = len.max(p + 2);
         }
         let no = ps.len();
         let n = self.n;
         // Σ_j w_oj y_j for each order o, history point by history point
         // (vectorised axpys over [q; q̇]), then one pass for the norms
         let mut bufs = std::mem::take(&mut self.est_buf);
-        for (o, buf) in bufs.iter_mut().enumerate().take(no) {
+        for ((buf, wo), &p) in bufs.iter_mut().zip(&w).zip(ps) {
             buf.clear();
-            buf.extend(self.ynew.iter().map(|y| w[o][0] * y));
-            for j in 1..len {
-                axpy(w[o][j], &self.ys[j - 1], buf);
+            buf.extend(self.ynew.iter().map(|y| wo[0] * y));
+            // order p's difference has p + 2 nodes: t1 and p + 1 history points
+            for j in 1..p + 2 {
+                axpy(wo[j], &self.ys[j - 1], buf);
             }
         }
         let (yn, ynew) = (&self.ys[0], &self.ynew);
@@ -751,15 +750,18 @@ impl Stepper for BdfRun<'_> {
                 let change = rejections == 0 && self.steps_at_k >= k && len > k;
                 let lower = change && k > 1;
                 let higher = change && k < self.max_order && len > k + 1;
-                let mut ps = vec![k.min(len - 1)];
+                let mut ps = [k.min(len - 1), 0, 0];
+                let mut np = 1;
                 if lower {
-                    ps.push(k - 1);
+                    ps[np] = k - 1;
+                    np += 1;
                 }
                 if higher {
-                    ps.push(k + 1);
+                    ps[np] = k + 1;
+                    np += 1;
                 }
-                let e = self.estimates(&ps, t1, h);
-                (e[0], lower.then_some(e[1]), higher.then(|| e[ps.len() - 1]))
+                let e = self.estimates(&ps[..np], t1, h);
+                (e[0], lower.then_some(e[1]), higher.then(|| e[np - 1]))
             };
             if err <= self.rtol {
                 break (t1, err, est_lower, est_higher);

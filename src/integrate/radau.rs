@@ -684,10 +684,10 @@ impl Stepper for Run<'_, '_> {
                     source: Arc::new(e),
                 })?;
             }
-            for i in 0..3 {
-                self.a_prev[i].copy_from_slice(&self.a[i]);
-                self.l_prev[i].copy_from_slice(&self.l[i]);
-            }
+            // the accepted stages become the history (the next attempt's
+            // predictor overwrites every entry of `a`, `l`)
+            std::mem::swap(&mut self.a_prev, &mut self.a);
+            std::mem::swap(&mut self.l_prev, &mut self.l);
             self.h_prev = Some(h);
             self.h_last = h;
             self.t = t_new;

@@ -210,8 +210,7 @@ impl MethodRun for Implicit<'_> {
         } else {
             cfg.ode.fixed_step.into()
         };
-        let mut extra = serde_json::Map::new();
-        for (k, v) in [
+        let mut extra = fields([
             ("newton_iterations", gs.newton_iterations.into()),
             ("newton_failures", gs.newton_failures.into()),
             ("error_rejections", gs.error_rejections.into()),
@@ -226,9 +225,7 @@ impl MethodRun for Implicit<'_> {
             ("newton_tol", opts.newton_tol.into()),
             ("min_step_taken", gs.min_step_taken.into()),
             ("max_step_taken", gs.max_step_taken.into()),
-        ] {
-            extra.insert(k.to_string(), v);
-        }
+        ]);
         scheme_fields(&mut extra, &p, opts.rho_inf);
         let work = Work {
             formulation: "index3".to_string(),
@@ -306,8 +303,7 @@ impl MethodRun for AugmentedRun<'_> {
         let gs = self.integ.stats();
         let fs = self.f.stats();
         let p = self.integ.params();
-        let mut extra = serde_json::Map::new();
-        for (k, v) in [
+        let mut extra = fields([
             ("penalty", self.penalty.into()),
             ("newton_iterations", gs.newton_iterations.into()),
             ("newton_failures", gs.newton_failures.into()),
@@ -318,9 +314,7 @@ impl MethodRun for AugmentedRun<'_> {
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
             ("min_step_taken", gs.min_step_taken.into()),
-        ] {
-            extra.insert(k.to_string(), v);
-        }
+        ]);
         scheme_fields(&mut extra, &p, cfg.implicit.rho_inf);
         let work = Work {
             formulation: "augmented_lagrangian".to_string(),
@@ -380,8 +374,7 @@ impl MethodRun for BdfRun<'_> {
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let bs = self.integ.stats();
         let fs = self.f.stats();
-        let mut extra = serde_json::Map::new();
-        for (k, v) in [
+        let extra = fields([
             ("newton_iterations", bs.newton_iterations.into()),
             ("newton_failures", bs.newton_failures.into()),
             ("error_rejections", bs.error_rejections.into()),
@@ -389,9 +382,7 @@ impl MethodRun for BdfRun<'_> {
             ("steps_at_order", bs.steps_at_order[1..].to_vec().into()),
             ("min_step_taken", bs.min_step_taken.into()),
             ("max_step_taken", bs.max_step_taken.into()),
-        ] {
-            extra.insert(k.to_string(), v);
-        }
+        ]);
         let work = Work {
             formulation: "index3".to_string(),
             linear_solver: self.f.solver_name().to_string(),
@@ -411,15 +402,20 @@ fn scheme_fields(
     p: &AlphaParameters,
     rho_inf: f64,
 ) {
-    for (k, v) in [
-        ("rho_inf", rho_inf),
-        ("alpha_m", p.alpha_m),
-        ("alpha_f", p.alpha_f),
-        ("gamma_newmark", p.gamma),
-        ("beta_newmark", p.beta),
-    ] {
-        extra.insert(k.to_string(), v.into());
-    }
+    extra.extend(fields([
+        ("rho_inf", rho_inf.into()),
+        ("alpha_m", p.alpha_m.into()),
+        ("alpha_f", p.alpha_f.into()),
+        ("gamma_newmark", p.gamma.into()),
+        ("beta_newmark", p.beta.into()),
+    ]));
+}
+
+/// Summary `extra` fields from `(name, value)` pairs.
+fn fields<const N: usize>(
+    pairs: [(&str, serde_json::Value); N],
+) -> serde_json::Map<String, serde_json::Value> {
+    pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
 /// radau5 on the index-3 form ([`Radau5`] over [`Index3`] for the real
@@ -479,8 +475,7 @@ impl MethodRun for RadauRun<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let rs = self.integ.stats();
         let fs = self.f.stats();
-        let mut extra = serde_json::Map::new();
-        for (k, v) in [
+        let extra = fields([
             ("newton_iterations", rs.newton_iterations.into()),
             ("newton_failures", rs.newton_failures.into()),
             ("real_factorizations", rs.factorizations.into()),
@@ -489,9 +484,7 @@ impl MethodRun for RadauRun<'_> {
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
             ("min_step_taken", rs.min_step_taken.into()),
-        ] {
-            extra.insert(k.to_string(), v);
-        }
+        ]);
         let work = Work {
             formulation: "index3".to_string(),
             linear_solver: self.f.solver_name().to_string(),
