@@ -9,6 +9,12 @@
 #
 #   benches/peers/run_exudyn_ratio.sh [N ...]        (default: 100 1000)
 #
+# MBS_EXTRA adds mbsolve runs at other methods, each as EXAMPLE:SPEC run for
+# every N, e.g. MBS_EXTRA="stiff_chain_rtol:ndf:1e-5:3 radau_chain:radau5:4e-4"
+# (examples/stiff_chain_rtol.rs, examples/radau_chain.rs); the table gives
+# Exudyn's CPU over each run's and says whether that run's tip error is at
+# most Exudyn's (the issue's ratio at equal tip error).
+#
 # Environment: MBSOLVE_PEERS  directory of exudyn_chain.py and chain_model.py
 #                             (default: ../shared/peers beside the repository;
 #                             they are not copied into the repository: no licence)
@@ -29,7 +35,10 @@ if [[ ! -x $venv/bin/python ]] || ! "$venv/bin/python" -c "import exudyn, scipy"
     python3 -m venv "$venv"
     "$venv/bin/pip" install -q "exudyn==1.13.*" scipy numpy
 fi
-(cd "$root" && cargo build --release --example stiff_chain >&2)
+extra=(${MBS_EXTRA:-})
+examples=(--example stiff_chain)
+for e in "${extra[@]}"; do examples+=(--example "${e%%:*}"); done
+(cd "$root" && cargo build --release "${examples[@]}" >&2)
 export OMP_NUM_THREADS=1
 out=$(mktemp)
 trap 'rm -f "$out"' EXIT
@@ -38,6 +47,9 @@ sizes=("$@")
 for n in "${sizes[@]}"; do
     echo "run_exudyn_ratio: N = $n, h = $h" >&2
     "$root/target/release/examples/stiff_chain" "$n" "genalpha:$h" | sed 's/^/mbsolve /' >>"$out"
+    for e in "${extra[@]}"; do
+        "$root/target/release/examples/${e%%:*}" "$n" "${e#*:}" | sed "s/^/extra:${e#*:} /" >>"$out"
+    done
     (cd "$peers" && "$venv/bin/python" exudyn_chain.py "$n" "ga-sparse:$h") | sed 's/^/exudyn /' >>"$out"
 done
 "$venv/bin/python" - "$out" <<'PY'
@@ -46,6 +58,16 @@ rows = {}
 for line in open(sys.argv[1]):
     code, _, js = line.partition(" ")
     d = json.loads(js)
+    if code.startswith("extra:"):
+        # examples/stiff_chain_rtol.rs or examples/radau_chain.rs fields
+        tip = d.get("tip_x", d.get("tip"))
+        its = d.get("newton_per_step")
+        if its is None and d.get("steps"):
+            its = float(d["newton_iterations"]) / d["steps"]
+        rows.setdefault(d["n"], {})[code[6:]] = dict(
+            h=d.get("h_or_rtol", d.get("rtol", d.get("h"))), cpu=d.get("cpu_s", d.get("cpu")),
+            tip=tip, status=d["status"], extra=f"{d['steps']} steps, {its:.2f} Newton/step")
+        continue
     if code == "mbsolve":
         ref = None if d["tip_error"] is None else d["tip_x"] - d["tip_error"]
         rows.setdefault(d["n"], {})["mbsolve"] = dict(
@@ -61,7 +83,7 @@ print("| N | code | h | CPU [s] | tip x [m] | tip error [m] | notes |")
 print("|---|---|---|---|---|---|---|")
 for n in sorted(rows):
     ref = rows[n].get("mbsolve", {}).get("ref")
-    for code in ("mbsolve", "exudyn"):
+    for code in ["mbsolve", "exudyn"] + [c for c in rows[n] if c not in ("mbsolve", "exudyn")]:
         r = rows[n].get(code)
         if not r:
             continue
@@ -72,4 +94,12 @@ for n in sorted(rows):
     m, e = rows[n].get("mbsolve"), rows[n].get("exudyn")
     if m and e and m["cpu"] and e["cpu"]:
         print(f"| {n} | **Exudyn / mbsolve CPU** | | **{e['cpu'] / m['cpu']:.1f}** | | | same h |")
+    for c, x in rows[n].items():
+        if c in ("mbsolve", "exudyn") or not (e and e["cpu"] and x["cpu"]):
+            continue
+        if ref is None or e["tip"] is None or x["tip"] is None:
+            cmp = "no reference"
+        else:
+            cmp = "tip error ≤ Exudyn's" if abs(x["tip"] - ref) <= abs(e["tip"] - ref) else "tip error > Exudyn's"
+        print(f"| {n} | **Exudyn / mbsolve {c} CPU** | | **{e['cpu'] / x['cpu']:.1f}** | | | {cmp} |")
 PY
