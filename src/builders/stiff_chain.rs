@@ -12,17 +12,24 @@ use crate::model::{Gravity, ModelError, System, SystemBuilder};
 
 /// Tip x at t = 0.1 s. N = 10 and 100: the peers' references
 /// (`../shared/peers/README.md`), SciPy Radau at rtol 1e-10 on two
-/// independently derived minimal-coordinate right-hand sides. N = 1000:
-/// Richardson extrapolation (order 2) of mbsolve's generalized-α at
-/// h = 5e-6 and 2.5e-6 (tips −0.0918221120, −0.0918238476; the order
-/// observed from h = 1e-5, 5e-6, 2.5e-6 is 1.93, the extrapolation from
-/// 1e-5 and 5e-6 differs by 1.1e-7): −0.09182443 ± 1e-7 m, within the
-/// peers' −0.0918244 ± 1e-6 (docs/bench_exudyn.md).
+/// independently derived minimal-coordinate right-hand sides; mbsolve's
+/// bdf at rtol 1e-9 and radau5 at h = 5e-5 agree with them to 2.6e-9 and
+/// 2e-10 (N = 10), 7.6e-10 and 2e-10 (N = 100). N = 1000: mbsolve's
+/// radau5 (order 5, h = 1e-4 and 5e-5, Newton tolerance 1e-6 m/s²) and
+/// bdf (rtol 1e-9), two methods of different order and error control:
+/// radau5 −0.0918238669 (1e-4), −0.0918238611 (5e-5), bdf −0.0918238599
+/// (ndf rtol 1e-8: −0.0918238462), so −0.09182386 ± 2e-9 m
+/// (within the peers' −0.0918244 ± 1e-6; the earlier Richardson value
+/// −0.09182443 from generalized-α at 5e-6 and 2.5e-6 was 5.7e-7 off: the
+/// start-transient step cuts made its error irregular in h). N = 10 000:
+/// bdf rtol 1e-9 −0.0924593219 and ndf rtol 1e-8 −0.0924593084, so
+/// −0.09245932 ± 2e-8 m.
 pub fn stiff_chain_reference_tip(n: usize) -> Option<f64> {
     match n {
         10 => Some(-0.013378720487),
         100 => Some(-0.087394814801),
-        1000 => Some(-0.09182443),
+        1000 => Some(-0.09182386),
+        10000 => Some(-0.09245932),
         _ => None,
     }
 }
