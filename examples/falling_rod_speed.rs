@@ -29,7 +29,7 @@ use std::io::Write;
 use std::time::Instant;
 
 mod common;
-use common::cpu_seconds;
+use common::{cpu_seconds, in_pool};
 
 /// Bottom end of segment 1, the joint at the middle of the rod and the top
 /// end of segment N, as `[x_b, y_b, x_m, y_m, x_t, y_t]`.
@@ -164,19 +164,6 @@ fn main() {
     }
 }
 
-/// Run `f` inside a rayon pool of `MBS_THREADS` threads (default 1), so
-/// that the joins of the parallel paths (above `PARALLEL_MIN_COORDS`) run
-/// on the pool instead of handing work from the main thread to the global
-/// pool and waiting for it (ARCHITECTURE.md, "Concurrency").
-fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    let threads = env("MBS_THREADS").unwrap_or(1);
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool")
-        .install(f)
-}
-
 /// One run of problem B at `n` segments with `spec` = `METHOD:H_OR_RTOL`:
 /// its JSON line (and the trace file of `MBS_TRACE`).
 fn run(n: usize, spec: &str) -> serde_json::Value {
@@ -220,7 +207,7 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         rows: Vec::new(),
     };
     let (cpu0, wall0) = (cpu_seconds(), Instant::now());
-    let s = in_pool(|| {
+    let s = in_pool(Some(env("MBS_THREADS").unwrap_or(1)), || {
         simulate_into(
             &sys,
             &q0,

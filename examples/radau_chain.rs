@@ -12,7 +12,7 @@ use mbsolve::integrate::Method;
 use mbsolve::simulation::{simulate, RunConfig};
 
 mod common;
-use common::cpu_seconds;
+use common::{cpu_seconds, in_pool};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -49,7 +49,8 @@ fn main() {
             cfg.implicit.newton_tol = t;
         }
         let c0 = cpu_seconds();
-        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
+        let (traj, s) =
+            in_pool(None, || simulate(&sys, &q0, &qd0, &cfg, &mut [])).expect("run starts");
         let cpu = cpu_seconds() - c0;
         let q = traj.q.last().expect("an output row");
         let tip = stiff_chain_tip_x(&info, q);

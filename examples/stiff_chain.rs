@@ -13,7 +13,7 @@ use mbsolve::simulation::{simulate, RunConfig};
 use std::time::Instant;
 
 mod common;
-use common::cpu_seconds;
+use common::{cpu_seconds, in_pool};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -64,7 +64,8 @@ fn main() {
             cfg.output_dt = t;
         }
         let (cpu0, wall0) = (cpu_seconds(), Instant::now());
-        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
+        let (traj, s) =
+            in_pool(None, || simulate(&sys, &q0, &qd0, &cfg, &mut [])).expect("run starts");
         let (cpu, wall) = (cpu_seconds() - cpu0, wall0.elapsed().as_secs_f64());
         let tip = traj.q.last().map(|q| stiff_chain_tip_x(&info, q));
         let get = |k: &str| s.extra.get(k).cloned().unwrap_or(serde_json::Value::Null);

@@ -21,7 +21,7 @@ use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::simulation::{simulate, RunConfig};
 
 mod common;
-use common::cpu_seconds;
+use common::{cpu_seconds, in_pool};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -77,7 +77,8 @@ fn main() {
             cfg.implicit.rho_inf = 0.9;
         }
         let cpu0 = cpu_seconds();
-        let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
+        let (traj, s) =
+            in_pool(None, || simulate(&sys, &q0, &qd0, &cfg, &mut [])).expect("run starts");
         let cpu = cpu_seconds() - cpu0;
         let tip = traj.q.last().map(|q| stiff_chain_tip_x(&info, q));
         let err = tip.zip(reference).map(|(x, r)| x - r);

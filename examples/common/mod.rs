@@ -13,3 +13,18 @@ pub fn cpu_seconds() -> f64 {
         + f.get(12).and_then(|s| s.parse().ok()).unwrap_or(0.0);
     ticks / 100.0
 }
+
+/// Runs `f` inside a rayon pool of `threads` threads (`None`: rayon's
+/// default, `RAYON_NUM_THREADS` or one per core), so that the joins of the
+/// parallel paths (above `PARALLEL_MIN_COORDS`) run inside the pool instead
+/// of being handed from the main thread to the global pool and waited for
+/// (ARCHITECTURE.md, "Concurrency"; stiff chain N = 10 000: 1 thread
+/// 9.7 → 5.9 s, 2 threads 6.9 → 3.8 s wall).
+#[allow(dead_code)] // not every example that includes this module runs a pool
+pub fn in_pool<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> R {
+    let mut b = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        b = b.num_threads(t);
+    }
+    b.build().expect("a thread pool").install(f)
+}

@@ -175,6 +175,31 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // The whole command runs on a thread of one rayon pool (`RAYON_NUM_THREADS`
+    // threads, or one per core): the concurrent halves of the chain solve and
+    // of the assembly (N ≥ 2000) then join inside the pool, instead of each
+    // join being handed from this thread to the global pool and waited for
+    // (stiff chain N = 10 000, generalized-α, 0.01 s: 1 thread 9.7 → 5.9 s,
+    // 2 threads 6.9 → 3.8 s wall, bit-identical results).
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .stack_size(MAIN_STACK)
+        .build()
+    {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: cannot start the thread pool: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    pool.install(|| command(cli))
+}
+
+/// Stack of the pool threads the commands run on: the main thread's usual
+/// 8 MiB (rayon's default is 2 MiB).
+const MAIN_STACK: usize = 8 << 20;
+
+/// Runs one command; errors are printed and give exit status 2.
+fn command(cli: Cli) -> ExitCode {
     let result = match cli.command {
         Command::Run {
             scenario,
