@@ -171,17 +171,41 @@ fn split_envelope_solves_the_stiff_chain_newton_matrix() {
 /// bit-identical, and the run moved.
 #[test]
 fn genalpha_stiff_chain_is_bit_identical_with_one_and_two_threads() {
+    bit_identical_with_one_and_two_threads(
+        Method::GenAlpha,
+        OdeOptions {
+            fixed_step: Some(1e-5),
+            ..Default::default()
+        },
+    );
+}
+
+/// The same for bdf (adaptive, its Newton update in two concurrent
+/// halves as well): every output bit-identical, and the run moved.
+#[test]
+fn bdf_stiff_chain_is_bit_identical_with_one_and_two_threads() {
+    bit_identical_with_one_and_two_threads(
+        Method::Bdf,
+        OdeOptions {
+            rtol: 1e-5,
+            atol: mbsolve::integrate::Tolerance::Scalar(1e-8),
+            ..Default::default()
+        },
+    );
+}
+
+/// Runs the stiff chain of 2000 segments (above both parallel
+/// thresholds) for 4e-5 s with `method` in one- and two-thread pools and
+/// asserts bit-identical outputs and Newton counts.
+fn bit_identical_with_one_and_two_threads(method: Method, ode: OdeOptions) {
     let (sys, q0, qd0, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
     let (n, m) = (sys.n_coords(), sys.n_constraints());
     assert!(n >= PARALLEL_MIN_COORDS && n + m >= PARALLEL_MIN_DIM);
     let cfg = RunConfig {
-        method: Method::GenAlpha,
+        method,
         t_end: 4e-5,
         output_dt: 1e-5,
-        ode: OdeOptions {
-            fixed_step: Some(1e-5),
-            ..Default::default()
-        },
+        ode,
         ..Default::default()
     };
     let run = |threads: usize| {

@@ -98,6 +98,8 @@ use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
 };
+use crate::formulation::PARALLEL_MIN_COORDS;
+use crate::linalg::join_if;
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
@@ -555,23 +557,31 @@ impl<'s> BdfRun<'s> {
             }
             self.stats.newton_iterations += 1;
             it += 1;
-            // the error test's norm of Δq (velocities through `vfac`), and
-            // the rounding floor of q; then q += Δq
-            let mut dnorm: f64 = 0.0;
-            let mut at_floor = true;
-            for ((q, d), w) in self.q.iter_mut().zip(&self.r[..n]).zip(&self.inv_w) {
-                dnorm = dnorm.max(d.abs() * w);
-                at_floor &= d.abs() <= floor * q.abs().max(1.0);
-                *q += d;
-            }
+            // q += Δq, with q̇ and q̈ from it, the error test's norm of Δq
+            // (velocities through `vfac`) and the rounding floor of q: one
+            // pass, in two fixed halves concurrently for large n
+            let (dq, dl) = self.r.split_at(n);
+            let (mut dnorm, at_floor) = newton_update(
+                n >= PARALLEL_MIN_COORDS,
+                Update {
+                    q: &mut self.q,
+                    v: &mut self.v,
+                    qdd: &mut self.qdd,
+                    d: dq,
+                    inv_w: &self.inv_w,
+                    rq: &self.rq,
+                    rv: &self.rv,
+                },
+                a0,
+                floor,
+            );
             dnorm *= vfac;
             if !dnorm.is_finite() {
                 return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
             }
-            for (l, d) in self.lam_new.iter_mut().zip(&self.r[n..]) {
+            for (l, d) in self.lam_new.iter_mut().zip(dl) {
                 *l += d / s;
             }
-            set_vq(&self.q, &self.rq, &self.rv, &mut self.v, &mut self.qdd);
             if at_floor || dnorm <= NEWTON_FLOOR * self.rtol {
                 return Newton::Converged;
             }
@@ -619,6 +629,83 @@ impl<'s> BdfRun<'s> {
         self.refactor = true;
         Newton::Failed(e, fresh)
     }
+}
+
+/// The coordinate slices one Newton correction updates (`q`, `v`, `qdd`)
+/// and reads (`d` = Δq, the norm's inverse weights, the history sums).
+struct Update<'a> {
+    q: &'a mut [f64],
+    v: &'a mut [f64],
+    qdd: &'a mut [f64],
+    d: &'a [f64],
+    inv_w: &'a [f64],
+    rq: &'a [f64],
+    rv: &'a [f64],
+}
+
+impl<'a> Update<'a> {
+    /// The first `k` coordinates and the rest.
+    fn split(self, k: usize) -> (Update<'a>, Update<'a>) {
+        let (q0, q1) = self.q.split_at_mut(k);
+        let (v0, v1) = self.v.split_at_mut(k);
+        let (a0, a1) = self.qdd.split_at_mut(k);
+        let (d0, d1) = self.d.split_at(k);
+        let (w0, w1) = self.inv_w.split_at(k);
+        let (rq0, rq1) = self.rq.split_at(k);
+        let (rv0, rv1) = self.rv.split_at(k);
+        (
+            Update {
+                q: q0,
+                v: v0,
+                qdd: a0,
+                d: d0,
+                inv_w: w0,
+                rq: rq0,
+                rv: rv0,
+            },
+            Update {
+                q: q1,
+                v: v1,
+                qdd: a1,
+                d: d1,
+                inv_w: w1,
+                rq: rq1,
+                rv: rv1,
+            },
+        )
+    }
+}
+
+/// One Newton correction of the BDF step: `q += Δq`, then
+/// `q̇ = a₀ q + r_q`, `q̈ = a₀ q̇ + r_v` (the BDF derivative formula, module
+/// docs), and the max-norm `max |Δq_i| w_i` with whether every correction
+/// is below `floor·max(|q_i|, 1)`. With `par`, the two halves (a split
+/// fixed by the length) run concurrently; the max and the conjunction do
+/// not depend on the order, so neither do the results.
+fn newton_update(par: bool, u: Update<'_>, a0: f64, floor: f64) -> (f64, bool) {
+    if par {
+        let k = u.q.len() / 2;
+        let (lo, hi) = u.split(k);
+        let ((n0, f0), (n1, f1)) = join_if(
+            true,
+            || newton_update(false, lo, a0, floor),
+            || newton_update(false, hi, a0, floor),
+        );
+        return (n0.max(n1), f0 && f1);
+    }
+    let mut dnorm: f64 = 0.0;
+    let mut at_floor = true;
+    for i in 0..u.q.len() {
+        let d = u.d[i];
+        dnorm = dnorm.max(d.abs() * u.inv_w[i]);
+        at_floor &= d.abs() <= floor * u.q[i].abs().max(1.0);
+        let q = u.q[i] + d;
+        u.q[i] = q;
+        let v = a0 * q + u.rq[i];
+        u.v[i] = v;
+        u.qdd[i] = a0 * v + u.rv[i];
+    }
+    (dnorm, at_floor)
 }
 
 impl Stepper for BdfRun<'_> {
