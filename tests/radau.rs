@@ -117,6 +117,8 @@ fn radau5_needs_a_fixed_step() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("fixed_step") && e.contains("radau5"), "{e}");
+    // radau5 has no adaptive mode: the message must not suggest one
+    assert!(!e.contains("adaptive"), "{e}");
     let e = mbsolve::integrate::Radau5::new(
         mbsolve::integrate::ImplicitOptions {
             adaptive: true,

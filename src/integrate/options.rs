@@ -257,8 +257,8 @@ impl OdeOptions {
                 ));
             }
         } else {
-            let need = if method == Method::Rk4 {
-                "rk4 requires a positive, finite fixed_step".to_string()
+            let need = if matches!(method, Method::Rk4 | Method::Radau5) {
+                format!("{} requires a positive, finite fixed_step", method.name())
             } else {
                 format!(
                     "{} with a fixed step needs a positive, finite fixed_step (or adaptive = true)",
