@@ -179,3 +179,28 @@ fn doubled_joint_is_reported_as_redundant_not_singular() {
     assert!(has(&s, &["regularised pivots", "the redundant rows above"]));
     assert!(!has(&s, &["lost rank at"]), "{:?}", s.warnings);
 }
+
+/// A Newton collapse of an index-3 run where Φ_q kept its rank (the
+/// four-bar, far from its singular positions, with one Newton iteration
+/// allowed per attempt) is not blamed on a singular position: the message
+/// says no pivot was regularised and does not recommend the augmented
+/// Lagrangian (it did, with "0 regularised pivots", before).
+#[test]
+fn newton_collapse_without_rank_loss_is_not_called_singular() {
+    let o: Vec<String> = [
+        "integrator.method=\"genalpha\"",
+        "integrator.step=1e-2",
+        "integrator.max_newton=1",
+        "integrator.newton_tol=1e-12",
+        "integrator.min_step=1e-4",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let sc = scenario::parse(FOURBAR_TOML, "fourbar.toml", "fourbar", &o).unwrap();
+    let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    assert_eq!(s.status, "failed", "{:?}", s.message);
+    let m = s.message.unwrap();
+    assert!(m.contains("no regularised pivot"), "{m}");
+    assert!(!m.contains("augmented_lagrangian"), "{m}");
+}

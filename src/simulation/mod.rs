@@ -1031,12 +1031,19 @@ fn finish(
                 },
             ) = (work.formulation.as_str(), reason)
             {
-                m.push_str(&format!(
-                    " — {} regularised pivots: if the position is singular or constraints are \
-                     redundant, formulation = \"augmented_lagrangian\" passes through them \
-                     (docs/constraint_methods.md)",
-                    work.regularized_pivots
-                ));
+                if work.regularized_pivots > 0 {
+                    m.push_str(&format!(
+                        " — {} regularised pivots: if the position is singular or constraints are \
+                         redundant, formulation = \"augmented_lagrangian\" passes through them \
+                         (docs/constraint_methods.md)",
+                        work.regularized_pivots
+                    ));
+                } else {
+                    // Φ_q kept its rank: the hint about singular positions would mislead
+                    m.push_str(
+                        " — no regularised pivot: Φ_q kept its rank, not a singular position",
+                    );
+                }
             }
             ("failed", Some(m))
         }
