@@ -129,6 +129,23 @@ impl GroundJoint {
             kernels::revolute_bg_eval(qb, vb, &self.params, &[], p, v, g);
         }
     }
+    /// Φ into `phi` (the range's rows) and Φ_qᵀλ added to `g` (λ: the
+    /// range's multipliers), from the 4 Φ_q values.
+    fn phi_tmul(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64]) {
+        self.phi(q, phi);
+        let mut vals = [0.0; 4];
+        let qb = arr(&q[self.off..]);
+        let pattern = if self.ground_is_i {
+            kernels::revolute_gb_jacobian(qb, &self.params, &[], &mut vals);
+            kernels::REVOLUTE_GB_JAC_PATTERN
+        } else {
+            kernels::revolute_bg_jacobian(qb, &self.params, &[], &mut vals);
+            kernels::REVOLUTE_BG_JAC_PATTERN
+        };
+        for (&(r, c), v) in pattern.iter().zip(vals) {
+            g[self.off + c] += v * lambda[self.row0 + r];
+        }
+    }
     fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
         let qb = arr(&q[self.off..]);
         let l = arr(&lambda[self.row0..]);
@@ -524,6 +541,30 @@ impl ConstraintKernels for ChainKernels {
         if let Some(g) = &self.ground {
             g.jacobian(q_all, vals);
         }
+    }
+    fn phi_tmul(
+        &self,
+        q_all: &[f64],
+        _t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        g: &mut [f64],
+    ) -> bool {
+        let rows = self.chain_rows();
+        let (p, q, l) = (&self.params, self.chain_q(q_all), &lambda[rows.clone()]);
+        let (o, gc) = (
+            &mut phi[rows],
+            &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
+        );
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_lock() {
+            Ok(mut m) => kernels::revolute_chain_phi_tmul_sc(q, m.update(q), p, l, o, gc),
+            Err(_) => kernels::revolute_chain_phi_tmul(q, p, l, o, gc),
+        }
+        if let Some(gj) = &self.ground {
+            gj.phi_tmul(q_all, lambda, phi, g);
+        }
+        true
     }
     fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
         kernels::revolute_chain_phi_t(self.chain_q(q), &self.params, &mut out[self.chain_rows()]);

@@ -84,6 +84,23 @@ fn compare(sys: &mut System, r: &mut Rng, samples: usize) {
             sys.jacobian_values(&q, t, &mut vals);
             sys.phi_t(&q, t, &mut phi_t);
             sys.gamma(&q, &qd, t, &mut gamma);
+            // the index-3 residual's fused constraint part (Φ and Φ_qᵀλ
+            // without the Φ_q values where the kernels have it) against Φ
+            // and Φ_qᵀλ from the values and the pattern
+            let lam = r.vec(m, -1.0, 1.0);
+            let (mut phi2, mut tmul, mut scratch) = (vec![0.0; m], vec![5.0; n], vec![0.0; nnz]);
+            sys.phi_and_jacobian_tmul(&q, t, &lam, &mut phi2, &mut tmul, &mut scratch);
+            let mut want = vec![0.0; n];
+            sys.jacobian_tmul(&vals, &lam, &mut want);
+            rel_close("Φ (fused with Φ_qᵀλ)", &phi, &phi2, 1e-13);
+            // sums of a few terms of either sign: to rounding of the largest
+            let scale = want.iter().fold(1e-300_f64, |a, x| a.max(x.abs()));
+            for (k, (x, y)) in want.iter().zip(&tmul).enumerate() {
+                assert!(
+                    (x - y).abs() <= 1e-13 * scale,
+                    "{ev:?} Φ_qᵀλ[{k}]: {x:e} from Φ_q, {y:e} fused"
+                );
+            }
             res.push((phi, vals, phi_t, gamma));
         }
         let (g, k) = (&res[0], &res[1]);

@@ -373,7 +373,9 @@ pub enum ChainElement {
 /// columns relative to `3k`) and parameters `n_par·k …`:
 /// `c_phi(q, p, out)`, `c_jacobian(q, p, vals)`, `c_phi_t(q, p, out)`,
 /// `c_gamma(q, qd, p, out)`, `c_hessian(q, p, lambda, vals)` (adds),
-/// `c_eval(q, qd, p, phi, vals, gamma)` (fused). The number of joints is
+/// `c_eval(q, qd, p, phi, vals, gamma)` (fused), `c_phi_tmul(q, p, lambda,
+/// phi, g)` (Φ and Φ_qᵀλ added to `g`, fused: the index-3 residual's
+/// constraint part). The number of joints is
 /// `p.len() / n_par`. Each body's sine and cosine are computed once per
 /// loop and carried to the next joint.
 ///
@@ -454,7 +456,8 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
     let lam = ("lambda".to_string(), arr(ne), ArgKind::Input);
     let o = |n: &str, len: usize| (n.to_string(), arr_mut(len), ArgKind::Output);
     let kdoc = "Kernel of one link (`trig` = [sin φ_k, cos φ_k, sin φ_k+1, cos φ_k+1]):";
-    let kernels = vec![
+    let kernels =
+        vec![
         (
             "phi",
             "Φ",
@@ -482,8 +485,22 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
         (
             "hessian",
             "adds (Φ_qᵀλ)_q",
-            vec![q.clone(), trig.clone(), p.clone(), lam, o("vals", nh)],
+            vec![q.clone(), trig.clone(), p.clone(), lam.clone(), o("vals", nh)],
             outs("vals", &j.hess, Store::AddAssign),
+        ),
+        (
+            "phi_tmul",
+            "Φ, and adds Φ_qᵀλ to the window `g` of the two bodies (eq. (5)'s constraint forces)",
+            vec![q.clone(), trig.clone(), p.clone(), lam.clone(), o("phi", ne), o("g", 6)],
+            [
+                outs("phi", &j.phi, Store::Assign),
+                j.tmul_cols
+                    .iter()
+                    .zip(&j.tmul)
+                    .map(|(c, &id)| (format!("g[{c}]"), id, Store::AddAssign))
+                    .collect(),
+            ]
+            .concat(),
         ),
         (
             "eval",
@@ -521,13 +538,14 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
     }
 
     // The loops.
-    let loops: [(&str, &str, &str, &str, &str); 6] = [
+    let loops: [(&str, &str, &str, &str, &str); 7] = [
         ("phi", "Φ of the chain into `out` (n_eq per joint).", "q: &[f64], p: &[f64], out: &mut [f64]", "out", ""),
         ("jacobian", "Φ_q values of the chain into `vals`, joint after joint in the per-joint pattern order.", "q: &[f64], p: &[f64], vals: &mut [f64]", "vals", ""),
         ("phi_t", "Φ_t of the chain into `out`.", "q: &[f64], p: &[f64], out: &mut [f64]", "out", ""),
         ("gamma", "γ of the chain into `out`.", "q: &[f64], qd: &[f64], p: &[f64], out: &mut [f64]", "out", "qd"),
         ("hessian", "Adds (Φ_qᵀλ)_q of the chain to `vals` (λ: this chain's multipliers).", "q: &[f64], p: &[f64], lambda: &[f64], vals: &mut [f64]", "vals", "lambda"),
         ("eval", "Φ, Φ_q values and γ of the chain in one pass.", "q: &[f64], qd: &[f64], p: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]", "", "qd"),
+        ("phi_tmul", "Φ of the chain into `phi` and Φ_qᵀλ added to `g` (3 per body, n + 1 bodies) in one pass: the constraint part of the index-3 residual without the Φ_q values.", "q: &[f64], p: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64]", "", "lambda"),
     ];
     // Each loop twice: computing the sines and cosines as it goes, and
     // (`_sc`, for kernels that read them) taking them precomputed from
@@ -563,10 +581,14 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
                 "phi" | "phi_t" | "gamma" => (vec![ne], vec![outn]),
                 "jacobian" => (vec![nj], vec![outn]),
                 "hessian" => (vec![nh], vec![outn]),
+                "phi_tmul" => (vec![ne], vec!["phi"]),
                 _ => (vec![ne, nj, ne], vec!["phi", "vals", "gamma"]),
             };
             for (sz, nm) in out_sizes.iter().zip(&out_names) {
                 let _ = writeln!(code, "    assert!({nm}.len() >= {sz} * n);");
+            }
+            if what == "phi_tmul" {
+                let _ = writeln!(code, "    assert!(g.len() >= 3 * n + 3);");
             }
             if extra == "qd" {
                 let _ = writeln!(code, "    assert!(n == 0 || qd.len() >= 3 * n + 3);");
@@ -602,6 +624,12 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
                     "        let {nm}k: &mut [f64; {sz}] = (&mut {nm}[{sz} * k..{sz} * k + {sz}]).try_into().unwrap();"
                 );
             }
+            if what == "phi_tmul" {
+                let _ = writeln!(
+                    code,
+                    "        let gk: &mut [f64; 6] = (&mut g[3 * k..3 * k + 6]).try_into().unwrap();"
+                );
+            }
             let trig_arg = if with_sc {
                 let _ = writeln!(
                     code,
@@ -618,6 +646,7 @@ fn emit_joint_chain(prefix: &str, kind: JointKind) -> (String, Stats) {
                 "phi" | "phi_t" | "jacobian" => format!("qk, {trig_arg}, pk, {outn}k"),
                 "gamma" => format!("qk, qdk, {trig_arg}, pk, {outn}k"),
                 "hessian" => format!("qk, {trig_arg}, pk, lk, {outn}k"),
+                "phi_tmul" => format!("qk, {trig_arg}, pk, lk, phik, gk"),
                 _ => format!("qk, qdk, {trig_arg}, pk, phik, valsk, gammak"),
             };
             let _ = writeln!(code, "        {prefix}_joint_{what}({call_args});");

@@ -261,6 +261,11 @@ pub struct JointModel {
     pub hess_pattern: Vec<(usize, usize)>,
     /// (Φ_qᵀλ)_q values (λ = this joint's multipliers).
     pub hess: Vec<Id>,
+    /// The coordinates Φ_qᵀλ touches (sorted), and its values there:
+    /// `Σ_r λ_r ∂Φ_r/∂q_c` (λ = this joint's multipliers).
+    pub tmul_cols: Vec<usize>,
+    /// Φ_qᵀλ at `tmul_cols`.
+    pub tmul: Vec<Id>,
     /// Range of this joint's parameters in the flat parameter vector.
     pub params: std::ops::Range<usize>,
     /// Range of this joint's time inputs in the flat time-input vector.
@@ -587,9 +592,11 @@ impl PlanarModel {
             }
         };
         let mut hess_full = std::collections::HashMap::new();
+        let mut tmul = Vec::with_capacity(cols.len());
         for &ca in &cols {
             let terms: Vec<Id> = (0..n_eq).map(|r| self.ctx.mul(lam[r], d[r][ca])).collect();
             let s = self.ctx.sum(&terms);
+            tmul.push(s);
             for &cb in &cols {
                 if cb <= ca {
                     let h = self.ctx.diff(s, self.q[cb]);
@@ -614,6 +621,8 @@ impl PlanarModel {
             gamma,
             hess_pattern,
             hess,
+            tmul_cols: cols,
+            tmul,
             params,
             time_inputs,
         }

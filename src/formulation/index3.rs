@@ -262,10 +262,8 @@ impl<'a> Index3<'a> {
                 all_finite(t, &[("the forces g", g)])
             },
             || {
-                sys.jacobian_values(q, t, jac);
-                sys.jacobian_tmul(jac, lambda, tmp);
-                sys.phi(q, t, r_phi);
-                all_finite(t, &[("the constraint Jacobian Φ_q", jac)])
+                sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac);
+                all_finite(t, &[("the constraint forces Φ_qᵀλ", tmp)])
             },
         );
         ra?;

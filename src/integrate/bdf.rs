@@ -113,12 +113,6 @@ fn ndf_shift(k: usize) -> f64 {
     NDF_KAPPA[k] * (1..=k).map(|j| 1.0 / j as f64).sum::<f64>()
 }
 
-/// `y += a x`.
-fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += a * xi;
-    }
-}
 /// Newton iterations per attempt.
 pub const MAX_NEWTON: usize = 4;
 /// Newton stops when the estimated remaining error `θ/(1 − θ)·‖Δ‖` is
@@ -306,7 +300,6 @@ struct BdfRun<'s> {
     /// `1 / max(|q_n|, |q̂|, atol/rtol)`: the Newton norm's weights.
     inv_w: Vec<f64>,
     /// `Σ_j w_j y_j` of the error estimates (up to three orders).
-    est_buf: [Vec<f64>; 3],
     ynew: Vec<f64>,
     stats: BdfStats,
     warnings: Vec<String>,
@@ -367,7 +360,6 @@ impl<'s> BdfRun<'s> {
             rv: vec![0.0; n],
             r: vec![0.0; n + m],
             inv_w: vec![0.0; n],
-            est_buf: Default::default(),
             ynew: vec![0.0; 2 * n],
             stats: BdfStats {
                 min_step_taken: f64::INFINITY,
@@ -391,9 +383,9 @@ impl<'s> BdfRun<'s> {
     /// `‖est_p ./ max(|y_n|, |y_new|, thr)‖∞` for the local errors of the
     /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
     /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
-    /// accepted ones, times [`Self::error_factor`]; the sums as axpys over
-    /// the history points, one pass for all the norms.
-    fn estimates(&mut self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
+    /// accepted ones, times [`Self::error_factor`]; one pass over the
+    /// components for all the orders (no intermediate vectors).
+    fn estimates(&self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
         for (o, &p) in ps.iter().enumerate() {
@@ -407,20 +399,14 @@ impl<'s> BdfRun<'s> {
             let c = fact * h.powi(p as i32 + 1) * self.error_factor(p);
             w[o][..p + 2].iter_mut().for_each(|x| *x *= c);
         }
-        let no = ps.len();
-        let n = self.n;
-        // Σ_j w_oj y_j for each order o, history point by history point
-        // (vectorised axpys over [q; q̇]), then one pass for the norms
-        let mut bufs = std::mem::take(&mut self.est_buf);
-        for ((buf, wo), &p) in bufs.iter_mut().zip(&w).zip(ps) {
-            buf.clear();
-            buf.extend(self.ynew.iter().map(|y| wo[0] * y));
-            // order p's difference has p + 2 nodes: t1 and p + 1 history points
-            for j in 1..p + 2 {
-                axpy(wo[j], &self.ys[j - 1], buf);
-            }
+        let (no, n) = (ps.len(), self.n);
+        let mut hist: [&[f64]; MAX_ORDER + 2] = [&[]; MAX_ORDER + 2];
+        for (hj, y) in hist.iter_mut().zip(&self.ys) {
+            *hj = y;
         }
         let (yn, ynew) = (&self.ys[0], &self.ynew);
+        // per component, Σ_j w_oj y_j for each order o over its p + 2 nodes
+        // (t1 and p + 1 history points), then the weighted max
         let mut m = [0.0f64; 3];
         for i in 0..n {
             // velocities, an index-2 variable of the index-3 form: `h·est_v`,
@@ -429,11 +415,16 @@ impl<'s> BdfRun<'s> {
             // §5.4 scale index-2 components by h)
             let inv = 1.0 / yn[i].abs().max(ynew[i].abs()).max(self.threshold[i]);
             for o in 0..no {
-                let (d, dv) = (bufs[o][i], bufs[o][n + i]);
+                let wo = &w[o];
+                let (mut d, mut dv) = (wo[0] * ynew[i], wo[0] * ynew[n + i]);
+                for j in 1..ps[o] + 2 {
+                    let y = hist[j - 1];
+                    d += wo[j] * y[i];
+                    dv += wo[j] * y[n + i];
+                }
                 m[o] = m[o].max(d.abs().max(h * dv.abs()) * inv);
             }
         }
-        self.est_buf = bufs;
         m
     }
 
@@ -484,42 +475,38 @@ impl<'s> BdfRun<'s> {
             lagrange(&past[..np], t1, &mut cp[..np]);
             np
         };
-        self.rq.fill(0.0);
-        self.rv.fill(0.0);
-        self.q.fill(0.0);
-        for j in 0..np.max(k) {
-            let cr = if j < k { a[j + 1] } else { 0.0 } + g * cp[j];
-            let (yq, yv) = self.ys[j].split_at(n);
-            axpy(cr, yq, &mut self.rq);
-            axpy(cr, yv, &mut self.rv);
-            axpy(cp[j], yq, &mut self.q);
+        let mut cr = [0.0; MAX_ORDER + 2];
+        let nh = np.max(k);
+        for j in 0..nh {
+            cr[j] = if j < k { a[j + 1] } else { 0.0 } + g * cp[j];
         }
-        if first {
-            let (fq, fv) = self.f0.split_at(n);
-            axpy(h, fq, &mut self.q);
-            axpy(g * h, fq, &mut self.rq);
-            axpy(g * h, fv, &mut self.rv);
+        let mut hist: [&[f64]; MAX_ORDER + 2] = [&[]; MAX_ORDER + 2];
+        for (hj, y) in hist.iter_mut().zip(&self.ys).take(nh) {
+            *hj = y;
         }
-        self.lam_new.copy_from_slice(&self.lam);
-        let set_vq = |q: &[f64], rq: &[f64], rv: &[f64], v: &mut [f64], qdd: &mut [f64]| {
-            for ((((vi, ai), qi), rqi), rvi) in
-                v.iter_mut().zip(qdd.iter_mut()).zip(q).zip(rq).zip(rv)
-            {
-                *vi = a0 * qi + rqi;
-                *ai = a0 * *vi + rvi;
-            }
+        let src = PredictIn {
+            n,
+            hist: &hist[..nh],
+            cr: &cr[..nh],
+            cp: &cp[..nh],
+            first: first.then_some((&self.f0[..], h, g * h)),
+            threshold: &self.threshold,
+            a0,
         };
-        set_vq(&self.q, &self.rq, &self.rv, &mut self.v, &mut self.qdd);
-        // the Newton norm's weights, from q_n and the predictor
-        for (((w, yn), q), thr) in self
-            .inv_w
-            .iter_mut()
-            .zip(&self.ys[0][..n])
-            .zip(&self.q)
-            .zip(&self.threshold)
-        {
-            *w = 1.0 / yn.abs().max(q.abs()).max(*thr);
-        }
+        predict(
+            n >= PARALLEL_MIN_COORDS,
+            Predict {
+                base: 0,
+                q: &mut self.q,
+                v: &mut self.v,
+                qdd: &mut self.qdd,
+                rq: &mut self.rq,
+                rv: &mut self.rv,
+                inv_w: &mut self.inv_w,
+            },
+            &src,
+        );
+        self.lam_new.copy_from_slice(&self.lam);
         let stale = match self.a0_fact {
             None => true,
             Some(af) => (a0 / af - 1.0).abs() > REUSE_BAND,
@@ -673,6 +660,102 @@ impl<'a> Update<'a> {
                 rv: rv1,
             },
         )
+    }
+}
+
+/// What the predictor pass reads: the history points `hist` (newest
+/// first, each `[q; q̇]` of length `2n`), the predictor's and the history
+/// sums' coefficients per point, at the first step `(ẏ_0, h, κγ)` for the
+/// Euler predictor and the NDF term, the weights' thresholds and `a_0`.
+struct PredictIn<'a> {
+    n: usize,
+    hist: &'a [&'a [f64]],
+    cr: &'a [f64],
+    cp: &'a [f64],
+    first: Option<(&'a [f64], f64, f64)>,
+    threshold: &'a [f64],
+    a0: f64,
+}
+
+/// The slices the predictor pass writes, coordinates `base …`.
+struct Predict<'a> {
+    base: usize,
+    q: &'a mut [f64],
+    v: &'a mut [f64],
+    qdd: &'a mut [f64],
+    rq: &'a mut [f64],
+    rv: &'a mut [f64],
+    inv_w: &'a mut [f64],
+}
+
+impl<'a> Predict<'a> {
+    /// The first `k` coordinates and the rest.
+    fn split(self, k: usize) -> (Predict<'a>, Predict<'a>) {
+        let (q0, q1) = self.q.split_at_mut(k);
+        let (v0, v1) = self.v.split_at_mut(k);
+        let (a0, a1) = self.qdd.split_at_mut(k);
+        let (rq0, rq1) = self.rq.split_at_mut(k);
+        let (rv0, rv1) = self.rv.split_at_mut(k);
+        let (w0, w1) = self.inv_w.split_at_mut(k);
+        (
+            Predict {
+                base: self.base,
+                q: q0,
+                v: v0,
+                qdd: a0,
+                rq: rq0,
+                rv: rv0,
+                inv_w: w0,
+            },
+            Predict {
+                base: self.base + k,
+                q: q1,
+                v: v1,
+                qdd: a1,
+                rq: rq1,
+                rv: rv1,
+                inv_w: w1,
+            },
+        )
+    }
+}
+
+/// The predictor of a BDF step and everything Newton needs from the
+/// history, in one pass over the coordinates (module docs): `q = ŷ =
+/// Σ_j cp_j q_j` (+ `h q̇_0` at the first step), the history sums
+/// `r_q = Σ_j cr_j q_j`, `r_v = Σ_j cr_j q̇_j` (+ `κγ h ẏ_0` at the first
+/// step), `q̇ = a₀ q + r_q`, `q̈ = a₀ q̇ + r_v` and the Newton norm's
+/// inverse weights `1/max(|q_n|, |ŷ|, thr)`. Element by element, so the
+/// split into two halves (`par`) changes no bit.
+fn predict(par: bool, o: Predict<'_>, x: &PredictIn<'_>) {
+    if par {
+        let k = o.q.len() / 2;
+        let (lo, hi) = o.split(k);
+        join_if(true, || predict(false, lo, x), || predict(false, hi, x));
+        return;
+    }
+    let (n, a0) = (x.n, x.a0);
+    for i in 0..o.q.len() {
+        let gi = o.base + i;
+        let (mut rq, mut rv, mut qp) = (0.0, 0.0, 0.0);
+        for ((y, &c), &p) in x.hist.iter().zip(x.cr).zip(x.cp) {
+            let (yq, yv) = (y[gi], y[n + gi]);
+            rq += c * yq;
+            rv += c * yv;
+            qp += p * yq;
+        }
+        if let Some((f0, h, gh)) = x.first {
+            qp += h * f0[gi];
+            rq += gh * f0[gi];
+            rv += gh * f0[n + gi];
+        }
+        let v = a0 * qp + rq;
+        o.q[i] = qp;
+        o.rq[i] = rq;
+        o.rv[i] = rv;
+        o.v[i] = v;
+        o.qdd[i] = a0 * v + rv;
+        o.inv_w[i] = 1.0 / x.hist[0][gi].abs().max(qp.abs()).max(x.threshold[gi]);
     }
 }
 

@@ -38,6 +38,14 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
     fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]);
     /// γ(q, q̇, t).
     fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]);
+    /// Φ(q, t) into `phi` and Φ_qᵀλ **added** to `g` (all coordinates;
+    /// λ: the range's multipliers) in one pass, without the Φ_q values:
+    /// the constraint part of the index-3 residual. Returns false when the
+    /// kernels do not have it (the caller then takes Φ and Φ_q).
+    fn phi_tmul(&self, q: &[f64], t: f64, lambda: &[f64], phi: &mut [f64], g: &mut [f64]) -> bool {
+        let _ = (q, t, lambda, phi, g);
+        false
+    }
     /// Φ, Φ_q values and γ in one pass. Default: the three calls; kernels
     /// override it to share the sines and cosines of every angle.
     fn evaluate(
@@ -730,6 +738,54 @@ impl System {
         g.fill(0.0);
         for f in &self.forces {
             f.add_forces(t, q, qd, g);
+        }
+    }
+    /// Φ(q, t) into `phi` and `out = Φ_q(q, t)ᵀ λ` in one pass over the
+    /// joints (the constraint part of the index-3 residual, eq. (5)): the
+    /// attached kernels' fused [`ConstraintKernels::phi_tmul`] where they
+    /// have it, else Φ and the Φ_q values (into the scratch `vals`, pattern
+    /// order) joint by joint.
+    pub fn phi_and_jacobian_tmul(
+        &self,
+        q: &[f64],
+        t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        out: &mut [f64],
+        vals: &mut [f64],
+    ) {
+        out.fill(0.0);
+        let tmul = |e: std::ops::Range<usize>, vals: &[f64], out: &mut [f64]| {
+            for (&(r, c), &v) in self.jac_pattern[e.clone()].iter().zip(&vals[e]) {
+                out[c] += v * lambda[r];
+            }
+        };
+        for s in &self.plan {
+            match *s {
+                Segment::Joint(k) => {
+                    let e = self.jac_offset[k]..self.jac_offset[k + 1];
+                    let c = &self.constraints[k];
+                    c.phi(q, t, &mut phi[self.rows(k)]);
+                    c.jacobian(q, t, &mut vals[e.clone()]);
+                    tmul(e, vals, out);
+                }
+                Segment::Kernels(i) => {
+                    let b = &self.kernels[i];
+                    let rows = b.rows.clone();
+                    let fused = b.kernels.phi_tmul(
+                        q,
+                        t,
+                        &lambda[rows.clone()],
+                        &mut phi[rows.clone()],
+                        out,
+                    );
+                    if !fused {
+                        b.kernels.phi(q, t, &mut phi[rows]);
+                        b.kernels.jacobian_values(q, t, &mut vals[b.vals.clone()]);
+                        tmul(b.vals.clone(), vals, out);
+                    }
+                }
+            }
         }
     }
     /// `out = Φ_q x` from Jacobian values `vals`.

@@ -2,6 +2,7 @@
 //! docs of [`super`], "Newton iteration").
 
 use super::*;
+use crate::formulation::PARALLEL_MIN_COORDS;
 
 /// A factorisation is reused while the step size stays within this
 /// relative distance of the one it was computed for.
@@ -184,30 +185,28 @@ impl Run<'_, '_> {
             }
             self.stats.newton_iterations += 1;
             it += 1;
-            let dnorm = self.r[..n]
-                .iter()
-                .zip(&self.new.q)
-                .fold(0.0_f64, |a, (d, q)| {
-                    a.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * q.abs().max(1.0)))
-                });
+            // the correction's norm in tolerances (floored at a few ulps of
+            // the positions), its size relative to the positions, and the
+            // update of q, q̇, q̈, a — one pass (two fixed halves
+            // concurrently for large n; max is order-free, so the bits do
+            // not depend on the thread count)
+            let (dx, new) = (&self.r, &mut self.new);
+            let (dnorm, drel) = correct(
+                n >= PARALLEL_MIN_COORDS,
+                Correction {
+                    q: &mut new.q,
+                    v: &mut new.v,
+                    qdd: &mut new.qdd,
+                    a: &mut new.a,
+                    d: &dx[..n],
+                },
+                [gp, bp, ap, tol_q],
+            );
             if !dnorm.is_finite() {
                 return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
             }
-            let drel = self.r[..n]
-                .iter()
-                .zip(&self.new.q)
-                .fold(0.0_f64, |a, (d, q)| a.max(d.abs() / q.abs().max(1.0)));
-            {
-                let (new, dx) = (&mut self.new, &self.r);
-                for (i, &d) in dx[..n].iter().enumerate() {
-                    new.q[i] += d;
-                    new.v[i] += gp * d;
-                    new.qdd[i] += bp * d;
-                    new.a[i] += ap * d;
-                }
-                for (l, d) in new.lam.iter_mut().zip(&dx[n..]) {
-                    *l += d / s;
-                }
+            for (l, d) in new.lam.iter_mut().zip(&dx[n..]) {
+                *l += d / s;
             }
             if fresh && it == 2 {
                 // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)
@@ -285,4 +284,70 @@ impl Run<'_, '_> {
             }
         }
     }
+}
+
+/// The slices one Newton correction of generalized-α updates.
+struct Correction<'a> {
+    q: &'a mut [f64],
+    v: &'a mut [f64],
+    qdd: &'a mut [f64],
+    a: &'a mut [f64],
+    d: &'a [f64],
+}
+
+impl<'a> Correction<'a> {
+    /// The first `k` coordinates and the rest.
+    fn split(self, k: usize) -> (Correction<'a>, Correction<'a>) {
+        let (q0, q1) = self.q.split_at_mut(k);
+        let (v0, v1) = self.v.split_at_mut(k);
+        let (qdd0, qdd1) = self.qdd.split_at_mut(k);
+        let (a0, a1) = self.a.split_at_mut(k);
+        let (d0, d1) = self.d.split_at(k);
+        (
+            Correction {
+                q: q0,
+                v: v0,
+                qdd: qdd0,
+                a: a0,
+                d: d0,
+            },
+            Correction {
+                q: q1,
+                v: v1,
+                qdd: qdd1,
+                a: a1,
+                d: d1,
+            },
+        )
+    }
+}
+
+/// One Newton correction `Δq = d` of generalized-α (module docs of
+/// [`super`]): `q += Δq`, `q̇ += γ/(βh) Δq`, `q̈ += c_m/(βh²) Δq`,
+/// `a += Δq/(βh²)` (`c = [γ/(βh), c_m/(βh²), 1/(βh²), tol_q]`), and the
+/// max-norms `‖Δq ./ (tol_q + 20 ulp·max(|q|, 1))‖∞` and
+/// `‖Δq ./ max(|q|, 1)‖∞` at the iterate before the correction. With
+/// `par`, two fixed halves concurrently (the max does not depend on the
+/// order: same bits).
+fn correct(par: bool, u: Correction<'_>, c: [f64; 4]) -> (f64, f64) {
+    if par {
+        let k = u.q.len() / 2;
+        let (lo, hi) = u.split(k);
+        let ((n0, r0), (n1, r1)) =
+            crate::linalg::join_if(true, || correct(false, lo, c), || correct(false, hi, c));
+        return (n0.max(n1), r0.max(r1));
+    }
+    let [gp, bp, ap, tol_q] = c;
+    let (mut dnorm, mut drel) = (0.0_f64, 0.0_f64);
+    for i in 0..u.q.len() {
+        let (d, q) = (u.d[i], u.q[i]);
+        let scale = q.abs().max(1.0);
+        dnorm = dnorm.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * scale));
+        drel = drel.max(d.abs() / scale);
+        u.q[i] = q + d;
+        u.v[i] += gp * d;
+        u.qdd[i] += bp * d;
+        u.a[i] += ap * d;
+    }
+    (dnorm, drel)
 }
