@@ -309,3 +309,40 @@ fn fast_sin_cos_is_within_one_ulp_of_libm() {
     assert!(s.is_nan() && c.is_nan());
     assert!(worst > 0.0, "differs from libm somewhere (else it is libm)");
 }
+
+/// The fused index-3 residual checks finiteness once (on the residual) and
+/// still names the first non-finite part: the state, then the constraint
+/// forces Φ_qᵀλ (an infinite multiplier), then the residual itself (an
+/// infinite acceleration), on the generated and the generic evaluation.
+#[test]
+fn non_finite_residual_parts_are_named() {
+    for (name, mut sys, q0) in chains() {
+        for ev in [Evaluation::Generated, Evaluation::Generic] {
+            sys.set_evaluation(ev).unwrap();
+            let (q, qd, qdd, lam) = state(&sys, &q0);
+            let (n, m) = (sys.n_coords(), sys.n_constraints());
+            let mut f = Index3::new(&sys, SolverKind::Auto).unwrap();
+            let mut r = vec![0.0; n + m];
+            let mut run = |q: &[f64], qdd: &[f64], lam: &[f64]| {
+                f.residual_into(0.1, q, &qd, qdd, lam, 1e-9, &mut r)
+                    .map_err(|e| e.to_string())
+            };
+            assert!(run(&q, &qdd, &lam).is_ok(), "{name} {ev:?}");
+            let mut bad_q = q.clone();
+            bad_q[5] = f64::NAN;
+            let e = run(&bad_q, &qdd, &lam).unwrap_err();
+            assert!(e.contains("state component phi2"), "{name} {ev:?}: {e}");
+            let mut bad_lam = lam.clone();
+            bad_lam[m - 1] = f64::INFINITY;
+            let e = run(&q, &qdd, &bad_lam).unwrap_err();
+            assert!(
+                e.contains("the constraint forces Φ_qᵀλ"),
+                "{name} {ev:?}: {e}"
+            );
+            let mut bad_qdd = qdd.clone();
+            bad_qdd[n - 1] = f64::INFINITY;
+            let e = run(&q, &bad_qdd, &lam).unwrap_err();
+            assert!(e.contains("the index-3 residual"), "{name} {ev:?}: {e}");
+        }
+    }
+}

@@ -254,20 +254,16 @@ impl<'a> Index3<'a> {
         let (g, tmp, jac) = (&mut self.g, &mut self.tmp, &mut self.jac);
         let (r_dyn, r_phi) = r.split_at_mut(n);
         let par = n >= PARALLEL_MIN_COORDS;
-        let (ra, rb) = join_if(
+        let (ra, ()) = join_if(
             par,
             || {
                 finite_state(t, q, qd)?;
                 sys.forces_into(t, q, qd, g);
-                all_finite(t, &[("the forces g", g)])
+                Ok(())
             },
-            || {
-                sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac);
-                all_finite(t, &[("the constraint forces Φ_qᵀλ", tmp)])
-            },
+            || sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac),
         );
         ra?;
-        rb?;
         let mass = sys.mass_diagonal();
         let (g, tmp) = (&self.g, &self.tmp);
         let half = n / 2;
@@ -279,7 +275,19 @@ impl<'a> Index3<'a> {
         };
         let (r_lo, r_hi) = r_dyn.split_at_mut(half);
         join_if(par, || fill(r_lo, 0), || fill(r_hi, half));
-        all_finite(t, &[("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r)])
+        // a non-finite g or Φ_qᵀλ makes r non-finite: one scan of r, and
+        // the parts only to name the first culprit
+        if crate::integrate::first_non_finite(r).is_none() {
+            return Ok(());
+        }
+        all_finite(
+            t,
+            &[
+                ("the forces g", &self.g),
+                ("the constraint forces Φ_qᵀλ", &self.tmp),
+                ("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r),
+            ],
+        )
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:
