@@ -751,6 +751,15 @@ impl ForceKernels for TorsionalChainJacobians {
         let r = self.q0..self.q0 + 3 * (self.n() + 1);
         kernels::torsional_chain_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
     }
+    /// `t = k(φ_j − φ_i − r) + c(φ̇_j − φ̇_i)` added to g_i and subtracted
+    /// from g_j, spring after spring: the element's `−T` with the same
+    /// roundings, in the same order into each entry (bit-identical;
+    /// tests/codegen.rs).
+    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        let r = self.q0..self.q0 + 3 * (self.n() + 1);
+        kernels::torsional_chain_forces(&q[r.clone()], &qd[r.clone()], &self.fp, &mut g[r]);
+        true
+    }
 }
 
 /// Generated Jacobians of the quadratic fluid drag on bodies `body0,

@@ -578,3 +578,37 @@ fn contact_kernels_match_runtime_elements() {
     }
     assert!(touching > 50, "only {touching} segments in contact");
 }
+
+/// With the torsional-chain kernels attached, the forces g come from the
+/// generated loop (`ForceKernels::add_forces`) and must be bit-identical to
+/// the elements' (so the explicit methods' trajectories do not depend on
+/// the evaluation): the stiff chain (springs from the ground and between
+/// neighbours) and the rod (springs, drag, contacts) at random states.
+#[test]
+fn generated_forces_are_bit_identical_to_the_elements() {
+    let mut r = Rng(4242);
+    let (stiff, _, _, _) = mbsolve::builders::stiff_chain(50, 0.1).unwrap();
+    let (rod, _) = mbsolve::builders::build_rod(&mbsolve::builders::RodParams::problem_b(40)).unwrap();
+    for (name, mut sys) in [("stiff chain", stiff), ("rod", rod)] {
+        assert!(
+            sys.force_kernel_names().contains(&"generated:torsional_chain"),
+            "{name}: {:?}",
+            sys.force_kernel_names()
+        );
+        let n = sys.n_coords();
+        for _ in 0..5 {
+            let q = r.vec(n, -2.0, 2.0);
+            let qd = r.vec(n, -3.0, 3.0);
+            let mut g = Vec::new();
+            for ev in [Evaluation::Generic, Evaluation::Generated] {
+                sys.set_evaluation(ev).unwrap();
+                let mut gi = vec![f64::NAN; n];
+                sys.forces_into(0.3, &q, &qd, &mut gi);
+                g.push(gi);
+            }
+            for (k, (a, b)) in g[0].iter().zip(&g[1]).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "{name} g[{k}]: {a:e} vs {b:e}");
+            }
+        }
+    }
+}
