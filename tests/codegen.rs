@@ -588,10 +588,12 @@ fn contact_kernels_match_runtime_elements() {
 fn generated_forces_are_bit_identical_to_the_elements() {
     let mut r = Rng(4242);
     let (stiff, _, _, _) = mbsolve::builders::stiff_chain(50, 0.1).unwrap();
-    let (rod, _) = mbsolve::builders::build_rod(&mbsolve::builders::RodParams::problem_b(40)).unwrap();
+    let (rod, _) =
+        mbsolve::builders::build_rod(&mbsolve::builders::RodParams::problem_b(40)).unwrap();
     for (name, mut sys) in [("stiff chain", stiff), ("rod", rod)] {
         assert!(
-            sys.force_kernel_names().contains(&"generated:torsional_chain"),
+            sys.force_kernel_names()
+                .contains(&"generated:torsional_chain"),
             "{name}: {:?}",
             sys.force_kernel_names()
         );
