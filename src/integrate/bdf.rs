@@ -99,7 +99,7 @@ use super::{
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
 };
 use crate::formulation::PARALLEL_MIN_COORDS;
-use crate::linalg::join_if;
+use crate::linalg::{in_halves, Slices};
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
@@ -299,7 +299,7 @@ struct BdfRun<'s> {
     r: Vec<f64>,
     /// `1 / max(|q_n|, |q̂|, atol/rtol)`: the Newton norm's weights.
     inv_w: Vec<f64>,
-    /// `Σ_j w_j y_j` of the error estimates (up to three orders).
+    /// The new point `[q; q̇]` of the step being tried.
     ynew: Vec<f64>,
     stats: BdfStats,
     warnings: Vec<String>,
@@ -493,18 +493,23 @@ impl<'s> BdfRun<'s> {
             threshold: &self.threshold,
             a0,
         };
-        predict(
+        in_halves(
             n >= PARALLEL_MIN_COORDS,
-            Predict {
+            n,
+            Slices {
                 base: 0,
-                q: &mut self.q,
-                v: &mut self.v,
-                qdd: &mut self.qdd,
-                rq: &mut self.rq,
-                rv: &mut self.rv,
-                inv_w: &mut self.inv_w,
+                w: [
+                    &mut self.q,
+                    &mut self.v,
+                    &mut self.qdd,
+                    &mut self.rq,
+                    &mut self.rv,
+                    &mut self.inv_w,
+                ],
+                r: [],
             },
-            &src,
+            |o| predict(o, &src),
+            |(), ()| (),
         );
         self.lam_new.copy_from_slice(&self.lam);
         let stale = match self.a0_fact {
@@ -548,19 +553,16 @@ impl<'s> BdfRun<'s> {
             // (velocities through `vfac`) and the rounding floor of q: one
             // pass, in two fixed halves concurrently for large n
             let (dq, dl) = self.r.split_at(n);
-            let (mut dnorm, at_floor) = newton_update(
+            let (mut dnorm, at_floor) = in_halves(
                 n >= PARALLEL_MIN_COORDS,
-                Update {
-                    q: &mut self.q,
-                    v: &mut self.v,
-                    qdd: &mut self.qdd,
-                    d: dq,
-                    inv_w: &self.inv_w,
-                    rq: &self.rq,
-                    rv: &self.rv,
+                n,
+                Slices {
+                    base: 0,
+                    w: [&mut self.q, &mut self.v, &mut self.qdd],
+                    r: [dq, &self.inv_w, &self.rq, &self.rv],
                 },
-                a0,
-                floor,
+                |u| newton_update(u, a0, floor),
+                |(n0, f0), (n1, f1)| (n0.max(n1), f0 && f1),
             );
             dnorm *= vfac;
             if !dnorm.is_finite() {
@@ -618,51 +620,6 @@ impl<'s> BdfRun<'s> {
     }
 }
 
-/// The coordinate slices one Newton correction updates (`q`, `v`, `qdd`)
-/// and reads (`d` = Δq, the norm's inverse weights, the history sums).
-struct Update<'a> {
-    q: &'a mut [f64],
-    v: &'a mut [f64],
-    qdd: &'a mut [f64],
-    d: &'a [f64],
-    inv_w: &'a [f64],
-    rq: &'a [f64],
-    rv: &'a [f64],
-}
-
-impl<'a> Update<'a> {
-    /// The first `k` coordinates and the rest.
-    fn split(self, k: usize) -> (Update<'a>, Update<'a>) {
-        let (q0, q1) = self.q.split_at_mut(k);
-        let (v0, v1) = self.v.split_at_mut(k);
-        let (a0, a1) = self.qdd.split_at_mut(k);
-        let (d0, d1) = self.d.split_at(k);
-        let (w0, w1) = self.inv_w.split_at(k);
-        let (rq0, rq1) = self.rq.split_at(k);
-        let (rv0, rv1) = self.rv.split_at(k);
-        (
-            Update {
-                q: q0,
-                v: v0,
-                qdd: a0,
-                d: d0,
-                inv_w: w0,
-                rq: rq0,
-                rv: rv0,
-            },
-            Update {
-                q: q1,
-                v: v1,
-                qdd: a1,
-                d: d1,
-                inv_w: w1,
-                rq: rq1,
-                rv: rv1,
-            },
-        )
-    }
-}
-
 /// What the predictor pass reads: the history points `hist` (newest
 /// first, each `[q; q̇]` of length `2n`), the predictor's and the history
 /// sums' coefficients per point, at the first step `(ẏ_0, h, κγ)` for the
@@ -677,65 +634,18 @@ struct PredictIn<'a> {
     a0: f64,
 }
 
-/// The slices the predictor pass writes, coordinates `base …`.
-struct Predict<'a> {
-    base: usize,
-    q: &'a mut [f64],
-    v: &'a mut [f64],
-    qdd: &'a mut [f64],
-    rq: &'a mut [f64],
-    rv: &'a mut [f64],
-    inv_w: &'a mut [f64],
-}
-
-impl<'a> Predict<'a> {
-    /// The first `k` coordinates and the rest.
-    fn split(self, k: usize) -> (Predict<'a>, Predict<'a>) {
-        let (q0, q1) = self.q.split_at_mut(k);
-        let (v0, v1) = self.v.split_at_mut(k);
-        let (a0, a1) = self.qdd.split_at_mut(k);
-        let (rq0, rq1) = self.rq.split_at_mut(k);
-        let (rv0, rv1) = self.rv.split_at_mut(k);
-        let (w0, w1) = self.inv_w.split_at_mut(k);
-        (
-            Predict {
-                base: self.base,
-                q: q0,
-                v: v0,
-                qdd: a0,
-                rq: rq0,
-                rv: rv0,
-                inv_w: w0,
-            },
-            Predict {
-                base: self.base + k,
-                q: q1,
-                v: v1,
-                qdd: a1,
-                rq: rq1,
-                rv: rv1,
-                inv_w: w1,
-            },
-        )
-    }
-}
-
 /// The predictor of a BDF step and everything Newton needs from the
 /// history, in one pass over the coordinates (module docs): `q = ŷ =
 /// Σ_j cp_j q_j` (+ `h q̇_0` at the first step), the history sums
 /// `r_q = Σ_j cr_j q_j`, `r_v = Σ_j cr_j q̇_j` (+ `κγ h ẏ_0` at the first
 /// step), `q̇ = a₀ q + r_q`, `q̈ = a₀ q̇ + r_v` and the Newton norm's
-/// inverse weights `1/max(|q_n|, |ŷ|, thr)`. Element by element, so the
-/// split into two halves (`par`) changes no bit.
-fn predict(par: bool, o: Predict<'_>, x: &PredictIn<'_>) {
-    if par {
-        let k = o.q.len() / 2;
-        let (lo, hi) = o.split(k);
-        join_if(true, || predict(false, lo, x), || predict(false, hi, x));
-        return;
-    }
+/// inverse weights `1/max(|q_n|, |ŷ|, thr)`, into `o.w = [q, q̇, q̈, r_q,
+/// r_v, w]`. Element by element, so the split into halves
+/// ([`in_halves`]) changes no bit.
+fn predict(o: Slices<'_, 6, 0>, x: &PredictIn<'_>) {
+    let [q, v, qdd, rq_o, rv_o, inv_w] = o.w;
     let (n, a0) = (x.n, x.a0);
-    for i in 0..o.q.len() {
+    for i in 0..q.len() {
         let gi = o.base + i;
         let (mut rq, mut rv, mut qp) = (0.0, 0.0, 0.0);
         for ((y, &c), &p) in x.hist.iter().zip(x.cr).zip(x.cp) {
@@ -749,44 +659,36 @@ fn predict(par: bool, o: Predict<'_>, x: &PredictIn<'_>) {
             rq += gh * f0[gi];
             rv += gh * f0[n + gi];
         }
-        let v = a0 * qp + rq;
-        o.q[i] = qp;
-        o.rq[i] = rq;
-        o.rv[i] = rv;
-        o.v[i] = v;
-        o.qdd[i] = a0 * v + rv;
-        o.inv_w[i] = 1.0 / x.hist[0][gi].abs().max(qp.abs()).max(x.threshold[gi]);
+        let vi = a0 * qp + rq;
+        q[i] = qp;
+        rq_o[i] = rq;
+        rv_o[i] = rv;
+        v[i] = vi;
+        qdd[i] = a0 * vi + rv;
+        inv_w[i] = 1.0 / x.hist[0][gi].abs().max(qp.abs()).max(x.threshold[gi]);
     }
 }
 
 /// One Newton correction of the BDF step: `q += Δq`, then
 /// `q̇ = a₀ q + r_q`, `q̈ = a₀ q̇ + r_v` (the BDF derivative formula, module
 /// docs), and the max-norm `max |Δq_i| w_i` with whether every correction
-/// is below `floor·max(|q_i|, 1)`. With `par`, the two halves (a split
-/// fixed by the length) run concurrently; the max and the conjunction do
-/// not depend on the order, so neither do the results.
-fn newton_update(par: bool, u: Update<'_>, a0: f64, floor: f64) -> (f64, bool) {
-    if par {
-        let k = u.q.len() / 2;
-        let (lo, hi) = u.split(k);
-        let ((n0, f0), (n1, f1)) = join_if(
-            true,
-            || newton_update(false, lo, a0, floor),
-            || newton_update(false, hi, a0, floor),
-        );
-        return (n0.max(n1), f0 && f1);
-    }
+/// is below `floor·max(|q_i|, 1)`; `u.w = [q, q̇, q̈]`, `u.r = [Δq, w, r_q,
+/// r_v]`. Split into halves ([`in_halves`]), the max and the conjunction
+/// do not depend on the order, so neither do the results.
+fn newton_update(u: Slices<'_, 3, 4>, a0: f64, floor: f64) -> (f64, bool) {
+    let [q, v, qdd] = u.w;
+    let [d, inv_w, rq, rv] = u.r;
     let mut dnorm: f64 = 0.0;
     let mut at_floor = true;
-    for i in 0..u.q.len() {
-        let d = u.d[i];
-        dnorm = dnorm.max(d.abs() * u.inv_w[i]);
-        at_floor &= d.abs() <= floor * u.q[i].abs().max(1.0);
-        let q = u.q[i] + d;
-        u.q[i] = q;
-        let v = a0 * q + u.rq[i];
-        u.v[i] = v;
-        u.qdd[i] = a0 * v + u.rv[i];
+    for i in 0..q.len() {
+        let di = d[i];
+        dnorm = dnorm.max(di.abs() * inv_w[i]);
+        at_floor &= di.abs() <= floor * q[i].abs().max(1.0);
+        let qi = q[i] + di;
+        q[i] = qi;
+        let vi = a0 * qi + rq[i];
+        v[i] = vi;
+        qdd[i] = a0 * vi + rv[i];
     }
     (dnorm, at_floor)
 }

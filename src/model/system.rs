@@ -774,10 +774,8 @@ impl System {
         vals: &mut [f64],
     ) {
         out.fill(0.0);
-        let tmul = |e: std::ops::Range<usize>, vals: &[f64], out: &mut [f64]| {
-            for (&(r, c), &v) in self.jac_pattern[e.clone()].iter().zip(&vals[e]) {
-                out[c] += v * lambda[r];
-            }
+        let tmul = |e: Range<usize>, vals: &[f64], out: &mut [f64]| {
+            self.add_jacobian_tmul(e, vals, lambda, out)
         };
         for s in &self.plan {
             match *s {
@@ -817,7 +815,11 @@ impl System {
     /// `out = Φ_qᵀ y` from Jacobian values `vals`.
     pub fn jacobian_tmul(&self, vals: &[f64], y: &[f64], out: &mut [f64]) {
         out.fill(0.0);
-        for (&(r, c), &v) in self.jac_pattern.iter().zip(vals) {
+        self.add_jacobian_tmul(0..self.jac_pattern.len(), vals, y, out);
+    }
+    /// `out += Φ_qᵀ y` over the Jacobian entries `e` (pattern order).
+    fn add_jacobian_tmul(&self, e: Range<usize>, vals: &[f64], y: &[f64], out: &mut [f64]) {
+        for (&(r, c), &v) in self.jac_pattern[e.clone()].iter().zip(&vals[e]) {
             out[c] += v * y[r];
         }
     }

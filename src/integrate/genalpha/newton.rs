@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::formulation::PARALLEL_MIN_COORDS;
+use crate::linalg::{in_halves, Slices};
 
 /// A factorisation is reused while the step size stays within this
 /// relative distance of the one it was computed for.
@@ -191,16 +192,16 @@ impl Run<'_, '_> {
             // concurrently for large n; max is order-free, so the bits do
             // not depend on the thread count)
             let (dx, new) = (&self.r, &mut self.new);
-            let (dnorm, drel) = correct(
+            let (dnorm, drel) = in_halves(
                 n >= PARALLEL_MIN_COORDS,
-                Correction {
-                    q: &mut new.q,
-                    v: &mut new.v,
-                    qdd: &mut new.qdd,
-                    a: &mut new.a,
-                    d: &dx[..n],
+                n,
+                Slices {
+                    base: 0,
+                    w: [&mut new.q, &mut new.v, &mut new.qdd, &mut new.a],
+                    r: [&dx[..n]],
                 },
-                [gp, bp, ap, tol_q],
+                |u| correct(u, [gp, bp, ap, tol_q]),
+                |(n0, r0), (n1, r1)| (n0.max(n1), r0.max(r1)),
             );
             if !dnorm.is_finite() {
                 return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
@@ -286,68 +287,26 @@ impl Run<'_, '_> {
     }
 }
 
-/// The slices one Newton correction of generalized-α updates.
-struct Correction<'a> {
-    q: &'a mut [f64],
-    v: &'a mut [f64],
-    qdd: &'a mut [f64],
-    a: &'a mut [f64],
-    d: &'a [f64],
-}
-
-impl<'a> Correction<'a> {
-    /// The first `k` coordinates and the rest.
-    fn split(self, k: usize) -> (Correction<'a>, Correction<'a>) {
-        let (q0, q1) = self.q.split_at_mut(k);
-        let (v0, v1) = self.v.split_at_mut(k);
-        let (qdd0, qdd1) = self.qdd.split_at_mut(k);
-        let (a0, a1) = self.a.split_at_mut(k);
-        let (d0, d1) = self.d.split_at(k);
-        (
-            Correction {
-                q: q0,
-                v: v0,
-                qdd: qdd0,
-                a: a0,
-                d: d0,
-            },
-            Correction {
-                q: q1,
-                v: v1,
-                qdd: qdd1,
-                a: a1,
-                d: d1,
-            },
-        )
-    }
-}
-
-/// One Newton correction `Δq = d` of generalized-α (module docs of
-/// [`super`]): `q += Δq`, `q̇ += γ/(βh) Δq`, `q̈ += c_m/(βh²) Δq`,
-/// `a += Δq/(βh²)` (`c = [γ/(βh), c_m/(βh²), 1/(βh²), tol_q]`), and the
-/// max-norms `‖Δq ./ (tol_q + 20 ulp·max(|q|, 1))‖∞` and
-/// `‖Δq ./ max(|q|, 1)‖∞` at the iterate before the correction. With
-/// `par`, two fixed halves concurrently (the max does not depend on the
-/// order: same bits).
-fn correct(par: bool, u: Correction<'_>, c: [f64; 4]) -> (f64, f64) {
-    if par {
-        let k = u.q.len() / 2;
-        let (lo, hi) = u.split(k);
-        let ((n0, r0), (n1, r1)) =
-            crate::linalg::join_if(true, || correct(false, lo, c), || correct(false, hi, c));
-        return (n0.max(n1), r0.max(r1));
-    }
+/// One Newton correction `Δq = u.r[0]` of generalized-α (module docs of
+/// [`super`]) on `u.w = [q, q̇, q̈, a]`: `q += Δq`, `q̇ += γ/(βh) Δq`,
+/// `q̈ += c_m/(βh²) Δq`, `a += Δq/(βh²)` (`c = [γ/(βh), c_m/(βh²), 1/(βh²),
+/// tol_q]`), and the max-norms `‖Δq ./ (tol_q + 20 ulp·max(|q|, 1))‖∞` and
+/// `‖Δq ./ max(|q|, 1)‖∞` at the iterate before the correction. Split into
+/// halves ([`in_halves`]), the max does not depend on the order: same bits.
+fn correct(u: Slices<'_, 4, 1>, c: [f64; 4]) -> (f64, f64) {
+    let [q, v, qdd, a] = u.w;
+    let [d] = u.r;
     let [gp, bp, ap, tol_q] = c;
     let (mut dnorm, mut drel) = (0.0_f64, 0.0_f64);
-    for i in 0..u.q.len() {
-        let (d, q) = (u.d[i], u.q[i]);
-        let scale = q.abs().max(1.0);
-        dnorm = dnorm.max(d.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * scale));
-        drel = drel.max(d.abs() / scale);
-        u.q[i] = q + d;
-        u.v[i] += gp * d;
-        u.qdd[i] += bp * d;
-        u.a[i] += ap * d;
+    for i in 0..q.len() {
+        let (di, qi) = (d[i], q[i]);
+        let scale = qi.abs().max(1.0);
+        dnorm = dnorm.max(di.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * scale));
+        drel = drel.max(di.abs() / scale);
+        q[i] = qi + di;
+        v[i] += gp * di;
+        qdd[i] += bp * di;
+        a[i] += ap * di;
     }
     (dnorm, drel)
 }
