@@ -307,6 +307,18 @@ impl Case {
         self.x.copy_from_slice(&self.b);
         self.hand.solve(&mut self.x);
     }
+    /// The solve alone, on the factorisation of the last `env` call.
+    fn env_solve(&mut self) {
+        self.x.copy_from_slice(&self.b);
+        self.env
+            .solve_in_place(&self.k, &mut self.x)
+            .expect("solves");
+    }
+    /// The solve alone, on the factorisation of the last `hand` call.
+    fn hand_solve(&mut self) {
+        self.x.copy_from_slice(&self.b);
+        self.hand.solve(&mut self.x);
+    }
 }
 
 /// Seconds per call of `f`: minimum over `reps` batches of `batch` calls.
@@ -338,6 +350,20 @@ fn ratios() {
             th * 1e6,
             te / th,
             tf / th
+        );
+        // the solve alone (what each Newton iteration on a kept matrix pays)
+        c.env();
+        c.hand();
+        let (mut se, mut sh) = (f64::MAX, f64::MAX);
+        for _ in 0..30 {
+            se = se.min(min_time(&mut c, Case::env_solve, batch));
+            sh = sh.min(min_time(&mut c, Case::hand_solve, batch));
+        }
+        println!(
+            "N = {nb}: solve alone envelope {:.1} µs, hand-written {:.1} µs; envelope/hand = {:.2}",
+            se * 1e6,
+            sh * 1e6,
+            se / sh
         );
     }
 }

@@ -212,6 +212,52 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     }
 }
 
+/// [`sin_cos`] of four angles, lane by lane the same operations (so the
+/// same bits) without branches: the quadrant from the low bits of the
+/// rounded quotient, the swap and signs as bit selects, so the lanes run
+/// in SIMD registers. `None` when a lane needs more than [`sin_cos`]'s first
+/// reduction step (a NaN, `|x| ≥ 1 647 099`, or cancellation against a
+/// multiple of π/2): then call [`sin_cos`] per angle.
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
+#[inline]
+pub fn sin_cos4(x: [f64; 4]) -> Option<([f64; 4], [f64; 4])> {
+    const INV_PIO2: f64 = 6.366_197_723_675_813_824_33e-1;
+    const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
+    const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
+    const TOINT: f64 = 6_755_399_441_055_744.0;
+    const SIGN: u64 = 1 << 63;
+    let (mut s, mut c) = ([0.0; 4], [0.0; 4]);
+    let mut ok = true;
+    for l in 0..4 {
+        let xl = x[l];
+        // |x| < 1 647 099 and not NaN: the range of the single reduction
+        ok &= xl.abs() < 1_647_099.0;
+        let t = xl * INV_PIO2 + TOINT;
+        // t = 1.5·2⁵² + n exactly: its low bits are n mod 4
+        let quadrant = t.to_bits() & 3;
+        let n = t - TOINT;
+        let r = xl - n * PIO2_1;
+        let w = n * PIO2_1T;
+        let y0 = r - w;
+        let ey = (y0.to_bits() >> 52) as i64 & 0x7ff;
+        let ex = (xl.to_bits() >> 52) as i64 & 0x7ff;
+        ok &= ex - ey <= 16;
+        let y1 = (r - y0) - w;
+        let (ks, kc) = (kernel_sin(y0, y1), kernel_cos(y0, y1));
+        // quadrant 0: (s, c), 1: (c, −s), 2: (−s, −c), 3: (−c, s)
+        let swap = 0u64.wrapping_sub(quadrant & 1);
+        let (kb, cb) = (ks.to_bits(), kc.to_bits());
+        let sb = (kb & !swap) | (cb & swap);
+        let cb2 = (cb & !swap) | (kb & swap);
+        let s_neg = (quadrant & 2) << 62;
+        let c_neg = ((quadrant + 1) & 2) << 62;
+        s[l] = f64::from_bits(sb ^ (s_neg & SIGN));
+        c[l] = f64::from_bits(cb2 ^ (c_neg & SIGN));
+    }
+    ok.then_some((s, c))
+}
+
 /// fdlibm `__kernel_sin(x, y, 1)`: sin(x + y) on `|x| ≤ π/4`, `|y| ≤ ulp(x)/2`.
 // fdlibm's constants as published (each rounds to the intended double)
 #[allow(clippy::excessive_precision, clippy::approx_constant)]
@@ -293,13 +339,43 @@ const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
 /// Sines and cosines of the angles of bodies `b0, b0 + 1, …` whose angle
 /// changed since the last call (bits compared).
 fn trig_update(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
-    for (k, bits) in phi_bits.iter_mut().enumerate() {
+    let nb = phi_bits.len();
+    let mut k = 0;
+    // four bodies at a time where any of them changed ([`sin_cos4`], the
+    // same bits as one at a time)
+    while k + 4 <= nb {
+        let x: [f64; 4] = std::array::from_fn(|l| q[3 * (b0 + k + l) + 2]);
+        if (0..4).any(|l| phi_bits[k + l] != x[l].to_bits()) {
+            if let Some((s, c)) = sin_cos4(x) {
+                for l in 0..4 {
+                    sc[2 * (k + l)] = s[l];
+                    sc[2 * (k + l) + 1] = c[l];
+                    phi_bits[k + l] = x[l].to_bits();
+                }
+            } else {
+                trig_update_one(q, b0, k..k + 4, phi_bits, sc);
+            }
+        }
+        k += 4;
+    }
+    trig_update_one(q, b0, k..nb, phi_bits, sc);
+}
+
+/// [`trig_update`] of bodies `b0 + k` for `k` in `ks`, one at a time.
+fn trig_update_one(
+    q: &[f64],
+    b0: usize,
+    ks: std::ops::Range<usize>,
+    phi_bits: &mut [u64],
+    sc: &mut [f64],
+) {
+    for k in ks {
         let phi = q[3 * (b0 + k) + 2];
-        if *bits != phi.to_bits() {
+        if phi_bits[k] != phi.to_bits() {
             let (s, c) = sin_cos(phi);
             sc[2 * k] = s;
             sc[2 * k + 1] = c;
-            *bits = phi.to_bits();
+            phi_bits[k] = phi.to_bits();
         }
     }
 }

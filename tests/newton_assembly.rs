@@ -310,6 +310,54 @@ fn fast_sin_cos_is_within_one_ulp_of_libm() {
     assert!(worst > 0.0, "differs from libm somewhere (else it is libm)");
 }
 
+/// The four-lane `sin_cos4` gives `sin_cos`'s bits lane by lane wherever it
+/// answers, answers on ordinary angles, and declines (None) for a NaN, a
+/// huge argument and an angle cancelling against a multiple of π/2.
+#[test]
+fn four_lane_sin_cos_has_the_bits_of_sin_cos() {
+    use mbsolve::generated::{sin_cos, sin_cos4};
+    let mut xs: Vec<f64> = (0..40_000)
+        .map(|i| -700.0 + 1400.0 * (i as f64) / 40_000.0 + 1e-7 * (i as f64).sin())
+        .collect();
+    for k in -16..=16 {
+        let a = k as f64 * std::f64::consts::FRAC_PI_4;
+        xs.extend([a + 1e-3, a - 1e-3, a + 0.3, -a - 0.7]);
+    }
+    let mut answered = 0;
+    for x in xs.chunks_exact(4) {
+        let x: [f64; 4] = x.try_into().expect("four");
+        if let Some((s, c)) = sin_cos4(x) {
+            answered += 1;
+            for l in 0..4 {
+                let (s1, c1) = sin_cos(x[l]);
+                assert_eq!(
+                    (s[l].to_bits(), c[l].to_bits()),
+                    (s1.to_bits(), c1.to_bits()),
+                    "x = {:e}",
+                    x[l]
+                );
+            }
+        }
+    }
+    // declined: some lane within |x|·2⁻¹⁶ of a multiple of π/2 (≈ 5 % of
+    // the chunks up to 700 rad)
+    assert!(
+        10 * answered >= 9 * (xs.len() / 4),
+        "{answered} of {}",
+        xs.len() / 4
+    );
+    // a hanging chain's angles
+    assert!(sin_cos4([-1.4, -1.5, -1.6, -1.7]).is_some());
+    for odd in [
+        f64::NAN,
+        2e6,
+        -std::f64::consts::FRAC_PI_2,
+        std::f64::consts::PI,
+    ] {
+        assert!(sin_cos4([0.1, 0.2, odd, 0.3]).is_none(), "{odd:e}");
+    }
+}
+
 /// The fused index-3 residual checks finiteness once (on the residual) and
 /// still names the first non-finite part: the state, then the constraint
 /// forces Φ_qᵀλ (an infinite multiplier), then the residual itself (an

@@ -113,6 +113,10 @@ fn ndf_shift(k: usize) -> f64 {
     NDF_KAPPA[k] * (1..=k).map(|j| 1.0 / j as f64).sum::<f64>()
 }
 
+/// Coordinates per chunk of bdf's element-wise passes (`predict`,
+/// `estimates`): their partial sums stay in L1 while the history streams by.
+const CHUNK: usize = 256;
+
 /// Newton iterations per attempt.
 pub const MAX_NEWTON: usize = 4;
 /// Newton stops when the estimated remaining error `θ/(1 − θ)·‖Δ‖` is
@@ -384,7 +388,7 @@ impl<'s> BdfRun<'s> {
     /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
     /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
     /// accepted ones, times [`Self::error_factor`]; one pass over the
-    /// components for all the orders (no intermediate vectors).
+    /// components for all the orders, in chunks of [`CHUNK`] (stack buffers).
     fn estimates(&self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
@@ -406,24 +410,45 @@ impl<'s> BdfRun<'s> {
         }
         let (yn, ynew) = (&self.ys[0], &self.ynew);
         // per component, Σ_j w_oj y_j for each order o over its p + 2 nodes
-        // (t1 and p + 1 history points), then the weighted max
+        // (t1 and p + 1 history points), then the weighted max; in chunks
+        // that stay in L1, each sum over contiguous slices (vectorised),
+        // the terms in the same order as one component at a time
         let mut m = [0.0f64; 3];
-        for i in 0..n {
-            // velocities, an index-2 variable of the index-3 form: `h·est_v`,
-            // the position error they make over the step, in the positions'
-            // weights (Hairer & Wanner II §VII.3; Brenan, Campbell & Petzold
-            // §5.4 scale index-2 components by h)
-            let inv = 1.0 / yn[i].abs().max(ynew[i].abs()).max(self.threshold[i]);
+        let (mut dq, mut dv, mut inv) = ([0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
+        let mut s = 0;
+        while s < n {
+            let e = (s + CHUNK).min(n);
+            let c = e - s;
+            let (yq, yv) = (&ynew[s..e], &ynew[n + s..n + e]);
+            let (ynq, thr) = (&yn[s..e], &self.threshold[s..e]);
+            for l in 0..c {
+                inv[l] = 1.0 / ynq[l].abs().max(yq[l].abs()).max(thr[l]);
+            }
             for o in 0..no {
                 let wo = &w[o];
-                let (mut d, mut dv) = (wo[0] * ynew[i], wo[0] * ynew[n + i]);
-                for j in 1..ps[o] + 2 {
-                    let y = hist[j - 1];
-                    d += wo[j] * y[i];
-                    dv += wo[j] * y[n + i];
+                for l in 0..c {
+                    dq[l] = wo[0] * yq[l];
+                    dv[l] = wo[0] * yv[l];
                 }
-                m[o] = m[o].max(d.abs().max(h * dv.abs()) * inv);
+                for j in 1..ps[o] + 2 {
+                    let (hq, hv, wj) = (&hist[j - 1][s..e], &hist[j - 1][n + s..n + e], wo[j]);
+                    for l in 0..c {
+                        dq[l] += wj * hq[l];
+                        dv[l] += wj * hv[l];
+                    }
+                }
+                // velocities, an index-2 variable of the index-3 form:
+                // `h·est_v`, the position error they make over the step,
+                // in the positions' weights (Hairer & Wanner II §VII.3;
+                // Brenan, Campbell & Petzold §5.4 scale index-2 components
+                // by h)
+                let mut mo = m[o];
+                for l in 0..c {
+                    mo = mo.max(dq[l].abs().max(h * dv[l].abs()) * inv[l]);
+                }
+                m[o] = mo;
             }
+            s = e;
         }
         m
     }
@@ -643,29 +668,49 @@ struct PredictIn<'a> {
 /// r_v, w]`. Element by element, so the split into halves
 /// ([`in_halves`]) changes no bit.
 fn predict(o: Slices<'_, 6, 0>, x: &PredictIn<'_>) {
-    let [q, v, qdd, rq_o, rv_o, inv_w] = o.w;
-    let (n, a0) = (x.n, x.a0);
-    for i in 0..q.len() {
-        let gi = o.base + i;
-        let (mut rq, mut rv, mut qp) = (0.0, 0.0, 0.0);
-        for ((y, &c), &p) in x.hist.iter().zip(x.cr).zip(x.cp) {
-            let (yq, yv) = (y[gi], y[n + gi]);
-            rq += c * yq;
-            rv += c * yv;
-            qp += p * yq;
+    let [q, v, qdd, rq, rv, inv_w] = o.w;
+    let (n, a0, len) = (x.n, x.a0, q.len());
+    // in chunks that stay in L1, each sum over contiguous slices
+    // (vectorised), its terms in the same order as one coordinate at a time
+    let mut s = 0;
+    while s < len {
+        let e = (s + CHUNK).min(len);
+        let (gs, ge) = (o.base + s, o.base + e);
+        let (q, rq, rv) = (&mut q[s..e], &mut rq[s..e], &mut rv[s..e]);
+        for (j, ((y, &c), &p)) in x.hist.iter().zip(x.cr).zip(x.cp).enumerate() {
+            let (yq, yv) = (&y[gs..ge], &y[n + gs..n + ge]);
+            if j == 0 {
+                // `0.0 + …`: the sums start from +0, as one at a time
+                for l in 0..q.len() {
+                    rq[l] = 0.0 + c * yq[l];
+                    rv[l] = 0.0 + c * yv[l];
+                    q[l] = 0.0 + p * yq[l];
+                }
+            } else {
+                for l in 0..q.len() {
+                    rq[l] += c * yq[l];
+                    rv[l] += c * yv[l];
+                    q[l] += p * yq[l];
+                }
+            }
         }
         if let Some((f0, h, gh)) = x.first {
-            qp += h * f0[gi];
-            rq += gh * f0[gi];
-            rv += gh * f0[n + gi];
+            let (fq, fv) = (&f0[gs..ge], &f0[n + gs..n + ge]);
+            for l in 0..q.len() {
+                q[l] += h * fq[l];
+                rq[l] += gh * fq[l];
+                rv[l] += gh * fv[l];
+            }
         }
-        let vi = a0 * qp + rq;
-        q[i] = qp;
-        rq_o[i] = rq;
-        rv_o[i] = rv;
-        v[i] = vi;
-        qdd[i] = a0 * vi + rv;
-        inv_w[i] = 1.0 / x.hist[0][gi].abs().max(qp.abs()).max(x.threshold[gi]);
+        let (v, qdd, inv_w) = (&mut v[s..e], &mut qdd[s..e], &mut inv_w[s..e]);
+        let (y0, thr) = (&x.hist[0][gs..ge], &x.threshold[gs..ge]);
+        for l in 0..q.len() {
+            let vi = a0 * q[l] + rq[l];
+            v[l] = vi;
+            qdd[l] = a0 * vi + rv[l];
+            inv_w[l] = 1.0 / y0[l].abs().max(q[l].abs()).max(thr[l]);
+        }
+        s = e;
     }
 }
 
@@ -792,9 +837,18 @@ impl Stepper for BdfRun<'_> {
                 Newton::Converged => {}
             }
             newton_retry = false;
-            self.ynew[..n].copy_from_slice(&self.q);
-            self.ynew[n..].copy_from_slice(&self.v);
-            if let Some((index, value)) = common::first_non_finite(&self.ynew) {
+            // copy [q; q̇] and check it finite in one pass (located only
+            // on failure)
+            let mut finite = true;
+            let (yq, yv) = self.ynew.split_at_mut(n);
+            for (d, &x) in yq.iter_mut().zip(&self.q).chain(yv.iter_mut().zip(&self.v)) {
+                *d = x;
+                finite &= x.is_finite();
+            }
+            if let Some((index, value)) = (!finite)
+                .then(|| common::first_non_finite(&self.ynew))
+                .flatten()
+            {
                 return Err(Failure::NonFinite {
                     what: "step",
                     t: t1,

@@ -50,10 +50,17 @@
 //! follows: forward substitution of `T` and `B`, of `S`; `D⁻¹`; backward
 //! substitution of `S`, then of `T` and `B`. From [`PARALLEL_MIN_DIM`] on
 //! the two halves (with their scaling, loading of values, gathers and
-//! scatters) run concurrently (`rayon::join`). The split point is fixed by
-//! the pattern, never by the thread count, and each half is sequential
-//! inside: one thread and two compute the same operations in the same
-//! order, so the results are bit-identical (tests/parallel_newton.rs). The
+//! scatters) run concurrently (`rayon::join`) when the pool has two
+//! threads; on one thread the substitutions take a row of `T` and a row of
+//! `B` in turn. A substitution is a chain of dependent rows (row `i` needs
+//! row `i − 1`'s result), bound by latency, not arithmetic: two independent
+//! chains in flight overlap in the core, and each row takes the previous
+//! row's result from a register instead of storing and reloading it
+//! (forward: `y_{i−1}`; backward: the last update `L_{i+1,i} z_{i+1}`).
+//! The split point is fixed by the pattern, never by the thread count, and
+//! each row does the same operations in the same order on either path, so
+//! the results are bit-identical for one thread and two
+//! (tests/parallel_newton.rs). The
 //! two-sided order rounds differently from the one-sided one (a different
 //! elimination order), at rounding level.
 
@@ -467,20 +474,27 @@ impl Envelope {
                 w[i - base] = xr[perm[i]] * pscale[i];
             }
         };
+        // two threads: a half each; one: both halves' rows in turn
+        let two = par && rayon::current_num_threads() > 1;
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
-            join_if(
-                par,
-                || {
-                    gather(0..s0, w_t);
-                    forward_rows(first, ptr, env, 0, 0..s0, w_t);
-                },
-                || {
-                    gather(s0..sb, w_b);
-                    forward_rows(first, ptr, env, s0, s0..sb, w_b);
-                },
-            );
+            if two {
+                rayon::join(
+                    || {
+                        gather(0..s0, w_t);
+                        forward_rows(first, ptr, env, 0, 0..s0, w_t);
+                    },
+                    || {
+                        gather(s0..sb, w_b);
+                        forward_rows(first, ptr, env, s0, s0..sb, w_b);
+                    },
+                );
+            } else {
+                gather(0..s0, w_t);
+                gather(s0..sb, w_b);
+                forward_interleaved(first, ptr, env, (0, 0..s0, w_t), (s0, s0..sb, w_b));
+            }
         }
         gather(sb..dim, &mut w[sb..]);
         for i in sb..dim {
@@ -518,11 +532,14 @@ impl Envelope {
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
-            join_if(
-                par,
-                || backward_rows(first, ptr, env, 0, 0..s0, w_t),
-                || backward_rows(first, ptr, env, s0, s0..sb, w_b),
-            );
+            if two {
+                rayon::join(
+                    || backward_rows(first, ptr, env, 0, 0..s0, w_t),
+                    || backward_rows(first, ptr, env, s0, s0..sb, w_b),
+                );
+            } else {
+                backward_interleaved(first, ptr, env, (0, 0..s0, w_t), (s0, s0..sb, w_b));
+            }
         }
         // x = S Pᵀ z as a gather over x's two halves
         let (w, inv) = (&self.w, &self.inv);
@@ -724,19 +741,45 @@ fn forward_rows(
     rows: std::ops::Range<usize>,
     w: &mut [f64],
 ) {
+    let mut prev = 0.0;
     for i in rows {
-        let (fi, pi) = (first[i], ptr[i]);
-        assert!(ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
+        prev = forward_row(first, ptr, env, base, i, w, prev);
+    }
+}
+
+/// Row `i` of [`forward_rows`]: `y_i = w_i − Σ_j L_ij y_j` over its
+/// envelope `[first[i], i)`, which ends at column `i − 1` when not empty:
+/// `prev = y_{i−1}`, the previous row's result, is taken from the register
+/// instead of `w`, so the chain of dependent rows does not wait on a store
+/// and a reload. Returns `y_i`. The terms are added in column order (the
+/// same bits as a plain dot product).
+#[inline(always)]
+fn forward_row(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    i: usize,
+    w: &mut [f64],
+    prev: f64,
+) -> f64 {
+    let (fi, pi) = (first[i], ptr[i]);
+    assert!(ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
+    let len = i - fi;
+    let mut y = w[i - base];
+    if len > 0 {
         let mut dot = 0.0;
-        for o in 0..i - fi {
+        for o in 0..len - 1 {
             // SAFETY: row i's entries are env[pi..ptr[i + 1]] (checked
             // above) and its columns base ≤ fi + o < i lie in `w`.
             unsafe {
                 dot += env.get_unchecked(pi + o) * w.get_unchecked(fi - base + o);
             }
         }
-        w[i - base] -= dot;
+        y -= dot + env[pi + len - 1] * prev;
+        w[i - base] = y;
     }
+    y
 }
 
 /// Backward substitution `Lᵀ z = w` over the plain rows `rows` of one
@@ -749,16 +792,89 @@ fn backward_rows(
     rows: std::ops::Range<usize>,
     w: &mut [f64],
 ) {
+    let mut carry = (0.0, 0.0);
     for i in rows.rev() {
-        let (fi, pi, wi) = (first[i], ptr[i], w[i - base]);
-        assert!(ptr[i + 1] <= env.len() && fi >= base);
-        for o in 0..i - fi {
-            // SAFETY: as in `forward_rows`
-            unsafe {
-                *w.get_unchecked_mut(fi - base + o) -= env.get_unchecked(pi + o) * wi;
-            }
+        carry = backward_row(first, ptr, env, base, i, w, carry);
+    }
+}
+
+/// Row `i` of [`backward_rows`]: `z_i = w_i − L_{i+1,i} z_{i+1}` with the
+/// last update, `carry = (L_{i+1,i}, z_{i+1})` from the row after, taken
+/// from the register (the others are already in `w`), then `w_j −= L_ij
+/// z_i` over the envelope but its last column `i − 1`, which is returned
+/// as the next row's carry. The updates of each `w_j` come in the same
+/// order as scattered one by one (the same bits).
+#[inline(always)]
+fn backward_row(
+    first: &[usize],
+    ptr: &[usize],
+    env: &[f64],
+    base: usize,
+    i: usize,
+    w: &mut [f64],
+    carry: (f64, f64),
+) -> (f64, f64) {
+    let (fi, pi) = (first[i], ptr[i]);
+    assert!(ptr[i + 1] <= env.len() && fi >= base);
+    let zi = w[i - base] - carry.0 * carry.1;
+    w[i - base] = zi;
+    let len = i - fi;
+    if len == 0 {
+        return (0.0, 0.0);
+    }
+    for o in 0..len - 1 {
+        // SAFETY: as in `forward_row`
+        unsafe {
+            *w.get_unchecked_mut(fi - base + o) -= env.get_unchecked(pi + o) * zi;
         }
     }
+    (env[pi + len - 1], zi)
+}
+
+/// One half's plain rows for a substitution: the first row's index
+/// (`base`), the rows and their part of the right-hand side.
+type Half<'a> = (usize, std::ops::Range<usize>, &'a mut [f64]);
+
+/// [`forward_rows`] of both halves on one thread, a row of each in turn.
+/// Each substitution is a chain of dependent rows (row `i` waits for row
+/// `i − 1`), latency-bound; the two independent chains overlap in the
+/// core. Every row does the same operations as in [`forward_rows`], so
+/// the results are the same bits.
+fn forward_interleaved(first: &[usize], ptr: &[usize], env: &[f64], t: Half<'_>, b: Half<'_>) {
+    let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
+    let common = rt.len().min(rb.len());
+    let (mut pt, mut pb) = (0.0, 0.0);
+    for r in 0..common {
+        pt = forward_row(first, ptr, env, bt, rt.start + r, wt, pt);
+        pb = forward_row(first, ptr, env, bb, rb.start + r, wb, pb);
+    }
+    // the longer half's rest, its chain continued
+    let rest = |(b, r, w): Half<'_>, mut prev: f64| {
+        for i in r.start + common..r.end {
+            prev = forward_row(first, ptr, env, b, i, w, prev);
+        }
+    };
+    rest((bt, rt, wt), pt);
+    rest((bb, rb, wb), pb);
+}
+
+/// [`backward_rows`] of both halves on one thread, a row of each in turn
+/// from their last rows (as [`forward_interleaved`]).
+fn backward_interleaved(first: &[usize], ptr: &[usize], env: &[f64], t: Half<'_>, b: Half<'_>) {
+    let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
+    let common = rt.len().min(rb.len());
+    let (mut ct, mut cb) = ((0.0, 0.0), (0.0, 0.0));
+    for r in 1..=common {
+        ct = backward_row(first, ptr, env, bt, rt.end - r, wt, ct);
+        cb = backward_row(first, ptr, env, bb, rb.end - r, wb, cb);
+    }
+    let rest = |(b, r, w): Half<'_>, mut carry: (f64, f64)| {
+        for i in (r.start..r.end - common).rev() {
+            carry = backward_row(first, ptr, env, b, i, w, carry);
+        }
+    };
+    rest((bt, rt, wt), ct);
+    rest((bb, rb, wb), cb);
 }
 
 /// LDLᵀ of the saddle-point matrix that takes the envelope path of the
