@@ -218,10 +218,33 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 /// in SIMD registers. `None` when a lane needs more than [`sin_cos`]'s first
 /// reduction step (a NaN, `|x| ≥ 1 647 099`, or cancellation against a
 /// multiple of π/2): then call [`sin_cos`] per angle.
-// fdlibm's constants as published (each rounds to the intended double)
-#[allow(clippy::excessive_precision, clippy::approx_constant)]
+///
+/// On x86-64 processors with AVX2 the four lanes run in one 256-bit
+/// register (detected at run time; the same operations without fused
+/// multiply–adds, so the same bits as the SSE2 path).
 #[inline]
 pub fn sin_cos4(x: [f64; 4]) -> Option<([f64; 4], [f64; 4])> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2 (checked above)
+        return unsafe { sin_cos4_avx2(x) };
+    }
+    sin_cos4_lanes(x)
+}
+
+/// [`sin_cos4_lanes`] compiled for AVX2 (no FMA: Rust never contracts
+/// `a * b + c`, so the bits are those of the baseline build).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sin_cos4_avx2(x: [f64; 4]) -> Option<([f64; 4], [f64; 4])> {
+    sin_cos4_lanes(x)
+}
+
+/// The lanes of [`sin_cos4`].
+// fdlibm's constants as published (each rounds to the intended double)
+#[allow(clippy::excessive_precision, clippy::approx_constant)]
+#[inline(always)]
+fn sin_cos4_lanes(x: [f64; 4]) -> Option<([f64; 4], [f64; 4])> {
     const INV_PIO2: f64 = 6.366_197_723_675_813_824_33e-1;
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17e0;
     const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
@@ -880,6 +903,41 @@ impl ForceKernels for DragJacobians {
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
         let r = self.q0..self.q0 + self.fp.len();
         kernels::drag_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+    /// The drag forces of every body in one loop, the angles' sines and
+    /// cosines four at a time ([`sin_cos4`], else [`sin_cos`]): body by body
+    /// the roundings of `Drag::force` (bit-identical; tests/codegen.rs).
+    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        let nb = self.fp.len() / 3;
+        let mut k = 0;
+        while k < nb {
+            let m = (nb - k).min(4);
+            let mut x = [0.0; 4];
+            for (l, xl) in x.iter_mut().enumerate().take(m) {
+                *xl = q[self.q0 + 3 * (k + l) + 2];
+            }
+            let sc4 = if m == 4 { sin_cos4(x) } else { None };
+            for l in 0..m {
+                let (sn, cs) = match sc4 {
+                    Some((s, c)) => (s[l], c[l]),
+                    None => sin_cos(x[l]),
+                };
+                let (o, f) = (
+                    self.q0 + 3 * (k + l),
+                    &self.fp[3 * (k + l)..3 * (k + l) + 3],
+                );
+                let (vx, vy, w) = (qd[o], qd[o + 1], qd[o + 2]);
+                let vt = vx * cs + vy * sn;
+                let va = -vx * sn + vy * cs;
+                let ft = f[0] * vt.abs() * vt;
+                let fa = f[1] * va.abs() * va;
+                g[o] += ft * cs - fa * sn;
+                g[o + 1] += ft * sn + fa * cs;
+                g[o + 2] += f[2] * w.abs() * w;
+            }
+            k += m;
+        }
+        true
     }
 }
 

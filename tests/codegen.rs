@@ -597,6 +597,13 @@ fn generated_forces_are_bit_identical_to_the_elements() {
             "{name}: {:?}",
             sys.force_kernel_names()
         );
+        if name == "rod" {
+            assert!(
+                sys.force_kernel_names().contains(&"generated:drag_bodies"),
+                "{:?}",
+                sys.force_kernel_names()
+            );
+        }
         let n = sys.n_coords();
         for _ in 0..5 {
             let q = r.vec(n, -2.0, 2.0);

@@ -56,7 +56,9 @@ impl Drag {
     /// angle `phi` and velocity `v = [ẋ, ẏ, φ̇]`.
     pub fn force(&self, phi: f64, v: [f64; 3]) -> [f64; 3] {
         let (at, aa, ar) = self.coefficients();
-        let (sn, cs) = phi.sin_cos();
+        // the generated kernels' sine and cosine (one reduction for both;
+        // `DragJacobians::add_forces` has the same bits)
+        let (sn, cs) = crate::generated::sin_cos(phi);
         let vt = v[0] * cs + v[1] * sn;
         let va = -v[0] * sn + v[1] * cs;
         let ft = at * vt.abs() * vt;
@@ -94,7 +96,7 @@ impl ForceElement for Drag {
     ) {
         let o = 3 * self.body;
         let (at, aa, ar) = self.coefficients();
-        let (sn, cs) = q[o + 2].sin_cos();
+        let (sn, cs) = crate::generated::sin_cos(q[o + 2]);
         let (vx, vy, w) = (qd[o], qd[o + 1], qd[o + 2]);
         let vt = vx * cs + vy * sn;
         let va = -vx * sn + vy * cs;
