@@ -568,7 +568,9 @@ impl<'s> BdfRun<'s> {
             ) {
                 return self.newton_failed(e, fresh);
             }
-            self.r.iter_mut().for_each(|x| *x = -*x);
+            // solving for r (not −r) gives −Δ, the correction negated
+            // exactly (the solve is linear and rounds symmetrically):
+            // subtracted below, the same bits as adding Δ
             if let Err(e) = self.sys.solve(t1, &mut self.r) {
                 return self.newton_failed(e, fresh);
             }
@@ -594,7 +596,7 @@ impl<'s> BdfRun<'s> {
                 return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
             }
             for (l, d) in self.lam_new.iter_mut().zip(dl) {
-                *l += d / s;
+                *l -= d / s;
             }
             if at_floor || dnorm <= NEWTON_FLOOR * self.rtol {
                 return Newton::Converged;
@@ -717,25 +719,44 @@ fn predict(o: Slices<'_, 6, 0>, x: &PredictIn<'_>) {
 /// One Newton correction of the BDF step: `q += Δq`, then
 /// `q̇ = a₀ q + r_q`, `q̈ = a₀ q̇ + r_v` (the BDF derivative formula, module
 /// docs), and the max-norm `max |Δq_i| w_i` with whether every correction
-/// is below `floor·max(|q_i|, 1)`; `u.w = [q, q̇, q̈]`, `u.r = [Δq, w, r_q,
-/// r_v]`. Split into halves ([`in_halves`]), the max and the conjunction
-/// do not depend on the order, so neither do the results.
+/// is below `floor·max(|q_i|, 1)`; `u.w = [q, q̇, q̈]`, `u.r = [−Δq, w,
+/// r_q, r_v]` (the solve's result, the correction negated). Four
+/// coordinates per turn with a max and a conjunction per lane, so the
+/// loop runs in SIMD registers; split into halves ([`in_halves`]) or
+/// lanes, the max and the conjunction do not depend on the order, so
+/// neither do the results.
 fn newton_update(u: Slices<'_, 3, 4>, a0: f64, floor: f64) -> (f64, bool) {
+    const L: usize = 4;
     let [q, v, qdd] = u.w;
     let [d, inv_w, rq, rv] = u.r;
-    let mut dnorm: f64 = 0.0;
-    let mut at_floor = true;
-    for i in 0..q.len() {
-        let di = d[i];
-        dnorm = dnorm.max(di.abs() * inv_w[i]);
-        at_floor &= di.abs() <= floor * q[i].abs().max(1.0);
-        let qi = q[i] + di;
-        q[i] = qi;
-        let vi = a0 * qi + rq[i];
-        v[i] = vi;
-        qdd[i] = a0 * vi + rv[i];
+    let len = q.len();
+    let (q, v, qdd) = (&mut q[..len], &mut v[..len], &mut qdd[..len]);
+    let (d, inv_w, rq, rv) = (&d[..len], &inv_w[..len], &rq[..len], &rv[..len]);
+    let (mut dn, mut fl) = ([0.0f64; L], [true; L]);
+    let one =
+        |i: usize, dn: &mut f64, fl: &mut bool, q: &mut [f64], v: &mut [f64], qdd: &mut [f64]| {
+            let di = d[i];
+            *dn = dn.max(di.abs() * inv_w[i]);
+            *fl &= di.abs() <= floor * q[i].abs().max(1.0);
+            let qi = q[i] - di;
+            q[i] = qi;
+            let vi = a0 * qi + rq[i];
+            v[i] = vi;
+            qdd[i] = a0 * vi + rv[i];
+        };
+    let body = len / L * L;
+    for c in (0..body).step_by(L) {
+        for l in 0..L {
+            one(c + l, &mut dn[l], &mut fl[l], q, v, qdd);
+        }
     }
-    (dnorm, at_floor)
+    for i in body..len {
+        one(i, &mut dn[0], &mut fl[0], q, v, qdd);
+    }
+    (
+        dn.iter().fold(0.0, |a: f64, &b| a.max(b)),
+        fl.iter().all(|&f| f),
+    )
 }
 
 impl Stepper for BdfRun<'_> {
