@@ -32,6 +32,7 @@
 //! Anything else (another joint kind, other body numbering or order) gives
 //! `None`, and the system keeps its generic evaluation.
 
+use crate::forces::drag_force;
 use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
 use crate::model::{BodyRef, ConstraintKernels, ForceKernels, JointGeometry, System};
 
@@ -878,13 +879,8 @@ impl DragJacobians {
             fp: drags
                 .iter()
                 .flat_map(|d| {
-                    let (rho, w, l) = (d.fluid_density, d.width, d.length);
-                    let end = if d.end_face { d.c_end * w * w } else { 0.0 };
-                    [
-                        -0.5 * rho * d.c_transverse * w * l,
-                        -0.5 * rho * (d.c_skin * 4.0 * w * l + end),
-                        -rho * d.c_transverse * w * l.powi(4) / 64.0,
-                    ]
+                    let (at, aa, ar) = d.coefficients();
+                    [at, aa, ar]
                 })
                 .collect(),
         }
@@ -922,18 +918,16 @@ impl ForceKernels for DragJacobians {
                     Some((s, c)) => (s[l], c[l]),
                     None => sin_cos(x[l]),
                 };
-                let (o, f) = (
-                    self.q0 + 3 * (k + l),
-                    &self.fp[3 * (k + l)..3 * (k + l) + 3],
+                let (o, a) = (self.q0 + 3 * (k + l), 3 * (k + l));
+                let f = drag_force(
+                    (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
+                    sn,
+                    cs,
+                    [qd[o], qd[o + 1], qd[o + 2]],
                 );
-                let (vx, vy, w) = (qd[o], qd[o + 1], qd[o + 2]);
-                let vt = vx * cs + vy * sn;
-                let va = -vx * sn + vy * cs;
-                let ft = f[0] * vt.abs() * vt;
-                let fa = f[1] * va.abs() * va;
-                g[o] += ft * cs - fa * sn;
-                g[o + 1] += ft * sn + fa * cs;
-                g[o + 2] += f[2] * w.abs() * w;
+                g[o] += f[0];
+                g[o + 1] += f[1];
+                g[o + 2] += f[2];
             }
             k += m;
         }

@@ -39,7 +39,7 @@ pub struct Drag {
 
 impl Drag {
     /// `(a_t, a_a, a_r)`: `F_t = a_t |v_t| v_t`, `F_a = a_a |v_a| v_a`, `T = a_r |φ̇| φ̇`.
-    fn coefficients(&self) -> (f64, f64, f64) {
+    pub(crate) fn coefficients(&self) -> (f64, f64, f64) {
         let (rho, w, l) = (self.fluid_density, self.width, self.length);
         let at = -0.5 * rho * self.c_transverse * w * l;
         let end = if self.end_face {
@@ -55,16 +55,25 @@ impl Drag {
     /// The generalized force `[F_x, F_y, T]` on the segment for its
     /// angle `phi` and velocity `v = [ẋ, ẏ, φ̇]`.
     pub fn force(&self, phi: f64, v: [f64; 3]) -> [f64; 3] {
-        let (at, aa, ar) = self.coefficients();
-        // the generated kernels' sine and cosine (one reduction for both;
-        // `DragJacobians::add_forces` has the same bits)
+        // the generated kernels' sine and cosine (one reduction for both,
+        // the bits of `DragJacobians::add_forces`' four-lane ones)
         let (sn, cs) = crate::generated::sin_cos(phi);
-        let vt = v[0] * cs + v[1] * sn;
-        let va = -v[0] * sn + v[1] * cs;
-        let ft = at * vt.abs() * vt;
-        let fa = aa * va.abs() * va;
-        [ft * cs - fa * sn, ft * sn + fa * cs, ar * v[2].abs() * v[2]]
+        drag_force(self.coefficients(), sn, cs, v)
     }
+}
+
+/// The drag's generalized force `[F_x, F_y, T]` from the coefficients
+/// `(a_t, a_a, a_r)` ([`Drag`]), the segment's `sin φ`, `cos φ` and velocity
+/// `v = [ẋ, ẏ, φ̇]`: the one formula of `Drag::force` and of the generated
+/// loop `DragJacobians::add_forces`.
+#[inline(always)]
+pub(crate) fn drag_force(a: (f64, f64, f64), sn: f64, cs: f64, v: [f64; 3]) -> [f64; 3] {
+    let (at, aa, ar) = a;
+    let vt = v[0] * cs + v[1] * sn;
+    let va = -v[0] * sn + v[1] * cs;
+    let ft = at * vt.abs() * vt;
+    let fa = aa * va.abs() * va;
+    [ft * cs - fa * sn, ft * sn + fa * cs, ar * v[2].abs() * v[2]]
 }
 
 impl ForceElement for Drag {

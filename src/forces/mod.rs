@@ -19,6 +19,7 @@ mod torsional;
 pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
 pub use contact::{CornerState, Wall, WallContact};
+pub(crate) use drag::drag_force;
 pub use drag::Drag;
 pub use expression::{ExpressionError, ExpressionLoad, ExpressionLoadBuilder, LinePoint};
 pub use half_plane::HalfPlaneContact;
