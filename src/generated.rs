@@ -363,6 +363,26 @@ const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
 /// Sines and cosines of the angles of bodies `b0, b0 + 1, …` whose angle
 /// changed since the last call (bits compared).
 fn trig_update(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor has AVX2 (checked above)
+        return unsafe { trig_update_avx2(q, b0, phi_bits, sc) };
+    }
+    trig_update_lanes(q, b0, phi_bits, sc)
+}
+
+/// [`trig_update_lanes`] compiled for AVX2, the whole loop in one function
+/// (the constants stay in registers, and consecutive angles overlap in
+/// the core); the same bits as the baseline build (see [`sin_cos4`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn trig_update_avx2(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
+    trig_update_lanes(q, b0, phi_bits, sc)
+}
+
+/// The loop of [`trig_update`].
+#[inline(always)]
+fn trig_update_lanes(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
     let nb = phi_bits.len();
     let mut k = 0;
     // four bodies at a time where any of them changed ([`sin_cos4`], the
@@ -370,7 +390,7 @@ fn trig_update(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
     while k + 4 <= nb {
         let x: [f64; 4] = std::array::from_fn(|l| q[3 * (b0 + k + l) + 2]);
         if (0..4).any(|l| phi_bits[k + l] != x[l].to_bits()) {
-            if let Some((s, c)) = sin_cos4(x) {
+            if let Some((s, c)) = sin_cos4_lanes(x) {
                 for l in 0..4 {
                     sc[2 * (k + l)] = s[l];
                     sc[2 * (k + l) + 1] = c[l];

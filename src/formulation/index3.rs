@@ -254,14 +254,20 @@ impl<'a> Index3<'a> {
         let (g, tmp, jac) = (&mut self.g, &mut self.tmp, &mut self.jac);
         let (r_dyn, r_phi) = r.split_at_mut(n);
         let par = n >= PARALLEL_MIN_COORDS;
-        let (ra, ()) = join_if(
+        // a non-finite g or Φ_qᵀλ makes r non-finite: each part of r is
+        // scanned where it is computed, and the parts only on failure, to
+        // name the first culprit
+        let (ra, phi_finite) = join_if(
             par,
             || {
                 finite_state(t, q, qd)?;
                 sys.forces_into(t, q, qd, g);
                 Ok(())
             },
-            || sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac),
+            || {
+                sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac);
+                crate::integrate::first_non_finite(r_phi).is_none()
+            },
         );
         ra?;
         let mass = sys.mass_diagonal();
@@ -272,12 +278,11 @@ impl<'a> Index3<'a> {
                 let k = base + i;
                 *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
             }
+            crate::integrate::first_non_finite(r).is_none()
         };
         let (r_lo, r_hi) = r_dyn.split_at_mut(half);
-        join_if(par, || fill(r_lo, 0), || fill(r_hi, half));
-        // a non-finite g or Φ_qᵀλ makes r non-finite: one scan of r, and
-        // the parts only to name the first culprit
-        if crate::integrate::first_non_finite(r).is_none() {
+        let (lo_finite, hi_finite) = join_if(par, || fill(r_lo, 0), || fill(r_hi, half));
+        if phi_finite && lo_finite && hi_finite {
             return Ok(());
         }
         all_finite(

@@ -99,7 +99,7 @@ use super::{
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
 };
 use crate::formulation::PARALLEL_MIN_COORDS;
-use crate::linalg::{in_halves, Slices};
+use crate::linalg::{in_halves, join_if, Slices};
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
@@ -116,6 +116,10 @@ fn ndf_shift(k: usize) -> f64 {
 /// Coordinates per chunk of bdf's element-wise passes (`predict`,
 /// `estimates`): their partial sums stay in L1 while the history streams by.
 const CHUNK: usize = 256;
+
+/// Components side by side in the error estimates' pass
+/// ([`EstimateIn::block`]).
+const LANES: usize = 8;
 
 /// Newton iterations per attempt.
 pub const MAX_NEWTON: usize = 4;
@@ -403,54 +407,28 @@ impl<'s> BdfRun<'s> {
             let c = fact * h.powi(p as i32 + 1) * self.error_factor(p);
             w[o][..p + 2].iter_mut().for_each(|x| *x *= c);
         }
-        let (no, n) = (ps.len(), self.n);
+        let n = self.n;
         let mut hist: [&[f64]; MAX_ORDER + 2] = [&[]; MAX_ORDER + 2];
         for (hj, y) in hist.iter_mut().zip(&self.ys) {
             *hj = y;
         }
-        let (yn, ynew) = (&self.ys[0], &self.ynew);
-        // per component, Σ_j w_oj y_j for each order o over its p + 2 nodes
-        // (t1 and p + 1 history points), then the weighted max; in chunks
-        // that stay in L1, each sum over contiguous slices (vectorised),
-        // the terms in the same order as one component at a time
-        let mut m = [0.0f64; 3];
-        let (mut dq, mut dv, mut inv) = ([0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
-        let mut s = 0;
-        while s < n {
-            let e = (s + CHUNK).min(n);
-            let c = e - s;
-            let (yq, yv) = (&ynew[s..e], &ynew[n + s..n + e]);
-            let (ynq, thr) = (&yn[s..e], &self.threshold[s..e]);
-            for l in 0..c {
-                inv[l] = 1.0 / ynq[l].abs().max(yq[l].abs()).max(thr[l]);
-            }
-            for o in 0..no {
-                let wo = &w[o];
-                for l in 0..c {
-                    dq[l] = wo[0] * yq[l];
-                    dv[l] = wo[0] * yv[l];
-                }
-                for j in 1..ps[o] + 2 {
-                    let (hq, hv, wj) = (&hist[j - 1][s..e], &hist[j - 1][n + s..n + e], wo[j]);
-                    for l in 0..c {
-                        dq[l] += wj * hq[l];
-                        dv[l] += wj * hv[l];
-                    }
-                }
-                // velocities, an index-2 variable of the index-3 form:
-                // `h·est_v`, the position error they make over the step,
-                // in the positions' weights (Hairer & Wanner II §VII.3;
-                // Brenan, Campbell & Petzold §5.4 scale index-2 components
-                // by h)
-                let mut mo = m[o];
-                for l in 0..c {
-                    mo = mo.max(dq[l].abs().max(h * dv[l].abs()) * inv[l]);
-                }
-                m[o] = mo;
-            }
-            s = e;
+        let src = EstimateIn {
+            n,
+            ps,
+            w: &w,
+            hist: &hist,
+            ynew: &self.ynew,
+            threshold: &self.threshold,
+            h,
+        };
+        // the weighted max is order-free: two fixed halves concurrently
+        // for large n give the same bits
+        if n >= PARALLEL_MIN_COORDS {
+            let (a, b) = join_if(true, || src.range(0, n / 2), || src.range(n / 2, n));
+            std::array::from_fn(|o| a[o].max(b[o]))
+        } else {
+            src.range(0, n)
         }
-        m
     }
 
     fn factor(&mut self, t1: f64, a0: f64) -> Result<(), SystemError> {
@@ -595,9 +573,24 @@ impl<'s> BdfRun<'s> {
             if !dnorm.is_finite() {
                 return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
             }
-            for (l, d) in self.lam_new.iter_mut().zip(dl) {
-                *l -= d / s;
-            }
+            // λ −= Δλ/s, in two fixed halves concurrently for large n
+            let m = dl.len();
+            in_halves(
+                n >= PARALLEL_MIN_COORDS,
+                m,
+                Slices {
+                    base: 0,
+                    w: [&mut self.lam_new],
+                    r: [dl],
+                },
+                |u| {
+                    let ([l], [d]) = (u.w, u.r);
+                    for (l, d) in l.iter_mut().zip(d) {
+                        *l -= d / s;
+                    }
+                },
+                |(), ()| (),
+            );
             if at_floor || dnorm <= NEWTON_FLOOR * self.rtol {
                 return Newton::Converged;
             }
@@ -644,6 +637,81 @@ impl<'s> BdfRun<'s> {
     fn newton_failed(&mut self, e: SystemError, fresh: bool) -> Newton {
         self.refactor = true;
         Newton::Failed(e, fresh)
+    }
+}
+
+/// What the error estimates' pass reads ([`BdfRun::estimates`]): the
+/// orders `ps`, their weights `w[o][j]` on the new point (`j = 0`) and the
+/// history points `hist[j − 1]` (newest first, each `[q; q̇]` of length
+/// `2n`), the new point `ynew`, the weights' thresholds and the step.
+struct EstimateIn<'a> {
+    n: usize,
+    ps: &'a [usize],
+    w: &'a [[f64; MAX_ORDER + 3]; 3],
+    hist: &'a [&'a [f64]; MAX_ORDER + 2],
+    ynew: &'a [f64],
+    threshold: &'a [f64],
+    h: f64,
+}
+
+impl EstimateIn<'_> {
+    /// The weighted max-norms of the estimates over the coordinates
+    /// `lo..hi`: per component, `Σ_j w_oj y_j` for each order o over its
+    /// p + 2 nodes (t1 and p + 1 history points), then the weighted max;
+    /// in chunks of [`CHUNK`] that stay in L1, each sum over contiguous
+    /// slices (vectorised), the terms in the same order as one component
+    /// at a time.
+    fn range(&self, lo: usize, hi: usize) -> [f64; 3] {
+        let mut m = [0.0f64; 3];
+        let body = lo + (hi - lo) / LANES * LANES;
+        for i0 in (lo..body).step_by(LANES) {
+            let b = self.block::<LANES>(i0);
+            for (mo, bo) in m.iter_mut().zip(b) {
+                *mo = mo.max(bo);
+            }
+        }
+        for i in body..hi {
+            let b = self.block::<1>(i);
+            for (mo, bo) in m.iter_mut().zip(b) {
+                *mo = mo.max(bo);
+            }
+        }
+        m
+    }
+
+    /// The weighted maxima of components `i0 .. i0 + B` per order: the
+    /// weights' inverse, then each order's sums `Σ_j w_oj y_j` in
+    /// registers (the terms in the order j = 0, 1, …, as one component at
+    /// a time), B components side by side.
+    #[inline(always)]
+    fn block<const B: usize>(&self, i0: usize) -> [f64; 3] {
+        let (n, h, hist) = (self.n, self.h, self.hist);
+        let (yq, yv) = (&self.ynew[i0..i0 + B], &self.ynew[n + i0..n + i0 + B]);
+        // the newest history point: y_n of the weights
+        let (ynq, thr) = (&hist[0][i0..i0 + B], &self.threshold[i0..i0 + B]);
+        let inv: [f64; B] =
+            std::array::from_fn(|l| 1.0 / ynq[l].abs().max(yq[l].abs()).max(thr[l]));
+        let mut m = [0.0f64; 3];
+        for (o, &p) in self.ps.iter().enumerate() {
+            let wo = &self.w[o];
+            let mut dq: [f64; B] = std::array::from_fn(|l| wo[0] * yq[l]);
+            let mut dv: [f64; B] = std::array::from_fn(|l| wo[0] * yv[l]);
+            for j in 1..p + 2 {
+                let (y, wj) = (hist[j - 1], wo[j]);
+                let (hq, hv) = (&y[i0..i0 + B], &y[n + i0..n + i0 + B]);
+                for l in 0..B {
+                    dq[l] += wj * hq[l];
+                    dv[l] += wj * hv[l];
+                }
+            }
+            // velocities, an index-2 variable of the index-3 form:
+            // `h·est_v`, the position error they make over the step, in
+            // the positions' weights (Hairer & Wanner II §VII.3; Brenan,
+            // Campbell & Petzold §5.4 scale index-2 components by h)
+            let e: [f64; B] = std::array::from_fn(|l| dq[l].abs().max(h * dv[l].abs()) * inv[l]);
+            m[o] = e.iter().fold(0.0, |a: f64, &b| a.max(b));
+        }
+        m
     }
 }
 
@@ -859,13 +927,27 @@ impl Stepper for BdfRun<'_> {
             }
             newton_retry = false;
             // copy [q; q̇] and check it finite in one pass (located only
-            // on failure)
-            let mut finite = true;
+            // on failure), in two fixed halves concurrently for large n
             let (yq, yv) = self.ynew.split_at_mut(n);
-            for (d, &x) in yq.iter_mut().zip(&self.q).chain(yv.iter_mut().zip(&self.v)) {
-                *d = x;
-                finite &= x.is_finite();
-            }
+            let finite = in_halves(
+                n >= PARALLEL_MIN_COORDS,
+                n,
+                Slices {
+                    base: 0,
+                    w: [yq, yv],
+                    r: [&self.q, &self.v],
+                },
+                |u| {
+                    let ([yq, yv], [q, v]) = (u.w, u.r);
+                    let mut finite = true;
+                    for (d, &x) in yq.iter_mut().zip(q).chain(yv.iter_mut().zip(v)) {
+                        *d = x;
+                        finite &= x.is_finite();
+                    }
+                    finite
+                },
+                |a, b| a && b,
+            );
             if let Some((index, value)) = (!finite)
                 .then(|| common::first_non_finite(&self.ynew))
                 .flatten()

@@ -126,13 +126,28 @@ impl Run<'_, '_> {
                 Some(hp) if self.opts.extrapolate => h / hp,
                 _ => 0.0,
             };
-            for i in 0..n {
-                let qdd0 = cur.qdd[i] + r * (cur.qdd[i] - self.prev_qdd[i]);
-                new.qdd[i] = qdd0;
-                new.a[i] = ((1.0 - af) * qdd0 + af * cur.qdd[i] - am * cur.a[i]) / (1.0 - am);
-                new.v[i] = cur.v[i] + h * ((1.0 - g) * cur.a[i] + g * new.a[i]);
-                new.q[i] = cur.q[i] + h * cur.v[i] + h * h * ((0.5 - b) * cur.a[i] + b * new.a[i]);
-            }
+            // element by element, in two fixed halves concurrently for
+            // large n (the same bits)
+            in_halves(
+                n >= PARALLEL_MIN_COORDS,
+                n,
+                Slices {
+                    base: 0,
+                    w: [&mut new.qdd, &mut new.a, &mut new.v, &mut new.q],
+                    r: [&cur.qdd, &self.prev_qdd, &cur.a, &cur.v, &cur.q],
+                },
+                |u| {
+                    let ([nqdd, na, nv, nq], [qdd, pqdd, ca, cv, cq]) = (u.w, u.r);
+                    for i in 0..nq.len() {
+                        let qdd0 = qdd[i] + r * (qdd[i] - pqdd[i]);
+                        nqdd[i] = qdd0;
+                        na[i] = ((1.0 - af) * qdd0 + af * qdd[i] - am * ca[i]) / (1.0 - am);
+                        nv[i] = cv[i] + h * ((1.0 - g) * ca[i] + g * na[i]);
+                        nq[i] = cq[i] + h * cv[i] + h * h * ((0.5 - b) * ca[i] + b * na[i]);
+                    }
+                },
+                |(), ()| (),
+            );
             new.lam.copy_from_slice(&cur.lam);
         }
         self.last_attempt_fresh = false;
@@ -178,9 +193,10 @@ impl Run<'_, '_> {
             {
                 return Attempt::Failed(e);
             }
-            for x in self.r.iter_mut() {
-                *x = -*x;
-            }
+            // solving for r (not −r) gives −Δ, the correction negated
+            // exactly (the solve is linear and rounds symmetrically):
+            // `correct` and the multipliers subtract it, the same bits as
+            // adding Δ
             if let Err(e) = self.sys.solve(t1, &mut self.r) {
                 return Attempt::Failed(e);
             }
@@ -206,9 +222,23 @@ impl Run<'_, '_> {
             if !dnorm.is_finite() {
                 return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
             }
-            for (l, d) in new.lam.iter_mut().zip(&dx[n..]) {
-                *l += d / s;
-            }
+            // λ −= (−Δλ)/s, in two fixed halves concurrently for large n
+            in_halves(
+                n >= PARALLEL_MIN_COORDS,
+                dx.len() - n,
+                Slices {
+                    base: 0,
+                    w: [&mut new.lam],
+                    r: [&dx[n..]],
+                },
+                |u| {
+                    let ([l], [d]) = (u.w, u.r);
+                    for (l, d) in l.iter_mut().zip(d) {
+                        *l -= d / s;
+                    }
+                },
+                |(), ()| (),
+            );
             if fresh && it == 2 {
                 // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)
                 self.quad = Some((dnorm / (prev * prev), h, 0));
@@ -287,7 +317,7 @@ impl Run<'_, '_> {
     }
 }
 
-/// One Newton correction `Δq = u.r[0]` of generalized-α (module docs of
+/// One Newton correction `Δq = −u.r[0]` of generalized-α (module docs of
 /// [`super`]) on `u.w = [q, q̇, q̈, a]`: `q += Δq`, `q̇ += γ/(βh) Δq`,
 /// `q̈ += c_m/(βh²) Δq`, `a += Δq/(βh²)` (`c = [γ/(βh), c_m/(βh²), 1/(βh²),
 /// tol_q]`), and the max-norms `‖Δq ./ (tol_q + 20 ulp·max(|q|, 1))‖∞` and
@@ -297,16 +327,114 @@ fn correct(u: Slices<'_, 4, 1>, c: [f64; 4]) -> (f64, f64) {
     let [q, v, qdd, a] = u.w;
     let [d] = u.r;
     let [gp, bp, ap, tol_q] = c;
-    let (mut dnorm, mut drel) = (0.0_f64, 0.0_f64);
-    for i in 0..q.len() {
+    let len = q.len();
+    let (q, v, qdd, a, d) = (
+        &mut q[..len],
+        &mut v[..len],
+        &mut qdd[..len],
+        &mut a[..len],
+        &d[..len],
+    );
+    let floor = ROUNDING_ULPS * f64::EPSILON;
+    let (mut dnorm, mut drel) = (MaxRatio::default(), MaxRatio::default());
+    for i in 0..len {
+        // `d` holds −Δq: subtracting it (and `c·d`) rounds as adding Δq
         let (di, qi) = (d[i], q[i]);
         let scale = qi.abs().max(1.0);
-        dnorm = dnorm.max(di.abs() / (tol_q + ROUNDING_ULPS * f64::EPSILON * scale));
-        drel = drel.max(di.abs() / scale);
-        q[i] = qi + di;
-        v[i] += gp * di;
-        qdd[i] += bp * di;
-        a[i] += ap * di;
+        dnorm.add(di.abs(), tol_q + floor * scale);
+        drel.add(di.abs(), scale);
+        q[i] = qi - di;
+        v[i] -= gp * di;
+        qdd[i] -= bp * di;
+        a[i] -= ap * di;
     }
-    (dnorm, drel)
+    (dnorm.max, drel.max)
+}
+
+/// `max_i a_i / b_i` (`a_i ≥ 0`, `b_i > 0`) with the division made only
+/// where the quotient can exceed the running maximum `M`: a float
+/// `a < fl(M·b)` is at most the float below `fl(M·b)`, which lies below
+/// `M·b` (`fl` rounds to the nearest), so `a/b < M`, `fl(a/b) ≤ M`
+/// (rounding is monotone) and `M.max(fl(a/b))` would return `M` — the same
+/// bits as dividing every time, at a multiplication and a comparison for
+/// most coordinates (a division costs several times their latency). NaN
+/// compares false and takes the division, as before.
+#[derive(Default)]
+struct MaxRatio {
+    max: f64,
+}
+
+impl MaxRatio {
+    #[inline(always)]
+    fn add(&mut self, a: f64, b: f64) {
+        if a < self.max * b {
+            return;
+        }
+        self.max = self.max.max(a / b);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MaxRatio;
+
+    /// The skipped divisions change no bit: against `max_i fl(a_i / b_i)`
+    /// divided every time, on ratios that cluster just below and above
+    /// the running maximum (where `fl(M (1 − 4ε) b)` is closest to `a`),
+    /// spread over many decades, and with zeros, NaN and ∞.
+    #[test]
+    fn max_ratio_has_the_bits_of_dividing_every_time() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..20_000 {
+            let len = 1 + (next() * 300.0) as usize;
+            let (mut a, mut b) = (Vec::with_capacity(len), Vec::with_capacity(len));
+            for _ in 0..len {
+                let bi = 10f64.powf(next() * 20.0 - 10.0);
+                let r = match case % 4 {
+                    // quotients within a few ulps of each other
+                    0 => {
+                        // mantissas near 1 and near 2, a few ulps apart
+                        let m = [1.0, 1.5, 2.0 - 64.0 * f64::EPSILON][case / 4 % 3];
+                        m * (1.0 + (next() * 8.0).floor() * f64::EPSILON)
+                    }
+                    1 => 10f64.powf(next() * 30.0 - 15.0),
+                    2 => next(),
+                    _ => [0.0, 1.0, 1.0 - f64::EPSILON, 1.0 + 2.0 * f64::EPSILON]
+                        [(next() * 4.0) as usize],
+                };
+                a.push(r * bi);
+                b.push(bi);
+            }
+            if case % 50 == 7 {
+                a[len / 2] = f64::NAN;
+            }
+            if case % 50 == 9 {
+                a[len / 3] = f64::INFINITY;
+            }
+            let plain = a.iter().zip(&b).fold(0.0_f64, |m, (x, y)| m.max(x / y));
+            let mut m = MaxRatio::default();
+            for (x, y) in a.iter().zip(&b) {
+                m.add(*x, *y);
+            }
+            assert_eq!(m.max.to_bits(), plain.to_bits(), "case {case}");
+        }
+        // the closest case: the maximum M first, then a = the float just
+        // below fl(M·b), the largest a that skips its division
+        for _ in 0..100_000 {
+            let big = (1.0 + next()) * 10f64.powf(next() * 20.0 - 10.0);
+            let bi = (1.0 + next()) * 10f64.powf(next() * 20.0 - 10.0);
+            let a = f64::from_bits((big * bi).to_bits() - 1);
+            let plain = big.max(a / bi);
+            let mut m = MaxRatio::default();
+            m.add(big, 1.0);
+            m.add(a, bi);
+            assert_eq!(m.max.to_bits(), plain.to_bits(), "M = {big:e}, b = {bi:e}");
+        }
+    }
 }
