@@ -113,8 +113,8 @@ fn ndf_shift(k: usize) -> f64 {
     NDF_KAPPA[k] * (1..=k).map(|j| 1.0 / j as f64).sum::<f64>()
 }
 
-/// Coordinates per chunk of bdf's element-wise passes (`predict`,
-/// `estimates`): their partial sums stay in L1 while the history streams by.
+/// Coordinates per chunk of the predictor's pass (`predict`): its partial
+/// sums stay in L1 while the history streams by.
 const CHUNK: usize = 256;
 
 /// Components side by side in the error estimates' pass
@@ -392,7 +392,8 @@ impl<'s> BdfRun<'s> {
     /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
     /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
     /// accepted ones, times [`Self::error_factor`]; one pass over the
-    /// components for all the orders, in chunks of [`CHUNK`] (stack buffers).
+    /// components for all the orders ([`EstimateIn`]), in two fixed halves
+    /// concurrently for large n.
     fn estimates(&self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
         const L: usize = MAX_ORDER + 3;
         let mut w = [[0.0; L]; 3];
@@ -658,9 +659,9 @@ impl EstimateIn<'_> {
     /// The weighted max-norms of the estimates over the coordinates
     /// `lo..hi`: per component, `Σ_j w_oj y_j` for each order o over its
     /// p + 2 nodes (t1 and p + 1 history points), then the weighted max;
-    /// in chunks of [`CHUNK`] that stay in L1, each sum over contiguous
-    /// slices (vectorised), the terms in the same order as one component
-    /// at a time.
+    /// [`LANES`] components side by side, their sums in registers (no
+    /// stores of partial sums), the terms in the same order as one
+    /// component at a time.
     fn range(&self, lo: usize, hi: usize) -> [f64; 3] {
         let mut m = [0.0f64; 3];
         let body = lo + (hi - lo) / LANES * LANES;

@@ -48,9 +48,11 @@
 //! half); the rows of `S` have two envelope segments (the tail of `T`,
 //! then the tail of `B` and `S`) and are factorised after both. The solve
 //! follows: forward substitution of `T` and `B`, of `S`; `D⁻¹`; backward
-//! substitution of `S`, then of `T` and `B`. From [`PARALLEL_MIN_DIM`] on
-//! the two halves (with their scaling, loading of values, gathers and
-//! scatters) run concurrently (`rayon::join`) when the pool has two
+//! substitution of `S`, then of `T` and `B` (the forward rows read their
+//! right-hand side `(P S x)_i` from `x` directly, the backward rows write
+//! `x = S Pᵀ z` an entry at a time as it becomes final: no separate gather
+//! and scatter passes). From [`PARALLEL_MIN_DIM`] on the two halves (with
+//! their scaling and loading of values) run concurrently (`rayon::join`) when the pool has two
 //! threads; on one thread the substitutions take a row of `T` and a row of
 //! `B` in turn. A substitution is a chain of dependent rows (row `i` needs
 //! row `i − 1`'s result), bound by latency, not arithmetic: two independent
