@@ -34,7 +34,7 @@
 
 use crate::forces::drag_force;
 use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
-use crate::model::{BodyRef, ConstraintKernels, ForceKernels, JointGeometry, System};
+use crate::model::{BodyRef, ConstraintKernels, ForceElement, ForceKernels, JointGeometry, System};
 
 /// The generated functions (`$OUT_DIR/mbsolve_generated.rs`).
 pub mod kernels {
@@ -360,6 +360,19 @@ impl TrigMemo {
 /// two concurrent halves ([`TrigMemo`]).
 const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
 
+/// A chain's memo of sines and cosines ([`ChainKernels::shared_trig`]),
+/// for force kernels on the same bodies ([`DragJacobians::with_trig`]):
+/// the residual evaluates the forces and the constraint terms at the same
+/// q, so the angles' sines and cosines are computed once for both. Same
+/// bits: the memo holds [`sin_cos`]'s values.
+#[derive(Debug, Clone)]
+pub struct SharedTrig {
+    memo: std::sync::Arc<std::sync::Mutex<TrigMemo>>,
+    /// First coordinate of the first body.
+    q0: usize,
+    n_bodies: usize,
+}
+
 /// Sines and cosines of the angles of bodies `b0, b0 + 1, …` whose angle
 /// changed since the last call (bits compared).
 fn trig_update(q: &[f64], b0: usize, phi_bits: &mut [u64], sc: &mut [f64]) {
@@ -436,7 +449,7 @@ pub struct ChainKernels {
     jac0: usize,
     params: Vec<f64>,
     ground: Option<GroundJoint>,
-    memo: std::sync::Mutex<TrigMemo>,
+    memo: std::sync::Arc<std::sync::Mutex<TrigMemo>>,
 }
 
 /// A ground pivot of a chain: a revolute between the ground and `body`,
@@ -490,7 +503,7 @@ impl ChainKernels {
             jac0,
             params: joints.iter().flatten().copied().collect(),
             ground,
-            memo: std::sync::Mutex::new(TrigMemo::new(nj + 1)),
+            memo: std::sync::Arc::new(std::sync::Mutex::new(TrigMemo::new(nj + 1))),
         }
     }
 
@@ -559,6 +572,16 @@ impl ChainKernels {
     /// The chain's part of q (or q̇): its bodies' coordinates.
     fn chain_q<'q>(&self, q: &'q [f64]) -> &'q [f64] {
         &q[self.q0..self.q0 + 3 * (self.n_joints + 1)]
+    }
+
+    /// The memo of the chain's sines and cosines, to share with force
+    /// kernels on the chain's bodies ([`SharedTrig`]).
+    pub fn shared_trig(&self) -> SharedTrig {
+        SharedTrig {
+            memo: self.memo.clone(),
+            q0: self.q0,
+            n_bodies: self.n_joints + 1,
+        }
     }
 
     fn chain_rows(&self) -> std::ops::Range<usize> {
@@ -889,12 +912,15 @@ impl ForceKernels for TorsionalChainJacobians {
 pub struct DragJacobians {
     q0: usize,
     fp: Vec<f64>,
+    /// The chain's memo of the bodies' sines and cosines, when shared.
+    trig: Option<SharedTrig>,
 }
 
 impl DragJacobians {
     /// Kernels for `drags[k]` acting on body `body0 + k`.
     pub fn new(body0: usize, drags: &[Drag]) -> Self {
         Self {
+            trig: None,
             q0: 3 * body0,
             fp: drags
                 .iter()
@@ -904,6 +930,18 @@ impl DragJacobians {
                 })
                 .collect(),
         }
+    }
+}
+
+impl DragJacobians {
+    /// Take the sines and cosines from a chain's memo ([`SharedTrig`]) when
+    /// it starts at the same body and covers every drag's body; otherwise
+    /// (or while another thread holds the memo) they are computed here.
+    pub fn with_trig(mut self, trig: SharedTrig) -> Self {
+        if trig.q0 == self.q0 && 3 * trig.n_bodies >= self.fp.len() {
+            self.trig = Some(trig);
+        }
+        self
     }
 }
 
@@ -925,6 +963,27 @@ impl ForceKernels for DragJacobians {
     /// the roundings of `Drag::force` (bit-identical; tests/codegen.rs).
     fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
         let nb = self.fp.len() / 3;
+        let force = |k: usize, sn: f64, cs: f64, g: &mut [f64]| {
+            let (o, a) = (self.q0 + 3 * k, 3 * k);
+            let f = drag_force(
+                (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
+                sn,
+                cs,
+                [qd[o], qd[o + 1], qd[o + 2]],
+            );
+            g[o] += f[0];
+            g[o + 1] += f[1];
+            g[o + 2] += f[2];
+        };
+        if let Some(t) = &self.trig {
+            if let Ok(mut m) = t.memo.try_lock() {
+                let sc = m.update(&q[t.q0..t.q0 + 3 * t.n_bodies]);
+                for k in 0..nb {
+                    force(k, sc[2 * k], sc[2 * k + 1], g);
+                }
+                return true;
+            }
+        }
         let mut k = 0;
         while k < nb {
             let m = (nb - k).min(4);
@@ -938,16 +997,7 @@ impl ForceKernels for DragJacobians {
                     Some((s, c)) => (s[l], c[l]),
                     None => sin_cos(x[l]),
                 };
-                let (o, a) = (self.q0 + 3 * (k + l), 3 * (k + l));
-                let f = drag_force(
-                    (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
-                    sn,
-                    cs,
-                    [qd[o], qd[o + 1], qd[o + 2]],
-                );
-                g[o] += f[0];
-                g[o + 1] += f[1];
-                g[o + 2] += f[2];
+                force(k + l, sn, cs, g);
             }
             k += m;
         }
@@ -962,6 +1012,8 @@ impl ForceKernels for DragJacobians {
 pub struct ContactJacobians {
     q0: usize,
     fp: Vec<f64>,
+    /// The elements, for their forces in one loop.
+    contacts: Vec<WallContact>,
 }
 
 impl ContactJacobians {
@@ -969,6 +1021,7 @@ impl ContactJacobians {
     pub fn new(body0: usize, contacts: &[WallContact]) -> Self {
         Self {
             q0: 3 * body0,
+            contacts: contacts.to_vec(),
             fp: contacts
                 .iter()
                 .flat_map(|e| {
@@ -1000,5 +1053,85 @@ impl ForceKernels for ContactJacobians {
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
         let r = self.q0..self.q0 + 3 * (self.fp.len() / 8);
         kernels::contact_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+    /// The contact forces in one loop over the elements: the segments clear
+    /// of both walls (most of a long rod's) are skipped by the elements' own
+    /// first test, made here in the loop; the others call their element's
+    /// `add_forces`. The same operations in the same order as the elements
+    /// called one by one.
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        for c in &self.contacts {
+            if !c.clear_of_walls(q[3 * c.body]) {
+                ForceElement::add_forces(c, t, q, qd, g);
+            }
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ConstraintKernels;
+
+    /// The drag forces from the chain's shared memo of sines and cosines
+    /// have the bits of the drag's own: with the memo cold, warmed by the
+    /// constraints at the same q (a hit), and left at another q with only
+    /// some angles changed; a memo of other bodies is not taken.
+    #[test]
+    fn drag_with_the_chain_memo_has_the_bits_of_its_own_trigonometry() {
+        let nb = 37;
+        let (hinge, half) = (0.05, 0.05);
+        let points = vec![[0.0, hinge, 0.0, -hinge]; nb - 1];
+        let chain = ChainKernels::new(0, &points, None);
+        let drags: Vec<Drag> = (0..nb)
+            .map(|b| Drag {
+                body: b,
+                width: 0.01,
+                length: 2.0 * half,
+                fluid_density: 1000.0,
+                c_transverse: 1.2,
+                c_skin: 0.02,
+                c_end: 1.0,
+                end_face: b == 0,
+            })
+            .collect();
+        let own = DragJacobians::new(0, &drags);
+        let shared = DragJacobians::new(0, &drags).with_trig(chain.shared_trig());
+        assert!(shared.trig.is_some());
+        assert!(DragJacobians::new(1, &drags[1..])
+            .with_trig(chain.shared_trig())
+            .trig
+            .is_none());
+        let mut seed = 17u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 4.0 - 2.0
+        };
+        let n = 3 * nb;
+        let mut q: Vec<f64> = (0..n).map(|_| next()).collect();
+        let qd: Vec<f64> = (0..n).map(|_| next()).collect();
+        let mut phi = vec![0.0; 2 * (nb - 1)];
+        for case in 0..3 {
+            match case {
+                // the constraints first: the drag hits the memo
+                1 => chain.phi(&q, 0.0, &mut phi),
+                // a few angles changed since the memo was filled
+                2 => {
+                    for b in [0, 5, 6, 36] {
+                        q[3 * b + 2] += 0.3;
+                    }
+                }
+                _ => {}
+            }
+            let (mut ga, mut gb) = (vec![0.0; n], vec![0.0; n]);
+            assert!(own.add_forces(0.0, &q, &qd, &mut ga));
+            assert!(shared.add_forces(0.0, &q, &qd, &mut gb));
+            for (k, (a, b)) in ga.iter().zip(&gb).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "case {case}, g[{k}]");
+            }
+        }
     }
 }

@@ -5,7 +5,7 @@ use crate::forces::{
     AppliedForce, Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
 };
 use crate::generated::{
-    ChainKernels, ContactJacobians, DragJacobians, GroundPivot, TorsionalChainJacobians,
+    ChainKernels, ContactJacobians, DragJacobians, GroundPivot, SharedTrig, TorsionalChainJacobians,
 };
 use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
 use serde::{Deserialize, Serialize};
@@ -416,8 +416,12 @@ impl RodInfo {
     /// [`WallContact::corner_offset`] order). Empty without contact elements.
     pub fn corner_states(&self, q: &[f64], qd: &[f64], out: &mut Vec<CornerState>) {
         out.clear();
+        // the segments clear of both walls (most of them) skipped here, by
+        // the elements' own first test
         for c in &self.contacts {
-            c.corner_states(q, qd, out);
+            if !c.clear_of_walls(q[3 * c.body]) {
+                c.corner_states(q, qd, out);
+            }
         }
     }
 }
@@ -495,22 +499,24 @@ pub(super) fn add_chain(
 
 /// Attach the generated chain kernels ([`ChainKernels`]) to the chain's
 /// joints (and a ground pivot added right after them): the builder knows
-/// the topology, so nothing has to be recognised.
+/// the topology, so nothing has to be recognised. Returns the kernels'
+/// memo of sines and cosines, for force kernels on the same bodies.
 pub(super) fn attach_chain_kernels(
     builder: &mut SystemBuilder,
     bodies: &[usize],
     joints: &[usize],
     points: &[[f64; 4]],
     pivot: Option<(usize, GroundPivot)>,
-) {
+) -> Option<SharedTrig> {
     let first = joints.first().copied().or(pivot.map(|p| p.0));
     let last = pivot.map(|p| p.0).or(joints.last().copied());
-    if let (Some(a), Some(b), Some(&body0)) = (first, last, bodies.first()) {
-        builder.attach_kernels(
-            a..b + 1,
-            Box::new(ChainKernels::new(body0, points, pivot.map(|p| p.1))),
-        );
-    }
+    let (Some(a), Some(b), Some(&body0)) = (first, last, bodies.first()) else {
+        return None;
+    };
+    let kernels = ChainKernels::new(body0, points, pivot.map(|p| p.1));
+    let trig = kernels.shared_trig();
+    builder.attach_kernels(a..b + 1, Box::new(kernels));
+    Some(trig)
 }
 
 /// Add the falling rod of problem B (docs/problems.md) to `builder`.
@@ -577,7 +583,7 @@ fn add_rod_with(
         0.5 * ls,
         |i| p.placed_centre(first_end, i),
     );
-    attach_chain_kernels(builder, &bodies, &joints, &points, None);
+    let trig = attach_chain_kernels(builder, &bodies, &joints, &points, None);
     let mut info = RodInfo::empty();
     info.segment_length = ls;
     info.segment_mass = m;
@@ -615,7 +621,7 @@ fn add_rod_with(
             info.contacts.push(c);
         }
     }
-    attach_force_kernels(builder, &bodies, &info, p);
+    attach_force_kernels(builder, &bodies, &info, p, trig);
     info.bodies = bodies;
     info.joints = joints;
     Ok(info)
@@ -652,12 +658,15 @@ pub(super) fn attach_spring_chain_kernels(
 }
 
 /// Attach the generated force-Jacobian kernels of the rod's springs, drags
-/// and contacts (each a contiguous run of elements on consecutive bodies).
+/// and contacts (each a contiguous run of elements on consecutive bodies);
+/// the drag takes its sines and cosines from the chain kernels' memo
+/// `trig` when there is one.
 fn attach_force_kernels(
     builder: &mut SystemBuilder,
     bodies: &[usize],
     info: &RodInfo,
     p: &RodParams,
+    trig: Option<SharedTrig>,
 ) {
     let range = |ids: &[usize]| ids.first().map(|&a| a..a + ids.len());
     let Some(&body0) = bodies.first() else {
@@ -672,7 +681,11 @@ fn attach_force_kernels(
             .enumerate()
             .map(|(i, &b)| p.drag_element(b, i))
             .collect();
-        builder.attach_force_kernels(r, Box::new(DragJacobians::new(body0, &drags)));
+        let mut kernels = DragJacobians::new(body0, &drags);
+        if let Some(t) = trig {
+            kernels = kernels.with_trig(t);
+        }
+        builder.attach_force_kernels(r, Box::new(kernels));
     }
     if let Some(r) = range(&info.contact_elements) {
         builder.attach_force_kernels(r, Box::new(ContactJacobians::new(body0, &info.contacts)));

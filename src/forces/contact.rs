@@ -163,7 +163,7 @@ impl WallContact {
     /// Skips the sine, cosine and corner loop for the segments away from the
     /// walls, which are most of a long rod's.
     #[inline]
-    fn clear_of_walls(&self, x: f64) -> bool {
+    pub(crate) fn clear_of_walls(&self, x: f64) -> bool {
         let reach = 0.5 * (self.width + self.length) * (1.0 + 1e-12);
         x - reach > self.left_wall && x + reach < self.right_wall
     }
