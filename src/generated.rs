@@ -33,6 +33,7 @@
 //! `None`, and the system keeps its generic evaluation.
 
 use crate::forces::drag_force;
+use crate::forces::Clearance;
 use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
 use crate::model::{BodyRef, ConstraintKernels, ForceElement, ForceKernels, JointGeometry, System};
 
@@ -1012,8 +1013,9 @@ impl ForceKernels for DragJacobians {
 pub struct ContactJacobians {
     q0: usize,
     fp: Vec<f64>,
-    /// The elements, for their forces in one loop.
+    /// The elements, for their forces in one loop, and their wall tests.
     contacts: Vec<WallContact>,
+    clearance: Vec<Clearance>,
 }
 
 impl ContactJacobians {
@@ -1022,6 +1024,7 @@ impl ContactJacobians {
         Self {
             q0: 3 * body0,
             contacts: contacts.to_vec(),
+            clearance: contacts.iter().map(WallContact::clearance).collect(),
             fp: contacts
                 .iter()
                 .flat_map(|e| {
@@ -1060,9 +1063,9 @@ impl ForceKernels for ContactJacobians {
     /// `add_forces`. The same operations in the same order as the elements
     /// called one by one.
     fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        for c in &self.contacts {
-            if !c.clear_of_walls(q[3 * c.body]) {
-                ForceElement::add_forces(c, t, q, qd, g);
+        for (k, c) in self.clearance.iter().enumerate() {
+            if !c.clear(q[self.q0 + 3 * k]) {
+                ForceElement::add_forces(&self.contacts[k], t, q, qd, g);
             }
         }
         true

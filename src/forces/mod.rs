@@ -18,6 +18,7 @@ mod torsional;
 
 pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
+pub(crate) use contact::Clearance;
 pub use contact::{CornerState, Wall, WallContact};
 pub(crate) use drag::drag_force;
 pub use drag::Drag;
