@@ -52,9 +52,9 @@
 //! right-hand side `(P S x)_i` from `x` directly, the backward rows write
 //! `x = S Pᵀ z` an entry at a time as it becomes final: no separate gather
 //! and scatter passes). From [`PARALLEL_MIN_DIM`] on the two halves (with
-//! their scaling and loading of values) run concurrently (`rayon::join`) when the pool has two
-//! threads; on one thread the substitutions take a row of `T` and a row of
-//! `B` in turn. A substitution is a chain of dependent rows (row `i` needs
+//! their scaling and loading of values) run concurrently (`rayon::join`)
+//! when the pool has two threads; on one thread the substitutions take a
+//! row of `T` and a row of `B` in turn. A substitution is a chain of dependent rows (row `i` needs
 //! row `i − 1`'s result), bound by latency, not arithmetic: two independent
 //! chains in flight overlap in the core, and each row takes the previous
 //! row's result from a register instead of storing and reloading it
