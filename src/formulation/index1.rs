@@ -187,7 +187,7 @@ impl<'a> Index1<'a> {
             &mut self.phi_t,
             &mut self.phid,
         );
-        let mut constraint_terms = || {
+        let constraint_terms = || {
             // Φ comes for free with generated kernels (one fused pass).
             let want_phi = !b.is_off() || sys.uses_kernels();
             sys.constraint_terms(q, qd, t, want_phi.then_some(&mut phi[..]), jac, gamma);
@@ -198,12 +198,11 @@ impl<'a> Index1<'a> {
                 feedback(gamma, phid, phi_t, phi, 2.0 * b.alpha, b.beta * b.beta);
             }
         };
-        if n >= PARALLEL_MIN_COORDS {
-            rayon::join(|| sys.forces_into(t, q, qd, g), constraint_terms);
-        } else {
-            sys.forces_into(t, q, qd, g);
-            constraint_terms();
-        }
+        crate::linalg::join_if(
+            n >= PARALLEL_MIN_COORDS,
+            || sys.forces_into(t, q, qd, g),
+            constraint_terms,
+        );
         all_finite(
             t,
             &[

@@ -153,7 +153,24 @@ impl PartialEq for Failure {
 /// (within [`Stepper::output_snap`], or any remaining time after the last
 /// step), else the continuous extension. Returns how the run ended and
 /// the time reached.
+///
+/// A run whose state has at least `2·PARALLEL_MIN_COORDS` entries (`q` and
+/// `q̇` of a system large enough for concurrent passes) runs with a
+/// two-thread team when the rayon pool has a second thread
+/// ([`crate::linalg::team`]); the results do not depend on it.
 pub fn drive(
+    st: &mut dyn Stepper,
+    times: &[f64],
+    max_steps: usize,
+    t_end: f64,
+    obs: &mut dyn Observer,
+) -> (Termination, f64) {
+    let large = st.state().1.len() >= 2 * crate::formulation::PARALLEL_MIN_COORDS;
+    crate::linalg::team::run(large, || drive_loop(st, times, max_steps, t_end, obs))
+}
+
+/// [`drive`]'s loop.
+fn drive_loop(
     st: &mut dyn Stepper,
     times: &[f64],
     max_steps: usize,

@@ -476,12 +476,12 @@ impl Envelope {
         // forward rows need the halves' y before D⁻¹, so D⁻¹ comes after
         let xr: &[f64] = x;
         // two threads: a half each; one: both halves' rows in turn
-        let two = par && rayon::current_num_threads() > 1;
+        let two = par && super::team::concurrent();
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             if two {
-                rayon::join(
+                super::team::join(
                     || rows.forward(xr, (0, 0..s0, w_t)),
                     || rows.forward(xr, (s0, s0..sb, w_b)),
                 );
@@ -532,7 +532,7 @@ impl Envelope {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             if two {
-                rayon::join(
+                super::team::join(
                     || rows.backward(&out, (0, 0..s0, w_t)),
                     || rows.backward(&out, (s0, s0..sb, w_b)),
                 );

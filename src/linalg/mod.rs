@@ -34,6 +34,7 @@ mod pattern;
 mod saddle;
 mod schur;
 mod sparse;
+pub(crate) mod team;
 
 pub use chain::{ChainLdlt, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM};
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
@@ -47,11 +48,12 @@ pub use sparse::{
 
 use serde::Serialize;
 
-/// `rayon::join(a, b)` when `parallel`, else `a()` then `b()` on this
-/// thread: the same operations either way, so the results do not depend
-/// on the choice or on the thread count (the callers' determinism rests
-/// on each task being sequential inside). Small problems run sequentially:
-/// a join from outside a rayon pool costs tens of microseconds.
+/// [`team::join(a, b)`](team::join) when `parallel` (the run's two-thread
+/// team, else `rayon::join`), else `a()` then `b()` on this thread: the
+/// same operations either way, so the results do not depend on the choice
+/// or on the thread count (the callers' determinism rests on each task
+/// being sequential inside). Small problems run sequentially: a join from
+/// outside a rayon pool costs tens of microseconds.
 pub(crate) fn join_if<A, B, RA, RB>(parallel: bool, a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA + Send,
@@ -60,7 +62,7 @@ where
     RB: Send,
 {
     if parallel {
-        rayon::join(a, b)
+        team::join(a, b)
     } else {
         (a(), b())
     }
