@@ -134,7 +134,17 @@ impl GroundJoint {
     /// Φ into `phi` (the range's rows) and Φ_qᵀλ added to `g` (λ: the
     /// range's multipliers), from the 4 Φ_q values.
     fn phi_tmul(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64]) {
-        self.phi(q, phi);
+        self.phi_tmul_at(q, lambda, phi, g, self.row0)
+    }
+    /// [`GroundJoint::phi_tmul`] with the joint's rows at `row0` of `phi`
+    /// and `lambda`.
+    fn phi_tmul_at(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64], row0: usize) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut phi[row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi(qb, &self.params, &[], o);
+        }
         let mut vals = [0.0; 4];
         let qb = arr(&q[self.off..]);
         let pattern = if self.ground_is_i {
@@ -145,7 +155,7 @@ impl GroundJoint {
             kernels::REVOLUTE_BG_JAC_PATTERN
         };
         for (&(r, c), v) in pattern.iter().zip(vals) {
-            g[self.off + c] += v * lambda[self.row0 + r];
+            g[self.off + c] += v * lambda[row0 + r];
         }
     }
     fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
@@ -338,6 +348,12 @@ impl TrigMemo {
             sc: vec![f64::NAN; 2 * n_bodies],
         }
     }
+    /// Are the sines and cosines of bodies `ks` those of `q`'s angles
+    /// (bits compared)? For readers that share the memo without updating it.
+    fn current(&self, q: &[f64], ks: std::ops::Range<usize>) -> bool {
+        ks.into_iter()
+            .all(|k| self.phi_bits[k] == q[3 * k + 2].to_bits())
+    }
     fn update(&mut self, q: &[f64]) -> &[f64] {
         // two halves concurrently for long chains: each angle's sin_cos is
         // independent of the others, so the bits do not depend on threads
@@ -369,7 +385,7 @@ const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
 /// bits: the memo holds [`sin_cos`]'s values.
 #[derive(Debug, Clone)]
 pub struct SharedTrig {
-    memo: std::sync::Arc<std::sync::Mutex<TrigMemo>>,
+    memo: std::sync::Arc<std::sync::RwLock<TrigMemo>>,
     /// First coordinate of the first body.
     q0: usize,
     n_bodies: usize,
@@ -451,7 +467,7 @@ pub struct ChainKernels {
     jac0: usize,
     params: Vec<f64>,
     ground: Option<GroundJoint>,
-    memo: std::sync::Arc<std::sync::Mutex<TrigMemo>>,
+    memo: std::sync::Arc<std::sync::RwLock<TrigMemo>>,
 }
 
 /// A ground pivot of a chain: a revolute between the ground and `body`,
@@ -505,7 +521,7 @@ impl ChainKernels {
             jac0,
             params: joints.iter().flatten().copied().collect(),
             ground,
-            memo: std::sync::Arc::new(std::sync::Mutex::new(TrigMemo::new(nj + 1))),
+            memo: std::sync::Arc::new(std::sync::RwLock::new(TrigMemo::new(nj + 1))),
         }
     }
 
@@ -629,7 +645,7 @@ impl ChainKernels {
         let o = &mut vals[chain_at..chain_at + nh];
         // memoised sines and cosines (shared with Φ, Φ_q, γ at the same q);
         // computed afresh when another thread holds the memo
-        match self.memo.try_lock() {
+        match self.memo.try_write() {
             Ok(mut m) => kernels::revolute_chain_hessian_sc(qc, m.update(qc), p, l, o),
             Err(_) => kernels::revolute_chain_hessian(qc, p, l, o),
         }
@@ -667,7 +683,7 @@ impl ConstraintKernels for ChainKernels {
         let o = &mut out[self.chain_rows()];
         let (p, q) = (&self.params, self.chain_q(q_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_lock() {
+        match self.memo.try_write() {
             Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_phi(q, p, o),
         }
@@ -679,7 +695,7 @@ impl ConstraintKernels for ChainKernels {
         let o = &mut vals[self.chain_vals()];
         let (p, q) = (&self.params, self.chain_q(q_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_lock() {
+        match self.memo.try_write() {
             Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
             Err(_) => kernels::revolute_chain_jacobian(q, p, o),
         }
@@ -702,12 +718,64 @@ impl ConstraintKernels for ChainKernels {
             &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
         );
         // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_lock() {
+        match self.memo.try_write() {
             Ok(mut m) => kernels::revolute_chain_phi_tmul_sc(q, m.update(q), p, l, o, gc),
             Err(_) => kernels::revolute_chain_phi_tmul(q, p, l, o, gc),
         }
         if let Some(gj) = &self.ground {
             gj.phi_tmul(q_all, lambda, phi, g);
+        }
+        true
+    }
+    /// The sines and cosines of every angle into the memo (its two halves
+    /// concurrently for long chains).
+    fn prepare(&self, q: &[f64], _t: f64) {
+        if let Ok(mut m) = self.memo.try_write() {
+            m.update(self.chain_q(q));
+        }
+    }
+    /// `phi_tmul` of the joints `joints`: the chain's joints among them
+    /// with the memo's sines and cosines where current (else computed,
+    /// the same bits), then the ground joint when among them — the order
+    /// of `phi_tmul`.
+    fn phi_tmul_joints(
+        &self,
+        q_all: &[f64],
+        _t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        g: &mut [f64],
+        joints: std::ops::Range<usize>,
+    ) -> bool {
+        let nj = self.n_joints;
+        let ground_first = matches!(&self.ground, Some(gj) if gj.row0 == 0);
+        // local index of chain joint 0, and the chain joints in the range
+        let c0 = usize::from(ground_first);
+        let ka = joints.start.saturating_sub(c0).min(nj);
+        let kb = joints.end.saturating_sub(c0).min(nj);
+        if ka < kb {
+            let r = 2 * (ka + c0 - joints.start)..2 * (kb + c0 - joints.start);
+            let qc = self.chain_q(q_all);
+            let (qk, p) = (&qc[3 * ka..3 * (kb + 1)], &self.params[4 * ka..4 * kb]);
+            let (l, o) = (&lambda[r.clone()], &mut phi[r]);
+            let gc = &mut g[self.q0 + 3 * ka..self.q0 + 3 * (kb + 1)];
+            match self.memo.try_read() {
+                Ok(m) if m.current(qc, ka..kb + 1) => kernels::revolute_chain_phi_tmul_sc(
+                    qk,
+                    &m.sc[2 * ka..2 * (kb + 1)],
+                    p,
+                    l,
+                    o,
+                    gc,
+                ),
+                _ => kernels::revolute_chain_phi_tmul(qk, p, l, o, gc),
+            }
+        }
+        if let Some(gj) = &self.ground {
+            let jg = if ground_first { 0 } else { nj };
+            if joints.contains(&jg) {
+                gj.phi_tmul_at(q_all, lambda, phi, g, 2 * (jg - joints.start));
+            }
         }
         true
     }
@@ -721,7 +789,7 @@ impl ConstraintKernels for ChainKernels {
         let o = &mut out[self.chain_rows()];
         let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
         // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_lock() {
+        match self.memo.try_write() {
             Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
             Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
         }
@@ -900,9 +968,22 @@ impl ForceKernels for TorsionalChainJacobians {
     /// from g_j, spring after spring: the element's `−T` with the same
     /// roundings, in the same order into each entry (bit-identical;
     /// tests/codegen.rs).
-    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        let r = self.q0..self.q0 + 3 * (self.n() + 1);
-        kernels::torsional_chain_forces(&q[r.clone()], &qd[r.clone()], &self.fp, &mut g[r]);
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        self.add_forces_range(t, q, qd, g, 0..self.n())
+    }
+    /// Springs `elements` only: bodies `elements.start ..= elements.end`.
+    fn add_forces_range(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        let (a, b) = (elements.start, elements.end);
+        let r = self.q0 + 3 * a..self.q0 + 3 * (b + 1);
+        let fp = &self.fp[3 * a..3 * b];
+        kernels::torsional_chain_forces(&q[r.clone()], &qd[r.clone()], fp, &mut g[r]);
         true
     }
 }
@@ -960,35 +1041,71 @@ impl ForceKernels for DragJacobians {
         let r = self.q0..self.q0 + self.fp.len();
         kernels::drag_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
     }
-    /// The drag forces of every body in one loop, the angles' sines and
-    /// cosines four at a time ([`sin_cos4`], else [`sin_cos`]): body by body
-    /// the roundings of `Drag::force` (bit-identical; tests/codegen.rs).
+    /// The drag forces of every body in one loop: the angles' sines and
+    /// cosines from the chain's memo (updated here) when shared, else
+    /// computed ([`DragJacobians::forces_on`]).
     fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
         let nb = self.fp.len() / 3;
-        let force = |k: usize, sn: f64, cs: f64, g: &mut [f64]| {
-            let (o, a) = (self.q0 + 3 * k, 3 * k);
-            let f = drag_force(
-                (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
-                sn,
-                cs,
-                [qd[o], qd[o + 1], qd[o + 2]],
-            );
-            g[o] += f[0];
-            g[o + 1] += f[1];
-            g[o + 2] += f[2];
-        };
         if let Some(t) = &self.trig {
-            if let Ok(mut m) = t.memo.try_lock() {
+            if let Ok(mut m) = t.memo.try_write() {
                 let sc = m.update(&q[t.q0..t.q0 + 3 * t.n_bodies]);
                 for k in 0..nb {
-                    force(k, sc[2 * k], sc[2 * k + 1], g);
+                    self.force(k, sc[2 * k], sc[2 * k + 1], qd, g);
                 }
                 return true;
             }
         }
-        let mut k = 0;
-        while k < nb {
-            let m = (nb - k).min(4);
+        self.forces_on(0..nb, q, qd, g);
+        true
+    }
+    /// The drag forces of bodies `elements`: the memo's sines and cosines
+    /// where current (read, not updated: the two halves of the residual
+    /// read it at once), else computed.
+    fn add_forces_range(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        if let Some(t) = &self.trig {
+            if let Ok(m) = t.memo.try_read() {
+                if m.current(&q[t.q0..], elements.clone()) {
+                    for k in elements {
+                        self.force(k, m.sc[2 * k], m.sc[2 * k + 1], qd, g);
+                    }
+                    return true;
+                }
+            }
+        }
+        self.forces_on(elements, q, qd, g);
+        true
+    }
+}
+
+impl DragJacobians {
+    /// The drag force of body `k` with its angle's sine and cosine added
+    /// to `g`: the roundings of `Drag::force` (bit-identical;
+    /// tests/codegen.rs).
+    fn force(&self, k: usize, sn: f64, cs: f64, qd: &[f64], g: &mut [f64]) {
+        let (o, a) = (self.q0 + 3 * k, 3 * k);
+        let f = drag_force(
+            (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
+            sn,
+            cs,
+            [qd[o], qd[o + 1], qd[o + 2]],
+        );
+        g[o] += f[0];
+        g[o + 1] += f[1];
+        g[o + 2] += f[2];
+    }
+    /// The drag forces of bodies `ks`, the sines and cosines computed four
+    /// at a time ([`sin_cos4`], else [`sin_cos`]; the same bits).
+    fn forces_on(&self, ks: std::ops::Range<usize>, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        let mut k = ks.start;
+        while k < ks.end {
+            let m = (ks.end - k).min(4);
             let mut x = [0.0; 4];
             for (l, xl) in x.iter_mut().enumerate().take(m) {
                 *xl = q[self.q0 + 3 * (k + l) + 2];
@@ -999,11 +1116,10 @@ impl ForceKernels for DragJacobians {
                     Some((s, c)) => (s[l], c[l]),
                     None => sin_cos(x[l]),
                 };
-                force(k + l, sn, cs, g);
+                self.force(k + l, sn, cs, qd, g);
             }
             k += m;
         }
-        true
     }
 }
 
@@ -1064,8 +1180,18 @@ impl ForceKernels for ContactJacobians {
     /// `add_forces`. The same operations in the same order as the elements
     /// called one by one.
     fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        for (k, c) in self.clearance.iter().enumerate() {
-            if !c.clear(q[self.q0 + 3 * k]) {
+        self.add_forces_range(t, q, qd, g, 0..self.contacts.len())
+    }
+    fn add_forces_range(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        for k in elements {
+            if !self.clearance[k].clear(q[self.q0 + 3 * k]) {
                 ForceElement::add_forces(&self.contacts[k], t, q, qd, g);
             }
         }

@@ -49,6 +49,23 @@ impl ForceElement for Buoyancy {
         Vec::new()
     }
 
+    fn separable_by_body(&self) -> bool {
+        true
+    }
+
+    fn add_forces_on_bodies(
+        &self,
+        _t: f64,
+        _q: &[f64],
+        _qd: &[f64],
+        g: &mut [f64],
+        bodies: std::ops::Range<usize>,
+    ) {
+        for &(b, v) in self.bodies.iter().filter(|(b, _)| bodies.contains(b)) {
+            g[3 * b + 1] += self.uplift(v);
+        }
+    }
+
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         Some(
             self.bodies

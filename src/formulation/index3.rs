@@ -67,7 +67,7 @@ use crate::linalg::{
     join_if, solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
     SolverStats,
 };
-use crate::model::System;
+use crate::model::{ResidualHalves, System};
 use serde::Serialize;
 
 /// Counters of [`Index3`].
@@ -108,6 +108,10 @@ pub struct Index3<'a> {
     jac: Vec<f64>,
     g: Vec<f64>,
     tmp: Vec<f64>,
+    /// The residual in two halves by bodies for large systems whose plan
+    /// allows it ([`System::residual_halves`]), with the high half's g and
+    /// Φ_qᵀλ (the low half's: `g`, `tmp`).
+    halves: Option<(ResidualHalves, Vec<f64>, Vec<f64>)>,
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
@@ -203,6 +207,10 @@ impl<'a> Index3<'a> {
             jac: vec![0.0; sys.jacobian_pattern().len()],
             g: vec![0.0; n],
             tmp: vec![0.0; n],
+            halves: (n >= PARALLEL_MIN_COORDS)
+                .then(|| sys.residual_halves(sys.bodies().len() / 2))
+                .flatten()
+                .map(|h| (h, vec![0.0; n], vec![0.0; n])),
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
@@ -248,6 +256,9 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         let n = self.n;
         self.stats.residuals += 1;
+        if self.halves.is_some() && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r) {
+            return Ok(());
+        }
         // forces and constraint terms concurrently (`rayon::join`; each
         // task sequential inside, so the bits do not depend on the thread
         // count); errors in the order: state, g, Φ_q, residual
@@ -293,6 +304,87 @@ impl<'a> Index3<'a> {
                 ("the index-3 residual (M q̈ + Φ_qᵀ λ − g, Φ)", r),
             ],
         )
+    }
+
+    /// [`Index3::residual_into`] in two halves by bodies, concurrently
+    /// ([`System::residual_halves`]): each half checks its part of the
+    /// state, evaluates its forces and constraint terms into its own
+    /// buffers and (after the boundary is summed) fills its part of the
+    /// residual; the two parts of `Φ` are the halves' rows. Returns false,
+    /// leaving the work to the caller's one-piece evaluation (which names
+    /// the culprit), when anything is not finite — or, for good, when the
+    /// constraint kernels cannot evaluate a range of joints.
+    #[allow(clippy::too_many_arguments)]
+    fn residual_in_halves(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        lambda: &[f64],
+        scale: f64,
+        r: &mut [f64],
+    ) -> bool {
+        let (sys, n) = (self.sys, self.n);
+        let Some((h, g_hi, tmp_hi)) = &mut self.halves else {
+            return false;
+        };
+        let (g_lo, tmp_lo) = (&mut self.g, &mut self.tmp);
+        let split = h.split();
+        sys.prepare_residual_halves(q, t);
+        let (r_dyn, mut r_phi) = r.split_at_mut(n);
+        let (mut phi_lo, mut phi_hi) = (Vec::new(), Vec::new());
+        for (high, rows) in h.row_runs() {
+            let (run, rest) = std::mem::take(&mut r_phi).split_at_mut(rows.len());
+            r_phi = rest;
+            if high { &mut phi_hi } else { &mut phi_lo }.push(run);
+        }
+        let finite = |x: &[f64]| crate::integrate::first_non_finite(x).is_none();
+        let h = &*h;
+        let half = |high: bool, g: &mut [f64], phi: &mut [&mut [f64]], tmp: &mut [f64]| {
+            let c = if high { split..n } else { 0..split };
+            if !(finite(&q[c.clone()]) && finite(&qd[c])) {
+                return Some(false);
+            }
+            if !sys.residual_half(h, high, t, q, qd, lambda, g, phi, tmp) {
+                return None;
+            }
+            Some(phi.iter().all(|p| finite(p)))
+        };
+        let (lo, hi) = join_if(
+            true,
+            || half(false, g_lo, &mut phi_lo, tmp_lo),
+            || half(true, g_hi, &mut phi_hi, tmp_hi),
+        );
+        match (lo, hi) {
+            (Some(true), Some(true)) => {}
+            (None, _) | (_, None) => {
+                self.halves = None;
+                return false;
+            }
+            _ => return false,
+        }
+        for &k in h.boundary() {
+            g_hi[k] += g_lo[k];
+            tmp_hi[k] += tmp_lo[k];
+        }
+        let mass = sys.mass_diagonal();
+        let fill = |r: &mut [f64], base: usize, g: &[f64], tmp: &[f64]| {
+            for (i, ri) in r.iter_mut().enumerate() {
+                let k = base + i;
+                *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
+            }
+            finite(r)
+        };
+        let (r_lo, r_hi) = r_dyn.split_at_mut(split);
+        let (g_lo, tmp_lo) = (&*g_lo, &*tmp_lo);
+        let (g_hi, tmp_hi) = (&*g_hi, &*tmp_hi);
+        let (a, b) = join_if(
+            true,
+            || fill(r_lo, 0, g_lo, tmp_lo),
+            || fill(r_hi, split, g_hi, tmp_hi),
+        );
+        a && b
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:

@@ -52,6 +52,27 @@ pub trait ForceElement: Send + Sync + Debug {
     fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let _ = (t, q, qd, out);
     }
+    /// Is the element a sum of loads on single bodies (gravity, buoyancy),
+    /// so that [`ForceElement::add_forces_on_bodies`] can split it between
+    /// the index-3 residual's two halves? Default: false.
+    fn separable_by_body(&self) -> bool {
+        false
+    }
+    /// Add the forces on bodies `bodies` only: into each of their entries
+    /// of `g` the same operations as [`ForceElement::add_forces`], in the
+    /// same order. Called only when [`ForceElement::separable_by_body`];
+    /// the default adds every force.
+    fn add_forces_on_bodies(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        bodies: std::ops::Range<usize>,
+    ) {
+        let _ = bodies;
+        self.add_forces(t, q, qd, g)
+    }
     /// Check parameters and that every coordinate is `< n_coords`.
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         check_coordinates(&self.name(), &self.coordinates(), n_coords)

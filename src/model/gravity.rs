@@ -31,6 +31,22 @@ impl ForceElement for Gravity {
     fn jacobian_coordinates(&self) -> Vec<usize> {
         Vec::new()
     }
+    fn separable_by_body(&self) -> bool {
+        true
+    }
+    fn add_forces_on_bodies(
+        &self,
+        _t: f64,
+        _q: &[f64],
+        _qd: &[f64],
+        g: &mut [f64],
+        bodies: std::ops::Range<usize>,
+    ) {
+        for &(b, m) in self.bodies.iter().filter(|(b, _)| bodies.contains(b)) {
+            g[3 * b] += m * self.g[0];
+            g[3 * b + 1] += m * self.g[1];
+        }
+    }
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         Some(
             self.bodies

@@ -30,7 +30,9 @@ pub use reaction::ReactionMap;
 pub use sensor::{
     drives, evaluate_sensors, joint_short_name, point_state, Drive, Sensor, SensorKind,
 };
-pub use system::{ConstraintKernels, Evaluation, ForceKernels, System, SystemBuilder};
+pub use system::{
+    ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, System, SystemBuilder,
+};
 pub use time_function::TimeFunction;
 
 /// Rotation matrix R(φ) applied to a body-fixed vector `s`: `R(φ) s`.

@@ -4,6 +4,9 @@
 use super::{Body, Constraint, FdWorkspace, ForceElement, Gravity, ModelError};
 use std::ops::Range;
 
+mod halves;
+pub use halves::ResidualHalves;
+
 /// Specialised evaluation of Φ, Φ_q, Φ_t, γ (and optionally (Φ_qᵀλ)_q) for
 /// a contiguous range of joints, e.g. code emitted at build time by
 /// `mbsolve-codegen` for a known topology ([`crate::generated`]).
@@ -46,6 +49,32 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         let _ = (q, t, lambda, phi, g);
         false
     }
+    /// Shared work before concurrent [`ConstraintKernels::phi_tmul_joints`]
+    /// calls at the same `q` (the sines and cosines of every angle).
+    /// Default: nothing.
+    fn prepare(&self, q: &[f64], t: f64) {
+        let _ = (q, t);
+    }
+    /// [`ConstraintKernels::phi_tmul`] of the range's joints `joints` only
+    /// (indices within the range, in row order): their Φ into `phi` and
+    /// their λ from `lambda` (both: those joints' rows only), Φ_qᵀλ added
+    /// to `g` (all coordinates) with the operations `phi_tmul` does for
+    /// them. For the index-3 residual's two halves, which call it
+    /// concurrently on disjoint joints after [`ConstraintKernels::prepare`].
+    /// Returns false when the kernels do not have it (the halves are then
+    /// not used).
+    fn phi_tmul_joints(
+        &self,
+        q: &[f64],
+        t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        g: &mut [f64],
+        joints: Range<usize>,
+    ) -> bool {
+        let _ = (q, t, lambda, phi, g, joints);
+        false
+    }
     /// Φ, Φ_q values and γ in one pass. Default: the three calls; kernels
     /// override it to share the sines and cosines of every angle.
     fn evaluate(
@@ -83,6 +112,20 @@ pub trait ForceKernels: Send + Sync + std::fmt::Debug {
     /// (the default): the elements do it.
     fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
         let _ = (t, q, qd, g);
+        false
+    }
+    /// [`ForceKernels::add_forces`] of the elements `elements` (indices
+    /// within the range) only, bit-identical to those elements' own
+    /// `add_forces` in order; false (the default): the elements do it.
+    fn add_forces_range(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: Range<usize>,
+    ) -> bool {
+        let _ = (t, q, qd, g, elements);
         false
     }
 }

@@ -1,0 +1,240 @@
+//! The forces and constraint terms of the index-3 residual (eq. (5):
+//! `g(q, q̇, t)`, `Φ(q, t)` and `Φ_qᵀλ`) in two halves by bodies, for two
+//! threads: each half evaluates what acts on the bodies below (or from) a
+//! split body, so each thread reads and writes only its own half of q, q̇,
+//! g and Φ_qᵀλ — the halves that its Newton update, substitutions and
+//! error estimates touch ([`crate::linalg::team`]: a line moved between
+//! the cores costs far more than a local one).
+//!
+//! Each half writes its own full-length buffers of g and Φ_qᵀλ (global
+//! indices; only its coordinates are zeroed and meaningful). A piece that
+//! acts on both sides (the spring and the joint across the split) goes to
+//! the low half, which also zeroes and writes those of its coordinates that
+//! lie in the high half (the *boundary*); the caller then adds the low
+//! half's boundary entries to the high half's. Into every other entry each
+//! half adds the pieces in the order of the system's evaluation plan, so
+//! those entries have the bits of [`System::forces_into`] and
+//! [`System::phi_and_jacobian_tmul`].
+
+use super::{Segment, System};
+use std::collections::BTreeSet;
+use std::ops::Range;
+
+/// More boundary coordinates than this and the halves are not used (a
+/// piece that couples far across the split).
+const MAX_BOUNDARY: usize = 64;
+
+/// One piece of a half's forces, in the order of the force plan.
+#[derive(Debug, Clone)]
+enum Part {
+    /// Force element `e`, whole.
+    Element(usize),
+    /// The loads of body-separable element `e` on these bodies.
+    Bodies(usize, Range<usize>),
+    /// Elements (within the block) of force-kernel block `i`.
+    Kernels(usize, Range<usize>),
+}
+
+/// Consecutive joints of the kernel block on one side: (high side?,
+/// joints within the block, their rows).
+type Run = (bool, Range<usize>, Range<usize>);
+
+/// More runs of joints than this (sides alternating along the block) and
+/// the halves are not used.
+const MAX_RUNS: usize = 4;
+
+/// The residual's two halves of a [`System`] ([`System::residual_halves`]).
+#[derive(Debug, Clone)]
+pub struct ResidualHalves {
+    split: usize,
+    forces: [Vec<Part>; 2],
+    runs: Vec<Run>,
+    boundary: Vec<usize>,
+}
+
+impl ResidualHalves {
+    /// First coordinate of the high half (3 × the split body).
+    pub fn split(&self) -> usize {
+        self.split
+    }
+    /// The constraint rows in consecutive runs, in order, each with its
+    /// side (true: the high half): [`System::residual_half`] takes its
+    /// side's runs of Φ in this order.
+    pub fn row_runs(&self) -> impl Iterator<Item = (bool, Range<usize>)> + '_ {
+        self.runs.iter().map(|(h, _, r)| (*h, r.clone()))
+    }
+    /// Coordinates of the high half that the low half writes: after both
+    /// halves, add the low half's entries there to the high half's.
+    pub fn boundary(&self) -> &[usize] {
+        &self.boundary
+    }
+}
+
+impl System {
+    /// The residual's halves split at body `body`, when the evaluation
+    /// plan can be cut there: every joint in one kernel block (the
+    /// generated chain kernels) whose joints acting below the split come
+    /// first, every force element one-sided, separable by bodies, or
+    /// within a kernel block whose low elements come first, and at most
+    /// a few boundary coordinates. `None` otherwise.
+    pub fn residual_halves(&self, body: usize) -> Option<ResidualHalves> {
+        let nb = self.bodies.len();
+        if !self.use_kernels || self.kernels.len() != 1 || self.plan.len() != 1 || body >= nb {
+            return None;
+        }
+        let split = 3 * body;
+        let mut boundary = BTreeSet::new();
+        let b = &self.kernels[0];
+        if b.rows != (0..self.n_constraints()) {
+            return None;
+        }
+        let cols = |k: usize| -> Vec<usize> {
+            self.jac_pattern[self.jac_offset[k]..self.jac_offset[k + 1]]
+                .iter()
+                .map(|&(_, c)| c)
+                .collect()
+        };
+        let low = |c: &[usize]| c.iter().min().is_none_or(|&m| m < split);
+        // the joints in runs of one side (a joint acting on both: low)
+        let mut runs: Vec<Run> = Vec::new();
+        for (j, k) in b.joints.clone().enumerate() {
+            let c = cols(k);
+            let high = !low(&c);
+            if !high {
+                boundary.extend(c.into_iter().filter(|&x| x >= split));
+            }
+            let rows = self.rows(k);
+            match runs.last_mut() {
+                Some((h, js, rs)) if *h == high => {
+                    js.end = j + 1;
+                    rs.end = rows.end;
+                }
+                _ => runs.push((high, j..j + 1, rows)),
+            }
+        }
+        if runs.len() > MAX_RUNS {
+            return None;
+        }
+        // the low pieces of a sequence (a block's elements, or one element) are
+        // a prefix: its length, with their coordinates beyond the split
+        let mut prefix = |coords: &mut dyn Iterator<Item = Vec<usize>>| -> Option<usize> {
+            let mut p = 0;
+            let mut high_seen = false;
+            for c in coords {
+                if low(&c) {
+                    if high_seen {
+                        return None;
+                    }
+                    p += 1;
+                    boundary.extend(c.into_iter().filter(|&x| x >= split));
+                } else {
+                    high_seen = true;
+                }
+            }
+            Some(p)
+        };
+        let (mut lo, mut hi) = (Vec::new(), Vec::new());
+        for s in &self.force_plan {
+            match *s {
+                Segment::Joint(e) => {
+                    let f = &self.forces[e];
+                    if f.separable_by_body() {
+                        lo.push(Part::Bodies(e, 0..body));
+                        hi.push(Part::Bodies(e, body..nb));
+                    } else {
+                        let p = prefix(&mut std::iter::once(f.coordinates()))?;
+                        if p == 1 {
+                            lo.push(Part::Element(e));
+                        } else {
+                            hi.push(Part::Element(e));
+                        }
+                    }
+                }
+                Segment::Kernels(i) => {
+                    let el = self.force_kernels[i].elements.clone();
+                    let len = el.len();
+                    let p = prefix(&mut el.map(|e| self.forces[e].coordinates()))?;
+                    if p > 0 {
+                        lo.push(Part::Kernels(i, 0..p));
+                    }
+                    if p < len {
+                        hi.push(Part::Kernels(i, p..len));
+                    }
+                }
+            }
+        }
+        if boundary.len() > MAX_BOUNDARY {
+            return None;
+        }
+        Some(ResidualHalves {
+            split,
+            forces: [lo, hi],
+            runs,
+            boundary: boundary.into_iter().collect(),
+        })
+    }
+
+    /// Shared work of the constraint kernels before the halves at `q`
+    /// ([`crate::model::ConstraintKernels::prepare`]).
+    pub fn prepare_residual_halves(&self, q: &[f64], t: f64) {
+        self.kernels[0].kernels.prepare(q, t);
+    }
+
+    /// One half of the residual's forces and constraint terms (`high`:
+    /// the bodies from the split): zero the half's coordinates of `g` and
+    /// `tmp` (the low half: and the boundary), add its forces to `g`, its
+    /// runs' Φ into `phi` (its runs of rows, in the order of
+    /// [`ResidualHalves::row_runs`]) and their Φ_qᵀλ to `tmp` (λ: every
+    /// multiplier). Returns false when the constraint kernels cannot
+    /// evaluate a range of joints (`g`, `tmp`, `phi` then unusable).
+    #[allow(clippy::too_many_arguments)]
+    pub fn residual_half(
+        &self,
+        h: &ResidualHalves,
+        high: bool,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lambda: &[f64],
+        g: &mut [f64],
+        phi: &mut [&mut [f64]],
+        tmp: &mut [f64],
+    ) -> bool {
+        let side = usize::from(high);
+        let coords = if high { h.split..g.len() } else { 0..h.split };
+        g[coords.clone()].fill(0.0);
+        tmp[coords].fill(0.0);
+        if !high {
+            for &k in &h.boundary {
+                g[k] = 0.0;
+                tmp[k] = 0.0;
+            }
+        }
+        for part in &h.forces[side] {
+            match part {
+                &Part::Element(e) => self.forces[e].add_forces(t, q, qd, g),
+                Part::Bodies(e, bodies) => {
+                    self.forces[*e].add_forces_on_bodies(t, q, qd, g, bodies.clone())
+                }
+                Part::Kernels(i, r) => {
+                    let b = &self.force_kernels[*i];
+                    if !b.kernels.add_forces_range(t, q, qd, g, r.clone()) {
+                        let e0 = b.elements.start;
+                        for f in &self.forces[e0 + r.start..e0 + r.end] {
+                            f.add_forces(t, q, qd, g);
+                        }
+                    }
+                }
+            }
+        }
+        let k = &self.kernels[0].kernels;
+        let mine = h.runs.iter().filter(|r| r.0 == high);
+        for ((_, joints, rows), phi) in mine.zip(phi.iter_mut()) {
+            let l = &lambda[rows.clone()];
+            if !k.phi_tmul_joints(q, t, l, phi, tmp, joints.clone()) {
+                return false;
+            }
+        }
+        true
+    }
+}
