@@ -110,8 +110,9 @@ pub struct Index3<'a> {
     tmp: Vec<f64>,
     /// The residual in two halves by bodies for large systems whose plan
     /// allows it ([`System::residual_halves`]), with the high half's g and
-    /// Φ_qᵀλ (the low half's: `g`, `tmp`).
-    halves: Option<(ResidualHalves, Vec<f64>, Vec<f64>)>,
+    /// Φ_qᵀλ (the low half's: `g`, `tmp`), the boundary's g, Φ_qᵀλ and a
+    /// scratch Φ.
+    halves: Option<(ResidualHalves, [Vec<f64>; 5])>,
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
@@ -210,7 +211,12 @@ impl<'a> Index3<'a> {
             halves: (n >= PARALLEL_MIN_COORDS)
                 .then(|| sys.residual_halves(sys.bodies().len() / 2))
                 .flatten()
-                .map(|h| (h, vec![0.0; n], vec![0.0; n])),
+                .map(|h| {
+                    (
+                        h,
+                        std::array::from_fn(|i| vec![0.0; if i == 4 { m } else { n }]),
+                    )
+                }),
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
@@ -326,7 +332,7 @@ impl<'a> Index3<'a> {
         r: &mut [f64],
     ) -> bool {
         let (sys, n) = (self.sys, self.n);
-        let Some((h, g_hi, tmp_hi)) = &mut self.halves else {
+        let Some((h, [g_hi, tmp_hi, g_edge, tmp_edge, phi_edge])) = &mut self.halves else {
             return false;
         };
         let (g_lo, tmp_lo) = (&mut self.g, &mut self.tmp);
@@ -364,9 +370,13 @@ impl<'a> Index3<'a> {
             }
             _ => return false,
         }
+        if !sys.residual_boundary(h, t, q, qd, lambda, g_edge, phi_edge, tmp_edge) {
+            self.halves = None;
+            return false;
+        }
         for &k in h.boundary() {
-            g_hi[k] += g_lo[k];
-            tmp_hi[k] += tmp_lo[k];
+            g_hi[k] = g_edge[k];
+            tmp_hi[k] = tmp_edge[k];
         }
         let mass = sys.mass_diagonal();
         let fill = |r: &mut [f64], base: usize, g: &[f64], tmp: &[f64]| {
