@@ -1043,7 +1043,7 @@ impl ForceKernels for DragJacobians {
     }
     /// The drag forces of every body in one loop: the angles' sines and
     /// cosines from the chain's memo (updated here) when shared, else
-    /// computed ([`DragJacobians::forces_on`]).
+    /// computed (`DragJacobians::forces_on`).
     fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
         let nb = self.fp.len() / 3;
         if let Some(t) = &self.trig {

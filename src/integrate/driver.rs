@@ -157,7 +157,7 @@ impl PartialEq for Failure {
 /// A run whose state has at least `2·PARALLEL_MIN_COORDS` entries (`q` and
 /// `q̇` of a system large enough for concurrent passes) runs with a
 /// two-thread team when the rayon pool has a second thread
-/// ([`crate::linalg::team`]); the results do not depend on it.
+/// (`linalg::team`); the results do not depend on it.
 pub fn drive(
     st: &mut dyn Stepper,
     times: &[f64],
