@@ -39,10 +39,8 @@ impl ForceElement for Buoyancy {
         c
     }
 
-    fn add_forces(&self, _t: f64, _q: &[f64], _qd: &[f64], g: &mut [f64]) {
-        for &(b, v) in &self.bodies {
-            g[3 * b + 1] += self.uplift(v);
-        }
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        self.add_forces_on_bodies(t, q, qd, g, 0..usize::MAX)
     }
 
     fn jacobian_coordinates(&self) -> Vec<usize> {

@@ -290,13 +290,7 @@ impl<'a> Index3<'a> {
         let mass = sys.mass_diagonal();
         let (g, tmp) = (&self.g, &self.tmp);
         let half = n / 2;
-        let fill = |r: &mut [f64], base: usize| {
-            for (i, ri) in r.iter_mut().enumerate() {
-                let k = base + i;
-                *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
-            }
-            crate::integrate::first_non_finite(r).is_none()
-        };
+        let fill = |r: &mut [f64], base: usize| fill_dynamic(r, base, scale, mass, qdd, tmp, g);
         let (r_lo, r_hi) = r_dyn.split_at_mut(half);
         let (lo_finite, hi_finite) = join_if(par, || fill(r_lo, 0), || fill(r_hi, half));
         if phi_finite && lo_finite && hi_finite {
@@ -380,11 +374,7 @@ impl<'a> Index3<'a> {
         }
         let mass = sys.mass_diagonal();
         let fill = |r: &mut [f64], base: usize, g: &[f64], tmp: &[f64]| {
-            for (i, ri) in r.iter_mut().enumerate() {
-                let k = base + i;
-                *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
-            }
-            finite(r)
+            fill_dynamic(r, base, scale, mass, qdd, tmp, g)
         };
         let (r_lo, r_hi) = r_dyn.split_at_mut(split);
         let (g_lo, tmp_lo) = (&*g_lo, &*tmp_lo);
@@ -607,4 +597,23 @@ impl SecondOrderDae for Index3<'_> {
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError> {
         Index3::project(self, t, q, qd).map_err(SystemError::new)
     }
+}
+
+/// The dynamic rows `base ..` of the index-3 residual into `r`:
+/// `r_i = s (M_k q̈_k + (Φ_qᵀλ)_k − g_k)`, `k = base + i`; whether every
+/// entry is finite.
+fn fill_dynamic(
+    r: &mut [f64],
+    base: usize,
+    scale: f64,
+    mass: &[f64],
+    qdd: &[f64],
+    tmp: &[f64],
+    g: &[f64],
+) -> bool {
+    for (i, ri) in r.iter_mut().enumerate() {
+        let k = base + i;
+        *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
+    }
+    crate::integrate::first_non_finite(r).is_none()
 }

@@ -22,11 +22,8 @@ impl ForceElement for Gravity {
             .flat_map(|&(b, _)| [3 * b, 3 * b + 1])
             .collect()
     }
-    fn add_forces(&self, _t: f64, _q: &[f64], _qd: &[f64], g: &mut [f64]) {
-        for &(b, m) in &self.bodies {
-            g[3 * b] += m * self.g[0];
-            g[3 * b + 1] += m * self.g[1];
-        }
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        self.add_forces_on_bodies(t, q, qd, g, 0..usize::MAX)
     }
     fn jacobian_coordinates(&self) -> Vec<usize> {
         Vec::new()
