@@ -307,10 +307,11 @@ impl<'a> Index3<'a> {
     }
 
     /// [`Index3::residual_into`] in two halves by bodies, concurrently
-    /// ([`System::residual_halves`]): each half checks its part of the
-    /// state, evaluates its forces and constraint terms into its own
-    /// buffers and (after the boundary is summed) fills its part of the
-    /// residual; the two parts of `Φ` are the halves' rows. Returns false,
+    /// ([`System::residual_halves`]): the boundary's sums first
+    /// ([`System::residual_boundary`]), then each half checks its part of
+    /// the state, evaluates its forces and constraint terms into its own
+    /// buffers (the high half takes the boundary's entries) and fills its
+    /// part of the residual; the two parts of `Φ` are the halves' rows. Returns false,
     /// leaving the work to the caller's one-piece evaluation (which names
     /// the culprit), when anything is not finite — or, for good, when the
     /// constraint kernels cannot evaluate a range of joints.
@@ -332,59 +333,64 @@ impl<'a> Index3<'a> {
         let (g_lo, tmp_lo) = (&mut self.g, &mut self.tmp);
         let split = h.split();
         sys.prepare_residual_halves(q, t);
-        let (r_dyn, mut r_phi) = r.split_at_mut(n);
-        let (mut phi_lo, mut phi_hi) = (Vec::new(), Vec::new());
-        for (high, rows) in h.row_runs() {
-            let (run, rest) = std::mem::take(&mut r_phi).split_at_mut(rows.len());
-            r_phi = rest;
-            if high { &mut phi_hi } else { &mut phi_lo }.push(run);
-        }
-        let finite = |x: &[f64]| crate::integrate::first_non_finite(x).is_none();
-        let h = &*h;
-        let half = |high: bool, g: &mut [f64], phi: &mut [&mut [f64]], tmp: &mut [f64]| {
-            let c = if high { split..n } else { 0..split };
-            if !(finite(&q[c.clone()]) && finite(&qd[c])) {
-                return Some(false);
-            }
-            if !sys.residual_half(h, high, t, q, qd, lambda, g, phi, tmp) {
-                return None;
-            }
-            Some(phi.iter().all(|p| finite(p)))
-        };
-        let (lo, hi) = join_if(
-            true,
-            || half(false, g_lo, &mut phi_lo, tmp_lo),
-            || half(true, g_hi, &mut phi_hi, tmp_hi),
-        );
-        match (lo, hi) {
-            (Some(true), Some(true)) => {}
-            (None, _) | (_, None) => {
-                self.halves = None;
-                return false;
-            }
-            _ => return false,
-        }
+        // the boundary's sums first (a few pieces, here): the high half
+        // takes them before it fills its rows
         if !sys.residual_boundary(h, t, q, qd, lambda, g_edge, phi_edge, tmp_edge) {
             self.halves = None;
             return false;
         }
-        for &k in h.boundary() {
-            g_hi[k] = g_edge[k];
-            tmp_hi[k] = tmp_edge[k];
+        let (g_edge, tmp_edge) = (&*g_edge, &*tmp_edge);
+        // Φ's rows in the halves' runs (at most `ResidualHalves::MAX_RUNS`)
+        let (r_dyn, mut r_phi) = r.split_at_mut(n);
+        let mut phis: [[&mut [f64]; ResidualHalves::MAX_RUNS]; 2] = Default::default();
+        let mut count = [0; 2];
+        for (high, rows) in h.row_runs() {
+            let (run, rest) = std::mem::take(&mut r_phi).split_at_mut(rows.len());
+            r_phi = rest;
+            let side = usize::from(high);
+            phis[side][count[side]] = run;
+            count[side] += 1;
         }
-        let mass = sys.mass_diagonal();
-        let fill = |r: &mut [f64], base: usize, g: &[f64], tmp: &[f64]| {
-            fill_dynamic(r, base, scale, mass, qdd, tmp, g)
-        };
+        let [phi_lo, phi_hi] = &mut phis;
+        let (phi_lo, phi_hi) = (&mut phi_lo[..count[0]], &mut phi_hi[..count[1]]);
         let (r_lo, r_hi) = r_dyn.split_at_mut(split);
-        let (g_lo, tmp_lo) = (&*g_lo, &*tmp_lo);
-        let (g_hi, tmp_hi) = (&*g_hi, &*tmp_hi);
-        let (a, b) = join_if(
+        let finite = |x: &[f64]| crate::integrate::first_non_finite(x).is_none();
+        let mass = sys.mass_diagonal();
+        let h = &*h;
+        // one half: its state checked, its forces and constraint terms, the
+        // boundary's sums (high half), its rows filled; None: the kernels
+        // cannot evaluate a range of joints
+        let half =
+            |high: bool, g: &mut [f64], phi: &mut [&mut [f64]], tmp: &mut [f64], r: &mut [f64]| {
+                let c = if high { split..n } else { 0..split };
+                if !(finite(&q[c.clone()]) && finite(&qd[c.clone()])) {
+                    return Some(false);
+                }
+                if !sys.residual_half(h, high, t, q, qd, lambda, g, phi, tmp) {
+                    return None;
+                }
+                if high {
+                    for &k in h.boundary() {
+                        g[k] = g_edge[k];
+                        tmp[k] = tmp_edge[k];
+                    }
+                }
+                let rows = fill_dynamic(r, c.start, scale, mass, qdd, tmp, g);
+                Some(rows && phi.iter().all(|p| finite(p)))
+            };
+        let (lo, hi) = join_if(
             true,
-            || fill(r_lo, 0, g_lo, tmp_lo),
-            || fill(r_hi, split, g_hi, tmp_hi),
+            || half(false, g_lo, phi_lo, tmp_lo, r_lo),
+            || half(true, g_hi, phi_hi, tmp_hi, r_hi),
         );
-        a && b
+        match (lo, hi) {
+            (Some(true), Some(true)) => true,
+            (None, _) | (_, None) => {
+                self.halves = None;
+                false
+            }
+            _ => false,
+        }
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:

@@ -41,10 +41,6 @@ enum Part {
 /// joints within the block, their rows).
 type Run = (bool, Range<usize>, Range<usize>);
 
-/// More runs of joints than this (sides alternating along the block) and
-/// the halves are not used.
-const MAX_RUNS: usize = 4;
-
 /// The residual's two halves of a [`System`] ([`System::residual_halves`]).
 #[derive(Debug, Clone)]
 pub struct ResidualHalves {
@@ -61,6 +57,9 @@ pub struct ResidualHalves {
 }
 
 impl ResidualHalves {
+    /// More runs of joints than this (sides alternating along the block)
+    /// and the halves are not used.
+    pub const MAX_RUNS: usize = 4;
     /// First coordinate of the high half (3 × the split body).
     pub fn split(&self) -> usize {
         self.split
@@ -71,8 +70,8 @@ impl ResidualHalves {
     pub fn row_runs(&self) -> impl Iterator<Item = (bool, Range<usize>)> + '_ {
         self.runs.iter().map(|(h, _, r)| (*h, r.clone()))
     }
-    /// Coordinates of the high half that the low half also loads: after
-    /// both halves, take them from [`System::residual_boundary`].
+    /// Coordinates of the high half that the low half also loads: their
+    /// entries come from [`System::residual_boundary`].
     pub fn boundary(&self) -> &[usize] {
         &self.boundary
     }
@@ -120,7 +119,7 @@ impl System {
                 _ => runs.push((high, j..j + 1, rows)),
             }
         }
-        if runs.len() > MAX_RUNS {
+        if runs.len() > ResidualHalves::MAX_RUNS {
             return None;
         }
         // the low pieces of a sequence (a block's elements, or one element) are
@@ -238,7 +237,7 @@ impl System {
         })
     }
 
-    /// The boundary's exact sums after both halves: the pieces that load
+    /// The boundary's sums, for the high half's entries there: the pieces that load
     /// a boundary coordinate, once more on their own and in plan order,
     /// into `g` and `tmp` (full length; only the boundary's entries are
     /// meaningful afterwards) — the operations [`System::forces_into`] and
