@@ -170,8 +170,9 @@ where
     }
     let ra = catch_unwind(AssertUnwindSafe(a));
     // the half stays with the helper even when it has not started yet:
-    // each half's data then stays in one core's cache (on this machine a
-    // line moved between the cores costs ~10× a local one)
+    // each half's data then stays in one core's cache (on this machine
+    // bdf's Newton update ran ~9× slower with its halves on the other
+    // cores than the passes before it: docs/scaling.md, stop 25)
     wait_done(team);
     // SAFETY: state DONE: the helper is finished with the job and the slot
     let panic_b = unsafe { (*team.panic.get()).take() };
