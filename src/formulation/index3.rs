@@ -109,13 +109,24 @@ pub struct Index3<'a> {
     g: Vec<f64>,
     tmp: Vec<f64>,
     /// The residual in two halves by bodies for large systems whose plan
-    /// allows it ([`System::residual_halves`]), with the high half's g and
-    /// Φ_qᵀλ (the low half's: `g`, `tmp`), the boundary's g, Φ_qᵀλ and a
-    /// scratch Φ.
-    halves: Option<(ResidualHalves, [Vec<f64>; 5])>,
+    /// allows it ([`System::residual_halves`]), with its buffers.
+    halves: Option<(ResidualHalves, HalfBuffers)>,
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
+}
+
+/// Buffers of [`Index3`]'s residual in halves: the high half's g and
+/// Φ_qᵀλ (the low half uses `Index3::g`, `Index3::tmp`), the boundary's g
+/// and Φ_qᵀλ ([`System::residual_boundary`]; full length, only the
+/// boundary's entries meaningful) and its scratch Φ.
+#[derive(Debug)]
+struct HalfBuffers {
+    g_hi: Vec<f64>,
+    tmp_hi: Vec<f64>,
+    g_edge: Vec<f64>,
+    tmp_edge: Vec<f64>,
+    phi_edge: Vec<f64>,
 }
 
 /// How the Newton matrix is factorised.
@@ -212,10 +223,14 @@ impl<'a> Index3<'a> {
                 .then(|| sys.residual_halves(sys.bodies().len() / 2))
                 .flatten()
                 .map(|h| {
-                    (
-                        h,
-                        std::array::from_fn(|i| vec![0.0; if i == 4 { m } else { n }]),
-                    )
+                    let b = HalfBuffers {
+                        g_hi: vec![0.0; n],
+                        tmp_hi: vec![0.0; n],
+                        g_edge: vec![0.0; n],
+                        tmp_edge: vec![0.0; n],
+                        phi_edge: vec![0.0; m],
+                    };
+                    (h, b)
                 }),
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
@@ -265,9 +280,11 @@ impl<'a> Index3<'a> {
         if self.halves.is_some() && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r) {
             return Ok(());
         }
-        // forces and constraint terms concurrently (`rayon::join`; each
-        // task sequential inside, so the bits do not depend on the thread
-        // count); errors in the order: state, g, Φ_q, residual
+        // in one piece (systems without halves, small ones, and the
+        // naming of a non-finite culprit): forces and constraint terms
+        // concurrently (`join_if`; each task sequential inside, so the
+        // bits do not depend on the thread count); errors in the order:
+        // state, g, Φ_q, residual
         let (g, tmp, jac) = (&mut self.g, &mut self.tmp, &mut self.jac);
         let (r_dyn, r_phi) = r.split_at_mut(n);
         let par = n >= PARALLEL_MIN_COORDS;
@@ -327,9 +344,16 @@ impl<'a> Index3<'a> {
         r: &mut [f64],
     ) -> bool {
         let (sys, n) = (self.sys, self.n);
-        let Some((h, [g_hi, tmp_hi, g_edge, tmp_edge, phi_edge])) = &mut self.halves else {
+        let Some((h, b)) = &mut self.halves else {
             return false;
         };
+        let HalfBuffers {
+            g_hi,
+            tmp_hi,
+            g_edge,
+            tmp_edge,
+            phi_edge,
+        } = b;
         let (g_lo, tmp_lo) = (&mut self.g, &mut self.tmp);
         let split = h.split();
         sys.prepare_residual_halves(q, t);

@@ -52,8 +52,9 @@
 //! right-hand side `(P S x)_i` from `x` directly, the backward rows write
 //! `x = S Pᵀ z` an entry at a time as it becomes final: no separate gather
 //! and scatter passes). From [`PARALLEL_MIN_DIM`] on the two halves (with
-//! their scaling and loading of values) run concurrently (`rayon::join`)
-//! when the pool has two threads; on one thread the substitutions take a
+//! their scaling and loading of values) run concurrently
+//! ([`super::join_if`]: the run's two-thread team, [`super::team`]) when
+//! the pool has two threads; on one thread the substitutions take a
 //! row of `T` and a row of `B` in turn. A substitution is a chain of dependent rows (row `i` needs
 //! row `i − 1`'s result), bound by latency, not arithmetic: two independent
 //! chains in flight overlap in the core, and each row takes the previous
@@ -344,7 +345,7 @@ impl Envelope {
     }
 
     /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
-    /// halves `T` and `B` concurrently (`rayon::join`; each is sequential
+    /// halves `T` and `B` concurrently (`join_if`; each is sequential
     /// inside and touches only its own rows), then the separator.
     fn factorize(
         &mut self,
@@ -372,7 +373,7 @@ impl Envelope {
             vals,
         };
         // each part: its scaling, its values (checked finite) and the
-        // LDLᵀ of its rows; T and B concurrently (`rayon::join`; each
+        // LDLᵀ of its rows; T and B concurrently (`join_if`; each
         // sequential inside, touching only its own rows), then S
         let (lower, diag) = self.env.split_at_mut(profile);
         let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
