@@ -55,24 +55,43 @@ impl DynamicBlocks {
         [c_m, c_c, c_k]: [f64; 3],
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        k.set_zero();
-        for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
-            k.add_diagonal(i, c_m * mi);
-        }
-        if c_c != 0.0 || c_k != 0.0 {
+        self.evaluate(
+            sys,
+            t,
+            q,
+            qd,
+            lam,
+            c_c != 0.0 || c_k != 0.0,
+            c_k != 0.0,
+            jac,
+        )?;
+        self.write(sys, k, [c_m, c_c, c_k]);
+        Ok(())
+    }
+
+    /// Evaluate the force Jacobians (when `forces`), the Hessians (when
+    /// `hessians`) and `Φ_q(q, t)` into `jac`, each checked finite; the
+    /// blocks not evaluated keep their old values.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn evaluate(
+        &mut self,
+        sys: &System,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lam: &[f64],
+        forces: bool,
+        hessians: bool,
+        jac: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        if forces {
             self.dq.fill(0.0);
             self.dqd.fill(0.0);
             sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
-            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
-                k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
-            }
         }
-        if c_k != 0.0 && !self.hess_vals.is_empty() {
+        if hessians && !self.hess_vals.is_empty() {
             self.hess_vals.fill(0.0);
             sys.add_constraint_hessians(q, t, lam, &mut self.hess_vals, &mut self.ws);
-            for (e, &h) in self.hess_vals.iter().enumerate() {
-                k.add_a(self.hess_first + e, c_k * h);
-            }
         }
         sys.jacobian_values(q, t, jac);
         all_finite(
@@ -84,6 +103,27 @@ impl DynamicBlocks {
                 ("the constraint Jacobian Φ_q", jac),
             ],
         )
+    }
+
+    /// Zero `k` and write `c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀλ)_q`
+    /// into its `A` block from the last evaluated blocks ([`Self::evaluate`];
+    /// the force Jacobians only when `c_c` or `c_k` ≠ 0, the Hessians only
+    /// when `c_k` ≠ 0). The Jacobian block is left to the caller.
+    pub(crate) fn write(&self, sys: &System, k: &mut SaddleMatrix, [c_m, c_c, c_k]: [f64; 3]) {
+        k.set_zero();
+        for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
+            k.add_diagonal(i, c_m * mi);
+        }
+        if c_c != 0.0 || c_k != 0.0 {
+            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
+                k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
+            }
+        }
+        if c_k != 0.0 {
+            for (e, &h) in self.hess_vals.iter().enumerate() {
+                k.add_a(self.hess_first + e, c_k * h);
+            }
+        }
     }
 }
 

@@ -23,14 +23,92 @@
 //! ([`Index3`](super::Index3): force Jacobians ∪ constraint Hessians) in
 //! each of the four blocks, built once; the Jacobians are evaluated by
 //! the same [`System`] calls as [`super::Index3`]'s.
+//!
+//! **Chain patterns** ([`ComplexSolverKind::Auto`], the default): when the
+//! real Newton matrix's pattern is a chain's (the envelope of
+//! [`crate::linalg::ChainLdlt`]), `G` is kept complex and factorised by
+//! [`ComplexChainLdlt`] (LDLᵀ without conjugation): `K_r` = the real
+//! Newton matrix at `(c₀, Re c₁, Re c₂)`, `K_i` = its `A` block at
+//! `(0, Im c₁, Im c₂)` with `Φ_q` = 0, both assembled as
+//! [`super::Index3`]'s (the symmetric part `½(A + Aᵀ)` of the force
+//! Jacobians, so unsymmetric forces make it a modified Newton, as the real
+//! stage's) from one evaluation of the Jacobians. Measured on the stiff
+//! chain at N = 1000 (docs/radau.md): the LU of the embedding took ≈ 64 %
+//! of a radau5 run. A pivot that vanishes (no pivoting here) falls back to
+//! the LU, built then, for the rest of the run.
 
+use super::dynamic_blocks::DynamicBlocks;
 use super::{all_finite, FormulationError};
 use crate::integrate::{ComplexNewton, SystemError};
 use crate::linalg::{
-    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
-    Symmetry,
+    solver_for, APattern, ComplexChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind,
+    SolverOptions, SolverStats, Storage, Symmetry,
 };
 use crate::model::{FdWorkspace, System};
+
+/// How [`Index3Complex`] factorises the complex Newton matrix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ComplexSolverKind {
+    /// [`ComplexChainLdlt`] when the pattern is a chain's, else the sparse
+    /// LU of the real embedding.
+    #[default]
+    Auto,
+    /// Always the sparse LU of the real embedding (exact Newton matrix).
+    SparseLu,
+}
+
+/// The chain path: the real and imaginary parts of `G` in the real Newton
+/// matrix's symmetric pattern, and their complex LDLᵀ.
+struct ChainPath {
+    blocks: DynamicBlocks,
+    kr: SaddleMatrix,
+    ki: SaddleMatrix,
+    jac: Vec<f64>,
+    zeros: Vec<f64>,
+    ldlt: ComplexChainLdlt,
+}
+
+impl ChainPath {
+    /// `None` when the pattern is not a chain's.
+    fn new(sys: &System) -> Option<Self> {
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        let mut a = APattern::new();
+        let blocks = DynamicBlocks::register(sys, &mut a);
+        let jp = sys.jacobian_pattern();
+        let kr = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
+        let ldlt = ComplexChainLdlt::analyze(&kr)?;
+        Some(Self {
+            blocks,
+            ki: kr.clone(),
+            kr,
+            jac: vec![0.0; jp.len()],
+            zeros: vec![0.0; jp.len()],
+            ldlt,
+        })
+    }
+
+    /// Assemble `K_r`, `K_i` (module docs) and factorise.
+    #[allow(clippy::too_many_arguments)]
+    fn factorize(
+        &mut self,
+        sys: &System,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lambda: &[f64],
+        [c0, c1, c2]: [[f64; 2]; 3],
+    ) -> Result<(), FormulationError> {
+        self.blocks
+            .evaluate(sys, t, q, qd, lambda, true, true, &mut self.jac)?;
+        self.blocks.write(sys, &mut self.kr, [c0[0], c1[0], c2[0]]);
+        self.kr.set_jacobian(&self.jac);
+        self.blocks.write(sys, &mut self.ki, [c0[1], c1[1], c2[1]]);
+        self.ki.set_jacobian(&self.zeros);
+        self.ldlt
+            .factorize(&self.kr, &self.ki)
+            .map_err(|source| FormulationError::Linear { t, source })
+    }
+}
 
 /// Where one `A` entry of the embedded matrix takes its value from: the
 /// force-Jacobian entry or the Hessian entry `e`, and which part of the
@@ -48,12 +126,24 @@ enum Part {
     Im,
 }
 
-/// The complex Newton matrix of a [`System`] (module docs) and its sparse
-/// LU.
+/// The complex Newton matrix of a [`System`] (module docs): the complex
+/// envelope LDLᵀ of chain patterns, else the sparse LU of its real
+/// embedding.
 pub struct Index3Complex<'a> {
     sys: &'a System,
     n: usize,
     m: usize,
+    chain: Option<ChainPath>,
+    /// Built in `new` without a chain path, or when the chain's
+    /// factorisation fails.
+    lu: Option<LuPath>,
+    /// The last factorisation was the chain's.
+    on_chain: bool,
+    factorizations: usize,
+}
+
+/// The real embedding (module docs) and its sparse LU.
+struct LuPath {
     k: SaddleMatrix,
     solver: Box<dyn SaddlePointSolver>,
     sources: Vec<Source>,
@@ -64,7 +154,6 @@ pub struct Index3Complex<'a> {
     jac2: Vec<f64>,
     x: Vec<f64>,
     ws: FdWorkspace,
-    factorizations: usize,
 }
 
 impl std::fmt::Debug for Index3Complex<'_> {
@@ -72,14 +161,112 @@ impl std::fmt::Debug for Index3Complex<'_> {
         f.debug_struct("Index3Complex")
             .field("n", &self.n)
             .field("m", &self.m)
-            .field("nnz", &self.k.nnz())
+            .field("solver", &self.solver_name())
             .finish()
     }
 }
 
 impl<'a> Index3Complex<'a> {
-    /// Build the embedded pattern and run the LU's symbolic analysis (once).
+    /// [`Index3Complex::with_solver`] with [`ComplexSolverKind::Auto`].
     pub fn new(sys: &'a System) -> Result<Self, FormulationError> {
+        Self::with_solver(sys, ComplexSolverKind::Auto)
+    }
+
+    /// Build the pattern(s) and run the symbolic analysis (once).
+    pub fn with_solver(sys: &'a System, kind: ComplexSolverKind) -> Result<Self, FormulationError> {
+        let chain = match kind {
+            ComplexSolverKind::Auto => ChainPath::new(sys),
+            ComplexSolverKind::SparseLu => None,
+        };
+        let lu = match chain {
+            Some(_) => None,
+            None => Some(LuPath::new(sys)?),
+        };
+        Ok(Self {
+            sys,
+            n: sys.n_coords(),
+            m: sys.n_constraints(),
+            on_chain: chain.is_some(),
+            chain,
+            lu,
+            factorizations: 0,
+        })
+    }
+
+    /// `"complex-chain-ldlt"` or `"sparse-lu"`: the solver of the next
+    /// (or last) factorisation.
+    pub fn solver_name(&self) -> &'static str {
+        if self.on_chain {
+            "complex-chain-ldlt"
+        } else {
+            "sparse-lu"
+        }
+    }
+
+    /// Factorisations so far.
+    pub fn factorizations(&self) -> usize {
+        self.factorizations
+    }
+
+    /// Counters of the sparse LU (zero while the chain path runs).
+    pub fn solver_stats(&self) -> SolverStats {
+        self.lu
+            .as_ref()
+            .map_or_else(SolverStats::default, |l| l.solver.stats())
+    }
+
+    /// Assemble `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)`
+    /// (coefficients `[re, im]`) and factorise it (module docs).
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble_and_factorize(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lambda: &[f64],
+        c: [[f64; 2]; 3],
+    ) -> Result<(), FormulationError> {
+        if c[0][1] != 0.0 {
+            return Err(FormulationError::Invalid(
+                "complex Newton matrix: the mass coefficient c₀ must be real".into(),
+            ));
+        }
+        self.factorizations += 1;
+        if let Some(ch) = self.chain.as_mut().filter(|_| self.on_chain) {
+            match ch.factorize(self.sys, t, q, qd, lambda, c) {
+                Ok(()) => return Ok(()),
+                // a vanishing pivot: the pivoting LU from here on
+                Err(FormulationError::Linear { .. }) => self.on_chain = false,
+                Err(e) => return Err(e),
+            }
+        }
+        if self.lu.is_none() {
+            self.lu = Some(LuPath::new(self.sys)?);
+        }
+        let lu = self.lu.as_mut().expect("built above");
+        lu.assemble_and_factorize(self.sys, t, q, qd, lambda, c)
+    }
+
+    /// Solve with the last factorisation: `re + i·im` (each `[x; y]`, length
+    /// `n + m`) is overwritten with the solution.
+    pub fn solve_in_place(
+        &mut self,
+        t: f64,
+        re: &mut [f64],
+        im: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        let lin = |source| FormulationError::Linear { t, source };
+        match (&mut self.chain, &mut self.lu) {
+            (Some(ch), _) if self.on_chain => ch.ldlt.solve(re, im).map_err(lin),
+            (_, Some(lu)) => lu.solve_in_place(t, self.n, self.m, re, im),
+            _ => Err(lin(crate::linalg::LinalgError::NotReady("factorize"))),
+        }
+    }
+}
+
+impl LuPath {
+    /// Build the embedded pattern and run the LU's symbolic analysis (once).
+    fn new(sys: &System) -> Result<Self, FormulationError> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let mut entries = Vec::new();
         let mut sources = Vec::new();
@@ -129,9 +316,6 @@ impl<'a> Index3Complex<'a> {
                 source,
             })?;
         Ok(Self {
-            sys,
-            n,
-            m,
             k,
             solver,
             sources,
@@ -142,43 +326,23 @@ impl<'a> Index3Complex<'a> {
             jac2: vec![0.0; 2 * jp.len()],
             x: vec![0.0; 2 * (n + m)],
             ws: FdWorkspace::default(),
-            factorizations: 0,
         })
     }
 
-    /// The embedded real matrix (pattern and last values).
-    pub fn matrix(&self) -> &SaddleMatrix {
-        &self.k
-    }
-
-    /// Factorisations so far.
-    pub fn factorizations(&self) -> usize {
-        self.factorizations
-    }
-
-    /// Counters of the sparse LU.
-    pub fn solver_stats(&self) -> SolverStats {
-        self.solver.stats()
-    }
-
-    /// Assemble `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)`
-    /// (coefficients `[re, im]`) in its real embedding and factorise it.
+    /// Assemble `G` (coefficients `[re, im]`, `c₀` real) in its real
+    /// embedding and factorise it.
     #[allow(clippy::too_many_arguments)]
-    pub fn assemble_and_factorize(
+    fn assemble_and_factorize(
         &mut self,
+        sys: &System,
         t: f64,
         q: &[f64],
         qd: &[f64],
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), FormulationError> {
-        let (sys, n) = (self.sys, self.n);
+        let n = sys.n_coords();
         let [c0, c1, c2] = c;
-        if c0[1] != 0.0 {
-            return Err(FormulationError::Invalid(
-                "complex Newton matrix: the mass coefficient c₀ must be real".into(),
-            ));
-        }
         self.dq.fill(0.0);
         self.dqd.fill(0.0);
         sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
@@ -222,22 +386,21 @@ impl<'a> Index3Complex<'a> {
         self.jac2[..l].copy_from_slice(&self.jac);
         self.jac2[l..].copy_from_slice(&self.jac);
         k.set_jacobian(&self.jac2);
-        self.factorizations += 1;
         self.solver
             .factorize(k)
             .map_err(|source| FormulationError::Linear { t, source })?;
         Ok(())
     }
 
-    /// Solve with the last factorisation: `re + i·im` (each `[x; y]`, length
-    /// `n + m`) is overwritten with the solution.
-    pub fn solve_in_place(
+    /// Solve with the last factorisation (`re + i·im`, each `[x; y]`).
+    fn solve_in_place(
         &mut self,
         t: f64,
+        n: usize,
+        m: usize,
         re: &mut [f64],
         im: &mut [f64],
     ) -> Result<(), FormulationError> {
-        let (n, m) = (self.n, self.m);
         let x = &mut self.x;
         x[..n].copy_from_slice(&re[..n]);
         x[n..2 * n].copy_from_slice(&im[..n]);

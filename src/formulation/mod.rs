@@ -41,7 +41,7 @@ mod stability;
 pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
 pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
-pub use index3_complex::Index3Complex;
+pub use index3_complex::{ComplexSolverKind, Index3Complex};
 pub use initial::{
     consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
     Lock, LockKind, StartCorrection, START_MAX_ITER, START_TOL,

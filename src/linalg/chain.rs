@@ -101,21 +101,21 @@ const MAX_SEPARATOR_ROW: usize = 4 * MAX_BANDWIDTH;
 /// row has two segments, `[fa, s0)` in the tail of `T` and `[first[i], i)`
 /// over the tail of `B` and the separator. Unsplit: `s0 = sb = dim`.
 #[derive(Debug)]
-struct Envelope {
-    dim: usize,
-    n: usize,
-    nnz: usize,
+pub(super) struct Envelope {
+    pub(super) dim: usize,
+    pub(super) n: usize,
+    pub(super) nnz: usize,
     /// `perm[i]`: row/column of `K` eliminated `i`-th.
-    perm: Vec<usize>,
+    pub(super) perm: Vec<usize>,
     s0: usize,
     sb: usize,
     /// First column of row `i`'s (last) envelope segment.
-    first: Vec<usize>,
+    pub(super) first: Vec<usize>,
     /// Separator row `sb + r`: first column of its segment in `T`.
     fa: Vec<usize>,
     /// Row `i`'s entries left of the diagonal start at `env[ptr[i]]`
     /// (separator rows: the `T` segment, then the other).
-    ptr: Vec<usize>,
+    pub(super) ptr: Vec<usize>,
     /// `L` by rows (envelope), then the pivots `d` (`env[ptr[dim] + i]`).
     env: Vec<f64>,
     /// `1/d_i`.
@@ -123,14 +123,14 @@ struct Envelope {
     /// Where each value of `K` goes, by the part (`T`, `B`, `S`) of its
     /// envelope row: `K`'s slot, its position in that part's storage,
     /// the permuted row and column.
-    fill: [Vec<Fill>; 3],
+    pub(super) fill: [Vec<Fill>; 3],
     /// Slot of each permuted row's diagonal entry in `K`.
-    dslot: Vec<usize>,
+    pub(super) dslot: Vec<usize>,
     /// A multiplier row's Φ_q entries (slot, permuted column, always
     /// eliminated before the row and in the same part or an earlier one):
     /// `phi_ent[phi_ptr[i]..phi_ptr[i + 1]]` (permuted numbering).
-    phi_ptr: Vec<usize>,
-    phi_ent: Vec<(usize, usize)>,
+    pub(super) phi_ptr: Vec<usize>,
+    pub(super) phi_ent: Vec<(usize, usize)>,
     /// Expected pivot signs (permuted numbering).
     positive: Vec<bool>,
     /// The scaling of [`SparseLdlt`] (`saddle_scaling`) in elimination order.
@@ -210,7 +210,7 @@ impl Envelope {
     /// The envelope of `k` in the body-by-body order (two-sided when
     /// `split` and the pattern allows it), or `None` when a multiplier row
     /// has no coordinate column or a row is wider than [`MAX_BANDWIDTH`].
-    fn analyze(k: &SaddleMatrix, split: bool) -> Option<Self> {
+    pub(super) fn analyze(k: &SaddleMatrix, split: bool) -> Option<Self> {
         let n = k.n();
         if n % 3 != 0 {
             return None;
@@ -583,11 +583,11 @@ impl<'a> Scatter<'a> {
 /// One value of `K` in the envelope: slot, position in its part's
 /// storage, permuted row and column (of `K`'s lower-triangle entry).
 #[derive(Debug, Clone, Copy)]
-struct Fill {
-    slot: u32,
-    pos: u32,
-    row: u32,
-    col: u32,
+pub(super) struct Fill {
+    pub(super) slot: u32,
+    pub(super) pos: u32,
+    pub(super) row: u32,
+    pub(super) col: u32,
 }
 
 /// The symmetric scaling of [`SparseLdlt`] (`saddle_scaling`,

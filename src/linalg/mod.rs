@@ -23,11 +23,16 @@
 //! | `SparseLu` | [`SparseLu`] | full | exact Newton with unsymmetric Jacobians |
 //! | `Schur` | [`SchurComplement`] (eq. (9), dense Cholesky) | symmetric | diagonal `A`, λ eliminated |
 //!
+//! Outside the trait, [`ComplexChainLdlt`] factorises the complex
+//! symmetric matrices `K_r + i K_i` of a chain pattern (Radau IIA's
+//! complex stage system, `Index3Complex`).
+//!
 //! Sign convention: we solve `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`, i.e. the
 //! unknown vector is `[q̈; λ]`. The paper's eq. (5) writes the same system
 //! with unknowns `[q̈; −λ]`, so its multipliers are our `−λ`.
 
 mod chain;
+mod chain_complex;
 mod dense;
 mod lu;
 mod pattern;
@@ -37,6 +42,7 @@ mod sparse;
 pub(crate) mod team;
 
 pub use chain::{ChainLdlt, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM};
+pub use chain_complex::ComplexChainLdlt;
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
 pub use pattern::CscPattern;
