@@ -187,7 +187,9 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         ..Default::default()
     };
     cfg.ode.max_steps = 100_000_000;
-    if (method.is_implicit() && !adaptive_ga && method == Method::GenAlpha) || method == Method::Rk4
+    if (method.is_implicit() && !adaptive_ga && method == Method::GenAlpha)
+        || method == Method::Rk4
+        || method == Method::Radau5
     {
         cfg.ode.fixed_step = Some(value);
     } else {
@@ -200,6 +202,9 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
     }
     if let Some(r) = env("MBS_RHO_INF") {
         cfg.implicit.rho_inf = r;
+    }
+    if let Some(t) = env("MBS_NEWTON_TOL") {
+        cfg.implicit.newton_tol = t;
     }
     let mut mon = ContactMonitor::new(info.clone());
     let mut sink = Marks {
