@@ -666,3 +666,41 @@ fn chain_order_layout() {
     let o = chain_order(2, 6, &[(0, 0..2), (1, 2..4)]);
     assert_eq!(o, vec![3, 4, 5, 8, 9, 0, 1, 2, 6, 7, 10, 11]);
 }
+
+/// The chain LDLᵀ tells an indefinite `A` block (a coordinate pivot of the
+/// wrong sign: an implicit method's Newton matrix at a wild iterate) from
+/// Φ_q losing rank (a multiplier pivot ≈ 0, redundant rows): both are
+/// regularised, only the first is `FactorInfo::indefinite` and counted in
+/// `indefinite_pivots`.
+#[test]
+fn chain_ldlt_tells_indefinite_a_from_rank_loss() {
+    use mbsolve::linalg::ChainLdlt;
+    // rank loss: a duplicated joint
+    let red = System2d::chain(10).duplicate_joint(4);
+    let mut k = red.matrix();
+    red.fill(&mut k, &mut Rng::new(3));
+    let mut s = ChainLdlt::default();
+    s.analyze(&k).unwrap();
+    assert_eq!(s.is_envelope(), Some(true));
+    let info = s.factorize(&k).unwrap();
+    assert!(info.regularized_pivots > 0 && !info.indefinite, "{info:?}");
+    assert_eq!(s.stats().indefinite_pivots, 0);
+    // a regular chain with its A block negated: every coordinate pivot ≤ 0
+    let sys = System2d::chain(10);
+    let mut k = sys.matrix();
+    sys.fill(&mut k, &mut Rng::new(3));
+    let mut s = ChainLdlt::default();
+    s.analyze(&k).unwrap();
+    let info = s.factorize(&k).unwrap();
+    assert_eq!(info.regularized_pivots, 0);
+    assert!(!info.indefinite);
+    let a_slots: Vec<usize> = k.a_slots().to_vec();
+    let diag: Vec<usize> = k.diag_slots()[..sys.n()].to_vec();
+    for slot in a_slots.into_iter().chain(diag) {
+        k.values_mut()[slot] = -k.values()[slot].abs();
+    }
+    let info = s.factorize(&k).unwrap();
+    assert!(info.indefinite && info.regularized_pivots > 0, "{info:?}");
+    let st = s.stats();
+    assert_eq!(st.indefinite_pivots, st.regularized_pivots);
+}

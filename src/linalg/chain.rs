@@ -352,7 +352,7 @@ impl Envelope {
         k: &SaddleMatrix,
         epsilon: f64,
         delta: f64,
-    ) -> Result<usize, LinalgError> {
+    ) -> Result<Regularized, LinalgError> {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let par = dim >= PARALLEL_MIN_DIM;
         let rule = Pivots {
@@ -658,6 +658,25 @@ fn load(
     Ok(())
 }
 
+/// Regularised pivots of one factorisation: all of them, and those of
+/// coordinate rows (a pivot of the `A` part ≤ ε: `A` not positive definite
+/// there, [`SolverStats::indefinite_pivots`](super::SolverStats)).
+#[derive(Debug, Clone, Copy, Default)]
+struct Regularized {
+    all: usize,
+    coordinate: usize,
+}
+
+impl std::ops::Add for Regularized {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            all: self.all + o.all,
+            coordinate: self.coordinate + o.coordinate,
+        }
+    }
+}
+
 /// The expected pivot signs and the regularisation of [`SparseLdlt`].
 struct Pivots<'a> {
     positive: &'a [bool],
@@ -668,16 +687,17 @@ struct Pivots<'a> {
 impl Pivots<'_> {
     /// Pivot `d` of row `i` (global numbering): `δ` with the expected sign
     /// when `d` has the wrong sign or is within `ε` of 0 (counted).
-    fn pivot(&self, i: usize, d: f64, regularized: &mut usize) -> Result<f64, LinalgError> {
+    fn pivot(&self, i: usize, d: f64, regularized: &mut Regularized) -> Result<f64, LinalgError> {
         let d = if self.positive[i] {
             if d <= self.epsilon {
-                *regularized += 1;
+                regularized.all += 1;
+                regularized.coordinate += 1;
                 self.delta
             } else {
                 d
             }
         } else if d >= -self.epsilon {
-            *regularized += 1;
+            regularized.all += 1;
             -self.delta
         } else {
             d
@@ -718,9 +738,9 @@ fn crout_rows(
     diag: &mut [f64],
     dinv: &mut [f64],
     rule: &Pivots<'_>,
-) -> Result<usize, LinalgError> {
+) -> Result<Regularized, LinalgError> {
     let p0 = ptr[base];
-    let mut regularized = 0;
+    let mut regularized = Regularized::default();
     for i in rows {
         let (fi, pi) = (first[i], ptr[i] - p0);
         assert!(ptr[i + 1] - p0 <= lower.len() && i - base < dinv.len() && fi >= base);
@@ -1005,11 +1025,18 @@ impl SaddlePointSolver for ChainLdlt {
             });
         }
         self.factorized = false;
-        let regularized_pivots = e.factorize(k, self.epsilon, self.delta)?;
+        let r = e.factorize(k, self.epsilon, self.delta)?;
         self.factorized = true;
         self.stats.factorizations += 1;
-        self.stats.regularized_pivots += regularized_pivots;
-        Ok(FactorInfo { regularized_pivots })
+        self.stats.regularized_pivots += r.all;
+        let indefinite = r.coordinate > 0;
+        if indefinite {
+            self.stats.indefinite_pivots += r.all;
+        }
+        Ok(FactorInfo {
+            regularized_pivots: r.all,
+            indefinite,
+        })
     }
 
     fn solve_in_place(&mut self, k: &SaddleMatrix, rhs: &mut [f64]) -> Result<(), LinalgError> {

@@ -172,8 +172,15 @@ pub enum LinalgError {
 /// What one numeric factorisation reports.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct FactorInfo {
-    /// Pivots that had to be regularised (rank-deficient Φ_q, singular positions).
+    /// Pivots that had to be regularised (rank-deficient Φ_q, singular
+    /// positions; or an indefinite `A`, below).
     pub regularized_pivots: usize,
+    /// A pivot of a coordinate row had the wrong sign: the `A` block
+    /// (`M` or the Newton matrix's `c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + …`)
+    /// was not positive definite, and the multipliers' pivots after it lose
+    /// their expected sign too — not a sign of Φ_q losing rank. Reported
+    /// by [`ChainLdlt`]; the other solvers leave it false.
+    pub indefinite: bool,
 }
 
 /// Running counters of a solver.
@@ -187,6 +194,9 @@ pub struct SolverStats {
     pub solves: usize,
     /// Sum of regularised pivots over all factorisations.
     pub regularized_pivots: usize,
+    /// Those of them in factorisations whose `A` block was indefinite
+    /// ([`FactorInfo::indefinite`]).
+    pub indefinite_pivots: usize,
     /// Steps of iterative refinement applied.
     pub refinements: usize,
 }

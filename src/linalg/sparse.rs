@@ -521,6 +521,7 @@ impl SaddlePointSolver for SparseLdlt {
         let info = match result {
             Ok(info) => FactorInfo {
                 regularized_pivots: info.dynamic_regularization_count,
+                indefinite: false,
             },
             Err(LdltError::ZeroPivot { index }) => {
                 return Err(LinalgError::Singular(format!(

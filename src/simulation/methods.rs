@@ -86,6 +86,7 @@ impl MethodRun for Explicit<'_> {
             baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
             factorizations: stats.solver.factorizations,
             regularized_pivots: stats.solver.regularized_pivots,
+            indefinite_pivots: stats.solver.indefinite_pivots,
             first_regularized_t: stats.first_regularized_t,
         };
         let mut extra = serde_json::Map::new();
@@ -137,6 +138,7 @@ impl MethodRun for Partition<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: self.f.factorizations(),
             regularized_pivots: 0,
+            indefinite_pivots: 0,
             first_regularized_t: None,
         };
         let mut extra = serde_json::Map::new();
@@ -233,6 +235,7 @@ impl MethodRun for Implicit<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: gs.factorizations,
             regularized_pivots: fs.newton_solver.regularized_pivots,
+            indefinite_pivots: fs.newton_solver.indefinite_pivots,
             first_regularized_t: None,
         };
         (work, extra)
@@ -322,6 +325,7 @@ impl MethodRun for AugmentedRun<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: gs.factorizations,
             regularized_pivots: fs.solver.regularized_pivots,
+            indefinite_pivots: fs.solver.indefinite_pivots,
             first_regularized_t: None,
         };
         (work, extra)
@@ -389,6 +393,7 @@ impl MethodRun for BdfRun<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: bs.factorizations,
             regularized_pivots: fs.newton_solver.regularized_pivots,
+            indefinite_pivots: fs.newton_solver.indefinite_pivots,
             first_regularized_t: None,
         };
         (work, extra)
@@ -491,6 +496,7 @@ impl MethodRun for RadauRun<'_> {
             baumgarte: (0.0, 0.0),
             factorizations: rs.factorizations + rs.complex_factorizations,
             regularized_pivots: fs.newton_solver.regularized_pivots,
+            indefinite_pivots: fs.newton_solver.indefinite_pivots,
             first_regularized_t: None,
         };
         (work, extra)

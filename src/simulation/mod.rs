@@ -271,6 +271,10 @@ pub struct Summary {
     pub factorizations: usize,
     /// Regularised pivots over all factorisations.
     pub regularized_pivots: usize,
+    /// Those of them in Newton matrices whose `A` block was indefinite (a
+    /// coordinate pivot ≤ 0: an iterate far from the solution, e.g. a
+    /// contact onset in a large implicit step), not a loss of rank of Φ_q.
+    pub indefinite_pivots: usize,
     /// Wall-clock time of the integration \[s\].
     pub wall_s: f64,
     /// max ‖Φ‖₂ over accepted steps and output times.
@@ -1004,6 +1008,9 @@ struct Work {
     baumgarte: (f64, f64),
     factorizations: usize,
     regularized_pivots: usize,
+    /// Those in factorisations with an indefinite `A` block
+    /// ([`crate::linalg::FactorInfo::indefinite`]).
+    indefinite_pivots: usize,
     /// Time of the first regularised pivot (index-1 runs).
     first_regularized_t: Option<f64>,
 }
@@ -1031,12 +1038,19 @@ fn finish(
                 },
             ) = (work.formulation.as_str(), reason)
             {
-                if work.regularized_pivots > 0 {
+                let rank = work.regularized_pivots - work.indefinite_pivots;
+                if rank > 0 {
                     m.push_str(&format!(
-                        " — {} regularised pivots: if the position is singular or constraints are \
+                        " — {rank} regularised pivots: if the position is singular or constraints are \
                          redundant, formulation = \"augmented_lagrangian\" passes through them \
-                         (docs/constraint_methods.md)",
-                        work.regularized_pivots
+                         (docs/constraint_methods.md)"
+                    ));
+                } else if work.indefinite_pivots > 0 {
+                    m.push_str(&format!(
+                        " — {} regularised pivots, all in Newton matrices whose A block was \
+                         indefinite (iterates far from the solution), none from Φ_q losing rank: \
+                         a smaller step",
+                        work.indefinite_pivots
                     ));
                 } else {
                     // Φ_q kept its rank: the hint about singular positions would mislead
@@ -1116,7 +1130,18 @@ fn finish(
             sys.n_constraints() - r
         ));
     }
-    if work.regularized_pivots > 0 {
+    if work.indefinite_pivots > 0 {
+        warnings.push(format!(
+            "{} regularised pivots in Newton matrices whose A block was indefinite (a \
+             coordinate pivot ≤ 0): at iterates far from the solution — e.g. a contact onset \
+             taken in a large step — or a negative stiffness, not Φ_q losing rank; Newton \
+             converged more slowly or failed there (failures are counted and cut the step), and \
+             every accepted step met the Newton tolerance",
+            work.indefinite_pivots
+        ));
+    }
+    let rank_pivots = work.regularized_pivots - work.indefinite_pivots;
+    if rank_pivots > 0 {
         let first = work
             .first_regularized_t
             .map_or(String::new(), |t| format!(", the first at t = {t:e}"));
@@ -1133,16 +1158,14 @@ fn finish(
         };
         match why {
             Some(why) => warnings.push(format!(
-                "{} regularised pivots in the factorisations{first}: Φ_q lost rank — {why}",
-                work.regularized_pivots
+                "{rank_pivots} regularised pivots in the factorisations{first}: Φ_q lost rank — {why}"
             )),
             None => warnings.push(format!(
-                "{} regularised pivots in the factorisations{first}: Φ_q lost rank (a singular \
+                "{rank_pivots} regularised pivots in the factorisations{first}: Φ_q lost rank (a singular \
                  configuration or redundant constraints); the multipliers there are a \
                  regularised least-squares answer and the motion may have left its branch — \
                  check with stabilization.projection = true, formulation = \"partitioned\" or \
-                 genalpha with integrator.project = true (docs/constraint_methods.md)",
-                work.regularized_pivots
+                 genalpha with integrator.project = true (docs/constraint_methods.md)"
             )),
         }
     }
@@ -1176,6 +1199,7 @@ fn finish(
         rhs_evals: report.stats.rhs_evals,
         factorizations: work.factorizations,
         regularized_pivots: work.regularized_pivots,
+        indefinite_pivots: work.indefinite_pivots,
         wall_s,
         max_constraint_norm: watch.max_norm,
         final_constraint_norm: watch.final_norm,
