@@ -444,13 +444,16 @@ impl Run<'_, '_> {
     /// Stage i's position and velocity into `qs`, `vs`.
     fn stage_state(&mut self, i: usize, h: f64) {
         let tab = self.tab;
-        let (ci, a, a2) = (tab.c[i], tab.a[i], tab.a2[i]);
-        let (s0, s1, s2) = (&self.a[0], &self.a[1], &self.a[2]);
-        for k in 0..self.n {
+        let n = self.n;
+        let (ch, a, a2) = (tab.c[i] * h, tab.a[i], tab.a2[i]);
+        // slices of length n: no bounds checks in the loop, vectorised
+        let (s0, s1, s2) = (&self.a[0][..n], &self.a[1][..n], &self.a[2][..n]);
+        let (q, v) = (&self.q[..n], &self.v[..n]);
+        let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
+        for k in 0..n {
             let (x0, x1, x2) = (s0[k], s1[k], s2[k]);
-            self.qs[k] =
-                self.q[k] + ci * h * self.v[k] + h * h * (a2[0] * x0 + a2[1] * x1 + a2[2] * x2);
-            self.vs[k] = self.v[k] + h * (a[0] * x0 + a[1] * x1 + a[2] * x2);
+            qs[k] = q[k] + ch * v[k] + h * h * (a2[0] * x0 + a2[1] * x1 + a2[2] * x2);
+            vs[k] = v[k] + h * (a[0] * x0 + a[1] * x1 + a[2] * x2);
         }
     }
 
@@ -497,15 +500,15 @@ impl Run<'_, '_> {
             Some(hp) => {
                 for i in 0..3 {
                     let w = tab.basis(1.0 + tab.c[i] * h / hp);
-                    for k in 0..n {
-                        self.a[i][k] = w[0] * self.a_prev[0][k]
-                            + w[1] * self.a_prev[1][k]
-                            + w[2] * self.a_prev[2][k];
-                    }
-                    for k in 0..m {
-                        self.l[i][k] = w[0] * self.l_prev[0][k]
-                            + w[1] * self.l_prev[1][k]
-                            + w[2] * self.l_prev[2][k];
+                    for (out, prev) in [
+                        (&mut self.a[i], &self.a_prev),
+                        (&mut self.l[i], &self.l_prev),
+                    ] {
+                        let len = out.len();
+                        let (p0, p1, p2) = (&prev[0][..len], &prev[1][..len], &prev[2][..len]);
+                        for k in 0..len {
+                            out[k] = w[0] * p0[k] + w[1] * p1[k] + w[2] * p2[k];
+                        }
                     }
                 }
             }
@@ -560,9 +563,11 @@ impl Run<'_, '_> {
             // constraint rows divided by h²μ_k²
             let ti = tab.t_inv;
             {
-                let [r0, r1, r2] = &self.r;
+                let len = n + m;
+                let (r0, r1, r2) = (&self.r[0][..len], &self.r[1][..len], &self.r[2][..len]);
                 let [x0, x1, x2] = &mut self.x;
-                for k in 0..n + m {
+                let (x0, x1, x2) = (&mut x0[..len], &mut x1[..len], &mut x2[..len]);
+                for k in 0..len {
                     let (a, b, c) = (r0[k], r1[k], r2[k]);
                     x0[k] = -(ti[0][0] * a + ti[0][1] * b + ti[0][2] * c);
                     x1[k] = -(ti[1][0] * a + ti[1][1] * b + ti[1][2] * c);
@@ -587,10 +592,13 @@ impl Run<'_, '_> {
             {
                 let [x0, x1, x2] = &self.x;
                 let [a0, a1, a2] = &mut self.a;
+                let (a0, a1, a2) = (&mut a0[..n], &mut a1[..n], &mut a2[..n]);
+                let q = &self.q[..n];
+                let (z0, z1, z2) = (&x0[..n], &x1[..n], &x2[..n]);
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each)
                 for k in 0..n {
-                    let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
+                    let (y0, y1, y2) = (z0[k], z1[k], z2[k]);
                     let d0 = tt[0][0] * y0 + tt[0][1] * y1 + tt[0][2] * y2;
                     let d1 = tt[1][0] * y0 + tt[1][1] * y1 + tt[1][2] * y2;
                     let d2 = tt[2][0] * y0 + tt[2][1] * y1 + tt[2][2] * y2;
@@ -601,7 +609,7 @@ impl Run<'_, '_> {
                         .abs()
                         .max((h * h * d1).abs())
                         .max((h * h * d2).abs());
-                    let w = tol_q + ROUNDING_ULPS * f64::EPSILON * self.q[k].abs().max(1.0);
+                    let w = tol_q + ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
                     dnorm = dnorm.max(big / w);
                 }
                 let [l0, l1, l2] = &mut self.l;
