@@ -1,7 +1,8 @@
 //! The index-3 residual's two halves by bodies (`System::residual_halves`,
 //! used by `Index3` on large systems): where they apply, and the residual
 //! they give against the one-piece evaluation of forces and constraint
-//! terms, in pools of one and two threads.
+//! terms, in pools of one thread (where `Index3` evaluates in one piece)
+//! and two (in halves).
 
 use mbsolve::builders::{build_rod, stiff_chain, RodParams};
 use mbsolve::formulation::{Index3, PARALLEL_MIN_COORDS};

@@ -109,7 +109,8 @@ pub struct Index3<'a> {
     g: Vec<f64>,
     tmp: Vec<f64>,
     /// The residual in two halves by bodies for large systems whose plan
-    /// allows it ([`System::residual_halves`]), with its buffers.
+    /// allows it ([`System::residual_halves`]), with its buffers; used
+    /// when the halves run on two threads (`linalg::team::concurrent`).
     halves: Option<(ResidualHalves, HalfBuffers)>,
     phi: Vec<f64>,
     x: Vec<f64>,
@@ -277,7 +278,13 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         let n = self.n;
         self.stats.residuals += 1;
-        if self.halves.is_some() && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r) {
+        // in halves only where they run on two threads: on one, the
+        // one-piece evaluation does the same work without the boundary
+        // pass and the per-half scans (the same bits either way)
+        if self.halves.is_some()
+            && crate::linalg::team::concurrent()
+            && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r)
+        {
             return Ok(());
         }
         // in one piece (systems without halves, small ones, and the
