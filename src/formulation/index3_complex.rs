@@ -203,6 +203,12 @@ impl<'a> Index3Complex<'a> {
         }
     }
 
+    /// The real embedding (pattern and last values) once the LU path is
+    /// built (`None` while the chain path runs).
+    pub fn embedding(&self) -> Option<&SaddleMatrix> {
+        self.lu.as_ref().map(|l| &l.k)
+    }
+
     /// Factorisations so far.
     pub fn factorizations(&self) -> usize {
         self.factorizations
