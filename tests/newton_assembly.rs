@@ -2,11 +2,12 @@
 //! the generic one, the envelope LDLᵀ (`ChainLdlt`) against faer's sparse
 //! LDLᵀ and a dense solve, and whole runs with either evaluation.
 
+use faer::Side;
 use mbsolve::builders::{
     add_link_chain, build_rod, stiff_chain, stiff_chain_tip_x, LinkChain, RodParams,
 };
 use mbsolve::constraints::Revolute;
-use mbsolve::formulation::Index3;
+use mbsolve::formulation::{Index3, NewtonSolverKind};
 use mbsolve::integrate::Method;
 use mbsolve::linalg::{
     solver_for, ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SparseLdlt,
@@ -393,4 +394,85 @@ fn non_finite_residual_parts_are_named() {
             assert!(e.contains("the index-3 residual"), "{name} {ev:?}: {e}");
         }
     }
+}
+
+/// In symmetric storage the force Jacobians enter the Newton matrix by
+/// their reciprocal part (`DynamicBlocks::write`): against the full matrix
+/// of the LU path at the same state, each off-diagonal pair of the `A`
+/// block holds `sign(a) min(|a|, |b|)` where `a = A_ij`, `b = A_ji` agree
+/// in sign, else 0. The state presses a rod segment's corner into a wall
+/// while it slides along it: friction couples the penetration to the force
+/// along the wall one way, and there the symmetric part `(a + b)/2` of the
+/// `A` block is indefinite while the reciprocal part is positive definite
+/// (dense Cholesky of the block).
+#[test]
+fn symmetric_newton_matrix_takes_the_reciprocal_part_of_force_jacobians() {
+    let p = RodParams::problem_b(300);
+    let (rod, _) = build_rod(&p).unwrap();
+    let (mut q, mut qd) = rod.initial_state();
+    let n = rod.n_coords();
+    // segment 5: its outermost corner 1e-4 m into the right wall, sliding
+    // down at 0.05 m/s (50 v_s)
+    let b = 5;
+    let phi = q[3 * b + 2];
+    let reach = 0.5 * p.width * phi.cos().abs() + 0.5 * (p.length / 300.0) * phi.sin().abs();
+    q[3 * b] = 0.5 * p.channel_width + 1e-4 - reach;
+    qd[3 * b + 1] = -0.05;
+    let lam = vec![0.0; rod.n_constraints()];
+    let recip = |a: f64, b: f64| {
+        if a * b > 0.0 {
+            a.signum() * a.abs().min(b.abs())
+        } else {
+            0.0
+        }
+    };
+    // radau5's real stage at h = 2e-3 (γ = 0.2749): c = [1, hγ, (hγ)²],
+    // where the contact stiffness c_k k_n is ≈ 500 segment masses (at
+    // N = 10 000 the same holds at h = 4e-4)
+    let hg = 2e-3 * 0.274_888_829_595_676_6;
+    let mut exercised = 0;
+    for c in [[1.0, 0.0, hg * hg], [1.0, hg, 0.0], [1.0, hg, hg * hg]] {
+        let dense = |kind| {
+            let mut f = Index3::with_newton_solver(&rod, SolverKind::Auto, kind).unwrap();
+            f.assemble_and_factorize(0.05, &q, &qd, &lam, c[0], c[1], c[2])
+                .unwrap();
+            f.newton_matrix().to_dense()
+        };
+        let sym = dense(NewtonSolverKind::SymmetricLdlt);
+        let full = dense(NewtonSolverKind::SparseLu);
+        let scale = (0..n).fold(0.0_f64, |m, i| m.max(full[(i, i)].abs()));
+        let mut sym_part = faer::Mat::<f64>::zeros(n, n);
+        let mut reciprocal = faer::Mat::<f64>::zeros(n, n);
+        for i in 0..n {
+            for j in 0..n {
+                let (a, bb) = (full[(i, j)], full[(j, i)]);
+                let want = if i == j { a } else { recip(a, bb) };
+                // one term per pair only where a single Jacobian (∂g/∂q or
+                // ∂g/∂q̇) contributes; with both, per Jacobian
+                if c[1] == 0.0 || c[2] == 0.0 {
+                    assert!(
+                        (sym[(i, j)] - want).abs() <= 1e-12 * scale,
+                        "c = {c:?}, ({i}, {j}): {} against {want} (full {a}, {bb})",
+                        sym[(i, j)]
+                    );
+                    if (want - 0.5 * (a + bb)).abs() > 1e-6 * scale {
+                        exercised += 1;
+                    }
+                }
+                sym_part[(i, j)] = 0.5 * (a + bb);
+                reciprocal[(i, j)] = sym[(i, j)];
+            }
+        }
+        if c[1] != 0.0 && c[2] != 0.0 {
+            assert!(
+                sym_part.llt(Side::Lower).is_err(),
+                "the symmetric part is indefinite here"
+            );
+            assert!(
+                reciprocal.llt(Side::Lower).is_ok(),
+                "the reciprocal part is positive definite"
+            );
+        }
+    }
+    assert!(exercised > 0, "no one-way coupling at this state");
 }

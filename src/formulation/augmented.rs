@@ -10,8 +10,9 @@
 //! no constraint rows — mass diagonal, force Jacobian blocks, constraint
 //! Hessian blocks and, per constraint row, every pair of its Φ_q columns
 //! (as [`super::Penalty`]) — built once, factorised per assembly by the
-//! solver of [`solver_for`] (sparse LDLᵀ by default; symmetric part of an
-//! unsymmetric force Jacobian: modified Newton with the exact residual).
+//! solver of [`solver_for`] (sparse LDLᵀ by default; the reciprocal part of
+//! an unsymmetric force Jacobian, as [`super::Index3`]'s: modified Newton
+//! with the exact residual).
 //! The penalty term is positive semi-definite whatever the rank of Φ_q, so
 //! singular configurations and redundant constraints need no special
 //! treatment: the redundant rows share their multiplier in the minimum-norm

@@ -40,11 +40,16 @@
 //! **Symmetrisation.** The drag and contact Jacobians are not symmetric.
 //! They are registered as unsymmetric blocks ([`Symmetry::Unsymmetric`]):
 //! the sparse LU ([`NewtonSolverKind::SparseLu`]) factorises them as they
-//! are (exact Newton); the symmetric solvers (the default LDLᵀ) receive the
-//! symmetric part `½ (A + Aᵀ)` of the `A` block, a *modified* Newton method
-//! whose residual is exact, so the converged solution is the same and only
-//! the contraction rate can suffer (with `c_c ∝ h`, `c_k ∝ h²` the skew part
-//! vanishes as `h → 0`). The assembly is the same for both
+//! are (exact Newton); the symmetric solvers (the default LDLᵀ) receive a
+//! symmetric approximation, a *modified* Newton method whose residual is
+//! exact, so the converged solution is the same and only the contraction
+//! rate can suffer (with `c_c ∝ h`, `c_k ∝ h²` the unsymmetric part
+//! vanishes as `h → 0`). The approximation is the force Jacobians'
+//! *reciprocal part* — of each pair `J_ij`, `J_ji` the smaller modulus
+//! where the signs agree, else 0 — not the symmetric part `½ (J + Jᵀ)`,
+//! which turns a one-way coupling (friction along a wall driven by the
+//! penetration) into a negative stiffness (`DynamicBlocks::write` in
+//! `dynamic_blocks.rs`). The assembly is the same for both
 //! ([`SaddleMatrix::add_a`]); the storage follows the solver.
 //!
 //! **Pattern.** The `A` block's pattern is the union of the force elements'
@@ -134,8 +139,9 @@ struct HalfBuffers {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NewtonSolverKind {
-    /// The symmetric part `½ (A + Aᵀ)` of the `A` block with the symmetric
-    /// saddle-point solver (sparse LDLᵀ by default): modified Newton.
+    /// A symmetric approximation of the `A` block (the force Jacobians'
+    /// reciprocal part, module docs) with the symmetric saddle-point solver
+    /// (sparse LDLᵀ by default): modified Newton.
     #[default]
     SymmetricLdlt,
     /// The full unsymmetric matrix with faer's sparse LU (COLAMD column

@@ -30,9 +30,9 @@
 //! [`ComplexChainLdlt`] (LDLᵀ without conjugation): `K_r` = the real
 //! Newton matrix at `(c₀, Re c₁, Re c₂)`, `K_i` = its `A` block at
 //! `(0, Im c₁, Im c₂)` with `Φ_q` = 0, both assembled as
-//! [`super::Index3`]'s (the symmetric part `½(A + Aᵀ)` of the force
-//! Jacobians, so unsymmetric forces make it a modified Newton, as the real
-//! stage's) from one evaluation of the Jacobians. Measured on the stiff
+//! [`super::Index3`]'s (the reciprocal part of the force Jacobians, so
+//! unsymmetric forces make it a modified Newton, as the real stage's) from
+//! one evaluation of the Jacobians. Measured on the stiff
 //! chain at N = 1000 (docs/radau.md): the LU of the embedding took ≈ 64 %
 //! of a radau5 run. A pivot that vanishes (no pivoting here) falls back to
 //! the LU, built then, for the rest of the run.

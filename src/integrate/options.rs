@@ -115,7 +115,7 @@ pub struct ImplicitOptions {
     /// `hmin`). Must not exceed [`OdeOptions::fixed_step`].
     pub min_step: Option<f64>,
     /// Factorise the full unsymmetric iteration matrix with a sparse LU
-    /// (exact Newton) instead of its symmetric part with the LDLᵀ
+    /// (exact Newton) instead of a symmetric approximation with the LDLᵀ
     /// saddle-point solver (modified Newton). Read by the caller that builds
     /// the [`SecondOrderDae`](super::SecondOrderDae) (`simulation::simulate`:
     /// [`crate::formulation::NewtonSolverKind`]). Default false.
