@@ -148,7 +148,7 @@ impl DynamicBlocks {
     /// ([`reciprocal_correction`]), instead of the symmetric part
     /// `(a + b)/2`. A symmetric pair keeps its value; a one-way coupling
     /// (`b = 0`: friction's force along a wall from the penetration normal
-    /// to it, drag's force from the segment's angle) is left out, which
+    /// to it) is left out, which
     /// makes the error of the Newton matrix nilpotent on it (two
     /// iterations for a linear problem), where its symmetric part
     /// `½ [0 a; a 0]` has the eigenvalue `−|a|/2`, a negative stiffness the

@@ -62,13 +62,14 @@
 //! with its step cut to 1e-21 s completes (16 failed attempts). The
 //! matrix frozen at the step's start carries the multipliers' geometric
 //! stiffness `(Φ_qᵀλ_n)_q` of the kink's spring forces, which the first
-//! step relaxes. The same renewal (without the undo) is taken, once per
-//! attempt, when `max_newton` corrections did not suffice but the
-//! iteration still contracts (as generalized-α's): on the falling rod
-//! (N = 10 000, h = 4e-4, 1 s) 42 → 38 failed attempts; on the stiff chain
-//! at h = 4e-4, 13 → 9 (N = 1000) and 16 → 11 (N = 10 000). An iteration that stops contracting with position
-//! corrections `h² ΔA` below [`NOISE_REL`] of `max(|q|, 1)` has reached
-//! the noise of the solve and counts as converged (as generalized-α's):
+//! step relaxes. The same renewal (without the undo; one renewal per
+//! attempt in all) is taken when `max_newton` corrections did not suffice
+//! but the iteration still contracts (as generalized-α's): on the falling
+//! rod (N = 10 000, h = 4e-4, 1 s) 42 → 38 failed attempts; on the stiff
+//! chain at h = 4e-4, 13 → 9 (N = 1000) and 16 → 11 (N = 10 000). An
+//! iteration that stops contracting with position corrections `h² ΔA`
+//! below [`NOISE_REL`] of `max(|q|, 1)` has reached the noise of the
+//! solve and counts as converged (as generalized-α's):
 //! at N = 10 000 with `newton_tol` = 1e-2 the start otherwise cut the step
 //! to 3e-21 s, every attempt "diverging" at 300 tolerances of 20 ulps.
 //!
