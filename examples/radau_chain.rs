@@ -3,8 +3,10 @@
 //! Newton iterations, factorisations, CPU seconds; one JSON line per run.
 //!
 //! ```text
-//! cargo run --release --example radau_chain -- N [radau5:H[:TOL] | genalpha:H[:TOL] ...]
+//! cargo run --release --example radau_chain -- N [radau5:H[:TOL] | genalpha:H[:TOL] | aradau5:RTOL[:TOL] ...]
 //! ```
+//! `aradau5:RTOL`: radau5 with adaptive steps at `rtol` (`atol` =
+//! 1e-3·rtol, `MBS_ATOL` overrides); `h` in the output line is then rtol.
 //! `TOL`: `integrator.newton_tol` (m/s²) of that run; `MBS_NEWTON_TOL`
 //! sets it for the runs without one. `MBS_T_END` (s, default 0.1).
 //! The issue-12 benchmark runs `radau5:4e-4:1` (docs/radau.md).
@@ -37,7 +39,11 @@ fn main() {
         let (Some(name), Some(value)) = (parts.next(), parts.next()) else {
             panic!("{spec}: expected METHOD:H[:TOL]");
         };
-        let method: Method = name.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+        let adaptive = name == "aradau5";
+        let method: Method = name
+            .trim_start_matches('a')
+            .parse()
+            .unwrap_or_else(|e| panic!("{spec}: {e}"));
         let h: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
         let tol: Option<f64> = parts
             .next()
@@ -48,7 +54,18 @@ fn main() {
             output_dt: t_end,
             ..Default::default()
         };
-        cfg.ode.fixed_step = Some(h);
+        if adaptive {
+            cfg.implicit.adaptive = true;
+            cfg.ode.rtol = h;
+            cfg.ode.atol = mbsolve::integrate::Tolerance::Scalar(
+                std::env::var("MBS_ATOL")
+                    .ok()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(1e-3 * h),
+            );
+        } else {
+            cfg.ode.fixed_step = Some(h);
+        }
         cfg.ode.max_steps = 100_000_000;
         if let Some(t) = tol.or_else(|| {
             std::env::var("MBS_NEWTON_TOL")
@@ -66,7 +83,7 @@ fn main() {
         let err = reference.map(|r| (tip - r).abs());
         let get = |k: &str| s.extra.get(k).cloned().unwrap_or_default();
         println!(
-            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
+            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"error_rejections\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
             cfg.implicit.newton_tol,
             s.status,
             err.map_or("null".into(), |e| format!("{e:.3e}")),
@@ -74,6 +91,7 @@ fn main() {
             get("newton_iterations"),
             s.factorizations,
             get("newton_failures"),
+            get("error_rejections"),
             s.max_constraint_norm,
         );
         if std::env::var("MBS_VERBOSE").is_ok() {

@@ -184,9 +184,11 @@ fn stiff_chain_n5000_tight_newton_completes() {
     );
 }
 
-/// Bad input is a clear error: no step, the adaptive option.
+/// Bad input is a clear error: no step without `adaptive` (the message
+/// names both ways), a fixed step with `adaptive`, a step in a scenario
+/// with `integrator.adaptive = true` and the tolerances without it.
 #[test]
-fn radau5_needs_a_fixed_step() {
+fn radau5_needs_a_fixed_step_or_adaptive() {
     let (sys, q0, qd0, _) = stiff_chain(3, 0.1).unwrap();
     let cfg = RunConfig {
         method: Method::Radau5,
@@ -196,9 +198,10 @@ fn radau5_needs_a_fixed_step() {
     let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
         .unwrap_err()
         .to_string();
-    assert!(e.contains("fixed_step") && e.contains("radau5"), "{e}");
-    // radau5 has no adaptive mode: the message must not suggest one
-    assert!(!e.contains("adaptive"), "{e}");
+    assert!(
+        e.contains("fixed_step") && e.contains("radau5") && e.contains("adaptive = true"),
+        "{e}"
+    );
     let e = mbsolve::integrate::Radau5::new(
         mbsolve::integrate::ImplicitOptions {
             adaptive: true,
@@ -211,10 +214,29 @@ fn radau5_needs_a_fixed_step() {
     )
     .unwrap_err()
     .to_string();
+    assert!(e.contains("fixed_step") && e.contains("rtol"), "{e}");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");
+    let load = |extra: &[&str]| {
+        let mut set = vec!["integrator.method=\"radau5\"".to_string()];
+        set.extend(extra.iter().map(|s| s.to_string()));
+        mbsolve::scenario::load(&path, &set)
+    };
+    let Err(e) = load(&["integrator.adaptive=true", "integrator.step=1e-3"]) else {
+        panic!("a step with adaptive");
+    };
+    let e = e.to_string();
+    assert!(e.contains("integrator.step"), "{e}");
+    let Err(e) = load(&["integrator.step=1e-3", "integrator.rtol=1e-4"]) else {
+        panic!("rtol without adaptive");
+    };
+    let e = e.to_string();
     assert!(
-        e.contains("adaptive") && e.contains("integrator.step"),
+        e.contains("integrator.rtol") && e.contains("integrator.adaptive = true"),
         "{e}"
     );
+    let sc = load(&["integrator.adaptive=true", "integrator.rtol=1e-4"]).unwrap();
+    assert!(sc.run.implicit.adaptive);
+    assert_eq!(sc.run.ode.rtol, 1e-4);
 }
 
 /// `integrator.newton_tol` is read by radau5 (the α-family keys are not):

@@ -81,7 +81,8 @@ pub struct ImplicitOptions {
     /// Default 0.8.
     pub rho_inf: f64,
     /// Adapt the step to the local error estimate with `rtol`/`atol` of
-    /// [`OdeOptions`] (also `max_step`, `max_steps`). Default false.
+    /// [`OdeOptions`] (also `max_step`, `max_steps`, `initial_step`):
+    /// generalized-α, HHT, Newmark and radau5. Default false.
     pub adaptive: bool,
     /// Newton tolerance on the acceleration corrections `Δq̈ = β' Δq`
     /// (m/s², rad/s²; also bounds the velocity and position corrections),
@@ -235,8 +236,8 @@ impl OdeOptions {
         }
         let step_controlled = match method {
             Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf => true,
-            Method::Rk4 | Method::Radau5 => false,
-            Method::GenAlpha | Method::Hht | Method::Newmark => adaptive,
+            Method::Rk4 => false,
+            Method::GenAlpha | Method::Hht | Method::Newmark | Method::Radau5 => adaptive,
         };
         if step_controlled {
             if !(self.rtol > 0.0 && self.rtol.is_finite()) {
@@ -257,7 +258,7 @@ impl OdeOptions {
                 ));
             }
         } else {
-            let need = if matches!(method, Method::Rk4 | Method::Radau5) {
+            let need = if method == Method::Rk4 {
                 format!("{} requires a positive, finite fixed_step", method.name())
             } else {
                 format!(
@@ -298,8 +299,8 @@ impl ImplicitOptions {
     /// ([`IntegratorError::NotApplicable`] names the first that does not).
     pub fn validate(&self, method: Method, fixed_step: Option<f64>) -> Result<(), IntegratorError> {
         if method == Method::Radau5 {
-            // Radau IIA reads the Newton settings, projection, reuse and
-            // the smallest step; the α-family options do not apply
+            // Radau IIA reads the Newton settings, projection, reuse, the
+            // smallest step and adaptive; the α-family options do not apply
             let d = Self::default();
             let other = Self {
                 newton_tol: d.newton_tol,
@@ -307,13 +308,14 @@ impl ImplicitOptions {
                 project: d.project,
                 reuse: d.reuse,
                 min_step: d.min_step,
+                adaptive: d.adaptive,
                 ..self.clone()
             };
             if let Some(option) = other.first_non_default() {
                 return Err(not_applicable(
                     option,
                     method,
-                    "radau5 reads newton_tol, max_newton, project, reuse and min_step only",
+                    "radau5 reads newton_tol, max_newton, project, reuse, min_step and adaptive only",
                 ));
             }
             if !(self.newton_tol > 0.0 && self.newton_tol.is_finite()) {

@@ -622,17 +622,19 @@ fn inapplicable(
         ("lu", ri.lu.is_some()),
         ("extrapolate", ri.extrapolate.is_some()),
     ] {
-        // radau5 reads the Newton settings, projection, reuse and min_step
+        // radau5 reads the Newton settings, projection, reuse, min_step
+        // and adaptive
         let radau_reads = matches!(
             key,
-            "newton_tol" | "max_newton" | "project" | "reuse" | "min_step"
+            "newton_tol" | "max_newton" | "project" | "reuse" | "min_step" | "adaptive"
         );
         if method == Method::Radau5 && radau_reads {
             continue;
         }
         given(present, key, implicit_only.clone())?;
     }
-    if matches!(method, Method::Rk4 | Method::Radau5) {
+    let radau_adaptive = method == Method::Radau5 && ri.adaptive == Some(true);
+    if method == Method::Rk4 || (method == Method::Radau5 && !radau_adaptive) {
         for (key, present) in [
             ("rtol", ri.rtol.is_some()),
             ("atol", ri.atol.is_some()),
@@ -642,9 +644,17 @@ fn inapplicable(
             given(
                 present,
                 key,
-                format!(
-                    "applies to the adaptive methods; {name} takes fixed steps of integrator.step"
-                ),
+                if method == Method::Rk4 {
+                    format!(
+                        "applies to the adaptive methods; {name} takes fixed steps of \
+                         integrator.step"
+                    )
+                } else {
+                    format!(
+                        "applies to the adaptive mode; {name} takes fixed steps of \
+                         integrator.step unless integrator.adaptive = true"
+                    )
+                },
             )?;
         }
     } else {

@@ -429,7 +429,8 @@ fn fields<const N: usize>(
 /// evaluations, `factorizations` = real + complex factorisations;
 /// `extra` adds `newton_iterations`, `newton_failures`,
 /// `real_factorizations`, `complex_factorizations`, `projections`,
-/// `fixed_step`, `newton_tol`, `min_step_taken`.
+/// `fixed_step` (or null), `adaptive`, `error_rejections`, `newton_tol`,
+/// `min_step_taken`, `max_step_taken`.
 pub(super) struct RadauRun<'s> {
     f: Index3<'s>,
     c: Index3Complex<'s>,
@@ -487,8 +488,11 @@ impl MethodRun for RadauRun<'_> {
             ("complex_factorizations", rs.complex_factorizations.into()),
             ("projections", rs.projections.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
+            ("adaptive", cfg.implicit.adaptive.into()),
+            ("error_rejections", rs.error_rejections.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
             ("min_step_taken", rs.min_step_taken.into()),
+            ("max_step_taken", rs.max_step_taken.into()),
         ]);
         let work = Work {
             formulation: "index3".to_string(),
