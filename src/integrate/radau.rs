@@ -376,16 +376,16 @@ impl Radau5 {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let (n, m) = (sys.n(), sys.m());
-        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, false)?;
-        if let Tolerance::Vector(v) = &self.ode.atol {
-            if self.opts.adaptive && v.len() != n {
-                return Err(IntegratorError::InvalidOption {
-                    option: "atol",
-                    value: format!("a vector of {} entries", v.len()),
-                    reason: format!("needs one entry per coordinate ({n})"),
-                });
-            }
-        }
+        validate_run(
+            n,
+            t0,
+            t_end,
+            q0,
+            qd0,
+            output_times,
+            &self.ode,
+            self.opts.adaptive,
+        )?;
         let span = t_end - t0;
         let h_max = self.ode.max_step.unwrap_or(0.1 * span).min(span);
         // 0: chosen in `start` from the initial accelerations
