@@ -414,3 +414,46 @@ pub(crate) fn error_norm(est: &[f64], y: &[f64], ynew: &[f64], thr: &[f64]) -> f
     }
     m
 }
+
+/// `max_i |e_i| / w_i` over `i < n` (∞ where `w_i = 0 < |e_i|`, nothing
+/// where both are 0): the error norm of the index-3 methods' adaptive
+/// modes (generalized-α, radau5), `w_i = atol_i + rtol max(|q_n,i|,
+/// |q_{n+1},i|)`.
+pub(crate) fn max_weighted(n: usize, e: impl Fn(usize) -> f64, w: impl Fn(usize) -> f64) -> f64 {
+    let mut norm: f64 = 0.0;
+    for i in 0..n {
+        let (w, e) = (w(i), e(i).abs());
+        norm = norm.max(if w > 0.0 {
+            e / w
+        } else if e > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        });
+    }
+    norm
+}
+
+/// First step of an adaptive index-3 run (generalized-α, radau5) without
+/// `initial_step`: the position change `½ h² q̈` of the start at 1 % of
+/// the tolerance `w_i = atol_i + rtol |q_i|`, within `[1e-6, 1e-2]` of the
+/// span.
+pub(crate) fn initial_step_from_accelerations(
+    qdd: &[f64],
+    w: impl Fn(usize) -> f64,
+    span: f64,
+) -> f64 {
+    let mut acc: f64 = 0.0;
+    for (i, a) in qdd.iter().enumerate() {
+        let w = w(i);
+        if w > 0.0 {
+            acc = acc.max(a.abs() / w);
+        }
+    }
+    let h = if acc > 0.0 {
+        (0.02 / acc).sqrt()
+    } else {
+        0.01 * span
+    };
+    h.min(0.01 * span).max(1e-6 * span)
+}

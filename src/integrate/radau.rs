@@ -537,20 +537,12 @@ impl Run<'_, '_> {
     /// position change `½ h² q̈` of the start at 1 % of the tolerance,
     /// within `[1e-6, 1e-2]` of the span and at most `h_max`.
     fn initial_step_guess(&self) -> f64 {
-        let span = self.t_end - self.t0;
-        let mut acc: f64 = 0.0;
-        for i in 0..self.n {
-            let w = self.atol(i) + self.ode.rtol * self.q[i].abs();
-            if w > 0.0 {
-                acc = acc.max(self.qdd[i].abs() / w);
-            }
-        }
-        let h = if acc > 0.0 {
-            (0.02 / acc).sqrt()
-        } else {
-            0.01 * span
-        };
-        h.min(0.01 * span).max(1e-6 * span).min(self.h_max)
+        common::initial_step_from_accelerations(
+            &self.qdd[..self.n],
+            |i| self.atol(i) + self.ode.rtol * self.q[i].abs(),
+            self.t_end - self.t0,
+        )
+        .min(self.h_max)
     }
 
     /// Norm of RADAU5's embedded error estimate of the converged attempt
@@ -602,18 +594,11 @@ impl Run<'_, '_> {
         // the step's end, Q₃ = q_{n+1}, for the weights
         self.stage_state(2, h);
         let x = &self.x[0];
-        let mut norm: f64 = 0.0;
-        for k in 0..n {
-            let w = self.atol(k) + self.ode.rtol * self.q[k].abs().max(self.qs[k].abs());
-            let e = x[k].abs();
-            norm = norm.max(if w > 0.0 {
-                e / w
-            } else if e > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            });
-        }
+        let norm = common::max_weighted(
+            n,
+            |k| x[k],
+            |k| self.atol(k) + self.ode.rtol * self.q[k].abs().max(self.qs[k].abs()),
+        );
         let rtol_t = 0.1 * self.ode.rtol.powf(2.0 / 3.0);
         Ok(norm * self.ode.rtol / rtol_t)
     }

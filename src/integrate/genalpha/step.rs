@@ -57,35 +57,19 @@ impl Run<'_, '_> {
                     source: std::sync::Arc::new(e),
                 })?;
         }
-        let mut norm: f64 = 0.0;
-        for i in 0..n {
-            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs().max(self.new.q[i].abs());
-            let e = self.err[i].abs();
-            norm = norm.max(if w > 0.0 {
-                e / w
-            } else if e > 0.0 {
-                f64::INFINITY
-            } else {
-                0.0
-            });
-        }
+        let norm = common::max_weighted(
+            n,
+            |i| self.err[i],
+            |i| self.atol(i) + self.ode.rtol * self.cur.q[i].abs().max(self.new.q[i].abs()),
+        );
         Ok(norm * proportionality(self.ode.rtol))
     }
 
     pub(super) fn initial_step_guess(&mut self, span: f64) -> f64 {
-        // position change ½ h² q̈ at 1 % of the tolerance
-        let mut acc: f64 = 0.0;
-        for i in 0..self.n {
-            let w = self.atol(i) + self.ode.rtol * self.cur.q[i].abs();
-            if w > 0.0 {
-                acc = acc.max(self.cur.qdd[i].abs() / w);
-            }
-        }
-        let h = if acc > 0.0 {
-            (0.02 / acc).sqrt()
-        } else {
-            0.01 * span
-        };
-        h.min(0.01 * span).max(1e-6 * span)
+        common::initial_step_from_accelerations(
+            &self.cur.qdd[..self.n],
+            |i| self.atol(i) + self.ode.rtol * self.cur.q[i].abs(),
+            span,
+        )
     }
 }
