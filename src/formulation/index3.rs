@@ -431,8 +431,9 @@ impl<'a> Index3<'a> {
     }
 
     /// Assemble the scaled Newton matrix at `(t, q, q̇, λ)`:
-    /// `A = c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀ λ)_q` (its symmetric
-    /// part for the symmetric solvers), Jacobian block `Φ_q(q, t)`,
+    /// `A = c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀ λ)_q` (with the force
+    /// Jacobians' reciprocal part for the symmetric solvers, module docs),
+    /// Jacobian block `Φ_q(q, t)`,
     /// multiplier block 0 — and factorise it.
     #[allow(clippy::too_many_arguments)]
     pub fn assemble_and_factorize(

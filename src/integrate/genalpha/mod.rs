@@ -214,7 +214,8 @@ pub trait SecondOrderDae {
     /// Assemble and factorise the iteration matrix
     /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)` with
     /// `C_t = −∂g/∂q̇`, `K_t = −∂g/∂q + (Φ_qᵀ λ)_q` (or an approximation
-    /// of it, e.g. its symmetric part).
+    /// of them, e.g. [`crate::formulation::Index3`]'s reciprocal part of
+    /// unsymmetric force Jacobians).
     fn factorize(
         &mut self,
         t: f64,
