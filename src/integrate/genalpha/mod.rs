@@ -46,7 +46,9 @@
 //! # Newton iteration
 //!
 //! The unknowns are the positions: with the predictor `q̈_{n+1} = q̈_n`
-//! (or extrapolated, [`ImplicitOptions::extrapolate`]), `λ_{n+1} = 0`
+//! (or, with [`ImplicitOptions::extrapolate`], extrapolated linearly from
+//! `q̈_{n−1}, q̈_n` when that predicted the last step better,
+//! `Run::choose_predictor`), `λ_{n+1} = 0`
 //! the formulas above give `q`, `q̇`, `a`, and every Newton correction
 //! `Δq` moves `q̇` by `γ' Δq`, `q̈` by `β' Δq`, `a` by `Δq/(β h²)`, with
 //! `γ' = γ/(β h)`, `β' = (1 − α_m)/(β h² (1 − α_f))` (Arnold & Brüls 2007,
@@ -115,7 +117,9 @@
 //! such an attempt makes a second correction (at the same step size; again
 //! after `QUAD_REUSE` = 10 uses), and the first correction alone is
 //! accepted when `C ‖Δq₁‖_w² ≤ 1` — the second would only iterate into
-//! the rounding floor (stiff chain: `‖Δq₁‖_w ≈ 1.7e6`, `‖Δq₂‖_w ≈ 0.5–4`).
+//! the rounding floor (stiff chain: `‖Δq₁‖_w ≈ 1.7e6`, `‖Δq₂‖_w ≈ 0.5–4`);
+//! `≤ 4` where the tolerance unit is the rounding floor itself
+//! (`SINGLE_CORRECTION_AT_FLOOR`: a remainder of 80 ulps).
 //! Optionally also `‖Φ(q_{n+1})‖∞` must be below the position-equivalent
 //! tolerance ([`ImplicitOptions::check_constraints`]).
 //!
@@ -480,6 +484,10 @@ struct Run<'g, 's> {
     /// q̈ and step of the previous accepted step (predictor).
     prev_qdd: Vec<f64>,
     h_prev: Option<f64>,
+    /// With [`ImplicitOptions::extrapolate`]: whether the next predictor
+    /// extrapolates q̈ (it predicted the last accepted step better than the
+    /// constant one, [`Run::choose_predictor`]).
+    extrapolate_next: bool,
     stats: GenAlphaStats,
     warnings: Vec<String>,
     /// Step control: the step to try next, the largest step, the index of
@@ -537,6 +545,7 @@ impl<'g, 's> Run<'g, 's> {
             renewals: 0,
             prev_qdd: vec![0.0; n],
             h_prev: None,
+            extrapolate_next: false,
             stats: GenAlphaStats {
                 min_step_taken: f64::INFINITY,
                 ..Default::default()
@@ -733,6 +742,9 @@ impl Stepper for Run<'_, '_> {
             }
             self.t_old = self.t;
             self.h_last = h_try;
+            if self.opts.extrapolate {
+                self.choose_predictor(h_try);
+            }
             self.prev_qdd.copy_from_slice(&self.cur.qdd);
             self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
