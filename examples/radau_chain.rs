@@ -98,7 +98,7 @@ fn main() {
             eprintln!(
                 "{:?}\n{:?}",
                 s.message,
-                &s.warnings[..s.warnings.len().min(5)]
+                &s.warnings[..s.warnings.len().min(50)]
             );
         }
     }

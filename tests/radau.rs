@@ -291,5 +291,8 @@ fn newton_tolerance_key_is_read() {
         "newton_tol 1e-6: {e_tight:e} m, {its_tight} its; 1e-2: {e_loose:e} m, {its_loose} its"
     );
     assert!(e_tight < 1e-5 && e_loose < 1e-5);
-    assert!(its_loose * 3 < its_tight * 2, "{its_loose} vs {its_tight}");
+    // measured 1349 against 2017 (0.669); the bound was 2/3 before the
+    // fixed-step start ramp of stop 28, whose first tiny steps converge
+    // in one or two corrections at either tolerance
+    assert!(its_loose * 10 < its_tight * 7, "{its_loose} vs {its_tight}");
 }
