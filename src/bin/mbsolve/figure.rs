@@ -58,6 +58,8 @@ const TICK_PX: f64 = 10.7;
 const LEGEND_PX: f64 = 11.5;
 /// Markers per curve.
 const MARKERS: usize = 8;
+/// Radius of the dot that draws a curve's one-sample piece \[CSS px\].
+const DOT_PX: f64 = 2.2;
 /// Curve line width \[CSS px\] (1 pt).
 const CURVE_PX: f64 = 4.0 / 3.0;
 
@@ -624,7 +626,7 @@ impl Figure {
                         r#"<circle cx="{}" cy="{}" r="{}" fill="{colour}"/>"#,
                         num(x),
                         num(y),
-                        num(1.6 * s)
+                        num(DOT_PX * s)
                     );
                     continue;
                 }
@@ -885,7 +887,7 @@ where
         if p.len() == 1 {
             chart.draw_series(std::iter::once(Circle::new(
                 p[0],
-                (1.6 * s) as i32,
+                (DOT_PX * s) as i32,
                 style.filled(),
             )))?;
             continue;
