@@ -109,8 +109,32 @@ fn plot_writes_svg_and_png_with_the_requested_series() {
         !text.contains("\nx2\n"),
         "a column that was not asked for is drawn"
     );
-    // 3 curves (solid, dashed as many segments, dotted) were drawn
-    assert!(text.matches("<polyline").count() >= 3);
+    // 3 curves (solid, dashed, dotted; lengths in the SVG's tenths of a
+    // px), each one path in its colour
+    // beside its legend sample, with their units from fourbar.columns.json
+    for (colour, dash) in [("#0072B2", ""), ("#D55E00", "60 35"), ("#009E73", "16 26")] {
+        let curves = text
+            .split("<path d=\"M")
+            .map(|p| &p[..p.find("/>").unwrap()])
+            .filter(|p| {
+                // not a marker (filled triangles)
+                p.contains(&format!("stroke=\"{colour}\""))
+                    && !p.contains(&format!("fill=\"{colour}\""))
+            })
+            .count();
+        assert_eq!(curves, 2, "curve and legend sample in {colour}");
+        if !dash.is_empty() {
+            assert!(
+                text.contains(&format!("stroke-dasharray=\"{dash}\"")),
+                "{colour}: no dash pattern {dash}"
+            );
+        }
+    }
+    assert!(
+        text.contains("\nx1, y1 [m]; phi3 [rad]\n"),
+        "ordinate label"
+    );
+    assert!(text.contains("\nt [s]\n"), "abscissa label");
 
     // a log axis: ticks are the decades 10ⁿ of the norm's range
     let log = dir.path().join("log.svg");

@@ -10,10 +10,14 @@
 //!   curves stay distinguishable in print and in grey scale.
 //! * The legend sits beside the plotting area, never on the data.
 //! * Logarithmic ordinates are log axes with ticks at the decades (10ⁿ),
-//!   plotting |y|.
+//!   plotting |y|; zeros (and values below a stated floor) are gaps in the
+//!   curve, stated under the legend, never bridged by a line.
+//! * SVG coordinates of curves, markers and reference lines are floating
+//!   point (no grid snapping); plotters' frame sits on a 1/10 px grid.
 //! * Every figure written by [`Figure::save`] gets, beside the SVG, the CSV
-//!   of exactly the plotted columns and a `.redraw.txt` with the `mbsolve
-//!   plot` command that redraws it from that CSV.
+//!   of exactly the plotted columns, their units (`.columns.json`) and a
+//!   `.redraw.txt` with the `mbsolve plot` command that redraws it from
+//!   that CSV.
 //!
 //! Text metrics come from the DejaVu Sans font embedded in the binary
 //! (`assets/fonts/`, Bitstream Vera licence), so PNG rendering needs no
@@ -23,6 +27,7 @@ use crate::output::{write_columns_csv, OutputError};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
+use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Once;
 
@@ -53,6 +58,10 @@ const TICK_PX: f64 = 10.7;
 const LEGEND_PX: f64 = 11.5;
 /// Markers per curve.
 const MARKERS: usize = 8;
+/// Radius of the dot that draws a curve's one-sample piece \[CSS px\].
+const DOT_PX: f64 = 2.2;
+/// Curve line width \[CSS px\] (1 pt).
+const CURVE_PX: f64 = 4.0 / 3.0;
 
 static FONT: Once = Once::new();
 
@@ -66,8 +75,14 @@ pub fn register_font() {
     });
 }
 
+/// SVG user units per CSS px. Plotters writes whole user units, so the
+/// frame it draws (axes, ticks, text) sits on a grid of 1/10 px (0.026 mm);
+/// curves, markers, reference lines and legend samples are written by
+/// [`Figure::svg_marks`] in floating point and do not snap to any grid.
+const SVG_SCALE: f64 = 10.0;
+
 /// One curve of a figure.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Series {
     /// Legend label (and CSV column name).
     pub label: String,
@@ -78,46 +93,142 @@ pub struct Series {
 }
 
 /// A line figure: title, axis labels, curves, linear or logarithmic y.
-#[derive(Debug, Clone)]
+///
+/// A curve is drawn as separate pieces wherever a sample is not plotted
+/// (non-finite; on a log axis also zero or below [`Figure::log_floor`]):
+/// never one line joined across such a gap. A piece of one sample is drawn
+/// as a dot. Gaps of a log axis are stated under the legend.
+#[derive(Debug, Clone, Default)]
 pub struct Figure {
     /// Title above the plotting area.
     pub title: String,
-    /// Abscissa label (also the CSV's first column name).
+    /// Abscissa label, `quantity [unit]` (also the CSV's first column name).
     pub x_label: String,
-    /// Ordinate label.
+    /// Ordinate label, `quantity [unit]`.
     pub y_label: String,
     /// The curves.
     pub series: Vec<Series>,
-    /// Logarithmic ordinate (|y| plotted; zeros and non-finite values dropped).
+    /// Logarithmic ordinate: |y| plotted, zeros are gaps. Default linear.
     pub log_y: bool,
+    /// Log axes only: the smallest |y| drawn, in the ordinate's unit;
+    /// smaller values are gaps and the axis starts at this value's decade.
+    /// Default `None`: the smallest nonzero |y| sets the axis.
+    pub log_floor: Option<f64>,
+    /// Horizontal reference lines `(label, y)`, y in the ordinate's unit
+    /// (e.g. channel walls): thin grey lines across the plot, named in the
+    /// legend, inside the axis range. Default none.
+    pub hlines: Vec<(String, f64)>,
+    /// Text under the legend, one line per `\n`. Default empty.
+    pub note: String,
+}
+
+/// Where the frame put the plotting area and the legend's rows, in the
+/// backend's pixels (absolute).
+struct Frame {
+    /// Axis ranges (x0, x1, y0, y1); log10 |y| on a log axis.
+    ranges: (f64, f64, f64, f64),
+    /// Pixel abscissae of x0 and x1.
+    px: (f64, f64),
+    /// Pixel ordinates of y0 and y1 (y0 below: py.0 > py.1).
+    py: (f64, f64),
+    /// Legend samples (x start, x end, y): one per curve, then one per
+    /// reference line.
+    rows: Vec<(f64, f64, f64)>,
+}
+
+impl Frame {
+    /// Pixel position of a point in axis coordinates (unrounded; plotters
+    /// places the same point at its floor, its ticks included).
+    fn map(&self, (x, y): (f64, f64)) -> (f64, f64) {
+        let (x0, x1, y0, y1) = self.ranges;
+        (
+            self.px.0 + (x - x0) / (x1 - x0) * (self.px.1 - self.px.0),
+            self.py.0 + (y - y0) / (y1 - y0) * (self.py.1 - self.py.0),
+        )
+    }
+
+    /// Is the point inside the axis ranges?
+    fn contains(&self, (x, y): (f64, f64)) -> bool {
+        let (x0, x1, y0, y1) = self.ranges;
+        (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
+    }
 }
 
 impl Figure {
     /// Write `<stem>.svg`, the plotted data `<stem>.csv` (first column the
     /// abscissa named after `x_label`, one column per curve named after its
-    /// label) and `<stem>.redraw.txt` (the `mbsolve plot` command that
-    /// redraws the SVG from the CSV) in `dir`.
+    /// label), `<stem>.columns.json` (each CSV column's name and unit, the
+    /// units taken from the axis labels' brackets) and `<stem>.redraw.txt`
+    /// (the `mbsolve plot` command that redraws the SVG from the CSV) in
+    /// `dir`.
     pub fn save(&self, dir: &Path, stem: &str) -> Result<(), OutputError> {
         let csv = dir.join(format!("{stem}.csv"));
         self.write_csv(&csv)?;
-        self.render(&dir.join(format!("{stem}.svg")))?;
-        let mut cmd = format!(
-            "mbsolve plot {stem}.csv --x '{}'",
-            self.x_label.replace('\'', "'\\''")
-        );
+        let json = dir.join(format!("{stem}.columns.json"));
+        std::fs::write(&json, self.columns_json()).map_err(|e| OutputError::new(&json, e))?;
+        // drawn from exactly the values in the CSV, so that the redraw
+        // command reproduces the SVG byte for byte
+        self.as_written().render(&dir.join(format!("{stem}.svg")))?;
+        let q = |s: &str| format!("'{}'", s.replace('\'', "'\\''"));
+        let mut cmd = format!("mbsolve plot {stem}.csv --x {}", q(&self.x_label));
         for s in &self.series {
-            cmd += &format!(" --y '{}'", s.label.replace('\'', "'\\''"));
+            cmd += &format!(" --y {}", q(&s.label));
         }
         if self.log_y {
             cmd += " --log-y";
         }
+        if let Some(f) = self.log_floor {
+            cmd += &format!(" --log-floor {f:e}");
+        }
+        for (label, v) in &self.hlines {
+            cmd += &format!(" --hline {}", q(&format!("{label}={v:e}")));
+        }
+        if !self.note.is_empty() {
+            cmd += &format!(" --note {}", q(&self.note));
+        }
         cmd += &format!(
-            " --y-label '{}' --title '{}' --out {stem}.svg\n",
-            self.y_label.replace('\'', "'\\''"),
-            self.title.replace('\'', "'\\''")
+            " --y-label {} --title {} --out {stem}.svg\n",
+            q(&self.y_label),
+            q(&self.title)
         );
         let path = dir.join(format!("{stem}.redraw.txt"));
         std::fs::write(&path, cmd).map_err(|e| OutputError::new(&path, e))
+    }
+
+    /// This figure with every value as the CSV holds it (rounded to the
+    /// 13 significant digits [`write_columns_csv`] writes).
+    fn as_written(&self) -> Figure {
+        let round = |v: &Vec<f64>| -> Vec<f64> {
+            v.iter()
+                .map(|x| {
+                    if x.is_finite() {
+                        format!("{x:.12e}").parse().unwrap_or(*x)
+                    } else {
+                        *x
+                    }
+                })
+                .collect()
+        };
+        let mut f = self.clone();
+        for s in &mut f.series {
+            s.x = round(&s.x);
+            s.y = round(&s.y);
+        }
+        f
+    }
+
+    /// The `columns.json` of the CSV [`Figure::write_csv`] writes: name and
+    /// unit of every column (the format `mbsolve run` writes beside its
+    /// tables, read back by `mbsolve plot`).
+    pub fn columns_json(&self) -> String {
+        let mut cols = vec![serde_json::json!({
+            "name": self.x_label,
+            "unit": unit_of(&self.x_label),
+        })];
+        for s in &self.series {
+            cols.push(serde_json::json!({"name": s.label, "unit": unit_of(&self.y_label)}));
+        }
+        serde_json::to_string_pretty(&cols).unwrap_or_default() + "\n"
     }
 
     /// The plotted data as CSV: the abscissa of the longest curve, then one
@@ -165,18 +276,34 @@ impl Figure {
         let h = (HEIGHT_CM * PX_PER_CM).round();
         match extension(path).as_str() {
             "svg" => {
-                {
-                    let root = SVGBackend::new(path, (w as u32, h as u32)).into_drawing_area();
-                    self.draw(&root, 1.0)
+                let k = SVG_SCALE;
+                let size = ((w * k) as u32, (h * k) as u32);
+                let mut text = String::new();
+                let frame = {
+                    let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+                    let frame = self
+                        .draw(&root, k, false)
                         .map_err(|e| OutputError::new(path, e))?;
                     root.present().map_err(|e| OutputError::new(path, e))?;
-                }
-                set_physical_size(path, w, h)
+                    frame
+                };
+                let text = set_physical_size(&text, size, w, h)
+                    .ok_or_else(|| OutputError::new(path, "unexpected SVG from plotters"))?;
+                let end = text
+                    .rfind("</svg>")
+                    .ok_or_else(|| OutputError::new(path, "unexpected SVG from plotters"))?;
+                let out = format!(
+                    "{}{}{}",
+                    &text[..end],
+                    self.svg_marks(&frame, k),
+                    &text[end..]
+                );
+                std::fs::write(path, out).map_err(|e| OutputError::new(path, e))
             }
             "png" => {
                 let size = ((w * PNG_SCALE) as u32, (h * PNG_SCALE) as u32);
                 let root = BitMapBackend::new(path, size).into_drawing_area();
-                self.draw(&root, PNG_SCALE)
+                self.draw(&root, PNG_SCALE, true)
                     .map_err(|e| OutputError::new(path, e))?;
                 root.present().map_err(|e| OutputError::new(path, e))
             }
@@ -187,33 +314,46 @@ impl Figure {
         }
     }
 
-    /// Data ranges: (x0, x1, y0, y1), y for log axes over |y| > 0.
+    /// Data ranges: (x0, x1, y0, y1), y for log axes in log10 |y| over the
+    /// plotted values; reference lines included.
     fn ranges(&self) -> (f64, f64, f64, f64) {
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        // the abscissa over every sample with finite values (a gap of a
+        // log axis at the start keeps its place), the ordinate over the
+        // plotted ones
         for s in &self.series {
             for (&x, &y) in s.x.iter().zip(&s.y) {
-                if let Some(y) = self.plotted(y) {
-                    if x.is_finite() {
-                        x0 = x0.min(x);
-                        x1 = x1.max(x);
-                        y0 = y0.min(y);
-                        y1 = y1.max(y);
-                    }
+                if x.is_finite() && y.is_finite() {
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                }
+                if let Some(y) = self.plotted(y).filter(|_| x.is_finite()) {
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
                 }
             }
         }
-        if x0 > x1 {
+        if x0 > x1 || y0 > y1 {
             return if self.log_y {
                 (0.0, 1.0, -3.0, 0.0)
             } else {
                 (0.0, 1.0, -1.0, 1.0)
             };
         }
+        for &(_, v) in &self.hlines {
+            if let Some(v) = self.plotted(v) {
+                y0 = y0.min(v);
+                y1 = y1.max(v);
+            }
+        }
         if x1 <= x0 {
             x1 = x0 + 1.0;
         }
         if self.log_y {
-            // whole decades (values are log10 |y|)
+            // whole decades (values are log10 |y|), from the floor's
+            if let Some(f) = self.log_floor.filter(|f| *f > 0.0 && f.is_finite()) {
+                y0 = f.log10();
+            }
             (y0, y1) = (y0.floor(), y1.ceil());
             if y1 <= y0 {
                 y1 = y0 + 1.0;
@@ -229,36 +369,80 @@ impl Figure {
         (x0, x1, y0, y1)
     }
 
-    /// The coordinate plotted for `y`, if any: y, or log10 |y| on a log axis.
+    /// The coordinate plotted for `y`, if any: y, or log10 |y| on a log
+    /// axis (none for zero and |y| below the floor).
     fn plotted(&self, y: f64) -> Option<f64> {
         if !y.is_finite() {
             None
         } else if self.log_y {
-            (y != 0.0).then(|| y.abs().log10())
+            let floor = self.log_floor.unwrap_or(0.0);
+            (y != 0.0 && y.abs() >= floor).then(|| y.abs().log10())
         } else {
             Some(y)
         }
     }
 
+    /// The gap note of a log axis: which finite values are not drawn, if
+    /// any curve has one.
+    fn gap_note(&self) -> Option<String> {
+        if !self.log_y {
+            return None;
+        }
+        let dropped = self
+            .series
+            .iter()
+            .flat_map(|c| c.x.iter().zip(&c.y))
+            .any(|(x, &y)| x.is_finite() && y.is_finite() && self.plotted(y).is_none());
+        if !dropped {
+            return None;
+        }
+        Some(match self.log_floor {
+            Some(f) if f > 0.0 => format!("gaps: where |y| < {}", number_text(f)),
+            _ => "gaps: where y = 0".to_string(),
+        })
+    }
+
+    /// The lines under the legend: the gap note, then [`Figure::note`].
+    fn note_lines(&self) -> Vec<String> {
+        let mut v: Vec<String> = self.gap_note().into_iter().collect();
+        v.extend(
+            self.note
+                .lines()
+                .filter(|l| !l.trim().is_empty())
+                .map(str::to_string),
+        );
+        v
+    }
+
     /// Lay out title, plotting area and legend on `root`; `s` scales every
-    /// length (1 = CSS px at 96 dpi).
+    /// length (1 = CSS px at 96 dpi). With `curves`, draw the curves and
+    /// the legend samples with plotters (bitmaps); without, leave them to
+    /// [`Figure::svg_marks`]. Returns where things went.
     fn draw<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         s: f64,
-    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        curves: bool,
+    ) -> Result<Frame, DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
         let font = |px: f64| ("sans-serif", px * s).into_font();
         let area = root
             .margin((6.0 * s) as u32, 0, (4.0 * s) as u32, 0)
             .titled(&self.title, font(TITLE_PX))?;
         let (w, _) = area.dim_in_pixel();
+        let notes = self.note_lines();
+        let chars = |t: &str| t.chars().count() as f64;
         let max_label = self
             .series
             .iter()
-            .map(|c| c.label.chars().count())
-            .max()
-            .unwrap_or(0) as f64;
+            .map(|c| chars(&c.label))
+            .chain(self.hlines.iter().map(|h| chars(&h.0)))
+            .chain(
+                notes
+                    .iter()
+                    .map(|n| chars(n) * TICK_PX / LEGEND_PX - 70.0 / LEGEND_PX),
+            )
+            .fold(0.0, f64::max);
         let legend_w = ((max_label * 0.6 * LEGEND_PX + 48.0) * s).clamp(60.0 * s, 0.4 * w as f64);
         let (plot, legend) = area.split_horizontally(w - legend_w as u32);
         let (x0, x1, y0, y1) = self.ranges();
@@ -270,9 +454,6 @@ impl Figure {
             .margin_left((4.0 * s) as u32)
             .x_label_area_size((38.0 * s) as u32)
             .y_label_area_size((62.0 * s) as u32);
-        let styles: Vec<ShapeStyle> = (0..self.series.len())
-            .map(|i| PALETTE[i % PALETTE.len()].stroke_width((1.6 * s).max(1.0) as u32))
-            .collect();
         // Log axes are drawn in log10 |y| with ticks labelled 10ⁿ at the
         // decades only: plotters' own log coordinate drops key points below
         // f64::EPSILON, which constraint residuals reach.
@@ -291,6 +472,7 @@ impl Figure {
         let x_formatter = |v: &f64| x_fmt(*v);
         let y_formatter = |v: &f64| y_fmt(*v);
         let mut chart = builder.build_cartesian_2d(x0..x1, y0..y1)?;
+        let line = |c: RGBAColor| c.stroke_width(s.max(1.0) as u32);
         let mut mesh = chart.configure_mesh();
         mesh.x_desc(&self.x_label)
             .y_desc(&self.y_label)
@@ -298,29 +480,226 @@ impl Figure {
             .axis_desc_style(font(LABEL_PX))
             .x_label_formatter(&x_formatter)
             .y_label_formatter(&y_formatter)
-            .light_line_style(WHITE)
-            .bold_line_style(BLACK.mix(0.12));
+            .axis_style(line(BLACK.to_rgba()))
+            .set_all_tick_mark_size((5.0 * s) as u32)
+            .light_line_style(TRANSPARENT)
+            .bold_line_style(line(BLACK.mix(0.12)));
         if log_y {
             mesh.y_labels((decades + 1).clamp(2, 12));
         }
         mesh.draw()?;
-        for i in self.draw_order() {
-            let pts = self.points(&self.series[i]);
-            draw_curve(&mut chart, pts, i, styles[i], s)?;
+        let xr = chart.as_coord_spec().get_x_axis_pixel_range();
+        let yr = chart.as_coord_spec().get_y_axis_pixel_range();
+        let base = legend.get_base_pixel();
+        let row = 1.6 * LEGEND_PX * s;
+        let labels: Vec<&str> = self
+            .series
+            .iter()
+            .map(|c| c.label.as_str())
+            .chain(self.hline_labels())
+            .collect();
+        let rows: Vec<(f64, f64, f64)> = (0..labels.len())
+            .map(|i| {
+                let y = (10.0 * s + row * (i as f64 + 0.5)).round();
+                (
+                    base.0 as f64 + 6.0 * s,
+                    base.0 as f64 + 34.0 * s,
+                    base.1 as f64 + y,
+                )
+            })
+            .collect();
+        let frame = Frame {
+            ranges: (x0, x1, y0, y1),
+            px: (xr.start as f64, xr.end as f64),
+            py: (yr.end as f64, yr.start as f64),
+            rows,
+        };
+        if curves {
+            for (label, v) in &self.hlines {
+                if let Some(v) = self.plotted(*v) {
+                    let g = self.hline_group(label);
+                    let style = reference_style(s);
+                    match reference_dash(g, s) {
+                        None => chart.draw_series(LineSeries::new([(x0, v), (x1, v)], style))?,
+                        Some((on, off)) => chart.draw_series(DashedLineSeries::new(
+                            [(x0, v), (x1, v)],
+                            on as u32,
+                            off as u32,
+                            style,
+                        ))?,
+                    };
+                }
+            }
+            for i in self.draw_order() {
+                draw_curve(&mut chart, self.pieces(&self.series[i]), i, s)?;
+            }
         }
         // The legend, beside the plotting area.
-        let row = 1.6 * LEGEND_PX * s;
-        for (i, c) in self.series.iter().enumerate() {
-            let y = (10.0 * s + row * (i as f64 + 0.5)) as i32;
-            let (xa, xb) = ((6.0 * s) as i32, (34.0 * s) as i32);
-            draw_sample(&legend, (xa, y), (xb, y), i, styles[i], s)?;
+        for (i, label) in labels.iter().enumerate() {
+            let (_, _, y) = frame.rows[i];
+            let y = y as i32 - base.1;
+            if curves {
+                let (xa, xb) = ((6.0 * s) as i32, (34.0 * s) as i32);
+                if i < self.series.len() {
+                    draw_sample(&legend, (xa, y), (xb, y), i, s)?;
+                } else {
+                    let style = reference_style(s);
+                    match reference_dash(i - self.series.len(), s) {
+                        None => legend.draw(&PathElement::new(vec![(xa, y), (xb, y)], style))?,
+                        Some((on, off)) => {
+                            let mut x = xa as f64;
+                            while x < xb as f64 {
+                                let xe = (x + on).min(xb as f64);
+                                legend.draw(&PathElement::new(
+                                    vec![(x as i32, y), (xe as i32, y)],
+                                    style,
+                                ))?;
+                                x += on + off;
+                            }
+                        }
+                    }
+                }
+            }
             legend.draw(&Text::new(
-                c.label.clone(),
+                label.to_string(),
                 ((40.0 * s) as i32, y),
                 TextStyle::from(font(LEGEND_PX)).pos(Pos::new(HPos::Left, VPos::Center)),
             ))?;
         }
-        Ok(())
+        let top = 10.0 * s + row * (labels.len() as f64 + 0.4);
+        for (k, n) in notes.iter().enumerate() {
+            legend.draw(&Text::new(
+                n.clone(),
+                (
+                    (6.0 * s) as i32,
+                    (top + 1.4 * TICK_PX * s * (k as f64 + 0.5)) as i32,
+                ),
+                TextStyle::from(font(TICK_PX)).pos(Pos::new(HPos::Left, VPos::Center)),
+            ))?;
+        }
+        Ok(frame)
+    }
+
+    /// The curves, reference lines, markers and legend samples as SVG
+    /// elements in floating-point coordinates, for the frame `f` drawn at
+    /// scale `s`.
+    fn svg_marks(&self, f: &Frame, s: f64) -> String {
+        let mut o = String::new();
+        let (xa, xb) = (f.px.0.min(f.px.1), f.px.0.max(f.px.1));
+        let (ya, yb) = (f.py.0.min(f.py.1), f.py.0.max(f.py.1));
+        let _ = write!(
+            o,
+            r#"<defs><clipPath id="plot-area"><rect x="{}" y="{}" width="{}" height="{}"/></clipPath></defs>
+<g clip-path="url(#plot-area)" fill="none">
+"#,
+            num(xa),
+            num(ya),
+            num(xb - xa),
+            num(yb - ya)
+        );
+        let grey = rgb(REFERENCE);
+        for (label, v) in &self.hlines {
+            if let Some(v) = self.plotted(*v) {
+                let (a, y) = f.map((f.ranges.0, v));
+                let (b, _) = f.map((f.ranges.1, v));
+                let _ = writeln!(
+                    o,
+                    r#"<path d="M{} {}H{}" stroke="{grey}" stroke-width="{}"{}/>"#,
+                    num(a),
+                    num(y),
+                    num(b),
+                    num(1.2 * s),
+                    reference_dash_attr(self.hline_group(label), s)
+                );
+            }
+        }
+        for i in self.draw_order() {
+            let pieces = self.pieces(&self.series[i]);
+            let colour = rgb(PALETTE[i % PALETTE.len()]);
+            let mut d = String::new();
+            let mut dots = String::new();
+            for p in &pieces {
+                if p.len() == 1 {
+                    let (x, y) = f.map(p[0]);
+                    let _ = writeln!(
+                        dots,
+                        r#"<circle cx="{}" cy="{}" r="{}" fill="{colour}"/>"#,
+                        num(x),
+                        num(y),
+                        num(DOT_PX * s)
+                    );
+                    continue;
+                }
+                for (k, &pt) in p.iter().enumerate() {
+                    let (x, y) = f.map(pt);
+                    let _ = write!(d, "{}{} {}", if k == 0 { "M" } else { "L" }, num(x), num(y));
+                }
+            }
+            if !d.is_empty() {
+                let _ = writeln!(
+                    o,
+                    r#"<path d="{d}" stroke="{colour}" stroke-width="{}" stroke-linejoin="round"{}/>"#,
+                    num(CURVE_PX * s),
+                    dash_attr(i, s)
+                );
+            }
+            o += &dots;
+        }
+        o += "</g>\n";
+        for i in self.draw_order() {
+            let pts: Vec<(f64, f64)> = self.pieces(&self.series[i]).concat();
+            for p in markers(&pts, i) {
+                if f.contains(p) {
+                    o += &svg_marker(f.map(p), i, s);
+                }
+            }
+        }
+        for (i, &(a, b, y)) in f.rows.iter().enumerate() {
+            if i < self.series.len() {
+                let _ = writeln!(
+                    o,
+                    r#"<path d="M{} {}H{}" fill="none" stroke="{}" stroke-width="{}"{}/>"#,
+                    num(a),
+                    num(y),
+                    num(b),
+                    rgb(PALETTE[i % PALETTE.len()]),
+                    num(CURVE_PX * s),
+                    dash_attr(i, s)
+                );
+                o += &svg_marker((0.5 * (a + b), y), i, s);
+            } else {
+                let _ = writeln!(
+                    o,
+                    r#"<path d="M{} {}H{}" fill="none" stroke="{grey}" stroke-width="{}"{}/>"#,
+                    num(a),
+                    num(y),
+                    num(b),
+                    num(1.2 * s),
+                    reference_dash_attr(i - self.series.len(), s)
+                );
+            }
+        }
+        o
+    }
+
+    /// The distinct labels of the reference lines, in order: one legend
+    /// row and one line style each.
+    fn hline_labels(&self) -> Vec<&str> {
+        let mut v: Vec<&str> = Vec::new();
+        for (label, _) in &self.hlines {
+            if !v.contains(&label.as_str()) {
+                v.push(label);
+            }
+        }
+        v
+    }
+
+    /// The index of `label` among [`Figure::hline_labels`].
+    fn hline_group(&self, label: &str) -> usize {
+        self.hline_labels()
+            .iter()
+            .position(|l| *l == label)
+            .unwrap_or(0)
     }
 
     /// Curves in drawing order: largest amplitude first, so that no curve
@@ -336,12 +715,78 @@ impl Figure {
         order
     }
 
-    /// The finite plotted points of one curve.
-    fn points(&self, c: &Series) -> Vec<(f64, f64)> {
-        c.x.iter()
-            .zip(&c.y)
-            .filter_map(|(&x, &y)| Some((x, self.plotted(y)?)).filter(|p| p.0.is_finite()))
-            .collect()
+    /// The plotted points of one curve in axis coordinates, as the runs of
+    /// consecutive plotted samples: a sample that is not plotted (see
+    /// [`Figure::plotted`]; or a non-finite abscissa) ends a piece.
+    fn pieces(&self, c: &Series) -> Vec<Vec<(f64, f64)>> {
+        let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+        let mut cur: Vec<(f64, f64)> = Vec::new();
+        for (&x, &y) in c.x.iter().zip(&c.y) {
+            match self.plotted(y).filter(|_| x.is_finite()) {
+                Some(v) => cur.push((x, v)),
+                None => {
+                    if !cur.is_empty() {
+                        out.push(std::mem::take(&mut cur));
+                    }
+                }
+            }
+        }
+        if !cur.is_empty() {
+            out.push(cur);
+        }
+        out
+    }
+}
+
+/// Colour of reference lines.
+const REFERENCE: RGBColor = RGBColor(0x66, 0x66, 0x66);
+
+/// Style of reference lines at scale `s`.
+fn reference_style(s: f64) -> ShapeStyle {
+    REFERENCE.stroke_width((1.2 * s).max(1.0) as u32)
+}
+
+/// Dash pattern of the reference lines of group `g`: solid, dashed,
+/// dotted in turn.
+fn reference_dash(g: usize, s: f64) -> Option<(f64, f64)> {
+    match g % 3 {
+        0 => None,
+        1 => Some((5.0 * s, 3.0 * s)),
+        _ => Some((1.2 * s, 2.4 * s)),
+    }
+}
+
+/// The SVG `stroke-dasharray` attribute of reference group `g`.
+fn reference_dash_attr(g: usize, s: f64) -> String {
+    reference_dash(g, s).map_or(String::new(), |(on, off)| {
+        format!(r#" stroke-dasharray="{} {}""#, num(on), num(off))
+    })
+}
+
+/// `#RRGGBB`.
+fn rgb(c: RGBColor) -> String {
+    format!("#{:02X}{:02X}{:02X}", c.0, c.1, c.2)
+}
+
+/// A coordinate for SVG: two decimals (1/100 of a user unit), trailing
+/// zeros dropped.
+fn num(v: f64) -> String {
+    let t = format!("{v:.2}");
+    let t = t.trim_end_matches('0').trim_end_matches('.');
+    if t == "-0" {
+        "0".into()
+    } else {
+        t.to_string()
+    }
+}
+
+/// `1e-9` as 10⁻⁹, other values as `1.5e-9`.
+fn number_text(v: f64) -> String {
+    let n = v.log10().round();
+    if (v - 10f64.powf(n)).abs() <= 1e-12 * v {
+        decade(n as i32)
+    } else {
+        format!("{v:.3e}")
     }
 }
 
@@ -354,13 +799,81 @@ fn dash(i: usize, s: f64) -> Option<(f64, f64)> {
     }
 }
 
-/// Draw one curve with its line style and sparse markers (phase shifted
-/// per curve so that coinciding curves show every marker).
+/// The SVG `stroke-dasharray` attribute of curve `i` ("" when solid).
+fn dash_attr(i: usize, s: f64) -> String {
+    dash(i, s).map_or(String::new(), |(on, off)| {
+        format!(r#" stroke-dasharray="{} {}""#, num(on), num(off))
+    })
+}
+
+/// The sparse markers of curve `i` among its points (phase shifted per
+/// curve so that coinciding curves show every marker).
+fn markers(pts: &[(f64, f64)], i: usize) -> Vec<(f64, f64)> {
+    if pts.len() > 2 * MARKERS {
+        let stride = pts.len() / MARKERS;
+        let phase = (i * stride / PALETTE.len().max(1)) % stride;
+        pts.iter().skip(phase).step_by(stride).copied().collect()
+    } else {
+        pts.to_vec()
+    }
+}
+
+/// Marker radius \[CSS px\].
+const MARKER_PX: f64 = 2.6;
+
+/// The marker of curve `i` at pixel `(x, y)` as an SVG element: circle,
+/// triangle, square, cross in turn.
+fn svg_marker((x, y): (f64, f64), i: usize, s: f64) -> String {
+    let c = rgb(PALETTE[i % PALETTE.len()]);
+    let r = MARKER_PX * s;
+    let sw = num(CURVE_PX * s);
+    match i % 4 {
+        0 => format!(
+            "<circle cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"{sw}\"/>\n",
+            num(x),
+            num(y),
+            num(r)
+        ),
+        1 => {
+            let t = r + s;
+            let (dx, dy) = (t * 0.866_025_403_784_438_6, 0.5 * t);
+            format!(
+                "<path d=\"M{} {}L{} {}L{} {}Z\" fill=\"{c}\" stroke=\"{c}\" stroke-width=\"{sw}\"/>\n",
+                num(x),
+                num(y - t),
+                num(x + dx),
+                num(y + dy),
+                num(x - dx),
+                num(y + dy)
+            )
+        }
+        2 => format!(
+            "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"{sw}\"/>\n",
+            num(x - r),
+            num(y - r),
+            num(2.0 * r),
+            num(2.0 * r)
+        ),
+        _ => format!(
+            "<path d=\"M{} {}L{} {}M{} {}L{} {}\" fill=\"none\" stroke=\"{c}\" stroke-width=\"{sw}\"/>\n",
+            num(x - r),
+            num(y - r),
+            num(x + r),
+            num(y + r),
+            num(x - r),
+            num(y + r),
+            num(x + r),
+            num(y - r)
+        ),
+    }
+}
+
+/// Draw one curve (bitmaps) with its line style, its one-sample pieces as
+/// dots, and sparse markers.
 fn draw_curve<DB, X, Y>(
     chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
-    pts: Vec<(f64, f64)>,
+    pieces: Vec<Vec<(f64, f64)>>,
     i: usize,
-    style: ShapeStyle,
     s: f64,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
 where
@@ -368,28 +881,33 @@ where
     X: Ranged<ValueType = f64>,
     Y: Ranged<ValueType = f64>,
 {
-    let marks: Vec<(f64, f64)> = if pts.len() > 2 * MARKERS {
-        let stride = pts.len() / MARKERS;
-        let phase = (i * stride / PALETTE.len().max(1)) % stride;
-        pts.iter().skip(phase).step_by(stride).copied().collect()
-    } else {
-        pts.clone()
-    };
-    match dash(i, s) {
-        None => {
-            chart.draw_series(LineSeries::new(pts, style))?;
+    let style = curve_style(i, s);
+    let marks = markers(&pieces.concat(), i);
+    for p in pieces {
+        if p.len() == 1 {
+            chart.draw_series(std::iter::once(Circle::new(
+                p[0],
+                (DOT_PX * s) as i32,
+                style.filled(),
+            )))?;
+            continue;
         }
-        Some((on, off)) => {
-            chart.draw_series(DashedLineSeries::new(pts, on as u32, off as u32, style))?;
+        match dash(i, s) {
+            None => {
+                chart.draw_series(LineSeries::new(p, style))?;
+            }
+            Some((on, off)) => {
+                chart.draw_series(DashedLineSeries::new(p, on as u32, off as u32, style))?;
+            }
         }
     }
-    let r = (2.6 * s) as i32;
+    let r = (MARKER_PX * s) as i32;
     match i % 4 {
         0 => chart.draw_series(marks.into_iter().map(|p| Circle::new(p, r, style)))?,
         1 => chart.draw_series(
             marks
                 .into_iter()
-                .map(|p| TriangleMarker::new(p, r + 1, style)),
+                .map(|p| TriangleMarker::new(p, r + s as i32, style.filled())),
         )?,
         2 => chart.draw_series(
             marks
@@ -401,16 +919,21 @@ where
     Ok(())
 }
 
-/// The legend's sample of curve `i`: its line style from `a` to `b` (pixel
-/// coordinates of `area`) with its marker in the middle.
+/// Stroke of curve `i` at scale `s` (bitmaps).
+fn curve_style(i: usize, s: f64) -> ShapeStyle {
+    PALETTE[i % PALETTE.len()].stroke_width((CURVE_PX * s).round().max(1.0) as u32)
+}
+
+/// The legend's sample of curve `i` (bitmaps): its line style from `a` to
+/// `b` (pixel coordinates of `area`) with its marker in the middle.
 fn draw_sample<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     a: (i32, i32),
     b: (i32, i32),
     i: usize,
-    style: ShapeStyle,
     s: f64,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let style = curve_style(i, s);
     match dash(i, s) {
         None => area.draw(&PathElement::new(vec![a, b], style))?,
         Some((on, off)) => {
@@ -426,10 +949,10 @@ fn draw_sample<DB: DrawingBackend>(
         }
     }
     let m = ((a.0 + b.0) / 2, a.1);
-    let r = (2.6 * s) as i32;
+    let r = (MARKER_PX * s) as i32;
     match i % 4 {
         0 => area.draw(&Circle::new(m, r, style))?,
-        1 => area.draw(&TriangleMarker::new(m, r + 1, style))?,
+        1 => area.draw(&TriangleMarker::new(m, r + s as i32, style.filled()))?,
         2 => area.draw(&Rectangle::new(
             [(m.0 - r, m.1 - r), (m.0 + r, m.1 + r)],
             style,
@@ -437,6 +960,16 @@ fn draw_sample<DB: DrawingBackend>(
         _ => area.draw(&Cross::new(m, r, style))?,
     }
     Ok(())
+}
+
+/// The unit in the brackets that end an axis label (`"t [s]"` → `"s"`),
+/// `""` without brackets.
+pub fn unit_of(label: &str) -> &str {
+    let l = label.trim_end();
+    match (l.ends_with(']'), l.rfind('[')) {
+        (true, Some(k)) => l[k + 1..l.len() - 1].trim(),
+        _ => "",
+    }
 }
 
 /// Tick label format for an axis spanning `lo..hi`: enough decimals for the
@@ -485,21 +1018,16 @@ pub fn extension(path: &Path) -> String {
         .to_ascii_lowercase()
 }
 
-/// Give the SVG written by plotters its physical size (width and height in
-/// cm, the drawing in a `viewBox` of CSS px), so that its point sizes hold.
-fn set_physical_size(path: &Path, w: f64, h: f64) -> Result<(), OutputError> {
-    let text = std::fs::read_to_string(path).map_err(|e| OutputError::new(path, e))?;
-    let old = format!(r#"<svg width="{w}" height="{h}""#);
+/// Give the SVG plotters wrote at `size` user units its physical size
+/// (width and height in cm of a `w` × `h` CSS px figure; the `viewBox`
+/// keeps the user units), so that its point sizes hold. `None` if the
+/// header is not the one plotters writes.
+fn set_physical_size(text: &str, size: (u32, u32), w: f64, h: f64) -> Option<String> {
+    let old = format!(r#"<svg width="{}" height="{}""#, size.0, size.1);
     let new = format!(
         r#"<svg width="{:.2}cm" height="{:.2}cm""#,
         w / PX_PER_CM,
         h / PX_PER_CM
     );
-    if !text.starts_with(&old) {
-        return Err(OutputError::new(
-            path,
-            "unexpected SVG header from plotters: cannot set the physical size",
-        ));
-    }
-    std::fs::write(path, text.replacen(&old, &new, 1)).map_err(|e| OutputError::new(path, e))
+    text.starts_with(&old).then(|| text.replacen(&old, &new, 1))
 }

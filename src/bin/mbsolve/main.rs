@@ -115,16 +115,26 @@ enum Command {
         /// Ordinate column(s): repeat the flag or separate names by commas.
         #[arg(long, value_name = "COLUMN[,COLUMN...]", required = true)]
         y: Vec<String>,
-        /// Logarithmic ordinate (|y| plotted).
+        /// Logarithmic ordinate (|y| plotted; zeros are gaps).
         #[arg(long)]
         log_y: bool,
+        /// With --log-y: the smallest |y| drawn (smaller values are gaps,
+        /// stated under the legend) [default: the smallest nonzero |y|].
+        #[arg(long, value_name = "VALUE")]
+        log_floor: Option<f64>,
+        /// A horizontal reference line, e.g. a wall (repeatable).
+        #[arg(long, value_name = "LABEL=VALUE")]
+        hline: Vec<String>,
+        /// Text under the legend.
+        #[arg(long)]
+        note: Option<String>,
         /// Output file, .svg or .png [default: the CSV's path with .svg].
         #[arg(long)]
         out: Option<PathBuf>,
         /// Title [default: the CSV's file name].
         #[arg(long)]
         title: Option<String>,
-        /// Ordinate label [default: the column's name when there is one].
+        /// Ordinate label [default: the columns' names and units].
         #[arg(long)]
         y_label: Option<String>,
     },
@@ -237,6 +247,9 @@ fn command(cli: Cli) -> ExitCode {
             x,
             y,
             log_y,
+            log_floor,
+            hline,
+            note,
             out,
             title,
             y_label,
@@ -245,6 +258,9 @@ fn command(cli: Cli) -> ExitCode {
             x,
             y,
             log_y,
+            log_floor,
+            hline,
+            note,
             out,
             title,
             y_label,

@@ -74,6 +74,87 @@ impl Table {
     }
 }
 
+/// The units of a table's columns, from the `<stem>.columns.json` beside
+/// `<stem>.csv` (as `mbsolve run` and every figure write it: a list of
+/// `{"name", "unit"}`); empty when there is no such file.
+pub struct Units {
+    /// (column name, unit) as listed.
+    pub columns: Vec<(String, String)>,
+}
+
+impl Units {
+    /// Read the `columns.json` beside `csv`, if there is one; a file that
+    /// is not such a list is an error naming it.
+    pub fn beside(csv: &Path) -> Result<Units, String> {
+        let path = csv.with_extension("columns.json");
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Ok(Units {
+                    columns: Vec::new(),
+                })
+            }
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        };
+        #[derive(serde::Deserialize)]
+        struct Col {
+            name: String,
+            #[serde(default)]
+            unit: String,
+        }
+        let cols: Vec<Col> = serde_json::from_str(&text).map_err(|e| {
+            format!(
+                "{}: not a list of {{\"name\", \"unit\"}} columns: {e}",
+                path.display()
+            )
+        })?;
+        Ok(Units {
+            columns: cols.into_iter().map(|c| (c.name, c.unit)).collect(),
+        })
+    }
+
+    /// The unit of column `name` (`""` when unknown or dimensionless).
+    pub fn unit(&self, name: &str) -> &str {
+        self.columns
+            .iter()
+            .find(|c| c.0 == name)
+            .map_or("", |c| c.1.as_str())
+    }
+
+    /// An axis label for column `name`: `name [unit]` (just `name` without
+    /// a unit, or when the name already ends with that bracket).
+    pub fn label(&self, name: &str) -> String {
+        with_unit(name, self.unit(name))
+    }
+
+    /// An ordinate label for `names`: the names grouped by unit, each group
+    /// followed by its unit (`x1, y1 [m]; phi1 [rad]`).
+    pub fn y_label(&self, names: &[String]) -> String {
+        let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
+        for n in names {
+            let u = self.unit(n);
+            match groups.iter_mut().find(|g| g.0 == u) {
+                Some(g) => g.1.push(n),
+                None => groups.push((u, vec![n])),
+            }
+        }
+        groups
+            .iter()
+            .map(|(u, ns)| with_unit(&ns.join(", "), u))
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+}
+
+/// `name [unit]`, or `name` when the unit is empty or already there.
+fn with_unit(name: &str, unit: &str) -> String {
+    if unit.is_empty() || name.trim_end().ends_with(&format!("[{unit}]")) {
+        name.to_string()
+    } else {
+        format!("{name} [{unit}]")
+    }
+}
+
 /// What `mbsolve plot` was asked for.
 pub struct PlotArgs {
     /// The CSV file.
@@ -84,11 +165,20 @@ pub struct PlotArgs {
     pub y: Vec<String>,
     /// Logarithmic ordinate.
     pub log_y: bool,
+    /// Log axes: smallest |y| drawn (smaller values are gaps); default the
+    /// smallest nonzero |y|.
+    pub log_floor: Option<f64>,
+    /// Horizontal reference lines, `LABEL=VALUE` (value in the ordinate's
+    /// unit).
+    pub hline: Vec<String>,
+    /// Text under the legend.
+    pub note: Option<String>,
     /// Output file (.svg or .png); default: the CSV's path with `.svg`.
     pub out: Option<PathBuf>,
     /// Title; default: the CSV's file name.
     pub title: Option<String>,
-    /// Ordinate label; default: the single column's name, else empty.
+    /// Ordinate label; default: the columns' names with their units from
+    /// the `columns.json` beside the CSV.
     pub y_label: Option<String>,
 }
 
@@ -102,7 +192,32 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
             out.display()
         ));
     }
+    if let Some(f) = a.log_floor {
+        if !a.log_y {
+            return Err("--log-floor: applies to a log axis only (add --log-y)".into());
+        }
+        if !(f > 0.0 && f.is_finite()) {
+            return Err(format!("--log-floor {f}: must be a positive number"));
+        }
+    }
+    let hlines = a
+        .hline
+        .iter()
+        .map(|h| {
+            let (label, v) = h
+                .rsplit_once('=')
+                .ok_or_else(|| format!("--hline '{h}': expected LABEL=VALUE"))?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| format!("--hline '{h}': '{v}' is not a finite number"))?;
+            Ok((label.to_string(), v))
+        })
+        .collect::<Result<Vec<_>, String>>()?;
     let table = Table::read(&a.csv)?;
+    let units = Units::beside(&a.csv)?;
     let x = table.column(&a.csv, &a.x)?.to_vec();
     let ys = table.resolve_y(&a.csv, &a.y)?;
     let series = ys
@@ -115,13 +230,7 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
-    let y_label = a.y_label.clone().unwrap_or_else(|| {
-        if ys.len() == 1 {
-            ys[0].clone()
-        } else {
-            String::new()
-        }
-    });
+    let y_label = a.y_label.clone().unwrap_or_else(|| units.y_label(&ys));
     let title = a.title.clone().unwrap_or_else(|| {
         a.csv
             .file_name()
@@ -130,10 +239,13 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
     });
     Figure {
         title,
-        x_label: a.x.clone(),
+        x_label: units.label(&a.x),
         y_label,
         series,
         log_y: a.log_y,
+        log_floor: a.log_floor,
+        hlines,
+        note: a.note.clone().unwrap_or_default(),
     }
     .render(&out)
     .map_err(|e| e.to_string())?;

@@ -52,6 +52,7 @@ struct Curve {
     t: Vec<f64>,
     phi_bx: Vec<f64>,
     norm: Vec<f64>,
+    velocity_norm: Vec<f64>,
 }
 
 /// One run of the four-bar study.
@@ -125,6 +126,7 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
                 t: traj.t.clone(),
                 phi_bx,
                 norm: traj.constraint_norm.clone(),
+                velocity_norm: traj.velocity_constraint_norm.clone(),
             });
         }
         let fig = if incorrect { "fig3" } else { "fig2" };
@@ -139,10 +141,10 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
                 .map(|c| Series {
                     label: c.label.clone(),
                     x: c.t.clone(),
-                    y: if k == 0 {
-                        c.phi_bx.clone()
-                    } else {
-                        c.norm.clone()
+                    y: match k {
+                        0 => c.phi_bx.iter().map(|v| 1e3 * v).collect(),
+                        1 => c.norm.clone(),
+                        _ => c.velocity_norm.clone(),
                     },
                 })
                 .collect()
@@ -150,25 +152,70 @@ pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
         Figure {
             title: format!("Four-bar, {what}: x-equation of pin B (ode23, RelTol 1e-3)"),
             x_label: "t [s]".into(),
-            y_label: "Φ_Bx [m]".into(),
+            y_label: "Φ_Bx [mm]".into(),
             series: series(0),
-            log_y: false,
+            ..Default::default()
         }
         .save(&dir, &format!("{fig}_fourbar_{tag}_phiBx"))?;
-        Figure {
-            title: format!("Four-bar, {what}: ‖Φ‖₂"),
-            x_label: "t [s]".into(),
-            y_label: "‖Φ‖₂ [m]".into(),
-            series: series(1),
-            log_y: true,
+        for (k, name, symbol, unit) in [
+            (1, "norm", "‖Φ‖₂", "m"),
+            (2, "velocity_norm", "‖dΦ/dt‖₂", "m/s"),
+        ] {
+            let series = series(k);
+            let floor = floor_after_start(&series);
+            Figure {
+                title: format!("Four-bar, {what}: {symbol}"),
+                x_label: "t [s]".into(),
+                y_label: format!("{symbol} [{unit}]"),
+                log_y: true,
+                log_floor: floor,
+                note: start_note(&series, floor, symbol, unit),
+                series,
+                ..Default::default()
+            }
+            .save(&dir, &format!("{fig}_fourbar_{tag}_{name}"))?;
         }
-        .save(&dir, &format!("{fig}_fourbar_{tag}_norm"))?;
     }
     let table = fourbar_table(&cases);
     let path: PathBuf = dir.join("fourbar_table.md");
     std::fs::write(&path, &table)
         .map_err(|e| ReproduceError::Io(format!("{}: {e}", path.display())))?;
     Ok(cases)
+}
+
+/// The floor of a log figure of constraint residuals: the decade of the
+/// smallest nonzero |y| after each curve's first sample, when some first
+/// sample lies below it (`None` otherwise). The first sample is the
+/// consistent initial state, zero up to rounding: its machine-zero
+/// residual would stretch the axis over decades the run never visits.
+fn floor_after_start(series: &[Series]) -> Option<f64> {
+    let smallest = |v: &mut dyn Iterator<Item = &f64>| {
+        v.filter(|y| y.is_finite() && **y != 0.0)
+            .map(|y| y.abs())
+            .fold(f64::INFINITY, f64::min)
+    };
+    let rest = smallest(&mut series.iter().flat_map(|s| s.y.iter().skip(1)));
+    let first = smallest(&mut series.iter().filter_map(|s| s.y.first()));
+    (rest.is_finite() && first < rest).then(|| 10f64.powf(rest.log10().floor()))
+}
+
+/// The note that names the first samples a floor leaves out.
+fn start_note(series: &[Series], floor: Option<f64>, symbol: &str, unit: &str) -> String {
+    let Some(f) = floor else {
+        return String::new();
+    };
+    let below: Vec<f64> = series
+        .iter()
+        .filter_map(|s| s.y.first())
+        .filter(|y| y.abs() < f)
+        .map(|y| y.abs())
+        .collect();
+    let hi = below.iter().cloned().fold(0.0, f64::max);
+    if below.is_empty() {
+        String::new()
+    } else {
+        format!("{symbol}(0) ≤ {hi:.1e} {unit} (rounding)")
+    }
 }
 
 /// Markdown table of max |Φ| per (α, β), correct and incorrect initial state.
@@ -297,28 +344,48 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
                 format!("segment {}", n / 2),
                 format!("segment {n}"),
             ];
+            // the channel's walls, and where a segment's centre is when a
+            // corner of the upright segment touches one (wall ∓ w/2)
+            let mm = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| 1e3 * x).collect() };
+            let mut hlines = Vec::new();
+            if let Some(c) = rod.contacts.first() {
+                for wall in [c.left_wall, c.right_wall] {
+                    hlines.push((
+                        format!("walls, x = ±{:.0} mm", 1e3 * wall.abs()),
+                        1e3 * wall,
+                    ));
+                }
+                for wall in [c.left_wall, c.right_wall] {
+                    let x = wall - wall.signum() * 0.5 * c.width;
+                    hlines.push((
+                        format!("centre at contact, φ = 0 (±{:.0} mm)", 1e3 * x.abs()),
+                        1e3 * x,
+                    ));
+                }
+            }
             Figure {
                 title: format!("Falling rod, N = {n}: horizontal position of segments (ode23)"),
                 x_label: "t [s]".into(),
-                y_label: "x [m]".into(),
+                y_label: "x [mm]".into(),
                 series: vec![
                     Series {
                         label: labels[0].clone(),
                         x: traj.t.clone(),
-                        y: x1.clone(),
+                        y: mm(&x1),
                     },
                     Series {
                         label: labels[1].clone(),
                         x: traj.t.clone(),
-                        y: xm.clone(),
+                        y: mm(&xm),
                     },
                     Series {
                         label: labels[2].clone(),
                         x: traj.t.clone(),
-                        y: xn.clone(),
+                        y: mm(&xn),
                     },
                 ],
-                log_y: false,
+                hlines,
+                ..Default::default()
             }
             .save(&dir, "fig5_rod_x")?;
             let p1 = phi(0);
@@ -329,7 +396,7 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
                     let pi = phi(i);
                     (
                         format!("φ{} − φ1", i + 1),
-                        pi.iter().zip(&p1).map(|(a, b)| a - b).collect(),
+                        pi.iter().zip(&p1).map(|(a, b)| 1e3 * (a - b)).collect(),
                     )
                 })
                 .collect();
@@ -344,9 +411,9 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
             Figure {
                 title: format!("Falling rod, N = {n}: relative rotations (ode23)"),
                 x_label: "t [s]".into(),
-                y_label: "φ_i − φ_1 [rad]".into(),
+                y_label: "φ_i − φ_1 [mrad]".into(),
                 series,
-                log_y: false,
+                ..Default::default()
             }
             .save(&dir, "fig6_rod_relative_angles")?;
         }
@@ -376,8 +443,11 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
         title: "Falling rod: x-equation of the middle joint, with and without stabilization".into(),
         x_label: "t [s]".into(),
         y_label: "|Φ| [m]".into(),
-        series,
         log_y: true,
+        log_floor: floor_after_start(&series),
+        note: start_note(&series, floor_after_start(&series), "|Φ|", "m"),
+        series,
+        ..Default::default()
     }
     .save(&dir, "fig7_rod_joint_constraint")?;
     let table = rod_table(&cases);

@@ -570,6 +570,7 @@ pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
                 y_label: "‖Φ‖₂ [m]".into(),
                 series: norm_series,
                 log_y: true,
+                ..Default::default()
             },
             format!("{}_norm", p.key),
         )?;
@@ -580,6 +581,7 @@ pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
                 y_label: "|T + V − E0 − W| [J]".into(),
                 series: energy_series,
                 log_y: true,
+                ..Default::default()
             },
             format!("{}_energy", p.key),
         )?;
@@ -605,6 +607,7 @@ pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
                     .into(),
                     series: dev_series,
                     log_y: true,
+                    ..Default::default()
                 },
                 format!("{}_deviation", p.key),
             )?;
