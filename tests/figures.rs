@@ -214,6 +214,22 @@ fn log_axis_breaks_the_curve_at_zeros_and_says_so() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--log-floor"), "{}", stderr(&o));
+    for bad in ["wall", "wall=abc", "wall=inf"] {
+        let o = mbsolve(&[
+            "plot",
+            csv.to_str().unwrap(),
+            "--y",
+            "force",
+            "--hline",
+            bad,
+        ]);
+        assert_eq!(o.status.code(), Some(2), "--hline {bad}");
+        assert!(
+            stderr(&o).contains(&format!("--hline '{bad}'")),
+            "{}",
+            stderr(&o)
+        );
+    }
 }
 
 #[test]
