@@ -59,12 +59,15 @@
       const d = sub(b, a), len = Math.max(norm(d), 1e-300);
       const e = mul(d, 1 / len), n = perp(e);
       const at = (u, side) => add(add(a, mul(e, u)), mul(n, offset + side));
-      const base = 0.1 * Math.min(len, rest), cyl = 0.5 * rest, h = 0.5 * width;
-      const cylinder = [a, at(0, -offset), at(base, 0), at(base, h), at(base + cyl, h),
-        at(base, h), at(base, -h), at(base + cyl, -h)];
+      const base = 0.15 * Math.min(len, rest), lead = 0.5 * base, cyl = 0.5 * rest, h = 0.5 * width;
       const s = Math.min(Math.max(base + 0.5 * cyl + (len - rest), base + 0.05 * cyl), base + cyl);
-      const piston = [at(s, 0.8 * h), at(s, -0.8 * h), at(s, 0), at(len, 0), at(len, -offset), b];
-      return [cylinder, piston];
+      const end = Math.max(len - lead, s);
+      return [
+        [a, at(lead, -offset), at(lead, 0), at(base, 0), at(base, -h), at(base + cyl, -h)],
+        [at(base, 0), at(base, h), at(base + cyl, h)],
+        [at(s, 0.8 * h), at(s, -0.8 * h)],
+        [at(s, 0), at(end, 0), at(end, -offset), b],
+      ];
     }
     function hatched(out, a, b, normal, h) {
       out.push({ kind: "line", points: [a, b], ink: "ground" });
@@ -140,9 +143,9 @@
             out.push({ kind: "line", points: zigzag(world(q, p.body_i, p.a), world(q, p.body_j, p.b), p.width, p.offset), ink: "spring" });
             break;
           case "damper": {
-            const [c, s] = dashpot(world(q, p.body_i, p.a), world(q, p.body_j, p.b), p.width, p.offset, p.rest);
-            out.push({ kind: "line", points: c, ink: "damper" });
-            out.push({ kind: "line", points: s, ink: "damper" });
+            for (const pts of dashpot(world(q, p.body_i, p.a), world(q, p.body_j, p.b), p.width, p.offset, p.rest)) {
+              out.push({ kind: "line", points: pts, ink: "damper" });
+            }
             break;
           }
           default:

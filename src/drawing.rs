@@ -335,37 +335,35 @@ pub fn zigzag(a: P, b: P, width: f64, offset: f64) -> Vec<P> {
     p
 }
 
-/// The dashpot from `a` (cylinder) to `b` (piston), world: two polylines
-/// (cylinder with its rod, piston with its rod).
-pub fn dashpot(a: P, b: P, width: f64, offset: f64, rest: f64) -> [Vec<P>; 2] {
+/// The dashpot from `a` (cylinder) to `b` (piston), world, as four
+/// polylines: the lead and one cylinder wall, the other wall, the piston
+/// plate, the piston rod. The piston sits mid-cylinder at length `rest`
+/// and moves with the length.
+pub fn dashpot(a: P, b: P, width: f64, offset: f64, rest: f64) -> [Vec<P>; 4] {
     let d = sub(b, a);
     let len = norm(d).max(1e-300);
     let e = mul(d, 1.0 / len);
     let n = perp(e);
     let at = |u: f64, side: f64| add(add(a, mul(e, u)), mul(n, offset + side));
-    let (base, cyl) = (0.1 * len.min(rest), 0.5 * rest);
+    let base = 0.15 * len.min(rest);
+    let lead = 0.5 * base;
+    let cyl = 0.5 * rest;
     let h = 0.5 * width;
-    let cylinder = vec![
-        a,
-        at(0.0, -offset),
-        at(base, 0.0),
-        at(base, h),
-        at(base + cyl, h),
-        at(base, h),
-        at(base, -h),
-        at(base + cyl, -h),
-    ];
-    // piston mid-cylinder at the rest length, moving with the length
     let s = (base + 0.5 * cyl + (len - rest)).clamp(base + 0.05 * cyl, base + cyl);
-    let piston = vec![
-        at(s, 0.8 * h),
-        at(s, -0.8 * h),
-        at(s, 0.0),
-        at(len, 0.0),
-        at(len, -offset),
-        b,
-    ];
-    [cylinder, piston]
+    let end = (len - lead).max(s);
+    [
+        vec![
+            a,
+            at(lead, -offset),
+            at(lead, 0.0),
+            at(base, 0.0),
+            at(base, -h),
+            at(base + cyl, -h),
+        ],
+        vec![at(base, 0.0), at(base, h), at(base + cyl, h)],
+        vec![at(s, 0.8 * h), at(s, -0.8 * h)],
+        vec![at(s, 0.0), at(end, 0.0), at(end, -offset), b],
+    ]
 }
 
 impl Drawing {
@@ -925,21 +923,18 @@ impl Drawing {
                     offset,
                     rest,
                 } => {
-                    let [c, p] = dashpot(
+                    for points in dashpot(
                         world(q, *body_i, *a),
                         world(q, *body_j, *b),
                         *width,
                         *offset,
                         *rest,
-                    );
-                    out.push(Mark::Line {
-                        points: c,
-                        ink: Ink::Damper,
-                    });
-                    out.push(Mark::Line {
-                        points: p,
-                        ink: Ink::Damper,
-                    });
+                    ) {
+                        out.push(Mark::Line {
+                            points,
+                            ink: Ink::Damper,
+                        });
+                    }
                 }
             }
         }

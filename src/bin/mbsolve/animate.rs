@@ -258,11 +258,13 @@ fn ink_width(ink: Ink) -> u32 {
     }
 }
 
-/// Draw output row `f` of the scene: marks, time stamp, scale bar.
+/// Draw output row `f` of the scene: marks, time stamp, scale bar (on a
+/// white background unless `blank` says the canvas is white already).
 fn draw_frame<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     s: &Scene,
     f: usize,
+    blank: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let size = root.dim_in_pixel();
     let (k, off) = pixel_map(s, size);
@@ -274,7 +276,9 @@ fn draw_frame<DB: DrawingBackend>(
     };
     let fill = RGBColor(0x56, 0xB4, 0xE9).mix(0.5);
     let ground_fill = RGBColor(0xbb, 0xbb, 0xbb);
-    root.fill(&WHITE)?;
+    if !blank {
+        root.fill(&WHITE)?;
+    }
     for m in s.drawing.marks(&s.poses[f]) {
         match m {
             Mark::Fill { points, ink } => {
@@ -356,7 +360,7 @@ fn render_rgb(s: &Scene, f: usize) -> Result<Vec<u8>, String> {
     let mut buf = vec![255u8; 3 * w as usize * h as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        draw_frame(&root, s, f).map_err(|e| e.to_string())?;
+        draw_frame(&root, s, f, true).map_err(|e| e.to_string())?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(buf)
@@ -492,7 +496,7 @@ fn write_png(s: &Scene, path: &Path, at: Option<f64>) -> Result<(), String> {
     let f = nearest_row(&s.t, at);
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     let root = BitMapBackend::new(path, s.size).into_drawing_area();
-    draw_frame(&root, s, f).map_err(|e| err(&e))?;
+    draw_frame(&root, s, f, false).map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))
 }
 

@@ -27,8 +27,8 @@ pub struct ViewArgs {
     pub stem: Option<String>,
     /// The scenario (default: the one the summary records).
     pub scenario: Option<PathBuf>,
-    /// Columns plotted at first (default: up to three non-constant
-    /// columns after the coordinates, else the first body's).
+    /// Columns plotted at first (default: the first three columns that
+    /// vary, coordinates first).
     pub columns: Vec<String>,
     /// Output (default: `DIR/<stem>.view.html`).
     pub out: Option<PathBuf>,
@@ -201,24 +201,18 @@ fn page(
     }
     let coords = 3 * sc.system.bodies().len();
     let default_plot: Vec<String> = if wanted.is_empty() {
-        let varying = |k: usize| {
-            let c = &table.columns[k];
+        let varying = |k: &usize| {
+            let c = &table.columns[*k];
             c.iter().any(|v| *v != c[0])
         };
-        let after: Vec<String> = (1 + coords..table.names.len())
-            .filter(|&k| varying(k) && table.names[k] != "constraint_norm")
-            .map(|k| table.names[k].clone())
+        let end = (1 + coords).min(table.names.len());
+        (1..end)
+            .filter(varying)
+            .chain((end..table.names.len()).filter(varying))
+            .filter(|&k| table.names[k] != "constraint_norm")
             .take(3)
-            .collect();
-        if after.is_empty() {
-            (1..(1 + coords).min(table.names.len()))
-                .filter(|&k| varying(k))
-                .take(2)
-                .map(|k| table.names[k].clone())
-                .collect()
-        } else {
-            after
-        }
+            .map(|k| table.names[k].clone())
+            .collect()
     } else {
         wanted.to_vec()
     };
