@@ -616,6 +616,27 @@ impl Drawing {
                     let (a, b) = (point_i, point_j);
                     let (bi, bj) = (carrier(body_i), carrier(body_j));
                     let l0 = norm(sub(world(q0, bj, b), world(q0, bi, a)));
+                    // a ground end: a short hatched anchor across the element
+                    for (end, other, body) in [(a, world(q0, bj, b), bi), (b, world(q0, bi, a), bj)] {
+                        if body.is_none() {
+                            let dir = sub(other, end);
+                            let n = if norm(dir) > 0.0 {
+                                mul(dir, 1.0 / norm(dir))
+                            } else {
+                                [0.0, -1.0]
+                            };
+                            let t = mul(perp(n), 0.04 * scale);
+                            d.parts.insert(
+                                0,
+                                Part::Ground {
+                                    a: sub(end, t),
+                                    b: add(end, t),
+                                    normal: n,
+                                    hatch: 0.02 * scale,
+                                },
+                            );
+                        }
+                    }
                     let width = (0.05 * scale).min(0.3 * l0.max(free_length)).max(1e-3 * scale);
                     let off = if spring && damper { 0.6 * width } else { 0.0 };
                     if spring || !damper {
