@@ -617,7 +617,8 @@ impl Drawing {
                     let (bi, bj) = (carrier(body_i), carrier(body_j));
                     let l0 = norm(sub(world(q0, bj, b), world(q0, bi, a)));
                     // a ground end: a short hatched anchor across the element
-                    for (end, other, body) in [(a, world(q0, bj, b), bi), (b, world(q0, bi, a), bj)] {
+                    for (end, other, body) in [(a, world(q0, bj, b), bi), (b, world(q0, bi, a), bj)]
+                    {
                         if body.is_none() {
                             let dir = sub(other, end);
                             let n = if norm(dir) > 0.0 {
@@ -637,7 +638,9 @@ impl Drawing {
                             );
                         }
                     }
-                    let width = (0.05 * scale).min(0.3 * l0.max(free_length)).max(1e-3 * scale);
+                    let width = (0.05 * scale)
+                        .min(0.3 * l0.max(free_length))
+                        .max(1e-3 * scale);
                     let off = if spring && damper { 0.6 * width } else { 0.0 };
                     if spring || !damper {
                         d.parts.push(Part::Spring {
@@ -657,7 +660,11 @@ impl Drawing {
                             b,
                             width: 0.8 * width,
                             offset: -off,
-                            rest: if l0 > 0.0 { l0 } else { free_length.max(0.1 * scale) },
+                            rest: if l0 > 0.0 {
+                                l0
+                            } else {
+                                free_length.max(0.1 * scale)
+                            },
                         });
                     }
                 }
@@ -727,7 +734,12 @@ impl Drawing {
             }
             if k % stride == 0 || k + 1 == n {
                 let f = self.frame_bounds(q);
-                b = [b[0].min(f[0]), b[1].min(f[1]), b[2].max(f[2]), b[3].max(f[3])];
+                b = [
+                    b[0].min(f[0]),
+                    b[1].min(f[1]),
+                    b[2].max(f[2]),
+                    b[3].max(f[3]),
+                ];
             }
         }
         let m = 0.05 * self.scale;
@@ -773,7 +785,12 @@ impl Drawing {
                         },
                     );
                     for q in [a, e, sub(a, mul(nrm, hatch)), sub(e, mul(nrm, hatch))] {
-                        b = [b[0].min(q[0]), b[1].min(q[1]), b[2].max(q[0]), b[3].max(q[1])];
+                        b = [
+                            b[0].min(q[0]),
+                            b[1].min(q[1]),
+                            b[2].max(q[0]),
+                            b[3].max(q[1]),
+                        ];
                     }
                 }
                 Pending::GroundGuide(point, axis, gap, ..) => {
@@ -798,7 +815,12 @@ impl Drawing {
                     for u in [from, to] {
                         for side in [-0.5, 0.5] {
                             let q = add(add(point, mul(axis, u)), mul(n, side * gap));
-                            b = [b[0].min(q[0]), b[1].min(q[1]), b[2].max(q[0]), b[3].max(q[1])];
+                            b = [
+                                b[0].min(q[0]),
+                                b[1].min(q[1]),
+                                b[2].max(q[0]),
+                                b[3].max(q[1]),
+                            ];
                         }
                     }
                 }
@@ -932,7 +954,12 @@ impl Drawing {
                     width,
                     offset,
                 } => out.push(Mark::Line {
-                    points: zigzag(world(q, *body_i, *a), world(q, *body_j, *b), *width, *offset),
+                    points: zigzag(
+                        world(q, *body_i, *a),
+                        world(q, *body_j, *b),
+                        *width,
+                        *offset,
+                    ),
                     ink: Ink::Spring,
                 }),
                 Part::Damper {
@@ -972,7 +999,7 @@ fn hatched(out: &mut Vec<Mark>, a: P, b: P, normal: P, h: f64) {
     });
     let d = sub(b, a);
     let l = norm(d);
-    if !(h > 0.0) || l <= 0.0 {
+    if h.is_nan() || h <= 0.0 || l <= 0.0 {
         return;
     }
     let e = mul(d, 1.0 / l);

@@ -31,7 +31,10 @@ fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {
     let o = mbsolve(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     let stem = Path::new(scenario).file_stem().unwrap().to_str().unwrap();
-    dir.join(format!("{stem}.csv")).to_str().unwrap().to_string()
+    dir.join(format!("{stem}.csv"))
+        .to_str()
+        .unwrap()
+        .to_string()
 }
 
 /// The delays (in 10 ms) of every frame of a GIF, decoded by the `gif` crate.
@@ -133,7 +136,11 @@ fn svg_animates_bodies_and_springs() {
     assert_eq!(key_times.split(';').count(), 41);
     // four revolute joints, one pin each; two bars' outlines drawn per body
     assert_eq!(text.matches("r=\"3.5\"").count(), 4);
-    assert_eq!(text.matches("<polygon").count(), 3 + 2, "3 bars, 2 supports");
+    assert_eq!(
+        text.matches("<polygon").count(),
+        3 + 2,
+        "3 bars, 2 supports"
+    );
 
     // the quarter car: two springs (zig-zags) and one damper (4 polylines),
     // their points animated
@@ -219,7 +226,10 @@ fn bad_shape_is_named() {
     for (bad, want) in [
         ("shape = { circle = -0.3 }", "circle radius -0.3"),
         ("shape = { hexagon = 1.0 }", "hexagon"),
-        ("shape = { polygon = [[0.0, 0.0], [1.0, 0.0]] }", "at least 3"),
+        (
+            "shape = { polygon = [[0.0, 0.0], [1.0, 0.0]] }",
+            "at least 3",
+        ),
     ] {
         let p = dir.path().join("q.toml");
         std::fs::write(&p, text.replacen("shape = { circle = 0.3 }", bad, 1)).unwrap();
@@ -244,7 +254,11 @@ fn animate_rejects_bad_arguments() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("unknown animation format 'avi'"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("unknown animation format 'avi'"),
+        "{}",
+        stderr(&o)
+    );
     let o = mbsolve(&["animate", "scenarios/fourbar.toml", &csv, "--speed", "0"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--speed 0"), "{}", stderr(&o));

@@ -70,10 +70,18 @@ description = "<img src=x onerror=alert(2)> {{SCRIPT}}""#;
 
     let o = mbsolve(&["view", out.to_str().unwrap(), "--plot", "nope"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("--plot nope: no such column"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--plot nope: no such column"),
+        "{}",
+        stderr(&o)
+    );
     let o = mbsolve(&["view", dir.path().to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("no <stem>.summary.json"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no <stem>.summary.json"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// The `chromium` binary, or None (skip) when absent outside CI.
@@ -194,16 +202,29 @@ fn browser_draws_the_frame_animate_draws() {
     // the DOM: time label of the output time nearest 2 s, no errors
     let o = headless(&chromium, &["--dump-dom"], &url);
     let dom = String::from_utf8_lossy(&o.stdout);
-    assert!(dom.contains("data-ready=\"1\""), "the script did not finish:\n{dom}");
+    assert!(
+        dom.contains("data-ready=\"1\""),
+        "the script did not finish:\n{dom}"
+    );
     assert!(
         dom.contains("<span id=\"time\">t = 2.000 s</span>"),
         "time label: {}",
-        dom.split("id=\"time\"").nth(1).unwrap_or("").chars().take(60).collect::<String>()
+        dom.split("id=\"time\"")
+            .nth(1)
+            .unwrap_or("")
+            .chars()
+            .take(60)
+            .collect::<String>()
     );
     assert!(
         dom.contains("<pre id=\"errors\" data-count=\"0\"></pre>"),
         "errors: {}",
-        dom.split("id=\"errors\"").nth(1).unwrap_or("").chars().take(400).collect::<String>()
+        dom.split("id=\"errors\"")
+            .nth(1)
+            .unwrap_or("")
+            .chars()
+            .take(400)
+            .collect::<String>()
     );
 
     // the canvas (at the page's top left) against animate's still
@@ -234,7 +255,12 @@ fn browser_draws_the_frame_animate_draws() {
     };
     let same = still("2");
     let (w, h) = (same.0, same.1);
-    assert!(browser.0 >= w && browser.1 >= h, "screenshot {}×{}", browser.0, browser.1);
+    assert!(
+        browser.0 >= w && browser.1 >= h,
+        "screenshot {}×{}",
+        browser.0,
+        browser.1
+    );
     let b = ink_blocks(&browser, w, h);
     let (d_same, n) = difference(&b, &ink_blocks(&same, w, h));
     // half a road period later the chassis and the wheel stand elsewhere
@@ -242,5 +268,8 @@ fn browser_draws_the_frame_animate_draws() {
     eprintln!("ink difference: same time {d_same:.4} over {n} blocks, t = 2.4 s {d_other:.4}");
     assert!(n > 200, "too little ink: {n} blocks");
     assert!(d_same < 0.05, "browser vs animate at t = 2: {d_same:.4}");
-    assert!(d_other > 2.0 * d_same && d_other > 0.05, "t = 2.4: {d_other:.4}");
+    assert!(
+        d_other > 2.0 * d_same && d_other > 0.05,
+        "t = 2.4: {d_other:.4}"
+    );
 }

@@ -127,7 +127,10 @@ pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene
         .collect::<Result<_, String>>()?;
     let mut poses = Vec::with_capacity(t.len());
     for k in 0..t.len() {
-        let pose: Vec<f64> = cols.iter().flat_map(|c| [c[0][k], c[1][k], c[2][k]]).collect();
+        let pose: Vec<f64> = cols
+            .iter()
+            .flat_map(|c| [c[0][k], c[1][k], c[2][k]])
+            .collect();
         if pose.iter().any(|v| !v.is_finite()) || !t[k].is_finite() {
             return Err(format!(
                 "{}: row {}: a time or position is not a finite number",
@@ -452,7 +455,15 @@ fn write_video(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), S
     let fps = format!("{}/1000", (1e6 / (d * 1000.0)).round() as u64);
     let (w, h) = (s.size.0 & !1, s.size.1 & !1);
     let mut child = std::process::Command::new("ffmpeg")
-        .args(["-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24"])
+        .args([
+            "-loglevel",
+            "error",
+            "-y",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+        ])
         .args(["-s", &format!("{}x{}", s.size.0, s.size.1)])
         .args(["-framerate", &fps, "-i", "-"])
         .args(["-vf", &format!("crop={w}:{h}:0:0"), "-pix_fmt", "yuv420p"])

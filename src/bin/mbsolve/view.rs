@@ -256,15 +256,18 @@ fn page(
 /// Replace each `{{KEY}}` of `template` in one pass (so that text put in
 /// is never searched for placeholders again).
 fn fill(template: &str, values: &[(&str, &str)]) -> String {
-    let mut o = String::with_capacity(template.len() + values.iter().map(|v| v.1.len()).sum::<usize>());
+    let mut o =
+        String::with_capacity(template.len() + values.iter().map(|v| v.1.len()).sum::<usize>());
     let mut rest = template;
     while let Some(i) = rest.find("{{") {
         o.push_str(&rest[..i]);
         let after = &rest[i + 2..];
-        match after
-            .find("}}")
-            .and_then(|j| values.iter().find(|(k, _)| *k == &after[..j]).map(|v| (j, v.1)))
-        {
+        match after.find("}}").and_then(|j| {
+            values
+                .iter()
+                .find(|(k, _)| *k == &after[..j])
+                .map(|v| (j, v.1))
+        }) {
             Some((j, v)) => {
                 o.push_str(v);
                 rest = &after[j + 2..];
