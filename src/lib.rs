@@ -36,6 +36,7 @@
 
 pub mod builders;
 pub mod constraints;
+pub mod drawing;
 pub mod events;
 pub mod forces;
 pub mod formulation;

@@ -160,6 +160,16 @@ impl HalfPlaneContact {
 }
 
 impl ForceElement for HalfPlaneContact {
+    fn geometry(&self) -> crate::model::ForceGeometry {
+        crate::model::ForceGeometry::Wall {
+            body: self.body,
+            point: self.point,
+            radius: self.radius,
+            wall_point: self.wall_point,
+            normal: self.normal,
+        }
+    }
+
     fn name(&self) -> String {
         format!(
             "half-plane contact of body {} at {:?} (radius {})",

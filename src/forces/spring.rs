@@ -201,6 +201,22 @@ impl PointSpringDamper {
 }
 
 impl ForceElement for PointSpringDamper {
+    fn geometry(&self) -> crate::model::ForceGeometry {
+        let nonzero = |l: &Law| match l {
+            Law::Linear(k) => *k != 0.0,
+            Law::Table { f, .. } => f.iter().any(|v| *v != 0.0),
+        };
+        crate::model::ForceGeometry::PointToPoint {
+            body_i: self.body_i,
+            point_i: self.point_i,
+            body_j: self.body_j,
+            point_j: self.point_j,
+            free_length: self.free_length,
+            spring: nonzero(&self.stiffness),
+            damper: nonzero(&self.damping),
+        }
+    }
+
     fn name(&self) -> String {
         format!(
             "point spring-damper {:?} {:?} - {:?} {:?}",

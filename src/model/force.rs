@@ -4,7 +4,7 @@
 //! [`crate::forces`]); and [`FdWorkspace`], the allocation-free finite
 //! differences behind the default Jacobians of forces and constraints.
 
-use super::{touched_columns, Constraint, ModelError};
+use super::{touched_columns, BodyRef, Constraint, ModelError};
 use std::collections::HashMap;
 use std::fmt::Debug;
 
@@ -77,6 +77,49 @@ pub trait ForceElement: Send + Sync + Debug {
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         check_coordinates(&self.name(), &self.coordinates(), n_coords)
     }
+    /// The element as data, for drawing it. Default: [`ForceGeometry::Other`].
+    fn geometry(&self) -> ForceGeometry {
+        ForceGeometry::Other
+    }
+}
+
+/// A force element described as data ([`ForceElement::geometry`]), what a
+/// drawing of the model needs. Points are in the body frame (global for the
+/// ground) \[m\].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ForceGeometry {
+    /// A spring and/or damper between two body points.
+    PointToPoint {
+        /// First body.
+        body_i: BodyRef,
+        /// Point on the first body.
+        point_i: [f64; 2],
+        /// Second body.
+        body_j: BodyRef,
+        /// Point on the second body.
+        point_j: [f64; 2],
+        /// Free length \[m\].
+        free_length: f64,
+        /// Has a stiffness (drawn as a zig-zag).
+        spring: bool,
+        /// Has a damping law (drawn as a dashpot).
+        damper: bool,
+    },
+    /// A circle (or point) on a body against a fixed straight wall.
+    Wall {
+        /// Body index.
+        body: usize,
+        /// Centre of the circle in the body frame.
+        point: [f64; 2],
+        /// Radius (0: a point).
+        radius: f64,
+        /// A point of the wall line, global.
+        wall_point: [f64; 2],
+        /// Unit normal of the wall, into the free side.
+        normal: [f64; 2],
+    },
+    /// Anything else (gravity, loads, fluid forces).
+    Other,
 }
 
 /// Every coordinate of a footprint exists.

@@ -24,7 +24,7 @@ mod time_function;
 pub use body::{Body, BodyRef};
 pub use constraint::{check_bodies, touched_columns, Constraint, JointGeometry};
 pub use energy::EnergyWorkspace;
-pub use force::{check_coordinates, FdWorkspace, ForceElement};
+pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
 pub use sensor::{

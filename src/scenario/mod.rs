@@ -84,6 +84,9 @@ pub struct Scenario {
     pub sensors: Vec<Sensor>,
     /// File format of the run's table (`output.format`).
     pub format: crate::output::Format,
+    /// The declared `shape` of each `[[body]]`, by body index (components'
+    /// bodies are not listed); drawing only.
+    pub shapes: Vec<Option<crate::drawing::BodyShape>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -448,6 +451,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     } = model::build(&raw, file)?;
     let sensors = sensor::build(&raw.sensor, &system, &names, &forces, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
+    let shapes = raw.body.iter().map(|b| b.shape.clone()).collect();
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),
         description: raw.description.unwrap_or_default(),
@@ -461,6 +465,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         chains,
         sensors,
         format,
+        shapes,
     })
 }
 

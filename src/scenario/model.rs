@@ -107,6 +107,8 @@ pub(super) struct RawBody {
     vy: f64,
     #[serde(default)]
     omega: f64,
+    /// Outline drawn by `animate` and `view` (not used by the dynamics).
+    pub(super) shape: Option<crate::drawing::BodyShape>,
 }
 
 /// `[[joint]]`: `type` = revolute | translational | drive_coordinate |
@@ -403,6 +405,9 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             if !v.is_finite() {
                 return Err(err(key(f), format!("{v} is not finite")));
             }
+        }
+        if let Some(shape) = &b.shape {
+            shape.check().map_err(|m| err(key("shape"), m))?;
         }
         builder.add_body(
             Body::new(b.name.clone(), b.mass, b.inertia, [b.x, b.y, phi])

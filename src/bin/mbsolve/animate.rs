@@ -1,19 +1,25 @@
-//! `mbsolve animate`: the motion of a run, as an animated SVG (SMIL, vector,
-//! one key frame per output time), a GIF (one frame per drawn output time)
-//! or a still PNG of one output time.
+//! `mbsolve animate`: the motion of a run, as an animated SVG (SMIL), a GIF,
+//! an MP4/WebM (through `ffmpeg` on the PATH) or a still PNG of one output
+//! time.
 //!
-//! Geometry comes from the scenario (loaded with the same `--set` overrides
-//! as the run): each body is drawn as the polygon of its body-fixed joint
-//! points (a rod segment of known width as its rectangle), joints as small
-//! circles, ground pivots as triangles, a rod channel's walls as lines.
-//! Positions come from the run's CSV, read by column name through
-//! [`coordinate_columns`].
+//! What is drawn is the library's drawing model ([`mbsolve::drawing`]):
+//! bodies as their shapes, joints, guides, springs, dampers, contacts and
+//! walls, with a time stamp and a scale bar. Positions come from the run's
+//! CSV, read by column name through [`coordinate_columns`].
+//!
+//! Time is honest: each frame shows the output row at its wall-clock time
+//! `(t − t₀)/speed`; rows are skipped so that no frame lasts less than the
+//! format allows (GIF: 20 ms, browsers slow shorter delays down), and the
+//! delays are rounded cumulatively to the format's tick (GIF: 10 ms), so
+//! the whole plays in `(t_end − t₀)/speed`.
 
 use crate::figure::extension;
 use crate::plot::Table;
-use mbsolve::model::{BodyRef, System};
+use mbsolve::drawing::{self, BodyShape, Drawing, Ink, Mark};
+use mbsolve::model::System;
 use mbsolve::scenario;
 use plotters::prelude::*;
+use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -25,33 +31,26 @@ pub struct AnimateArgs {
     pub set: Vec<String>,
     /// The run's trajectory CSV.
     pub csv: PathBuf,
-    /// Output: .svg (animated, SMIL) or .gif.
+    /// Output: .svg (animated, SMIL), .gif, .mp4, .webm or .png (still).
     pub out: PathBuf,
     /// Playback speed: simulated seconds per wall-clock second.
     pub speed: f64,
-    /// Draw every k-th output time (GIF only; the SVG keeps every one).
+    /// Show at most every k-th output row (1: as many as the format allows).
     pub every: usize,
     /// PNG still: the output time nearest to this (default: the last).
     pub at: Option<f64>,
 }
 
-/// A body's outline in its own frame, and its joint points.
-struct Shape {
-    /// Outline (closed when it has ≥ 3 points).
-    outline: Vec<[f64; 2]>,
-    /// Joint points.
-    joints: Vec<[f64; 2]>,
-}
-
-/// Everything drawn, in world units.
-struct Scene {
-    shapes: Vec<Shape>,
-    ground_pivots: Vec<[f64; 2]>,
-    walls: Vec<f64>,
-    t: Vec<f64>,
-    /// Per output time, (x, y, φ) of every body.
-    poses: Vec<Vec<[f64; 3]>>,
-    bounds: [f64; 4],
+/// A drawing and the motion it shows.
+pub struct Scene {
+    /// The drawing model, fitted to the motion.
+    pub drawing: Drawing,
+    /// Output times \[s\].
+    pub t: Vec<f64>,
+    /// Per output time, (x, y, φ) of every body, flattened.
+    pub poses: Vec<Vec<f64>>,
+    /// Canvas size in pixels.
+    pub size: (u32, u32),
 }
 
 /// The CSV columns of body `b`'s coordinates (x, y, φ): the one place that
@@ -59,6 +58,15 @@ struct Scene {
 pub fn coordinate_columns(b: usize) -> [String; 3] {
     [0, 1, 2].map(|k| System::coordinate_name(3 * b + k))
 }
+
+/// Shortest frame the GIF format plays as written \[s\] (browsers slow
+/// shorter delays down to 100 ms).
+pub const GIF_MIN_DELAY: f64 = 0.02;
+/// GIF delay tick \[s\].
+const GIF_TICK: f64 = 0.01;
+/// Frame interval of MP4/WebM and of the SVG key frames at most \[s\].
+const VIDEO_MIN_DELAY: f64 = 0.02;
+const SVG_MIN_DELAY: f64 = 0.01;
 
 /// Write the animation; returns the path written.
 pub fn animate(a: &AnimateArgs) -> Result<PathBuf, String> {
@@ -69,46 +77,35 @@ pub fn animate(a: &AnimateArgs) -> Result<PathBuf, String> {
         return Err("--every 0: must be ≥ 1".into());
     }
     let ext = extension(&a.out);
-    if !["svg", "gif", "png"].contains(&ext.as_str()) {
+    if !["svg", "gif", "png", "mp4", "webm"].contains(&ext.as_str()) {
         return Err(format!(
-            "--out {}: unknown animation format '{ext}': use .svg, .gif or .png (one still)",
+            "--out {}: unknown animation format '{ext}': use .svg, .gif, .mp4, .webm or .png (one still)",
             a.out.display()
         ));
     }
     let sc = scenario::load(&a.scenario, &a.set).map_err(|e| e.to_string())?;
-    let scene = scene(&sc, &a.csv)?;
+    let table = Table::read(&a.csv)?;
+    let scene = scene(&sc, &table, &a.csv)?;
     match ext.as_str() {
-        "svg" => write_svg(&scene, &a.out, a.speed)?,
+        "svg" => write_svg(&scene, &a.out, a.speed, a.every)?,
         "gif" => write_gif(&scene, &a.out, a.speed, a.every)?,
+        "mp4" | "webm" => write_video(&scene, &a.out, a.speed, a.every)?,
         _ => write_png(&scene, &a.out, a.at)?,
     }
     Ok(a.out.clone())
 }
 
-/// Geometry from the scenario, poses from the CSV.
-fn scene(sc: &scenario::Scenario, csv: &Path) -> Result<Scene, String> {
+/// The drawing of the scenario (rod segments as their rectangles, the
+/// channel walls), fitted to the poses of the table.
+pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene, String> {
     let sys = &sc.system;
     let nb = sys.bodies().len();
-    let mut joints: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
-    let mut ground_pivots = Vec::new();
-    for c in sys.constraints() {
-        for (b, p) in c.geometry().attachment_points() {
-            match b {
-                BodyRef::Ground => ground_pivots.push(p),
-                BodyRef::Body(i) => {
-                    if !joints[i].iter().any(|q| dist(*q, p) < 1e-12) {
-                        joints[i].push(p)
-                    }
-                }
-            }
-        }
-    }
-    let mut outlines: Vec<Option<Vec<[f64; 2]>>> = vec![None; nb];
+    let mut shapes: Vec<Option<BodyShape>> = sc.shapes.clone();
+    shapes.resize(nb, None);
     let mut walls = Vec::new();
     for (_, rod) in &sc.rods {
         for c in &rod.contacts {
-            let (w, l) = (0.5 * c.width, 0.5 * c.length);
-            outlines[c.body] = Some(vec![[-w, -l], [w, -l], [w, l], [-w, l]]);
+            shapes[c.body] = Some(BodyShape::Box([c.width, c.length]));
             for x in [c.left_wall, c.right_wall] {
                 if !walls.contains(&x) {
                     walls.push(x);
@@ -116,32 +113,7 @@ fn scene(sc: &scenario::Scenario, csv: &Path) -> Result<Scene, String> {
             }
         }
     }
-    let shapes: Vec<Shape> = (0..nb)
-        .map(|i| {
-            let js = joints[i].clone();
-            let outline = outlines[i].take().unwrap_or_else(|| match js.len() {
-                0 => vec![[0.0, 0.0]],
-                1 => vec![[0.0, 0.0], js[0]],
-                2 => js.clone(),
-                _ => {
-                    let mut p = js.clone();
-                    let c = p.iter().fold([0.0, 0.0], |a, q| [a[0] + q[0], a[1] + q[1]]);
-                    let c = [c[0] / p.len() as f64, c[1] / p.len() as f64];
-                    p.sort_by(|a, b| {
-                        (a[1] - c[1])
-                            .atan2(a[0] - c[0])
-                            .total_cmp(&(b[1] - c[1]).atan2(b[0] - c[0]))
-                    });
-                    p
-                }
-            });
-            Shape {
-                outline,
-                joints: js,
-            }
-        })
-        .collect();
-    let table = Table::read(csv)?;
+    let mut d = Drawing::new(sys, &sc.q0, &shapes, &walls);
     let t = table.column(csv, "t")?.to_vec();
     let cols: Vec<[&[f64]; 3]> = (0..nb)
         .map(|b| {
@@ -154,75 +126,38 @@ fn scene(sc: &scenario::Scenario, csv: &Path) -> Result<Scene, String> {
         })
         .collect::<Result<_, String>>()?;
     let mut poses = Vec::with_capacity(t.len());
-    let mut bounds = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    let grow = |b: &mut [f64; 4], p: [f64; 2]| {
-        b[0] = b[0].min(p[0]);
-        b[1] = b[1].min(p[1]);
-        b[2] = b[2].max(p[0]);
-        b[3] = b[3].max(p[1]);
-    };
     for k in 0..t.len() {
-        let pose: Vec<[f64; 3]> = cols.iter().map(|c| [c[0][k], c[1][k], c[2][k]]).collect();
-        if pose.iter().flatten().any(|v| !v.is_finite()) || !t[k].is_finite() {
+        let pose: Vec<f64> = cols
+            .iter()
+            .flat_map(|c| [c[0][k], c[1][k], c[2][k]])
+            .collect();
+        if pose.iter().any(|v| !v.is_finite()) || !t[k].is_finite() {
             return Err(format!(
-                "{}: row {}: a position is not a finite number",
+                "{}: row {}: a time or position is not a finite number",
                 csv.display(),
                 k + 2
             ));
-        }
-        for (s, q) in shapes.iter().zip(&pose) {
-            for p in s.outline.iter().chain(&s.joints) {
-                grow(&mut bounds, world(*q, *p));
-            }
         }
         poses.push(pose);
     }
     if poses.is_empty() {
         return Err(format!("{}: no rows to animate", csv.display()));
     }
-    for p in &ground_pivots {
-        grow(&mut bounds, *p);
+    if t.windows(2).any(|w| w[1] < w[0]) {
+        return Err(format!("{}: the times t decrease", csv.display()));
     }
-    // Walls span the drawn height; they widen the box only horizontally.
-    let bottom = bounds[1];
-    for &x in &walls {
-        grow(&mut bounds, [x, bottom]);
-    }
+    d.fit(poses.iter().map(|p| p.as_slice()));
+    let size = canvas(d.bounds);
     Ok(Scene {
-        shapes,
-        ground_pivots,
-        walls,
+        drawing: d,
         t,
         poses,
-        bounds,
+        size,
     })
 }
 
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
-/// r + R(φ) s.
-fn world(q: [f64; 3], s: [f64; 2]) -> [f64; 2] {
-    let (sn, cs) = q[2].sin_cos();
-    [q[0] + cs * s[0] - sn * s[1], q[1] + sn * s[0] + cs * s[1]]
-}
-
-/// Map from world to pixels for a canvas of `size`: equal scales, y up,
-/// 6 % margin; returns (scale, origin offset).
-fn view(b: [f64; 4], size: (u32, u32)) -> (f64, [f64; 2]) {
-    let (w, h) = (size.0 as f64, size.1 as f64);
-    let span = [(b[2] - b[0]).max(1e-9), (b[3] - b[1]).max(1e-9)];
-    let k = 0.88 * (w / span[0]).min(h / span[1]);
-    let off = [
-        0.5 * w - k * 0.5 * (b[0] + b[2]),
-        0.5 * h + k * 0.5 * (b[1] + b[3]),
-    ];
-    (k, off)
-}
-
-/// Canvas size in pixels for a scene: 640 px on the long side.
-fn canvas(b: [f64; 4]) -> (u32, u32) {
+/// Canvas size in pixels for a world box: 640 px on the long side.
+pub fn canvas(b: [f64; 4]) -> (u32, u32) {
     let ar = ((b[3] - b[1]) / (b[2] - b[0]).max(1e-9)).clamp(0.25, 4.0);
     if ar <= 1.0 {
         (640, (640.0 * ar).max(240.0) as u32)
@@ -231,200 +166,592 @@ fn canvas(b: [f64; 4]) -> (u32, u32) {
     }
 }
 
-/// The animated SVG: static ground and walls; per body a group whose
-/// translation and rotation are animated (SMIL `animateTransform`, key
-/// times = output times).
-fn write_svg(s: &Scene, path: &Path, speed: f64) -> Result<(), String> {
-    let size = canvas(s.bounds);
-    let (k, off) = view(s.bounds, size);
-    let (t0, t1) = (s.t[0], *s.t.last().unwrap_or(&s.t[0]));
-    let dur = ((t1 - t0) / speed).max(1e-3);
-    let key_times: String =
-        s.t.iter()
-            .map(|t| {
-                if t1 > t0 {
-                    format!("{:.6}", (t - t0) / (t1 - t0))
-                } else {
-                    "0".into()
-                }
-            })
-            .collect::<Vec<_>>()
-            .join(";");
-    let px = |p: [f64; 2]| (off[0] + k * p[0], off[1] - k * p[1]);
-    let mut o = String::new();
-    let _ = writeln!(
-        o,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">"#,
-        size.0, size.1, size.0, size.1
-    );
-    let _ = writeln!(
-        o,
-        r#"<rect width="100%" height="100%" fill="white"/>
-<text x="8" y="18" font-family="sans-serif" font-size="13">t = {t0:.3} … {t1:.3} s ({} frames, {speed}× real time)</text>"#,
-        s.t.len()
-    );
-    for &x in &s.walls {
-        let (a, _) = px([x, 0.0]);
-        let _ = writeln!(
-            o,
-            r##"<line x1="{a:.2}" y1="0" x2="{a:.2}" y2="{}" stroke="#555" stroke-width="2"/>"##,
-            size.1
-        );
-    }
-    for p in &s.ground_pivots {
-        let (a, b) = px(*p);
-        let _ = writeln!(
-            o,
-            r##"<path d="M{a:.2},{b:.2} l-6,10 h12 z" fill="#bbb" stroke="black"/>"##
-        );
-    }
-    // Bodies: drawn in their own frame, scaled to pixels and y flipped.
-    for (i, sh) in s.shapes.iter().enumerate() {
-        let tr: String = s
-            .poses
-            .iter()
-            .map(|q| {
-                let (a, b) = px([q[i][0], q[i][1]]);
-                format!("{a:.3},{b:.3}")
-            })
-            .collect::<Vec<_>>()
-            .join(";");
-        let rot: String = s
-            .poses
-            .iter()
-            .map(|q| format!("{:.4}", -q[i][2].to_degrees()))
-            .collect::<Vec<_>>()
-            .join(";");
-        let pts: String = sh
-            .outline
-            .iter()
-            .map(|p| format!("{:.3},{:.3}", k * p[0], -k * p[1]))
-            .collect::<Vec<_>>()
-            .join(" ");
-        let shape = if sh.outline.len() >= 3 {
-            format!(
-                r##"<polygon points="{pts}" fill="#56B4E9" fill-opacity="0.5" stroke="#0072B2" stroke-width="2"/>"##
-            )
-        } else if sh.outline.len() == 2 {
-            format!(
-                r##"<polyline points="{pts}" fill="none" stroke="#0072B2" stroke-width="4" stroke-linecap="round"/>"##
-            )
-        } else {
-            r##"<circle r="4" fill="#0072B2"/>"##.to_string()
-        };
-        let _ = writeln!(
-            o,
-            r#"<g transform="translate({tr0})"><animateTransform attributeName="transform" type="translate" values="{tr}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
-<g transform="rotate({rot0})"><animateTransform attributeName="transform" type="rotate" values="{rot}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
-{shape}"#,
-            // the first frame as the static pose: what a renderer without
-            // SMIL animation (and the print) shows
-            tr0 = tr.split(';').next().unwrap_or("0,0").replace(',', " "),
-            rot0 = rot.split(';').next().unwrap_or("0"),
-        );
-        for j in &sh.joints {
-            let _ = writeln!(
-                o,
-                r##"<circle cx="{:.3}" cy="{:.3}" r="3.5" fill="white" stroke="black" stroke-width="1.5"/>"##,
-                k * j[0],
-                -k * j[1]
-            );
+/// Which output rows to show and how long each lasts, in ticks of `tick`
+/// seconds: the first row, then the first row at least `every` rows and
+/// `min_delay` of wall-clock time (`Δt/speed`) after the last one shown;
+/// each delay is the difference of the rounded wall-clock times of the
+/// two rows (so the rounding never accumulates), the last frame's the
+/// typical one.
+pub fn schedule(
+    t: &[f64],
+    speed: f64,
+    min_delay: f64,
+    every: usize,
+    tick: f64,
+) -> (Vec<usize>, Vec<u32>) {
+    let wall = |r: usize| (t[r] - t[0]) / speed;
+    let mut rows = vec![0];
+    let mut r = 0;
+    loop {
+        let last = *rows.last().unwrap_or(&0);
+        r = (r + 1).max(last + every);
+        while r < t.len() && wall(r) - wall(last) < min_delay * (1.0 - 1e-9) {
+            r += 1;
         }
-        let _ = writeln!(o, "</g></g>");
+        if r >= t.len() {
+            break;
+        }
+        rows.push(r);
     }
-    let _ = writeln!(o, "</svg>");
-    std::fs::write(path, o).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-/// The GIF: every `every`-th output time as a frame, frame delay from the
-/// output spacing and `speed`.
-fn write_gif(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
-    crate::figure::register_font();
-    let size = canvas(s.bounds);
-    let n = s.t.len();
-    let dt = if n > 1 {
-        (s.t[n - 1] - s.t[0]) / (n - 1) as f64
+    let ticks = |r: usize| (wall(r) / tick).round() as i64;
+    let min_ticks = (min_delay / tick).round().max(1.0) as u32;
+    let mut delays: Vec<u32> = rows
+        .windows(2)
+        .map(|w| (ticks(w[1]) - ticks(w[0])).max(min_ticks as i64) as u32)
+        .collect();
+    let typical = if delays.is_empty() {
+        min_ticks
     } else {
-        0.0
+        let mut d = delays.clone();
+        d.sort_unstable();
+        d[d.len() / 2]
     };
-    let delay_ms = ((every as f64 * dt / speed) * 1000.0).clamp(20.0, 10_000.0) as u32;
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let root = BitMapBackend::gif(path, size, delay_ms)
-        .map_err(|e| err(&e))?
-        .into_drawing_area();
-    for f in (0..n).step_by(every) {
-        draw_frame(&root, s, f).map_err(|e| err(&e))?;
+    delays.push(typical);
+    (rows, delays)
+}
+
+/// Tell the user what plays at which speed.
+fn report_schedule(s: &Scene, rows: &[usize], delays: &[u32], tick: f64, speed: f64, what: &str) {
+    let span = s.t[s.t.len() - 1] - s.t[0];
+    let total: f64 = delays.iter().map(|&d| d as f64 * tick).sum();
+    let min = delays.iter().copied().min().unwrap_or(0) as f64 * tick;
+    let stride = if rows.len() > 1 {
+        (rows[rows.len() - 1] - rows[0]) as f64 / (rows.len() - 1) as f64
+    } else {
+        1.0
+    };
+    println!(
+        "{what}: {} of {} output rows shown (every {:.3}th on average), frames of ≥ {:.0} ms; \
+         {:.3} s of simulation at {speed}× real time play in {:.2} s",
+        rows.len(),
+        s.t.len(),
+        stride,
+        min * 1000.0,
+        span,
+        total
+    );
+}
+
+/// Pixel map of a scene's canvas.
+fn pixel_map(s: &Scene, size: (u32, u32)) -> (f64, [f64; 2]) {
+    drawing::view(s.drawing.bounds, (size.0 as f64, size.1 as f64))
+}
+
+/// Colours of the inks (shared with `assets/viewer.js`).
+fn ink_rgb(ink: Ink) -> RGBColor {
+    match ink {
+        Ink::Body => RGBColor(0x00, 0x72, 0xB2),
+        Ink::Ground => RGBColor(0x44, 0x44, 0x44),
+        Ink::Hatch => RGBColor(0x88, 0x88, 0x88),
+        Ink::Spring => RGBColor(0xD5, 0x5E, 0x00),
+        Ink::Damper => RGBColor(0x00, 0x9E, 0x73),
+        Ink::Contact => RGBColor(0xCC, 0x79, 0xA7),
     }
-    Ok(())
 }
 
-/// A still PNG of the output time nearest to `at` (default: the last).
-fn write_png(s: &Scene, path: &Path, at: Option<f64>) -> Result<(), String> {
-    crate::figure::register_font();
-    let f = match at {
-        None => s.t.len() - 1,
-        Some(t) => (0..s.t.len())
-            .min_by(|&a, &b| (s.t[a] - t).abs().total_cmp(&(s.t[b] - t).abs()))
-            .unwrap_or(0),
-    };
-    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let root = BitMapBackend::new(path, canvas(s.bounds)).into_drawing_area();
-    draw_frame(&root, s, f).map_err(|e| err(&e))
+fn ink_hex(ink: Ink) -> String {
+    let c = ink_rgb(ink);
+    format!("#{:02X}{:02X}{:02X}", c.0, c.1, c.2)
 }
 
-/// Draw output time `f` of the scene and present it (one GIF frame).
+fn ink_width(ink: Ink) -> u32 {
+    match ink {
+        Ink::Hatch => 1,
+        _ => 2,
+    }
+}
+
+/// Draw output row `f` of the scene: marks, time stamp, scale bar (on a
+/// white background unless `blank` says the canvas is white already).
 fn draw_frame<DB: DrawingBackend>(
     root: &DrawingArea<DB, plotters::coord::Shift>,
     s: &Scene,
     f: usize,
+    blank: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let size = root.dim_in_pixel();
-    let (k, off) = view(s.bounds, size);
+    let (k, off) = pixel_map(s, size);
     let px = |p: [f64; 2]| {
         (
             (off[0] + k * p[0]).round() as i32,
             (off[1] - k * p[1]).round() as i32,
         )
     };
-    let body = RGBColor(0x00, 0x72, 0xB2);
     let fill = RGBColor(0x56, 0xB4, 0xE9).mix(0.5);
-    root.fill(&WHITE)?;
-    for &x in &s.walls {
-        let (a, _) = px([x, 0.0]);
-        root.draw(&PathElement::new(
-            vec![(a, 0), (a, size.1 as i32)],
-            RGBColor(0x55, 0x55, 0x55).stroke_width(2),
-        ))?;
+    let ground_fill = RGBColor(0xbb, 0xbb, 0xbb);
+    if !blank {
+        root.fill(&WHITE)?;
     }
-    for p in &s.ground_pivots {
-        let (a, b) = px(*p);
-        root.draw(&Polygon::new(
-            vec![(a, b), (a - 6, b + 10), (a + 6, b + 10)],
-            RGBColor(0xbb, 0xbb, 0xbb).filled(),
-        ))?;
-    }
-    for (sh, q) in s.shapes.iter().zip(&s.poses[f]) {
-        let pts: Vec<(i32, i32)> = sh.outline.iter().map(|p| px(world(*q, *p))).collect();
-        if pts.len() >= 3 {
-            root.draw(&Polygon::new(pts.clone(), fill.filled()))?;
-            let mut closed = pts.clone();
-            closed.push(pts[0]);
-            root.draw(&PathElement::new(closed, body.stroke_width(2)))?;
-        } else if pts.len() == 2 {
-            root.draw(&PathElement::new(pts, body.stroke_width(4)))?;
-        } else {
-            root.draw(&Circle::new(pts[0], 4, body.filled()))?;
+    for m in s.drawing.marks(&s.poses[f]) {
+        match m {
+            Mark::Fill { points, ink } => {
+                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
+                if ink == Ink::Body {
+                    root.draw(&Polygon::new(pts.clone(), fill.filled()))?;
+                } else {
+                    root.draw(&Polygon::new(pts.clone(), ground_fill.filled()))?;
+                }
+                let mut closed = pts.clone();
+                closed.push(pts[0]);
+                root.draw(&PathElement::new(
+                    closed,
+                    ink_rgb(ink).stroke_width(ink_width(ink)),
+                ))?;
+            }
+            Mark::Line { points, ink } => {
+                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
+                root.draw(&PathElement::new(
+                    pts,
+                    ink_rgb(ink).stroke_width(ink_width(ink)),
+                ))?;
+            }
+            Mark::Circle {
+                centre,
+                radius,
+                ink,
+                filled,
+            } => {
+                let r = ((k * radius).round() as i32).max(1);
+                if filled {
+                    root.draw(&Circle::new(px(centre), r, fill.filled()))?;
+                }
+                root.draw(&Circle::new(
+                    px(centre),
+                    r,
+                    ink_rgb(ink).stroke_width(ink_width(ink)),
+                ))?;
+            }
+            Mark::Pin { centre } => {
+                root.draw(&Circle::new(px(centre), 4, WHITE.filled()))?;
+                root.draw(&Circle::new(px(centre), 4, BLACK.stroke_width(1)))?;
+            }
         }
-        for j in &sh.joints {
-            let c = px(world(*q, *j));
-            root.draw(&Circle::new(c, 4, WHITE.filled()))?;
-            root.draw(&Circle::new(c, 4, BLACK.stroke_width(1)))?;
-        }
     }
+    let font = ("sans-serif", 14.0).into_font();
     root.draw(&Text::new(
         format!("t = {:.3} s", s.t[f]),
         (8, 8),
-        ("sans-serif", 14.0).into_font(),
+        font.clone(),
     ))?;
-    root.present()
+    let (bar, label) = scale_bar(k, size.0 as f64);
+    let (x0, y0) = (10, size.1 as i32 - 12);
+    let x1 = x0 + (bar * k).round() as i32;
+    root.draw(&PathElement::new(
+        vec![(x0, y0 - 4), (x0, y0), (x1, y0), (x1, y0 - 4)],
+        BLACK.stroke_width(2),
+    ))?;
+    root.draw(&Text::new(label, (x1 + 6, y0 - 12), font))?;
+    Ok(())
+}
+
+/// The scale bar's length \[m\] (at most a fifth of the width) and label.
+pub fn scale_bar(k: f64, width: f64) -> (f64, String) {
+    let l = drawing::scale_bar(0.2 * width / k);
+    let label = if l >= 1.0 {
+        format!("{l} m")
+    } else if l >= 1e-3 {
+        format!("{} mm", (l * 1e3 * 1e6).round() / 1e6)
+    } else {
+        format!("{l:e} m")
+    };
+    (l, label)
+}
+
+/// One RGB frame of output row `f`.
+fn render_rgb(s: &Scene, f: usize) -> Result<Vec<u8>, String> {
+    let (w, h) = s.size;
+    let mut buf = vec![255u8; 3 * w as usize * h as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw_frame(&root, s, f, true).map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(buf)
+}
+
+/// The fixed GIF palette: the 6 × 6 × 6 colour cube and 40 greys.
+fn palette() -> Vec<u8> {
+    let mut p = Vec::with_capacity(768);
+    for r in 0..6u8 {
+        for g in 0..6u8 {
+            for b in 0..6u8 {
+                p.extend([r * 51, g * 51, b * 51]);
+            }
+        }
+    }
+    for i in 0..40u32 {
+        let v = ((i + 1) * 255 / 41) as u8;
+        p.extend([v, v, v]);
+    }
+    p
+}
+
+/// The palette index of an RGB pixel: a grey of the 40 (or the cube's
+/// black/white) when the channels are within 8 of each other, else the
+/// nearest cube colour.
+fn quantize(c: &[u8]) -> u8 {
+    let (r, g, b) = (c[0] as i32, c[1] as i32, c[2] as i32);
+    let (mx, mn) = (r.max(g).max(b), r.min(g).min(b));
+    let level = |v: i32| ((v + 25) / 51) as u8;
+    if mx - mn <= 8 {
+        let v = (r + g + b) / 3;
+        if v >= 250 {
+            return 215;
+        }
+        if v <= 3 {
+            return 0;
+        }
+        let i = ((v * 41 + 127) / 255 - 1).clamp(0, 39);
+        return 216 + i as u8;
+    }
+    level(r) * 36 + level(g) * 6 + level(b)
+}
+
+/// The GIF: frames chosen by [`schedule`], drawn and LZW-encoded in
+/// parallel, written in order with a fixed global palette.
+fn write_gif(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
+    crate::figure::register_font();
+    let (rows, delays) = schedule(&s.t, speed, GIF_MIN_DELAY, every, GIF_TICK);
+    let (w, h) = s.size;
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
+    let pal = palette();
+    let mut enc = gif::Encoder::new(std::io::BufWriter::new(file), w as u16, h as u16, &pal)
+        .map_err(|e| err(&e))?;
+    enc.set_repeat(gif::Repeat::Infinite).map_err(|e| err(&e))?;
+    // bounded memory: 64 frames at a time
+    for chunk in rows.iter().zip(&delays).collect::<Vec<_>>().chunks(64) {
+        let frames: Vec<gif::Frame<'static>> = chunk
+            .par_iter()
+            .map(|(&r, &d)| {
+                let rgb = render_rgb(s, r)?;
+                let idx: Vec<u8> = rgb.chunks_exact(3).map(quantize).collect();
+                let mut f = gif::Frame::from_indexed_pixels(w as u16, h as u16, &idx, None);
+                f.delay = d.min(u16::MAX as u32) as u16;
+                f.make_lzw_pre_encoded();
+                Ok(f)
+            })
+            .collect::<Result<_, String>>()?;
+        for f in &frames {
+            enc.write_lzw_pre_encoded_frame(f).map_err(|e| err(&e))?;
+        }
+    }
+    drop(enc);
+    report_schedule(s, &rows, &delays, GIF_TICK, speed, "GIF");
+    Ok(())
+}
+
+/// MP4 or WebM through `ffmpeg` on the PATH: constant frame rate (50 fps
+/// at most), each frame the output row nearest its wall-clock time.
+fn write_video(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
+    use std::io::Write as _;
+    crate::figure::register_font();
+    let n = s.t.len();
+    let span = s.t[n - 1] - s.t[0];
+    let dt = if n > 1 { span / (n - 1) as f64 } else { 1.0 };
+    // frame interval: a whole number of milliseconds ≥ 20 ms
+    let d = ((every as f64 * dt / speed).max(VIDEO_MIN_DELAY) * 1000.0).round() / 1000.0;
+    let frames = ((span / speed) / d).floor() as usize + 1;
+    let fps = format!("{}/1000", (1e6 / (d * 1000.0)).round() as u64);
+    let (w, h) = (s.size.0 & !1, s.size.1 & !1);
+    let mut child = std::process::Command::new("ffmpeg")
+        .args([
+            "-loglevel",
+            "error",
+            "-y",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "rgb24",
+        ])
+        .args(["-s", &format!("{}x{}", s.size.0, s.size.1)])
+        .args(["-framerate", &fps, "-i", "-"])
+        .args(["-vf", &format!("crop={w}:{h}:0:0"), "-pix_fmt", "yuv420p"])
+        .arg(path)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .map_err(|e| {
+            format!(
+                "{}: MP4/WebM need ffmpeg on the PATH ({e}); write a .gif instead",
+                path.display()
+            )
+        })?;
+    let mut stdin = child.stdin.take().ok_or("ffmpeg: no stdin")?;
+    let mut r = 0;
+    for i in 0..frames {
+        let target = s.t[0] + i as f64 * d * speed;
+        while r + 1 < n && (s.t[r + 1] - target).abs() <= (s.t[r] - target).abs() {
+            r += 1;
+        }
+        let rgb = render_rgb(s, r)?;
+        stdin
+            .write_all(&rgb)
+            .map_err(|e| format!("{}: ffmpeg: {e}", path.display()))?;
+    }
+    drop(stdin);
+    let st = child.wait().map_err(|e| format!("ffmpeg: {e}"))?;
+    if !st.success() {
+        return Err(format!("{}: ffmpeg failed ({st})", path.display()));
+    }
+    println!(
+        "video: {frames} frames of {:.0} ms; {span:.3} s of simulation at {speed}× real time play in {:.2} s",
+        d * 1000.0,
+        frames as f64 * d
+    );
+    Ok(())
+}
+
+/// A still PNG of the output time nearest to `at` (default: the last).
+fn write_png(s: &Scene, path: &Path, at: Option<f64>) -> Result<(), String> {
+    crate::figure::register_font();
+    let f = nearest_row(&s.t, at);
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let root = BitMapBackend::new(path, s.size).into_drawing_area();
+    draw_frame(&root, s, f, false).map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))
+}
+
+/// The row whose time is nearest to `at` (default: the last row).
+pub fn nearest_row(t: &[f64], at: Option<f64>) -> usize {
+    match at {
+        None => t.len() - 1,
+        Some(x) => (0..t.len())
+            .min_by(|&a, &b| (t[a] - x).abs().total_cmp(&(t[b] - x).abs()))
+            .unwrap_or(0),
+    }
+}
+
+/// One mark as SVG, through the pixel map `px` (world or body frame).
+fn svg_mark(o: &mut String, m: &Mark, px: &dyn Fn([f64; 2]) -> (f64, f64), k: f64) {
+    let pts = |p: &[[f64; 2]]| {
+        p.iter()
+            .map(|q| {
+                let (a, b) = px(*q);
+                format!("{a:.2},{b:.2}")
+            })
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    match m {
+        Mark::Fill { points, ink } => {
+            let fill = if *ink == Ink::Body {
+                r##"fill="#56B4E9" fill-opacity="0.5""##
+            } else {
+                r##"fill="#bbbbbb""##
+            };
+            let _ = writeln!(
+                o,
+                r#"<polygon points="{}" {fill} stroke="{}" stroke-width="{}"/>"#,
+                pts(points),
+                ink_hex(*ink),
+                ink_width(*ink)
+            );
+        }
+        Mark::Line { points, ink } => {
+            let _ = writeln!(
+                o,
+                r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="{}"/>"#,
+                pts(points),
+                ink_hex(*ink),
+                ink_width(*ink)
+            );
+        }
+        Mark::Circle {
+            centre,
+            radius,
+            ink,
+            filled,
+        } => {
+            let (a, b) = px(*centre);
+            let fill = if *filled {
+                r##"fill="#56B4E9" fill-opacity="0.5""##
+            } else {
+                r#"fill="none""#
+            };
+            let _ = writeln!(
+                o,
+                r#"<circle cx="{a:.2}" cy="{b:.2}" r="{:.2}" {fill} stroke="{}" stroke-width="2"/>"#,
+                k * radius,
+                ink_hex(*ink)
+            );
+        }
+        Mark::Pin { centre } => {
+            let (a, b) = px(*centre);
+            let _ = writeln!(
+                o,
+                r#"<circle cx="{a:.2}" cy="{b:.2}" r="3.5" fill="white" stroke="black" stroke-width="1.5"/>"#
+            );
+        }
+    }
+}
+
+/// The animated SVG: static ground; per body a group of its parts whose
+/// translation and rotation are animated (SMIL `animateTransform`);
+/// springs and dampers as paths whose points are animated; key times at
+/// the rows chosen by [`schedule`] (at most 100 per second of playback).
+fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
+    use mbsolve::drawing::Part;
+    let size = s.size;
+    let (k, off) = pixel_map(s, size);
+    let (rows, _) = schedule(&s.t, speed, SVG_MIN_DELAY, every, 1e-3);
+    let (t0, t1) = (s.t[0], s.t[*rows.last().unwrap_or(&0)]);
+    let dur = ((t1 - t0) / speed).max(1e-3);
+    let key_times: String = rows
+        .iter()
+        .map(|&r| {
+            if t1 > t0 {
+                format!("{:.6}", (s.t[r] - t0) / (t1 - t0))
+            } else {
+                "0".into()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(";");
+    let world_px = |p: [f64; 2]| (off[0] + k * p[0], off[1] - k * p[1]);
+    let local_px = |p: [f64; 2]| (k * p[0], -k * p[1]);
+    let nb = s.drawing.bodies.len();
+    let identity = vec![0.0; 3 * nb];
+    // Split the parts: ground, one body, two bodies.
+    let mut ground = s.drawing.clone();
+    ground.parts.clear();
+    let mut per_body = vec![ground.clone(); nb];
+    let mut moving = ground.clone();
+    for p in &s.drawing.parts {
+        let carrier = match p {
+            Part::Polygon { body, .. }
+            | Part::Bar { body, .. }
+            | Part::Disc { body, .. }
+            | Part::Contact { body, .. }
+            | Part::Pin { body, .. }
+            | Part::Guide { body, .. } => Some(*body),
+            Part::Support { .. } | Part::Ground { .. } => Some(None),
+            Part::Spring { .. } | Part::Damper { .. } => None,
+        };
+        match carrier {
+            Some(None) => ground.parts.push(p.clone()),
+            Some(Some(i)) => per_body[i].parts.push(p.clone()),
+            None => moving.parts.push(p.clone()),
+        }
+    }
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="0 0 {} {}">"#,
+        size.0, size.1, size.0, size.1
+    );
+    let (bar, label) = scale_bar(k, size.0 as f64);
+    let y0 = size.1 as f64 - 12.0;
+    let _ = writeln!(
+        o,
+        r#"<rect width="100%" height="100%" fill="white"/>
+<text x="8" y="18" font-family="sans-serif" font-size="13">t = {t0:.3} … {t1:.3} s ({} frames, {speed}× real time)</text>
+<path d="M10,{:.1} v4 h{:.2} v-4" fill="none" stroke="black" stroke-width="2"/>
+<text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="13">{label}</text>"#,
+        rows.len(),
+        y0 - 4.0,
+        bar * k,
+        16.0 + bar * k,
+        y0,
+    );
+    for m in ground.marks(&identity) {
+        svg_mark(&mut o, &m, &world_px, k);
+    }
+    for (i, d) in per_body.iter().enumerate() {
+        let tr: Vec<String> = rows
+            .iter()
+            .map(|&r| {
+                let q = &s.poses[r];
+                let (a, b) = world_px([q[3 * i], q[3 * i + 1]]);
+                format!("{a:.3},{b:.3}")
+            })
+            .collect();
+        let rot: Vec<String> = rows
+            .iter()
+            .map(|&r| format!("{:.4}", -s.poses[r][3 * i + 2].to_degrees()))
+            .collect();
+        let _ = writeln!(
+            o,
+            r#"<g transform="translate({tr0})"><animateTransform attributeName="transform" type="translate" values="{tr}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>
+<g transform="rotate({rot0})"><animateTransform attributeName="transform" type="rotate" values="{rot}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/>"#,
+            // the first frame as the static pose: what a renderer without
+            // SMIL animation (and the print) shows
+            tr0 = tr[0].replace(',', " "),
+            rot0 = rot[0],
+            tr = tr.join(";"),
+            rot = rot.join(";"),
+        );
+        for m in d.marks(&identity) {
+            svg_mark(&mut o, &m, &local_px, k);
+        }
+        let _ = writeln!(o, "</g></g>");
+    }
+    // Springs and dampers: one polyline per mark, its points animated.
+    let frames: Vec<Vec<Mark>> = rows.iter().map(|&r| moving.marks(&s.poses[r])).collect();
+    for (j, m) in frames[0].iter().enumerate() {
+        let (Mark::Line { points, ink } | Mark::Fill { points, ink }) = m else {
+            continue;
+        };
+        let pts = |p: &[[f64; 2]]| {
+            p.iter()
+                .map(|q| {
+                    let (a, b) = world_px(*q);
+                    format!("{a:.2},{b:.2}")
+                })
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let values: Vec<String> = frames
+            .iter()
+            .map(|f| match &f[j] {
+                Mark::Line { points, .. } | Mark::Fill { points, .. } => pts(points),
+                _ => String::new(),
+            })
+            .collect();
+        let _ = writeln!(
+            o,
+            r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="2"><animate attributeName="points" values="{}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/></polyline>"#,
+            pts(points),
+            ink_hex(*ink),
+            values.join(";")
+        );
+    }
+    let _ = writeln!(o, "</svg>");
+    std::fs::write(path, o).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schedule_keeps_wall_time_and_the_minimum_delay() {
+        // 1501 rows, 1 ms apart, real time: frames of 20 ms, every 20th row
+        let t: Vec<f64> = (0..1501).map(|k| k as f64 * 1e-3).collect();
+        let (rows, delays) = schedule(&t, 1.0, 0.02, 1, 0.01);
+        assert_eq!(rows.len(), 76);
+        assert!(rows.windows(2).all(|w| w[1] - w[0] == 20), "{rows:?}");
+        assert!(delays.iter().all(|&d| d == 2));
+        let total: u32 = delays.iter().sum();
+        assert_eq!(total, 152, "1.5 s plus the last frame's 20 ms");
+        // irregular output: the rounded delays sum to the span exactly
+        let t: Vec<f64> = (0..400).map(|k| (k as f64 * 0.0137).powf(1.3)).collect();
+        let (rows, delays) = schedule(&t, 0.5, 0.02, 1, 0.01);
+        let span_ticks = ((t[*rows.last().unwrap()] - t[0]) / 0.5 / 0.01).round() as u32;
+        let sum: u32 = delays[..delays.len() - 1].iter().sum();
+        assert_eq!(sum, span_ticks);
+        assert!(delays.iter().all(|&d| d >= 2));
+    }
+
+    #[test]
+    fn palette_maps_pure_colours_exactly() {
+        let p = palette();
+        assert_eq!(p.len(), 768);
+        for c in [[0u8, 0, 0], [255, 255, 255], [0, 102, 204], [136, 136, 136]] {
+            let i = quantize(&c) as usize;
+            let q = &p[3 * i..3 * i + 3];
+            for k in 0..3 {
+                assert!((q[k] as i32 - c[k] as i32).abs() <= 4, "{c:?} -> {q:?}");
+            }
+        }
+    }
 }

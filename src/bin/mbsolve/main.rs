@@ -22,6 +22,7 @@ mod reproduce;
 mod stream;
 mod study;
 mod sweep;
+mod view;
 
 use mbsolve::events::ContactMonitor;
 use mbsolve::simulation::Monitor;
@@ -61,6 +62,9 @@ enum Command {
         /// go to stderr).
         #[arg(long, short)]
         quiet: bool,
+        /// Also write the interactive viewer DIR/<stem>.view.html.
+        #[arg(long)]
+        view: bool,
     },
     /// Run a scenario over the Cartesian product of parameter values, in
     /// parallel; writes DIR/<stem>_sweep.csv (one row per run) and a
@@ -162,6 +166,25 @@ enum Command {
         #[arg(long, value_name = "T")]
         at: Option<f64>,
     },
+    /// Write an interactive viewer of a run: one self-contained HTML file
+    /// (no network) with the mechanism (play, time slider, speed, zoom,
+    /// pan) and plots of chosen columns; `FILE.html#t=T` opens at time T.
+    View {
+        /// The run's output directory (of `mbsolve run`).
+        dir: PathBuf,
+        /// The run's file stem when DIR holds several runs.
+        #[arg(long)]
+        stem: Option<String>,
+        /// The scenario [default: the one the run's summary records].
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Column(s) plotted at first (repeat or separate by commas).
+        #[arg(long, value_name = "COLUMN[,COLUMN...]", value_delimiter = ',')]
+        plot: Vec<String>,
+        /// Output file [default: DIR/<stem>.view.html].
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Studies beyond the paper's figures: `constraints` runs every
     /// constraint-enforcement method on the four-bar (correct and incorrect
     /// start), the falling rod, a parallelogram chain through its singular
@@ -217,7 +240,42 @@ fn command(cli: Cli) -> ExitCode {
             out,
             progress,
             quiet,
-        } => run(&scenario, &set, &out, progress, quiet),
+            view,
+        } => run(&scenario, &set, &out, progress, quiet).and_then(|code| {
+            if view && code == ExitCode::SUCCESS {
+                let stem = scenario
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned());
+                let p = view::view(&view::ViewArgs {
+                    dir: out.clone(),
+                    stem,
+                    scenario: None,
+                    columns: Vec::new(),
+                    out: None,
+                })?;
+                if !quiet {
+                    say!("wrote {}", p.display());
+                }
+            }
+            Ok(code)
+        }),
+        Command::View {
+            dir,
+            stem,
+            scenario,
+            plot,
+            out,
+        } => view::view(&view::ViewArgs {
+            dir,
+            stem,
+            scenario,
+            columns: plot,
+            out,
+        })
+        .map(|p| {
+            say!("wrote {}", p.display());
+            ExitCode::SUCCESS
+        }),
         Command::Reproduce { out } => reproduce_all(&out),
         Command::Study { which: _, out } => study_constraints(&out),
         Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
