@@ -16,10 +16,11 @@
 //! one of the helper's `POSTED → RUNNING` and the caller's `POSTED → IDLE`
 //! (take-back: the caller runs the half itself once its own half is done)
 //! succeeds, so a half runs exactly once and the caller never waits for a
-//! helper that has not started it. A caller that waits for a running half
-//! spins for [`WAIT_SPIN`], then parks until the helper's `DONE` unparks
-//! it; an idle helper spins for [`SPIN`], then parks until a post unparks
-//! it: a descheduled partner costs a wake-up, not a time slice.
+//! helper that has not started it (beyond [`GRACE`] for one that is
+//! awake). A caller that waits for a running half spins for
+//! [`WAIT_SPIN`], then parks until the helper's `DONE` unparks it; an idle
+//! helper spins for [`SPIN`], then parks until a post unparks it: a
+//! descheduled partner costs a wake-up, not a time slice.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::Duration;
@@ -108,6 +109,12 @@ pub const SPIN: Duration = Duration::from_micros(300);
 /// How long a caller busy-waits for a half the helper is running before
 /// it parks: a few times the imbalance of two equal halves.
 pub const WAIT_SPIN: Duration = Duration::from_micros(50);
+
+/// How long a caller whose own half is done waits for an awake helper to
+/// start the posted half before taking it back: a few cache-line
+/// transfers, far below the cost of a half (a helper that is awake but
+/// not on a core costs at most this per join).
+pub const GRACE: Duration = Duration::from_micros(5);
 
 const IDLE: u8 = 0;
 const POSTED: u8 = 1;
@@ -217,11 +224,7 @@ impl Handover {
         self.state.store(POSTED, Ordering::SeqCst);
         self.wake_helper();
         let ra = catch_unwind(AssertUnwindSafe(a));
-        let (panic_b, ran) = if self
-            .state
-            .compare_exchange(POSTED, IDLE, Ordering::SeqCst, Ordering::SeqCst)
-            .is_ok()
-        {
+        let (panic_b, ran) = if self.take_back() {
             // SAFETY: the take-back made the slot the caller's again (the
             // helper takes the job only after its own POSTED → RUNNING).
             self.job.with_mut(|s| unsafe { *s = None });
@@ -244,6 +247,18 @@ impl Handover {
             std::panic::resume_unwind(p);
         }
         ((ra, rb.expect("the half ran")), ran)
+    }
+
+    /// Takes the posted half back unless the helper has started it; a
+    /// helper that is awake (not parked) gets [`GRACE`] to start it first.
+    fn take_back(&self) -> bool {
+        if !self.helper_parked.load(Ordering::SeqCst) {
+            let mut spin = Spin::new(GRACE);
+            while self.state.load(Ordering::Acquire) == POSTED && spin.spin() {}
+        }
+        self.state
+            .compare_exchange(POSTED, IDLE, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
     }
 
     /// The caller's wait for a running half: spin, then park until DONE.
