@@ -362,7 +362,7 @@ impl TrigMemo {
         let (bits_lo, bits_hi) = self.phi_bits.split_at_mut(half);
         let (sc_lo, sc_hi) = self.sc.split_at_mut(2 * half);
         if nb >= TRIG_PARALLEL_MIN_BODIES {
-            crate::linalg::join_if(
+            crate::parallel::join_if(
                 true,
                 || trig_update(q, 0, bits_lo, sc_lo),
                 || trig_update(q, half, bits_hi, sc_hi),

@@ -44,6 +44,8 @@ pub mod generated;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
+pub mod numeric;
 pub mod output;
+pub mod parallel;
 pub mod scenario;
 pub mod simulation;

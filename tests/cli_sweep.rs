@@ -150,3 +150,43 @@ fn bad_shards_and_parameters_are_named() {
         stderr(&o)
     );
 }
+
+/// A sweep that runs its runs side by side (two threads) runs each of them
+/// on one thread, not with a team per run as well; a scenario that forces
+/// two threads keeps them. Read from the runs' summaries.
+#[test]
+fn runs_side_by_side_each_run_on_one_thread() {
+    for (set, expect) in [(None, "1"), (Some("integrator.threads=2"), "2")] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = vec![
+            "sweep",
+            "scenarios/fourbar.toml",
+            "--param",
+            "stabilization.alpha=0,1",
+            "--set",
+            "time.end=0.05",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ];
+        if let Some(s) = set {
+            args.extend(["--set", s]);
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+            .args(&args)
+            .env("RAYON_NUM_THREADS", "2")
+            .env_remove("MBSOLVE_THREADS")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("binary runs");
+        assert!(o.status.success(), "{}", stderr(&o));
+        for k in 0..2 {
+            let p = dir.path().join(format!("fourbar_sweep{k}.summary.json"));
+            let s: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+            assert_eq!(s["threads_setting"], expect, "{set:?} run {k}");
+            if expect == "1" {
+                assert_eq!(s["halves_split"], 0);
+            }
+        }
+    }
+}

@@ -1,8 +1,8 @@
 //! Same input, same output, whatever the thread count.
 
 use mbsolve::builders::{build_rod, RodParams};
-use mbsolve::formulation::PARALLEL_MIN_COORDS;
 use mbsolve::integrate::{Method, OdeOptions};
+use mbsolve::parallel::PARALLEL_MIN_COORDS;
 use mbsolve::simulation::{simulate, RunConfig};
 
 #[test]

@@ -4,11 +4,11 @@
 
 use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::Index3;
-use mbsolve::formulation::PARALLEL_MIN_COORDS;
 use mbsolve::integrate::{Method, OdeOptions};
 use mbsolve::linalg::{
     ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, PARALLEL_MIN_DIM, SPLIT_MIN_DIM,
 };
+use mbsolve::parallel::{Threads, PARALLEL_MIN_COORDS};
 use mbsolve::simulation::{simulate, RunConfig};
 
 /// Deterministic pseudo-random numbers in [−1, 1) (64-bit LCG).
@@ -194,9 +194,24 @@ fn bdf_stiff_chain_is_bit_identical_with_one_and_two_threads() {
     );
 }
 
+/// The same for radau5 (fixed step; its real stage's Newton matrix on
+/// the split chain solver, its passes in halves): bit-identical.
+#[test]
+fn radau5_stiff_chain_is_bit_identical_with_one_and_two_threads() {
+    bit_identical_with_one_and_two_threads(
+        Method::Radau5,
+        OdeOptions {
+            fixed_step: Some(1e-5),
+            ..Default::default()
+        },
+    );
+}
+
 /// Runs the stiff chain of 2000 segments (above both parallel
 /// thresholds) for 4e-5 s with `method` in one- and two-thread pools and
-/// asserts bit-identical outputs and Newton counts.
+/// with each thread setting (`auto`, one, two forced — also in a pool of
+/// one) and asserts bit-identical outputs and Newton counts, and that the
+/// summary reports what the setting asks.
 fn bit_identical_with_one_and_two_threads(method: Method, ode: OdeOptions) {
     let (sys, q0, qd0, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
     let (n, m) = (sys.n_coords(), sys.n_constraints());
@@ -208,22 +223,52 @@ fn bit_identical_with_one_and_two_threads(method: Method, ode: OdeOptions) {
         ode,
         ..Default::default()
     };
-    let run = |threads: usize| {
+    let run = |threads: usize, setting: Threads| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
+        let cfg = RunConfig {
+            threads: setting,
+            ..cfg.clone()
+        };
         let (traj, s) = pool.install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
         assert_eq!(s.status, "completed", "{:?}", s.message);
         assert_eq!(s.linear_solver, "chain-ldlt");
+        let count = |k: &str| s.extra[k].as_u64().unwrap();
+        match setting {
+            // nothing leaves the thread
+            Threads::One => {
+                assert_eq!(s.extra["threads"], 1);
+                assert_eq!(count("halves_split") + count("halves_taken_back"), 0);
+            }
+            // every concurrent pass posts its second half (run by the
+            // helper or taken back: which, depends on the scheduler)
+            Threads::Two => {
+                assert!(count("halves_split") + count("halves_taken_back") > 50);
+                assert_eq!(count("halves_solo"), 0);
+            }
+            Threads::Auto => {}
+        }
         (traj, s.extra.get("newton_iterations").cloned())
     };
-    let ((a, ia), (b, ib)) = (run(1), run(2));
-    assert_eq!(ia, ib);
-    assert_eq!(a.t, b.t);
-    assert_eq!(a.q.len(), 5);
-    for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
-        assert!(qa.iter().zip(qb).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let (a, ia) = run(1, Threads::Auto);
+    for (threads, setting) in [
+        (2, Threads::Auto),
+        (2, Threads::One),
+        (2, Threads::Two),
+        (1, Threads::Two),
+    ] {
+        let (b, ib) = run(threads, setting);
+        assert_eq!(ia, ib);
+        assert_eq!(a.t, b.t);
+        assert_eq!(a.q.len(), 5);
+        for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
+            assert!(
+                qa.iter().zip(qb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{threads} threads, {setting:?}"
+            );
+        }
     }
     let moved = a.q.last().unwrap().iter().zip(&q0).any(|(x, y)| x != y);
     assert!(moved);

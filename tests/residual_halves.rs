@@ -5,10 +5,11 @@
 //! and two (in halves).
 
 use mbsolve::builders::{build_rod, stiff_chain, RodParams};
-use mbsolve::formulation::{Index3, PARALLEL_MIN_COORDS};
+use mbsolve::formulation::Index3;
 use mbsolve::integrate::SecondOrderDae;
 use mbsolve::linalg::SolverKind;
 use mbsolve::model::{Evaluation, System};
+use mbsolve::parallel::PARALLEL_MIN_COORDS;
 
 /// A state away from rest: `q0` moved by `dx(b)` in x on body `b` and a
 /// little everywhere, velocities, accelerations and multipliers.

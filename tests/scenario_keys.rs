@@ -167,3 +167,87 @@ fn simulate_rejects_implicit_options_for_explicit_methods() {
         .to_string();
     assert!(e.contains("min_step") && e.contains("ode45"), "{e}");
 }
+
+/// `integrator.threads` reaches the run ([`mbsolve::parallel::Threads`]) and
+/// its summary; a bad value is an error naming the key and the value.
+#[test]
+fn threads_key_reaches_the_run_and_its_summary() {
+    use mbsolve::parallel::Threads;
+    for (v, t) in [
+        ("\"auto\"", Threads::Auto),
+        ("1", Threads::One),
+        ("2", Threads::Two),
+    ] {
+        let sc = fourbar(&[&format!("integrator.threads={v}")]).unwrap();
+        assert_eq!(sc.run.threads, t, "{v}");
+    }
+    assert_eq!(fourbar(&[]).unwrap().run.threads, Threads::Auto);
+    for (bad, shown) in [("3", "'3'"), ("0", "'0'"), ("\"many\"", "'many'")] {
+        let (key, message) = rejected(&[&format!("integrator.threads={bad}")]);
+        assert_eq!(key, "integrator.threads");
+        assert!(message.contains(shown), "{message}");
+    }
+    // the summary says what the run did: one thread, nothing split
+    let sc = fourbar(&["integrator.threads=1", "time.end=0.05"]).unwrap();
+    let (_, s) =
+        mbsolve::simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    assert_eq!(s.extra["threads_setting"], "1");
+    assert_eq!(s.extra["threads"], 1);
+    assert_eq!(s.extra["split"], false);
+    assert_eq!(s.extra["halves_split"], 0);
+}
+
+/// `MBSOLVE_THREADS` sets the threads of a run whose scenario leaves them
+/// `auto` (the summary says so), an explicit key wins, and a bad value is
+/// an error naming the variable and the value.
+#[test]
+fn threads_environment_variable_reaches_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let run = |env: &str, set: &[&str]| {
+        let mut args = vec![
+            "run",
+            "scenarios/fourbar.toml",
+            "--out",
+            out,
+            "--set",
+            "time.end=0.05",
+        ];
+        for s in set {
+            args.extend(["--set", s]);
+        }
+        std::process::Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+            .args(&args)
+            .env("MBSOLVE_THREADS", env)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("binary runs")
+    };
+    let summary = || -> serde_json::Value {
+        serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("fourbar.summary.json")).unwrap(),
+        )
+        .unwrap()
+    };
+    for (env, set, expect) in [
+        ("1", &[][..], "1"),
+        ("2", &[][..], "2"),
+        ("2", &["integrator.threads=1"][..], "1"),
+    ] {
+        let o = run(env, set);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s = summary();
+        assert_eq!(
+            s["threads_setting"], expect,
+            "MBSOLVE_THREADS={env} {set:?}"
+        );
+        if expect == "1" {
+            assert_eq!(s["threads"], 1);
+            assert_eq!(s["halves_split"], 0);
+        }
+    }
+    let o = run("many", &[]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("MBSOLVE_THREADS") && e.contains("'many'"), "{e}");
+}

@@ -11,16 +11,7 @@ use crate::linalg::{
 use crate::model::System;
 use serde::Serialize;
 
-/// Number of coordinates from which forces and constraint terms are
-/// evaluated concurrently (`linalg::join_if`). Measured with
-/// `cargo run --release --example rhs_breakdown` (falling rod, 2 cores,
-/// 1 vs 2 threads). Generic evaluation: N = 100 segments 34.5 → 48.6 µs (a
-/// loss), N = 1000 and 3000 no measurable change, N = 10 000 4116 → 3693 µs
-/// (−10 %). With the generated kernels (the default for the rod) the
-/// constraint terms shrink to ~150 µs at N = 10 000 and the join has no
-/// measurable effect either way (host noise ±30 %). The linear solve
-/// (~75 % of the RHS) is sequential.
-pub const PARALLEL_MIN_COORDS: usize = 6000;
+use crate::parallel::PARALLEL_MIN_COORDS;
 
 /// Options of [`Index1`].
 #[derive(Debug, Clone, Copy, Default, Serialize)]
@@ -198,7 +189,7 @@ impl<'a> Index1<'a> {
                 feedback(gamma, phid, phi_t, phi, 2.0 * b.alpha, b.beta * b.beta);
             }
         };
-        crate::linalg::join_if(
+        crate::parallel::join_if(
             n >= PARALLEL_MIN_COORDS,
             || sys.forces_into(t, q, qd, g),
             constraint_terms,

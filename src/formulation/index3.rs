@@ -65,14 +65,13 @@
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::dynamic_blocks::DynamicBlocks;
-use super::index1::PARALLEL_MIN_COORDS;
 use super::{all_finite, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
-    join_if, solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
-    SolverStats,
+    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
 use crate::model::{ResidualHalves, System};
+use crate::parallel::{join_if, PARALLEL_MIN_COORDS};
 use serde::Serialize;
 
 /// Counters of [`Index3`].
@@ -115,7 +114,7 @@ pub struct Index3<'a> {
     tmp: Vec<f64>,
     /// The residual in two halves by bodies for large systems whose plan
     /// allows it ([`System::residual_halves`]), with its buffers; used
-    /// when the halves run on two threads (`linalg::team::concurrent`).
+    /// when the halves run on two threads (`parallel::concurrent`).
     halves: Option<(ResidualHalves, HalfBuffers)>,
     phi: Vec<f64>,
     x: Vec<f64>,
@@ -288,7 +287,7 @@ impl<'a> Index3<'a> {
         // one-piece evaluation does the same work without the boundary
         // pass and the per-half scans (the same bits either way)
         if self.halves.is_some()
-            && crate::linalg::team::concurrent()
+            && crate::parallel::concurrent()
             && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r)
         {
             return Ok(());
@@ -313,7 +312,7 @@ impl<'a> Index3<'a> {
             },
             || {
                 sys.phi_and_jacobian_tmul(q, t, lambda, r_phi, tmp, jac);
-                crate::integrate::first_non_finite(r_phi).is_none()
+                crate::numeric::first_non_finite(r_phi).is_none()
             },
         );
         ra?;
@@ -391,7 +390,7 @@ impl<'a> Index3<'a> {
         let [phi_lo, phi_hi] = &mut phis;
         let (phi_lo, phi_hi) = (&mut phi_lo[..count[0]], &mut phi_hi[..count[1]]);
         let (r_lo, r_hi) = r_dyn.split_at_mut(split);
-        let finite = |x: &[f64]| crate::integrate::first_non_finite(x).is_none();
+        let finite = |x: &[f64]| crate::numeric::first_non_finite(x).is_none();
         let mass = sys.mass_diagonal();
         let h = &*h;
         // one half: its state checked, its forces and constraint terms, the
@@ -567,8 +566,8 @@ impl<'a> Index3<'a> {
 fn finite_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
     let n = q.len();
     // the vectorised scan first; the entry is searched for only on failure
-    if crate::integrate::first_non_finite(q).is_none()
-        && crate::integrate::first_non_finite(qd).is_none()
+    if crate::numeric::first_non_finite(q).is_none()
+        && crate::numeric::first_non_finite(qd).is_none()
     {
         return Ok(());
     }
@@ -659,5 +658,5 @@ fn fill_dynamic(
         let k = base + i;
         *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
     }
-    crate::integrate::first_non_finite(r).is_none()
+    crate::numeric::first_non_finite(r).is_none()
 }

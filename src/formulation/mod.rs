@@ -39,7 +39,7 @@ mod penalty;
 mod stability;
 
 pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
-pub use index1::{Index1, Index1Options, RhsStats, PARALLEL_MIN_COORDS};
+pub use index1::{Index1, Index1Options, RhsStats};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use index3_complex::{ComplexSolverKind, Index3Complex};
 pub use initial::{
@@ -238,9 +238,9 @@ impl Baumgarte {
 /// `q̇ = y[n..]`).
 pub(crate) fn check_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
     let n = q.len();
-    let bad = crate::integrate::first_non_finite(q)
+    let bad = crate::numeric::first_non_finite(q)
         .map(|(k, _)| k)
-        .or_else(|| crate::integrate::first_non_finite(qd).map(|(k, _)| n + k));
+        .or_else(|| crate::numeric::first_non_finite(qd).map(|(k, _)| n + k));
     match bad {
         None => Ok(()),
         Some(k) => Err(FormulationError::Unstable {
@@ -276,7 +276,7 @@ pub(crate) fn feedback(
 /// [`FormulationError::NonFinite`] at time `t` (one pass, no allocation).
 pub(crate) fn all_finite(t: f64, parts: &[(&'static str, &[f64])]) -> Result<(), FormulationError> {
     for &(what, v) in parts {
-        if let Some((index, value)) = crate::integrate::first_non_finite(v) {
+        if let Some((index, value)) = crate::numeric::first_non_finite(v) {
             return Err(FormulationError::NonFinite {
                 what,
                 index,

@@ -316,7 +316,7 @@ impl Split {
     /// Solve `B x = self.rhs` in place with the LU of the block.
     fn solve(&mut self, t: f64) -> Result<(), FormulationError> {
         self.lu.solve(&mut self.rhs);
-        if let Some((index, value)) = crate::integrate::first_non_finite(&self.rhs) {
+        if let Some((index, value)) = crate::numeric::first_non_finite(&self.rhs) {
             return Err(FormulationError::NonFinite {
                 what: "the dependent-coordinate solve of coordinate partitioning",
                 index,
@@ -596,7 +596,7 @@ impl<'a> Partitioned<'a> {
         }
         self.kkt.solve(x);
         self.factorizations += 1;
-        if let Some((index, value)) = crate::integrate::first_non_finite(x) {
+        if let Some((index, value)) = crate::numeric::first_non_finite(x) {
             return Err(FormulationError::NonFinite {
                 what: "the accelerations of eq. (5) (singular configuration?)",
                 index,

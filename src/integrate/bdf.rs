@@ -98,8 +98,7 @@ use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
 };
-use crate::formulation::PARALLEL_MIN_COORDS;
-use crate::linalg::{in_halves, join_if, Slices};
+use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;

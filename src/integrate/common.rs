@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use super::driver::Failure;
 use super::{IntegratorError, Observer, OdeOptions, OdeSystem, Stats, Tolerance};
+pub(crate) use crate::numeric::first_non_finite;
 
 /// `out = y + h·Σ_j coeffs[j]·k_j`, where `k_j = k[j*n..(j+1)*n]`.
 /// Zero coefficients are skipped. The sum over stages is formed first and
@@ -32,32 +33,6 @@ pub(crate) fn weighted_sum(out: &mut [f64], h: f64, coeffs: &[f64], k: &[f64]) {
             *o += w * *kj;
         }
     }
-}
-
-/// Index and value of the first non-finite entry, if any. A fast pass
-/// first: `x − x` is 0 for a finite `x` and NaN otherwise, summed in 8
-/// independent lanes (vectorisable); only when the sum is not 0 is the
-/// entry searched for.
-#[allow(clippy::eq_op)] // x − x is the finiteness test
-pub fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
-    let mut acc = [0.0f64; 8];
-    let chunks = v.chunks_exact(8);
-    let mut tail = 0.0;
-    for x in chunks.remainder() {
-        tail += x - x;
-    }
-    for c in chunks {
-        for (a, x) in acc.iter_mut().zip(c) {
-            *a += x - x;
-        }
-    }
-    if acc.iter().sum::<f64>() + tail == 0.0 {
-        return None;
-    }
-    v.iter()
-        .enumerate()
-        .find(|(_, x)| !x.is_finite())
-        .map(|(i, x)| (i, *x))
 }
 
 /// Evaluates `f(t, y)` into `dydt`, counting the evaluation. Fails if the

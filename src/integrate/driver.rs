@@ -157,7 +157,7 @@ impl PartialEq for Failure {
 /// A run whose state has at least `2·PARALLEL_MIN_COORDS` entries (`q` and
 /// `q̇` of a system large enough for concurrent passes) runs with a
 /// two-thread team when the rayon pool has a second thread
-/// (`linalg::team`); the results do not depend on it.
+/// (`parallel::team`); the results do not depend on it.
 pub fn drive(
     st: &mut dyn Stepper,
     times: &[f64],
@@ -165,8 +165,8 @@ pub fn drive(
     t_end: f64,
     obs: &mut dyn Observer,
 ) -> (Termination, f64) {
-    let large = st.state().1.len() >= 2 * crate::formulation::PARALLEL_MIN_COORDS;
-    crate::linalg::team::run(large, || drive_loop(st, times, max_steps, t_end, obs))
+    let large = st.state().1.len() >= 2 * crate::parallel::PARALLEL_MIN_COORDS;
+    crate::parallel::team::run(large, || drive_loop(st, times, max_steps, t_end, obs))
 }
 
 /// [`drive`]'s loop.

@@ -72,7 +72,8 @@ pub use radau::{ComplexNewton, Radau5, RadauStats, RadauTableau};
 use std::ops::ControlFlow;
 use std::str::FromStr;
 
-pub use common::{eps, first_non_finite};
+pub use crate::numeric::first_non_finite;
+pub use common::eps;
 
 /// A first-order system y' = f(t, y).
 pub trait OdeSystem {

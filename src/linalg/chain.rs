@@ -53,7 +53,7 @@
 //! `x = S Pᵀ z` an entry at a time as it becomes final: no separate gather
 //! and scatter passes). From [`PARALLEL_MIN_DIM`] on the two halves (with
 //! their scaling and loading of values) run concurrently
-//! ([`super::join_if`]: the run's two-thread team, [`super::team`]) when
+//! ([`crate::parallel::join_if`]: the run's two-thread team) when
 //! the pool has two threads; on one thread the substitutions take a
 //! row of `T` and a row of `B` in turn. A substitution is a chain of dependent rows (row `i` needs
 //! row `i − 1`'s result), bound by latency, not arithmetic: two independent
@@ -67,12 +67,12 @@
 //! two-sided order rounds differently from the one-sided one (a different
 //! elimination order), at rounding level.
 
-use super::join_if;
 use super::sparse::{coordinate_scale, multiplier_scale, RefineBuffers};
 use super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLdlt, Storage,
     DEFAULT_DELTA, DEFAULT_EPSILON,
 };
+use crate::parallel::join_if;
 
 /// Widest envelope row (entries left of the diagonal) the envelope path
 /// takes; wider patterns use [`SparseLdlt`]. A chain of revolutes with
@@ -477,12 +477,12 @@ impl Envelope {
         // forward rows need the halves' y before D⁻¹, so D⁻¹ comes after
         let xr: &[f64] = x;
         // two threads: a half each; one: both halves' rows in turn
-        let two = par && super::team::concurrent();
+        let two = par && crate::parallel::concurrent();
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             if two {
-                super::team::join(
+                crate::parallel::team::join(
                     || rows.forward(xr, (0, 0..s0, w_t)),
                     || rows.forward(xr, (s0, s0..sb, w_b)),
                 );
@@ -533,7 +533,7 @@ impl Envelope {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             if two {
-                super::team::join(
+                crate::parallel::team::join(
                     || rows.backward(&out, (0, 0..s0, w_t)),
                     || rows.backward(&out, (s0, s0..sb, w_b)),
                 );
@@ -542,7 +542,7 @@ impl Envelope {
             }
         }
         let (x_lo, x_hi) = x.split_at(dim / 2);
-        let finite = |x: &[f64]| crate::integrate::first_non_finite(x).is_none();
+        let finite = |x: &[f64]| crate::numeric::first_non_finite(x).is_none();
         let (lo, hi) = join_if(par, || finite(x_lo), || finite(x_hi));
         lo && hi
     }

@@ -39,7 +39,6 @@ mod pattern;
 mod saddle;
 mod schur;
 mod sparse;
-pub(crate) mod team;
 
 pub use chain::{ChainLdlt, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM};
 pub use chain_complex::ComplexChainLdlt;
@@ -53,78 +52,6 @@ pub use sparse::{
 };
 
 use serde::Serialize;
-
-/// [`team::join(a, b)`](team::join) when `parallel` (the run's two-thread
-/// team, else `rayon::join`), else `a()` then `b()` on this thread: the
-/// same operations either way, so the results do not depend on the choice
-/// or on the thread count (the callers' determinism rests on each task
-/// being sequential inside). Small problems run sequentially: a join from
-/// outside a rayon pool costs tens of microseconds.
-pub(crate) fn join_if<A, B, RA, RB>(parallel: bool, a: A, b: B) -> (RA, RB)
-where
-    A: FnOnce() -> RA + Send,
-    B: FnOnce() -> RB + Send,
-    RA: Send,
-    RB: Send,
-{
-    if parallel {
-        team::join(a, b)
-    } else {
-        (a(), b())
-    }
-}
-
-/// The coordinate slices an element-wise pass over coordinates
-/// `base .. base + len` writes (`w`) and reads (`r`), all of length `len`:
-/// what [`in_halves`] splits.
-pub(crate) struct Slices<'a, const W: usize, const R: usize> {
-    /// Global index of the first coordinate.
-    pub base: usize,
-    pub w: [&'a mut [f64]; W],
-    pub r: [&'a [f64]; R],
-}
-
-impl<'a, const W: usize, const R: usize> Slices<'a, W, R> {
-    /// The first `k` coordinates and the rest (no allocation).
-    fn split(self, k: usize) -> (Self, Self) {
-        let mut w = self.w.map(|s| {
-            let (a, b) = s.split_at_mut(k);
-            (Some(a), Some(b))
-        });
-        let r = self.r.map(|s| s.split_at(k));
-        let lo = Slices {
-            base: self.base,
-            w: std::array::from_fn(|i| w[i].0.take().expect("each half taken once")),
-            r: std::array::from_fn(|i| r[i].0),
-        };
-        let hi = Slices {
-            base: self.base + k,
-            w: std::array::from_fn(|i| w[i].1.take().expect("each half taken once")),
-            r: std::array::from_fn(|i| r[i].1),
-        };
-        (lo, hi)
-    }
-}
-
-/// An element-wise pass `f` over `s` (of `len` coordinates): whole, or
-/// with `parallel` on its two halves (split at `len / 2`, fixed by the
-/// length) through [`join_if`], the two results merged by `merge`. With an
-/// order-free merge (max, and) the results do not depend on `parallel` or
-/// the thread count.
-pub(crate) fn in_halves<const W: usize, const R: usize, T: Send>(
-    parallel: bool,
-    len: usize,
-    s: Slices<'_, W, R>,
-    f: impl Fn(Slices<'_, W, R>) -> T + Sync,
-    merge: impl FnOnce(T, T) -> T,
-) -> T {
-    if !parallel {
-        return f(s);
-    }
-    let (lo, hi) = s.split(len / 2);
-    let (a, b) = join_if(true, || f(lo), || f(hi));
-    merge(a, b)
-}
 
 /// Failure of a saddle-point factorisation or solve.
 #[derive(Debug, Clone, thiserror::Error)]

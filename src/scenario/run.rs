@@ -10,6 +10,7 @@ use crate::formulation::{
 use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
 use crate::linalg::SolverKind;
 use crate::output::Format;
+use crate::parallel::Threads;
 use crate::simulation::{OutputQuantities, RunConfig};
 use serde::Deserialize;
 
@@ -53,6 +54,16 @@ pub(super) struct RawIntegrator {
     // bdf only: see `OdeOptions::max_order`, `OdeOptions::ndf`
     max_order: Option<i64>,
     ndf: Option<bool>,
+    // every method: `crate::parallel::Threads`
+    threads: Option<RawThreads>,
+}
+
+/// `integrator.threads`: `"auto"` or a number.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub(super) enum RawThreads {
+    Number(i64),
+    Name(String),
 }
 
 #[derive(Debug, Deserialize)]
@@ -130,6 +141,12 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         })?;
     }
     ode.ndf = ri.ndf.unwrap_or(false);
+    let threads: Threads = match &ri.threads {
+        None => Ok(Threads::Auto),
+        Some(RawThreads::Number(v)) => v.to_string().parse(),
+        Some(RawThreads::Name(s)) => s.parse(),
+    }
+    .map_err(|m| err("integrator.threads".into(), m))?;
     let mut implicit = ImplicitOptions::default();
     if trapezoidal {
         implicit.rho_inf = 1.0;
@@ -241,6 +258,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         guards: Default::default(),
         outputs: output_quantities(&raw.output.quantities)
             .map_err(|m| err("output.quantities".into(), m))?,
+        threads,
     };
 
     Ok(run)

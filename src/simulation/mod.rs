@@ -10,6 +10,7 @@ use crate::integrate::{
     Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
+use crate::parallel::{with_threads, Threads};
 use serde::Serialize;
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -45,6 +46,10 @@ pub struct RunConfig {
     pub guards: Guards,
     /// Quantities computed at each output time besides q, q̇ and ‖Φ‖.
     pub outputs: OutputQuantities,
+    /// Threads of the run's concurrent passes (scenario key
+    /// `integrator.threads`; `Auto`, the default, takes
+    /// [`crate::parallel::THREADS_ENV`] when set).
+    pub threads: Threads,
 }
 
 /// Optional quantities of each output row ([`Sample`]).
@@ -136,6 +141,7 @@ impl Default for RunConfig {
             augmented: AugmentedParams::default(),
             guards: Guards::default(),
             outputs: OutputQuantities::default(),
+            threads: Threads::Auto,
         }
     }
 }
@@ -322,6 +328,9 @@ pub enum SimulationError {
     /// Initial state of the wrong length or not finite.
     #[error("initial state: {0}")]
     Initial(String),
+    /// A bad setting from the environment (e.g. `MBSOLVE_THREADS`).
+    #[error("{0}")]
+    Environment(String),
     /// The fixed step of an explicit method exceeds its stability limit.
     #[error(
         "{method} with step {h:e} s (integrator.step) is unstable for this system: the stability limit is \
@@ -924,6 +933,10 @@ pub fn simulate_into(
         )));
     }
     cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
+    let threads = cfg
+        .threads
+        .resolve()
+        .map_err(SimulationError::Environment)?;
     let mut method: Box<dyn MethodRun + '_> =
         if cfg.index1.formulation == Formulation::AugmentedLagrangian {
             Box::new(AugmentedRun::new(sys, cfg)?)
@@ -949,9 +962,20 @@ pub fn simulate_into(
     watch.start_balance(cfg.t0, &q0, &qd0);
     let times = cfg.output_times();
     let start = Instant::now();
-    let report = method.integrate(cfg, &q0, &qd0, &times, &mut watch)?;
+    let (report, team) = with_threads(threads, || {
+        method.integrate(cfg, &q0, &qd0, &times, &mut watch)
+    });
+    let report = report?;
     let wall_s = start.elapsed().as_secs_f64();
-    let (work, extra) = method.work(cfg);
+    let (work, mut extra) = method.work(cfg);
+    // what the concurrent passes did (crate::parallel)
+    let setting = serde_json::to_value(threads).unwrap_or_default();
+    extra.insert("threads_setting".into(), setting);
+    extra.insert("threads".into(), team.threads().into());
+    extra.insert("split".into(), (team.halves_split > 0).into());
+    extra.insert("halves_split".into(), team.halves_split.into());
+    extra.insert("halves_taken_back".into(), team.halves_taken_back.into());
+    extra.insert("halves_solo".into(), team.halves_solo.into());
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
 }
 

@@ -19,9 +19,14 @@
 //!   (N = 100, 0.02 s; fails above [`NEWTON_PER_STEP_MAX`]; a deterministic
 //!   count, [`newton_iterations_per_step`]).
 //!
+//! * two threads over one on a busy machine: the stiff chain at N = 4000
+//!   (generalized-α, ndf, radau5) beside one busy process per core that the
+//!   gate starts itself, one thread's wall time over two threads' (fails
+//!   below [`OVERSUBSCRIBED_MIN`]; [`oversubscribed_two_over_one`]).
+//!
 //! Timings are the minimum over interleaved repetitions (robust to a shared
 //! machine) on a single thread (so the ratio measures algorithmic scaling,
-//! not the concurrency that only large N switch on).
+//! not the concurrency that only large N switch on), except the last.
 
 use mbsolve::builders::{build_rod, stiff_chain, RodParams};
 use mbsolve::formulation::{Index1, Index1Options};
@@ -132,6 +137,13 @@ pub fn run() -> Vec<Check> {
         .num_threads(1)
         .build()
         .expect("a one-thread pool");
+    let mut checks = one_thread_checks(&pool);
+    checks.push(with_retries(oversubscribed_two_over_one));
+    checks
+}
+
+/// The checks measured on one thread.
+fn one_thread_checks(pool: &rayon::ThreadPool) -> Vec<Check> {
     pool.install(|| {
         let mut checks = newton_iterations_per_step();
         let sparse = Index1Options {
@@ -443,4 +455,130 @@ fn newton_iterations_per_step() -> Vec<Check> {
         }
     })
     .collect()
+}
+
+/// Bound of [`oversubscribed_two_over_one`]: two threads may cost at most
+/// 5 % more wall time than one on a machine whose cores are all busy.
+pub const OVERSUBSCRIBED_MIN: f64 = 0.95;
+
+/// Busy processes, one per core, ended (killed and reaped) on drop.
+struct BusyProcesses(Vec<std::process::Child>);
+
+impl BusyProcesses {
+    /// `yes > /dev/null` on every core (as many as the machine reports).
+    fn start() -> std::io::Result<Self> {
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let mut v = Vec::new();
+        for _ in 0..cores {
+            let child = std::process::Command::new("yes")
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()?;
+            v.push(child);
+        }
+        Ok(Self(v))
+    }
+}
+
+impl Drop for BusyProcesses {
+    fn drop(&mut self) {
+        for c in &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Wall time of the same runs of the stiff chain (N = 4000: a state large
+/// enough for the two-thread team) with one thread over two threads (the
+/// default setting, `auto`, in a pool of two), with one busy process per
+/// core started by the gate: a second thread that is not available must
+/// not slow the run down. Each method's runs are interleaved and the
+/// minimum of three taken; the ratio is of the sums over the methods.
+pub fn oversubscribed_two_over_one() -> Check {
+    use mbsolve::parallel::Threads;
+    let (sys, q0, qd0, _) = stiff_chain(4000, 5f64.to_radians()).expect("stiff chain builds");
+    let busy = match BusyProcesses::start() {
+        Ok(b) => b,
+        Err(e) => {
+            return Check {
+                name: "two threads over one, stiff chain N = 4000, all cores busy".into(),
+                ratio: 0.0,
+                threshold: OVERSUBSCRIBED_MIN,
+                at_most: false,
+                passed: false,
+                detail: format!("could not start the busy processes (`yes`): {e}"),
+            }
+        }
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a two-thread pool");
+    let cases: [(Method, f64, bool); 3] = [
+        (Method::GenAlpha, 1e-5, false),
+        (Method::Bdf, 1e-5, true),
+        (Method::Radau5, 4e-4, false),
+    ];
+    let (mut one, mut two) = (0.0, 0.0);
+    let mut detail = Vec::new();
+    for (method, h, ndf) in cases {
+        let mut cfg = RunConfig {
+            method,
+            t_end: if method == Method::GenAlpha {
+                2e-4
+            } else {
+                2e-3
+            },
+            ode: OdeOptions {
+                ndf,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        cfg.output_dt = cfg.t_end;
+        if ndf {
+            cfg.ode.rtol = h;
+            cfg.ode.atol = mbsolve::integrate::Tolerance::Scalar(h * 1e-3);
+        } else {
+            cfg.ode.fixed_step = Some(h);
+        }
+        if method == Method::Radau5 {
+            cfg.implicit.newton_tol = 1.0;
+        }
+        let mut best = [f64::MAX; 2];
+        let mut split = 0;
+        for _ in 0..3 {
+            for (k, threads) in [Threads::One, Threads::Auto].into_iter().enumerate() {
+                cfg.threads = threads;
+                let t = Instant::now();
+                let (_, s) = pool
+                    .install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []))
+                    .expect("the stiff chain runs");
+                best[k] = best[k].min(t.elapsed().as_secs_f64());
+                if k == 1 {
+                    split += s.extra["halves_split"].as_u64().unwrap_or(0);
+                }
+            }
+        }
+        one += best[0];
+        two += best[1];
+        detail.push(format!(
+            "{}{}: {:.2} s / {:.2} s ({split} halves on the second thread)",
+            method.name(),
+            if ndf { " (ndf)" } else { "" },
+            best[0],
+            best[1]
+        ));
+    }
+    drop(busy);
+    let r = one / two;
+    Check {
+        name: "two threads over one, stiff chain N = 4000, all cores busy".into(),
+        ratio: r,
+        threshold: OVERSUBSCRIBED_MIN,
+        at_most: false,
+        passed: r >= OVERSUBSCRIBED_MIN,
+        detail: format!("one thread / two threads: {}", detail.join("; ")),
+    }
 }

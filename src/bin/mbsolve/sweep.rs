@@ -10,6 +10,7 @@
 //! checking that every run is present exactly once.
 
 use crate::output::write_summary_json;
+use mbsolve::parallel::Threads;
 use mbsolve::scenario::{self, Override, ScenarioError};
 use mbsolve::simulation::{simulate_into, Sample, Sink, Summary};
 use rayon::prelude::*;
@@ -136,6 +137,9 @@ pub fn run(
         scenario::load_with(path, &overrides(base, p))?;
     }
     let total = points.len();
+    // runs side by side on the pool's threads: each run on one thread
+    // (unless its scenario forces two), not a team per run as well
+    let side_by_side = total > 1 && rayon::current_num_threads() > 1;
     let done = AtomicUsize::new(0);
     let start = std::time::Instant::now();
     Ok(points
@@ -143,7 +147,10 @@ pub fn run(
         .map(|(k, point)| {
             let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
-                .and_then(|sc| {
+                .and_then(|mut sc| {
+                    if side_by_side && sc.run.threads == Threads::Auto {
+                        sc.run.threads = Threads::One;
+                    }
                     simulate_into(
                         &sc.system,
                         &sc.q0,

@@ -2,8 +2,7 @@
 //! docs of [`super`], "Newton iteration").
 
 use super::*;
-use crate::formulation::PARALLEL_MIN_COORDS;
-use crate::linalg::{in_halves, Slices};
+use crate::parallel::{in_halves, Slices, PARALLEL_MIN_COORDS};
 
 /// A factorisation is reused while the step size stays within this
 /// relative distance of the one it was computed for.

@@ -3,7 +3,7 @@
 //! threads: each half evaluates what acts on the bodies below (or from) a
 //! split body, so each thread reads and writes only its own half of q, q̇,
 //! g and Φ_qᵀλ — the halves that its Newton update, substitutions and
-//! error estimates touch ([`crate::linalg::team`]: a line moved between
+//! error estimates touch (`crate::parallel::team`: a line moved between
 //! the cores costs far more than a local one).
 //!
 //! Each half writes its own full-length buffers of g and Φ_qᵀλ (global

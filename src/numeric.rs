@@ -1,0 +1,28 @@
+//! Numeric utilities shared by every floor of the library (a leaf: it
+//! imports nothing of the crate).
+
+/// Index and value of the first non-finite entry, if any. A fast pass
+/// first: `x − x` is 0 for a finite `x` and NaN otherwise, summed in 8
+/// independent lanes (vectorisable); only when the sum is not 0 is the
+/// entry searched for.
+#[allow(clippy::eq_op)] // x − x is the finiteness test
+pub fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
+    let mut acc = [0.0f64; 8];
+    let chunks = v.chunks_exact(8);
+    let mut tail = 0.0;
+    for x in chunks.remainder() {
+        tail += x - x;
+    }
+    for c in chunks {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a += x - x;
+        }
+    }
+    if acc.iter().sum::<f64>() + tail == 0.0 {
+        return None;
+    }
+    v.iter()
+        .enumerate()
+        .find(|(_, x)| !x.is_finite())
+        .map(|(i, x)| (i, *x))
+}
