@@ -16,6 +16,8 @@ mod animate;
 mod check;
 mod figure;
 mod gate;
+mod inverse;
+mod linearize;
 mod output;
 mod plot;
 mod reproduce;
@@ -98,6 +100,25 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Kinematics and inverse dynamics of a mechanism without freedom once
+    /// its drives are counted: positions, velocities and accelerations from
+    /// the constraints alone at the output times, the drive forces/torques
+    /// and joint reactions; writes DIR/<stem>.inverse.csv (run's column
+    /// names) and DIR/<stem>.inverse.summary.json.
+    Inverse {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable), as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Linearise a scenario about a state: the state-space model
+    /// ẋ = A x + B u, y = C x + D u in independent coordinates; writes
+    /// DIR/<stem>.linear.json and the matrices as CSV.
+    Linearize(linearize::LinearizeArgs),
     /// CI performance gate: machine-independent ratios measured in one run.
     BenchGate {
         /// Also write the figures as JSON to this file.
@@ -253,6 +274,8 @@ fn command(cli: Cli) -> ExitCode {
             say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),
+        Command::Inverse { scenario, set, out } => inverse::command(&scenario, &set, &out),
+        Command::Linearize(args) => linearize::command(&args),
         Command::BenchGate { json } => bench_gate(json.as_deref()),
         Command::Sweep {
             scenario,
