@@ -34,6 +34,7 @@
 //! studies, sweeps, the performance gate, figures and animations.
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod builders;
 pub mod constraints;
 pub mod events;
