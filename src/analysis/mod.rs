@@ -1,7 +1,9 @@
-//! Analyses beside time integration, on the same [`crate::model::System`]
-//! and saddle-point solves: the linearised state-space model about a state
-//! ([`linearize`]) and kinematics with inverse dynamics of fully driven
-//! mechanisms ([`inverse`]).
+//! Analyses of a model other than a time integration, about a state:
+//! the tangent matrices ([`tangent`]: `M`, `C`, `K`, `Φ_q` and their sign
+//! convention), the static equilibrium and the eigenmodes.
 
 pub mod inverse;
 pub mod linearize;
+pub mod tangent;
+
+pub use tangent::{Tangent, Triplets};
