@@ -147,3 +147,52 @@ fn four_bar_freedom_is_named() {
         Ok(_) => panic!("a free four-bar was accepted"),
     }
 }
+
+#[test]
+fn cli_writes_run_columns_and_refuses_a_free_mechanism() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let run = |scen: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+            .arg("inverse")
+            .arg(root.join("scenarios").join(scen))
+            .args(["--out", dir.path().to_str().unwrap()])
+            .output()
+            .unwrap()
+    };
+    let o = run("slider_crank.toml");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.path().join("slider_crank.inverse.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    for c in ["t", "x3", "phi2", "alpha2", "O.fx", "slide.fy", "drive.drive"] {
+        assert!(header.contains(&c), "missing column {c}");
+    }
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let sc = load("slider_crank.toml");
+    let b = sc.system.bodies();
+    let m = [b[0].mass, b[1].mass, b[2].mass];
+    let mut rows = 0;
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let (xb, _, tau) = closed_form(v[0], 0.1, 0.3, 10.0, m, b[1].inertia, 9.81);
+        assert!((v[col("drive.drive")] - tau).abs() < 1e-9, "t = {}", v[0]);
+        assert!((v[col("x3")] - xb).abs() < 1e-11);
+        rows += 1;
+    }
+    assert_eq!(rows, sc.run.output_times().len());
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("slider_crank.inverse.summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(s["status"], "completed");
+    assert_eq!(s["drives"]["drive"]["unit"], "N m");
+
+    let o = run("fourbar.toml");
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("fourbar.toml") && err.contains("1 degree(s) of freedom"),
+        "{err}"
+    );
+}

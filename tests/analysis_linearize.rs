@@ -345,3 +345,96 @@ fn moving_four_bar_model_matches_the_nonlinear_run_from_perturbed_starts() {
         );
     }
 }
+
+/// A physical pendulum as a scenario file: bob (m = 1.5, I = 0.02) pinned
+/// at its local (0, 0.4) to the ground origin, hanging at rest, with a
+/// point sensor at the bob's centre.
+const PENDULUM_TOML: &str = r#"
+name = "pendulum"
+gravity = [0.0, -9.81]
+[[body]]
+name = "bob"
+mass = 1.5
+inertia = 0.02
+x = 0.0
+y = -0.4
+[[joint]]
+type = "revolute"
+name = "pin"
+body_i = "ground"
+point_i = [0.0, 0.0]
+body_j = "bob"
+point_j = [0.0, 0.4]
+[[sensor]]
+type = "point"
+name = "tip"
+body = "bob"
+point = [0.0, 0.0]
+[time]
+end = 1.0
+"#;
+
+#[test]
+fn cli_writes_the_model_and_names_bad_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("pendulum.toml");
+    std::fs::write(&scen, PENDULUM_TOML).unwrap();
+    let run = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+            .arg("linearize")
+            .arg(&scen)
+            .args(["--out", dir.path().to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "--independent",
+        "bob.phi",
+        "--inputs",
+        "bob.mz",
+        "--outputs",
+        "tip.x,bob.omega",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.path().join("pendulum.linear.json")).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let (m, i, d) = (1.5, 0.02, 0.4);
+    let io = i + m * d * d;
+    let c = m * G * d / io;
+    assert_eq!(j["method"], "tangent");
+    assert!((j["A"][1][0].as_f64().unwrap() + c).abs() < 1e-12 * c);
+    assert!((j["B"][1][0].as_f64().unwrap() - 1.0 / io).abs() < 1e-12 / io);
+    // the sensor's x = d sin φ by differences, the rate exactly
+    assert!((j["C"][0][0].as_f64().unwrap() - d).abs() < 1e-8);
+    assert_eq!(j["C"][1][1].as_f64().unwrap(), 1.0);
+    assert_eq!(j["outputs"][0]["name"], "tip.x");
+    // the undamped pair ±i√c
+    let im = j["eigenvalues"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["im"].as_f64().unwrap())
+        .fold(0.0_f64, f64::max);
+    assert!((im - c.sqrt()).abs() < 1e-10 * c.sqrt(), "{im}");
+    let csv = std::fs::read_to_string(dir.path().join("pendulum.linear.A.csv")).unwrap();
+    assert!(csv.starts_with("row,bob.phi,bob.omega\n"), "{csv}");
+    let npy = std::fs::read(dir.path().join("pendulum.linear.A.npy")).unwrap();
+    assert_eq!(&npy[..6], b"\x93NUMPY");
+    // bad arguments are named
+    for (args, needle) in [
+        (vec!["--inputs", "nobody.fx"], "no body named 'nobody'"),
+        (vec!["--outputs", "tip.z"], "sensor 'tip' has no quantity 'z'"),
+        (vec!["--at", "t=abc"], "'abc' is not a number"),
+        (vec!["--at", "static"], "static equilibrium"),
+        (
+            vec!["--method", "tangent", "--set", "body[0].omega=1.0"],
+            "at rest in equilibrium",
+        ),
+    ] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(needle), "{args:?}: {err}");
+        assert!(err.contains("pendulum.toml"), "{err}");
+    }
+}
