@@ -11,7 +11,9 @@ use mbsolve::simulation::{simulate_into, Sample, Sink};
 use std::path::Path;
 
 fn load(name: &str) -> scenario::Scenario {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios").join(name);
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenarios")
+        .join(name);
     scenario::load(&p, &[]).unwrap()
 }
 
@@ -21,15 +23,7 @@ fn load(name: &str) -> scenario::Scenario {
 /// from the power balance τ ω = dT/dt + dV/dt (the drive is the only
 /// non-conservative force): dT/dt = Σ m a·v + I α ω_body, dV/dt = Σ m g v_y.
 #[allow(clippy::too_many_arguments)]
-fn closed_form(
-    t: f64,
-    r: f64,
-    l: f64,
-    w: f64,
-    m: [f64; 3],
-    i_rod: f64,
-    g: f64,
-) -> (f64, f64, f64) {
+fn closed_form(t: f64, r: f64, l: f64, w: f64, m: [f64; 3], i_rod: f64, g: f64) -> (f64, f64, f64) {
     let th = w * t;
     let (s, c) = th.sin_cos();
     let beta = (-r * s / l).asin();
@@ -71,7 +65,8 @@ struct DriveTorque {
 impl Sink for DriveTorque {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         self.t.push(s.t);
-        self.tau.push(-s.lambda.expect("lambda requested")[self.row]);
+        self.tau
+            .push(-s.lambda.expect("lambda requested")[self.row]);
         Ok(())
     }
 }
@@ -97,9 +92,7 @@ fn slider_crank_drive_torque_matches_closed_form_and_forward_run() {
         inverse_tau.push(got);
         err_tau = err_tau.max((got - tau).abs());
         peak = peak.max(tau.abs());
-        err_pos = err_pos
-            .max((s.q[6] - xb).abs())
-            .max((s.q[5] - beta).abs());
+        err_pos = err_pos.max((s.q[6] - xb).abs()).max((s.q[5] - beta).abs());
         assert!(s.constraint_norm < 1e-11, "|Phi| = {}", s.constraint_norm);
     }
     // the crank turns 10 rad: the torque swings through several periods
@@ -125,7 +118,10 @@ fn slider_crank_drive_torque_matches_closed_form_and_forward_run() {
     eprintln!(
         "peak torque {peak:.6} N m; inverse vs closed form {err_tau:.3e} N m, positions {err_pos:.3e}; forward run vs inverse {err_run:.3e} N m"
     );
-    assert!(err_run < 1e-8 * peak, "forward run vs inverse: {err_run:.3e}");
+    assert!(
+        err_run < 1e-8 * peak,
+        "forward run vs inverse: {err_run:.3e}"
+    );
 }
 
 #[test]
@@ -165,7 +161,15 @@ fn cli_writes_run_columns_and_refuses_a_free_mechanism() {
     let text = std::fs::read_to_string(dir.path().join("slider_crank.inverse.csv")).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    for c in ["t", "x3", "phi2", "alpha2", "O.fx", "slide.fy", "drive.drive"] {
+    for c in [
+        "t",
+        "x3",
+        "phi2",
+        "alpha2",
+        "O.fx",
+        "slide.fy",
+        "drive.drive",
+    ] {
         assert!(header.contains(&c), "missing column {c}");
     }
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();

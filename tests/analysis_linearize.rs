@@ -424,7 +424,10 @@ fn cli_writes_the_model_and_names_bad_arguments() {
     // bad arguments are named
     for (args, needle) in [
         (vec!["--inputs", "nobody.fx"], "no body named 'nobody'"),
-        (vec!["--outputs", "tip.z"], "sensor 'tip' has no quantity 'z'"),
+        (
+            vec!["--outputs", "tip.z"],
+            "sensor 'tip' has no quantity 'z'",
+        ),
         (vec!["--at", "t=abc"], "'abc' is not a number"),
         (vec!["--at", "static"], "static equilibrium"),
         (
@@ -434,7 +437,10 @@ fn cli_writes_the_model_and_names_bad_arguments() {
     ] {
         let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success() && err.contains(needle), "{args:?}: {err}");
+        assert!(
+            !o.status.success() && err.contains(needle),
+            "{args:?}: {err}"
+        );
         assert!(err.contains("pendulum.toml"), "{err}");
     }
 }

@@ -402,7 +402,10 @@ impl<'a> Chart<'a> {
         self.dyn_k.set_jacobian(&self.jac);
         self.dyn_solver
             .factorize(&self.dyn_k)
-            .map_err(|e| LinearizeError::Linear { t: self.t, source: e })?;
+            .map_err(|e| LinearizeError::Linear {
+                t: self.t,
+                source: e,
+            })?;
         Ok(())
     }
 
@@ -518,7 +521,9 @@ pub fn linearize(
             }
         };
         if !ok {
-            return Err(LinearizeError::Invalid(format!("output {out:?} out of range")));
+            return Err(LinearizeError::Invalid(format!(
+                "output {out:?} out of range"
+            )));
         }
     }
     let independent = match &opts.independent {
@@ -551,7 +556,7 @@ pub fn linearize(
             sys.jacobian_mul(&jac, col, &mut r);
             let scale = col.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
             let res = r.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
-            if !(res <= 1e-8 * scale) {
+            if res.is_nan() || res > 1e-8 * scale {
                 return Err(LinearizeError::Invalid(format!(
                     "the independent coordinates {} do not parametrise the constraint manifold \
                      (Phi_q V = {res:.2e} for a basis column)",

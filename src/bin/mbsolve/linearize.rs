@@ -149,9 +149,11 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
 fn state(sc: &Scenario, at: &str) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
     match at {
         "initial" => Ok((sc.run.t0, sc.q0.clone(), sc.qd0.clone())),
-        "static" => Err("the static equilibrium is not available in this build; use \
+        "static" => Err(
+            "the static equilibrium is not available in this build; use \
                          `initial` or `t=T`"
-            .into()),
+                .into(),
+        ),
         s => {
             let v = s
                 .strip_prefix("t=")
@@ -170,8 +172,8 @@ fn state(sc: &Scenario, at: &str) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
             cfg.t_end = t;
             cfg.output_dt = t - sc.run.t0;
             cfg.outputs = Default::default();
-            let (traj, summary) = simulate(&sc.system, &sc.q0, &sc.qd0, &cfg, &mut [])
-                .map_err(|e| e.to_string())?;
+            let (traj, summary) =
+                simulate(&sc.system, &sc.q0, &sc.qd0, &cfg, &mut []).map_err(|e| e.to_string())?;
             if summary.status != "completed" {
                 return Err(format!(
                     "the run to T stopped at t = {} ({}): {}",
