@@ -125,10 +125,12 @@ pub fn command(
         st.neutral
     );
     say!("wrote {}", json_path.display());
+    // absolute: a relative `initial.state` is read from the scenario's directory
+    let abs = std::fs::canonicalize(&state_path).unwrap_or_else(|_| state_path.clone());
     say!(
         "wrote {} (start a run from it: --set initial.state={})",
         state_path.display(),
-        state_path.display()
+        abs.display()
     );
     Ok(ExitCode::SUCCESS)
 }
