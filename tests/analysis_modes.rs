@@ -346,3 +346,116 @@ fn quarter_car_two_frequencies_and_damping() {
         assert!((m.damping_ratio - zeta).abs() < 1e-8);
     }
 }
+
+/// The CLI: `static` writes an equilibrium a `run` starts from and stays
+/// at; `modes` writes the JSON (frequencies of the closed form), the
+/// figure and an animation.
+#[test]
+fn cli_static_run_and_modes_of_the_quarter_car() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    let scen = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/quarter_car.toml");
+    let bin = env!("CARGO_BIN_EXE_mbsolve");
+    let st = Command::new(bin)
+        .args(["static", scen, "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("quarter_car.static.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(report["stability"]["verdict"], "stable");
+    // tyre and suspension carry the weights: body 0.5 − 300 g/k_s above
+    // the wheel, wheel 0.3 − 340 g/k_t
+    let y_wheel = report["bodies"][0]["y"].as_f64().unwrap();
+    let y_body = report["bodies"][1]["y"].as_f64().unwrap();
+    assert!((y_wheel - (0.3 - 340.0 * 9.81 / 200000.0)).abs() < 1e-12);
+    assert!((y_body - y_wheel - (0.5 - 300.0 * 9.81 / 20000.0)).abs() < 1e-12);
+    let state = out.join("quarter_car.equilibrium.json");
+    let run = Command::new(bin)
+        .args(["run", scen, "-q", "--set", "time.end=0.2", "--set"])
+        .arg(format!("initial.state={}", state.display()))
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("quarter_car.csv")).unwrap();
+    let last: Vec<f64> = csv
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        (last[2] - y_wheel).abs() < 1e-9 && (last[5] - y_body).abs() < 1e-9,
+        "{last:?}"
+    );
+    let md = Command::new(bin)
+        .args(["modes", scen, "--count", "2", "--animate", "1", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        md.status.success(),
+        "{}",
+        String::from_utf8_lossy(&md.stderr)
+    );
+    let modes: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("quarter_car.modes.json")).unwrap())
+            .unwrap();
+    let f: Vec<f64> = modes["modes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["frequency_hz"].as_f64().unwrap())
+        .collect();
+    for (got, want) in f.iter().zip([1.2383298747931333, 11.809820194374181]) {
+        assert!((got - want).abs() < 1e-9 * want, "{got} vs {want}");
+    }
+    for file in [
+        "quarter_car.modes.svg",
+        "quarter_car.modes.png",
+        "quarter_car.mode1.svg",
+    ] {
+        assert!(out.join(file).exists(), "{file}");
+    }
+    // bad input: a count of 0 and a missing state file are named errors
+    let bad = Command::new(bin)
+        .args(["modes", scen, "--count", "0", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--count 0"));
+    let bad = Command::new(bin)
+        .args([
+            "run",
+            scen,
+            "-q",
+            "--set",
+            "initial.state=/nonexistent/s.json",
+            "--out",
+        ])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        e.contains("initial.state") && e.contains("/nonexistent/s.json"),
+        "{e}"
+    );
+}

@@ -220,10 +220,20 @@ pub fn static_equilibrium(
     // 0 when that solve fails (redundant constraints: the iteration finds λ)
     let mut lam0 = vec![0.0; m];
     {
-        let mut qdd = vec![0.0; n];
-        let ok = crate::formulation::Index3::new(sys, SolverKind::Auto)
-            .and_then(|mut f| f.accelerations(t, q0, &vec![0.0; n], &mut qdd, &mut lam0));
-        if ok.is_err() || lam0.iter().any(|v| !v.is_finite()) {
+        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU
+        let zero = vec![0.0; n];
+        let mut ok = tan.evaluate(t, q0, &zero, &lam0).is_ok();
+        if ok {
+            tan.write_saddle(&mut k, [1.0, 0.0, 0.0]);
+            let mut rhs = vec![0.0; n + m];
+            sys.forces_into(t, q0, &zero, &mut rhs[..n]);
+            sys.gamma(q0, &zero, t, &mut rhs[n..]);
+            ok = solver.factorize(&k).is_ok() && solver.solve_in_place(&k, &mut rhs).is_ok();
+            if ok {
+                lam0.copy_from_slice(&rhs[n..]);
+            }
+        }
+        if !ok || lam0.iter().any(|v| !v.is_finite()) {
             lam0.fill(0.0);
         }
     }
@@ -257,6 +267,7 @@ pub fn static_equilibrium(
         let mut converged = false;
         let mut first = f64::INFINITY;
         let mut last_dq = f64::INFINITY;
+        let mut sizes: Vec<f64> = Vec::new();
         for it in 0..=opts.max_iter {
             let (nf, np, scale) = w.residual(sys, t, &qt, &lt, target, &f0, &mut f);
             f_ref = f_ref.max(scale);
@@ -275,10 +286,20 @@ pub fn static_equilibrium(
             let size = nf / f_ref.max(f64::MIN_POSITIVE) + np / qscale;
             if it == 0 {
                 first = size;
+                sizes.clear();
             }
-            if it == opts.max_iter || !size.is_finite() || size > 1e8 * first.max(1e-300) {
+            // give up on this load step: iterations exhausted, divergence,
+            // or stagnation (less than a halving over 4 iterations: Newton
+            // converges faster where it converges at all; a smaller load
+            // step is cheaper than more iterations)
+            if it == opts.max_iter
+                || !size.is_finite()
+                || size > 1e8 * first.max(1e-300)
+                || (it >= 4 && size > 0.5 * sizes[it - 4])
+            {
                 break;
             }
+            sizes.push(size);
             iterations += 1;
             tan.evaluate(t, &qt, &w.zero, &lt)?;
             // [K Φ_qᵀ; Φ_q 0] [Δq; Δλ] = [F; −Φ]; where that is singular
