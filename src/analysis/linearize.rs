@@ -17,7 +17,8 @@
 //!
 //! With `M q̈ + Φ_qᵀλ = g + E u` (our λ, see [`super::tangent`]) and `u`
 //! generalized forces on chosen coordinates ([`Input`]), perturbing a
-//! state at rest in equilibrium (`q̇ = 0`, `q̈ = 0`, `Φ_t = 0`) by
+//! state at rest in equilibrium (`q̇ = 0`, `q̈ = 0`, `Φ_t = 0`;
+//! [`LinearizeOptions::rest_tol`]) by
 //! `δq = V δz` gives, after `Vᵀ` removes `δλ`,
 //!
 //! ```text
@@ -151,8 +152,10 @@ pub struct LinearizeOptions {
     pub independent: Option<Vec<usize>>,
     /// How `A` is obtained; default [`Method::Auto`].
     pub method: Method,
-    /// A state counts as at rest in equilibrium when `‖q̇‖∞`, `‖Φ_t‖∞` and
-    /// `‖q̈‖∞` are at most this (SI units of each); default 1e-8.
+    /// A state counts as at rest in equilibrium when `‖q̇‖∞` and `‖Φ_t‖∞`
+    /// are at most this (SI units of each) and `‖q̈‖∞` at most this times
+    /// `max(1, ‖M⁻¹g‖∞)` (the accelerations the loads alone would cause);
+    /// default 1e-8.
     pub rest_tol: f64,
     /// Relative step of the central differences, `h (1 + |x_j|)`;
     /// default 1e-6.
@@ -573,19 +576,29 @@ pub fn linearize(
     let mut phi_t = vec![0.0; sys.n_constraints()];
     sys.phi_t(&q0, t, &mut phi_t);
     let inf = |x: &[f64]| x.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    // the accelerations the loads alone would cause: the scale of q̈
+    let mut g = vec![0.0; n];
+    sys.forces_into(t, &q0, &qd0, &mut g);
+    let load_acc = g
+        .iter()
+        .zip(sys.mass_diagonal())
+        .fold(0.0_f64, |a, (f, m)| a.max((f / m).abs()));
+    let acc_tol = opts.rest_tol * load_acc.max(1.0);
     let at_rest =
-        inf(&qd0) <= opts.rest_tol && inf(&phi_t) <= opts.rest_tol && inf(&qdd0) <= opts.rest_tol;
+        inf(&qd0) <= opts.rest_tol && inf(&phi_t) <= opts.rest_tol && inf(&qdd0) <= acc_tol;
     let method = match opts.method {
         Method::Auto if at_rest => Method::Tangent,
         Method::Auto => Method::FiniteDifferences,
         Method::Tangent if !at_rest => {
             return Err(LinearizeError::Invalid(format!(
                 "the tangent linearisation needs a state at rest in equilibrium; here \
-                 |qd|inf = {:.2e}, |Phi_t|inf = {:.2e}, |qdd|inf = {:.2e} (tolerance {:.1e})",
+                 |qd|inf = {:.2e}, |Phi_t|inf = {:.2e} (tolerance {:.1e}), |qdd|inf = {:.2e} \
+                 (tolerance {:.1e})",
                 inf(&qd0),
                 inf(&phi_t),
+                opts.rest_tol,
                 inf(&qdd0),
-                opts.rest_tol
+                acc_tol
             )))
         }
         m => m,

@@ -7,6 +7,7 @@
 //! (NumPy format 1.0, little-endian float64, C order).
 
 use crate::output::write_atomic;
+use mbsolve::analysis::{static_equilibrium, StaticOptions};
 use mbsolve::analysis::linearize::{
     linearize, Input, LinearizeOptions, Method, Output, StateSpace,
 };
@@ -26,7 +27,8 @@ pub struct LinearizeArgs {
     pub set: Vec<String>,
     /// The state: `initial` (the scenario's assembled initial state),
     /// `t=T` (the state a run of the scenario reaches at T s) or `static`
-    /// (the static equilibrium).
+    /// (the static equilibrium from the initial state, as `mbsolve
+    /// static`; linearised by the exact tangent matrices).
     #[arg(long, default_value = "initial")]
     pub at: String,
     /// Inputs, comma-separated: generalized forces `BODY.fx`, `BODY.fy`
@@ -82,7 +84,7 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
         )
     };
     let (t, q, qd) = state(&sc, &a.at).map_err(|e| format!("{file}: --at {}: {e}", a.at))?;
-    let opts = LinearizeOptions {
+    let mut opts = LinearizeOptions {
         independent,
         method: match a.method.as_str() {
             "tangent" => Method::Tangent,
@@ -91,6 +93,14 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
         },
         ..Default::default()
     };
+    if a.at == "static" {
+        // an equilibrium to the static solver's relative tolerance (1e-10
+        // of the largest load): the exact tangent path
+        opts.rest_tol = 1e-6;
+        if opts.method == Method::Auto {
+            opts.method = Method::Tangent;
+        }
+    }
     let ss = linearize(sys, &sc.sensors, t, &q, &qd, &inputs, &outputs, &opts)
         .map_err(|e| format!("{file}: {e}"))?;
     let stem = a
@@ -149,11 +159,14 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
 fn state(sc: &Scenario, at: &str) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
     match at {
         "initial" => Ok((sc.run.t0, sc.q0.clone(), sc.qd0.clone())),
-        "static" => Err(
-            "the static equilibrium is not available in this build; use \
-                         `initial` or `t=T`"
-                .into(),
-        ),
+        "static" => {
+            let opts = StaticOptions {
+                t0: sc.run.t0,
+                ..Default::default()
+            };
+            let eq = static_equilibrium(&sc.system, &sc.q0, opts).map_err(|e| e.to_string())?;
+            Ok((sc.run.t0, eq.q, vec![0.0; sc.system.n_coords()]))
+        }
         s => {
             let v = s
                 .strip_prefix("t=")

@@ -18,9 +18,11 @@ mod figure;
 mod gate;
 mod inverse;
 mod linearize;
+mod modes;
 mod output;
 mod plot;
 mod reproduce;
+mod statics;
 mod stream;
 mod study;
 mod sweep;
@@ -186,6 +188,45 @@ enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Static equilibrium from the initial state (load stepping, Newton):
+    /// configuration, reactions, λ, stability; writes DIR/<stem>.static.json
+    /// and DIR/<stem>.equilibrium.json (a state `run` starts from with
+    /// --set initial.state=FILE).
+    Static {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Directions with |ω| / 2π below this count as neutral [Hz].
+        #[arg(long, default_value_t = statics::NEUTRAL_HZ)]
+        neutral_hz: f64,
+    },
+    /// Natural frequencies, damping ratios and mode shapes about the static
+    /// equilibrium or the initial state; writes DIR/<stem>.modes.json, a
+    /// figure of the first shapes and an animation of each mode.
+    Modes {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Number of modes (the lowest).
+        #[arg(long, default_value_t = 6)]
+        count: usize,
+        /// Linearise about the static equilibrium or the initial state.
+        #[arg(long, value_enum, default_value = "static")]
+        at: modes::At,
+        /// Animate the first this many modes (SVG each).
+        #[arg(long, default_value_t = 6)]
+        animate: usize,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -230,6 +271,27 @@ fn command(cli: Cli) -> ExitCode {
             quiet,
         } => run(&scenario, &set, &out, progress, quiet),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Static {
+            scenario,
+            set,
+            out,
+            neutral_hz,
+        } => statics::command(&scenario, &set, &out, neutral_hz),
+        Command::Modes {
+            scenario,
+            set,
+            count,
+            at,
+            animate,
+            out,
+        } => modes::command(&modes::ModesArgs {
+            scenario: &scenario,
+            set: &set,
+            count,
+            at,
+            out: &out,
+            animate,
+        }),
         Command::Study { which: _, out } => study_constraints(&out),
         Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
