@@ -7,10 +7,10 @@
 //! (NumPy format 1.0, little-endian float64, C order).
 
 use crate::output::write_atomic;
-use mbsolve::analysis::{static_equilibrium, StaticOptions};
 use mbsolve::analysis::linearize::{
     linearize, Input, LinearizeOptions, Method, Output, StateSpace,
 };
+use mbsolve::analysis::{static_equilibrium, StaticOptions};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::simulate;
