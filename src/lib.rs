@@ -27,13 +27,16 @@
 //!    initial conditions;
 //! 6. [`simulation`]: one run — formulation + integrator + observation — and
 //!    [`scenario`]: TOML files to validated models and run settings;
-//! 7. [`output`]: a run's rows as tables (CSV, Arrow IPC) streamed to any
+//! 7. [`analysis`]: linearisation and inverse dynamics on the same
+//!    system and saddle-point solves;
+//! 8. [`output`]: a run's rows as tables (CSV, Arrow IPC) streamed to any
 //!    writer in bounded memory.
 //!
 //! The `mbsolve` binary (src/bin/mbsolve/) adds the CLI, the paper's
 //! studies, sweeps, the performance gate, figures and animations.
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod builders;
 pub mod constraints;
 pub mod drawing;

@@ -67,6 +67,13 @@ impl DynamicBlocks {
         }
     }
 
+    /// The last evaluated blocks ([`Self::evaluate`]): ∂g/∂q and ∂g/∂q̇ in
+    /// the order of [`System::force_jacobian_pattern`], (Φ_qᵀλ)_q in the
+    /// order of [`System::hessian_pattern`].
+    pub(crate) fn values(&self) -> (&[f64], &[f64], &[f64]) {
+        (&self.dq, &self.dqd, &self.hess_vals)
+    }
+
     /// Zero `k` and write `c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀλ)_q`
     /// at `(t, q, q̇, λ)` into its `A` block (the force Jacobians only when
     /// `c_c` or `c_k` ≠ 0, the Hessians only when `c_k` ≠ 0); `Φ_q(q, t)`

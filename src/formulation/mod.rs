@@ -29,7 +29,7 @@
 //! Formulas and references: docs/constraint_methods.md.
 
 mod augmented;
-mod dynamic_blocks;
+pub(crate) mod dynamic_blocks;
 mod index1;
 mod index3;
 mod index3_complex;

@@ -28,6 +28,10 @@ pub(super) struct RawInitial {
     joint: Vec<RawJointInit>,
     #[serde(default)]
     allow_branch_flip: bool,
+    /// A state file (JSON `{"q": [...], "qd": [...]}`, `qd` optional)
+    /// replacing the bodies' initial positions and velocities, e.g. the
+    /// equilibrium `mbsolve static` writes; relative to the scenario file.
+    state: Option<String>,
 }
 
 /// `[[initial.joint]]`: a revolute joint's relative angle `φ_j − φ_i`
@@ -50,6 +54,7 @@ impl Default for RawInitial {
         Self {
             joint: Vec::new(),
             allow_branch_flip: false,
+            state: None,
             consistent: true,
             independent: Vec::new(),
             incorrect: false,
@@ -112,6 +117,9 @@ pub(super) fn build(
         .collect::<Result<Vec<_>, _>>()?;
     positive(raw.tol).map_err(|m| err("initial.tol".into(), m))?;
     let (mut q0, mut qd0) = system.initial_state();
+    if let Some(path) = &raw.state {
+        read_state(path, file, &mut q0, &mut qd0)?;
+    }
     let mut locks: Vec<Lock> = independent
         .iter()
         .map(|&k| Lock {
@@ -465,4 +473,60 @@ fn branch_flip(system: &System, q_given: &[f64], q: &[f64], locked: &[usize]) ->
         }
     }
     None
+}
+
+/// `initial.state`: positions (and velocities, default 0) from a JSON file
+/// `{"q": [...], "qd": [...]}` of the system's length, finite; a relative
+/// path is taken from the scenario file's directory.
+fn read_state(
+    path: &str,
+    file: &str,
+    q0: &mut [f64],
+    qd0: &mut [f64],
+) -> Result<(), ScenarioError> {
+    let key = "initial.state";
+    let err = |m: String| error(file, key.to_string(), m);
+    let mut p = std::path::PathBuf::from(path);
+    if p.is_relative() {
+        if let Some(dir) = std::path::Path::new(file).parent() {
+            if dir.is_dir() {
+                p = dir.join(p);
+            }
+        }
+    }
+    let text = std::fs::read_to_string(&p)
+        .map_err(|e| err(format!("cannot read '{}': {e}", p.display())))?;
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct State {
+        q: Vec<f64>,
+        #[serde(default)]
+        qd: Option<Vec<f64>>,
+        #[serde(default, rename = "t")]
+        _t: Option<f64>,
+    }
+    let st: State = serde_json::from_str(&text)
+        .map_err(|e| err(format!("'{}' is not a state file: {e}", p.display())))?;
+    let n = q0.len();
+    if st.q.len() != n {
+        return Err(err(format!(
+            "'{}': q has {} entries, the model {n} coordinates",
+            p.display(),
+            st.q.len()
+        )));
+    }
+    let qd = st.qd.unwrap_or_else(|| vec![0.0; n]);
+    if qd.len() != n {
+        return Err(err(format!(
+            "'{}': qd has {} entries, the model {n} coordinates",
+            p.display(),
+            qd.len()
+        )));
+    }
+    if let Some(k) = st.q.iter().chain(&qd).position(|v| !v.is_finite()) {
+        return Err(err(format!("'{}': entry {k} is not finite", p.display())));
+    }
+    q0.copy_from_slice(&st.q);
+    qd0.copy_from_slice(&qd);
+    Ok(())
 }

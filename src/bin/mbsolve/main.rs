@@ -16,9 +16,13 @@ mod animate;
 mod check;
 mod figure;
 mod gate;
+mod inverse;
+mod linearize;
+mod modes;
 mod output;
 mod plot;
 mod reproduce;
+mod statics;
 mod stream;
 mod study;
 mod sweep;
@@ -102,6 +106,25 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Kinematics and inverse dynamics of a mechanism without freedom once
+    /// its drives are counted: positions, velocities and accelerations from
+    /// the constraints alone at the output times, the drive forces/torques
+    /// and joint reactions; writes DIR/<stem>.inverse.csv (run's column
+    /// names) and DIR/<stem>.inverse.summary.json.
+    Inverse {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable), as for `run`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Linearise a scenario about a state: the state-space model
+    /// ẋ = A x + B u, y = C x + D u in independent coordinates; writes
+    /// DIR/<stem>.linear.json and the matrices as CSV.
+    Linearize(linearize::LinearizeArgs),
     /// CI performance gate: machine-independent ratios measured in one run.
     BenchGate {
         /// Also write the figures as JSON to this file.
@@ -198,6 +221,45 @@ enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Static equilibrium from the initial state (load stepping, Newton):
+    /// configuration, reactions, λ, stability; writes DIR/<stem>.static.json
+    /// and DIR/<stem>.equilibrium.json (a state `run` starts from with
+    /// --set initial.state=FILE).
+    Static {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Directions with |ω| / 2π below this count as neutral [Hz].
+        #[arg(long, default_value_t = statics::NEUTRAL_HZ)]
+        neutral_hz: f64,
+    },
+    /// Natural frequencies, damping ratios and mode shapes about the static
+    /// equilibrium or the initial state; writes DIR/<stem>.modes.json, a
+    /// figure of the first shapes and an animation of each mode.
+    Modes {
+        /// Scenario file (TOML).
+        scenario: PathBuf,
+        /// Override a scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Number of modes (the lowest).
+        #[arg(long, default_value_t = 6)]
+        count: usize,
+        /// Linearise about the static equilibrium or the initial state.
+        #[arg(long, value_enum, default_value = "static")]
+        at: modes::At,
+        /// Animate the first this many modes (SVG each).
+        #[arg(long, default_value_t = 6)]
+        animate: usize,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
     /// Reproduce the paper's studies (figures, CSVs, tables) under DIR.
     Reproduce {
         /// Output directory.
@@ -277,6 +339,27 @@ fn command(cli: Cli) -> ExitCode {
             ExitCode::SUCCESS
         }),
         Command::Reproduce { out } => reproduce_all(&out),
+        Command::Static {
+            scenario,
+            set,
+            out,
+            neutral_hz,
+        } => statics::command(&scenario, &set, &out, neutral_hz),
+        Command::Modes {
+            scenario,
+            set,
+            count,
+            at,
+            animate,
+            out,
+        } => modes::command(&modes::ModesArgs {
+            scenario: &scenario,
+            set: &set,
+            count,
+            at,
+            out: &out,
+            animate,
+        }),
         Command::Study { which: _, out } => study_constraints(&out),
         Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
         Command::Animate {
@@ -327,6 +410,8 @@ fn command(cli: Cli) -> ExitCode {
             say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),
+        Command::Inverse { scenario, set, out } => inverse::command(&scenario, &set, &out),
+        Command::Linearize(args) => linearize::command(&args),
         Command::BenchGate { json } => bench_gate(json.as_deref()),
         Command::Sweep {
             scenario,

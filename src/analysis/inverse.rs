@@ -1,0 +1,378 @@
+//! Kinematics and inverse dynamics of a mechanism without remaining
+//! freedom once its drives are counted (rank Φ_q = n).
+//!
+//! At each output time t, with no integration:
+//!
+//! 1. positions: Newton on `Φ(q, t) = 0`, warm-started from the previous
+//!    time's `q + h q̇ + ½ h² q̈` (each correction `Δq = −Φ_q⁻¹Φ`, taken as
+//!    the mass-orthogonal step of [`Index1::project`], which is that one
+//!    when Φ_q is square and regular);
+//! 2. velocities: `Φ_q q̇ = −Φ_t`;
+//! 3. accelerations: `Φ_q q̈ = γ` (paper eq. (4));
+//! 4. multipliers from `M q̈ − g = −Φ_qᵀλ` (our sign: `M q̈ + Φ_qᵀλ = g`),
+//!    so the drive forces/torques are `−λ` of the drive rows
+//!    ([`crate::model::Drive::force`]) and the joint reactions `−Φ_qᵀλ`
+//!    restricted to each joint ([`System::joint_reactions`]).
+//!
+//! Steps 3 and 4 are one solve of the saddle-point system of eq. (5)
+//! `[M Φ_qᵀ; Φ_q 0] [q̈; λ] = [g; γ]` without Baumgarte terms: with Φ_q
+//! square and regular its first block row decouples exactly into
+//! `Φ_q q̈ = γ` and `Φ_qᵀλ = g − M q̈`.
+//!
+//! A mechanism with remaining freedom is refused by [`freedom`]: how many
+//! degrees of freedom remain, a set of independent coordinates (the
+//! non-pivot columns of Φ_q under complete pivoting, Wehage & Haug 1982)
+//! and the joints whose relative motion is still free (a drive on any of
+//! them would remove a freedom).
+
+use crate::formulation::{FormulationError, Index1, Index1Options, Projection};
+use crate::linalg::full_pivot_order;
+use crate::model::{point_state, JointGeometry, ReactionMap, System};
+use crate::simulation::Sample;
+
+/// Relative pivot tolerance of the rank decisions of [`freedom`]
+/// (complete pivoting of Φ_q scaled to its largest entry).
+pub const RANK_TOL: f64 = 1e-9;
+
+/// Largest number of coordinates for which [`freedom`] also tests every
+/// joint for a free relative motion (one dense elimination per joint).
+pub const JOINT_TEST_MAX_COORDS: usize = 600;
+
+/// Options of [`InverseDynamics`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseOptions {
+    /// Newton tolerance on ‖Φ‖∞ of the positions \[m\]; default 1e-12.
+    pub tol: f64,
+    /// Newton iterations allowed per output time; default 25.
+    pub max_iter: usize,
+}
+
+impl Default for InverseOptions {
+    fn default() -> Self {
+        Self {
+            tol: 1e-12,
+            max_iter: 25,
+        }
+    }
+}
+
+/// The freedom a mechanism has at a configuration ([`freedom`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Freedom {
+    /// Degrees of freedom `n − rank Φ_q`.
+    pub dof: usize,
+    /// Redundant constraint equations `m − rank Φ_q`.
+    pub redundant: usize,
+    /// A set of independent coordinates (`dof` of them, global indices).
+    pub coordinates: Vec<usize>,
+    /// Joints (indices into [`System::constraints`]) whose relative motion
+    /// is free: prescribing it would lower `dof` (revolute and
+    /// translational joints; empty above [`JOINT_TEST_MAX_COORDS`]).
+    pub joints: Vec<usize>,
+}
+
+/// Why inverse dynamics could not be done.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum InverseError {
+    /// The mechanism still moves with its drives held.
+    #[error(
+        "the mechanism has {dof} degree(s) of freedom left with its drives counted \
+         (rank of Phi_q = {rank} for {n} coordinates): independent coordinates {}; \
+         {}; inverse dynamics needs one drive per freedom",
+        coordinates.join(", "),
+        if joints.is_empty() { "no single joint's motion is free".to_string() }
+        else { format!("joints whose motion is free (a drive on one removes a freedom): {}", joints.join(", ")) }
+    )]
+    Underdetermined {
+        /// Degrees of freedom left.
+        dof: usize,
+        /// rank Φ_q.
+        rank: usize,
+        /// Coordinates n.
+        n: usize,
+        /// Names of independent coordinates (`BODY.x`, `BODY.y`, `BODY.phi`).
+        coordinates: Vec<String>,
+        /// Names of the joints whose motion is free.
+        joints: Vec<String>,
+    },
+    /// No configuration satisfies the constraints at t (or Newton failed).
+    #[error(
+        "no configuration satisfies the constraints at t = {t} s: Newton on Phi(q, t) = 0 \
+         stopped at |Phi|inf = {residual:.3e} after {iterations} iterations (tolerance {tol:.1e}); \
+         the drives may prescribe an unreachable motion"
+    )]
+    Position {
+        /// Time \[s\].
+        t: f64,
+        /// Largest |Φ| reached \[m\].
+        residual: f64,
+        /// Tolerance \[m\].
+        tol: f64,
+        /// Iterations made.
+        iterations: usize,
+    },
+    /// A bad option.
+    #[error("inverse dynamics: {0}")]
+    Invalid(String),
+    /// The saddle-point solve or an evaluation failed.
+    #[error(transparent)]
+    Formulation(#[from] FormulationError),
+}
+
+/// Name of coordinate `k` as `BODY.x`, `BODY.y` or `BODY.phi`.
+pub fn coordinate_label(sys: &System, k: usize) -> String {
+    let body = &sys.bodies()[k / 3].name;
+    format!("{body}.{}", ["x", "y", "phi"][k % 3])
+}
+
+/// Dense Φ_q at `(q, t)`, row-major `m × n`.
+fn dense_jacobian(sys: &System, q: &[f64], t: f64) -> Vec<f64> {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let mut vals = vec![0.0; sys.jacobian_pattern().len()];
+    sys.jacobian_values(q, t, &mut vals);
+    let mut a = vec![0.0; m * n];
+    for (&(r, c), &v) in sys.jacobian_pattern().iter().zip(&vals) {
+        a[r * n + c] += v;
+    }
+    a
+}
+
+/// The row of a joint's relative coordinate, if the joint has one: the
+/// relative angle `φ_j − φ_i` of a revolute joint, the displacement
+/// `u·(P_j − P_i)` along a translational joint's axis (by central
+/// differences, h = 1e-7).
+fn relative_row(sys: &System, geometry: JointGeometry, q: &[f64]) -> Option<Vec<f64>> {
+    let n = sys.n_coords();
+    let mut row = vec![0.0; n];
+    match geometry {
+        JointGeometry::Revolute { body_i, body_j, .. } => {
+            if let Some(o) = body_j.offset() {
+                row[o + 2] += 1.0;
+            }
+            if let Some(o) = body_i.offset() {
+                row[o + 2] -= 1.0;
+            }
+        }
+        JointGeometry::Translational {
+            body_i,
+            s_i,
+            u_i,
+            body_j,
+            s_j,
+        } => {
+            let zero = vec![0.0; n];
+            let s = |q: &[f64]| {
+                let (pi, _) = point_state(body_i, s_i, q, &zero);
+                let (pj, _) = point_state(body_j, s_j, q, &zero);
+                let phi = body_i.offset().map_or(0.0, |o| q[o + 2]);
+                let (sn, cs) = phi.sin_cos();
+                let u = [cs * u_i[0] - sn * u_i[1], sn * u_i[0] + cs * u_i[1]];
+                u[0] * (pj[0] - pi[0]) + u[1] * (pj[1] - pi[1])
+            };
+            let h = 1e-7;
+            let mut qp = q.to_vec();
+            let cols = [body_i.offset(), body_j.offset()];
+            for o in cols.into_iter().flatten() {
+                for c in o..o + 3 {
+                    qp[c] = q[c] + h;
+                    let up = s(&qp);
+                    qp[c] = q[c] - h;
+                    let dn = s(&qp);
+                    qp[c] = q[c];
+                    row[c] += (up - dn) / (2.0 * h);
+                }
+            }
+        }
+        JointGeometry::Other => return None,
+    }
+    Some(row)
+}
+
+/// The freedom of `sys` at `(q, t)`: rank of Φ_q by complete pivoting
+/// ([`full_pivot_order`], relative tolerance [`RANK_TOL`]), the
+/// independent coordinates (non-pivot columns) and the joints whose
+/// relative motion is free (appending its row raises the rank). Dense:
+/// `O(m² n)`, plus one elimination per joint up to
+/// [`JOINT_TEST_MAX_COORDS`] coordinates.
+pub fn freedom(sys: &System, q: &[f64], t: f64) -> Freedom {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let a = dense_jacobian(sys, q, t);
+    let rank_of = |mut a: Vec<f64>, rows: usize| full_pivot_order(&mut a, rows, n, RANK_TOL);
+    let order = rank_of(a.clone(), m);
+    let rank = order.rank;
+    let mut coordinates: Vec<usize> = order.cols[rank..].to_vec();
+    coordinates.sort_unstable();
+    let mut joints = Vec::new();
+    if rank < n && n <= JOINT_TEST_MAX_COORDS {
+        for (k, c) in sys.constraints().iter().enumerate() {
+            let Some(row) = relative_row(sys, c.geometry(), q) else {
+                continue;
+            };
+            let mut b = a.clone();
+            b.extend_from_slice(&row);
+            if rank_of(b, m + 1).rank > rank {
+                joints.push(k);
+            }
+        }
+    }
+    Freedom {
+        dof: n - rank,
+        redundant: m - rank,
+        coordinates,
+        joints,
+    }
+}
+
+/// Positions, velocities, accelerations, multipliers and joint reactions
+/// of a mechanism without freedom, time after time (module docs). Holds the
+/// saddle-point solver (analysed once) and the last state as the next
+/// Newton start.
+pub struct InverseDynamics<'a> {
+    sys: &'a System,
+    index1: Index1<'a>,
+    map: ReactionMap,
+    jac: Vec<f64>,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    qdd: Vec<f64>,
+    phi: Vec<f64>,
+    phid: Vec<f64>,
+    reactions: Vec<f64>,
+    last_t: Option<f64>,
+    iterations: usize,
+}
+
+impl<'a> InverseDynamics<'a> {
+    /// Set up for `sys` from the position guess `q0` at `t0`; refuses a
+    /// mechanism with freedom left ([`InverseError::Underdetermined`]).
+    pub fn new(
+        sys: &'a System,
+        q0: &[f64],
+        t0: f64,
+        opts: InverseOptions,
+    ) -> Result<Self, InverseError> {
+        if !(opts.tol.is_finite() && opts.tol > 0.0) || opts.max_iter == 0 {
+            return Err(InverseError::Invalid(format!(
+                "tolerance must be finite and > 0 and max_iter ≥ 1, got tol = {}, max_iter = {}",
+                opts.tol, opts.max_iter
+            )));
+        }
+        let n = sys.n_coords();
+        if q0.len() != n {
+            return Err(InverseError::Invalid(format!(
+                "q0 has {} entries for {n} coordinates",
+                q0.len()
+            )));
+        }
+        let f = freedom(sys, q0, t0);
+        if f.dof > 0 {
+            return Err(InverseError::Underdetermined {
+                dof: f.dof,
+                rank: n - f.dof,
+                n,
+                coordinates: f
+                    .coordinates
+                    .iter()
+                    .map(|&k| coordinate_label(sys, k))
+                    .collect(),
+                joints: f
+                    .joints
+                    .iter()
+                    .map(|&k| crate::output::joint_label(sys, k))
+                    .collect(),
+            });
+        }
+        let index1 = Index1::new(
+            sys,
+            Index1Options {
+                projection: Projection {
+                    enabled: true,
+                    tol: opts.tol,
+                    max_iter: opts.max_iter,
+                    ..Projection::default()
+                },
+                ..Index1Options::default()
+            },
+        )?;
+        let m = sys.n_constraints();
+        Ok(Self {
+            sys,
+            index1,
+            map: sys.reaction_map(),
+            jac: vec![0.0; sys.jacobian_pattern().len()],
+            q: q0.to_vec(),
+            qd: vec![0.0; n],
+            qdd: vec![0.0; n],
+            phi: vec![0.0; m],
+            phid: vec![0.0; m],
+            reactions: vec![0.0; 3 * sys.constraints().len()],
+            last_t: None,
+            iterations: 0,
+        })
+    }
+
+    /// Newton iterations of the position solves so far.
+    pub fn iterations(&self) -> usize {
+        self.iterations
+    }
+
+    /// The state at time `t` (module docs), as an output row: `q`, `q̇`,
+    /// `q̈`, λ and the joint reactions; energy not computed.
+    pub fn at(&mut self, t: f64) -> Result<Sample<'_>, InverseError> {
+        if !t.is_finite() {
+            return Err(InverseError::Invalid(format!("time {t} is not finite")));
+        }
+        // warm start: Taylor step from the last solution
+        if let Some(t_prev) = self.last_t {
+            let h = t - t_prev;
+            for ((q, qd), qdd) in self.q.iter_mut().zip(&mut self.qd).zip(&self.qdd) {
+                *q += h * *qd + 0.5 * h * h * qdd;
+                *qd += h * qdd;
+            }
+        }
+        let sys = self.sys;
+        match self.index1.project(t, &mut self.q, &mut self.qd) {
+            Ok(k) => self.iterations += k,
+            Err(FormulationError::Projection {
+                residual,
+                tol,
+                iterations,
+                ..
+            }) => {
+                return Err(InverseError::Position {
+                    t,
+                    residual,
+                    tol,
+                    iterations,
+                })
+            }
+            Err(e) => return Err(e.into()),
+        }
+        self.index1
+            .accelerations(t, &self.q, &self.qd, &mut self.qdd)?;
+        self.last_t = Some(t);
+        sys.phi(&self.q, t, &mut self.phi);
+        sys.jacobian_values(&self.q, t, &mut self.jac);
+        sys.jacobian_mul(&self.jac, &self.qd, &mut self.phid);
+        let mut phi_t = vec![0.0; self.phi.len()];
+        sys.phi_t(&self.q, t, &mut phi_t);
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for (a, b) in self.phid.iter_mut().zip(&phi_t) {
+            *a += b;
+        }
+        let lambda = self.index1.lambda();
+        sys.joint_reactions(&self.map, &self.jac, lambda, &mut self.reactions);
+        Ok(Sample {
+            t,
+            q: &self.q,
+            qd: &self.qd,
+            phi: &self.phi,
+            constraint_norm: norm(&self.phi),
+            velocity_constraint_norm: norm(&self.phid),
+            qdd: Some(&self.qdd),
+            lambda: Some(lambda),
+            reactions: Some(&self.reactions),
+            energy: None,
+        })
+    }
+}

@@ -1,0 +1,755 @@
+//! Linearisation about a state: the state-space model
+//! `ẋ = A x + B u`, `y = C x + D u` in independent coordinates.
+//!
+//! # Coordinates
+//!
+//! The state is `x = (z, ż)`, `z` a set of `f` independent coordinates
+//! (coordinate partitioning, Wehage & Haug 1982: the non-pivot columns of
+//! Φ_q under complete pivoting, or chosen by the caller). The chart
+//! `q(z)` holds `q_I = z` and solves `Φ(q, t) = 0` for the rest by Newton;
+//! its tangent is the null-space basis `V` of Φ_q with `V_I = 1`:
+//! `Φ̃ V = [0; 1]`, `Φ̃ = [Φ_q; E_Iᵀ]` (square, regular when the
+//! independent coordinates are admissible). Each column is one sparse
+//! solve of the saddle-point matrix `[1 Φ̃ᵀ; Φ̃ 0]`, factorised once
+//! (`O(N)` per column for chains). Velocities: `Φ̃ q̇ = [−Φ_t; ż]`.
+//!
+//! # Equations
+//!
+//! With `M q̈ + Φ_qᵀλ = g + E u` (our λ, see [`super::tangent`]) and `u`
+//! generalized forces on chosen coordinates ([`Input`]), perturbing a
+//! state at rest in equilibrium (`q̇ = 0`, `q̈ = 0`, `Φ_t = 0`;
+//! [`LinearizeOptions::rest_tol`]) by
+//! `δq = V δz` gives, after `Vᵀ` removes `δλ`,
+//!
+//! ```text
+//! M̂ δz̈ + Ĉ δż + K̂ δz = Vᵀ E δu,   M̂ = VᵀMV, Ĉ = VᵀCV, K̂ = VᵀKV
+//! A = [0 1; −M̂⁻¹K̂ −M̂⁻¹Ĉ],  B = [0; M̂⁻¹VᵀE]
+//! ```
+//!
+//! with `C = −∂g/∂q̇`, `K = −∂g/∂q + (Φ_qᵀλ)_q` exact from the symbolic
+//! Jacobians ([`super::Tangent`]) — [`Method::Tangent`]. Away from
+//! equilibrium the linearisation also holds derivatives of `γ`, of
+//! `Φ_q q̇ + Φ_t` and of `Φ_q q̈` (second and third derivatives of Φ)
+//! that the model does not provide; there ([`Method::FiniteDifferences`])
+//! `A` is the central difference of the reduced dynamics
+//! `(z, ż) ↦ (ż, z̈)` through the chart (Newton positions, velocity solve,
+//! the saddle-point solve of eq. (5) for `q̈`), step `h (1 + |x_j|)`.
+//! `B` is exact on both paths (`q̈` is affine in the loads): the rows `I`
+//! of `[M Φ_qᵀ; Φ_q 0]⁻¹ [E; 0]`.
+//!
+//! Outputs ([`Output`]) are coordinates, velocities and sensor readings;
+//! `C` is exact for coordinates and velocities on the tangent path
+//! (rows of `V`) and otherwise the central difference through the chart;
+//! `D = 0` (no output reads the force inputs directly).
+//!
+//! Away from an equilibrium the result depends on the chosen independent
+//! coordinates (a state-dependent change of chart adds `z̈`-terms); at an
+//! equilibrium the eigenvalues of `A` do not.
+
+use super::inverse::coordinate_label;
+use super::Tangent;
+use crate::formulation::FormulationError;
+use crate::linalg::{
+    full_pivot_order, solver_for, APattern, LinalgError, SaddleMatrix, SaddlePointSolver,
+    SolverKind, SolverOptions,
+};
+use crate::model::{Sensor, System};
+use faer::linalg::solvers::Solve;
+use faer::Mat;
+
+/// A model input: a generalized force on one coordinate (a force along
+/// global x or y at a body's centre of mass \[N\], or a torque on it
+/// \[N m\]), added to `g`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    /// Generalized force on coordinate `k` (global index).
+    Force {
+        /// The coordinate.
+        coordinate: usize,
+    },
+}
+
+impl Input {
+    /// Name `BODY.fx`, `BODY.fy` or `BODY.mz` and unit.
+    pub fn name(&self, sys: &System) -> (String, &'static str) {
+        let Input::Force { coordinate: k } = *self;
+        let body = &sys.bodies()[k / 3].name;
+        match k % 3 {
+            0 => (format!("{body}.fx"), "N"),
+            1 => (format!("{body}.fy"), "N"),
+            _ => (format!("{body}.mz"), "N m"),
+        }
+    }
+}
+
+/// A model output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Output {
+    /// Coordinate `k` \[m or rad\].
+    Coordinate(usize),
+    /// Velocity of coordinate `k` \[m/s or rad/s\].
+    Velocity(usize),
+    /// Reading `index` of sensor `sensor` (its [`Sensor::quantities`]).
+    Sensor {
+        /// Index into the sensor list.
+        sensor: usize,
+        /// Index into its quantities.
+        index: usize,
+    },
+}
+
+impl Output {
+    /// Name (`BODY.x`, `BODY.vx`, `S.QUANTITY`) and unit.
+    pub fn name(&self, sys: &System, sensors: &[Sensor]) -> (String, &'static str) {
+        match *self {
+            Output::Coordinate(k) => (
+                coordinate_label(sys, k),
+                if k % 3 == 2 { "rad" } else { "m" },
+            ),
+            Output::Velocity(k) => {
+                let body = &sys.bodies()[k / 3].name;
+                let (n, u) = [("vx", "m/s"), ("vy", "m/s"), ("omega", "rad/s")][k % 3];
+                (format!("{body}.{n}"), u)
+            }
+            Output::Sensor { sensor, index } => {
+                let s = &sensors[sensor];
+                let (q, u) = s.quantities(sys)[index];
+                (format!("{}.{q}", s.name), u)
+            }
+        }
+    }
+}
+
+/// How `A` is obtained (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// The tangent path at an equilibrium at rest, central differences
+    /// elsewhere.
+    #[default]
+    Auto,
+    /// Exact tangent matrices; an error away from an equilibrium at rest.
+    Tangent,
+    /// Central differences of the reduced dynamics through the chart.
+    FiniteDifferences,
+}
+
+impl Method {
+    /// Its name in outputs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Auto => "auto",
+            Method::Tangent => "tangent",
+            Method::FiniteDifferences => "finite_differences",
+        }
+    }
+}
+
+/// Options of [`linearize`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearizeOptions {
+    /// Independent coordinates (global indices); `None`: the non-pivot
+    /// columns of Φ_q under complete pivoting.
+    pub independent: Option<Vec<usize>>,
+    /// How `A` is obtained; default [`Method::Auto`].
+    pub method: Method,
+    /// A state counts as at rest in equilibrium when `‖q̇‖∞` and `‖Φ_t‖∞`
+    /// are at most this (SI units of each) and `‖q̈‖∞` at most this times
+    /// `max(1, ‖M⁻¹g‖∞)` (the accelerations the loads alone would cause);
+    /// default 1e-8.
+    pub rest_tol: f64,
+    /// Relative step of the central differences, `h (1 + |x_j|)`;
+    /// default 1e-6.
+    pub fd_step: f64,
+    /// Newton tolerance of the chart's positions on ‖Φ‖∞ \[m\];
+    /// default 1e-13.
+    pub newton_tol: f64,
+}
+
+impl Default for LinearizeOptions {
+    fn default() -> Self {
+        Self {
+            independent: None,
+            method: Method::Auto,
+            rest_tol: 1e-8,
+            fd_step: 1e-6,
+            newton_tol: 1e-13,
+        }
+    }
+}
+
+/// Why a linearisation failed.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum LinearizeError {
+    /// Bad arguments (names the argument and value).
+    #[error("linearize: {0}")]
+    Invalid(String),
+    /// The chart's Newton iteration did not converge.
+    #[error(
+        "linearize: Newton on Phi(q, t) = 0 with the independent coordinates held stopped at \
+         |Phi|inf = {residual:.3e} after {iterations} iterations at t = {t} s"
+    )]
+    Chart {
+        /// Time \[s\].
+        t: f64,
+        /// Residual \[m\].
+        residual: f64,
+        /// Iterations.
+        iterations: usize,
+    },
+    /// A linear solve failed (e.g. inadmissible independent coordinates).
+    #[error("linearize: linear solve at t = {t} s: {source}")]
+    Linear {
+        /// Time \[s\].
+        t: f64,
+        /// The solver's error.
+        source: LinalgError,
+    },
+    /// An evaluation failed.
+    #[error(transparent)]
+    Formulation(#[from] FormulationError),
+}
+
+/// The linear model about one state.
+#[derive(Debug, Clone)]
+pub struct StateSpace {
+    /// Time of the state \[s\].
+    pub t: f64,
+    /// Positions of the state (consistent: the chart at `z`).
+    pub q: Vec<f64>,
+    /// Velocities of the state.
+    pub qd: Vec<f64>,
+    /// Multipliers λ of the state (our sign).
+    pub lambda: Vec<f64>,
+    /// Accelerations q̈ of the state.
+    pub qdd: Vec<f64>,
+    /// Independent coordinates (global indices), `f` of them.
+    pub independent: Vec<usize>,
+    /// Method used ([`Method::Tangent`] or [`Method::FiniteDifferences`]).
+    pub method: Method,
+    /// State names: `z` then `ż` (`BODY.x` …, `BODY.vx` …).
+    pub states: Vec<(String, &'static str)>,
+    /// Input names and units.
+    pub inputs: Vec<(String, &'static str)>,
+    /// Output names and units.
+    pub outputs: Vec<(String, &'static str)>,
+    /// `A` (2f × 2f).
+    pub a: Mat<f64>,
+    /// `B` (2f × inputs).
+    pub b: Mat<f64>,
+    /// `C` (outputs × 2f).
+    pub c: Mat<f64>,
+    /// `D` (outputs × inputs), zero.
+    pub d: Mat<f64>,
+    /// The null-space basis `V` (n × f), `Φ_q V = 0`, `V_I = 1`.
+    pub basis: Mat<f64>,
+    /// `M̂, Ĉ, K̂` (f × f) on the tangent path.
+    pub reduced: Option<[Mat<f64>; 3]>,
+}
+
+/// Sparse solves of the chart (`[1 Φ̃ᵀ; Φ̃ 0]`) and of the dynamics
+/// (`[M Φ_qᵀ; Φ_q 0]`) at a position.
+struct Chart<'a> {
+    sys: &'a System,
+    t: f64,
+    independent: Vec<usize>,
+    lock: SaddleMatrix,
+    lock_solver: Box<dyn SaddlePointSolver>,
+    dyn_k: SaddleMatrix,
+    dyn_solver: Box<dyn SaddlePointSolver>,
+    jac: Vec<f64>,
+    lock_jac: Vec<f64>,
+    x_lock: Vec<f64>,
+    x_dyn: Vec<f64>,
+    newton_tol: f64,
+}
+
+impl<'a> Chart<'a> {
+    fn new(
+        sys: &'a System,
+        t: f64,
+        independent: Vec<usize>,
+        newton_tol: f64,
+    ) -> Result<Self, LinearizeError> {
+        let (n, m, f) = (sys.n_coords(), sys.n_constraints(), independent.len());
+        let mut pattern = sys.jacobian_pattern().to_vec();
+        pattern.extend(independent.iter().enumerate().map(|(i, &c)| (m + i, c)));
+        let lin = |source| LinearizeError::Linear { t, source };
+        let mut lock_solver = solver_for(SolverKind::Auto, n + m + f, SolverOptions::default());
+        let lock =
+            SaddleMatrix::with_storage(n, m + f, &APattern::new(), &pattern, lock_solver.storage());
+        lock_solver.analyze(&lock).map_err(lin)?;
+        let mut dyn_solver = solver_for(SolverKind::Auto, n + m, SolverOptions::default());
+        let dyn_k = SaddleMatrix::with_storage(
+            n,
+            m,
+            &APattern::new(),
+            sys.jacobian_pattern(),
+            dyn_solver.storage(),
+        );
+        dyn_solver.analyze(&dyn_k).map_err(lin)?;
+        let nj = sys.jacobian_pattern().len();
+        let mut lock_jac = vec![0.0; nj + f];
+        lock_jac[nj..].fill(1.0);
+        Ok(Self {
+            sys,
+            t,
+            independent,
+            lock,
+            lock_solver,
+            dyn_k,
+            dyn_solver,
+            jac: vec![0.0; nj],
+            lock_jac,
+            x_lock: vec![0.0; n + m + f],
+            x_dyn: vec![0.0; n + m],
+            newton_tol,
+        })
+    }
+
+    fn lin(&self, source: LinalgError) -> LinearizeError {
+        LinearizeError::Linear { t: self.t, source }
+    }
+
+    /// Factorise the chart matrix at `q`.
+    fn factor_lock(&mut self, q: &[f64]) -> Result<(), LinearizeError> {
+        let nj = self.jac.len();
+        self.sys
+            .jacobian_values(q, self.t, &mut self.lock_jac[..nj]);
+        let ones = vec![1.0; self.sys.n_coords()];
+        self.lock.set_a_diagonal(&ones);
+        self.lock.set_jacobian(&self.lock_jac);
+        self.lock_solver
+            .factorize(&self.lock)
+            .map_err(|e| self.lin(e))?;
+        Ok(())
+    }
+
+    /// Solve `Φ̃ v = [r_phi; r_lock]` with the factorised chart matrix.
+    fn solve_lock(&mut self, r_phi: &[f64], r_lock: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+        let (n, m) = (self.sys.n_coords(), self.sys.n_constraints());
+        self.x_lock[..n].fill(0.0);
+        self.x_lock[n..n + m].copy_from_slice(r_phi);
+        self.x_lock[n + m..].copy_from_slice(r_lock);
+        let mut x = std::mem::take(&mut self.x_lock);
+        let r = self.lock_solver.solve_in_place(&self.lock, &mut x);
+        self.x_lock = x;
+        r.map_err(|e| self.lin(e))?;
+        Ok(self.x_lock[..n].to_vec())
+    }
+
+    /// The null-space basis at `q` (columns).
+    fn basis(&mut self, q: &[f64]) -> Result<Vec<Vec<f64>>, LinearizeError> {
+        self.factor_lock(q)?;
+        let (m, f) = (self.sys.n_constraints(), self.independent.len());
+        let zero = vec![0.0; m];
+        let mut e = vec![0.0; f];
+        let mut cols = Vec::with_capacity(f);
+        for j in 0..f {
+            e.fill(0.0);
+            e[j] = 1.0;
+            cols.push(self.solve_lock(&zero, &e)?);
+        }
+        Ok(cols)
+    }
+
+    /// Positions with `q_I = z` on `Φ(q, t) = 0`, Newton from `guess`.
+    fn positions(&mut self, guess: &[f64], z: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+        let m = self.sys.n_constraints();
+        let f = self.independent.len();
+        let mut q = guess.to_vec();
+        for (&c, &v) in self.independent.iter().zip(z) {
+            q[c] = v;
+        }
+        let mut phi = vec![0.0; m];
+        let zero = vec![0.0; f];
+        for it in 0..=30 {
+            self.sys.phi(&q, self.t, &mut phi);
+            let res = phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+            if res <= self.newton_tol {
+                return Ok(q);
+            }
+            if it == 30 || !res.is_finite() {
+                return Err(LinearizeError::Chart {
+                    t: self.t,
+                    residual: res,
+                    iterations: it,
+                });
+            }
+            self.factor_lock(&q)?;
+            for v in &mut phi {
+                *v = -*v;
+            }
+            let dq = self.solve_lock(&phi, &zero)?;
+            for (a, d) in q.iter_mut().zip(&dq) {
+                *a += d;
+            }
+        }
+        unreachable!()
+    }
+
+    /// Velocities at `q` with `q̇_I = zd`: `Φ̃ q̇ = [−Φ_t; ż]`.
+    fn velocities(&mut self, q: &[f64], zd: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+        let mut phi_t = vec![0.0; self.sys.n_constraints()];
+        self.sys.phi_t(q, self.t, &mut phi_t);
+        for v in &mut phi_t {
+            *v = -*v;
+        }
+        self.factor_lock(q)?;
+        self.solve_lock(&phi_t, zd)
+    }
+
+    /// Factorise `[M Φ_qᵀ; Φ_q 0]` at `q`.
+    fn factor_dyn(&mut self, q: &[f64]) -> Result<(), LinearizeError> {
+        self.sys.jacobian_values(q, self.t, &mut self.jac);
+        self.dyn_k.set_a_diagonal(self.sys.mass_diagonal());
+        self.dyn_k.set_jacobian(&self.jac);
+        self.dyn_solver
+            .factorize(&self.dyn_k)
+            .map_err(|e| LinearizeError::Linear {
+                t: self.t,
+                source: e,
+            })?;
+        Ok(())
+    }
+
+    /// Solve the factorised dynamics matrix for `[rhs_q; rhs_c]`.
+    fn solve_dyn(&mut self, rhs_q: &[f64], rhs_c: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+        let n = self.sys.n_coords();
+        self.x_dyn[..n].copy_from_slice(rhs_q);
+        self.x_dyn[n..].copy_from_slice(rhs_c);
+        let mut x = std::mem::take(&mut self.x_dyn);
+        let r = self.dyn_solver.solve_in_place(&self.dyn_k, &mut x);
+        self.x_dyn = x;
+        r.map_err(|e| self.lin(e))?;
+        Ok(self.x_dyn.clone())
+    }
+
+    /// `(q̈, λ)` at `(q, q̇)` from eq. (5) without Baumgarte terms.
+    fn accelerations(
+        &mut self,
+        q: &[f64],
+        qd: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>), LinearizeError> {
+        let (n, m) = (self.sys.n_coords(), self.sys.n_constraints());
+        let mut g = vec![0.0; n];
+        let mut gamma = vec![0.0; m];
+        self.sys.forces_into(self.t, q, qd, &mut g);
+        self.sys
+            .constraint_terms(q, qd, self.t, None, &mut self.jac, &mut gamma);
+        if let Some(i) = g.iter().chain(&gamma).position(|v| !v.is_finite()) {
+            return Err(LinearizeError::Invalid(format!(
+                "non-finite force or γ entry {i} at t = {}",
+                self.t
+            )));
+        }
+        self.factor_dyn(q)?;
+        let x = self.solve_dyn(&g, &gamma)?;
+        Ok((x[..n].to_vec(), x[n..].to_vec()))
+    }
+}
+
+/// The independent coordinates of `sys` at `(q, t)`: the non-pivot
+/// columns of Φ_q under complete pivoting ([`full_pivot_order`]), sorted.
+/// Dense, `O(m² n)`.
+pub fn independent_coordinates(sys: &System, q: &[f64], t: f64) -> Vec<usize> {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let mut vals = vec![0.0; sys.jacobian_pattern().len()];
+    sys.jacobian_values(q, t, &mut vals);
+    let mut a = vec![0.0; m * n];
+    for (&(r, c), &v) in sys.jacobian_pattern().iter().zip(&vals) {
+        a[r * n + c] += v;
+    }
+    let order = full_pivot_order(&mut a, m, n, super::inverse::RANK_TOL);
+    let mut ind = order.cols[order.rank..].to_vec();
+    ind.sort_unstable();
+    ind
+}
+
+/// Dense `f × f` `VᵀXV` of an `n × n` sparse `X` and basis columns `v`.
+fn project(x: &super::Triplets, v: &[Vec<f64>]) -> Mat<f64> {
+    let f = v.len();
+    let n = x.rows;
+    let mut xv = vec![0.0; n];
+    let mut out = Mat::<f64>::zeros(f, f);
+    for j in 0..f {
+        x.mul_vec(&v[j], &mut xv);
+        for i in 0..f {
+            out[(i, j)] = v[i].iter().zip(&xv).map(|(a, b)| a * b).sum();
+        }
+    }
+    out
+}
+
+/// Linearise `sys` about `(t, q, q̇)` (module docs): inputs `inputs`,
+/// outputs `outputs` (sensors from `sensors`). The state is first made
+/// consistent through the chart (positions by Newton with the independent
+/// coordinates held, velocities with theirs).
+#[allow(clippy::too_many_arguments)]
+pub fn linearize(
+    sys: &System,
+    sensors: &[Sensor],
+    t: f64,
+    q: &[f64],
+    qd: &[f64],
+    inputs: &[Input],
+    outputs: &[Output],
+    opts: &LinearizeOptions,
+) -> Result<StateSpace, LinearizeError> {
+    let n = sys.n_coords();
+    if q.len() != n || qd.len() != n {
+        return Err(LinearizeError::Invalid(format!(
+            "expected {n} positions and velocities, got {} and {}",
+            q.len(),
+            qd.len()
+        )));
+    }
+    if let Some(i) = q.iter().chain(qd).position(|v| !v.is_finite()) {
+        return Err(LinearizeError::Invalid(format!(
+            "state entry {i} is not finite"
+        )));
+    }
+    for inp in inputs {
+        let Input::Force { coordinate } = *inp;
+        if coordinate >= n {
+            return Err(LinearizeError::Invalid(format!(
+                "input coordinate {coordinate} out of range (n = {n})"
+            )));
+        }
+    }
+    for out in outputs {
+        let ok = match *out {
+            Output::Coordinate(k) | Output::Velocity(k) => k < n,
+            Output::Sensor { sensor, index } => {
+                sensor < sensors.len() && index < sensors[sensor].quantities(sys).len()
+            }
+        };
+        if !ok {
+            return Err(LinearizeError::Invalid(format!(
+                "output {out:?} out of range"
+            )));
+        }
+    }
+    let independent = match &opts.independent {
+        Some(v) => {
+            let mut s = v.clone();
+            s.sort_unstable();
+            s.dedup();
+            if s.len() != v.len() || s.iter().any(|&k| k >= n) {
+                return Err(LinearizeError::Invalid(format!(
+                    "independent coordinates {v:?}: must be distinct and below {n}"
+                )));
+            }
+            v.clone()
+        }
+        None => independent_coordinates(sys, q, t),
+    };
+    let f = independent.len();
+    let mut chart = Chart::new(sys, t, independent.clone(), opts.newton_tol)?;
+    let z0: Vec<f64> = independent.iter().map(|&k| q[k]).collect();
+    let zd0: Vec<f64> = independent.iter().map(|&k| qd[k]).collect();
+    let q0 = chart.positions(q, &z0)?;
+    let qd0 = chart.velocities(&q0, &zd0)?;
+    let v = chart.basis(&q0)?;
+    // a basis that misses the null space: inadmissible independent set
+    {
+        let mut r = vec![0.0; sys.n_constraints()];
+        let mut jac = vec![0.0; sys.jacobian_pattern().len()];
+        sys.jacobian_values(&q0, t, &mut jac);
+        for col in &v {
+            sys.jacobian_mul(&jac, col, &mut r);
+            let scale = col.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+            let res = r.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+            if res.is_nan() || res > 1e-8 * scale {
+                return Err(LinearizeError::Invalid(format!(
+                    "the independent coordinates {} do not parametrise the constraint manifold \
+                     (Phi_q V = {res:.2e} for a basis column)",
+                    independent
+                        .iter()
+                        .map(|&k| coordinate_label(sys, k))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            }
+        }
+    }
+    let (qdd0, lambda0) = chart.accelerations(&q0, &qd0)?;
+    let mut phi_t = vec![0.0; sys.n_constraints()];
+    sys.phi_t(&q0, t, &mut phi_t);
+    let inf = |x: &[f64]| x.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+    // the accelerations the loads alone would cause: the scale of q̈
+    let mut g = vec![0.0; n];
+    sys.forces_into(t, &q0, &qd0, &mut g);
+    let load_acc = g
+        .iter()
+        .zip(sys.mass_diagonal())
+        .fold(0.0_f64, |a, (f, m)| a.max((f / m).abs()));
+    let acc_tol = opts.rest_tol * load_acc.max(1.0);
+    let at_rest =
+        inf(&qd0) <= opts.rest_tol && inf(&phi_t) <= opts.rest_tol && inf(&qdd0) <= acc_tol;
+    let method = match opts.method {
+        Method::Auto if at_rest => Method::Tangent,
+        Method::Auto => Method::FiniteDifferences,
+        Method::Tangent if !at_rest => {
+            return Err(LinearizeError::Invalid(format!(
+                "the tangent linearisation needs a state at rest in equilibrium; here \
+                 |qd|inf = {:.2e}, |Phi_t|inf = {:.2e} (tolerance {:.1e}), |qdd|inf = {:.2e} \
+                 (tolerance {:.1e})",
+                inf(&qd0),
+                inf(&phi_t),
+                opts.rest_tol,
+                inf(&qdd0),
+                acc_tol
+            )))
+        }
+        m => m,
+    };
+    // B's second block: rows I of [M Φ_qᵀ; Φ_q 0]⁻¹ [E; 0] (exact)
+    let nu = inputs.len();
+    let mut b = Mat::<f64>::zeros(2 * f, nu);
+    chart.factor_dyn(&q0)?;
+    let zero_m = vec![0.0; sys.n_constraints()];
+    for (k, inp) in inputs.iter().enumerate() {
+        let Input::Force { coordinate } = *inp;
+        let mut e = vec![0.0; n];
+        e[coordinate] = 1.0;
+        let x = chart.solve_dyn(&e, &zero_m)?;
+        for (i, &c) in independent.iter().enumerate() {
+            b[(f + i, k)] = x[c];
+        }
+    }
+    let mut a = Mat::<f64>::zeros(2 * f, 2 * f);
+    for i in 0..f {
+        a[(i, f + i)] = 1.0;
+    }
+    let mut reduced = None;
+    let x0: Vec<f64> = z0.iter().chain(&zd0).copied().collect();
+    let step = |j: usize| opts.fd_step * (1.0 + x0[j].abs());
+    match method {
+        Method::Tangent => {
+            let mut tan = Tangent::new(sys);
+            tan.evaluate(t, &q0, &qd0, &lambda0)?;
+            let mh = project(&tan.mass(), &v);
+            let ch = project(&tan.damping(), &v);
+            let kh = project(&tan.stiffness(), &v);
+            let lu = mh.partial_piv_lu();
+            let mk = lu.solve(&kh);
+            let mc = lu.solve(&ch);
+            for i in 0..f {
+                for j in 0..f {
+                    a[(f + i, j)] = -mk[(i, j)];
+                    a[(f + i, f + j)] = -mc[(i, j)];
+                }
+            }
+            reduced = Some([mh, ch, kh]);
+        }
+        _ => {
+            // central differences of (z, ż) ↦ z̈ through the chart
+            let zdd = |x: &[f64], chart: &mut Chart| -> Result<Vec<f64>, LinearizeError> {
+                let qx = chart.positions(&q0, &x[..f])?;
+                let qdx = chart.velocities(&qx, &x[f..])?;
+                let (qdd, _) = chart.accelerations(&qx, &qdx)?;
+                Ok(independent.iter().map(|&c| qdd[c]).collect())
+            };
+            for j in 0..2 * f {
+                let h = step(j);
+                let mut xp = x0.clone();
+                xp[j] += h;
+                let up = zdd(&xp, &mut chart)?;
+                xp[j] = x0[j] - h;
+                let dn = zdd(&xp, &mut chart)?;
+                for i in 0..f {
+                    a[(f + i, j)] = (up[i] - dn[i]) / (2.0 * h);
+                }
+            }
+        }
+    }
+    // C
+    let ny = outputs.len();
+    let mut c = Mat::<f64>::zeros(ny, 2 * f);
+    let mut exact = vec![false; ny];
+    if method == Method::Tangent {
+        for (r, out) in outputs.iter().enumerate() {
+            match *out {
+                Output::Coordinate(k) => {
+                    for j in 0..f {
+                        c[(r, j)] = v[j][k];
+                    }
+                    exact[r] = true;
+                }
+                Output::Velocity(k) => {
+                    for j in 0..f {
+                        c[(r, f + j)] = v[j][k];
+                    }
+                    exact[r] = true;
+                }
+                Output::Sensor { .. } => {}
+            }
+        }
+    }
+    if exact.iter().any(|e| !e) {
+        let read = |x: &[f64], chart: &mut Chart| -> Result<Vec<f64>, LinearizeError> {
+            let qx = chart.positions(&q0, &x[..f])?;
+            let qdx = chart.velocities(&qx, &x[f..])?;
+            let mut all = Vec::new();
+            let mut y = Vec::with_capacity(ny);
+            for out in outputs {
+                y.push(match *out {
+                    Output::Coordinate(k) => qx[k],
+                    Output::Velocity(k) => qdx[k],
+                    Output::Sensor { sensor, index } => {
+                        all.clear();
+                        sensors[sensor].evaluate(sys, t, &qx, &qdx, &mut all);
+                        all[index]
+                    }
+                });
+            }
+            Ok(y)
+        };
+        for j in 0..2 * f {
+            let h = step(j);
+            let mut xp = x0.clone();
+            xp[j] += h;
+            let up = read(&xp, &mut chart)?;
+            xp[j] = x0[j] - h;
+            let dn = read(&xp, &mut chart)?;
+            for r in 0..ny {
+                if !exact[r] {
+                    c[(r, j)] = (up[r] - dn[r]) / (2.0 * h);
+                }
+            }
+        }
+    }
+    let mut basis = Mat::<f64>::zeros(n, f);
+    for (j, col) in v.iter().enumerate() {
+        for (i, &x) in col.iter().enumerate() {
+            basis[(i, j)] = x;
+        }
+    }
+    let mut states: Vec<(String, &'static str)> = independent
+        .iter()
+        .map(|&k| Output::Coordinate(k).name(sys, sensors))
+        .collect();
+    states.extend(
+        independent
+            .iter()
+            .map(|&k| Output::Velocity(k).name(sys, sensors)),
+    );
+    Ok(StateSpace {
+        t,
+        q: q0,
+        qd: qd0,
+        lambda: lambda0,
+        qdd: qdd0,
+        independent,
+        method,
+        states,
+        inputs: inputs.iter().map(|i| i.name(sys)).collect(),
+        outputs: outputs.iter().map(|o| o.name(sys, sensors)).collect(),
+        a,
+        b,
+        c,
+        d: Mat::<f64>::zeros(ny, nu),
+        basis,
+        reduced,
+    })
+}

@@ -1,0 +1,18 @@
+//! Analyses of a model other than a time integration, about a state:
+//! the tangent matrices ([`tangent`]: `M`, `C`, `K`, `Φ_q` and their sign
+//! convention), the static equilibrium ([`statics`]: load stepping,
+//! Newton, stability by inertia) and the eigenmodes ([`modes`]:
+//! shift-invert Lanczos, damped modes in the reduced basis).
+
+pub mod inverse;
+pub mod linearize;
+pub mod modes;
+pub mod statics;
+pub mod tangent;
+
+pub use modes::{eigenmodes, Mode, ModeOptions, Modes};
+pub use statics::{
+    constrained_inertia, stability, static_equilibrium, Equilibrium, Stability, StaticError,
+    StaticOptions,
+};
+pub use tangent::{Tangent, Triplets};

@@ -1,0 +1,392 @@
+//! Eigenmodes of the constrained system linearised about a state
+//! ([`super::tangent`]: `M δq̈ + C δq̇ + K δq + Φ_qᵀ δλ = 0`, `Φ_q δq = 0`).
+//!
+//! **Undamped modes**: `K x = ω² M x`, `Φ_q x = 0` — the `count` eigenvalues
+//! nearest the shift σ (the lowest ones for σ at or below the spectrum)
+//! by Lanczos with full M-orthogonal reorthogonalisation on the
+//! shift-inverted operator `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
+//! (Ericsson & Ruhe 1980; the constrained form keeps every iterate in
+//! `Φ_q y = 0`). The saddle matrix is factorised once by the project's
+//! sparse LU ([`crate::linalg::SparseLu`]; exact also where `K` is
+//! indefinite or singular on the coordinates); each Lanczos step is one
+//! solve, so the cost is linear in N for chains. No dense N × N matrix is
+//! formed. Ritz values `θ` of the tridiagonal matrix give
+//! `ω² = σ + 1/θ`; a mode is converged when its residual estimate
+//! `|β_j s_j| ≤ tol |θ|`. `K` is used as evaluated (symmetric for
+//! conservative forces).
+//!
+//! **Damped modes**: the linearised first-order system projected onto the
+//! undamped shapes `X` (M-orthonormal): `ẍ_r + XᵀCX ẋ_r + XᵀKX x_r = 0`, a
+//! `2k × 2k` dense eigenproblem (faer). Exact when `C` is diagonal in
+//! that basis (proportional damping, e.g. `C = αK`); otherwise the
+//! coupling to the modes left out is neglected (modal truncation). Each
+//! eigenvalue `s` is assigned to the undamped mode that dominates its
+//! eigenvector; an underdamped mode gives `f_d = Im s / 2π`,
+//! `ζ = −Re s / |s|`; an overdamped one (two real `s₁, s₂`)
+//! `ω_n = √(s₁ s₂)`, `ζ = −(s₁ + s₂) / (2 ω_n)`, `f_d = 0`.
+
+use super::tangent::Tangent;
+use crate::formulation::FormulationError;
+use crate::linalg::{solver_for, SaddlePointSolver, SolverKind, SolverOptions, Storage};
+use serde::Serialize;
+
+/// Options of [`eigenmodes`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModeOptions {
+    /// Number of modes wanted (default 6; fewer when the system has fewer
+    /// degrees of freedom).
+    pub count: usize,
+    /// Shift σ \[1/s²\]; `None` (default): 0, or, when the shifted matrix is
+    /// singular (free rigid-body motion), `−10⁻⁶` of the largest
+    /// `K_ii / M_ii`.
+    pub shift: Option<f64>,
+    /// Relative residual of a converged Ritz value (default 1e-10).
+    pub tol: f64,
+    /// Largest Lanczos basis (default 0: `max(4 count + 40, 80)`, at most
+    /// the degrees of freedom).
+    pub max_basis: usize,
+}
+
+impl Default for ModeOptions {
+    fn default() -> Self {
+        Self {
+            count: 6,
+            shift: None,
+            tol: 1e-10,
+            max_basis: 0,
+        }
+    }
+}
+
+/// One mode ([`eigenmodes`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct Mode {
+    /// ω² of the undamped mode \[1/s²\] (negative: an unstable direction).
+    pub omega_squared: f64,
+    /// Undamped natural frequency `√ω² / 2π` \[Hz\] (0 when ω² ≤ 0).
+    pub frequency_hz: f64,
+    /// Damped natural frequency \[Hz\] (0 for an overdamped mode).
+    pub damped_frequency_hz: f64,
+    /// Damping ratio ζ (0: undamped).
+    pub damping_ratio: f64,
+    /// Shape per coordinate (x, y, φ per body), M-normalised (`xᵀMx = 1`),
+    /// its largest entry positive.
+    pub shape: Vec<f64>,
+    /// Relative residual estimate of the Ritz value.
+    pub residual: f64,
+}
+
+/// The result of [`eigenmodes`].
+#[derive(Debug, Clone, Serialize)]
+pub struct Modes {
+    /// The modes, by increasing ω².
+    pub modes: Vec<Mode>,
+    /// The shift σ used \[1/s²\].
+    pub shift: f64,
+    /// Lanczos steps (one solve each).
+    pub lanczos_steps: usize,
+    /// Whether every returned mode met the tolerance.
+    pub converged: bool,
+}
+
+/// The `count` undamped modes nearest the shift and their damped
+/// counterparts at the last evaluated state of `tan` (module docs).
+pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, FormulationError> {
+    let (n, m) = (tan.n(), tan.m());
+    let mass = tan.mass_diagonal();
+    let dof = n.saturating_sub(m);
+    let count = opts.count.min(dof);
+    if count == 0 {
+        return Ok(Modes {
+            modes: Vec::new(),
+            shift: 0.0,
+            lanczos_steps: 0,
+            converged: true,
+        });
+    }
+    let kt = tan.stiffness();
+    let kmax = {
+        let mut d = vec![0.0f64; n];
+        for &(i, j, v) in &kt.entries {
+            if i == j {
+                d[i] += v;
+            }
+        }
+        d.iter()
+            .zip(mass)
+            .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()))
+    };
+    let mut k = tan.saddle_matrix(Storage::Full);
+    let mut solver = solver_for(SolverKind::SparseLu, n + m, SolverOptions::default());
+    let lin = |source| FormulationError::Linear {
+        t: f64::NAN,
+        source,
+    };
+    solver.analyze(&k).map_err(lin)?;
+    let shifts: Vec<f64> = match opts.shift {
+        Some(s) => vec![s],
+        None => vec![0.0, -1e-6 * kmax.max(1e-300)],
+    };
+    let mut sigma = f64::NAN;
+    for &s in &shifts {
+        tan.write_saddle(&mut k, [-s, 0.0, 1.0]);
+        if solver.factorize(&k).is_ok() && probe(&mut *solver, &k, mass, n, m) {
+            sigma = s;
+            break;
+        }
+    }
+    if sigma.is_nan() {
+        return Err(FormulationError::Invalid(format!(
+            "eigenmodes: the shifted matrix [K − σM, Φ_qᵀ; Φ_q, 0] is singular at σ = {shifts:?} \
+             (redundant constraints?)"
+        )));
+    }
+    let max_basis = if opts.max_basis == 0 {
+        (4 * count + 40).max(80)
+    } else {
+        opts.max_basis
+    }
+    .min(dof)
+    .max(count);
+    // Lanczos, full reorthogonalisation in the M inner product
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    let (mut alpha, mut beta) = (Vec::new(), Vec::new());
+    let mut x = vec![0.0; n + m];
+    let mdot = |a: &[f64], b: &[f64]| -> f64 {
+        a.iter().zip(b).zip(mass).map(|((x, y), w)| x * y * w).sum()
+    };
+    // start: the operator applied to a deterministic, non-special vector
+    let mut v: Vec<f64> = (0..n)
+        .map(|i| 1.0 + 0.5 * ((i as f64) * 0.618_033_988_75).fract())
+        .collect();
+    apply(&mut *solver, &k, mass, &v.clone(), &mut v, &mut x, n)?;
+    let nv = mdot(&v, &v).sqrt();
+    if nv == 0.0 || !nv.is_finite() {
+        return Err(FormulationError::Invalid(
+            "eigenmodes: the start vector vanished in the constrained space".into(),
+        ));
+    }
+    v.iter_mut().for_each(|e| *e /= nv);
+    let mut w = vec![0.0; n];
+    let (ritz, converged) = loop {
+        basis.push(v.clone());
+        let j = basis.len() - 1;
+        apply(&mut *solver, &k, mass, &basis[j], &mut w, &mut x, n)?;
+        let a = mdot(&basis[j], &w);
+        alpha.push(a);
+        // full reorthogonalisation (twice is enough)
+        for _ in 0..2 {
+            for b in &basis {
+                let c = mdot(b, &w);
+                for (wi, bi) in w.iter_mut().zip(b) {
+                    *wi -= c * bi;
+                }
+            }
+        }
+        let bnext = mdot(&w, &w).sqrt();
+        let size = basis.len();
+        let check = size >= count && (size % 5 == 0 || size == max_basis || bnext == 0.0);
+        let anorm = alpha.iter().fold(0.0f64, |s, a| s.max(a.abs()));
+        let breakdown = !(bnext > 1e-13 * anorm);
+        if check || breakdown || size >= max_basis {
+            let ritz = tridiagonal_ritz(&alpha, &beta, bnext, count)?;
+            let converged = ritz.iter().all(|r| r.2 <= opts.tol);
+            if converged || breakdown || size >= max_basis {
+                break (ritz, converged);
+            }
+        }
+        beta.push(bnext);
+        v = w.iter().map(|e| e / bnext).collect();
+    };
+    let steps = basis.len();
+    // shapes, M-normalised, by increasing ω²
+    let mut modes: Vec<(f64, Vec<f64>, f64)> = ritz
+        .into_iter()
+        .map(|(theta, s, res)| {
+            let mut shape = vec![0.0; n];
+            for (b, &c) in basis.iter().zip(&s) {
+                for (xi, bi) in shape.iter_mut().zip(b) {
+                    *xi += c * bi;
+                }
+            }
+            let nrm = mdot(&shape, &shape).sqrt();
+            let big = shape
+                .iter()
+                .fold(0.0f64, |a, &v| if v.abs() > a.abs() { v } else { a });
+            let sgn = if big < 0.0 { -1.0 } else { 1.0 };
+            shape.iter_mut().for_each(|e| *e *= sgn / nrm);
+            (sigma + 1.0 / theta, shape, res)
+        })
+        .collect();
+    modes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let damped = damped_modes(tan, &modes)?;
+    Ok(Modes {
+        modes: modes
+            .into_iter()
+            .zip(damped)
+            .map(|((w2, shape, residual), (fd, zeta))| Mode {
+                omega_squared: w2,
+                frequency_hz: w2.max(0.0).sqrt() / (2.0 * std::f64::consts::PI),
+                damped_frequency_hz: fd,
+                damping_ratio: zeta,
+                shape,
+                residual,
+            })
+            .collect(),
+        shift: sigma,
+        lanczos_steps: steps,
+        converged,
+    })
+}
+
+/// `y = Op x`: `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`.
+fn apply(
+    solver: &mut dyn SaddlePointSolver,
+    k: &crate::linalg::SaddleMatrix,
+    mass: &[f64],
+    xin: &[f64],
+    y: &mut [f64],
+    buf: &mut [f64],
+    n: usize,
+) -> Result<(), FormulationError> {
+    for i in 0..n {
+        buf[i] = mass[i] * xin[i];
+    }
+    buf[n..].fill(0.0);
+    solver
+        .solve_in_place(k, buf)
+        .map_err(|source| FormulationError::Linear {
+            t: f64::NAN,
+            source,
+        })?;
+    y.copy_from_slice(&buf[..n]);
+    Ok(())
+}
+
+/// One trial solve: finite and not absurdly large (a numerically
+/// singular factorisation).
+fn probe(
+    solver: &mut dyn SaddlePointSolver,
+    k: &crate::linalg::SaddleMatrix,
+    mass: &[f64],
+    n: usize,
+    m: usize,
+) -> bool {
+    let mut b = vec![0.0; n + m];
+    for (i, bi) in b[..n].iter_mut().enumerate() {
+        *bi = mass[i] * (1.0 + 0.25 * ((i as f64) * 0.37).sin());
+    }
+    if solver.solve_in_place(k, &mut b).is_err() {
+        return false;
+    }
+    b.iter().all(|v| v.is_finite() && v.abs() < 1e200)
+}
+
+/// The `count` Ritz pairs of largest |θ| of the Lanczos tridiagonal
+/// `T = tridiag(β, α, β)`: `(θ, eigenvector of T, relative residual
+/// estimate |β_next s_last| / |θ|)`.
+fn tridiagonal_ritz(
+    alpha: &[f64],
+    beta: &[f64],
+    bnext: f64,
+    count: usize,
+) -> Result<Vec<(f64, Vec<f64>, f64)>, FormulationError> {
+    let j = alpha.len();
+    let mut t = faer::Mat::<f64>::zeros(j, j);
+    for i in 0..j {
+        t[(i, i)] = alpha[i];
+        if i + 1 < j {
+            t[(i + 1, i)] = beta[i];
+            t[(i, i + 1)] = beta[i];
+        }
+    }
+    let e = t
+        .self_adjoint_eigen(faer::Side::Lower)
+        .map_err(|e| FormulationError::Invalid(format!("eigenmodes: tridiagonal eigen: {e:?}")))?;
+    let (s, u) = (e.S().column_vector(), e.U());
+    let mut idx: Vec<usize> = (0..j).collect();
+    idx.sort_by(|&a, &b| s[b].abs().total_cmp(&s[a].abs()));
+    Ok(idx
+        .into_iter()
+        .take(count.min(j))
+        .map(|c| {
+            let theta = s[c];
+            let vec: Vec<f64> = (0..j).map(|r| u[(r, c)]).collect();
+            let res = (bnext * vec[j - 1]).abs() / theta.abs().max(f64::MIN_POSITIVE);
+            (theta, vec, res)
+        })
+        .collect())
+}
+
+/// Damped frequency \[Hz\] and damping ratio per undamped mode, from the
+/// projected first-order system (module docs).
+fn damped_modes(
+    tan: &Tangent,
+    modes: &[(f64, Vec<f64>, f64)],
+) -> Result<Vec<(f64, f64)>, FormulationError> {
+    let k = modes.len();
+    let n = tan.n();
+    let c = tan.damping();
+    let kt = tan.stiffness();
+    let mut cx = vec![0.0; n];
+    let mut kx = vec![0.0; n];
+    let mut cr = faer::Mat::<f64>::zeros(k, k);
+    let mut kr = faer::Mat::<f64>::zeros(k, k);
+    for j in 0..k {
+        c.mul_vec(&modes[j].1, &mut cx);
+        kt.mul_vec(&modes[j].1, &mut kx);
+        for i in 0..k {
+            let xi = &modes[i].1;
+            cr[(i, j)] = xi.iter().zip(&cx).map(|(a, b)| a * b).sum();
+            kr[(i, j)] = xi.iter().zip(&kx).map(|(a, b)| a * b).sum();
+        }
+    }
+    let mut a = faer::Mat::<f64>::zeros(2 * k, 2 * k);
+    for i in 0..k {
+        a[(i, k + i)] = 1.0;
+        for j in 0..k {
+            a[(k + i, j)] = -kr[(i, j)];
+            a[(k + i, k + j)] = -cr[(i, j)];
+        }
+    }
+    let e = a
+        .eigen()
+        .map_err(|e| FormulationError::Invalid(format!("eigenmodes: damped eigen: {e:?}")))?;
+    let (s, u) = (e.S().column_vector(), e.U());
+    // per mode: a complex eigenvalue with Im > 0, or the real ones
+    let mut complex: Vec<Option<(f64, f64)>> = vec![None; k];
+    let mut reals: Vec<Vec<f64>> = vec![Vec::new(); k];
+    for col in 0..2 * k {
+        let (re, im) = (s[col].re, s[col].im);
+        let owner = (0..k)
+            .max_by(|&a, &b| {
+                let ma =
+                    u[(a, col)].norm() + u[(k + a, col)].norm() / (1.0 + kr[(a, a)].abs().sqrt());
+                let mb =
+                    u[(b, col)].norm() + u[(k + b, col)].norm() / (1.0 + kr[(b, b)].abs().sqrt());
+                ma.total_cmp(&mb)
+            })
+            .unwrap_or(0);
+        let tiny = 1e-12 * (re.abs() + im.abs());
+        if im > tiny {
+            complex[owner] = Some((re, im));
+        } else if im.abs() <= tiny {
+            reals[owner].push(re);
+        }
+    }
+    let two_pi = 2.0 * std::f64::consts::PI;
+    Ok((0..k)
+        .map(|i| {
+            if let Some((re, im)) = complex[i] {
+                let mag = re.hypot(im);
+                (im / two_pi, -re / mag)
+            } else if reals[i].len() >= 2 {
+                let (s1, s2) = (reals[i][0], reals[i][1]);
+                let wn = (s1 * s2).abs().sqrt();
+                (0.0, -(s1 + s2) / (2.0 * wn.max(f64::MIN_POSITIVE)))
+            } else {
+                (0.0, f64::NAN)
+            }
+        })
+        .collect())
+}

@@ -1,0 +1,697 @@
+//! Static equilibrium: Newton's method on
+//!
+//! ```text
+//! F(q, λ) = g(q, 0, t₀) − Φ_qᵀ(q, t₀) λ = 0,      Φ(q, t₀) = 0
+//! ```
+//!
+//! (velocity-dependent forces at q̇ = 0; our λ, see [`super::tangent`]),
+//! with the exact Newton matrix `[K Φ_qᵀ; Φ_q 0]` of [`Tangent`]
+//! (`K = −∂g/∂q + (Φ_qᵀλ)_q`) factorised by the sparse LU of the project's
+//! saddle-point solvers ([`crate::linalg::SparseLu`]: exact for
+//! unsymmetric `K`, and `K` may be singular on coordinates held only by the
+//! constraints).
+//!
+//! **Load stepping.** Large deflections are reached by continuation in a
+//! load factor μ ∈ [0, 1] (Newton homotopy):
+//! `F_μ(q, λ) = F(q, λ) − (1 − μ) F(q₀, λ₀)`, λ₀ the multipliers of the
+//! start at rest (`M q̈ + Φ_qᵀλ₀ = g`, `Φ_q q̈ = γ`). At μ = 0 the start
+//! `(q₀, λ₀)` solves it; at μ = 1 it is the equilibrium. When the start is
+//! the unloaded configuration (springs at rest) `F(q₀, λ₀)` is the applied
+//! load less what the constraints carry, so μ scales the loads (classical
+//! load stepping). The first step tries
+//! μ = 1; a step whose Newton iteration fails is cut by 4, a step that
+//! converges lets the next one double; below [`StaticOptions::min_load_step`]
+//! the search stops with [`StaticError::NoEquilibrium`] (the load factor
+//! reached and the residual).
+//!
+//! **Stability** ([`stability`]): the equilibrium is stable when `K` is
+//! positive definite on the tangent space `Φ_q δq = 0`. The signs of the
+//! eigenvalues of the constrained pencil `(K, M)` (ω² of the modes) come
+//! from Sylvester's law of inertia: with `Φ_q` of full row rank `m`, the
+//! saddle matrix `S(σ) = [K − σM, Φ_qᵀ; Φ_q, 0]` has `m + (number of ω² < σ)`
+//! negative eigenvalues (Gould 1985; Haynsworth's inertia additivity on
+//! the null-space form). Its inertia is read from the signs of `D` in an
+//! unpivoted sparse LDLᵀ of the congruent matrix
+//! `[K − σM + ρΦ_qᵀΦ_q, Φ_qᵀ; Φ_q, 0]` (the augmentation makes the
+//! coordinate pivots well sized; it does not change the inertia), so no
+//! eigenvalue is computed. Two shifts `σ = ∓s` separate unstable
+//! (`ω² < −s`), neutral (`|ω²| ≤ s`) and stable directions.
+
+use super::tangent::{Tangent, Triplets};
+use crate::formulation::FormulationError;
+use crate::linalg::{solver_for, SolverKind, SolverOptions, Storage};
+use crate::model::System;
+use serde::Serialize;
+
+/// Options of [`static_equilibrium`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticOptions {
+    /// Time t₀ at which forces and constraints are evaluated \[s\]
+    /// (default 0).
+    pub t0: f64,
+    /// Relative tolerance: converged when `‖F‖∞ ≤ tol · F_ref` (F_ref the
+    /// largest of `‖g‖∞`, `‖Φ_qᵀλ‖∞` seen, and of the start's load) and
+    /// `‖Φ‖∞ ≤ tol · (1 + ‖q‖∞)` (default 1e-10) — or when the last
+    /// Newton correction was below 1e-13 (1 + ‖q‖∞) with `‖F‖∞ ≤ 1e-6 F_ref`
+    /// and `‖Φ‖∞ ≤ 1e-10 (1 + ‖q‖∞)` (the rounding floor of stiff springs).
+    pub tol: f64,
+    /// Newton iterations per load step (default 30).
+    pub max_iter: usize,
+    /// Largest number of load steps, failed ones included (default 200).
+    pub max_load_steps: usize,
+    /// Smallest load-factor increment before giving up (default 1e-6).
+    pub min_load_step: f64,
+}
+
+impl Default for StaticOptions {
+    fn default() -> Self {
+        Self {
+            t0: 0.0,
+            tol: 1e-10,
+            max_iter: 30,
+            max_load_steps: 200,
+            min_load_step: 1e-6,
+        }
+    }
+}
+
+/// A static equilibrium found by [`static_equilibrium`].
+#[derive(Debug, Clone, Serialize)]
+pub struct Equilibrium {
+    /// Positions \[m, rad\].
+    pub q: Vec<f64>,
+    /// Multipliers (our sign: `Φ_qᵀλ = g` at equilibrium).
+    pub lambda: Vec<f64>,
+    /// Load steps taken (accepted and cut).
+    pub load_steps: usize,
+    /// Newton iterations over all load steps.
+    pub iterations: usize,
+    /// `‖g − Φ_qᵀλ‖∞` at the solution \[N, N m\].
+    pub residual: f64,
+    /// `‖Φ‖∞` at the solution.
+    pub constraint_residual: f64,
+}
+
+/// Counts of the constrained stiffness's eigenvalue signs ([`stability`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Stability {
+    /// Directions with `ω² > s` (stable).
+    pub stable: usize,
+    /// Directions with `ω² < −s` (unstable).
+    pub unstable: usize,
+    /// Directions with `|ω²| ≤ s` (neutral: mechanisms, rigid-body motion).
+    pub neutral: usize,
+}
+
+impl Stability {
+    /// "stable", "unstable" (any unstable direction) or "neutral" (none
+    /// unstable, some neutral).
+    pub fn verdict(&self) -> &'static str {
+        if self.unstable > 0 {
+            "unstable"
+        } else if self.neutral > 0 {
+            "neutral"
+        } else {
+            "stable"
+        }
+    }
+}
+
+/// Why no equilibrium was found.
+#[derive(Debug, thiserror::Error)]
+pub enum StaticError {
+    /// The load stepping could not reach μ = 1.
+    #[error(
+        "no static equilibrium found: load factor reached {load_factor:.6} of 1 ({reason}); \
+         at the last attempt ‖g − Φ_qᵀλ‖∞ = {residual:.3e}, ‖Φ‖∞ = {constraint_residual:.3e} \
+         after {iterations} Newton iterations in {load_steps} load steps"
+    )]
+    NoEquilibrium {
+        /// The largest load factor at which an equilibrium was found.
+        load_factor: f64,
+        /// Force residual of the last failed attempt.
+        residual: f64,
+        /// Constraint residual of the last failed attempt.
+        constraint_residual: f64,
+        /// Newton iterations in total.
+        iterations: usize,
+        /// Load steps in total.
+        load_steps: usize,
+        /// What stopped the search.
+        reason: String,
+    },
+    /// An evaluation or a linear solve failed.
+    #[error(transparent)]
+    Formulation(#[from] FormulationError),
+}
+
+/// Residual buffers of the Newton iteration.
+struct Work {
+    g: Vec<f64>,
+    jac: Vec<f64>,
+    ct: Vec<f64>,
+    phi: Vec<f64>,
+    zero: Vec<f64>,
+}
+
+impl Work {
+    /// `F = g(q, 0) − Φ_qᵀλ − (1 − μ) F₀` into `f`, Φ into `self.phi`;
+    /// returns (‖F‖∞, ‖Φ‖∞, max(‖g‖∞, ‖Φ_qᵀλ‖∞)).
+    #[allow(clippy::too_many_arguments)]
+    fn residual(
+        &mut self,
+        sys: &System,
+        t: f64,
+        q: &[f64],
+        lam: &[f64],
+        mu: f64,
+        f0: &[f64],
+        f: &mut [f64],
+    ) -> (f64, f64, f64) {
+        sys.forces_into(t, q, &self.zero, &mut self.g);
+        sys.jacobian_values(q, t, &mut self.jac);
+        sys.jacobian_tmul(&self.jac, lam, &mut self.ct);
+        sys.phi(q, t, &mut self.phi);
+        let (mut nf, mut scale) = (0.0f64, 0.0f64);
+        for i in 0..f.len() {
+            f[i] = self.g[i] - self.ct[i] - (1.0 - mu) * f0[i];
+            nf = nf.max(f[i].abs());
+            scale = scale.max(self.g[i].abs()).max(self.ct[i].abs());
+        }
+        let np = self.phi.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        // NaN compares false: make a non-finite residual infinite
+        let fix = |v: f64| if v.is_finite() { v } else { f64::INFINITY };
+        (fix(nf), fix(np), scale)
+    }
+}
+
+/// The static equilibrium of `sys` from `q0` (module docs): load stepping
+/// and Newton. `q0` need not satisfy the constraints exactly.
+pub fn static_equilibrium(
+    sys: &System,
+    q0: &[f64],
+    opts: StaticOptions,
+) -> Result<Equilibrium, StaticError> {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let t = opts.t0;
+    if q0.len() != n {
+        return Err(FormulationError::Invalid(format!(
+            "static equilibrium: q0 has {} entries, the system {n} coordinates",
+            q0.len()
+        ))
+        .into());
+    }
+    let mut w = Work {
+        g: vec![0.0; n],
+        jac: vec![0.0; sys.jacobian_pattern().len()],
+        ct: vec![0.0; n],
+        phi: vec![0.0; m],
+        zero: vec![0.0; n],
+    };
+    let mut tan = Tangent::new(sys);
+    let mut k = tan.saddle_matrix(Storage::Full);
+    let mut solver = solver_for(SolverKind::SparseLu, n + m, SolverOptions::default());
+    let lin = |source| FormulationError::Linear { t, source };
+    solver.analyze(&k).map_err(lin)?;
+    // λ₀: the multipliers of the start at rest (M q̈ + Φ_qᵀλ = g,
+    // Φ_q q̈ = γ), so that K holds the constraint forces' geometric
+    // stiffness from the first iteration on (a mechanism held only by it —
+    // a pendulum under gravity — has a singular Newton matrix at λ = 0);
+    // 0 when that solve fails (redundant constraints: the iteration finds λ)
+    let mut lam0 = vec![0.0; m];
+    {
+        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU
+        let zero = vec![0.0; n];
+        let mut ok = tan.evaluate(t, q0, &zero, &lam0).is_ok();
+        if ok {
+            tan.write_saddle(&mut k, [1.0, 0.0, 0.0]);
+            let mut rhs = vec![0.0; n + m];
+            sys.forces_into(t, q0, &zero, &mut rhs[..n]);
+            sys.gamma(q0, &zero, t, &mut rhs[n..]);
+            ok = solver.factorize(&k).is_ok() && solver.solve_in_place(&k, &mut rhs).is_ok();
+            if ok {
+                lam0.copy_from_slice(&rhs[n..]);
+            }
+        }
+        if !ok || lam0.iter().any(|v| !v.is_finite()) {
+            lam0.fill(0.0);
+        }
+    }
+    // F₀ = F(q₀, λ₀): the start's unbalanced load
+    let mut f0 = vec![0.0; n];
+    let zero_n = vec![0.0; n];
+    let (_, _, scale0) = w.residual(sys, t, q0, &lam0, 1.0, &zero_n, &mut f0);
+    let f_ref0 = f0.iter().fold(scale0, |a, v| a.max(v.abs()));
+    if !f_ref0.is_finite() {
+        return Err(FormulationError::Invalid(
+            "static equilibrium: the forces at the start are not finite".into(),
+        )
+        .into());
+    }
+    let (mut q, mut lam) = (q0.to_vec(), lam0);
+    let (mut mu, mut dmu) = (0.0f64, 1.0f64);
+    let (mut steps, mut iterations) = (0usize, 0usize);
+    let mut f = vec![0.0; n];
+    let mut x = vec![0.0; n + m];
+    let mut last = (f64::INFINITY, f64::INFINITY);
+    let mut reason = String::new();
+    while mu < 1.0 {
+        if steps >= opts.max_load_steps {
+            reason = format!("{} load steps", opts.max_load_steps);
+            break;
+        }
+        steps += 1;
+        let target = (mu + dmu).min(1.0);
+        let (mut qt, mut lt) = (q.clone(), lam.clone());
+        let mut f_ref = f_ref0;
+        let mut converged = false;
+        let mut first = f64::INFINITY;
+        let mut last_dq = f64::INFINITY;
+        let mut sizes: Vec<f64> = Vec::new();
+        for it in 0..=opts.max_iter {
+            let (nf, np, scale) = w.residual(sys, t, &qt, &lt, target, &f0, &mut f);
+            f_ref = f_ref.max(scale);
+            last = (nf, np);
+            let qscale = 1.0 + qt.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            // converged: the residuals below the tolerance, or the last
+            // correction at the rounding level of q (the residual's floor
+            // is ε × the largest internal force, e.g. k Δφ of stiff
+            // springs, which can exceed tol × the load)
+            if (nf <= opts.tol * f_ref && np <= opts.tol * qscale)
+                || (last_dq <= 1e-13 * qscale && nf <= 1e-6 * f_ref && np <= 1e-10 * qscale)
+            {
+                converged = true;
+                break;
+            }
+            let size = nf / f_ref.max(f64::MIN_POSITIVE) + np / qscale;
+            if it == 0 {
+                first = size;
+                sizes.clear();
+            }
+            // give up on this load step: iterations exhausted, divergence,
+            // or stagnation (less than a halving over 4 iterations: Newton
+            // converges faster where it converges at all; a smaller load
+            // step is cheaper than more iterations)
+            if it == opts.max_iter
+                || !size.is_finite()
+                || size > 1e8 * first.max(1e-300)
+                || (it >= 4 && size > 0.5 * sizes[it - 4])
+            {
+                break;
+            }
+            sizes.push(size);
+            iterations += 1;
+            tan.evaluate(t, &qt, &w.zero, &lt)?;
+            // [K Φ_qᵀ; Φ_q 0] [Δq; Δλ] = [F; −Φ]; where that is singular
+            // (a direction without stiffness: a free rotation), K + εM
+            // with ε from 1e-12 of the largest K_ii/M_ii up (a modified
+            // Newton step, the residual stays exact)
+            let mut eps = 0.0;
+            let solved = loop {
+                tan.write_saddle(&mut k, [eps, 0.0, 1.0]);
+                if solver.factorize(&k).is_ok() {
+                    x[..n].copy_from_slice(&f);
+                    for (xi, p) in x[n..].iter_mut().zip(&w.phi) {
+                        *xi = -p;
+                    }
+                    let big = 1e8 * qscale;
+                    if solver.solve_in_place(&k, &mut x).is_ok()
+                        && x[..n].iter().all(|v| v.is_finite() && v.abs() < big)
+                        && x[n..].iter().all(|v| v.is_finite())
+                    {
+                        break true;
+                    }
+                }
+                let kscale = diagonal_ratio(&tan);
+                if eps == 0.0 {
+                    eps = 1e-12 * kscale;
+                } else {
+                    eps *= 1e3;
+                }
+                if !(eps > 0.0 && eps <= 1e-3 * kscale) {
+                    break false;
+                }
+            };
+            if !solved {
+                break;
+            }
+            last_dq = x[..n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            for (qi, d) in qt.iter_mut().zip(&x[..n]) {
+                *qi += d;
+            }
+            for (li, d) in lt.iter_mut().zip(&x[n..]) {
+                *li += d;
+            }
+        }
+        if converged {
+            mu = target;
+            q = qt;
+            lam = lt;
+            dmu = (2.0 * dmu).min(1.0);
+        } else {
+            dmu *= 0.25;
+            if dmu < opts.min_load_step {
+                reason = format!(
+                    "the load step fell below {:e} without Newton converging",
+                    opts.min_load_step
+                );
+                break;
+            }
+        }
+    }
+    if mu < 1.0 {
+        return Err(StaticError::NoEquilibrium {
+            load_factor: mu,
+            residual: last.0,
+            constraint_residual: last.1,
+            iterations,
+            load_steps: steps,
+            reason,
+        });
+    }
+    let (residual, constraint_residual, _) = w.residual(sys, t, &q, &lam, 1.0, &f0, &mut f);
+    Ok(Equilibrium {
+        q,
+        lambda: lam,
+        load_steps: steps,
+        iterations,
+        residual,
+        constraint_residual,
+    })
+}
+
+/// The largest `|K_ii| / M_ii` (or 1 when `K` has no diagonal) of the last
+/// evaluation: the scale of ω² \[1/s²\].
+fn diagonal_ratio(tan: &Tangent) -> f64 {
+    let mass = tan.mass_diagonal();
+    let mut d = vec![0.0f64; mass.len()];
+    for &(i, j, v) in &tan.stiffness().entries {
+        if i == j {
+            d[i] += v;
+        }
+    }
+    let r = d
+        .iter()
+        .zip(mass)
+        .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()));
+    if r > 0.0 && r.is_finite() {
+        r
+    } else {
+        1.0
+    }
+}
+
+/// The stability of the state `(q, λ)` at rest (module docs): the numbers
+/// of constrained directions with `ω² > s`, `ω² < −s` and `|ω²| ≤ s`,
+/// `s = (2π f_neutral)²` \[1/s²\], from the inertia of two sparse LDLᵀ
+/// factorisations. Assumes `Φ_q` of full row rank (a redundant row is an
+/// error naming it).
+pub fn stability(
+    sys: &System,
+    t: f64,
+    q: &[f64],
+    lambda: &[f64],
+    f_neutral: f64,
+) -> Result<Stability, StaticError> {
+    let n = sys.n_coords();
+    let mut tan = Tangent::new(sys);
+    tan.evaluate(t, q, &vec![0.0; n], lambda)?;
+    let k = tan.stiffness();
+    let phi = tan.constraint_jacobian();
+    let s = (2.0 * std::f64::consts::PI * f_neutral).powi(2);
+    let mass = tan.mass_diagonal();
+    let below = |sigma: f64| -> Result<usize, StaticError> {
+        let (_, neg, zero) = constrained_inertia(&k, mass, sigma, &phi).map_err(|e| {
+            FormulationError::Invalid(format!("stability at σ = {sigma:e} 1/s²: {e}"))
+        })?;
+        let m = phi.rows;
+        if zero > 0 || neg < m {
+            return Err(FormulationError::Invalid(format!(
+                "stability: the saddle matrix at σ = {sigma:e} 1/s² has {zero} zero and {neg} \
+                 negative pivots for {m} constraint rows: Φ_q is rank deficient (redundant \
+                 constraints) or an eigenvalue sits on the shift"
+            ))
+            .into());
+        }
+        Ok(neg - m)
+    };
+    let unstable = below(-s)?;
+    let below_plus = below(s)?;
+    let dof = n - phi.rows;
+    Ok(Stability {
+        stable: dof.saturating_sub(below_plus),
+        unstable,
+        neutral: below_plus.saturating_sub(unstable),
+    })
+}
+
+/// Inertia `(positive, negative, zero)` of
+/// `[K_s − σM + ρΦ_qᵀΦ_q, Φ_qᵀ; Φ_q, 0]` (`K_s` the symmetric part of `k`,
+/// `M = diag(mass)`), congruent to `[K_s − σM, Φ_qᵀ; Φ_q, 0]` for every ρ,
+/// by an unpivoted sparse LDLᵀ (up-looking, Davis's LDL) in an AMD order
+/// with each multiplier after the coordinates of its row. A pivot that
+/// vanishes exactly is counted as zero and the factorisation continues
+/// with a tiny replacement.
+pub fn constrained_inertia(
+    k: &Triplets,
+    mass: &[f64],
+    sigma: f64,
+    phi: &Triplets,
+) -> Result<(usize, usize, usize), String> {
+    let (n, m) = (k.cols, phi.rows);
+    let dim = n + m;
+    // ρ: the coordinate diagonal's size over the Jacobian's squared size
+    let mut adiag = vec![0.0f64; n];
+    for &(i, j, v) in &k.entries {
+        if i == j {
+            adiag[i] += v;
+        }
+    }
+    for (i, d) in adiag.iter_mut().enumerate() {
+        *d -= sigma * mass[i];
+    }
+    let amax = adiag.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let pmax = phi.entries.iter().fold(0.0f64, |a, e| a.max(e.2.abs()));
+    let rho = if pmax > 0.0 && amax > 0.0 {
+        amax / (pmax * pmax)
+    } else {
+        1.0
+    };
+    // lower-triangle entries (row ≥ col) of the augmented saddle matrix
+    let mut ent: Vec<(usize, usize, f64)> = Vec::new();
+    for &(i, j, v) in &k.entries {
+        // symmetric part: each of (i, j), (j, i) gets v/2
+        let (r, c) = (i.max(j), i.min(j));
+        ent.push((r, c, if i == j { v } else { 0.5 * v }));
+    }
+    for (i, &mi) in mass.iter().enumerate() {
+        ent.push((i, i, -sigma * mi));
+    }
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); m];
+    for &(r, c, v) in &phi.entries {
+        rows[r].push((c, v));
+        ent.push((n + r, c, v));
+    }
+    for row in &rows {
+        for (a, &(ca, va)) in row.iter().enumerate() {
+            ent.push((ca, ca, rho * va * va));
+            for &(cb, vb) in &row[a + 1..] {
+                // (ca, cb) and (cb, ca) share one lower entry; a repeated
+                // column gets both on its diagonal
+                let v = rho * va * vb;
+                if ca == cb {
+                    ent.push((ca, ca, 2.0 * v));
+                } else {
+                    ent.push((ca.max(cb), ca.min(cb), v));
+                }
+            }
+        }
+    }
+    let order = saddle_order(dim, n, &ent)?;
+    let mut inv = vec![0usize; dim];
+    for (new, &old) in order.iter().enumerate() {
+        inv[old] = new;
+    }
+    // permuted upper CSC (row ≤ col)
+    let mut cols: Vec<Vec<(usize, f64)>> = vec![Vec::new(); dim];
+    for &(r, c, v) in &ent {
+        let (a, b) = (inv[r], inv[c]);
+        cols[a.max(b)].push((a.min(b), v));
+    }
+    let d = ldl_diagonal(dim, &cols);
+    let (mut pos, mut neg, mut zero) = (0, 0, 0);
+    for &v in &d {
+        if !v.is_finite() {
+            return Err("the LDLᵀ broke down (non-finite pivot)".into());
+        }
+        if v > 0.0 {
+            pos += 1;
+        } else if v < 0.0 {
+            neg += 1;
+        } else {
+            zero += 1;
+        }
+    }
+    Ok((pos, neg, zero))
+}
+
+/// Elimination order: faer's AMD of the pattern, each multiplier row
+/// (index ≥ n) postponed until every coordinate of its row is eliminated.
+fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec<usize>, String> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::linalg::amd;
+    use faer::sparse::SymbolicSparseColMatRef;
+    // symmetric pattern, both triangles, sorted and unique
+    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); dim];
+    for &(r, c, _) in ent {
+        adj[c].push(r);
+        if r != c {
+            adj[r].push(c);
+        }
+    }
+    for (c, a) in adj.iter_mut().enumerate() {
+        a.push(c);
+        a.sort_unstable();
+        a.dedup();
+    }
+    let mut col_ptr = vec![0usize; dim + 1];
+    for c in 0..dim {
+        col_ptr[c + 1] = col_ptr[c] + adj[c].len();
+    }
+    let row_idx: Vec<usize> = adj.concat();
+    let mut fwd = vec![0usize; dim];
+    let mut inv = vec![0usize; dim];
+    if dim > 0 {
+        let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
+        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(dim, row_idx.len()));
+        amd::order(
+            &mut fwd,
+            &mut inv,
+            pattern,
+            amd::Control::default(),
+            MemStack::new(&mut mem),
+        )
+        .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
+    }
+    let mut remaining = vec![0usize; dim];
+    for c in 0..n {
+        for &r in &adj[c] {
+            if r >= n {
+                remaining[r] += 1;
+            }
+        }
+    }
+    let mut pending = vec![false; dim];
+    let mut order = Vec::with_capacity(dim);
+    for &i in &fwd {
+        if i < n {
+            order.push(i);
+            for &r in &adj[i] {
+                if r >= n {
+                    remaining[r] -= 1;
+                    if remaining[r] == 0 && pending[r] {
+                        pending[r] = false;
+                        order.push(r);
+                    }
+                }
+            }
+        } else if remaining[i] == 0 {
+            order.push(i);
+        } else {
+            pending[i] = true;
+        }
+    }
+    if order.len() != dim {
+        return Err("a constraint row has no coordinates".into());
+    }
+    Ok(order)
+}
+
+/// The diagonal `D` of the unpivoted LDLᵀ of a symmetric matrix given by
+/// its upper-triangle columns (`cols[k]`: `(i, v)` with `i ≤ k`,
+/// duplicates summed): Davis's up-looking LDL (elimination tree, then one
+/// sparse triangular solve per row). A zero pivot is replaced by a tiny
+/// value of the matrix's scale and reported as 0.
+fn ldl_diagonal(dim: usize, cols: &[Vec<(usize, f64)>]) -> Vec<f64> {
+    const NONE: usize = usize::MAX;
+    // symbolic: elimination tree and column counts
+    let mut parent = vec![NONE; dim];
+    let mut lnz = vec![0usize; dim];
+    let mut flag = vec![NONE; dim];
+    for k in 0..dim {
+        flag[k] = k;
+        for &(i0, _) in &cols[k] {
+            let mut i = i0;
+            if i < k {
+                while flag[i] != k {
+                    if parent[i] == NONE {
+                        parent[i] = k;
+                    }
+                    lnz[i] += 1;
+                    flag[i] = k;
+                    i = parent[i];
+                }
+            }
+        }
+    }
+    let mut lp = vec![0usize; dim + 1];
+    for k in 0..dim {
+        lp[k + 1] = lp[k] + lnz[k];
+    }
+    let mut li = vec![0usize; lp[dim]];
+    let mut lx = vec![0.0f64; lp[dim]];
+    let mut d = vec![0.0f64; dim];
+    let mut reported = vec![0.0f64; dim];
+    let mut y = vec![0.0f64; dim];
+    let mut pattern = vec![0usize; dim];
+    lnz.fill(0);
+    flag.fill(NONE);
+    let big = cols
+        .iter()
+        .flatten()
+        .fold(0.0f64, |a, &(_, v)| a.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
+    for k in 0..dim {
+        y[k] = 0.0;
+        let mut top = dim;
+        flag[k] = k;
+        for &(i0, v) in &cols[k] {
+            let mut i = i0;
+            y[i] += v;
+            let mut len = 0;
+            while flag[i] != k {
+                pattern[len] = i;
+                len += 1;
+                flag[i] = k;
+                i = parent[i];
+            }
+            while len > 0 {
+                top -= 1;
+                len -= 1;
+                pattern[top] = pattern[len];
+            }
+        }
+        d[k] = y[k];
+        y[k] = 0.0;
+        while top < dim {
+            let i = pattern[top];
+            top += 1;
+            let yi = y[i];
+            y[i] = 0.0;
+            let p2 = lp[i] + lnz[i];
+            for p in lp[i]..p2 {
+                y[li[p]] -= lx[p] * yi;
+            }
+            let l_ki = yi / d[i];
+            d[k] -= l_ki * yi;
+            li[p2] = k;
+            lx[p2] = l_ki;
+            lnz[i] += 1;
+        }
+        reported[k] = d[k];
+        if d[k] == 0.0 {
+            d[k] = 1e-300 * big;
+        }
+    }
+    reported
+}

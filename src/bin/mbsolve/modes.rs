@@ -1,0 +1,248 @@
+//! `mbsolve modes SCENARIO [--count K] [--at static|initial] [--out DIR]`:
+//! undamped and damped natural frequencies, damping ratios and mode shapes
+//! about the static equilibrium or the initial state
+//! ([`mbsolve::analysis::modes`]); writes `DIR/<stem>.modes.json`, a
+//! figure of the first shapes (`DIR/<stem>.modes.svg`, `.png`, `.csv`) and
+//! an animation of each mode (`DIR/<stem>.mode<k>.svg`, drawn by
+//! `animate` from a synthetic run table `q₀ + a sin(ωt) x`).
+
+use crate::animate::{self, coordinate_columns};
+use crate::figure::{Figure, Series};
+use crate::output::write_atomic;
+use crate::statics::{equilibrium_of, stem};
+use mbsolve::analysis::{eigenmodes, ModeOptions, Modes, Tangent};
+use mbsolve::formulation::Index3;
+use mbsolve::linalg::SolverKind;
+use mbsolve::model::System;
+use mbsolve::scenario;
+use serde_json::json;
+use std::path::Path;
+use std::process::ExitCode;
+
+/// Where the system is linearised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum At {
+    /// The static equilibrium (`mbsolve static`), at rest.
+    Static,
+    /// The scenario's initial state, λ from its consistent accelerations.
+    Initial,
+}
+
+/// Arguments of the command.
+pub struct ModesArgs<'a> {
+    /// Scenario file.
+    pub scenario: &'a Path,
+    /// `--set` overrides.
+    pub set: &'a [String],
+    /// Number of modes.
+    pub count: usize,
+    /// Linearisation point.
+    pub at: At,
+    /// Output directory.
+    pub out: &'a Path,
+    /// Animations of the first this many modes.
+    pub animate: usize,
+}
+
+/// The command.
+pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
+    if a.count == 0 {
+        return Err("--count 0: must be ≥ 1".into());
+    }
+    let path = a.scenario;
+    let (sc, q, qd, lambda) = match a.at {
+        At::Static => {
+            let (sc, eq) = equilibrium_of(path, a.set)?;
+            let n = eq.q.len();
+            (sc, eq.q, vec![0.0; n], eq.lambda)
+        }
+        At::Initial => {
+            let sc = scenario::load(path, a.set).map_err(|e| e.to_string())?;
+            let (n, m) = (sc.system.n_coords(), sc.system.n_constraints());
+            let mut lam = vec![0.0; m];
+            let mut qdd = vec![0.0; n];
+            let mut f = Index3::new(&sc.system, SolverKind::Auto).map_err(|e| e.to_string())?;
+            f.accelerations(sc.run.t0, &sc.q0, &sc.qd0, &mut qdd, &mut lam)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            let (q0, qd0) = (sc.q0.clone(), sc.qd0.clone());
+            (sc, q0, qd0, lam)
+        }
+    };
+    let sys = &sc.system;
+    let t0 = sc.run.t0;
+    let mut tan = Tangent::new(sys);
+    tan.evaluate(t0, &q, &qd, &lambda)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let modes = eigenmodes(
+        &tan,
+        ModeOptions {
+            count: a.count,
+            ..Default::default()
+        },
+    )
+    .map_err(|e| format!("{}: {e}", path.display()))?;
+    std::fs::create_dir_all(a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let stem = stem(path);
+    let names: Vec<String> = (0..sys.n_coords()).map(System::coordinate_name).collect();
+    let list: Vec<_> = modes
+        .modes
+        .iter()
+        .enumerate()
+        .map(|(i, md)| {
+            json!({
+                "mode": i + 1,
+                "frequency_hz": md.frequency_hz,
+                "omega_squared": md.omega_squared,
+                "damped_frequency_hz": md.damped_frequency_hz,
+                "damping_ratio": md.damping_ratio,
+                "residual": md.residual,
+                "shape": md.shape,
+            })
+        })
+        .collect();
+    let report = json!({
+        "scenario": path.display().to_string(),
+        "at": match a.at { At::Static => "static", At::Initial => "initial" },
+        "t0": t0,
+        "shift": modes.shift,
+        "lanczos_steps": modes.lanczos_steps,
+        "converged": modes.converged,
+        "damping": "projected on the computed undamped modes (exact for damping diagonal in that basis)",
+        "coordinates": names,
+        "modes": list,
+    });
+    let json_path = a.out.join(format!("{stem}.modes.json"));
+    write_atomic(
+        &json_path,
+        &(serde_json::to_string_pretty(&report).unwrap_or_default() + "\n"),
+    )
+    .map_err(|e| e.to_string())?;
+    for (i, md) in modes.modes.iter().enumerate() {
+        say!(
+            "mode {:>3}: {:>14.6} Hz  damped {:>14.6} Hz  ζ = {:.3e}",
+            i + 1,
+            md.frequency_hz,
+            md.damped_frequency_hz,
+            md.damping_ratio
+        );
+    }
+    if !modes.converged {
+        eprintln!(
+            "warning: not every mode met the tolerance after {} Lanczos steps (see residual)",
+            modes.lanczos_steps
+        );
+    }
+    say!("wrote {}", json_path.display());
+    shapes_figure(&modes, sys, a.out, &stem)?;
+    for k in 0..a.animate.min(modes.modes.len()) {
+        let p = animation(a, &q, &modes, k, &stem)?;
+        say!("wrote {}", p.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Figure of the first (at most 4) shapes: per body, the component (x, y
+/// or φ) with the largest amplitude over those modes.
+fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<(), String> {
+    let nb = sys.bodies().len();
+    let shown = &modes.modes[..modes.modes.len().min(4)];
+    if shown.is_empty() || nb == 0 {
+        return Ok(());
+    }
+    let norm = |c: usize| -> f64 {
+        shown
+            .iter()
+            .map(|md| (0..nb).map(|b| md.shape[3 * b + c].powi(2)).sum::<f64>())
+            .sum()
+    };
+    let comp = (0..3)
+        .max_by(|&a, &b| norm(a).total_cmp(&norm(b)))
+        .unwrap_or(0);
+    let axis = ["x", "y", "φ"][comp];
+    let fig = Figure {
+        title: format!("{stem}: mode shapes ({axis} of each body, M-normalised)"),
+        x_label: "body".into(),
+        y_label: format!("{axis} component"),
+        series: shown
+            .iter()
+            .enumerate()
+            .map(|(i, md)| Series {
+                label: format!("mode {} ({:.4} Hz)", i + 1, md.frequency_hz),
+                x: (1..=nb).map(|b| b as f64).collect(),
+                y: (0..nb).map(|b| md.shape[3 * b + comp]).collect(),
+            })
+            .collect(),
+        log_y: false,
+    };
+    let s = format!("{stem}.modes");
+    fig.save(out, &s).map_err(|e| e.to_string())?;
+    fig.render(&out.join(format!("{s}.png")))
+        .map_err(|e| e.to_string())?;
+    say!("wrote {}", out.join(format!("{s}.svg")).display());
+    Ok(())
+}
+
+/// Mode `k` as a synthetic run table over one period and its animation
+/// (SVG, drawn by `animate`).
+fn animation(
+    a: &ModesArgs,
+    q0: &[f64],
+    modes: &Modes,
+    k: usize,
+    stem: &str,
+) -> Result<std::path::PathBuf, String> {
+    let md = &modes.modes[k];
+    let n = q0.len();
+    let nb = n / 3;
+    // amplitude: the largest displacement 10 % of the model's extent, the
+    // largest rotation at most 0.3 rad
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for b in 0..nb {
+        for c in 0..2 {
+            lo[c] = lo[c].min(q0[3 * b + c]);
+            hi[c] = hi[c].max(q0[3 * b + c]);
+        }
+    }
+    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-3);
+    let (mut dmax, mut rmax) = (0.0f64, 0.0f64);
+    for b in 0..nb {
+        dmax = dmax.max(md.shape[3 * b].hypot(md.shape[3 * b + 1]));
+        rmax = rmax.max(md.shape[3 * b + 2].abs());
+    }
+    let amp = (0.1 * extent / dmax.max(1e-300)).min(0.3 / rmax.max(1e-300));
+    let period = if md.frequency_hz > 0.0 {
+        1.0 / md.frequency_hz
+    } else {
+        1.0
+    };
+    let frames = 48;
+    let mut text = String::from("t");
+    for b in 0..nb {
+        for c in coordinate_columns(b) {
+            text += ",";
+            text += &c;
+        }
+    }
+    text += "\n";
+    for f in 0..=frames {
+        let t = period * f as f64 / frames as f64;
+        let s = (2.0 * std::f64::consts::PI * f as f64 / frames as f64).sin();
+        text += &format!("{t:e}");
+        for i in 0..n {
+            text += &format!(",{:e}", q0[i] + amp * s * md.shape[i]);
+        }
+        text += "\n";
+    }
+    let csv = a.out.join(format!("{stem}.mode{}.csv", k + 1));
+    write_atomic(&csv, &text).map_err(|e| e.to_string())?;
+    animate::animate(&animate::AnimateArgs {
+        scenario: a.scenario.to_path_buf(),
+        set: a.set.to_vec(),
+        csv: csv.clone(),
+        out: a.out.join(format!("{stem}.mode{}.svg", k + 1)),
+        // one period in 2 s of playback
+        speed: period / 2.0,
+        every: 1,
+        at: None,
+    })
+}
