@@ -5,6 +5,9 @@
 //! reactions at rest against a Newton–Euler balance of its three links;
 //! stability counts; the error when there is no equilibrium.
 
+// matrices are indexed by row and column throughout
+#![allow(clippy::needless_range_loop)]
+
 use faer::Mat;
 use mbsolve::analysis::{stability, static_equilibrium, StaticError, StaticOptions};
 use mbsolve::builders::{cantilever, RodParams};

@@ -1,6 +1,9 @@
 //! The tangent matrices against central finite differences of the
 //! system's own forces and constraint terms.
 
+// matrices are indexed by row and column throughout
+#![allow(clippy::needless_range_loop)]
+
 use mbsolve::analysis::Tangent;
 use mbsolve::builders::stiff_chain;
 

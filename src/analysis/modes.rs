@@ -187,7 +187,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         let size = basis.len();
         let check = size >= count && (size % 5 == 0 || size == max_basis || bnext == 0.0);
         let anorm = alpha.iter().fold(0.0f64, |s, a| s.max(a.abs()));
-        let breakdown = !(bnext > 1e-13 * anorm);
+        let breakdown = bnext.is_nan() || bnext <= 1e-13 * anorm;
         if check || breakdown || size >= max_basis {
             let ritz = tridiagonal_ritz(&alpha, &beta, bnext, count)?;
             let converged = ritz.iter().all(|r| r.2 <= opts.tol);

@@ -574,8 +574,8 @@ fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec
         .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
     }
     let mut remaining = vec![0usize; dim];
-    for c in 0..n {
-        for &r in &adj[c] {
+    for a in &adj[..n] {
+        for &r in a {
             if r >= n {
                 remaining[r] += 1;
             }

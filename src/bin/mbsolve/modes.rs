@@ -141,8 +141,8 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Figure of the first (at most 4) shapes: per body, the component (x, y
-/// or φ) with the largest amplitude over those modes.
+/// Figure of the first (at most 4) shapes: per body, the translation (x
+/// or y) with the larger amplitude over those modes, φ for pure rotations.
 fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<(), String> {
     let nb = sys.bodies().len();
     let shown = &modes.modes[..modes.modes.len().min(4)];
@@ -155,9 +155,17 @@ fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<
             .map(|md| (0..nb).map(|b| md.shape[3 * b + c].powi(2)).sum::<f64>())
             .sum()
     };
-    let comp = (0..3)
-        .max_by(|&a, &b| norm(a).total_cmp(&norm(b)))
-        .unwrap_or(0);
+    // a translation (x or y, the larger) unless the shapes are rotations
+    // only (φ and lengths are not comparable)
+    let comp = if norm(0).max(norm(1)) > 1e-24 * norm(2) {
+        if norm(0) >= norm(1) {
+            0
+        } else {
+            1
+        }
+    } else {
+        2
+    };
     let axis = ["x", "y", "φ"][comp];
     let fig = Figure {
         title: format!("{stem}: mode shapes ({axis} of each body, M-normalised)"),
@@ -228,8 +236,8 @@ fn animation(
         let t = period * f as f64 / frames as f64;
         let s = (2.0 * std::f64::consts::PI * f as f64 / frames as f64).sin();
         text += &format!("{t:e}");
-        for i in 0..n {
-            text += &format!(",{:e}", q0[i] + amp * s * md.shape[i]);
+        for (q, x) in q0.iter().zip(&md.shape) {
+            text += &format!(",{:e}", q + amp * s * x);
         }
         text += "\n";
     }
