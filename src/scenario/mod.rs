@@ -26,6 +26,8 @@ use std::collections::HashMap;
 use std::path::Path;
 
 mod components;
+mod element;
+mod forces;
 mod initial;
 pub mod limits;
 mod model;
@@ -34,7 +36,8 @@ mod sensor;
 
 use components::{RawChain, RawRods};
 use initial::RawInitial;
-use model::{RawBody, RawConstraints, RawForce, RawJoint};
+use element::RawTagged;
+use model::{RawBody, RawConstraints, RawJoint};
 use run::{RawIntegrator, RawOutput, RawStabilization, RawTime};
 
 /// The four-bar scenario shipped with the tool (docs/problems.md, problem A), embedded at
@@ -97,7 +100,7 @@ struct RawScenario {
     #[serde(default)]
     joint: Vec<RawJoint>,
     #[serde(default)]
-    force: Vec<RawForce>,
+    force: Vec<RawTagged>,
     #[serde(default)]
     initial: RawInitial,
     #[serde(default)]
