@@ -107,17 +107,31 @@ pub(super) fn read<T: DeserializeOwned>(
                     file,
                     key,
                     format!(
-                        "not a key of a {what} (its keys: type, name, {}){hint}",
+                        "not a key of {} {what} (its keys: type, name, {}){hint}",
+                        article(what),
                         keys.join(", ")
                     ),
                 );
             }
             if let Some(field) = quoted(&inner, "missing field `") {
-                return error(file, at(field), format!("missing: a {what} needs {field}"));
+                return error(
+                    file,
+                    at(field),
+                    format!("missing: {} {what} needs {field}", article(what)),
+                );
             }
             error(file, at(&sub), inner)
         },
     )
+}
+
+/// "an" before a vowel, else "a".
+fn article(word: &str) -> &'static str {
+    if word.starts_with(['a', 'e', 'i', 'o', 'u']) {
+        "an"
+    } else {
+        "a"
+    }
 }
 
 /// The text between `prefix` and the next backtick of `message`.
@@ -170,9 +184,10 @@ pub(super) fn keys_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
 }
 
 /// The candidate nearest to `word` by edit distance, if it is close
-/// enough to be a likely typo (at most a third of its length, and ≤ 3).
+/// enough to be a likely typo (2 edits, 3 for words of 9 characters or
+/// more).
 pub(super) fn nearest<'a>(word: &str, candidates: &[&'a str]) -> Option<&'a str> {
-    let limit = (word.chars().count() / 3).clamp(1, 3);
+    let limit = (word.chars().count() / 3).clamp(2, 3);
     candidates
         .iter()
         .map(|c| (levenshtein(word, c), *c))
@@ -249,5 +264,79 @@ mod tests {
         let e = read::<Sample>(&raw("body = 3"), "force[0]", "s", "f.toml").unwrap_err();
         assert_eq!(e.key, "force[0].body", "{e}");
         assert!(e.message.contains("invalid type"), "{e}");
+    }
+}
+
+/// The keys docs/scenarios.md lists for each type of a tagged table, for
+/// the tests that hold the declarations and the reference together.
+#[cfg(test)]
+pub(super) mod docs {
+    /// The reference of every scenario key.
+    pub(in crate::scenario) const SCENARIOS_MD: &str = include_str!("../../docs/scenarios.md");
+
+    /// The identifiers in backticks in `cell` (`"x"`, `[0, 0]` are not).
+    fn identifiers(cell: &str) -> Vec<String> {
+        cell.split('`')
+            .skip(1)
+            .step_by(2)
+            .filter(|w| !w.is_empty() && w.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// The rows of the first table after the line starting with `heading`:
+    /// its header cells and each row's cells.
+    pub(in crate::scenario) fn table(heading: &str) -> (Vec<String>, Vec<Vec<String>>) {
+        let mut lines = SCENARIOS_MD
+            .lines()
+            .skip_while(|l| !l.starts_with(heading))
+            .skip(1)
+            .skip_while(|l| !l.starts_with('|'));
+        let cells = |l: &str| -> Vec<String> {
+            l.trim()
+                .trim_matches('|')
+                .split(" | ")
+                .map(|c| c.trim().to_string())
+                .collect()
+        };
+        let header = cells(lines.next().unwrap_or_else(|| panic!("no table after {heading}")));
+        let rows = lines
+            .skip(1)
+            .take_while(|l| l.starts_with('|'))
+            .map(cells)
+            .collect();
+        (header, rows)
+    }
+
+    /// The keys of the `| key | …` table (first column) or of the
+    /// `| term | keys | …` table (second column) after `heading`, sorted.
+    pub(in crate::scenario) fn keys_after(heading: &str) -> Vec<String> {
+        let (header, rows) = table(heading);
+        let col = usize::from(header[0] != "key");
+        let mut keys: Vec<String> = rows.iter().flat_map(|r| identifiers(&r[col])).collect();
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
+    /// The keys of the row of `type` in the `| type | keys | …` table
+    /// after `heading`, sorted.
+    pub(in crate::scenario) fn keys_of_row(heading: &str, kind: &str) -> Vec<String> {
+        let (_, rows) = table(heading);
+        let row = rows
+            .iter()
+            .find(|r| r[0] == format!("`{kind}`"))
+            .unwrap_or_else(|| panic!("docs/scenarios.md: no row `{kind}` after {heading}"));
+        let mut keys = identifiers(&row[1]);
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
+    /// `keys` sorted, as owned strings.
+    pub(in crate::scenario) fn sorted(keys: &[&str]) -> Vec<String> {
+        let mut k: Vec<String> = keys.iter().map(|s| s.to_string()).collect();
+        k.sort();
+        k
     }
 }

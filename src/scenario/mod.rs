@@ -29,6 +29,7 @@ mod components;
 mod element;
 mod forces;
 mod initial;
+mod joints;
 pub mod limits;
 mod model;
 mod run;
@@ -37,7 +38,7 @@ mod sensor;
 use components::{RawChain, RawRods};
 use initial::RawInitial;
 use element::RawTagged;
-use model::{RawBody, RawConstraints, RawJoint};
+use model::{RawBody, RawConstraints};
 use run::{RawIntegrator, RawOutput, RawStabilization, RawTime};
 
 /// The four-bar scenario shipped with the tool (docs/problems.md, problem A), embedded at
@@ -98,7 +99,7 @@ struct RawScenario {
     #[serde(default)]
     body: Vec<RawBody>,
     #[serde(default)]
-    joint: Vec<RawJoint>,
+    joint: Vec<RawTagged>,
     #[serde(default)]
     force: Vec<RawTagged>,
     #[serde(default)]

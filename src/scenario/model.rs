@@ -4,7 +4,6 @@
 
 use super::{error, list, RawScenario, ScenarioError};
 use crate::builders::{ChainInfo, RodInfo};
-use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
 use crate::forces::Law;
 use crate::model::{Body, BodyRef, Evaluation, System, SystemBuilder, TimeFunction};
 use serde::Deserialize;
@@ -104,24 +103,6 @@ pub(super) struct RawBody {
     vy: f64,
     #[serde(default)]
     omega: f64,
-}
-
-/// `[[joint]]`: `type` = revolute | translational | drive_coordinate |
-/// drive_angle; which other keys apply depends on the type.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct RawJoint {
-    #[serde(rename = "type")]
-    kind: String,
-    name: Option<String>,
-    body: Option<String>,
-    body_i: Option<String>,
-    point_i: Option<RawPoint>,
-    axis_i: Option<[f64; 2]>,
-    body_j: Option<String>,
-    point_j: Option<RawPoint>,
-    coordinate: Option<String>,
-    motion: Option<RawFunction>,
 }
 
 /// A body point: `[x, y]` in the body frame, or on a rod segment or chain
@@ -380,105 +361,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         &mut names,
         file,
     )?;
-    let body_ref = |key: String, name: &str| body_ref(&names, file, key, name);
-    let body_index = |key: String, name: &str| body_index(&names, file, key, name);
     for (k, j) in raw.joint.iter().enumerate() {
-        let key = |f: &str| format!("joint[{k}].{f}");
-        let name = j.name.clone().unwrap_or_else(|| format!("joint{}", k + 1));
-        // Keys each type takes; anything else given is an error.
-        let (needs, allowed): (&[&str], &[&str]) = match j.kind.as_str() {
-            "revolute" => (&["body_i", "point_i", "body_j", "point_j"], &[]),
-            "translational" => (&["body_i", "point_i", "axis_i", "body_j", "point_j"], &[]),
-            "drive_coordinate" => (&["body", "coordinate", "motion"], &[]),
-            "drive_angle" => (&["body_i", "body_j", "motion"], &[]),
-            o => {
-                return Err(err(
-                    key("type"),
-                    format!("unknown joint type '{o}' (expected revolute, translational, drive_coordinate or drive_angle)"),
-                ))
-            }
-        };
-        let given = [
-            ("body", j.body.is_some()),
-            ("body_i", j.body_i.is_some()),
-            ("point_i", j.point_i.is_some()),
-            ("axis_i", j.axis_i.is_some()),
-            ("body_j", j.body_j.is_some()),
-            ("point_j", j.point_j.is_some()),
-            ("coordinate", j.coordinate.is_some()),
-            ("motion", j.motion.is_some()),
-        ];
-        for (f, present) in given {
-            let wanted = needs.contains(&f) || allowed.contains(&f);
-            if present && !wanted {
-                return Err(err(key(f), format!("not a key of a {} joint", j.kind)));
-            }
-            if !present && needs.contains(&f) {
-                return Err(err(
-                    key(f),
-                    format!("missing: a {} joint needs {}", j.kind, needs.join(", ")),
-                ));
-            }
-        }
-        let s = |o: &Option<String>| o.clone().unwrap_or_default();
-        let p = |o: &Option<[f64; 2]>| o.unwrap_or_default();
-        match j.kind.as_str() {
-            "revolute" | "translational" => {
-                let bi = body_ref(key("body_i"), &s(&j.body_i))?;
-                let bj = body_ref(key("body_j"), &s(&j.body_j))?;
-                if bi == bj {
-                    return Err(err(
-                        key("body_j"),
-                        format!(
-                            "a joint must connect two different bodies, got '{}' twice",
-                            s(&j.body_j)
-                        ),
-                    ));
-                }
-                let pi = body_point(j.point_i, bi, &components.ends, file, key("point_i"))?;
-                let pj = body_point(j.point_j, bj, &components.ends, file, key("point_j"))?;
-                if j.kind == "revolute" {
-                    builder.add_constraint(Revolute::new(name, bi, pi, bj, pj));
-                } else {
-                    let axis = p(&j.axis_i);
-                    let len = axis[0].hypot(axis[1]);
-                    if !len.is_finite() || len <= 0.0 {
-                        return Err(err(
-                            key("axis_i"),
-                            format!("{axis:?}: the axis must be a non-zero vector"),
-                        ));
-                    }
-                    let angle = |b: BodyRef| match b {
-                        BodyRef::Ground => 0.0,
-                        BodyRef::Body(i) => builder.bodies()[i].q0[2],
-                    };
-                    let theta0 = angle(bj) - angle(bi);
-                    builder.add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
-                }
-            }
-            "drive_coordinate" => {
-                let b = body_index(key("body"), &s(&j.body))?;
-                let c = match s(&j.coordinate).as_str() {
-                    "x" => 0,
-                    "y" => 1,
-                    "phi" => 2,
-                    o => {
-                        return Err(err(
-                            key("coordinate"),
-                            format!("'{o}' is not one of x, y, phi"),
-                        ))
-                    }
-                };
-                let f = j.motion.as_ref().expect("checked").to_function();
-                builder.add_constraint(DriveCoordinate::new(name, b, c, f));
-            }
-            _ => {
-                let bi = body_ref(key("body_i"), &s(&j.body_i))?;
-                let bj = body_ref(key("body_j"), &s(&j.body_j))?;
-                let f = j.motion.as_ref().expect("checked").to_function();
-                builder.add_constraint(DriveRelativeAngle::new(name, bi, bj, f));
-            }
-        }
+        super::joints::add_joint(j, &mut builder, k, &names, &components.ends, file)?;
     }
     let gravity = raw.gravity;
     let mut forces = Vec::with_capacity(raw.force.len());

@@ -34,7 +34,9 @@ pub(super) trait ForceType: DeserializeOwned {
 pub(super) struct ForceDecl {
     /// The `type` value.
     pub(super) name: &'static str,
-    /// Its keys besides `type` and `name`, in declaration order.
+    /// Its keys besides `type` and `name`, in declaration order (read by
+    /// the test that holds docs/scenarios.md to the declarations).
+    #[cfg_attr(not(test), allow(dead_code))]
     pub(super) keys: fn() -> &'static [&'static str],
     /// Reads the table as this type and adds its elements.
     add: fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>,
@@ -255,5 +257,66 @@ impl Context<'_> {
             }
             other => error(self.file, format!("force[{}]", self.k), other.to_string()),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TYPES;
+    use crate::scenario::element::docs::{keys_after, sorted};
+
+    /// docs/scenarios.md has a key table per force type listing exactly
+    /// the fields of its struct.
+    #[test]
+    fn docs_list_each_force_types_keys() {
+        for t in TYPES {
+            let heading = format!("### `{}` —", t.name);
+            assert_eq!(
+                keys_after(&heading),
+                sorted((t.keys)()),
+                "docs/scenarios.md, {heading}: the keys differ from the {} struct",
+                t.name
+            );
+        }
+    }
+
+    /// A typo in a force table is reported at its key with the nearest key
+    /// of this type (not of every type).
+    #[test]
+    fn typos_suggest_the_nearest_key_of_this_type() {
+        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
+                    [time]\nend = 0.1\n[[force]]\n";
+        for (table, key, near) in [
+            ("type = \"torque\"\nbody = \"a\"\ntorqe = 1.0", "torqe", "torque"),
+            ("type = \"force\"\nbody = \"a\"\nfx = 1.0\nfy = 0.0\npoimt = [0.0, 0.0]", "poimt", "point"),
+            ("type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\ndampin = 1.0", "dampin", "damping"),
+            ("type = \"rotational_spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nrest_angel = 1.0", "rest_angel", "rest_angle"),
+            ("type = \"contact\"\nbody = \"a\"\nstiffness = 1.0\nwall_normal_dg = 90.0", "wall_normal_dg", "wall_normal_deg"),
+            ("type = \"fluid\"\nbody = \"a\"\nfluid_density = 1.0\nvolum = 1.0", "volum", "volume"),
+            ("type = \"expression\"\nbody = \"a\"\ntorq = \"1\"", "torq", "torque"),
+        ] {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("force[0].{key}"), "{e}");
+            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+            let kind = table.split('"').nth(1).unwrap();
+            let decl = TYPES.iter().find(|t| t.name == kind).unwrap();
+            assert!(e.message.contains(&(decl.keys)().join(", ")), "{e}");
+            // the keys of another type are not offered
+            if kind != "fluid" {
+                assert!(!e.message.contains("fluid_density"), "{e}");
+            }
+        }
+        // a key of another type: not this type's, listed with this type's keys
+        let e = crate::scenario::parse(
+            &format!("{base}type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nradius = 0.1"),
+            "f.toml",
+            "f",
+            &[],
+        )
+        .unwrap_err();
+        assert_eq!(e.key, "force[0].radius", "{e}");
+        assert!(e.message.starts_with("not a key of a spring force element"), "{e}");
+        assert!(!e.message.contains("did you mean"), "{e}");
     }
 }
