@@ -122,7 +122,7 @@ struct RawScenario {
     #[serde(default)]
     constraints: RawConstraints,
     #[serde(default)]
-    sensor: Vec<sensor::RawSensor>,
+    sensor: Vec<RawTagged>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it
