@@ -220,7 +220,9 @@ fn the_method_table_decides_which_integrator_keys_apply() {
                     }
                 } else {
                     refused_per_row[r] += 1;
-                    let e = result.map(|_| ()).expect_err(&format!("{o:?} was accepted"));
+                    let e = result
+                        .map(|_| ())
+                        .expect_err(&format!("{o:?} was accepted"));
                     assert_eq!(e.key, format!("integrator.{key}"), "{o:?}: {e}");
                     assert!(e.message.contains(row.name), "{o:?}: {e}");
                 }
@@ -228,7 +230,10 @@ fn the_method_table_decides_which_integrator_keys_apply() {
         }
     }
     // every family refuses something (the loop above is not vacuous)
-    assert!(refused_per_row.iter().all(|&n| n > 0), "{refused_per_row:?}");
+    assert!(
+        refused_per_row.iter().all(|&n| n > 0),
+        "{refused_per_row:?}"
+    );
 }
 
 /// The "applies to … only" messages name the methods the table gives the
@@ -276,7 +281,11 @@ fn applicability_messages_name_the_methods_of_the_table() {
         ),
         // Baumgarte on an index-3 method: the index-1 methods from the table
         (
-            &["integrator.method=\"radau5\"", "integrator.step=1e-3", "stabilization.alpha=5"],
+            &[
+                "integrator.method=\"radau5\"",
+                "integrator.step=1e-3",
+                "stabilization.alpha=5",
+            ],
             "stabilization.alpha",
             "applies to the index-1 methods (ode23, ode45, rk4 and ode113); radau5",
         ),

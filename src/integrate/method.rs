@@ -428,11 +428,7 @@ pub fn markdown_table() -> String {
     );
     for m in &METHODS {
         let names = std::iter::once(format!("`{}`", m.name))
-            .chain(
-                m.aliases
-                    .iter()
-                    .map(|(a, what)| format!("`{a}` ({what})")),
-            )
+            .chain(m.aliases.iter().map(|(a, what)| format!("`{a}` ({what})")))
             .collect::<Vec<_>>()
             .join(", ");
         let equations = match m.equations {

@@ -299,7 +299,11 @@ pub(super) mod docs {
                 .map(|c| c.trim().to_string())
                 .collect()
         };
-        let header = cells(lines.next().unwrap_or_else(|| panic!("no table after {heading}")));
+        let header = cells(
+            lines
+                .next()
+                .unwrap_or_else(|| panic!("no table after {heading}")),
+        );
         let rows = lines
             .skip(1)
             .take_while(|l| l.starts_with('|'))
@@ -320,14 +324,17 @@ pub(super) mod docs {
     }
 
     /// The keys of the row of `type` in the `| type | keys | …` table
-    /// after `heading`, sorted.
+    /// after `heading` (up to a colon), sorted.
     pub(in crate::scenario) fn keys_of_row(heading: &str, kind: &str) -> Vec<String> {
         let (_, rows) = table(heading);
         let row = rows
             .iter()
             .find(|r| r[0] == format!("`{kind}`"))
             .unwrap_or_else(|| panic!("docs/scenarios.md: no row `{kind}` after {heading}"));
-        let mut keys = identifiers(&row[1]);
+        // a key's description after a colon ("`force`: the `name` of …")
+        // names no keys
+        let cell = row[1].split(": ").next().unwrap_or_default();
+        let mut keys = identifiers(cell);
         keys.sort();
         keys.dedup();
         keys

@@ -140,7 +140,8 @@ impl JointType for RevoluteJoint {
         let pi = cx.point("point_i", self.point_i, bi)?;
         let pj = cx.point("point_j", self.point_j, bj)?;
         let name = std::mem::take(&mut cx.name);
-        cx.builder.add_constraint(Revolute::new(name, bi, pi, bj, pj));
+        cx.builder
+            .add_constraint(Revolute::new(name, bi, pi, bj, pj));
         Ok(())
     }
 }
@@ -210,16 +211,12 @@ impl JointType for DriveCoordinateJoint {
             "x" => 0,
             "y" => 1,
             "phi" => 2,
-            o => {
-                return Err(cx.err(
-                    "coordinate",
-                    format!("'{o}' is not one of x, y, phi"),
-                ))
-            }
+            o => return Err(cx.err("coordinate", format!("'{o}' is not one of x, y, phi"))),
         };
         let f = self.motion.to_function();
         let name = std::mem::take(&mut cx.name);
-        cx.builder.add_constraint(DriveCoordinate::new(name, b, c, f));
+        cx.builder
+            .add_constraint(DriveCoordinate::new(name, b, c, f));
         Ok(())
     }
 }

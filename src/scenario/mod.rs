@@ -36,8 +36,8 @@ mod run;
 mod sensor;
 
 use components::{RawChain, RawRods};
-use initial::RawInitial;
 use element::RawTagged;
+use initial::RawInitial;
 use model::{RawBody, RawConstraints};
 use run::{RawIntegrator, RawOutput, RawStabilization, RawTime};
 

@@ -369,7 +369,9 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
     for (k, f) in raw.force.iter().enumerate() {
         let start = builder.n_forces();
         super::forces::add_force(f, &mut builder, k, gravity, &names, &components.ends, file)?;
-        let name = f.name().map_or_else(|| format!("force{}", k + 1), str::to_string);
+        let name = f
+            .name()
+            .map_or_else(|| format!("force{}", k + 1), str::to_string);
         forces.push((name, start..builder.n_forces()));
     }
     if let Some(g) = raw.gravity {

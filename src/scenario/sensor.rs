@@ -129,8 +129,10 @@ pub(super) fn build(
             }
             None => return Err(err("name", "missing: a sensor needs a name".into())),
         };
-        let valid_name =
-            !name.is_empty() && name.chars().all(|c| c.is_alphanumeric() || c == '_' || c == '-');
+        let valid_name = !name.is_empty()
+            && name
+                .chars()
+                .all(|c| c.is_alphanumeric() || c == '_' || c == '-');
         if !valid_name {
             return Err(err(
                 "name",
@@ -157,7 +159,8 @@ pub(super) fn build(
                 point: finite("point", p.point)?,
             },
             Spec::Distance(d) => {
-                let (point_i, point_j) = (finite("point_i", d.point_i)?, finite("point_j", d.point_j)?);
+                let (point_i, point_j) =
+                    (finite("point_i", d.point_i)?, finite("point_j", d.point_j)?);
                 SensorKind::Distance {
                     body_i: body("body_i", &d.body_i)?,
                     point_i,
@@ -195,7 +198,10 @@ pub(super) fn build(
                     }
                 }
             }
-            Spec::Element { force: name, contact } => {
+            Spec::Element {
+                force: name,
+                contact,
+            } => {
                 let (_, range) = forces.iter().find(|f| f.0 == name).ok_or_else(|| {
                     let all: Vec<&str> = forces.iter().map(|f| f.0.as_str()).collect();
                     err(
@@ -261,16 +267,31 @@ mod tests {
                     [[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\n\
                     [time]\nend = 0.1\n[[sensor]]\nname = \"m\"\n";
         for (table, key, near) in [
-            ("type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]", "piont", "point"),
+            (
+                "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]",
+                "piont",
+                "point",
+            ),
             ("type = \"joint_angle\"\njiont = \"j\"", "jiont", "joint"),
-            ("type = \"distance\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_ii = [0.0, 0.0]", "point_ii", "point_i"),
-            ("type = \"force_element\"\nforces = \"s\"", "forces", "force"),
+            (
+                "type = \"distance\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_ii = [0.0, 0.0]",
+                "point_ii",
+                "point_i",
+            ),
+            (
+                "type = \"force_element\"\nforces = \"s\"",
+                "forces",
+                "force",
+            ),
             ("type = \"contact\"\nforc = \"s\"", "forc", "force"),
         ] {
             let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
                 .expect_err(table);
             assert_eq!(e.key, format!("sensor[0].{key}"), "{e}");
-            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+            assert!(
+                e.message.contains(&format!("did you mean `{near}`?")),
+                "{e}"
+            );
         }
     }
 }

@@ -316,7 +316,10 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.key, "force[0].radius", "{e}");
-        assert!(e.message.starts_with("not a key of a spring force element"), "{e}");
+        assert!(
+            e.message.starts_with("not a key of a spring force element"),
+            "{e}"
+        );
         assert!(!e.message.contains("did you mean"), "{e}");
     }
 }

@@ -52,7 +52,10 @@ impl ForceType for RotationalSpring {
                 ("stiffness", self.stiffness),
                 ("torque_angle", &self.torque_angle),
             )?,
-            damping: cx.law(("damping", self.damping), ("torque_rate", &self.torque_rate))?,
+            damping: cx.law(
+                ("damping", self.damping),
+                ("torque_rate", &self.torque_rate),
+            )?,
         };
         cx.checked(&s, &[])?;
         cx.builder.add_force(s);
