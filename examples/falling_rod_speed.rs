@@ -187,7 +187,7 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         ..Default::default()
     };
     cfg.ode.max_steps = 100_000_000;
-    if (method.is_implicit() && !adaptive_ga && method == Method::GenAlpha)
+    if (method.is_generalized_alpha() && !adaptive_ga && method == Method::GenAlpha)
         || method == Method::Rk4
         || method == Method::Radau5
     {

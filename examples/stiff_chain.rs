@@ -41,7 +41,7 @@ fn main() {
             output_dt: 0.1,
             ..Default::default()
         };
-        if method.is_implicit() || matches!(method, Method::Rk4 | Method::Radau5) {
+        if method.is_generalized_alpha() || matches!(method, Method::Rk4 | Method::Radau5) {
             cfg.ode.fixed_step = Some(value);
         } else {
             cfg.ode.rtol = value;

@@ -72,7 +72,7 @@ fn main() {
         cfg.ode.atol = Tolerance::Scalar(atol_factor.map_or(rtol * 1e-3, |a| a));
         cfg.ode.max_steps = 100_000_000;
         cfg.ode.initial_step = std::env::var("H5_H0").ok().and_then(|v| v.parse().ok());
-        if method.is_implicit() {
+        if method.is_generalized_alpha() {
             cfg.implicit.adaptive = true;
             cfg.implicit.rho_inf = 0.9;
         }

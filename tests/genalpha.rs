@@ -423,7 +423,9 @@ fn implicit_methods_parse_validate_and_are_not_ode_integrators() {
         ("newmark", Method::Newmark),
     ] {
         assert_eq!(name.parse::<Method>().unwrap(), m);
-        assert!(m.is_implicit() && Method::ALL.contains(&m) && Method::NAMES.contains(&name));
+        assert!(
+            m.is_generalized_alpha() && Method::ALL.contains(&m) && Method::NAMES.contains(&name)
+        );
         assert!(matches!(
             integrator(m, OdeOptions::default()),
             Err(IntegratorError::ImplicitMethod(_))

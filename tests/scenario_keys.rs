@@ -250,4 +250,130 @@ fn threads_environment_variable_reaches_the_run() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("MBSOLVE_THREADS") && e.contains("'many'"), "{e}");
+/// Every `[integrator]` key against every method, with and without
+/// `adaptive = true`: the method table's row decides whether the loader
+/// accepts the key, and a refusal names the key and the method.
+#[test]
+fn the_method_table_decides_which_integrator_keys_apply() {
+    use mbsolve::integrate::{Stepping, METHODS};
+    let values = [
+        ("rtol", "1e-6"),
+        ("atol", "1e-8"),
+        ("step", "1e-3"),
+        ("max_step", "0.01"),
+        ("initial_step", "1e-4"),
+        ("rho_inf", "0.9"),
+        ("adaptive", "false"),
+        ("newton_tol", "1e-7"),
+        ("max_newton", "10"),
+        ("project", "true"),
+        ("reuse", "true"),
+        ("filter_error", "true"),
+        ("check_constraints", "true"),
+        ("min_step", "1e-9"),
+        ("lu", "true"),
+        ("extrapolate", "true"),
+        ("max_order", "3"),
+        ("ndf", "true"),
+    ];
+    let mut refused_per_row = vec![0; METHODS.len()];
+    for (r, row) in METHODS.iter().enumerate() {
+        let modes: &[bool] = match row.stepping {
+            Stepping::FixedOrAdaptive => &[false, true],
+            _ => &[false],
+        };
+        for &adaptive in modes {
+            for (key, value) in values {
+                if key == "adaptive" && adaptive {
+                    continue;
+                }
+                let mut o = vec![format!("integrator.method=\"{}\"", row.name)];
+                if adaptive {
+                    o.push("integrator.adaptive=true".into());
+                } else if row.stepping != Stepping::Adaptive && key != "step" {
+                    o.push("integrator.step=1e-3".into());
+                }
+                o.push(format!("integrator.{key}={value}"));
+                let r#ref: Vec<&str> = o.iter().map(String::as_str).collect();
+                let result = fourbar(&r#ref);
+                if row.takes(key, adaptive) {
+                    if let Err(e) = &result {
+                        assert_ne!(e.key, format!("integrator.{key}"), "{o:?}: {e}");
+                    }
+                } else {
+                    refused_per_row[r] += 1;
+                    let e = result
+                        .map(|_| ())
+                        .expect_err(&format!("{o:?} was accepted"));
+                    assert_eq!(e.key, format!("integrator.{key}"), "{o:?}: {e}");
+                    assert!(e.message.contains(row.name), "{o:?}: {e}");
+                }
+            }
+        }
+    }
+    // every family refuses something (the loop above is not vacuous)
+    assert!(
+        refused_per_row.iter().all(|&n| n > 0),
+        "{refused_per_row:?}"
+    );
+}
+
+/// The "applies to … only" messages name the methods the table gives the
+/// key, one family at a time.
+#[test]
+fn applicability_messages_name_the_methods_of_the_table() {
+    for (o, key, why) in [
+        // generalized-α keys on an explicit Runge–Kutta method
+        (
+            &["integrator.rho_inf=0.5"][..],
+            "integrator.rho_inf",
+            "applies to the implicit methods genalpha, hht and newmark only, not to ode23",
+        ),
+        // keys of the generalized-α family and radau5 on the Adams method
+        (
+            &["integrator.method=\"ode113\"", "integrator.min_step=1e-9"],
+            "integrator.min_step",
+            "applies to the implicit methods genalpha, hht, newmark and radau5 only, not to ode113",
+        ),
+        // a BDF key on the generalized-α family
+        (
+            &[
+                "integrator.method=\"genalpha\"",
+                "integrator.step=1e-3",
+                "integrator.max_order=3",
+            ],
+            "integrator.max_order",
+            "applies to bdf only, not to genalpha",
+        ),
+        // a generalized-α key on Radau IIA
+        (
+            &[
+                "integrator.method=\"radau5\"",
+                "integrator.step=1e-3",
+                "integrator.lu=true",
+            ],
+            "integrator.lu",
+            "applies to the implicit methods genalpha, hht and newmark only, not to radau5",
+        ),
+        // a Newton key on BDF
+        (
+            &["integrator.method=\"bdf\"", "integrator.newton_tol=1e-7"],
+            "integrator.newton_tol",
+            "applies to the implicit methods genalpha, hht, newmark and radau5 only, not to bdf",
+        ),
+        // Baumgarte on an index-3 method: the index-1 methods from the table
+        (
+            &[
+                "integrator.method=\"radau5\"",
+                "integrator.step=1e-3",
+                "stabilization.alpha=5",
+            ],
+            "stabilization.alpha",
+            "applies to the index-1 methods (ode23, ode45, rk4 and ode113); radau5",
+        ),
+    ] {
+        let (k, m) = rejected(o);
+        assert_eq!(k, key, "{o:?}: {m}");
+        assert!(m.contains(why), "{o:?}: {m}");
+    }
 }

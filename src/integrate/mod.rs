@@ -50,6 +50,7 @@ mod driver;
 mod embedded;
 mod genalpha;
 mod hermite;
+mod method;
 mod ode113;
 mod options;
 mod radau;
@@ -66,11 +67,15 @@ pub use genalpha::{
     AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
     SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
+pub(crate) use method::methods_taking;
+pub use method::{
+    markdown_table as method_table_markdown, Equations, Family, KeyUse, Method, MethodInfo,
+    Stepping, METHODS, STEP_CONTROL_KEYS,
+};
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 pub use radau::{ComplexNewton, Radau5, RadauStats, RadauTableau};
 
 use std::ops::ControlFlow;
-use std::str::FromStr;
 
 pub use crate::numeric::first_non_finite;
 pub use common::eps;
@@ -142,115 +147,6 @@ impl<F: FnMut(f64, &[f64], &mut [f64])> OdeSystem for FnSystem<F> {
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
         (self.f)(t, y, dydt);
         Ok(())
-    }
-}
-
-/// Integration method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// Bogacki–Shampine 3(2), adaptive, as MATLAB's `ode23`.
-    Ode23,
-    /// Dormand–Prince 5(4), adaptive, as MATLAB's `ode45`.
-    Ode45,
-    /// Classic Runge–Kutta 4, fixed step.
-    Rk4,
-    /// Variable-order Adams–Bashforth–Moulton PECE (Shampine & Gordon),
-    /// adaptive, as MATLAB's `ode113`.
-    Ode113,
-    /// Variable-order (1–5), variable-step BDF on the index-3 equations
-    /// ([`Bdf`], as DASSL / MATLAB's `ode15s`), adaptive. Not an
-    /// [`OdeSystem`] integrator: run through `simulation::simulate`.
-    Bdf,
-    /// Generalized-α on the index-3 equations (Chung & Hulbert 1993;
-    /// Arnold & Brüls 2007), parameters from ρ∞ — see [`GenAlpha`]. Implicit:
-    /// not an [`OdeSystem`] integrator, run through `simulation::simulate`.
-    GenAlpha,
-    /// HHT-α (Hilber, Hughes & Taylor 1977) as the generalized-α member
-    /// with α_m = 0 (ρ∞ ∈ [½, 1]) — see [`AlphaParameters::hht`]. Implicit.
-    Hht,
-    /// Newmark (α_m = α_f = 0) with dissipation from ρ∞ — see
-    /// [`AlphaParameters::newmark`]. Implicit.
-    Newmark,
-    /// Radau IIA of order 5 (three stages, L-stable) on the index-3
-    /// equations, fixed step ([`Radau5`]; docs/radau.md). Not an
-    /// [`OdeSystem`] integrator: run through `simulation::simulate`.
-    Radau5,
-}
-
-impl Method {
-    /// All methods, in the order of [`Method::NAMES`].
-    pub const ALL: [Method; 9] = [
-        Method::Ode23,
-        Method::Ode45,
-        Method::Rk4,
-        Method::Ode113,
-        Method::Bdf,
-        Method::GenAlpha,
-        Method::Hht,
-        Method::Newmark,
-        Method::Radau5,
-    ];
-    /// The valid method names.
-    pub const NAMES: [&'static str; 9] = [
-        "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark", "radau5",
-    ];
-
-    /// Lower-case name: "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark" or "radau5".
-    pub fn name(&self) -> &'static str {
-        match self {
-            Method::Ode23 => "ode23",
-            Method::Ode45 => "ode45",
-            Method::Rk4 => "rk4",
-            Method::Ode113 => "ode113",
-            Method::Bdf => "bdf",
-            Method::GenAlpha => "genalpha",
-            Method::Hht => "hht",
-            Method::Newmark => "newmark",
-            Method::Radau5 => "radau5",
-        }
-    }
-
-    /// Whether the method adapts its step to `rtol`/`atol` (the implicit
-    /// methods only with [`ImplicitOptions::adaptive`]).
-    pub fn is_adaptive(&self) -> bool {
-        matches!(
-            self,
-            Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf
-        )
-    }
-
-    /// Whether the method is one of the implicit generalized-α family
-    /// (index-3 DAE integrators, [`GenAlpha`]) rather than an explicit ODE
-    /// integrator.
-    pub fn is_implicit(&self) -> bool {
-        matches!(self, Method::GenAlpha | Method::Hht | Method::Newmark)
-    }
-
-    /// The methods that integrate the index-3 equations (the implicit α
-    /// family, bdf and radau5): no Baumgarte terms, numerical damping that
-    /// only removes energy.
-    pub fn is_index3(&self) -> bool {
-        self.is_implicit() || matches!(self, Method::Bdf | Method::Radau5)
-    }
-}
-
-impl std::fmt::Display for Method {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Method {
-    type Err = IntegratorError;
-    /// Parses one of [`Method::NAMES`] (case-insensitive, surrounding
-    /// whitespace ignored).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let key = s.trim().to_ascii_lowercase();
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == key)
-            .ok_or_else(|| IntegratorError::UnknownMethod(s.to_string()))
     }
 }
 
@@ -381,7 +277,8 @@ pub enum IntegratorError {
     },
     /// Unknown method name.
     #[error(
-        "unknown integration method '{0}'; valid methods are ode23, ode45, rk4, ode113, bdf, genalpha, hht, newmark, radau5"
+        "unknown integration method '{0}'; valid methods are {names}",
+        names = Method::NAMES.join(", ")
     )]
     UnknownMethod(String),
     /// The method is implicit (index-3 DAE) and has no [`OdeSystem`]
@@ -454,13 +351,13 @@ pub trait Integrator {
 /// Creates an integrator for `method`, validating the options with
 /// [`OdeOptions::validate`] (options the method does not use are an error).
 ///
-/// The implicit methods ([`Method::is_implicit`]) return
+/// The index-3 methods ([`Method::is_index3`]) return
 /// [`IntegratorError::ImplicitMethod`].
 pub fn integrator(
     method: Method,
     options: OdeOptions,
 ) -> Result<Box<dyn Integrator>, IntegratorError> {
-    if method.is_implicit() || matches!(method, Method::Bdf | Method::Radau5) {
+    if method.is_index3() {
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
     options.validate(method, false)?;

@@ -11,7 +11,7 @@
 //! elsewhere (the scenario loader) map the field to their own key.
 
 use super::genalpha::AlphaParameters;
-use super::{IntegratorError, Method};
+use super::{Family, IntegratorError, Method, Stepping};
 use serde::Serialize;
 
 /// Absolute tolerance: one value for all components or one per component.
@@ -221,7 +221,7 @@ impl OdeOptions {
             return Err(invalid("max_steps", 0, "must be at least 1"));
         }
         let d = Self::default();
-        if method == Method::Bdf {
+        if method.info().key_use("max_order").is_some() {
             if !(1..=5).contains(&self.max_order) {
                 return Err(invalid(
                     "max_order",
@@ -238,13 +238,16 @@ impl OdeOptions {
             return Err(not_applicable(
                 option,
                 method,
-                "only bdf has an order cap and the NDF variant",
+                &format!(
+                    "only {} has an order cap and the NDF variant",
+                    super::methods_taking(option)
+                ),
             ));
         }
-        let step_controlled = match method {
-            Method::Ode23 | Method::Ode45 | Method::Ode113 | Method::Bdf => true,
-            Method::Rk4 => false,
-            Method::GenAlpha | Method::Hht | Method::Newmark | Method::Radau5 => adaptive,
+        let step_controlled = match method.info().stepping {
+            Stepping::Adaptive => true,
+            Stepping::Fixed => false,
+            Stepping::FixedOrAdaptive => adaptive,
         };
         if step_controlled {
             if !(self.rtol > 0.0 && self.rtol.is_finite()) {
@@ -265,7 +268,7 @@ impl OdeOptions {
                 ));
             }
         } else {
-            let need = if method == Method::Rk4 {
+            let need = if method.info().stepping == Stepping::Fixed {
                 format!("{} requires a positive, finite fixed_step", method.name())
             } else {
                 format!(
@@ -298,56 +301,38 @@ impl OdeOptions {
 }
 
 impl ImplicitOptions {
-    /// Checks the options for an implicit `method` with the fixed step
-    /// `fixed_step` ([`OdeOptions::fixed_step`]): ρ∞ in the method's range
-    /// ([`AlphaParameters::for_method`]), `newton_tol > 0`,
-    /// `max_newton ≥ 1`, `min_step > 0` and, with a fixed step, not above
-    /// it. For an explicit `method` every field must keep its default
-    /// ([`IntegratorError::NotApplicable`] names the first that does not).
+    /// Checks the options for `method` with the fixed step `fixed_step`
+    /// ([`OdeOptions::fixed_step`]): every field that the method's row of
+    /// [`super::METHODS`] does not list must keep its default
+    /// ([`IntegratorError::NotApplicable`] names the first that does not);
+    /// for the index-3 methods `newton_tol > 0`, `max_newton ≥ 1`,
+    /// `min_step > 0`, for the generalized-α family also ρ∞ in the
+    /// method's range ([`AlphaParameters::for_method`]) and, with a fixed
+    /// step, `min_step` not above it.
     pub fn validate(&self, method: Method, fixed_step: Option<f64>) -> Result<(), IntegratorError> {
-        if method == Method::Radau5 {
-            // Radau IIA reads the Newton settings, projection, reuse, the
-            // smallest step and adaptive; the α-family options do not apply
-            let d = Self::default();
-            let other = Self {
-                newton_tol: d.newton_tol,
-                max_newton: d.max_newton,
-                project: d.project,
-                reuse: d.reuse,
-                min_step: d.min_step,
-                adaptive: d.adaptive,
-                ..self.clone()
+        // the fields the method's row of the method table reads (adaptive
+        // or not: filter_error with a fixed step is the scenario loader's
+        // concern)
+        let row = method.info();
+        if let Some(option) = self.first_non_default_where(|f| row.key_use(f).is_none()) {
+            let reads: Vec<&str> = Self::FIELDS
+                .iter()
+                .copied()
+                .filter(|f| row.key_use(f).is_some())
+                .collect();
+            let reason = if reads.is_empty() {
+                format!("only {} use it", super::methods_taking(option))
+            } else {
+                format!("{} reads {} only", method.name(), reads.join(", "))
             };
-            if let Some(option) = other.first_non_default() {
-                return Err(not_applicable(
-                    option,
-                    method,
-                    "radau5 reads newton_tol, max_newton, project, reuse, min_step and adaptive only",
-                ));
-            }
-            if !(self.newton_tol > 0.0 && self.newton_tol.is_finite()) {
-                return Err(invalid(
-                    "newton_tol",
-                    self.newton_tol,
-                    "must be positive and finite",
-                ));
-            }
-            if self.max_newton == 0 {
-                return Err(invalid("max_newton", 0, "must be at least 1"));
-            }
-            return check_positive("min_step", self.min_step);
+            return Err(not_applicable(option, method, &reason));
         }
-        if !method.is_implicit() {
-            return match self.first_non_default() {
-                Some(option) => Err(not_applicable(
-                    option,
-                    method,
-                    "only the implicit methods (genalpha, hht, newmark) use it",
-                )),
-                None => Ok(()),
-            };
+        if !method.is_index3() {
+            return Ok(());
         }
-        AlphaParameters::for_method(method, self.rho_inf)?;
+        if method.family() == Family::GeneralizedAlpha {
+            AlphaParameters::for_method(method, self.rho_inf)?;
+        }
         if !(self.newton_tol > 0.0 && self.newton_tol.is_finite()) {
             return Err(invalid(
                 "newton_tol",
@@ -359,6 +344,9 @@ impl ImplicitOptions {
             return Err(invalid("max_newton", 0, "must be at least 1"));
         }
         check_positive("min_step", self.min_step)?;
+        if method.family() != Family::GeneralizedAlpha {
+            return Ok(());
+        }
         if let (Some(hmin), Some(h), false) = (self.min_step, fixed_step, self.adaptive) {
             if hmin > h {
                 return Err(invalid(
@@ -371,28 +359,47 @@ impl ImplicitOptions {
         Ok(())
     }
 
+    /// The scenario keys of the fields, in declaration order.
+    const FIELDS: [&'static str; 11] = [
+        "rho_inf",
+        "adaptive",
+        "newton_tol",
+        "max_newton",
+        "project",
+        "reuse",
+        "filter_error",
+        "check_constraints",
+        "min_step",
+        "lu",
+        "extrapolate",
+    ];
+
+    /// The first field (in declaration order) with `filter(field)` whose
+    /// value differs from [`ImplicitOptions::default`].
+    fn first_non_default_where(&self, filter: impl Fn(&str) -> bool) -> Option<&'static str> {
+        let d = Self::default();
+        [
+            self.rho_inf != d.rho_inf,
+            self.adaptive != d.adaptive,
+            self.newton_tol != d.newton_tol,
+            self.max_newton != d.max_newton,
+            self.project != d.project,
+            self.reuse != d.reuse,
+            self.filter_error != d.filter_error,
+            self.check_constraints != d.check_constraints,
+            self.min_step != d.min_step,
+            self.lu != d.lu,
+            self.extrapolate != d.extrapolate,
+        ]
+        .into_iter()
+        .zip(Self::FIELDS)
+        .find(|(differs, f)| *differs && filter(f))
+        .map(|(_, f)| f)
+    }
+
     /// The first field (in declaration order) whose value differs from
     /// [`ImplicitOptions::default`].
     pub fn first_non_default(&self) -> Option<&'static str> {
-        let d = Self::default();
-        [
-            ("rho_inf", self.rho_inf != d.rho_inf),
-            ("adaptive", self.adaptive != d.adaptive),
-            ("newton_tol", self.newton_tol != d.newton_tol),
-            ("max_newton", self.max_newton != d.max_newton),
-            ("project", self.project != d.project),
-            ("reuse", self.reuse != d.reuse),
-            ("filter_error", self.filter_error != d.filter_error),
-            (
-                "check_constraints",
-                self.check_constraints != d.check_constraints,
-            ),
-            ("min_step", self.min_step != d.min_step),
-            ("lu", self.lu != d.lu),
-            ("extrapolate", self.extrapolate != d.extrapolate),
-        ]
-        .into_iter()
-        .find(|(_, differs)| *differs)
-        .map(|(name, _)| name)
+        self.first_non_default_where(|_| true)
     }
 }

@@ -26,15 +26,19 @@ use std::collections::HashMap;
 use std::path::Path;
 
 mod components;
+mod element;
+mod forces;
 mod initial;
+mod joints;
 pub mod limits;
 mod model;
 mod run;
 mod sensor;
 
 use components::{RawChain, RawRods};
+use element::RawTagged;
 use initial::RawInitial;
-use model::{RawBody, RawConstraints, RawForce, RawJoint};
+use model::{RawBody, RawConstraints};
 use run::{RawIntegrator, RawOutput, RawStabilization, RawTime};
 
 /// The four-bar scenario shipped with the tool (docs/problems.md, problem A), embedded at
@@ -98,9 +102,9 @@ struct RawScenario {
     #[serde(default)]
     body: Vec<RawBody>,
     #[serde(default)]
-    joint: Vec<RawJoint>,
+    joint: Vec<RawTagged>,
     #[serde(default)]
-    force: Vec<RawForce>,
+    force: Vec<RawTagged>,
     #[serde(default)]
     initial: RawInitial,
     #[serde(default)]
@@ -121,7 +125,7 @@ struct RawScenario {
     #[serde(default)]
     constraints: RawConstraints,
     #[serde(default)]
-    sensor: Vec<sensor::RawSensor>,
+    sensor: Vec<RawTagged>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it

@@ -7,7 +7,10 @@ use crate::formulation::{
     AugmentedParams, Baumgarte, BaumgarteRule, Formulation, FormulationError, Index1Options,
     PartitionOptions, PenaltyParams, Projection,
 };
-use crate::integrate::{ImplicitOptions, IntegratorError, Method, OdeOptions, Tolerance};
+use crate::integrate::{
+    methods_taking, Equations, Family, ImplicitOptions, IntegratorError, KeyUse, Method,
+    OdeOptions, Tolerance, METHODS, STEP_CONTROL_KEYS,
+};
 use crate::linalg::SolverKind;
 use crate::output::Format;
 use crate::parallel::Threads;
@@ -371,17 +374,17 @@ fn constraint_method(
                 "does not apply to formulation = \"penalty\" (saddle and eliminated only)".into(),
             ));
         }
-        if method.is_implicit() || method == Method::Bdf {
+        if method.is_index3() {
             return Err((
                 key("projection"),
                 format!(
-                    "applies to ode23, ode45, ode113 and rk4; {} integrates the index-3 \
-                     equations{}",
+                    "applies to {}; {} integrates the index-3 equations{}",
+                    index1_methods(),
                     method.name(),
-                    if method == Method::Bdf {
-                        ""
-                    } else {
+                    if method.info().key_use("project").is_some() {
                         " and projects with integrator.project"
+                    } else {
+                        ""
                     }
                 ),
             ));
@@ -399,10 +402,10 @@ fn constraint_method(
                 ),
             ));
         }
-        if method.is_implicit() {
+        if method.is_index3() {
             return Err((
                 key("correction"),
-                format!("applies to ode23, ode45 and rk4, not to {}", method.name()),
+                format!("applies to {}, not to {}", index1_methods(), method.name()),
             ));
         }
         projection.enabled = true;
@@ -517,117 +520,15 @@ fn augmented_lagrangian(
     Ok(p)
 }
 
-/// The first key of `raw` that does not apply to `method` (with
-/// `adaptive` for the implicit methods), and why; such a key would be
-/// silently ignored.
-fn inapplicable(
-    raw: &RawScenario,
-    method: Method,
-    adaptive: bool,
-    baumgarte: &Baumgarte,
-    formulation: Formulation,
-) -> Result<(), (String, String)> {
-    let ri = &raw.integrator;
-    let name = method.name();
-    let given = |present: bool, key: &str, why: String| {
-        if present {
-            Err((format!("integrator.{key}"), why))
-        } else {
-            Ok(())
-        }
-    };
-    if method != Method::Bdf {
-        for (key, present) in [("max_order", ri.max_order), ("ndf", ri.ndf.map(i64::from))] {
-            given(
-                present.is_some(),
-                key,
-                format!("applies to bdf only, not to {name}"),
-            )?;
-        }
-    }
-    if method.is_implicit() {
-        let fixed = |key: &str, present: bool| {
-            given(
-                present && !adaptive,
-                key,
-                format!(
-                    "applies to {name} with integrator.adaptive = true only \
-                     (with a fixed integrator.step it would be ignored)"
-                ),
-            )
-        };
-        fixed("rtol", ri.rtol.is_some())?;
-        fixed("atol", ri.atol.is_some())?;
-        fixed("max_step", ri.max_step.is_some())?;
-        fixed("initial_step", ri.initial_step.is_some())?;
-        fixed("filter_error", ri.filter_error.is_some())?;
-        given(
-            adaptive && ri.step.is_some(),
-            "step",
-            format!(
-                "{name} with integrator.adaptive = true chooses its steps: use \
-                 integrator.initial_step or integrator.max_step"
-            ),
-        )?;
-        if !baumgarte.is_off() {
-            let key = if raw.stabilization.alpha.unwrap_or(0.0) != 0.0 {
-                "stabilization.alpha"
-            } else {
-                "stabilization.beta"
-            };
-            return Err((
-                key.into(),
-                format!(
-                    "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, \
-                     rk4); {name} integrates the index-3 equations (use integrator.project)"
-                ),
-            ));
-        }
-        if !matches!(
-            formulation,
-            Formulation::Saddle | Formulation::AugmentedLagrangian
-        ) {
-            return Err((
-                "formulation".into(),
-                format!(
-                    "applies to the index-1 methods; {name} uses the index-3 form (or \
-                     formulation = \"augmented_lagrangian\")"
-                ),
-            ));
-        }
-        return Ok(());
-    }
-    if matches!(method, Method::Bdf | Method::Radau5) {
-        // bdf and radau5 integrate the index-3 equations (as genalpha)
-        let name = method.name();
-        if !baumgarte.is_off() {
-            return Err((
-                "stabilization.alpha".into(),
-                format!(
-                    "Baumgarte stabilization applies to the index-1 methods (ode23, ode45, \
-                     ode113, rk4); {name} integrates the index-3 equations"
-                ),
-            ));
-        }
-        if formulation != Formulation::Saddle {
-            return Err((
-                "formulation".into(),
-                format!("applies to the index-1 methods; {name} uses the index-3 form"),
-            ));
-        }
-    }
-    if formulation == Formulation::AugmentedLagrangian {
-        return Err((
-            "formulation".into(),
-            format!(
-                "\"augmented_lagrangian\" is an index-3 formulation for the implicit methods \
-                 (trapezoidal, genalpha, hht, newmark), not for {name}"
-            ),
-        ));
-    }
-    let implicit_only =
-        format!("applies to the implicit methods (genalpha, hht, newmark), not to {name}");
-    for (key, present) in [
+/// The `[integrator]` keys of `raw` (besides `method`) and whether each
+/// is given, in declaration order.
+fn integrator_keys(ri: &RawIntegrator) -> [(&'static str, bool); 19] {
+    [
+        ("rtol", ri.rtol.is_some()),
+        ("atol", ri.atol.is_some()),
+        ("step", ri.step.is_some()),
+        ("max_step", ri.max_step.is_some()),
+        ("initial_step", ri.initial_step.is_some()),
         ("rho_inf", ri.rho_inf.is_some()),
         ("adaptive", ri.adaptive.is_some()),
         ("newton_tol", ri.newton_tol.is_some()),
@@ -639,51 +540,115 @@ fn inapplicable(
         ("min_step", ri.min_step.is_some()),
         ("lu", ri.lu.is_some()),
         ("extrapolate", ri.extrapolate.is_some()),
-    ] {
-        // radau5 reads the Newton settings, projection, reuse, min_step
-        // and adaptive
-        let radau_reads = matches!(
-            key,
-            "newton_tol" | "max_newton" | "project" | "reuse" | "min_step" | "adaptive"
-        );
-        if method == Method::Radau5 && radau_reads {
+        ("max_order", ri.max_order.is_some()),
+        ("ndf", ri.ndf.is_some()),
+        ("method", ri.method.is_some()),
+    ]
+}
+
+/// The index-1 methods' names, "a, b, c and d" (from the method table).
+fn index1_methods() -> String {
+    let names: Vec<&str> = METHODS
+        .iter()
+        .filter(|m| m.equations == Equations::Index1)
+        .map(|m| m.name)
+        .collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => names.join(""),
+    }
+}
+
+/// The first key of `raw` that does not apply to `method` (with
+/// `adaptive` for the methods that step either way), and why; such a key
+/// would be silently ignored. Which `[integrator]` keys apply is the
+/// method's row of the method table ([`METHODS`]); the stabilization and
+/// formulation follow from the equations it integrates.
+fn inapplicable(
+    raw: &RawScenario,
+    method: Method,
+    adaptive: bool,
+    baumgarte: &Baumgarte,
+    formulation: Formulation,
+) -> Result<(), (String, String)> {
+    let row = method.info();
+    let name = method.name();
+    for (key, present) in integrator_keys(&raw.integrator) {
+        if !present || key == "method" || row.takes(key, adaptive) {
             continue;
         }
-        given(present, key, implicit_only.clone())?;
-    }
-    let radau_adaptive = method == Method::Radau5 && ri.adaptive == Some(true);
-    if method == Method::Rk4 || (method == Method::Radau5 && !radau_adaptive) {
-        for (key, present) in [
-            ("rtol", ri.rtol.is_some()),
-            ("atol", ri.atol.is_some()),
-            ("max_step", ri.max_step.is_some()),
-            ("initial_step", ri.initial_step.is_some()),
-        ] {
-            given(
-                present,
-                key,
-                if method == Method::Rk4 {
-                    format!(
-                        "applies to the adaptive methods; {name} takes fixed steps of \
-                         integrator.step"
-                    )
-                } else {
-                    format!(
-                        "applies to the adaptive mode; {name} takes fixed steps of \
-                         integrator.step unless integrator.adaptive = true"
-                    )
-                },
-            )?;
-        }
-    } else {
-        given(
-            ri.step.is_some(),
-            "step",
-            format!(
+        let why = match row.key_use(key) {
+            Some(KeyUse::FixedStep) => format!(
+                "{name} with integrator.adaptive = true chooses its steps: use \
+                 integrator.initial_step or integrator.max_step"
+            ),
+            Some(_) => format!(
+                "applies to {name} with integrator.adaptive = true only \
+                 (with a fixed integrator.step it would be ignored)"
+            ),
+            None if key == "step" => format!(
                 "{name} chooses its own steps: use integrator.initial_step or \
                  integrator.max_step"
             ),
-        )?;
+            None if STEP_CONTROL_KEYS.contains(&key) => format!(
+                "applies to the adaptive methods; {name} takes fixed steps of \
+                 integrator.step"
+            ),
+            None => format!("applies to {} only, not to {name}", methods_taking(key)),
+        };
+        return Err((format!("integrator.{key}"), why));
+    }
+    let alpha = method.family() == Family::GeneralizedAlpha;
+    if method.is_index3() {
+        if !baumgarte.is_off() {
+            let key = if raw.stabilization.alpha.unwrap_or(0.0) != 0.0 {
+                "stabilization.alpha"
+            } else {
+                "stabilization.beta"
+            };
+            return Err((
+                key.into(),
+                format!(
+                    "Baumgarte stabilization applies to the index-1 methods ({}); {name} \
+                     integrates the index-3 equations{}",
+                    index1_methods(),
+                    if row.key_use("project").is_some() {
+                        " (use integrator.project)"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+        let allowed = formulation == Formulation::Saddle
+            || (alpha && formulation == Formulation::AugmentedLagrangian);
+        if !allowed {
+            return Err((
+                "formulation".into(),
+                format!(
+                    "applies to the index-1 methods; {name} uses the index-3 form{}",
+                    if alpha {
+                        " (or formulation = \"augmented_lagrangian\")"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    } else if formulation == Formulation::AugmentedLagrangian {
+        let alphas: Vec<&str> = METHODS
+            .iter()
+            .filter(|m| m.family == Family::GeneralizedAlpha)
+            .flat_map(|m| std::iter::once(m.name).chain(m.aliases.iter().map(|a| a.0)))
+            .collect();
+        return Err((
+            "formulation".into(),
+            format!(
+                "\"augmented_lagrangian\" is an index-3 formulation for the generalized-α \
+                 methods ({}), not for {name}",
+                alphas.join(", ")
+            ),
+        ));
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `[[sensor]]` → named [`Sensor`]s (docs/scenarios.md): `point`,
 //! `joint_angle`, `distance`, `force_element`, `contact`.
 
+use super::element::{keys_of, read, tag, RawTagged};
 use super::model::body_ref;
 use super::{error, ScenarioError};
 use crate::model::{joint_short_name, Sensor, SensorKind, System};
@@ -8,36 +9,106 @@ use serde::Deserialize;
 use std::collections::HashMap;
 use std::ops::Range;
 
-/// `[[sensor]]`: `name`, `type` and the keys of that type.
+/// `type = "point"`: a body point's position and velocity.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub(super) struct RawSensor {
-    name: String,
-    #[serde(rename = "type")]
-    kind: String,
-    body: Option<String>,
+struct PointSensor {
+    /// A body or `"ground"`.
+    body: String,
+    /// The point, body frame [m]; default the origin.
     point: Option<[f64; 2]>,
-    joint: Option<String>,
-    body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
-    body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
-    force: Option<String>,
 }
 
-/// The sensor types and the keys each needs (points default to the origin
-/// of the body frame and may be omitted).
-const SENSOR_TYPES: &[(&str, &[&str], &[&str])] = &[
-    ("point", &["body"], &["point"]),
-    ("joint_angle", &["joint"], &[]),
-    ("distance", &["body_i", "body_j"], &["point_i", "point_j"]),
-    ("force_element", &["force"], &[]),
-    ("contact", &["force"], &[]),
+/// `type = "joint_angle"`: a joint's relative angle and rate.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JointAngleSensor {
+    /// The name of a joint of two bodies.
+    joint: String,
+}
+
+/// `type = "distance"`: the distance of two body points and its rate.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DistanceSensor {
+    /// A body or `"ground"`.
+    body_i: String,
+    /// Its point [m]; default the origin.
+    point_i: Option<[f64; 2]>,
+    /// Another body or `"ground"`.
+    body_j: String,
+    /// Its point [m]; default the origin.
+    point_j: Option<[f64; 2]>,
+}
+
+/// `type = "force_element"` (a spring's or rotational spring's readings)
+/// or `type = "contact"` (a contact's).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ElementSensor {
+    /// The `name` of a `[[force]]`.
+    force: String,
+}
+
+/// One sensor table read as its type.
+enum Spec {
+    Point(PointSensor),
+    JointAngle(JointAngleSensor),
+    Distance(DistanceSensor),
+    Element { force: String, contact: bool },
+}
+
+/// A sensor type's row of [`TYPES`]: its name, keys and reader.
+struct SensorDecl {
+    name: &'static str,
+    /// Its keys besides `type` and `name` (read by the docs test).
+    #[cfg_attr(not(test), allow(dead_code))]
+    keys: fn() -> &'static [&'static str],
+    read: fn(&RawTagged, &str, &str) -> Result<Spec, ScenarioError>,
+}
+
+/// Every `[[sensor]]` type, in the order of docs/scenarios.md.
+const TYPES: &[SensorDecl] = &[
+    SensorDecl {
+        name: "point",
+        keys: keys_of::<PointSensor>,
+        read: |raw, path, file| read(raw, path, "point sensor", file).map(Spec::Point),
+    },
+    SensorDecl {
+        name: "joint_angle",
+        keys: keys_of::<JointAngleSensor>,
+        read: |raw, path, file| read(raw, path, "joint_angle sensor", file).map(Spec::JointAngle),
+    },
+    SensorDecl {
+        name: "distance",
+        keys: keys_of::<DistanceSensor>,
+        read: |raw, path, file| read(raw, path, "distance sensor", file).map(Spec::Distance),
+    },
+    SensorDecl {
+        name: "force_element",
+        keys: keys_of::<ElementSensor>,
+        read: |raw, path, file| {
+            read(raw, path, "force_element sensor", file).map(|e: ElementSensor| Spec::Element {
+                force: e.force,
+                contact: false,
+            })
+        },
+    },
+    SensorDecl {
+        name: "contact",
+        keys: keys_of::<ElementSensor>,
+        read: |raw, path, file| {
+            read(raw, path, "contact sensor", file).map(|e: ElementSensor| Spec::Element {
+                force: e.force,
+                contact: true,
+            })
+        },
+    },
 ];
 
 /// The sensors of `raw`; errors name `sensor[k].key` of `file`.
 pub(super) fn build(
-    raw: &[RawSensor],
+    raw: &[RawTagged],
     system: &System,
     names: &HashMap<String, usize>,
     forces: &[(String, Range<usize>)],
@@ -47,77 +118,58 @@ pub(super) fn build(
     for (k, s) in raw.iter().enumerate() {
         let key = |f: &str| format!("sensor[{k}].{f}");
         let err = |f: &str, m: String| error(file, key(f), m);
-        let valid_name = !s.name.is_empty()
-            && s.name
+        let path = format!("sensor[{k}]");
+        let name = match s.0.get("name") {
+            Some(toml::Value::String(n)) => n.clone(),
+            Some(v) => {
+                return Err(err(
+                    "name",
+                    format!("invalid type: {} `{v}`, expected a string", v.type_str()),
+                ))
+            }
+            None => return Err(err("name", "missing: a sensor needs a name".into())),
+        };
+        let valid_name = !name.is_empty()
+            && name
                 .chars()
                 .all(|c| c.is_alphanumeric() || c == '_' || c == '-');
         if !valid_name {
             return Err(err(
                 "name",
                 format!(
-                    "'{}' is not a sensor name (letters, digits, _ and -: it prefixes CSV columns)",
-                    s.name
+                    "'{name}' is not a sensor name (letters, digits, _ and -: it prefixes CSV columns)"
                 ),
             ));
         }
-        if out.iter().any(|o| o.name == s.name) {
-            return Err(err("name", format!("duplicate sensor name '{}'", s.name)));
+        if out.iter().any(|o| o.name == name) {
+            return Err(err("name", format!("duplicate sensor name '{name}'")));
         }
-        let Some(&(_, needs, allowed)) = SENSOR_TYPES.iter().find(|t| t.0 == s.kind) else {
-            let types: Vec<&str> = SENSOR_TYPES.iter().map(|t| t.0).collect();
-            return Err(err(
-                "type",
-                format!(
-                    "unknown sensor type '{}' (expected one of {})",
-                    s.kind,
-                    types.join(", ")
-                ),
-            ));
+        let kind = tag(s, &path, "sensor", TYPES.iter().map(|t| t.name), file)?;
+        let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
+        let finite = |f: &str, p: Option<[f64; 2]>| match p {
+            Some(p) if !p.iter().all(|v| v.is_finite()) => {
+                Err(err(f, format!("{p:?} is not finite")))
+            }
+            _ => Ok(p.unwrap_or_default()),
         };
-        for (f, present) in [
-            ("body", s.body.is_some()),
-            ("point", s.point.is_some()),
-            ("joint", s.joint.is_some()),
-            ("body_i", s.body_i.is_some()),
-            ("point_i", s.point_i.is_some()),
-            ("body_j", s.body_j.is_some()),
-            ("point_j", s.point_j.is_some()),
-            ("force", s.force.is_some()),
-        ] {
-            if present && !needs.contains(&f) && !allowed.contains(&f) {
-                return Err(err(f, format!("not a key of a {} sensor", s.kind)));
-            }
-            if !present && needs.contains(&f) {
-                return Err(err(
-                    f,
-                    format!("missing: a {} sensor needs {}", s.kind, needs.join(", ")),
-                ));
-            }
-        }
-        for (f, p) in [
-            ("point", s.point),
-            ("point_i", s.point_i),
-            ("point_j", s.point_j),
-        ] {
-            if let Some(p) = p.filter(|p| !p.iter().all(|v| v.is_finite())) {
-                return Err(err(f, format!("{p:?} is not finite")));
-            }
-        }
-        let text = |o: &Option<String>| o.clone().unwrap_or_default();
-        let body = |f: &str, o: &Option<String>| body_ref(names, file, key(f), &text(o));
-        let kind = match s.kind.as_str() {
-            "point" => SensorKind::Point {
-                body: body("body", &s.body)?,
-                point: s.point.unwrap_or_default(),
+        let body = |f: &str, n: &str| body_ref(names, file, key(f), n);
+        let kind = match (decl.read)(s, &path, file)? {
+            Spec::Point(p) => SensorKind::Point {
+                body: body("body", &p.body)?,
+                point: finite("point", p.point)?,
             },
-            "distance" => SensorKind::Distance {
-                body_i: body("body_i", &s.body_i)?,
-                point_i: s.point_i.unwrap_or_default(),
-                body_j: body("body_j", &s.body_j)?,
-                point_j: s.point_j.unwrap_or_default(),
-            },
-            "joint_angle" => {
-                let name = text(&s.joint);
+            Spec::Distance(d) => {
+                let (point_i, point_j) =
+                    (finite("point_i", d.point_i)?, finite("point_j", d.point_j)?);
+                SensorKind::Distance {
+                    body_i: body("body_i", &d.body_i)?,
+                    point_i,
+                    body_j: body("body_j", &d.body_j)?,
+                    point_j,
+                }
+            }
+            Spec::JointAngle(j) => {
+                let name = j.joint;
                 let c = system
                     .constraints()
                     .iter()
@@ -146,8 +198,10 @@ pub(super) fn build(
                     }
                 }
             }
-            _ => {
-                let name = text(&s.force);
+            Spec::Element {
+                force: name,
+                contact,
+            } => {
                 let (_, range) = forces.iter().find(|f| f.0 == name).ok_or_else(|| {
                     let all: Vec<&str> = forces.iter().map(|f| f.0.as_str()).collect();
                     err(
@@ -155,7 +209,6 @@ pub(super) fn build(
                         format!("no [[force]] named '{name}' (forces: {})", all.join(", ")),
                     )
                 })?;
-                let contact = s.kind == "contact";
                 let reads = |i: usize| system.forces()[i].readings();
                 let fits = |i: &usize| {
                     let r = reads(*i);
@@ -171,7 +224,7 @@ pub(super) fn build(
                             } else {
                                 "a spring or rotational_spring"
                             },
-                            s.kind,
+                            decl.name,
                             if contact {
                                 "type = \"contact\""
                             } else {
@@ -183,10 +236,62 @@ pub(super) fn build(
                 SensorKind::Element { element }
             }
         };
-        out.push(Sensor {
-            name: s.name.clone(),
-            kind,
-        });
+        out.push(Sensor { name, kind });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TYPES;
+    use crate::scenario::element::docs::{keys_of_row, sorted};
+
+    /// docs/scenarios.md's sensor table lists exactly each type's keys.
+    #[test]
+    fn docs_list_each_sensor_types_keys() {
+        for t in TYPES {
+            assert_eq!(
+                keys_of_row("## `[[sensor]]`", t.name),
+                sorted((t.keys)()),
+                "docs/scenarios.md, [[sensor]] type {}: the keys differ from its struct",
+                t.name
+            );
+        }
+    }
+
+    /// A typo in a sensor table is reported at its key with the nearest
+    /// key of this type.
+    #[test]
+    fn typos_suggest_the_nearest_key_of_this_type() {
+        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
+                    [[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\n\
+                    [time]\nend = 0.1\n[[sensor]]\nname = \"m\"\n";
+        for (table, key, near) in [
+            (
+                "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]",
+                "piont",
+                "point",
+            ),
+            ("type = \"joint_angle\"\njiont = \"j\"", "jiont", "joint"),
+            (
+                "type = \"distance\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_ii = [0.0, 0.0]",
+                "point_ii",
+                "point_i",
+            ),
+            (
+                "type = \"force_element\"\nforces = \"s\"",
+                "forces",
+                "force",
+            ),
+            ("type = \"contact\"\nforc = \"s\"", "forc", "force"),
+        ] {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("sensor[0].{key}"), "{e}");
+            assert!(
+                e.message.contains(&format!("did you mean `{near}`?")),
+                "{e}"
+            );
+        }
+    }
 }

@@ -259,7 +259,7 @@ pub(super) struct AugmentedRun<'s> {
 
 impl<'s> AugmentedRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
-        if !cfg.method.is_implicit() {
+        if !cfg.method.is_generalized_alpha() {
             return Err(FormulationError::InvalidOption {
                 option: "formulation",
                 value: "augmented_lagrangian".into(),

@@ -6,8 +6,8 @@ use crate::formulation::{
     Index3, Index3Complex, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
-    integrator, AugmentedLagrangian, Bdf, GenAlpha, ImplicitOptions, Integrator, IntegratorError,
-    Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
+    integrator, AugmentedLagrangian, Bdf, Family, GenAlpha, ImplicitOptions, Integrator,
+    IntegratorError, Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use crate::parallel::{with_threads, Threads};
@@ -33,8 +33,8 @@ pub struct RunConfig {
     pub output_dt: f64,
     /// Formulation, Baumgarte parameters, linear solver.
     pub index1: Index1Options,
-    /// Options of the implicit methods ([`Method::is_implicit`]: genalpha,
-    /// hht, newmark): ρ∞, adaptivity, Newton, projection. Their step,
+    /// Options of the index-3 methods (which fields apply to which method:
+    /// [`crate::integrate::METHODS`]): ρ∞, adaptivity, Newton, projection. Their step,
     /// tolerances, `max_step`, `initial_step` and `max_steps` come from
     /// `ode`, their linear solver from `index1.linear_solver`. Must stay
     /// at its default for the explicit methods ([`ImplicitOptions::validate`]).
@@ -507,7 +507,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             forwarded: 0,
             balance: None,
             singular: SingularityMonitor::new(sys, cfg.t0, q0),
-            keeps_branch: if cfg.method.is_implicit() {
+            keeps_branch: if cfg.method.is_generalized_alpha() {
                 cfg.implicit.project
             } else {
                 cfg.index1.projection.enabled || cfg.index1.formulation == Formulation::Partitioned
@@ -526,7 +526,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             step_budget: cfg
                 .ode
                 .fixed_step
-                .filter(|_| cfg.method.is_implicit() && !cfg.implicit.adaptive)
+                .filter(|_| cfg.method.is_generalized_alpha() && !cfg.implicit.adaptive)
                 .map(|h| {
                     let nominal = ((cfg.t_end - cfg.t0) / h).ceil().max(1.0);
                     ((STALL_FACTOR * nominal) as usize + STALL_SLACK, h, cfg.t0)
@@ -937,21 +937,19 @@ pub fn simulate_into(
         .threads
         .resolve()
         .map_err(SimulationError::Environment)?;
-    let mut method: Box<dyn MethodRun + '_> =
-        if cfg.index1.formulation == Formulation::AugmentedLagrangian {
-            Box::new(AugmentedRun::new(sys, cfg)?)
-        } else if cfg.method.is_implicit() {
-            Box::new(Implicit::new(sys, cfg)?)
-        } else if cfg.method == Method::Bdf {
-            Box::new(BdfRun::new(sys, cfg)?)
-        } else if cfg.method == Method::Radau5 {
-            Box::new(RadauRun::new(sys, cfg)?)
-        } else if cfg.index1.formulation == Formulation::Partitioned {
+    // the method's family (its row of the method table) picks the run;
+    // the augmented Lagrangian and coordinate partitioning are formulations
+    let mut method: Box<dyn MethodRun + '_> = match (cfg.method.family(), cfg.index1.formulation) {
+        (_, Formulation::AugmentedLagrangian) => Box::new(AugmentedRun::new(sys, cfg)?),
+        (Family::GeneralizedAlpha, _) => Box::new(Implicit::new(sys, cfg)?),
+        (Family::Bdf, _) => Box::new(BdfRun::new(sys, cfg)?),
+        (Family::Radau, _) => Box::new(RadauRun::new(sys, cfg)?),
+        (Family::RungeKutta | Family::Adams, Formulation::Partitioned) => {
             let f = Partitioned::new(sys, cfg.index1.partition, cfg.index1, cfg.t0, q0)?;
             Box::new(Partition { f })
-        } else {
-            Box::new(Explicit::new(sys, cfg)?)
-        };
+        }
+        (Family::RungeKutta | Family::Adams, _) => Box::new(Explicit::new(sys, cfg)?),
+    };
     let (mut q0, mut qd0) = (q0.to_vec(), qd0.to_vec());
     let moved = method.consistent_start(cfg, &mut q0, &mut qd0)?;
     let mut watch = Watch::new(sys, cfg, &q0, monitors, sink);

@@ -1,0 +1,504 @@
+//! The integration methods and the one table that says what each is:
+//! [`METHODS`], one [`MethodInfo`] row per [`Method`] — its names, family,
+//! the equations it integrates (index 1 or 3), fixed or adaptive steps,
+//! what runs concurrently, and which `[integrator]` keys apply. The names,
+//! predicates, the dispatch of `simulation`, the option validation, the
+//! scenario loader's "applies to … only" messages and the method table of
+//! docs/scenarios.md ([`markdown_table`]) all read it.
+
+use super::IntegratorError;
+use std::str::FromStr;
+
+/// Integration method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Bogacki–Shampine 3(2), adaptive, as MATLAB's `ode23`.
+    Ode23,
+    /// Dormand–Prince 5(4), adaptive, as MATLAB's `ode45`.
+    Ode45,
+    /// Classic Runge–Kutta 4, fixed step.
+    Rk4,
+    /// Variable-order Adams–Bashforth–Moulton PECE (Shampine & Gordon),
+    /// adaptive, as MATLAB's `ode113`.
+    Ode113,
+    /// Variable-order (1–5), variable-step BDF on the index-3 equations
+    /// ([`super::Bdf`], as DASSL / MATLAB's `ode15s`), adaptive. Not an
+    /// [`super::OdeSystem`] integrator: run through `simulation::simulate`.
+    Bdf,
+    /// Generalized-α on the index-3 equations (Chung & Hulbert 1993;
+    /// Arnold & Brüls 2007), parameters from ρ∞ — see [`super::GenAlpha`].
+    /// Not an [`super::OdeSystem`] integrator: run through
+    /// `simulation::simulate`.
+    GenAlpha,
+    /// HHT-α (Hilber, Hughes & Taylor 1977) as the generalized-α member
+    /// with α_m = 0 (ρ∞ ∈ [½, 1]) — see [`super::AlphaParameters::hht`].
+    Hht,
+    /// Newmark (α_m = α_f = 0) with dissipation from ρ∞ — see
+    /// [`super::AlphaParameters::newmark`]; `trapezoidal` is Newmark with
+    /// ρ∞ = 1.
+    Newmark,
+    /// Radau IIA of order 5 (three stages, L-stable) on the index-3
+    /// equations, fixed step or adaptive ([`super::Radau5`];
+    /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
+    Radau5,
+}
+
+/// The family a method belongs to: what runs it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Family {
+    /// Explicit one-step Runge–Kutta methods (ode23, ode45, rk4) on the
+    /// index-1 equations (eq. (5)/(9)).
+    RungeKutta,
+    /// Explicit variable-order Adams–Bashforth–Moulton (ode113) on the
+    /// index-1 equations.
+    Adams,
+    /// Variable-order BDF / NDF on the index-3 equations.
+    Bdf,
+    /// The generalized-α family (generalized-α, HHT, Newmark) on the
+    /// index-3 equations; also the scheme of the augmented Lagrangian.
+    GeneralizedAlpha,
+    /// Radau IIA (order 5) on the index-3 equations.
+    Radau,
+}
+
+impl Family {
+    /// Short lower-case name, as in messages and the docs table.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::RungeKutta => "explicit Runge–Kutta",
+            Family::Adams => "explicit Adams",
+            Family::Bdf => "BDF",
+            Family::GeneralizedAlpha => "generalized-α",
+            Family::Radau => "Radau IIA",
+        }
+    }
+}
+
+/// The equations a method integrates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Equations {
+    /// The index-1 ODE of eq. (5) (or (9)) with Baumgarte terms (10)–(11):
+    /// `formulation` saddle, eliminated, penalty or partitioned.
+    Index1,
+    /// The index-3 DAE `M q̈ + Φ_qᵀλ = g, Φ = 0` (no Baumgarte terms;
+    /// `formulation` saddle, for the generalized-α family also
+    /// augmented_lagrangian).
+    Index3,
+}
+
+/// How a method chooses its steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stepping {
+    /// Fixed steps of `integrator.step` only.
+    Fixed,
+    /// Steps controlled by `rtol`/`atol` only.
+    Adaptive,
+    /// Fixed steps of `integrator.step`, or controlled by `rtol`/`atol`
+    /// with `integrator.adaptive = true`.
+    FixedOrAdaptive,
+}
+
+/// When an `[integrator]` key applies to a method of its row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum KeyUse {
+    /// Whenever the method is chosen.
+    Always,
+    /// Only with fixed steps (without `integrator.adaptive = true`).
+    FixedStep,
+    /// Only with `integrator.adaptive = true`.
+    Adaptive,
+}
+
+/// One row of [`METHODS`]: what a method is.
+#[derive(Debug, Clone, Copy)]
+pub struct MethodInfo {
+    /// The method.
+    pub method: Method,
+    /// Its name (`integrator.method`, CLI, outputs).
+    pub name: &'static str,
+    /// Other names the scenario key `integrator.method` accepts for it and
+    /// what they set (`trapezoidal` = Newmark with ρ∞ = 1).
+    pub aliases: &'static [(&'static str, &'static str)],
+    /// Its family.
+    pub family: Family,
+    /// The equations it integrates.
+    pub equations: Equations,
+    /// Fixed or adaptive steps.
+    pub stepping: Stepping,
+    /// What runs concurrently on a run's two threads (from
+    /// `PARALLEL_MIN_COORDS` coordinates; results identical for any
+    /// thread count).
+    pub threads: &'static str,
+    /// The `[integrator]` keys that apply to it besides `method`, and when.
+    pub keys: &'static [(&'static str, KeyUse)],
+}
+
+/// The step-control keys of the adaptive methods.
+pub const STEP_CONTROL_KEYS: [&str; 4] = ["rtol", "atol", "max_step", "initial_step"];
+
+const ADAPTIVE_KEYS: &[(&str, KeyUse)] = &[
+    ("rtol", KeyUse::Always),
+    ("atol", KeyUse::Always),
+    ("max_step", KeyUse::Always),
+    ("initial_step", KeyUse::Always),
+];
+
+const ALPHA_KEYS: &[(&str, KeyUse)] = &[
+    ("step", KeyUse::FixedStep),
+    ("rtol", KeyUse::Adaptive),
+    ("atol", KeyUse::Adaptive),
+    ("max_step", KeyUse::Adaptive),
+    ("initial_step", KeyUse::Adaptive),
+    ("rho_inf", KeyUse::Always),
+    ("adaptive", KeyUse::Always),
+    ("newton_tol", KeyUse::Always),
+    ("max_newton", KeyUse::Always),
+    ("project", KeyUse::Always),
+    ("reuse", KeyUse::Always),
+    ("filter_error", KeyUse::Adaptive),
+    ("check_constraints", KeyUse::Always),
+    ("min_step", KeyUse::Always),
+    ("lu", KeyUse::Always),
+    ("extrapolate", KeyUse::Always),
+];
+
+const EXPLICIT_THREADS: &str = "forces ∥ constraint terms of each RHS";
+const ALPHA_THREADS: &str = "residual halves, Newton updates, split chain LDLᵀ";
+
+/// Every method, one row each, in the order of [`Method::ALL`].
+pub const METHODS: [MethodInfo; 9] = [
+    MethodInfo {
+        method: Method::Ode23,
+        name: "ode23",
+        aliases: &[],
+        family: Family::RungeKutta,
+        equations: Equations::Index1,
+        stepping: Stepping::Adaptive,
+        threads: EXPLICIT_THREADS,
+        keys: ADAPTIVE_KEYS,
+    },
+    MethodInfo {
+        method: Method::Ode45,
+        name: "ode45",
+        aliases: &[],
+        family: Family::RungeKutta,
+        equations: Equations::Index1,
+        stepping: Stepping::Adaptive,
+        threads: EXPLICIT_THREADS,
+        keys: ADAPTIVE_KEYS,
+    },
+    MethodInfo {
+        method: Method::Rk4,
+        name: "rk4",
+        aliases: &[],
+        family: Family::RungeKutta,
+        equations: Equations::Index1,
+        stepping: Stepping::Fixed,
+        threads: EXPLICIT_THREADS,
+        keys: &[("step", KeyUse::Always)],
+    },
+    MethodInfo {
+        method: Method::Ode113,
+        name: "ode113",
+        aliases: &[],
+        family: Family::Adams,
+        equations: Equations::Index1,
+        stepping: Stepping::Adaptive,
+        threads: EXPLICIT_THREADS,
+        keys: ADAPTIVE_KEYS,
+    },
+    MethodInfo {
+        method: Method::Bdf,
+        name: "bdf",
+        aliases: &[],
+        family: Family::Bdf,
+        equations: Equations::Index3,
+        stepping: Stepping::Adaptive,
+        threads: "residual halves, predictor, error test, Newton updates, split chain LDLᵀ",
+        keys: &[
+            ("rtol", KeyUse::Always),
+            ("atol", KeyUse::Always),
+            ("max_step", KeyUse::Always),
+            ("initial_step", KeyUse::Always),
+            ("max_order", KeyUse::Always),
+            ("ndf", KeyUse::Always),
+        ],
+    },
+    MethodInfo {
+        method: Method::GenAlpha,
+        name: "genalpha",
+        aliases: &[],
+        family: Family::GeneralizedAlpha,
+        equations: Equations::Index3,
+        stepping: Stepping::FixedOrAdaptive,
+        threads: ALPHA_THREADS,
+        keys: ALPHA_KEYS,
+    },
+    MethodInfo {
+        method: Method::Hht,
+        name: "hht",
+        aliases: &[],
+        family: Family::GeneralizedAlpha,
+        equations: Equations::Index3,
+        stepping: Stepping::FixedOrAdaptive,
+        threads: ALPHA_THREADS,
+        keys: ALPHA_KEYS,
+    },
+    MethodInfo {
+        method: Method::Newmark,
+        name: "newmark",
+        aliases: &[("trapezoidal", "rho_inf = 1")],
+        family: Family::GeneralizedAlpha,
+        equations: Equations::Index3,
+        stepping: Stepping::FixedOrAdaptive,
+        threads: ALPHA_THREADS,
+        keys: ALPHA_KEYS,
+    },
+    MethodInfo {
+        method: Method::Radau5,
+        name: "radau5",
+        aliases: &[],
+        family: Family::Radau,
+        equations: Equations::Index3,
+        stepping: Stepping::FixedOrAdaptive,
+        threads: "residual halves, split real chain LDLᵀ",
+        keys: &[
+            ("step", KeyUse::FixedStep),
+            ("rtol", KeyUse::Adaptive),
+            ("atol", KeyUse::Adaptive),
+            ("max_step", KeyUse::Adaptive),
+            ("initial_step", KeyUse::Adaptive),
+            ("adaptive", KeyUse::Always),
+            ("newton_tol", KeyUse::Always),
+            ("max_newton", KeyUse::Always),
+            ("project", KeyUse::Always),
+            ("reuse", KeyUse::Always),
+            ("min_step", KeyUse::Always),
+        ],
+    },
+];
+
+impl MethodInfo {
+    /// When `key` (an `[integrator]` key) applies to this method; `None`:
+    /// never.
+    pub fn key_use(&self, key: &str) -> Option<KeyUse> {
+        self.keys.iter().find(|k| k.0 == key).map(|k| k.1)
+    }
+
+    /// Whether `key` applies to this method with (`adaptive`) or without
+    /// `integrator.adaptive = true` (ignored by methods that are only
+    /// fixed-step or only adaptive).
+    pub fn takes(&self, key: &str, adaptive: bool) -> bool {
+        let adaptive = match self.stepping {
+            Stepping::Fixed => false,
+            Stepping::Adaptive => true,
+            Stepping::FixedOrAdaptive => adaptive,
+        };
+        match self.key_use(key) {
+            None => false,
+            Some(KeyUse::Always) => true,
+            Some(KeyUse::FixedStep) => !adaptive,
+            Some(KeyUse::Adaptive) => adaptive,
+        }
+    }
+}
+
+impl Method {
+    /// All methods, in the order of [`METHODS`].
+    pub const ALL: [Method; 9] = [
+        Method::Ode23,
+        Method::Ode45,
+        Method::Rk4,
+        Method::Ode113,
+        Method::Bdf,
+        Method::GenAlpha,
+        Method::Hht,
+        Method::Newmark,
+        Method::Radau5,
+    ];
+    /// The valid method names, in the order of [`METHODS`].
+    pub const NAMES: [&'static str; 9] = {
+        let mut names = [""; 9];
+        let mut i = 0;
+        while i < 9 {
+            names[i] = METHODS[i].name;
+            i += 1;
+        }
+        names
+    };
+
+    /// This method's row of [`METHODS`].
+    pub fn info(&self) -> &'static MethodInfo {
+        let row = &METHODS[*self as usize];
+        debug_assert_eq!(row.method, *self);
+        row
+    }
+
+    /// Lower-case name: one of [`Method::NAMES`].
+    pub fn name(&self) -> &'static str {
+        self.info().name
+    }
+
+    /// Its family ([`MethodInfo::family`]).
+    pub fn family(&self) -> Family {
+        self.info().family
+    }
+
+    /// Whether the method always adapts its step to `rtol`/`atol`
+    /// ([`Stepping::Adaptive`]: ode23, ode45, ode113, bdf); the
+    /// generalized-α family and radau5 only with
+    /// [`super::ImplicitOptions::adaptive`].
+    pub fn is_adaptive(&self) -> bool {
+        self.info().stepping == Stepping::Adaptive
+    }
+
+    /// Whether the method is one of the generalized-α family (genalpha,
+    /// hht, newmark; [`super::GenAlpha`]).
+    pub fn is_generalized_alpha(&self) -> bool {
+        self.family() == Family::GeneralizedAlpha
+    }
+
+    /// Former name of [`Method::is_generalized_alpha`] (it never included
+    /// bdf and radau5, which are implicit too).
+    #[doc(hidden)]
+    pub fn is_implicit(&self) -> bool {
+        self.is_generalized_alpha()
+    }
+
+    /// The methods that integrate the index-3 equations (the
+    /// generalized-α family, bdf and radau5): no Baumgarte terms,
+    /// numerical damping that only removes energy.
+    pub fn is_index3(&self) -> bool {
+        self.info().equations == Equations::Index3
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Method {
+    type Err = IntegratorError;
+    /// Parses one of [`Method::NAMES`] (case-insensitive, surrounding
+    /// whitespace ignored).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let key = s.trim().to_ascii_lowercase();
+        METHODS
+            .iter()
+            .find(|m| m.name == key)
+            .map(|m| m.method)
+            .ok_or_else(|| IntegratorError::UnknownMethod(s.to_string()))
+    }
+}
+
+/// The methods whose row has `key`, as "a, b and c" (for messages).
+pub fn methods_taking(key: &str) -> String {
+    let names: Vec<&str> = METHODS
+        .iter()
+        .filter(|m| m.key_use(key).is_some())
+        .map(|m| m.name)
+        .collect();
+    let label = if names.len() < 2 {
+        String::new()
+    } else if METHODS
+        .iter()
+        .filter(|m| names.contains(&m.name))
+        .all(|m| m.equations == Equations::Index3)
+    {
+        "the implicit methods ".to_string()
+    } else {
+        String::new()
+    };
+    match names.split_last() {
+        None => "no method".into(),
+        Some((last, [])) => format!("{label}{last}"),
+        Some((last, rest)) => format!("{label}{} and {last}", rest.join(", ")),
+    }
+}
+
+/// The method table of docs/scenarios.md, generated from [`METHODS`]
+/// (a test holds the docs to it).
+pub fn markdown_table() -> String {
+    let mut out = String::from(
+        "| method | family | equations | steps | concurrent on two threads | `[integrator]` keys |\n\
+         |---|---|---|---|---|---|\n",
+    );
+    for m in &METHODS {
+        let names = std::iter::once(format!("`{}`", m.name))
+            .chain(m.aliases.iter().map(|(a, what)| format!("`{a}` ({what})")))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let equations = match m.equations {
+            Equations::Index1 => "index 1",
+            Equations::Index3 => "index 3",
+        };
+        let steps = match m.stepping {
+            Stepping::Fixed => "fixed",
+            Stepping::Adaptive => "adaptive",
+            Stepping::FixedOrAdaptive => "fixed or `adaptive`",
+        };
+        let keys = m
+            .keys
+            .iter()
+            .map(|(k, u)| match u {
+                KeyUse::Always => format!("`{k}`"),
+                KeyUse::FixedStep => format!("`{k}` (fixed)"),
+                KeyUse::Adaptive => format!("`{k}` (adaptive)"),
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        out.push_str(&format!(
+            "| {names} | {} | {equations} | {steps} | {} | {keys} |\n",
+            m.family.name(),
+            m.threads
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_are_in_method_order_and_names_parse_back() {
+        for (i, m) in Method::ALL.iter().enumerate() {
+            assert_eq!(METHODS[i].method, *m);
+            assert_eq!(m.name().parse::<Method>().unwrap(), *m);
+            assert_eq!(Method::NAMES[i], m.name());
+        }
+        assert!("trapezoid".parse::<Method>().is_err());
+    }
+
+    #[test]
+    fn predicates_follow_the_table() {
+        use Method::*;
+        let alpha: Vec<Method> = Method::ALL
+            .into_iter()
+            .filter(Method::is_generalized_alpha)
+            .collect();
+        assert_eq!(alpha, [GenAlpha, Hht, Newmark]);
+        let index3: Vec<Method> = Method::ALL.into_iter().filter(Method::is_index3).collect();
+        assert_eq!(index3, [Bdf, GenAlpha, Hht, Newmark, Radau5]);
+        let adaptive: Vec<Method> = Method::ALL
+            .into_iter()
+            .filter(Method::is_adaptive)
+            .collect();
+        assert_eq!(adaptive, [Ode23, Ode45, Ode113, Bdf]);
+    }
+
+    /// docs/scenarios.md carries the generated method table verbatim.
+    #[test]
+    fn docs_method_table_is_the_generated_one() {
+        let docs = include_str!("../../docs/scenarios.md");
+        let table = markdown_table();
+        assert!(
+            docs.contains(&table),
+            "docs/scenarios.md's method table differs from integrate::method::markdown_table(); \
+             replace it with:\n{table}"
+        );
+    }
+}

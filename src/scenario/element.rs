@@ -1,0 +1,349 @@
+//! The two-step read of a tagged scenario table (`[[force]]`, `[[joint]]`,
+//! `[[sensor]]`): its `type` first, then the type's own serde struct
+//! (`deny_unknown_fields`) from the same table. Each type's keys are the
+//! fields of its struct, so a typo lists this type's keys and suggests the
+//! nearest, and errors keep their key path (`force[2].damping`).
+
+use super::{error, ScenarioError};
+use serde::de::{self, DeserializeOwned, Visitor};
+use serde::Deserialize;
+
+/// One tagged table as written: its keys and values, read by type later.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(transparent)]
+pub(super) struct RawTagged(pub(super) toml::Table);
+
+impl RawTagged {
+    /// The optional `name` key (a string), for element names and messages.
+    pub(super) fn name(&self) -> Option<&str> {
+        self.0.get("name").and_then(toml::Value::as_str)
+    }
+}
+
+/// Checks that the optional `name` of the table at `path` is a string.
+pub(super) fn check_name(raw: &RawTagged, path: &str, file: &str) -> Result<(), ScenarioError> {
+    match raw.0.get("name") {
+        Some(v) if !v.is_str() => Err(error(
+            file,
+            format!("{path}.name"),
+            format!("invalid type: {} `{v}`, expected a string", v.type_str()),
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The `type` of the table at `path` (e.g. `force[2]`), checked against
+/// `types`; `what` names the table in messages (`force`, `joint`, `sensor`).
+pub(super) fn tag<'a>(
+    raw: &RawTagged,
+    path: &str,
+    what: &str,
+    types: impl Iterator<Item = &'a str> + Clone,
+    file: &str,
+) -> Result<&'a str, ScenarioError> {
+    let key = format!("{path}.type");
+    let kind = match raw.0.get("type") {
+        Some(toml::Value::String(s)) => s.as_str(),
+        Some(v) => {
+            return Err(error(
+                file,
+                key,
+                format!("invalid type: {} `{v}`, expected a string", v.type_str()),
+            ))
+        }
+        None => return Err(error(file, key, format!("missing: a {what} needs a type"))),
+    };
+    types.clone().find(|t| *t == kind).ok_or_else(|| {
+        let all: Vec<&str> = types.collect();
+        let hint = nearest(kind, &all)
+            .map(|n| format!("; did you mean '{n}'?"))
+            .unwrap_or_default();
+        error(
+            file,
+            key,
+            format!(
+                "unknown {what} type '{kind}' (expected one of {}){hint}",
+                all.join(", ")
+            ),
+        )
+    })
+}
+
+/// Reads the table at `path` (without its `type`) as the struct `T` of
+/// one type; `what` names the type in messages (`spring force element`).
+/// An unknown key is reported at its own path with this type's keys and
+/// the nearest one; a missing key at its own path.
+pub(super) fn read<T: DeserializeOwned>(
+    raw: &RawTagged,
+    path: &str,
+    what: &str,
+    file: &str,
+) -> Result<T, ScenarioError> {
+    let mut table = raw.0.clone();
+    table.remove("type");
+    table.remove("name");
+    serde_path_to_error::deserialize(toml::Value::Table(table)).map_err(
+        |e: serde_path_to_error::Error<toml::de::Error>| {
+            let inner = e.inner().message().to_string();
+            let sub = e.path().to_string();
+            let at = |k: &str| {
+                if k.is_empty() || k == "." {
+                    path.to_string()
+                } else {
+                    format!("{path}.{k}")
+                }
+            };
+            let keys = keys_of::<T>();
+            if let Some(field) = quoted(&inner, "unknown field `") {
+                let hint = nearest(field, keys)
+                    .map(|n| format!("; did you mean `{n}`?"))
+                    .unwrap_or_default();
+                let key = if sub.ends_with(field) {
+                    at(&sub)
+                } else {
+                    at(field)
+                };
+                return error(
+                    file,
+                    key,
+                    format!(
+                        "not a key of {} {what} (its keys: type, name, {}){hint}",
+                        article(what),
+                        keys.join(", ")
+                    ),
+                );
+            }
+            if let Some(field) = quoted(&inner, "missing field `") {
+                return error(
+                    file,
+                    at(field),
+                    format!("missing: {} {what} needs {field}", article(what)),
+                );
+            }
+            error(file, at(&sub), inner)
+        },
+    )
+}
+
+/// "an" before a vowel, else "a".
+fn article(word: &str) -> &'static str {
+    if word.starts_with(['a', 'e', 'i', 'o', 'u']) {
+        "an"
+    } else {
+        "a"
+    }
+}
+
+/// The text between `prefix` and the next backtick of `message`.
+fn quoted<'m>(message: &'m str, prefix: &str) -> Option<&'m str> {
+    let rest = message.strip_prefix(prefix)?;
+    rest.split_once('`').map(|(f, _)| f)
+}
+
+/// The keys of the serde struct `T` (its field names, in declaration
+/// order), read from its `Deserialize` implementation.
+pub(super) fn keys_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    /// A deserializer that only records the fields a struct asks for.
+    struct Probe;
+    #[derive(Debug)]
+    struct Fields(&'static [&'static str]);
+    impl std::fmt::Display for Fields {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("fields probed")
+        }
+    }
+    impl std::error::Error for Fields {}
+    impl de::Error for Fields {
+        fn custom<M: std::fmt::Display>(_: M) -> Self {
+            Fields(&[])
+        }
+    }
+    impl<'de> de::Deserializer<'de> for Probe {
+        type Error = Fields;
+        fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Fields> {
+            Err(Fields(&[]))
+        }
+        fn deserialize_struct<V: Visitor<'de>>(
+            self,
+            _: &'static str,
+            fields: &'static [&'static str],
+            _: V,
+        ) -> Result<V::Value, Fields> {
+            Err(Fields(fields))
+        }
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string
+            bytes byte_buf option unit unit_struct newtype_struct seq tuple
+            tuple_struct map enum identifier ignored_any
+        }
+    }
+    match T::deserialize(Probe) {
+        Err(Fields(f)) => f,
+        Ok(_) => &[],
+    }
+}
+
+/// The candidate nearest to `word` by edit distance, if it is close
+/// enough to be a likely typo (2 edits, 3 for words of 9 characters or
+/// more).
+pub(super) fn nearest<'a>(word: &str, candidates: &[&'a str]) -> Option<&'a str> {
+    let limit = (word.chars().count() / 3).clamp(2, 3);
+    candidates
+        .iter()
+        .map(|c| (levenshtein(word, c), *c))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, c)| c)
+}
+
+/// The Levenshtein distance (insertions, deletions, substitutions) of
+/// `a` and `b`, in characters.
+fn levenshtein(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let next = (diag + usize::from(ca != *cb))
+                .min(row[j] + 1)
+                .min(row[j + 1] + 1);
+            diag = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Sample {
+        #[allow(dead_code)]
+        body: String,
+        #[allow(dead_code)]
+        damping: Option<f64>,
+    }
+
+    fn raw(text: &str) -> RawTagged {
+        RawTagged(text.parse().unwrap())
+    }
+
+    #[test]
+    fn keys_come_from_the_struct() {
+        assert_eq!(keys_of::<Sample>(), &["body", "damping"]);
+    }
+
+    #[test]
+    fn edit_distance_and_nearest() {
+        assert_eq!(levenshtein("dampin", "damping"), 1);
+        assert_eq!(levenshtein("kitten", "sitting"), 3);
+        assert_eq!(levenshtein("", "abc"), 3);
+        assert_eq!(nearest("dampin", &["body", "damping"]), Some("damping"));
+        assert_eq!(nearest("xyz", &["body", "damping"]), None);
+    }
+
+    #[test]
+    fn a_typo_is_reported_at_its_path_with_the_nearest_key() {
+        let e = read::<Sample>(
+            &raw("type = \"s\"\nbody = \"a\"\ndampin = 1.0"),
+            "force[2]",
+            "s force element",
+            "f.toml",
+        )
+        .unwrap_err();
+        assert_eq!(e.key, "force[2].dampin", "{e}");
+        assert!(e.message.contains("did you mean `damping`?"), "{e}");
+        assert!(e.message.contains("type, name, body, damping"), "{e}");
+        let e = read::<Sample>(&raw("damping = 1.0"), "force[0]", "s", "f.toml").unwrap_err();
+        assert_eq!(e.key, "force[0].body", "{e}");
+        assert!(e.message.contains("missing"), "{e}");
+        let e = read::<Sample>(&raw("body = 3"), "force[0]", "s", "f.toml").unwrap_err();
+        assert_eq!(e.key, "force[0].body", "{e}");
+        assert!(e.message.contains("invalid type"), "{e}");
+    }
+}
+
+/// The keys docs/scenarios.md lists for each type of a tagged table, for
+/// the tests that hold the declarations and the reference together.
+#[cfg(test)]
+pub(super) mod docs {
+    /// The reference of every scenario key.
+    pub(in crate::scenario) const SCENARIOS_MD: &str = include_str!("../../docs/scenarios.md");
+
+    /// The identifiers in backticks in `cell` (`"x"`, `[0, 0]` are not).
+    fn identifiers(cell: &str) -> Vec<String> {
+        cell.split('`')
+            .skip(1)
+            .step_by(2)
+            .filter(|w| !w.is_empty() && w.chars().all(|c| c.is_ascii_lowercase() || c == '_'))
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// The rows of the first table after the line starting with `heading`:
+    /// its header cells and each row's cells.
+    pub(in crate::scenario) fn table(heading: &str) -> (Vec<String>, Vec<Vec<String>>) {
+        let mut lines = SCENARIOS_MD
+            .lines()
+            .skip_while(|l| !l.starts_with(heading))
+            .skip(1)
+            .skip_while(|l| !l.starts_with('|'));
+        let cells = |l: &str| -> Vec<String> {
+            l.trim()
+                .trim_matches('|')
+                .split(" | ")
+                .map(|c| c.trim().to_string())
+                .collect()
+        };
+        let header = cells(
+            lines
+                .next()
+                .unwrap_or_else(|| panic!("no table after {heading}")),
+        );
+        let rows = lines
+            .skip(1)
+            .take_while(|l| l.starts_with('|'))
+            .map(cells)
+            .collect();
+        (header, rows)
+    }
+
+    /// The keys of the `| key | …` table (first column) or of the
+    /// `| term | keys | …` table (second column) after `heading`, sorted.
+    pub(in crate::scenario) fn keys_after(heading: &str) -> Vec<String> {
+        let (header, rows) = table(heading);
+        let col = usize::from(header[0] != "key");
+        let mut keys: Vec<String> = rows.iter().flat_map(|r| identifiers(&r[col])).collect();
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
+    /// The keys of the row of `type` in the `| type | keys | …` table
+    /// after `heading` (up to a colon), sorted.
+    pub(in crate::scenario) fn keys_of_row(heading: &str, kind: &str) -> Vec<String> {
+        let (_, rows) = table(heading);
+        let row = rows
+            .iter()
+            .find(|r| r[0] == format!("`{kind}`"))
+            .unwrap_or_else(|| panic!("docs/scenarios.md: no row `{kind}` after {heading}"));
+        // a key's description after a colon ("`force`: the `name` of …")
+        // names no keys
+        let cell = row[1].split(": ").next().unwrap_or_default();
+        let mut keys = identifiers(cell);
+        keys.sort();
+        keys.dedup();
+        keys
+    }
+
+    /// `keys` sorted, as owned strings.
+    pub(in crate::scenario) fn sorted(keys: &[&str]) -> Vec<String> {
+        let mut k: Vec<String> = keys.iter().map(|s| s.to_string()).collect();
+        k.sort();
+        k
+    }
+}

@@ -1,0 +1,85 @@
+//! `type = "contact"`: a body point or circle against a straight wall
+//! ([`HalfPlaneContact`]).
+
+use super::{Context, ForceType};
+use crate::forces::HalfPlaneContact;
+use crate::model::BodyRef;
+use crate::scenario::model::RawPoint;
+use crate::scenario::ScenarioError;
+use serde::Deserialize;
+
+/// `[[force]]` of `type = "contact"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(in crate::scenario) struct Contact {
+    /// A body (not the ground).
+    body: String,
+    /// Centre of the circle, body frame [m]; default the origin.
+    point: Option<RawPoint>,
+    /// Radius R [m], default 0 (a point).
+    radius: Option<f64>,
+    /// A point of the wall line, global [m]; default the origin.
+    wall_point: Option<[f64; 2]>,
+    /// Outward normal of the wall (any non-zero length).
+    wall_normal: Option<[f64; 2]>,
+    /// Or its direction from +x [°].
+    wall_normal_deg: Option<f64>,
+    /// Hunt–Crossley stiffness k_h [N/m^{3/2}].
+    stiffness: f64,
+    /// Hunt–Crossley damping χ [s/m], default 0.
+    damping: Option<f64>,
+    /// Friction coefficient μ, default 0.
+    friction: Option<f64>,
+    /// Slip velocity v_s [m/s], default 1e-3.
+    slip_velocity: Option<f64>,
+}
+
+impl ForceType for Contact {
+    const TYPE: &'static str = "contact";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let body = cx.body_index("body", &self.body)?;
+        let normal = match (self.wall_normal, self.wall_normal_deg) {
+            (Some(_), Some(_)) => {
+                return Err(cx.err(
+                    "wall_normal_deg",
+                    "give either wall_normal or wall_normal_deg, not both",
+                ))
+            }
+            (Some(n), None) => {
+                let len = n[0].hypot(n[1]);
+                if !(len.is_finite() && len > 0.0) {
+                    return Err(cx.err(
+                        "wall_normal",
+                        format!("{n:?}: the normal must be a finite, non-zero vector"),
+                    ));
+                }
+                n
+            }
+            (None, Some(d)) => {
+                let (s, c) = cx.finite("wall_normal_deg", d)?.to_radians().sin_cos();
+                [c, s]
+            }
+            (None, None) => {
+                return Err(cx.err(
+                    "wall_normal",
+                    "missing: a contact needs wall_normal or wall_normal_deg \
+                     (the outward normal of the wall)",
+                ))
+            }
+        };
+        let c = HalfPlaneContact::new(
+            body,
+            cx.point("point", self.point, BodyRef::Body(body))?,
+            self.radius.unwrap_or(0.0),
+            cx.global("wall_point", self.wall_point)?,
+            normal,
+            self.stiffness,
+            self.damping.unwrap_or(0.0),
+            self.friction.unwrap_or(0.0),
+            self.slip_velocity.unwrap_or(1e-3),
+        );
+        cx.checked(&c, &[("normal", "wall_normal")])?;
+        cx.builder.add_force(c);
+        Ok(())
+    }
+}

@@ -1,0 +1,325 @@
+//! `[[force]]`: one serde struct per `type` (its own file here), read from
+//! the force's table after its `type` ([`super::element`]), and the
+//! context every type builds its elements with. A new force type is a file
+//! with its struct and [`ForceType`] implementation and one row of
+//! [`TYPES`].
+
+use super::element::{keys_of, read, RawTagged};
+use super::model::{body_index, body_point, body_ref, RawLoad, RawPoint, RawTable};
+use super::{error, ScenarioError};
+use crate::forces::{ForceElement, Law};
+use crate::model::{BodyRef, ModelError, SystemBuilder, TimeFunction};
+use serde::de::DeserializeOwned;
+use std::collections::HashMap;
+
+mod applied;
+mod contact;
+mod expression;
+mod fluid;
+mod rotational;
+mod spring;
+mod torque;
+
+/// One `[[force]]` type: its struct (the keys it takes besides `type` and
+/// `name`, `deny_unknown_fields`) and how it adds its elements.
+pub(super) trait ForceType: DeserializeOwned {
+    /// The `type` value that selects it.
+    const TYPE: &'static str;
+    /// Adds the element(s) of this table to `cx.builder`; errors name
+    /// `force[k].<key>`.
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError>;
+}
+
+/// A force type's row of [`TYPES`]: its name, its keys and its reader.
+pub(super) struct ForceDecl {
+    /// The `type` value.
+    pub(super) name: &'static str,
+    /// Its keys besides `type` and `name`, in declaration order (read by
+    /// the test that holds docs/scenarios.md to the declarations).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(super) keys: fn() -> &'static [&'static str],
+    /// Reads the table as this type and adds its elements.
+    add: fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>,
+}
+
+const fn decl<T: ForceType>() -> ForceDecl {
+    ForceDecl {
+        name: T::TYPE,
+        keys: keys_of::<T>,
+        add: |raw, cx| {
+            let what = format!("{} force element", T::TYPE);
+            read::<T>(raw, &format!("force[{}]", cx.k), &what, cx.file)?.add(cx)
+        },
+    }
+}
+
+/// Every `[[force]]` type, in the order of docs/scenarios.md.
+pub(super) const TYPES: &[ForceDecl] = &[
+    decl::<torque::Torque>(),
+    decl::<applied::Force>(),
+    decl::<spring::Spring>(),
+    decl::<rotational::RotationalSpring>(),
+    decl::<contact::Contact>(),
+    decl::<fluid::Fluid>(),
+    decl::<expression::Expression>(),
+];
+
+/// What a force type builds with: the builder, where its table is, and
+/// the model's names.
+pub(super) struct Context<'a> {
+    /// The system being built.
+    pub(super) builder: &'a mut SystemBuilder,
+    /// The index k of `force[k]`.
+    pub(super) k: usize,
+    /// The force's name (`name`, default `force{k+1}`).
+    pub(super) name: String,
+    /// The scenario's `gravity`.
+    pub(super) gravity: Option<[f64; 2]>,
+    /// Body index by name.
+    pub(super) names: &'a HashMap<String, usize>,
+    /// The half length of every rod segment and chain link by body index.
+    pub(super) ends: &'a HashMap<usize, f64>,
+    /// The scenario file, for errors.
+    pub(super) file: &'a str,
+}
+
+/// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
+pub(super) fn add_force(
+    raw: &RawTagged,
+    builder: &mut SystemBuilder,
+    k: usize,
+    gravity: Option<[f64; 2]>,
+    names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let kind = super::element::tag(
+        raw,
+        &format!("force[{k}]"),
+        "force",
+        TYPES.iter().map(|t| t.name),
+        file,
+    )?;
+    let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
+    super::element::check_name(raw, &format!("force[{k}]"), file)?;
+    let mut cx = Context {
+        builder,
+        k,
+        name: raw
+            .name()
+            .map_or_else(|| format!("force{}", k + 1), str::to_string),
+        gravity,
+        names,
+        ends,
+        file,
+    };
+    (decl.add)(raw, &mut cx)
+}
+
+impl Context<'_> {
+    /// `force[k].<fld>`.
+    pub(super) fn key(&self, fld: &str) -> String {
+        format!("force[{}].{fld}", self.k)
+    }
+
+    /// An error at `force[k].<fld>`.
+    pub(super) fn err(&self, fld: &str, message: impl Into<String>) -> ScenarioError {
+        error(self.file, self.key(fld), message)
+    }
+
+    /// The body (or ground) named at `fld`.
+    pub(super) fn body_ref(&self, fld: &str, name: &str) -> Result<BodyRef, ScenarioError> {
+        body_ref(self.names, self.file, self.key(fld), name)
+    }
+
+    /// The body (not the ground) named at `fld`.
+    pub(super) fn body_index(&self, fld: &str, name: &str) -> Result<usize, ScenarioError> {
+        body_index(self.names, self.file, self.key(fld), name)
+    }
+
+    /// `body_i` and `body_j` of a two-body element (`what`, e.g. "a
+    /// spring"), which must differ.
+    pub(super) fn two_bodies(
+        &self,
+        what: &str,
+        body_i: &str,
+        body_j: &str,
+    ) -> Result<(BodyRef, BodyRef), ScenarioError> {
+        let bi = self.body_ref("body_i", body_i)?;
+        let bj = self.body_ref("body_j", body_j)?;
+        if bi == bj {
+            return Err(self.err(
+                "body_j",
+                format!("{what} must connect two different bodies, got '{body_j}' twice"),
+            ));
+        }
+        Ok((bi, bj))
+    }
+
+    /// `v` at `fld` if finite.
+    pub(super) fn finite(&self, fld: &str, v: f64) -> Result<f64, ScenarioError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(fld, format!("{v} is not finite")))
+        }
+    }
+
+    /// The body-frame point at `fld` on `body` (`None`: the origin).
+    pub(super) fn point(
+        &self,
+        fld: &str,
+        p: Option<RawPoint>,
+        body: BodyRef,
+    ) -> Result<[f64; 2], ScenarioError> {
+        body_point(p, body, self.ends, self.file, self.key(fld))
+    }
+
+    /// A global point at `fld` (`None`: the origin), finite.
+    pub(super) fn global(&self, fld: &str, p: Option<[f64; 2]>) -> Result<[f64; 2], ScenarioError> {
+        let p = p.unwrap_or_default();
+        if p.iter().all(|v| v.is_finite()) {
+            Ok(p)
+        } else {
+            Err(self.err(fld, format!("{p:?} is not finite")))
+        }
+    }
+
+    /// A law given as a linear coefficient `lin` or a table `tab`, at most
+    /// one of the two (neither: linear 0), validated non-decreasing.
+    pub(super) fn law(
+        &self,
+        lin: (&str, Option<f64>),
+        tab: (&str, &Option<RawTable>),
+    ) -> Result<Law, ScenarioError> {
+        let law = match (lin.1, tab.1) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(
+                    tab.0,
+                    format!("give either {} or {}, not both", lin.0, tab.0),
+                ))
+            }
+            (Some(c), None) => (lin.0, Law::Linear(c)),
+            (None, Some(t)) => (tab.0, t.to_law()),
+            (None, None) => (lin.0, Law::Linear(0.0)),
+        };
+        law.1
+            .validate(&self.name, law.0, true)
+            .map_err(|e| self.model_error(e, &[]))?;
+        Ok(law.1)
+    }
+
+    /// The function of time at `fld` of a `kind` force element (an
+    /// expression string is an error: it needs `type = "expression"`).
+    pub(super) fn function(
+        &self,
+        kind: &str,
+        fld: &str,
+        l: &RawLoad,
+    ) -> Result<TimeFunction, ScenarioError> {
+        match l {
+            RawLoad::Function(f) => Ok(f.to_function()),
+            RawLoad::Text(s) => Err(self.err(
+                fld,
+                format!(
+                    "\"{s}\": expressions need type = \"expression\"; a {kind} takes a number, \
+                     {{ polynomial = [...] }} or {{ amplitude, omega, phase, offset }}"
+                ),
+            )),
+        }
+    }
+
+    /// Validates a library element, naming the scenario key of a field
+    /// (`rename`: element field → scenario key where they differ).
+    pub(super) fn checked(
+        &self,
+        e: &dyn ForceElement,
+        rename: &[(&str, &str)],
+    ) -> Result<(), ScenarioError> {
+        e.validate(usize::MAX)
+            .map_err(|e| self.model_error(e, rename))
+    }
+
+    /// A library element's [`ModelError`] as an error at `force[k].<key>`.
+    fn model_error(&self, e: ModelError, rename: &[(&str, &str)]) -> ScenarioError {
+        match e {
+            ModelError::InvalidParameter {
+                field, value, why, ..
+            } => {
+                let head_len = field.find(['.', '[']).unwrap_or(field.len());
+                let (head, tail) = field.split_at(head_len);
+                let head = rename.iter().find(|r| r.0 == head).map_or(head, |r| r.1);
+                error(
+                    self.file,
+                    format!("force[{}].{head}{tail}", self.k),
+                    format!("{value} is invalid: {why}"),
+                )
+            }
+            other => error(self.file, format!("force[{}]", self.k), other.to_string()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TYPES;
+    use crate::scenario::element::docs::{keys_after, sorted};
+
+    /// docs/scenarios.md has a key table per force type listing exactly
+    /// the fields of its struct.
+    #[test]
+    fn docs_list_each_force_types_keys() {
+        for t in TYPES {
+            let heading = format!("### `{}` —", t.name);
+            assert_eq!(
+                keys_after(&heading),
+                sorted((t.keys)()),
+                "docs/scenarios.md, {heading}: the keys differ from the {} struct",
+                t.name
+            );
+        }
+    }
+
+    /// A typo in a force table is reported at its key with the nearest key
+    /// of this type (not of every type).
+    #[test]
+    fn typos_suggest_the_nearest_key_of_this_type() {
+        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
+                    [time]\nend = 0.1\n[[force]]\n";
+        for (table, key, near) in [
+            ("type = \"torque\"\nbody = \"a\"\ntorqe = 1.0", "torqe", "torque"),
+            ("type = \"force\"\nbody = \"a\"\nfx = 1.0\nfy = 0.0\npoimt = [0.0, 0.0]", "poimt", "point"),
+            ("type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\ndampin = 1.0", "dampin", "damping"),
+            ("type = \"rotational_spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nrest_angel = 1.0", "rest_angel", "rest_angle"),
+            ("type = \"contact\"\nbody = \"a\"\nstiffness = 1.0\nwall_normal_dg = 90.0", "wall_normal_dg", "wall_normal_deg"),
+            ("type = \"fluid\"\nbody = \"a\"\nfluid_density = 1.0\nvolum = 1.0", "volum", "volume"),
+            ("type = \"expression\"\nbody = \"a\"\ntorq = \"1\"", "torq", "torque"),
+        ] {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("force[0].{key}"), "{e}");
+            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+            let kind = table.split('"').nth(1).unwrap();
+            let decl = TYPES.iter().find(|t| t.name == kind).unwrap();
+            assert!(e.message.contains(&(decl.keys)().join(", ")), "{e}");
+            // the keys of another type are not offered
+            if kind != "fluid" {
+                assert!(!e.message.contains("fluid_density"), "{e}");
+            }
+        }
+        // a key of another type: not this type's, listed with this type's keys
+        let e = crate::scenario::parse(
+            &format!("{base}type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nradius = 0.1"),
+            "f.toml",
+            "f",
+            &[],
+        )
+        .unwrap_err();
+        assert_eq!(e.key, "force[0].radius", "{e}");
+        assert!(
+            e.message.starts_with("not a key of a spring force element"),
+            "{e}"
+        );
+        assert!(!e.message.contains("did you mean"), "{e}");
+    }
+}

@@ -1,0 +1,63 @@
+//! `type = "spring"`: a point-to-point spring–damper–actuator
+//! ([`PointSpringDamper`]).
+
+use super::{Context, ForceType};
+use crate::forces::PointSpringDamper;
+use crate::scenario::model::{RawFunction, RawPoint, RawTable};
+use crate::scenario::ScenarioError;
+use serde::Deserialize;
+
+/// `[[force]]` of `type = "spring"`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(in crate::scenario) struct Spring {
+    /// A body or `"ground"`.
+    body_i: String,
+    /// Attachment on `body_i` (body frame; global on the ground) [m].
+    point_i: Option<RawPoint>,
+    /// Another body or `"ground"`.
+    body_j: String,
+    /// Attachment on `body_j` [m].
+    point_j: Option<RawPoint>,
+    /// Free length [m], default 0.
+    free_length: Option<f64>,
+    /// Linear stiffness [N/m], default 0.
+    stiffness: Option<f64>,
+    /// Tabulated force over deflection (instead of `stiffness`).
+    force_deflection: Option<RawTable>,
+    /// Linear damping [N s/m], default 0.
+    damping: Option<f64>,
+    /// Tabulated force over velocity (instead of `damping`).
+    force_velocity: Option<RawTable>,
+    /// Constant tension [N], default 0.
+    preload: Option<f64>,
+    /// Actuator tension [N], a function of t.
+    actuator: Option<RawFunction>,
+}
+
+impl ForceType for Spring {
+    const TYPE: &'static str = "spring";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let (body_i, body_j) = cx.two_bodies("a spring", &self.body_i, &self.body_j)?;
+        let s = PointSpringDamper {
+            body_i,
+            point_i: cx.point("point_i", self.point_i, body_i)?,
+            body_j,
+            point_j: cx.point("point_j", self.point_j, body_j)?,
+            free_length: cx.finite("free_length", self.free_length.unwrap_or(0.0))?,
+            stiffness: cx.law(
+                ("stiffness", self.stiffness),
+                ("force_deflection", &self.force_deflection),
+            )?,
+            damping: cx.law(
+                ("damping", self.damping),
+                ("force_velocity", &self.force_velocity),
+            )?,
+            preload: cx.finite("preload", self.preload.unwrap_or(0.0))?,
+            actuator: self.actuator.as_ref().map(RawFunction::to_function),
+        };
+        cx.checked(&s, &[])?;
+        cx.builder.add_force(s);
+        Ok(())
+    }
+}

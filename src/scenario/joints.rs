@@ -1,0 +1,296 @@
+//! `[[joint]]`: one serde struct per `type` (`revolute`, `translational`,
+//! `drive_coordinate`, `drive_angle`), read from the joint's table after
+//! its `type` ([`super::element`]), and the constraint each builds.
+
+use super::element::{check_name, keys_of, read, tag, RawTagged};
+use super::model::{body_index, body_point, body_ref, RawFunction, RawPoint};
+use super::{error, ScenarioError};
+use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
+use crate::model::{BodyRef, SystemBuilder};
+use serde::de::DeserializeOwned;
+use serde::Deserialize;
+use std::collections::HashMap;
+
+/// What a joint type builds with.
+pub(super) struct Context<'a> {
+    /// The system being built.
+    builder: &'a mut SystemBuilder,
+    /// The index k of `joint[k]`.
+    k: usize,
+    /// The joint's name (`name`, default `joint{k+1}`).
+    name: String,
+    /// Body index by name.
+    names: &'a HashMap<String, usize>,
+    /// The half length of every rod segment and chain link by body index.
+    ends: &'a HashMap<usize, f64>,
+    /// The scenario file, for errors.
+    file: &'a str,
+}
+
+impl Context<'_> {
+    fn key(&self, fld: &str) -> String {
+        format!("joint[{}].{fld}", self.k)
+    }
+    fn err(&self, fld: &str, message: impl Into<String>) -> ScenarioError {
+        error(self.file, self.key(fld), message)
+    }
+    fn body_ref(&self, fld: &str, name: &str) -> Result<BodyRef, ScenarioError> {
+        body_ref(self.names, self.file, self.key(fld), name)
+    }
+    fn point(&self, fld: &str, p: RawPoint, b: BodyRef) -> Result<[f64; 2], ScenarioError> {
+        body_point(Some(p), b, self.ends, self.file, self.key(fld))
+    }
+    /// `body_i` and `body_j`, which must differ.
+    fn two_bodies(&self, body_i: &str, body_j: &str) -> Result<(BodyRef, BodyRef), ScenarioError> {
+        let bi = self.body_ref("body_i", body_i)?;
+        let bj = self.body_ref("body_j", body_j)?;
+        if bi == bj {
+            return Err(self.err(
+                "body_j",
+                format!("a joint must connect two different bodies, got '{body_j}' twice"),
+            ));
+        }
+        Ok((bi, bj))
+    }
+}
+
+/// One `[[joint]]` type: its struct (the keys besides `type` and `name`)
+/// and the constraint it adds.
+trait JointType: DeserializeOwned {
+    /// The `type` value that selects it.
+    const TYPE: &'static str;
+    /// Adds the constraint; errors name `joint[k].<key>`.
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError>;
+}
+
+/// A joint type's row of [`TYPES`].
+pub(super) struct JointDecl {
+    /// The `type` value.
+    pub(super) name: &'static str,
+    /// Its keys besides `type` and `name`, in declaration order (read by
+    /// the test that holds docs/scenarios.md to the declarations).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(super) keys: fn() -> &'static [&'static str],
+    add: fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>,
+}
+
+const fn decl<T: JointType>() -> JointDecl {
+    JointDecl {
+        name: T::TYPE,
+        keys: keys_of::<T>,
+        add: |raw, cx| {
+            let what = format!("{} joint", T::TYPE);
+            read::<T>(raw, &format!("joint[{}]", cx.k), &what, cx.file)?.add(cx)
+        },
+    }
+}
+
+/// Every `[[joint]]` type, in the order of docs/scenarios.md.
+pub(super) const TYPES: &[JointDecl] = &[
+    decl::<RevoluteJoint>(),
+    decl::<TranslationalJoint>(),
+    decl::<DriveCoordinateJoint>(),
+    decl::<DriveAngleJoint>(),
+];
+
+/// Builds `joint[k]` (`raw`) into `builder`; every error names `joint[k].key`.
+pub(super) fn add_joint(
+    raw: &RawTagged,
+    builder: &mut SystemBuilder,
+    k: usize,
+    names: &HashMap<String, usize>,
+    ends: &HashMap<usize, f64>,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    let path = format!("joint[{k}]");
+    let kind = tag(raw, &path, "joint", TYPES.iter().map(|t| t.name), file)?;
+    check_name(raw, &path, file)?;
+    let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
+    let mut cx = Context {
+        builder,
+        k,
+        name: raw
+            .name()
+            .map_or_else(|| format!("joint{}", k + 1), str::to_string),
+        names,
+        ends,
+        file,
+    };
+    (decl.add)(raw, &mut cx)
+}
+
+/// `type = "revolute"`: the two points coincide ([`Revolute`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RevoluteJoint {
+    /// A body or `"ground"`.
+    body_i: String,
+    /// The joint's point on `body_i` (body frame; global on the ground) [m].
+    point_i: RawPoint,
+    /// Another body or `"ground"`.
+    body_j: String,
+    /// The joint's point on `body_j` [m].
+    point_j: RawPoint,
+}
+
+impl JointType for RevoluteJoint {
+    const TYPE: &'static str = "revolute";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
+        let pi = cx.point("point_i", self.point_i, bi)?;
+        let pj = cx.point("point_j", self.point_j, bj)?;
+        let name = std::mem::take(&mut cx.name);
+        cx.builder
+            .add_constraint(Revolute::new(name, bi, pi, bj, pj));
+        Ok(())
+    }
+}
+
+/// `type = "translational"`: `point_j` stays on the line through
+/// `point_i` along `axis_i`, the relative angle at its initial value
+/// ([`Translational`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TranslationalJoint {
+    /// A body or `"ground"`.
+    body_i: String,
+    /// A point of the line on `body_i` [m].
+    point_i: RawPoint,
+    /// The line's direction, body-i frame (non-zero).
+    axis_i: [f64; 2],
+    /// Another body or `"ground"`.
+    body_j: String,
+    /// The point on `body_j` that stays on the line [m].
+    point_j: RawPoint,
+}
+
+impl JointType for TranslationalJoint {
+    const TYPE: &'static str = "translational";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
+        let pi = cx.point("point_i", self.point_i, bi)?;
+        let pj = cx.point("point_j", self.point_j, bj)?;
+        let axis = self.axis_i;
+        let len = axis[0].hypot(axis[1]);
+        if !len.is_finite() || len <= 0.0 {
+            return Err(cx.err(
+                "axis_i",
+                format!("{axis:?}: the axis must be a non-zero vector"),
+            ));
+        }
+        let angle = |b: BodyRef| match b {
+            BodyRef::Ground => 0.0,
+            BodyRef::Body(i) => cx.builder.bodies()[i].q0[2],
+        };
+        let theta0 = angle(bj) - angle(bi);
+        let name = std::mem::take(&mut cx.name);
+        cx.builder
+            .add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
+        Ok(())
+    }
+}
+
+/// `type = "drive_coordinate"`: a coordinate of a body follows
+/// `motion(t)` ([`DriveCoordinate`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DriveCoordinateJoint {
+    /// A body (not the ground).
+    body: String,
+    /// `"x"`, `"y"` or `"phi"`.
+    coordinate: String,
+    /// The coordinate's motion [m or rad], a function of t.
+    motion: RawFunction,
+}
+
+impl JointType for DriveCoordinateJoint {
+    const TYPE: &'static str = "drive_coordinate";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let b = body_index(cx.names, cx.file, cx.key("body"), &self.body)?;
+        let c = match self.coordinate.as_str() {
+            "x" => 0,
+            "y" => 1,
+            "phi" => 2,
+            o => return Err(cx.err("coordinate", format!("'{o}' is not one of x, y, phi"))),
+        };
+        let f = self.motion.to_function();
+        let name = std::mem::take(&mut cx.name);
+        cx.builder
+            .add_constraint(DriveCoordinate::new(name, b, c, f));
+        Ok(())
+    }
+}
+
+/// `type = "drive_angle"`: `φ_j − φ_i = motion(t)` ([`DriveRelativeAngle`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DriveAngleJoint {
+    /// A body or `"ground"` (angle 0).
+    body_i: String,
+    /// Another body or `"ground"`.
+    body_j: String,
+    /// The relative angle [rad], a function of t.
+    motion: RawFunction,
+}
+
+impl JointType for DriveAngleJoint {
+    const TYPE: &'static str = "drive_angle";
+    fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
+        let bi = cx.body_ref("body_i", &self.body_i)?;
+        let bj = cx.body_ref("body_j", &self.body_j)?;
+        let f = self.motion.to_function();
+        let name = std::mem::take(&mut cx.name);
+        cx.builder
+            .add_constraint(DriveRelativeAngle::new(name, bi, bj, f));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TYPES;
+    use crate::scenario::element::docs::{keys_of_row, sorted};
+
+    /// docs/scenarios.md's joint table lists exactly each joint struct's keys.
+    #[test]
+    fn docs_list_each_joint_types_keys() {
+        for t in TYPES {
+            assert_eq!(
+                keys_of_row("## `[[joint]]`", t.name),
+                sorted((t.keys)()),
+                "docs/scenarios.md, [[joint]] type {}: the keys differ from its struct",
+                t.name
+            );
+        }
+    }
+
+    /// A typo in a joint table is reported at its key with the nearest key
+    /// of this type.
+    #[test]
+    fn typos_suggest_the_nearest_key_of_this_type() {
+        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
+                    [time]\nend = 0.1\n[[joint]]\n";
+        for (table, key, near) in [
+            ("type = \"revolute\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_i = [0.0, 0.0]\npoint_jj = [0.0, 0.0]", "point_jj", "point_j"),
+            ("type = \"translational\"\nbody_i = \"a\"\nbody_j = \"ground\"\naxis = [1.0, 0.0]", "axis", "axis_i"),
+            ("type = \"drive_coordinate\"\nbody = \"a\"\ncoordinate = \"x\"\nmotoin = 0.0", "motoin", "motion"),
+            ("type = \"drive_angle\"\nbody_i = \"a\"\nbody_jj = \"ground\"\nmotion = 0.0", "body_jj", "body_j"),
+        ] {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("joint[0].{key}"), "{e}");
+            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+            let kind = table.split('"').nth(1).unwrap();
+            assert!(e.message.contains(&format!("not a key of a {kind} joint")), "{e}");
+        }
+        let e = crate::scenario::parse(
+            &format!("{base}type = \"revolut\"\nbody_i = \"a\"\nbody_j = \"ground\""),
+            "f.toml",
+            "f",
+            &[],
+        )
+        .unwrap_err();
+        assert_eq!(e.key, "joint[0].type", "{e}");
+        assert!(e.message.contains("did you mean 'revolute'?"), "{e}");
+    }
+}
