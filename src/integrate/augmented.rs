@@ -82,9 +82,9 @@ use std::sync::Arc;
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::genalpha::{AlphaParameters, NOISE_REL, ROUNDING_ULPS, STAGNATION};
 use super::hermite::cubic;
+use super::implicit::ImplicitStats;
 use super::{common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report};
 use super::{Stats, SystemError};
-use serde::Serialize;
 
 /// What the augmented-Lagrangian integrator needs of a constrained
 /// mechanical system `M q̈ + Φ_qᵀλ = g(q, q̇, t)`, `Φ(q, t) = 0` (module
@@ -158,39 +158,6 @@ pub trait AugmentedDae {
     ) -> Result<(), SystemError>;
 }
 
-/// Counters of an augmented-Lagrangian run.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-pub struct AugmentedStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Step attempts whose Newton iteration failed (each halved the step).
-    pub newton_failures: usize,
-    /// Newton iterations (each with a multiplier update).
-    pub newton_iterations: usize,
-    /// Factorisations of `W`.
-    pub factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Velocity + acceleration projections (one per accepted step).
-    pub projections: usize,
-    /// Times the penalty was raised within an attempt (slow contraction).
-    pub penalty_increases: usize,
-    /// Largest factor over the default penalty used in an attempt.
-    pub max_penalty_factor: f64,
-    /// Smallest step taken.
-    pub min_step_taken: f64,
-}
-
-impl AugmentedStats {
-    fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.newton_failures,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// The augmented-Lagrangian integrator (module docs): fixed step
 /// [`OdeOptions::fixed_step`], Newton tolerance and iterations and the
 /// smallest step from [`ImplicitOptions`].
@@ -200,7 +167,7 @@ pub struct AugmentedLagrangian {
     opts: ImplicitOptions,
     ode: OdeOptions,
     h: f64,
-    stats: AugmentedStats,
+    stats: ImplicitStats,
 }
 
 impl AugmentedLagrangian {
@@ -245,7 +212,7 @@ impl AugmentedLagrangian {
             opts,
             h: ode.fixed_step.unwrap_or(0.0),
             ode,
-            stats: AugmentedStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
@@ -255,7 +222,7 @@ impl AugmentedLagrangian {
     }
 
     /// Counters of the last run.
-    pub fn stats(&self) -> AugmentedStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -311,20 +278,13 @@ impl AugmentedLagrangian {
             k_grid: 1,
             t_old: t0,
             h_last: 0.0,
-            stats: AugmentedStats {
-                min_step_taken: f64::INFINITY,
-                max_penalty_factor: 1.0,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             warnings: Vec::new(),
             last_newton: None,
         };
         let (termination, t_reached) =
             driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
+        let stats = run.stats.finished();
         let warnings = run.warnings;
         self.stats = stats;
         Ok(Report {
@@ -376,7 +336,7 @@ struct Run<'g, 's> {
     k_grid: u64,
     t_old: f64,
     h_last: f64,
-    stats: AugmentedStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     last_newton: Option<StepCut>,
 }
@@ -596,8 +556,7 @@ impl Stepper for Run<'_, '_> {
             self.h_last = h_try;
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
+            self.stats.accept(h_try);
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
             if (self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target {

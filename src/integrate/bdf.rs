@@ -89,11 +89,10 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use serde::Serialize;
-
 use super::common;
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::genalpha::validate_run;
+use super::implicit::ImplicitStats;
 use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
@@ -140,34 +139,11 @@ pub const NEWTON_FLOOR: f64 = 1e-4;
 /// correction).
 pub const THETA_FIRST: f64 = 0.3;
 
-/// Work counters of a BDF run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct BdfStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Steps rejected by the error test.
-    pub error_rejections: usize,
-    /// Step cuts because Newton did not converge on a fresh matrix.
-    pub newton_failures: usize,
-    /// Newton corrections (linear solves).
-    pub newton_iterations: usize,
-    /// Factorisations of the iteration matrix.
-    pub factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Accepted steps at each order 1 … 5 (index 0 unused).
-    pub steps_at_order: [usize; MAX_ORDER + 1],
-    /// Smallest accepted step.
-    pub min_step_taken: f64,
-    /// Largest accepted step.
-    pub max_step_taken: f64,
-}
-
 /// The BDF integrator (module docs).
 #[derive(Debug, Clone)]
 pub struct Bdf {
     ode: OdeOptions,
-    stats: BdfStats,
+    stats: ImplicitStats,
 }
 
 impl Bdf {
@@ -177,12 +153,12 @@ impl Bdf {
         ode.validate(Method::Bdf, true)?;
         Ok(Self {
             ode,
-            stats: BdfStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
     /// Counters of the last run.
-    pub fn stats(&self) -> BdfStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -204,17 +180,10 @@ impl Bdf {
         let mut run = BdfRun::new(sys, &self.ode, t0, t_end, q0, qd0);
         let (termination, t_reached) =
             driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
+        let stats = run.stats.finished();
         self.stats = stats;
         Ok(Report {
-            stats: Stats {
-                steps: stats.steps,
-                failed_steps: stats.error_rejections + stats.newton_failures,
-                rhs_evals: stats.residual_evaluations,
-            },
+            stats: stats.counts(),
             termination,
             t_reached,
             warnings: run.warnings,
@@ -309,7 +278,7 @@ struct BdfRun<'s> {
     inv_w: Vec<f64>,
     /// The new point `[q; q̇]` of the step being tried.
     ynew: Vec<f64>,
-    stats: BdfStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
 }
 
@@ -369,10 +338,7 @@ impl<'s> BdfRun<'s> {
             r: vec![0.0; n + m],
             inv_w: vec![0.0; n],
             ynew: vec![0.0; 2 * n],
-            stats: BdfStats {
-                min_step_taken: f64::INFINITY,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             warnings: tol.warnings,
         }
     }
@@ -1024,10 +990,8 @@ impl Stepper for BdfRun<'_> {
         };
         // accept
         let k = self.k;
-        self.stats.steps += 1;
+        self.stats.accept(h);
         self.stats.steps_at_order[k] += 1;
-        self.stats.min_step_taken = self.stats.min_step_taken.min(h);
-        self.stats.max_step_taken = self.stats.max_step_taken.max(h);
         self.steps_at_k += 1;
         // order and step for the next step
         let mut best_p = k;
@@ -1097,11 +1061,7 @@ impl Stepper for BdfRun<'_> {
     }
 
     fn stats(&self) -> Stats {
-        Stats {
-            steps: self.stats.steps,
-            failed_steps: self.stats.error_rejections + self.stats.newton_failures,
-            rhs_evals: self.stats.residual_evaluations,
-        }
+        self.stats.counts()
     }
 
     fn warnings(&self) -> &[String] {

@@ -111,11 +111,11 @@
 
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::genalpha::validate_run;
+use super::implicit::ImplicitStats;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
     Stats, SystemError, Tolerance, NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR,
 };
-use serde::Serialize;
 use std::sync::Arc;
 
 /// Relative difference below which a step counts as the one the Newton
@@ -291,49 +291,13 @@ impl Default for RadauTableau {
     }
 }
 
-/// Work counters of a Radau IIA run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct RadauStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Step attempts abandoned because Newton did not converge.
-    pub newton_failures: usize,
-    /// Newton iterations (each: three residuals, one real and one complex solve).
-    pub newton_iterations: usize,
-    /// Factorisations of the real Newton matrix.
-    pub factorizations: usize,
-    /// Factorisations of the complex Newton matrix.
-    pub complex_factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Projections onto the constraint manifold.
-    pub projections: usize,
-    /// Smallest accepted step.
-    pub min_step_taken: f64,
-    /// Largest accepted step.
-    pub max_step_taken: f64,
-    /// Attempts rejected by the error test (adaptive mode).
-    pub error_rejections: usize,
-}
-
-impl RadauStats {
-    /// As the explicit methods count.
-    pub fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.newton_failures + self.error_rejections,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// Radau IIA, s = 3, fixed step, on the index-3 equations (module docs).
 #[derive(Debug, Clone)]
 pub struct Radau5 {
     opts: ImplicitOptions,
     ode: OdeOptions,
     tab: RadauTableau,
-    stats: RadauStats,
+    stats: ImplicitStats,
 }
 
 impl Radau5 {
@@ -362,12 +326,12 @@ impl Radau5 {
             opts,
             ode,
             tab: RadauTableau::new(),
-            stats: RadauStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
     /// Counters of the last run.
-    pub fn stats(&self) -> RadauStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -442,20 +406,14 @@ impl Radau5 {
             eta: 1.0,
             h_last: 0.0,
             h_prev: None,
-            stats: RadauStats {
-                min_step_taken: f64::INFINITY,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             ode: &self.ode,
             warnings: Vec::new(),
             last_newton: None,
         };
         let (termination, t_reached) =
             driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
+        let stats = run.stats.finished();
         let warnings = run.warnings;
         self.stats = stats;
         Ok(Report {
@@ -514,7 +472,7 @@ struct Run<'g, 's> {
     eta: f64,
     h_last: f64,
     h_prev: Option<f64>,
-    stats: RadauStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     last_newton: Option<StepCut>,
 }
@@ -1041,9 +999,7 @@ impl Stepper for Run<'_, '_> {
             self.h_prev = Some(h);
             self.h_last = h;
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h);
-            self.stats.max_step_taken = self.stats.max_step_taken.max(h);
+            self.stats.accept(h);
             self.y[..n].copy_from_slice(&self.q);
             self.y[n..].copy_from_slice(&self.v);
             if !adaptive && ((self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target) {

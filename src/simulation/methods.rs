@@ -4,7 +4,7 @@
 //! the index-3 form, the augmented Lagrangian, bdf.
 
 use super::*;
-use crate::integrate::AlphaParameters;
+use crate::integrate::{AlphaParameters, ImplicitStats};
 
 /// The index-3 methods' consistent start ([`Index3::consistent_start`]),
 /// with the warning that says how far it moved the state.
@@ -205,19 +205,15 @@ impl MethodRun for Implicit<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
         let fs = self.f.stats();
-        let p = self.integ.params();
         let opts = self.integ.options();
         let fixed_step = if opts.adaptive {
             serde_json::Value::Null
         } else {
             cfg.ode.fixed_step.into()
         };
-        let mut extra = fields([
-            ("newton_iterations", gs.newton_iterations.into()),
-            ("newton_failures", gs.newton_failures.into()),
-            ("error_rejections", gs.error_rejections.into()),
+        let mut extra = counters(&gs, &IMPLICIT_COUNTERS);
+        extra.extend(fields([
             ("jacobian_evaluations", fs.jacobians.into()),
-            ("projections", gs.projections.into()),
             (
                 "projection_factorizations",
                 fs.mass_solver.factorizations.into(),
@@ -225,19 +221,14 @@ impl MethodRun for Implicit<'_> {
             ("fixed_step", fixed_step),
             ("adaptive", opts.adaptive.into()),
             ("newton_tol", opts.newton_tol.into()),
-            ("min_step_taken", gs.min_step_taken.into()),
-            ("max_step_taken", gs.max_step_taken.into()),
-        ]);
-        scheme_fields(&mut extra, &p, opts.rho_inf);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: gs.factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
+        ]));
+        scheme_fields(&mut extra, &self.integ.params(), opts.rho_inf);
+        let work = index3_work(
+            "index3",
+            self.f.solver_name(),
+            gs.factorizations,
+            &fs.newton_solver,
+        );
         (work, extra)
     }
 }
@@ -305,29 +296,30 @@ impl MethodRun for AugmentedRun<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
         let fs = self.f.stats();
-        let p = self.integ.params();
-        let mut extra = fields([
+        let mut extra = counters(
+            &gs,
+            &[
+                "newton_iterations",
+                "newton_failures",
+                "projections",
+                "penalty_increases",
+                "max_penalty_factor",
+                "min_step_taken",
+            ],
+        );
+        extra.extend(fields([
             ("penalty", self.penalty.into()),
-            ("newton_iterations", gs.newton_iterations.into()),
-            ("newton_failures", gs.newton_failures.into()),
-            ("projections", gs.projections.into()),
-            ("penalty_increases", gs.penalty_increases.into()),
-            ("max_penalty_factor", gs.max_penalty_factor.into()),
             ("initial_iterations", fs.initial_iterations.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
-            ("min_step_taken", gs.min_step_taken.into()),
-        ]);
-        scheme_fields(&mut extra, &p, cfg.implicit.rho_inf);
-        let work = Work {
-            formulation: "augmented_lagrangian".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: gs.factorizations,
-            regularized_pivots: fs.solver.regularized_pivots,
-            indefinite_pivots: fs.solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
+        ]));
+        scheme_fields(&mut extra, &self.integ.params(), cfg.implicit.rho_inf);
+        let work = index3_work(
+            "augmented_lagrangian",
+            self.f.solver_name(),
+            gs.factorizations,
+            &fs.solver,
+        );
         (work, extra)
     }
 }
@@ -378,24 +370,17 @@ impl MethodRun for BdfRun<'_> {
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let bs = self.integ.stats();
         let fs = self.f.stats();
-        let extra = fields([
-            ("newton_iterations", bs.newton_iterations.into()),
-            ("newton_failures", bs.newton_failures.into()),
-            ("error_rejections", bs.error_rejections.into()),
-            ("jacobian_evaluations", fs.jacobians.into()),
-            ("steps_at_order", bs.steps_at_order[1..].to_vec().into()),
-            ("min_step_taken", bs.min_step_taken.into()),
-            ("max_step_taken", bs.max_step_taken.into()),
-        ]);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: bs.factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
+        let mut extra = counters(&bs, &IMPLICIT_COUNTERS);
+        extra.remove("projections");
+        extra.insert("jacobian_evaluations".into(), fs.jacobians.into());
+        let orders = bs.steps_at_order[1..].to_vec();
+        extra.insert("steps_at_order".into(), orders.into());
+        let work = index3_work(
+            "index3",
+            self.f.solver_name(),
+            bs.factorizations,
+            &fs.newton_solver,
+        );
         (work, extra)
     }
 }
@@ -414,6 +399,56 @@ fn scheme_fields(
         ("gamma_newmark", p.gamma.into()),
         ("beta_newmark", p.beta.into()),
     ]));
+}
+
+/// The counters every index-3 scheme reports in the summary's `extra`.
+const IMPLICIT_COUNTERS: [&str; 6] = [
+    "newton_iterations",
+    "newton_failures",
+    "error_rejections",
+    "projections",
+    "min_step_taken",
+    "max_step_taken",
+];
+
+/// The [`ImplicitStats`] counters named in `keys` as summary `extra`
+/// fields of the same names.
+fn counters(st: &ImplicitStats, keys: &[&str]) -> serde_json::Map<String, serde_json::Value> {
+    keys.iter()
+        .map(|&k| {
+            let v: serde_json::Value = match k {
+                "newton_iterations" => st.newton_iterations.into(),
+                "newton_failures" => st.newton_failures.into(),
+                "error_rejections" => st.error_rejections.into(),
+                "projections" => st.projections.into(),
+                "penalty_increases" => st.penalty_increases.into(),
+                "max_penalty_factor" => st.max_penalty_factor.into(),
+                "min_step_taken" => st.min_step_taken.into(),
+                "max_step_taken" => st.max_step_taken.into(),
+                _ => unreachable!("not a counter: {k}"),
+            };
+            (k.to_string(), v)
+        })
+        .collect()
+}
+
+/// The [`Work`] of an index-3 run: no Baumgarte terms, the Newton
+/// matrix's factorisations and the pivots of its solver.
+fn index3_work(
+    formulation: &str,
+    linear_solver: &str,
+    factorizations: usize,
+    solver: &crate::linalg::SolverStats,
+) -> Work {
+    Work {
+        formulation: formulation.to_string(),
+        linear_solver: linear_solver.to_string(),
+        baumgarte: (0.0, 0.0),
+        factorizations,
+        regularized_pivots: solver.regularized_pivots,
+        indefinite_pivots: solver.indefinite_pivots,
+        first_regularized_t: None,
+    }
 }
 
 /// Summary `extra` fields from `(name, value)` pairs.
@@ -481,28 +516,20 @@ impl MethodRun for RadauRun<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let rs = self.integ.stats();
         let fs = self.f.stats();
-        let extra = fields([
-            ("newton_iterations", rs.newton_iterations.into()),
-            ("newton_failures", rs.newton_failures.into()),
+        let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
+        extra.extend(fields([
             ("real_factorizations", rs.factorizations.into()),
             ("complex_factorizations", rs.complex_factorizations.into()),
-            ("projections", rs.projections.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("adaptive", cfg.implicit.adaptive.into()),
-            ("error_rejections", rs.error_rejections.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
-            ("min_step_taken", rs.min_step_taken.into()),
-            ("max_step_taken", rs.max_step_taken.into()),
-        ]);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: rs.factorizations + rs.complex_factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
+        ]));
+        let work = index3_work(
+            "index3",
+            self.f.solver_name(),
+            rs.factorizations + rs.complex_factorizations,
+            &fs.newton_solver,
+        );
         (work, extra)
     }
 }

@@ -168,12 +168,12 @@ use newton::Attempt;
 
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::hermite::cubic;
+use super::implicit::ImplicitStats;
 use super::Tolerance;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
     SystemError,
 };
-use serde::Serialize;
 use std::sync::Arc;
 
 /// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
@@ -234,41 +234,6 @@ pub trait SecondOrderDae {
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError>;
 }
 
-/// Work counters of a generalized-α run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct GenAlphaStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Steps rejected by the error test (adaptive).
-    pub error_rejections: usize,
-    /// Step attempts abandoned because Newton did not converge.
-    pub newton_failures: usize,
-    /// Newton corrections (linear solves of the iteration matrix).
-    pub newton_iterations: usize,
-    /// Factorisations of the iteration matrix.
-    pub factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Projections onto the constraint manifold.
-    pub projections: usize,
-    /// Smallest accepted step.
-    pub min_step_taken: f64,
-    /// Largest accepted step.
-    pub max_step_taken: f64,
-}
-
-impl GenAlphaStats {
-    /// As the explicit methods count: accepted steps, rejected attempts
-    /// (error rejections + Newton failures), residual evaluations.
-    pub fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.error_rejections + self.newton_failures,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
 pub struct GenAlpha {
@@ -277,7 +242,7 @@ pub struct GenAlpha {
     opts: ImplicitOptions,
     ode: OdeOptions,
     h_fixed: f64,
-    stats: GenAlphaStats,
+    stats: ImplicitStats,
 }
 
 /// State at one time point: positions, velocities, true accelerations,
@@ -326,7 +291,7 @@ impl GenAlpha {
             opts,
             ode,
             h_fixed,
-            stats: GenAlphaStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
@@ -343,7 +308,7 @@ impl GenAlpha {
         &self.opts
     }
     /// Counters of the last run.
-    pub fn stats(&self) -> GenAlphaStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -377,17 +342,11 @@ impl GenAlpha {
             &self.ode,
             self.opts.adaptive,
         )?;
-        self.stats = GenAlphaStats {
-            min_step_taken: f64::INFINITY,
-            ..Default::default()
-        };
+        self.stats = ImplicitStats::default();
         let mut run = Run::new(self, sys, n, m, t0, t_end, q0, qd0);
         let (termination, t_reached) =
             driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
+        let stats = run.stats.finished();
         let warnings = run.warnings;
         self.stats = stats;
         Ok(Report {
@@ -488,7 +447,7 @@ struct Run<'g, 's> {
     /// extrapolates q̈ (it predicted the last accepted step better than the
     /// constant one, [`Run::choose_predictor`]).
     extrapolate_next: bool,
-    stats: GenAlphaStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     /// Step control: the step to try next, the largest step, the index of
     /// the next point of the fixed grid, no growth after a cut, the last
@@ -546,10 +505,7 @@ impl<'g, 's> Run<'g, 's> {
             prev_qdd: vec![0.0; n],
             h_prev: None,
             extrapolate_next: false,
-            stats: GenAlphaStats {
-                min_step_taken: f64::INFINITY,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             warnings: Vec::new(),
             h: 0.0,
             max_step: 0.0,
@@ -749,9 +705,7 @@ impl Stepper for Run<'_, '_> {
             self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
-            self.stats.max_step_taken = self.stats.max_step_taken.max(h_try);
+            self.stats.accept(h_try);
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
             // Next step size.
