@@ -111,10 +111,10 @@
 
 use super::driver::{self, Failure, StepCut, Stepper};
 use super::genalpha::validate_run;
-use super::implicit::ImplicitStats;
+use super::implicit::{Assessment, Convergence, ConvergenceOptions, ImplicitStats, Next};
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
-    Stats, SystemError, Tolerance, NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR,
+    Stats, SystemError, Tolerance, ROUNDING_ULPS,
 };
 use std::sync::Arc;
 
@@ -666,15 +666,18 @@ impl Run<'_, '_> {
         } else {
             (0.0, 0.0)
         };
-        let mut eta = self.eta.max(1.0);
-        let mut prev = f64::NAN;
-        let mut round = 0usize;
-        let mut refreshed = false;
+        let mut conv = Convergence::new(
+            ConvergenceOptions {
+                max_iterations: self.opts.max_newton,
+                renew_when_exhausted: true,
+                renew_on_divergence: true,
+                reset_rate_on_renewal: false,
+            },
+            self.eta,
+        );
         let mut its = 0usize;
-        // the last contraction factor (NaN before a second correction)
-        let mut theta_last = f64::NAN;
         loop {
-            if round > 0 && !self.opts.reuse {
+            if conv.round() > 0 && !self.opts.reuse {
                 self.factor(h)?;
             }
             // residuals of the three stages
@@ -762,86 +765,70 @@ impl Run<'_, '_> {
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
-            let done = if round == 0 {
-                dnorm * eta <= 1.0
-            } else {
-                let theta = dnorm / prev;
-                // stagnation with corrections at the noise of the solve
-                // relative to q (module docs)
-                let noise = theta >= 1.0 && {
-                    let [x0, x1, x2] = &self.x;
-                    let mut drel = 0.0_f64;
-                    for k in 0..n {
-                        let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
-                        for row in &tab.t {
-                            let d = row[0] * y0 + row[1] * y1 + row[2] * y2;
-                            drel = drel.max((h * h * d).abs() / self.q[k].abs().max(1.0));
-                        }
+            // stagnation with corrections at the noise of the solve
+            // relative to q (module docs)
+            let drel = || {
+                let [x0, x1, x2] = &self.x;
+                let mut drel = 0.0_f64;
+                for k in 0..n {
+                    let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
+                    for row in &tab.t {
+                        let d = row[0] * y0 + row[1] * y1 + row[2] * y2;
+                        drel = drel.max((h * h * d).abs() / self.q[k].abs().max(1.0));
                     }
-                    drel <= NOISE_REL
-                };
-                if noise {
-                    true
-                } else if theta >= 1.0 {
-                    if dnorm > STAGNATION && !refreshed {
-                        // undo the diverging correction and renew the
-                        // matrices at the last stage's iterate
-                        let tt = tab.t;
-                        let [x0, x1, x2] = &self.x;
-                        for (i, a) in self.a.iter_mut().enumerate() {
-                            for k in 0..n {
-                                a[k] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
-                            }
-                        }
-                        for (i, l) in self.l.iter_mut().enumerate() {
-                            for k in n..n + m {
-                                l[k - n] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
-                            }
-                        }
-                        self.factor_at(h, true)?;
-                        refreshed = true;
-                        round = 0;
-                        prev = f64::NAN;
-                        continue;
-                    }
-                    if dnorm > STAGNATION {
-                        return Err(SystemError::msg(format!(
-                            "Newton diverges (contraction θ = {theta:.3}, correction {dnorm:.3e} × tol)"
-                        )));
-                    }
-                    true
-                } else {
-                    theta_last = theta;
-                    eta = theta / (1.0 - theta);
-                    if theta > THETA_REFACTOR {
-                        self.refactor = true;
-                    }
-                    if eta * dnorm <= 1.0 {
-                        self.eta = eta;
-                    }
-                    eta * dnorm <= 1.0
                 }
+                drel
             };
-            prev = dnorm;
-            round += 1;
-            if done {
-                self.last_its = its;
-                return Ok(());
-            }
-            if round >= self.opts.max_newton {
-                // still contracting: renew the matrices at the last stage's
-                // (much better) iterate once and go on, as generalized-α
-                if !refreshed && theta_last < 1.0 {
+            let done = match conv.assess(dnorm, drel, false) {
+                Assessment::Done => true,
+                Assessment::NotYet => false,
+                Assessment::RenewAfterUndo => {
+                    // undo the diverging correction and renew the
+                    // matrices at the last stage's iterate
+                    let tt = tab.t;
+                    let [x0, x1, x2] = &self.x;
+                    for (i, a) in self.a.iter_mut().enumerate() {
+                        for k in 0..n {
+                            a[k] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
+                        }
+                    }
+                    for (i, l) in self.l.iter_mut().enumerate() {
+                        for k in n..n + m {
+                            l[k - n] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
+                        }
+                    }
                     self.factor_at(h, true)?;
-                    refreshed = true;
-                    round = 0;
-                    prev = f64::NAN;
-                    theta_last = f64::NAN;
                     continue;
                 }
-                return Err(SystemError::msg(format!(
-                    "no convergence in {round} iterations (last correction {prev:.3e} × tol)"
-                )));
+                Assessment::Diverged => {
+                    return Err(SystemError::msg(format!(
+                        "Newton diverges (contraction θ = {:.3}, correction {dnorm:.3e} × tol)",
+                        conv.theta()
+                    )));
+                }
+            };
+            if conv.slow() {
+                self.refactor = true;
+            }
+            match conv.next(dnorm, done) {
+                None => {
+                    if let Some(eta) = conv.rate_to_keep() {
+                        self.eta = eta;
+                    }
+                    self.last_its = its;
+                    return Ok(());
+                }
+                Some(Next::Iterate) => {}
+                // still contracting: renew the matrices at the last stage's
+                // (much better) iterate once and go on, as generalized-α
+                Some(Next::Renew) => self.factor_at(h, true)?,
+                Some(Next::Exhausted) => {
+                    return Err(SystemError::msg(format!(
+                        "no convergence in {} iterations (last correction {:.3e} × tol)",
+                        conv.round(),
+                        conv.last()
+                    )));
+                }
             }
         }
     }

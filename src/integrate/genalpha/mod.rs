@@ -158,9 +158,8 @@ mod newton;
 mod params;
 mod step;
 
-pub use newton::{
-    NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
-};
+pub use super::implicit::{NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR};
+pub use newton::{REUSE_BAND, SLOW_ITERATIONS};
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 
