@@ -79,10 +79,10 @@ const TARGET_CONTRACTION: f64 = 0.1;
 pub const MAX_PENALTY_FACTOR: f64 = 1e4;
 use std::sync::Arc;
 
-use super::driver::{self, Failure, StepCut, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::genalpha::{AlphaParameters, NOISE_REL, ROUNDING_ULPS, STAGNATION};
 use super::hermite::cubic;
-use super::implicit::ImplicitStats;
+use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
 use super::{common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report};
 use super::{Stats, SystemError};
 
@@ -242,25 +242,7 @@ impl AugmentedLagrangian {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let (n, m) = (sys.n(), sys.m());
-        common::check_span(t0, t_end)?;
-        for (what, v) in [("q0", q0), ("qd0", qd0)] {
-            if v.len() != n {
-                return Err(IntegratorError::DimensionMismatch {
-                    what,
-                    expected: n,
-                    got: v.len(),
-                });
-            }
-        }
-        if let Some((index, &value)) = q0
-            .iter()
-            .chain(qd0)
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(IntegratorError::NonFiniteInitialState { index, value });
-        }
-        common::check_output_times(t0, t_end, output_times)?;
+        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, false)?;
         let mut run = Run {
             p: self.params,
             opts: &self.opts,
@@ -282,17 +264,9 @@ impl AugmentedLagrangian {
             warnings: Vec::new(),
             last_newton: None,
         };
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let stats = run.stats.finished();
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
 }
 
@@ -463,6 +437,15 @@ impl Run<'_, '_> {
             }
         }
         unreachable!()
+    }
+}
+
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 }
 

@@ -90,9 +90,8 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use super::common;
-use super::driver::{self, Failure, StepCut, Stepper};
-use super::genalpha::validate_run;
-use super::implicit::ImplicitStats;
+use super::driver::{Failure, StepCut, Stepper};
+use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
 use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
     Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
@@ -178,16 +177,9 @@ impl Bdf {
         let n = sys.n();
         validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, true)?;
         let mut run = BdfRun::new(sys, &self.ode, t0, t_end, q0, qd0);
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let stats = run.stats.finished();
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings: run.warnings,
-        })
+        Ok(report)
     }
 }
 
@@ -792,6 +784,15 @@ fn newton_update(u: Slices<'_, 3, 4>, a0: f64, floor: f64) -> (f64, bool) {
         dn.iter().fold(0.0, |a: f64, &b| a.max(b)),
         fl.iter().all(|&f| f),
     )
+}
+
+impl ImplicitStepper for BdfRun<'_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
 }
 
 impl Stepper for BdfRun<'_> {

@@ -109,9 +109,11 @@
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
-use super::driver::{self, Failure, StepCut, Stepper};
-use super::genalpha::validate_run;
-use super::implicit::{Assessment, Convergence, ConvergenceOptions, ImplicitStats, Next};
+use super::driver::{Failure, StepCut, Stepper};
+use super::implicit::{
+    run as run_implicit, validate_run, Assessment, Convergence, ConvergenceOptions, ImplicitStats,
+    ImplicitStepper, Next,
+};
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
     Stats, SystemError, Tolerance, ROUNDING_ULPS,
@@ -411,17 +413,9 @@ impl Radau5 {
             warnings: Vec::new(),
             last_newton: None,
         };
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let stats = run.stats.finished();
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
 }
 
@@ -831,6 +825,15 @@ impl Run<'_, '_> {
                 }
             }
         }
+    }
+}
+
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 }
 

@@ -165,9 +165,9 @@ pub use step::SAFETY;
 
 use newton::Attempt;
 
-use super::driver::{self, Failure, StepCut, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
-use super::implicit::ImplicitStats;
+use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
 use super::Tolerance;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
@@ -343,65 +343,10 @@ impl GenAlpha {
         )?;
         self.stats = ImplicitStats::default();
         let mut run = Run::new(self, sys, n, m, t0, t_end, q0, qd0);
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let stats = run.stats.finished();
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
-}
-
-#[allow(clippy::too_many_arguments)]
-pub(super) fn validate_run(
-    n: usize,
-    t0: f64,
-    t_end: f64,
-    q0: &[f64],
-    qd0: &[f64],
-    output_times: &[f64],
-    ode: &OdeOptions,
-    adaptive: bool,
-) -> Result<(), IntegratorError> {
-    common::check_span(t0, t_end)?;
-    for (what, v) in [("q0", q0), ("qd0", qd0)] {
-        if v.len() != n {
-            return Err(IntegratorError::DimensionMismatch {
-                what,
-                expected: n,
-                got: v.len(),
-            });
-        }
-    }
-    if let Some((index, value)) = q0
-        .iter()
-        .chain(qd0)
-        .enumerate()
-        .find(|(_, v)| !v.is_finite())
-    {
-        return Err(IntegratorError::NonFiniteInitialState {
-            index,
-            value: *value,
-        });
-    }
-    if adaptive {
-        if let Tolerance::Vector(v) = &ode.atol {
-            if v.len() != n && v.len() != 2 * n {
-                return Err(IntegratorError::DimensionMismatch {
-                    what: "atol",
-                    expected: n,
-                    got: v.len(),
-                });
-            }
-        }
-    }
-    common::check_output_times(t0, t_end, output_times)?;
-    Ok(())
 }
 
 /// One run: the integrator's settings, the system and all buffers.
@@ -538,6 +483,15 @@ impl<'g, 's> Run<'g, 's> {
             Tolerance::Scalar(a) => *a,
             Tolerance::Vector(v) => v[i],
         }
+    }
+}
+
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 }
 
