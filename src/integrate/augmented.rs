@@ -79,12 +79,12 @@ const TARGET_CONTRACTION: f64 = 0.1;
 pub const MAX_PENALTY_FACTOR: f64 = 1e4;
 use std::sync::Arc;
 
-use super::driver::{self, Failure, StepCut, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::genalpha::{AlphaParameters, NOISE_REL, ROUNDING_ULPS, STAGNATION};
 use super::hermite::cubic;
+use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
 use super::{common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report};
 use super::{Stats, SystemError};
-use serde::Serialize;
 
 /// What the augmented-Lagrangian integrator needs of a constrained
 /// mechanical system `M q̈ + Φ_qᵀλ = g(q, q̇, t)`, `Φ(q, t) = 0` (module
@@ -158,39 +158,6 @@ pub trait AugmentedDae {
     ) -> Result<(), SystemError>;
 }
 
-/// Counters of an augmented-Lagrangian run.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-pub struct AugmentedStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Step attempts whose Newton iteration failed (each halved the step).
-    pub newton_failures: usize,
-    /// Newton iterations (each with a multiplier update).
-    pub newton_iterations: usize,
-    /// Factorisations of `W`.
-    pub factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Velocity + acceleration projections (one per accepted step).
-    pub projections: usize,
-    /// Times the penalty was raised within an attempt (slow contraction).
-    pub penalty_increases: usize,
-    /// Largest factor over the default penalty used in an attempt.
-    pub max_penalty_factor: f64,
-    /// Smallest step taken.
-    pub min_step_taken: f64,
-}
-
-impl AugmentedStats {
-    fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.newton_failures,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// The augmented-Lagrangian integrator (module docs): fixed step
 /// [`OdeOptions::fixed_step`], Newton tolerance and iterations and the
 /// smallest step from [`ImplicitOptions`].
@@ -200,7 +167,7 @@ pub struct AugmentedLagrangian {
     opts: ImplicitOptions,
     ode: OdeOptions,
     h: f64,
-    stats: AugmentedStats,
+    stats: ImplicitStats,
 }
 
 impl AugmentedLagrangian {
@@ -245,7 +212,7 @@ impl AugmentedLagrangian {
             opts,
             h: ode.fixed_step.unwrap_or(0.0),
             ode,
-            stats: AugmentedStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
@@ -255,7 +222,7 @@ impl AugmentedLagrangian {
     }
 
     /// Counters of the last run.
-    pub fn stats(&self) -> AugmentedStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -275,25 +242,7 @@ impl AugmentedLagrangian {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let (n, m) = (sys.n(), sys.m());
-        common::check_span(t0, t_end)?;
-        for (what, v) in [("q0", q0), ("qd0", qd0)] {
-            if v.len() != n {
-                return Err(IntegratorError::DimensionMismatch {
-                    what,
-                    expected: n,
-                    got: v.len(),
-                });
-            }
-        }
-        if let Some((index, &value)) = q0
-            .iter()
-            .chain(qd0)
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(IntegratorError::NonFiniteInitialState { index, value });
-        }
-        common::check_output_times(t0, t_end, output_times)?;
+        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, false)?;
         let mut run = Run {
             p: self.params,
             opts: &self.opts,
@@ -311,28 +260,13 @@ impl AugmentedLagrangian {
             k_grid: 1,
             t_old: t0,
             h_last: 0.0,
-            stats: AugmentedStats {
-                min_step_taken: f64::INFINITY,
-                max_penalty_factor: 1.0,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             warnings: Vec::new(),
             last_newton: None,
         };
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
 }
 
@@ -376,7 +310,7 @@ struct Run<'g, 's> {
     k_grid: u64,
     t_old: f64,
     h_last: f64,
-    stats: AugmentedStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     last_newton: Option<StepCut>,
 }
@@ -506,6 +440,15 @@ impl Run<'_, '_> {
     }
 }
 
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
+}
+
 impl Stepper for Run<'_, '_> {
     fn start(&mut self) -> Result<(), Failure> {
         let t0 = self.t0;
@@ -596,8 +539,7 @@ impl Stepper for Run<'_, '_> {
             self.h_last = h_try;
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
+            self.stats.accept(h_try);
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
             if (self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target {

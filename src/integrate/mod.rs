@@ -51,6 +51,7 @@ mod embedded;
 mod genalpha;
 mod hermite;
 mod method;
+pub mod implicit;
 mod ode113;
 mod options;
 mod radau;
@@ -58,22 +59,22 @@ mod rk4;
 mod tableau;
 
 pub use augmented::{
-    AugmentedDae, AugmentedLagrangian, AugmentedStats, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR,
-    SLOW_CONTRACTION,
+    AugmentedDae, AugmentedLagrangian, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, SLOW_CONTRACTION,
 };
-pub use bdf::{Bdf, BdfStats, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
+pub use bdf::{Bdf, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
-    AlphaParameters, GenAlpha, GenAlphaStats, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS,
-    SAFETY, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+    AlphaParameters, GenAlpha, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SAFETY,
+    SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
 pub(crate) use method::methods_taking;
 pub use method::{
     markdown_table as method_table_markdown, Equations, Family, KeyUse, Method, MethodInfo,
     Stepping, METHODS, STEP_CONTROL_KEYS,
 };
+pub use implicit::ImplicitStats;
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
-pub use radau::{ComplexNewton, Radau5, RadauStats, RadauTableau};
+pub use radau::{ComplexNewton, Radau5, RadauTableau};
 
 use std::ops::ControlFlow;
 

@@ -1,10 +1,11 @@
 //! The methods [`super::simulate_into`] drives, each bound to its
 //! formulation behind one interface, [`MethodRun`]: the explicit methods on
-//! the index-1 or penalty form, coordinate partitioning, generalized-α on
-//! the index-3 form, the augmented Lagrangian, bdf.
+//! the index-1 or penalty form, coordinate partitioning, the index-3
+//! schemes (generalized-α, bdf, radau5) on the index-3 form, the augmented
+//! Lagrangian.
 
 use super::*;
-use crate::integrate::AlphaParameters;
+use crate::integrate::{AlphaParameters, ImplicitStats};
 
 /// The index-3 methods' consistent start ([`Index3::consistent_start`]),
 /// with the warning that says how far it moved the state.
@@ -154,94 +155,6 @@ impl MethodRun for Partition<'_> {
     }
 }
 
-/// genalpha, hht, newmark on the index-3 form ([`GenAlpha`] over
-/// [`Index3`]); the same [`Trajectory`] and [`Summary`] as the explicit
-/// methods. Summary fields: `formulation = "index3"`, Baumgarte α = β = 0,
-/// `rhs_evals` = residual evaluations, `factorizations` = factorisations of
-/// the Newton matrix, `failed_steps` = error rejections + Newton failures;
-/// `extra` adds `newton_iterations`, `newton_failures`, `error_rejections`,
-/// `jacobian_evaluations`, `projections`, `projection_factorizations`,
-/// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
-/// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
-/// `max_step_taken`.
-pub(super) struct Implicit<'s> {
-    f: Index3<'s>,
-    integ: GenAlpha,
-}
-
-impl<'s> Implicit<'s> {
-    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
-        let integ = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
-        let newton = if cfg.implicit.lu {
-            NewtonSolverKind::SparseLu
-        } else {
-            NewtonSolverKind::SymmetricLdlt
-        };
-        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
-        Ok(Self { f, integ })
-    }
-}
-
-impl MethodRun for Implicit<'_> {
-    fn integrate(
-        &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        self.integ
-            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
-    }
-    fn consistent_start(
-        &mut self,
-        cfg: &RunConfig,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SimulationError> {
-        index3_start(&mut self.f, cfg, q, qd)
-    }
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
-        let gs = self.integ.stats();
-        let fs = self.f.stats();
-        let p = self.integ.params();
-        let opts = self.integ.options();
-        let fixed_step = if opts.adaptive {
-            serde_json::Value::Null
-        } else {
-            cfg.ode.fixed_step.into()
-        };
-        let mut extra = fields([
-            ("newton_iterations", gs.newton_iterations.into()),
-            ("newton_failures", gs.newton_failures.into()),
-            ("error_rejections", gs.error_rejections.into()),
-            ("jacobian_evaluations", fs.jacobians.into()),
-            ("projections", gs.projections.into()),
-            (
-                "projection_factorizations",
-                fs.mass_solver.factorizations.into(),
-            ),
-            ("fixed_step", fixed_step),
-            ("adaptive", opts.adaptive.into()),
-            ("newton_tol", opts.newton_tol.into()),
-            ("min_step_taken", gs.min_step_taken.into()),
-            ("max_step_taken", gs.max_step_taken.into()),
-        ]);
-        scheme_fields(&mut extra, &p, opts.rho_inf);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: gs.factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
-        (work, extra)
-    }
-}
-
 /// The index-3 augmented Lagrangian with projections ([`Augmented`],
 /// [`AugmentedLagrangian`]) on the scheme of an implicit method (newmark
 /// with ρ∞ = 1: the trapezoidal rule). Summary: `formulation =
@@ -305,97 +218,30 @@ impl MethodRun for AugmentedRun<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let gs = self.integ.stats();
         let fs = self.f.stats();
-        let p = self.integ.params();
-        let mut extra = fields([
+        let mut extra = counters(
+            &gs,
+            &[
+                "newton_iterations",
+                "newton_failures",
+                "projections",
+                "penalty_increases",
+                "max_penalty_factor",
+                "min_step_taken",
+            ],
+        );
+        extra.extend(fields([
             ("penalty", self.penalty.into()),
-            ("newton_iterations", gs.newton_iterations.into()),
-            ("newton_failures", gs.newton_failures.into()),
-            ("projections", gs.projections.into()),
-            ("penalty_increases", gs.penalty_increases.into()),
-            ("max_penalty_factor", gs.max_penalty_factor.into()),
             ("initial_iterations", fs.initial_iterations.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
-            ("min_step_taken", gs.min_step_taken.into()),
-        ]);
-        scheme_fields(&mut extra, &p, cfg.implicit.rho_inf);
-        let work = Work {
-            formulation: "augmented_lagrangian".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: gs.factorizations,
-            regularized_pivots: fs.solver.regularized_pivots,
-            indefinite_pivots: fs.solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
-        (work, extra)
-    }
-}
-
-/// bdf on the index-3 form ([`Bdf`] over [`Index3`], the symmetric LDLᵀ
-/// Newton matrix). Summary fields as [`Implicit`]'s: `formulation =
-/// "index3"`, `rhs_evals` = residual evaluations; `extra` adds
-/// `newton_iterations`, `newton_failures`, `error_rejections`,
-/// `jacobian_evaluations`, `steps_at_order` (orders 1–5),
-/// `min_step_taken`, `max_step_taken`.
-pub(super) struct BdfRun<'s> {
-    f: Index3<'s>,
-    integ: Bdf,
-}
-
-impl<'s> BdfRun<'s> {
-    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
-        let integ = Bdf::new(cfg.ode.clone())?;
-        let f = Index3::with_newton_solver(
-            sys,
-            cfg.index1.linear_solver,
-            NewtonSolverKind::SymmetricLdlt,
-        )?;
-        Ok(Self { f, integ })
-    }
-}
-
-impl MethodRun for BdfRun<'_> {
-    fn integrate(
-        &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        self.integ
-            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
-    }
-    fn consistent_start(
-        &mut self,
-        cfg: &RunConfig,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SimulationError> {
-        index3_start(&mut self.f, cfg, q, qd)
-    }
-    fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
-        let bs = self.integ.stats();
-        let fs = self.f.stats();
-        let extra = fields([
-            ("newton_iterations", bs.newton_iterations.into()),
-            ("newton_failures", bs.newton_failures.into()),
-            ("error_rejections", bs.error_rejections.into()),
-            ("jacobian_evaluations", fs.jacobians.into()),
-            ("steps_at_order", bs.steps_at_order[1..].to_vec().into()),
-            ("min_step_taken", bs.min_step_taken.into()),
-            ("max_step_taken", bs.max_step_taken.into()),
-        ]);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: bs.factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
+        ]));
+        scheme_fields(&mut extra, &self.integ.params(), cfg.implicit.rho_inf);
+        let work = index3_work(
+            "augmented_lagrangian",
+            self.f.solver_name(),
+            gs.factorizations,
+            &fs.solver,
+        );
         (work, extra)
     }
 }
@@ -416,6 +262,56 @@ fn scheme_fields(
     ]));
 }
 
+/// The counters every index-3 scheme reports in the summary's `extra`.
+const IMPLICIT_COUNTERS: [&str; 6] = [
+    "newton_iterations",
+    "newton_failures",
+    "error_rejections",
+    "projections",
+    "min_step_taken",
+    "max_step_taken",
+];
+
+/// The [`ImplicitStats`] counters named in `keys` as summary `extra`
+/// fields of the same names.
+fn counters(st: &ImplicitStats, keys: &[&str]) -> serde_json::Map<String, serde_json::Value> {
+    keys.iter()
+        .map(|&k| {
+            let v: serde_json::Value = match k {
+                "newton_iterations" => st.newton_iterations.into(),
+                "newton_failures" => st.newton_failures.into(),
+                "error_rejections" => st.error_rejections.into(),
+                "projections" => st.projections.into(),
+                "penalty_increases" => st.penalty_increases.into(),
+                "max_penalty_factor" => st.max_penalty_factor.into(),
+                "min_step_taken" => st.min_step_taken.into(),
+                "max_step_taken" => st.max_step_taken.into(),
+                _ => unreachable!("not a counter: {k}"),
+            };
+            (k.to_string(), v)
+        })
+        .collect()
+}
+
+/// The [`Work`] of an index-3 run: no Baumgarte terms, the Newton
+/// matrix's factorisations and the pivots of its solver.
+fn index3_work(
+    formulation: &str,
+    linear_solver: &str,
+    factorizations: usize,
+    solver: &crate::linalg::SolverStats,
+) -> Work {
+    Work {
+        formulation: formulation.to_string(),
+        linear_solver: linear_solver.to_string(),
+        baumgarte: (0.0, 0.0),
+        factorizations,
+        regularized_pivots: solver.regularized_pivots,
+        indefinite_pivots: solver.indefinite_pivots,
+        first_regularized_t: None,
+    }
+}
+
 /// Summary `extra` fields from `(name, value)` pairs.
 fn fields<const N: usize>(
     pairs: [(&str, serde_json::Value); N],
@@ -423,18 +319,190 @@ fn fields<const N: usize>(
     pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
-/// radau5 on the index-3 form ([`Radau5`] over [`Index3`] for the real
-/// stage and [`Index3Complex`] for the complex pair). Summary fields as
-/// [`Implicit`]'s: `formulation = "index3"`, `rhs_evals` = residual
-/// evaluations, `factorizations` = real + complex factorisations;
-/// `extra` adds `newton_iterations`, `newton_failures`,
-/// `real_factorizations`, `complex_factorizations`, `projections`,
-/// `fixed_step` (or null), `adaptive`, `error_rejections`, `newton_tol`,
-/// `min_step_taken`, `max_step_taken`.
-pub(super) struct RadauRun<'s> {
+/// An index-3 scheme on [`Index3`] ([`Index3Run`]): how it integrates and
+/// what it adds to the summary.
+pub(super) trait Index3Scheme {
+    /// Integrate on `f` (as [`MethodRun::integrate`]).
+    fn integrate(
+        &mut self,
+        f: &mut Index3<'_>,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError>;
+    /// The factorisations of the run (all Newton matrices) and the
+    /// scheme's summary `extra` fields.
+    fn work(
+        &self,
+        f: &Index3<'_>,
+        cfg: &RunConfig,
+    ) -> (usize, serde_json::Map<String, serde_json::Value>);
+}
+
+/// An index-3 scheme bound to [`Index3`]; the same [`Trajectory`] and
+/// [`Summary`] as the explicit methods. Summary fields: `formulation =
+/// "index3"`, Baumgarte α = β = 0, `rhs_evals` = residual evaluations,
+/// `factorizations` = factorisations of the Newton matrices,
+/// `failed_steps` = error rejections + Newton failures; `extra` adds the
+/// scheme's fields ([`Index3Scheme::work`]).
+pub(super) struct Index3Run<'s, S> {
     f: Index3<'s>,
-    c: Index3Complex<'s>,
+    scheme: S,
+}
+
+impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
+    fn integrate(
+        &mut self,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        self.scheme.integrate(&mut self.f, cfg, q0, qd0, times, obs)
+    }
+    fn consistent_start(
+        &mut self,
+        cfg: &RunConfig,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<Option<String>, SimulationError> {
+        index3_start(&mut self.f, cfg, q, qd)
+    }
+    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+        let (factorizations, extra) = self.scheme.work(&self.f, cfg);
+        let fs = self.f.stats();
+        let work = index3_work(
+            "index3",
+            self.f.solver_name(),
+            factorizations,
+            &fs.newton_solver,
+        );
+        (work, extra)
+    }
+}
+
+/// genalpha, hht, newmark ([`GenAlpha`] over [`Index3`]); `extra`:
+/// `newton_iterations`, `newton_failures`, `error_rejections`,
+/// `jacobian_evaluations`, `projections`, `projection_factorizations`,
+/// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
+/// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
+/// `max_step_taken`.
+pub(super) type Implicit<'s> = Index3Run<'s, GenAlpha>;
+
+impl<'s> Implicit<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        let scheme = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let newton = if cfg.implicit.lu {
+            NewtonSolverKind::SparseLu
+        } else {
+            NewtonSolverKind::SymmetricLdlt
+        };
+        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+        Ok(Self { f, scheme })
+    }
+}
+
+impl Index3Scheme for GenAlpha {
+    fn integrate(
+        &mut self,
+        f: &mut Index3<'_>,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        GenAlpha::integrate(self, f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(
+        &self,
+        f: &Index3<'_>,
+        cfg: &RunConfig,
+    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
+        let gs = self.stats();
+        let fs = f.stats();
+        let opts = self.options();
+        let fixed_step = if opts.adaptive {
+            serde_json::Value::Null
+        } else {
+            cfg.ode.fixed_step.into()
+        };
+        let mut extra = counters(&gs, &IMPLICIT_COUNTERS);
+        extra.extend(fields([
+            ("jacobian_evaluations", fs.jacobians.into()),
+            (
+                "projection_factorizations",
+                fs.mass_solver.factorizations.into(),
+            ),
+            ("fixed_step", fixed_step),
+            ("adaptive", opts.adaptive.into()),
+            ("newton_tol", opts.newton_tol.into()),
+        ]));
+        scheme_fields(&mut extra, &self.params(), opts.rho_inf);
+        (gs.factorizations, extra)
+    }
+}
+
+/// bdf ([`Bdf`] over [`Index3`], the symmetric LDLᵀ Newton matrix);
+/// `extra`: `newton_iterations`, `newton_failures`, `error_rejections`,
+/// `jacobian_evaluations`, `steps_at_order` (orders 1–5),
+/// `min_step_taken`, `max_step_taken`.
+pub(super) type BdfRun<'s> = Index3Run<'s, Bdf>;
+
+impl<'s> BdfRun<'s> {
+    pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
+        let scheme = Bdf::new(cfg.ode.clone())?;
+        let f = Index3::with_newton_solver(
+            sys,
+            cfg.index1.linear_solver,
+            NewtonSolverKind::SymmetricLdlt,
+        )?;
+        Ok(Self { f, scheme })
+    }
+}
+
+impl Index3Scheme for Bdf {
+    fn integrate(
+        &mut self,
+        f: &mut Index3<'_>,
+        cfg: &RunConfig,
+        q0: &[f64],
+        qd0: &[f64],
+        times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        Bdf::integrate(self, f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+    }
+    fn work(
+        &self,
+        f: &Index3<'_>,
+        _cfg: &RunConfig,
+    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
+        let bs = self.stats();
+        let mut extra = counters(&bs, &IMPLICIT_COUNTERS);
+        extra.remove("projections");
+        extra.insert("jacobian_evaluations".into(), f.stats().jacobians.into());
+        let orders = bs.steps_at_order[1..].to_vec();
+        extra.insert("steps_at_order".into(), orders.into());
+        (bs.factorizations, extra)
+    }
+}
+
+/// radau5 ([`Radau5`] over [`Index3`] for the real stage and
+/// [`Index3Complex`] for the complex pair); `factorizations` = real +
+/// complex factorisations; `extra`: `newton_iterations`,
+/// `newton_failures`, `real_factorizations`, `complex_factorizations`,
+/// `projections`, `fixed_step` (or null), `adaptive`, `error_rejections`,
+/// `newton_tol`, `min_step_taken`, `max_step_taken`.
+pub(super) type RadauRun<'s> = Index3Run<'s, RadauScheme<'s>>;
+
+/// [`Radau5`] with the complex Newton matrix of its system.
+pub(super) struct RadauScheme<'s> {
     integ: Radau5,
+    c: Index3Complex<'s>,
 }
 
 impl<'s> RadauRun<'s> {
@@ -446,63 +514,41 @@ impl<'s> RadauRun<'s> {
             NewtonSolverKind::SymmetricLdlt,
         )?;
         let c = Index3Complex::new(sys)?;
-        Ok(Self { f, c, integ })
+        Ok(Self {
+            f,
+            scheme: RadauScheme { integ, c },
+        })
     }
 }
 
-impl MethodRun for RadauRun<'_> {
+impl Index3Scheme for RadauScheme<'_> {
     fn integrate(
         &mut self,
+        f: &mut Index3<'_>,
         cfg: &RunConfig,
         q0: &[f64],
         qd0: &[f64],
         times: &[f64],
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        self.integ.integrate(
-            &mut self.f,
-            &mut self.c,
-            cfg.t0,
-            cfg.t_end,
-            q0,
-            qd0,
-            times,
-            obs,
-        )
+        let (t0, t1) = (cfg.t0, cfg.t_end);
+        self.integ
+            .integrate(f, &mut self.c, t0, t1, q0, qd0, times, obs)
     }
-    fn consistent_start(
-        &mut self,
+    fn work(
+        &self,
+        _f: &Index3<'_>,
         cfg: &RunConfig,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SimulationError> {
-        index3_start(&mut self.f, cfg, q, qd)
-    }
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
         let rs = self.integ.stats();
-        let fs = self.f.stats();
-        let extra = fields([
-            ("newton_iterations", rs.newton_iterations.into()),
-            ("newton_failures", rs.newton_failures.into()),
+        let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
+        extra.extend(fields([
             ("real_factorizations", rs.factorizations.into()),
             ("complex_factorizations", rs.complex_factorizations.into()),
-            ("projections", rs.projections.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
             ("adaptive", cfg.implicit.adaptive.into()),
-            ("error_rejections", rs.error_rejections.into()),
             ("newton_tol", cfg.implicit.newton_tol.into()),
-            ("min_step_taken", rs.min_step_taken.into()),
-            ("max_step_taken", rs.max_step_taken.into()),
-        ]);
-        let work = Work {
-            formulation: "index3".to_string(),
-            linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (0.0, 0.0),
-            factorizations: rs.factorizations + rs.complex_factorizations,
-            regularized_pivots: fs.newton_solver.regularized_pivots,
-            indefinite_pivots: fs.newton_solver.indefinite_pivots,
-            first_regularized_t: None,
-        };
-        (work, extra)
+        ]));
+        (rs.factorizations + rs.complex_factorizations, extra)
     }
 }

@@ -158,22 +158,21 @@ mod newton;
 mod params;
 mod step;
 
-pub use newton::{
-    NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
-};
+pub use super::implicit::{NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR};
+pub use newton::{REUSE_BAND, SLOW_ITERATIONS};
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 
 use newton::Attempt;
 
-use super::driver::{self, Failure, StepCut, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
+use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
 use super::Tolerance;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
     SystemError,
 };
-use serde::Serialize;
 use std::sync::Arc;
 
 /// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
@@ -234,41 +233,6 @@ pub trait SecondOrderDae {
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError>;
 }
 
-/// Work counters of a generalized-α run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct GenAlphaStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Steps rejected by the error test (adaptive).
-    pub error_rejections: usize,
-    /// Step attempts abandoned because Newton did not converge.
-    pub newton_failures: usize,
-    /// Newton corrections (linear solves of the iteration matrix).
-    pub newton_iterations: usize,
-    /// Factorisations of the iteration matrix.
-    pub factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Projections onto the constraint manifold.
-    pub projections: usize,
-    /// Smallest accepted step.
-    pub min_step_taken: f64,
-    /// Largest accepted step.
-    pub max_step_taken: f64,
-}
-
-impl GenAlphaStats {
-    /// As the explicit methods count: accepted steps, rejected attempts
-    /// (error rejections + Newton failures), residual evaluations.
-    pub fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.error_rejections + self.newton_failures,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
 pub struct GenAlpha {
@@ -277,7 +241,7 @@ pub struct GenAlpha {
     opts: ImplicitOptions,
     ode: OdeOptions,
     h_fixed: f64,
-    stats: GenAlphaStats,
+    stats: ImplicitStats,
 }
 
 /// State at one time point: positions, velocities, true accelerations,
@@ -326,7 +290,7 @@ impl GenAlpha {
             opts,
             ode,
             h_fixed,
-            stats: GenAlphaStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
@@ -343,7 +307,7 @@ impl GenAlpha {
         &self.opts
     }
     /// Counters of the last run.
-    pub fn stats(&self) -> GenAlphaStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -377,73 +341,12 @@ impl GenAlpha {
             &self.ode,
             self.opts.adaptive,
         )?;
-        self.stats = GenAlphaStats {
-            min_step_taken: f64::INFINITY,
-            ..Default::default()
-        };
+        self.stats = ImplicitStats::default();
         let mut run = Run::new(self, sys, n, m, t0, t_end, q0, qd0);
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
-}
-
-#[allow(clippy::too_many_arguments)]
-pub(super) fn validate_run(
-    n: usize,
-    t0: f64,
-    t_end: f64,
-    q0: &[f64],
-    qd0: &[f64],
-    output_times: &[f64],
-    ode: &OdeOptions,
-    adaptive: bool,
-) -> Result<(), IntegratorError> {
-    common::check_span(t0, t_end)?;
-    for (what, v) in [("q0", q0), ("qd0", qd0)] {
-        if v.len() != n {
-            return Err(IntegratorError::DimensionMismatch {
-                what,
-                expected: n,
-                got: v.len(),
-            });
-        }
-    }
-    if let Some((index, value)) = q0
-        .iter()
-        .chain(qd0)
-        .enumerate()
-        .find(|(_, v)| !v.is_finite())
-    {
-        return Err(IntegratorError::NonFiniteInitialState {
-            index,
-            value: *value,
-        });
-    }
-    if adaptive {
-        if let Tolerance::Vector(v) = &ode.atol {
-            if v.len() != n && v.len() != 2 * n {
-                return Err(IntegratorError::DimensionMismatch {
-                    what: "atol",
-                    expected: n,
-                    got: v.len(),
-                });
-            }
-        }
-    }
-    common::check_output_times(t0, t_end, output_times)?;
-    Ok(())
 }
 
 /// One run: the integrator's settings, the system and all buffers.
@@ -488,7 +391,7 @@ struct Run<'g, 's> {
     /// extrapolates q̈ (it predicted the last accepted step better than the
     /// constant one, [`Run::choose_predictor`]).
     extrapolate_next: bool,
-    stats: GenAlphaStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     /// Step control: the step to try next, the largest step, the index of
     /// the next point of the fixed grid, no growth after a cut, the last
@@ -546,10 +449,7 @@ impl<'g, 's> Run<'g, 's> {
             prev_qdd: vec![0.0; n],
             h_prev: None,
             extrapolate_next: false,
-            stats: GenAlphaStats {
-                min_step_taken: f64::INFINITY,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             warnings: Vec::new(),
             h: 0.0,
             max_step: 0.0,
@@ -583,6 +483,15 @@ impl<'g, 's> Run<'g, 's> {
             Tolerance::Scalar(a) => *a,
             Tolerance::Vector(v) => v[i],
         }
+    }
+}
+
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
+    }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 }
 
@@ -749,9 +658,7 @@ impl Stepper for Run<'_, '_> {
             self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h_try);
-            self.stats.max_step_taken = self.stats.max_step_taken.max(h_try);
+            self.stats.accept(h_try);
             self.y[..n].copy_from_slice(&self.cur.q);
             self.y[n..].copy_from_slice(&self.cur.v);
             // Next step size.

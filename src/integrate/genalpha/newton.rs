@@ -1,39 +1,16 @@
 //! Newton iteration on the positions and reuse of factorisations (module
 //! docs of [`super`], "Newton iteration").
 
+use super::super::implicit::{Assessment, Convergence, ConvergenceOptions, Next, ROUNDING_ULPS};
 use super::*;
 use crate::parallel::{in_halves, Slices, PARALLEL_MIN_COORDS};
 
 /// A factorisation is reused while the step size stays within this
 /// relative distance of the one it was computed for.
 pub const REUSE_BAND: f64 = 0.25;
-/// Contraction factor θ above which the factorisation is renewed at the
-/// next step.
-pub const THETA_REFACTOR: f64 = 0.2;
 /// Iterations per step after which the factorisation is renewed at the
 /// next step.
 pub const SLOW_ITERATIONS: usize = 4;
-
-/// Floor of the Newton tolerance on a position correction, in ulps of
-/// `max(|q_i|, 1)`: below it corrections are rounding noise.
-pub const ROUNDING_ULPS: f64 = 20.0;
-
-/// A Newton iteration that stops contracting (θ ≥ 1) with corrections
-/// below this many tolerances (`‖Δq‖_w ≤ STAGNATION`) has reached the
-/// rounding noise of the linear solve and counts as converged (the noise
-/// of the angle corrections of a chain grows like 1/segment length: at
-/// N = 10 000, ~1e-14 rad, 50 ulps); above it, it diverges.
-pub const STAGNATION: f64 = 100.0;
-
-/// A stagnating iteration (θ ≥ 1) whose corrections are below this
-/// fraction of `max(|q_i|, 1)` has also reached the noise of the solve,
-/// even above [`STAGNATION`] tolerances: at a singular configuration (Φ_q
-/// losing rank) the regularised factorisation amplifies the rounding noise
-/// of the corrections to ~1e-11 m, above `STAGNATION` × the tolerance at
-/// small steps (the position tolerance shrinks like β h²), and cutting the
-/// step only shrank the tolerance further until the step collapsed
-/// (measured: h = 1e-4 on the parallelogram chains of tests/augmented_lagrangian.rs).
-pub const NOISE_REL: f64 = 1e-10;
 
 /// Corrections a matrix renewed at every predictor must save per step
 /// (against the last step on an older matrix) to be renewed there: about
@@ -209,15 +186,20 @@ impl Run<'_, '_> {
         } else {
             SINGLE_CORRECTION
         };
-        let mut prev = f64::NAN;
-        let mut theta: f64;
-        let mut eta = self.eta.max(1.0);
-        // iterations since the last factorisation, refactorisations at an
-        // iterate within this attempt
-        let (mut round, mut refreshed) = (0usize, false);
+        let mut conv = Convergence::new(
+            ConvergenceOptions {
+                max_iterations: self.opts.max_newton,
+                renew_when_exhausted: self.opts.reuse,
+                renew_on_divergence: false,
+                reset_rate_on_renewal: true,
+            },
+            self.eta,
+        );
+        // the first correction's norm (for the quadratic model)
+        let mut first = f64::NAN;
         let mut it = 0;
         loop {
-            if round > 0 && !self.opts.reuse {
+            if conv.round() > 0 && !self.opts.reuse {
                 if let Err(e) = self.factor(t1, h, c) {
                     return Attempt::Failed(e);
                 }
@@ -278,77 +260,68 @@ impl Run<'_, '_> {
             );
             if fresh && it == 2 {
                 // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)
-                self.quad = Some((dnorm / (prev * prev), h, 0));
+                self.quad = Some((dnorm / (first * first), h, 0));
             }
-            let mut done = if round == 0 {
-                theta = f64::NAN;
-                // a single correction on a fresh matrix whose remainder the
-                // quadratic model puts at the tolerance: the second
-                // correction would only iterate into the rounding floor
-                let single = match &mut self.quad {
-                    // measured at this step size (the tolerance units move with h)
-                    Some((quad, hq, uses))
-                        if fresh && it == 1 && *uses < QUAD_REUSE && *hq == h =>
-                    {
-                        let single = *quad * dnorm * dnorm <= single_max;
-                        *uses += single as usize;
-                        single
-                    }
-                    _ => false,
-                };
-                single || dnorm * eta <= 1.0
-            } else {
-                theta = dnorm / prev;
-                if theta >= 1.0 {
-                    if dnorm > STAGNATION && drel > NOISE_REL {
-                        return Attempt::Failed(SystemError::msg(format!(
-                            "Newton diverges (contraction θ = {theta:.3}, correction {:.3e} × tol)",
-                            dnorm
-                        )));
-                    }
-                    // no contraction among corrections this small: the
-                    // iteration has reached the noise floor of the solve
-                    true
-                } else {
-                    eta = theta / (1.0 - theta);
-                    if theta > THETA_REFACTOR {
-                        self.refactor = true;
-                    }
-                    eta * dnorm <= 1.0
+            if it == 1 {
+                first = dnorm;
+            }
+            // a single correction on a fresh matrix whose remainder the
+            // quadratic model puts at the tolerance: the second correction
+            // would only iterate into the rounding floor
+            let single = match &mut self.quad {
+                // measured at this step size (the tolerance units move with h)
+                Some((quad, hq, uses)) if fresh && it == 1 && *uses < QUAD_REUSE && *hq == h => {
+                    let single = *quad * dnorm * dnorm <= single_max;
+                    *uses += single as usize;
+                    single
+                }
+                _ => false,
+            };
+            let mut done = match conv.assess(dnorm, || drel, single) {
+                Assessment::Done => true,
+                Assessment::NotYet => false,
+                Assessment::Diverged | Assessment::RenewAfterUndo => {
+                    return Attempt::Failed(SystemError::msg(format!(
+                        "Newton diverges (contraction θ = {:.3}, correction {:.3e} × tol)",
+                        conv.theta(),
+                        dnorm
+                    )));
                 }
             };
-            prev = dnorm;
-            round += 1;
+            if conv.slow() {
+                self.refactor = true;
+            }
             if done && self.opts.check_constraints {
                 self.sys.constraints(t1, &self.new.q, &mut self.phi);
                 let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
                 let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
                 done = phi <= tol_q + ROUNDING_ULPS * f64::EPSILON * scale;
             }
-            if done {
-                if theta.is_finite() && theta < 1.0 {
-                    self.eta = eta;
+            match conv.next(dnorm, done) {
+                None => {
+                    if let Some(eta) = conv.rate_to_keep() {
+                        self.eta = eta;
+                    }
+                    if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
+                        self.refactor = true;
+                    }
+                    return Attempt::Converged;
                 }
-                if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
-                    self.refactor = true;
-                }
-                return Attempt::Converged;
-            }
-            if round >= self.opts.max_newton {
-                // Still contracting: renew the matrix at this (much better)
-                // iterate once and carry on; otherwise give up.
-                if self.opts.reuse && !refreshed && theta < 1.0 {
-                    refreshed = true;
+                Some(Next::Iterate) => {}
+                Some(Next::Renew) => {
+                    // still contracting: renew the matrix at this (much
+                    // better) iterate once and carry on
                     if let Err(e) = self.factor(t1, h, c) {
                         return Attempt::Failed(e);
                     }
-                    round = 0;
-                    eta = 1.0;
-                    continue;
                 }
-                return Attempt::Failed(SystemError::msg(format!(
-                    "no convergence in {it} iterations (last correction {prev:.3e} × tol, θ = {theta:.3})"
-                )));
+                Some(Next::Exhausted) => {
+                    return Attempt::Failed(SystemError::msg(format!(
+                        "no convergence in {it} iterations (last correction {:.3e} × tol, θ = {:.3})",
+                        conv.last(),
+                        conv.theta()
+                    )));
+                }
             }
         }
     }

@@ -44,7 +44,8 @@
 //! `SecondOrderDae::factorize(c = [1, hγ, h²γ²])`, the complex one
 //! [`ComplexNewton::factorize_complex`]. Factorisations are kept across
 //! iterations and steps while Newton contracts fast (θ ≤
-//! [`THETA_REFACTOR`]); convergence test as generalized-α's (Hairer &
+//! [`THETA_REFACTOR`](super::THETA_REFACTOR)); convergence test as generalized-α's, the one
+//! [`Convergence`](super::implicit::Convergence) (Hairer &
 //! Wanner II, eq. (8.10)) on the position-equivalent corrections
 //! `h² ΔA_i` against `h² newton_tol`, floored at [`ROUNDING_ULPS`] of `q`.
 //! The predictor extrapolates the previous step's stage polynomials
@@ -52,9 +53,9 @@
 //!
 //! **Renewal.** The matrices are renewed at the predictor when the step
 //! differs from the factorised one by more than [`SAME_STEP`] (relative),
-//! after a contraction θ > [`THETA_REFACTOR`], and — once per attempt —
+//! after a contraction θ > [`THETA_REFACTOR`](super::THETA_REFACTOR), and — once per attempt —
 //! at the last stage's current iterate `(t_n + h, Q₃, V₃, Λ₃)` when the
-//! iteration diverges (θ ≥ 1 above [`STAGNATION`] tolerances): the
+//! iteration diverges (θ ≥ 1 above [`STAGNATION`](super::STAGNATION) tolerances): the
 //! diverging correction is undone and Newton goes on with the renewed
 //! matrices instead of halving the step at once. Measured on the stiff
 //! chain from its kinked start (N = 1000, h = 4e-4, `newton_tol` = 1): 19
@@ -68,7 +69,7 @@
 //! rod (N = 10 000, h = 4e-4, 1 s) 42 → 38 failed attempts; on the stiff
 //! chain at h = 4e-4, 13 → 9 (N = 1000) and 16 → 11 (N = 10 000). An
 //! iteration that stops contracting with position corrections `h² ΔA`
-//! below [`NOISE_REL`] of `max(|q|, 1)` has reached the noise of the
+//! below [`NOISE_REL`](super::NOISE_REL) of `max(|q|, 1)` has reached the noise of the
 //! solve and counts as converged (as generalized-α's):
 //! at N = 10 000 with `newton_tol` = 1e-2 the start otherwise cut the step
 //! to 3e-21 s, every attempt "diverging" at 300 tolerances of 20 ulps.
@@ -109,13 +110,21 @@
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
-use super::driver::{self, Failure, StepCut, Stepper};
-use super::genalpha::validate_run;
+mod newton;
+mod tableau;
+
+use tableau::cmul;
+pub use tableau::RadauTableau;
+
+use super::driver::{Failure, StepCut, Stepper};
+use super::implicit::{
+    run as run_implicit, validate_run, Assessment, Convergence, ConvergenceOptions, ImplicitStats,
+    ImplicitStepper, Next,
+};
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
-    Stats, SystemError, Tolerance, NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR,
+    Stats, SystemError, Tolerance, ROUNDING_ULPS,
 };
-use serde::Serialize;
 use std::sync::Arc;
 
 /// Relative difference below which a step counts as the one the Newton
@@ -161,179 +170,13 @@ pub trait ComplexNewton {
     fn solve_complex(&mut self, t: f64, re: &mut [f64], im: &mut [f64]) -> Result<(), SystemError>;
 }
 
-/// The Radau IIA (s = 3) coefficients and the transformation of its
-/// matrix, computed from the nodes.
-#[derive(Debug, Clone)]
-pub struct RadauTableau {
-    /// Nodes `c_i`.
-    pub c: [f64; 3],
-    /// `𝔄_ij = ∫₀^{c_i} ℓ_j`.
-    pub a: [[f64; 3]; 3],
-    /// `(𝔄²)_ij`.
-    pub a2: [[f64; 3]; 3],
-    /// Monomial coefficients of the Lagrange basis `ℓ_j` on `c`.
-    pub lag: [[f64; 3]; 3],
-    /// Real eigenvalue γ of 𝔄.
-    pub gamma: f64,
-    /// Complex eigenvalue `α + iβ` of 𝔄.
-    pub mu: [f64; 2],
-    /// `T` with `T⁻¹ 𝔄 T = diag(γ, [α −β; β α])`.
-    pub t: [[f64; 3]; 3],
-    /// `T⁻¹`.
-    pub t_inv: [[f64; 3]; 3],
-}
-
-fn inv3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            let (i1, i2) = ((j + 1) % 3, (j + 2) % 3);
-            let (j1, j2) = ((i + 1) % 3, (i + 2) % 3);
-            r[i][j] = (m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]) / det;
-        }
-    }
-    r
-}
-
-/// Complex product.
-fn cmul(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
-}
-
-impl RadauTableau {
-    /// The coefficients of Radau IIA with three stages.
-    pub fn new() -> Self {
-        let s6 = 6f64.sqrt();
-        let c = [(4.0 - s6) / 10.0, (4.0 + s6) / 10.0, 1.0];
-        // Lagrange basis: solve the Vandermonde system V x = e_j
-        let v = [
-            [1.0, c[0], c[0] * c[0]],
-            [1.0, c[1], c[1] * c[1]],
-            [1.0, c[2], c[2] * c[2]],
-        ];
-        let vi = inv3(&v);
-        let mut lag = [[0.0; 3]; 3];
-        for (j, l) in lag.iter_mut().enumerate() {
-            for (k, lk) in l.iter_mut().enumerate() {
-                *lk = vi[k][j];
-            }
-        }
-        let int1 = |l: &[f64; 3], x: f64| l[0] * x + l[1] * x * x / 2.0 + l[2] * x.powi(3) / 3.0;
-        let mut a = [[0.0; 3]; 3];
-        let mut a2 = [[0.0; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                a[i][j] = int1(&lag[j], c[i]);
-            }
-        }
-        for i in 0..3 {
-            for j in 0..3 {
-                a2[i][j] = (0..3).map(|k| a[i][k] * a[k][j]).sum();
-            }
-        }
-        // eigenvalues of 𝔄 (RADAU5's constants, Hairer & Wanner II, §IV.8)
-        let (c81, c9) = (81f64.cbrt(), 9f64.cbrt());
-        let gamma = (6.0 + c81 - c9) / 30.0;
-        let alpha = (12.0 - c81 + c9) / 60.0;
-        let beta = (c81 + c9) * 3f64.sqrt() / 60.0;
-        // real eigenvector: cross product of two rows of 𝔄 − γI
-        let r = |m: [f64; 2], i: usize| -> [[f64; 2]; 3] {
-            let mut row = [[0.0; 2]; 3];
-            for (j, x) in row.iter_mut().enumerate() {
-                *x = [a[i][j], 0.0];
-            }
-            row[i][0] -= m[0];
-            row[i][1] -= m[1];
-            row
-        };
-        let cross = |x: [[f64; 2]; 3], y: [[f64; 2]; 3]| -> [[f64; 2]; 3] {
-            let mut z = [[0.0; 2]; 3];
-            for (k, zk) in z.iter_mut().enumerate() {
-                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                let p = cmul(x[i], y[j]);
-                let q = cmul(x[j], y[i]);
-                *zk = [p[0] - q[0], p[1] - q[1]];
-            }
-            z
-        };
-        let u = cross(r([gamma, 0.0], 0), r([gamma, 0.0], 1));
-        let w = cross(r([alpha, beta], 0), r([alpha, beta], 1));
-        // 𝔄 w = μ w, w = x + iy: T = [u, x, −y] gives the block [α −β; β α]
-        let mut t = [[0.0; 3]; 3];
-        for i in 0..3 {
-            t[i] = [u[i][0], w[i][0], -w[i][1]];
-        }
-        let t_inv = inv3(&t);
-        Self {
-            c,
-            a,
-            a2,
-            lag,
-            gamma,
-            mu: [alpha, beta],
-            t,
-            t_inv,
-        }
-    }
-
-    /// `ℓ_j(τ)` for j = 0..3.
-    fn basis(&self, tau: f64) -> [f64; 3] {
-        self.lag.map(|l| l[0] + l[1] * tau + l[2] * tau * tau)
-    }
-}
-
-impl Default for RadauTableau {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-/// Work counters of a Radau IIA run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
-pub struct RadauStats {
-    /// Accepted steps.
-    pub steps: usize,
-    /// Step attempts abandoned because Newton did not converge.
-    pub newton_failures: usize,
-    /// Newton iterations (each: three residuals, one real and one complex solve).
-    pub newton_iterations: usize,
-    /// Factorisations of the real Newton matrix.
-    pub factorizations: usize,
-    /// Factorisations of the complex Newton matrix.
-    pub complex_factorizations: usize,
-    /// Residual evaluations.
-    pub residual_evaluations: usize,
-    /// Projections onto the constraint manifold.
-    pub projections: usize,
-    /// Smallest accepted step.
-    pub min_step_taken: f64,
-    /// Largest accepted step.
-    pub max_step_taken: f64,
-    /// Attempts rejected by the error test (adaptive mode).
-    pub error_rejections: usize,
-}
-
-impl RadauStats {
-    /// As the explicit methods count.
-    pub fn counts(&self) -> Stats {
-        Stats {
-            steps: self.steps,
-            failed_steps: self.newton_failures + self.error_rejections,
-            rhs_evals: self.residual_evaluations,
-        }
-    }
-}
-
 /// Radau IIA, s = 3, fixed step, on the index-3 equations (module docs).
 #[derive(Debug, Clone)]
 pub struct Radau5 {
     opts: ImplicitOptions,
     ode: OdeOptions,
     tab: RadauTableau,
-    stats: RadauStats,
+    stats: ImplicitStats,
 }
 
 impl Radau5 {
@@ -362,12 +205,12 @@ impl Radau5 {
             opts,
             ode,
             tab: RadauTableau::new(),
-            stats: RadauStats::default(),
+            stats: ImplicitStats::default(),
         })
     }
 
     /// Counters of the last run.
-    pub fn stats(&self) -> RadauStats {
+    pub fn stats(&self) -> ImplicitStats {
         self.stats
     }
 
@@ -442,28 +285,14 @@ impl Radau5 {
             eta: 1.0,
             h_last: 0.0,
             h_prev: None,
-            stats: RadauStats {
-                min_step_taken: f64::INFINITY,
-                ..Default::default()
-            },
+            stats: ImplicitStats::default(),
             ode: &self.ode,
             warnings: Vec::new(),
             last_newton: None,
         };
-        let (termination, t_reached) =
-            driver::drive(&mut run, output_times, self.ode.max_steps, t_end, obs);
-        let mut stats = run.stats;
-        if stats.steps == 0 {
-            stats.min_step_taken = 0.0;
-        }
-        let warnings = run.warnings;
+        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
-        Ok(Report {
-            stats: stats.counts(),
-            termination,
-            t_reached,
-            warnings,
-        })
+        Ok(report)
     }
 }
 
@@ -514,7 +343,7 @@ struct Run<'g, 's> {
     eta: f64,
     h_last: f64,
     h_prev: Option<f64>,
-    stats: RadauStats,
+    stats: ImplicitStats,
     warnings: Vec<String>,
     last_newton: Option<StepCut>,
 }
@@ -613,279 +442,14 @@ impl Run<'_, '_> {
         let rtol_t = 0.1 * self.ode.rtol.powf(2.0 / 3.0);
         Ok(norm * self.ode.rtol / rtol_t)
     }
+}
 
-    /// Factorise the real and the complex matrix at the step's start.
-    fn factor(&mut self, h: f64) -> Result<(), SystemError> {
-        self.factor_at(h, false)
+impl ImplicitStepper for Run<'_, '_> {
+    fn counters(&self) -> ImplicitStats {
+        self.stats
     }
-
-    /// Factorise the real and the complex matrix for the step `h` at its
-    /// start (`at_end` false) or at the current iterate of its last stage
-    /// `(Q₃, V₃, Λ₃)` (`at_end`; `qs`, `vs` are overwritten).
-    fn factor_at(&mut self, h: f64, at_end: bool) -> Result<(), SystemError> {
-        let tab = self.tab;
-        let (g, mu) = (tab.gamma, tab.mu);
-        let hmu = [h * mu[0], h * mu[1]];
-        let h2mu2 = cmul(hmu, hmu);
-        self.h_fact = None;
-        if at_end {
-            self.stage_state(2, h);
-        }
-        let (t, q, v, lam) = if at_end {
-            (self.t + h, &self.qs, &self.vs, &self.l[2])
-        } else {
-            (self.t, &self.q, &self.v, &self.lam)
-        };
-        self.stats.factorizations += 1;
-        self.sys
-            .factorize(t, q, v, lam, [1.0, h * g, h * h * g * g])?;
-        self.stats.complex_factorizations += 1;
-        self.cplx
-            .factorize_complex(t, q, v, lam, [[1.0, 0.0], hmu, h2mu2])?;
-        self.h_fact = Some(h);
-        self.refactor = false;
-        self.fresh = true;
-        Ok(())
-    }
-
-    /// One attempt of the step `h` from `(t, q, v)` into `a`, `l`.
-    fn attempt(&mut self, h: f64) -> Result<(), SystemError> {
-        let (n, m) = (self.n, self.m);
-        let tab = self.tab;
-        // predictor: the previous step's stage polynomials extrapolated
-        match self.h_prev {
-            Some(hp) => {
-                for i in 0..3 {
-                    let w = tab.basis(1.0 + tab.c[i] * h / hp);
-                    for (out, prev) in [
-                        (&mut self.a[i], &self.a_prev),
-                        (&mut self.l[i], &self.l_prev),
-                    ] {
-                        let len = out.len();
-                        let (p0, p1, p2) = (&prev[0][..len], &prev[1][..len], &prev[2][..len]);
-                        for k in 0..len {
-                            out[k] = w[0] * p0[k] + w[1] * p1[k] + w[2] * p2[k];
-                        }
-                    }
-                }
-            }
-            None => {
-                for i in 0..3 {
-                    self.a[i].copy_from_slice(&self.qdd);
-                    self.l[i].copy_from_slice(&self.lam);
-                }
-            }
-        }
-        self.fresh = false;
-        // the matrix of another step size is renewed; a step that differs
-        // from the factorised one by the rounding of the grid's
-        // arithmetic (`target − t`) is the same step
-        let band = if self.opts.adaptive {
-            ADAPTIVE_REUSE_BAND
-        } else {
-            SAME_STEP
-        };
-        let other_step = self.h_fact.is_none_or(|hf| (h / hf - 1.0).abs() > band);
-        if self.refactor || other_step || !self.opts.reuse {
-            self.factor(h)?;
-        }
-        let (g, mu) = (tab.gamma, tab.mu);
-        let hmu = [h * mu[0], h * mu[1]];
-        let d = cmul(hmu, hmu); // h²μ²
-        let dd = d[0] * d[0] + d[1] * d[1];
-        let inv_d = [d[0] / dd, -d[1] / dd];
-        let inv_g = 1.0 / (h * h * g * g);
-        let tol_q = self.opts.newton_tol * h * h;
-        // adaptive: RADAU5's Newton tolerance where it is looser, the
-        // fraction `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` of the
-        // error test's weights `(rtol'/rtol)(atol + rtol |q|)` (module
-        // docs, "Step size")
-        let ode = self.ode;
-        let (fr, fa) = if self.opts.adaptive {
-            let rt = 0.1 * ode.rtol.powf(2.0 / 3.0);
-            let fnewt = (10.0 * f64::EPSILON / rt).max(0.03f64.min(rt.sqrt()));
-            (fnewt * rt, fnewt * rt / ode.rtol)
-        } else {
-            (0.0, 0.0)
-        };
-        let mut eta = self.eta.max(1.0);
-        let mut prev = f64::NAN;
-        let mut round = 0usize;
-        let mut refreshed = false;
-        let mut its = 0usize;
-        // the last contraction factor (NaN before a second correction)
-        let mut theta_last = f64::NAN;
-        loop {
-            if round > 0 && !self.opts.reuse {
-                self.factor(h)?;
-            }
-            // residuals of the three stages
-            for i in 0..3 {
-                self.stage_state(i, h);
-                self.stats.residual_evaluations += 1;
-                let ti = self.t + tab.c[i] * h;
-                self.sys.residual(
-                    ti,
-                    &self.qs,
-                    &self.vs,
-                    &self.a[i],
-                    &self.l[i],
-                    1.0,
-                    &mut self.r[i],
-                )?;
-            }
-            // transformed right-hand sides: x_k = −Σ_i T⁻¹_ki r_i, the
-            // constraint rows divided by h²μ_k²
-            let ti = tab.t_inv;
-            {
-                let len = n + m;
-                let (r0, r1, r2) = (&self.r[0][..len], &self.r[1][..len], &self.r[2][..len]);
-                let [x0, x1, x2] = &mut self.x;
-                let (x0, x1, x2) = (&mut x0[..len], &mut x1[..len], &mut x2[..len]);
-                for k in 0..len {
-                    let (a, b, c) = (r0[k], r1[k], r2[k]);
-                    x0[k] = -(ti[0][0] * a + ti[0][1] * b + ti[0][2] * c);
-                    x1[k] = -(ti[1][0] * a + ti[1][1] * b + ti[1][2] * c);
-                    x2[k] = -(ti[2][0] * a + ti[2][1] * b + ti[2][2] * c);
-                }
-                for k in n..n + m {
-                    x0[k] *= inv_g;
-                    let z = cmul([x1[k], x2[k]], inv_d);
-                    x1[k] = z[0];
-                    x2[k] = z[1];
-                }
-            }
-            self.sys.solve(self.t, &mut self.x[0])?;
-            {
-                let [_, x1, x2] = &mut self.x;
-                self.cplx.solve_complex(self.t, x1, x2)?;
-            }
-            self.stats.newton_iterations += 1;
-            its += 1;
-            // back-transform, update, norm of the position-equivalent corrections
-            let tt = tab.t;
-            let mut dnorm = 0.0_f64;
-            {
-                let [x0, x1, x2] = &self.x;
-                let [a0, a1, a2] = &mut self.a;
-                let (a0, a1, a2) = (&mut a0[..n], &mut a1[..n], &mut a2[..n]);
-                let q = &self.q[..n];
-                let (z0, z1, z2) = (&x0[..n], &x1[..n], &x2[..n]);
-                // the largest stage correction of each coordinate, then one
-                // division (both monotone: the same max as dividing each)
-                for k in 0..n {
-                    let (y0, y1, y2) = (z0[k], z1[k], z2[k]);
-                    let d0 = tt[0][0] * y0 + tt[0][1] * y1 + tt[0][2] * y2;
-                    let d1 = tt[1][0] * y0 + tt[1][1] * y1 + tt[1][2] * y2;
-                    let d2 = tt[2][0] * y0 + tt[2][1] * y1 + tt[2][2] * y2;
-                    a0[k] += d0;
-                    a1[k] += d1;
-                    a2[k] += d2;
-                    let big = (h * h * d0)
-                        .abs()
-                        .max((h * h * d1).abs())
-                        .max((h * h * d2).abs());
-                    let atol = match &ode.atol {
-                        Tolerance::Scalar(a) => *a,
-                        Tolerance::Vector(v) => v[k],
-                    };
-                    let w = tol_q.max(fa * atol + fr * q[k].abs())
-                        + ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
-                    dnorm = dnorm.max(big / w);
-                }
-                let [l0, l1, l2] = &mut self.l;
-                for k in n..n + m {
-                    let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
-                    l0[k - n] += tt[0][0] * y0 + tt[0][1] * y1 + tt[0][2] * y2;
-                    l1[k - n] += tt[1][0] * y0 + tt[1][1] * y1 + tt[1][2] * y2;
-                    l2[k - n] += tt[2][0] * y0 + tt[2][1] * y1 + tt[2][2] * y2;
-                }
-            }
-            if !dnorm.is_finite() {
-                return Err(SystemError::msg("non-finite Newton correction"));
-            }
-            let done = if round == 0 {
-                dnorm * eta <= 1.0
-            } else {
-                let theta = dnorm / prev;
-                // stagnation with corrections at the noise of the solve
-                // relative to q (module docs)
-                let noise = theta >= 1.0 && {
-                    let [x0, x1, x2] = &self.x;
-                    let mut drel = 0.0_f64;
-                    for k in 0..n {
-                        let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
-                        for row in &tab.t {
-                            let d = row[0] * y0 + row[1] * y1 + row[2] * y2;
-                            drel = drel.max((h * h * d).abs() / self.q[k].abs().max(1.0));
-                        }
-                    }
-                    drel <= NOISE_REL
-                };
-                if noise {
-                    true
-                } else if theta >= 1.0 {
-                    if dnorm > STAGNATION && !refreshed {
-                        // undo the diverging correction and renew the
-                        // matrices at the last stage's iterate
-                        let tt = tab.t;
-                        let [x0, x1, x2] = &self.x;
-                        for (i, a) in self.a.iter_mut().enumerate() {
-                            for k in 0..n {
-                                a[k] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
-                            }
-                        }
-                        for (i, l) in self.l.iter_mut().enumerate() {
-                            for k in n..n + m {
-                                l[k - n] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
-                            }
-                        }
-                        self.factor_at(h, true)?;
-                        refreshed = true;
-                        round = 0;
-                        prev = f64::NAN;
-                        continue;
-                    }
-                    if dnorm > STAGNATION {
-                        return Err(SystemError::msg(format!(
-                            "Newton diverges (contraction θ = {theta:.3}, correction {dnorm:.3e} × tol)"
-                        )));
-                    }
-                    true
-                } else {
-                    theta_last = theta;
-                    eta = theta / (1.0 - theta);
-                    if theta > THETA_REFACTOR {
-                        self.refactor = true;
-                    }
-                    if eta * dnorm <= 1.0 {
-                        self.eta = eta;
-                    }
-                    eta * dnorm <= 1.0
-                }
-            };
-            prev = dnorm;
-            round += 1;
-            if done {
-                self.last_its = its;
-                return Ok(());
-            }
-            if round >= self.opts.max_newton {
-                // still contracting: renew the matrices at the last stage's
-                // (much better) iterate once and go on, as generalized-α
-                if !refreshed && theta_last < 1.0 {
-                    self.factor_at(h, true)?;
-                    refreshed = true;
-                    round = 0;
-                    prev = f64::NAN;
-                    theta_last = f64::NAN;
-                    continue;
-                }
-                return Err(SystemError::msg(format!(
-                    "no convergence in {round} iterations (last correction {prev:.3e} × tol)"
-                )));
-            }
-        }
+    fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 }
 
@@ -1041,9 +605,7 @@ impl Stepper for Run<'_, '_> {
             self.h_prev = Some(h);
             self.h_last = h;
             self.t = t_new;
-            self.stats.steps += 1;
-            self.stats.min_step_taken = self.stats.min_step_taken.min(h);
-            self.stats.max_step_taken = self.stats.max_step_taken.max(h);
+            self.stats.accept(h);
             self.y[..n].copy_from_slice(&self.q);
             self.y[n..].copy_from_slice(&self.v);
             if !adaptive && ((self.t - target).abs() <= 1e-9 * self.h_fixed || self.t >= target) {
@@ -1100,54 +662,5 @@ impl Stepper for Run<'_, '_> {
 
     fn stats(&self) -> Stats {
         self.stats.counts()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::RadauTableau;
-
-    /// The tableau against the closed form of Radau IIA (s = 3) and the
-    /// transformation against 𝔄.
-    #[test]
-    fn tableau_and_transformation() {
-        let tab = RadauTableau::new();
-        let s6 = 6f64.sqrt();
-        let exact = [
-            [
-                (88.0 - 7.0 * s6) / 360.0,
-                (296.0 - 169.0 * s6) / 1800.0,
-                (-2.0 + 3.0 * s6) / 225.0,
-            ],
-            [
-                (296.0 + 169.0 * s6) / 1800.0,
-                (88.0 + 7.0 * s6) / 360.0,
-                (-2.0 - 3.0 * s6) / 225.0,
-            ],
-            [(16.0 - s6) / 36.0, (16.0 + s6) / 36.0, 1.0 / 9.0],
-        ];
-        for i in 0..3 {
-            for j in 0..3 {
-                assert!((tab.a[i][j] - exact[i][j]).abs() < 1e-14, "A[{i}][{j}]");
-                let sq: f64 = (0..3).map(|k| exact[i][k] * exact[k][j]).sum();
-                assert!((tab.a2[i][j] - sq).abs() < 1e-14, "A²[{i}][{j}]");
-            }
-        }
-        let (g, [al, be]) = (tab.gamma, tab.mu);
-        let b = [[g, 0.0, 0.0], [0.0, al, -be], [0.0, be, al]];
-        for i in 0..3 {
-            for j in 0..3 {
-                let tbt: f64 = (0..3)
-                    .flat_map(|k| (0..3).map(move |l| (k, l)))
-                    .map(|(k, l)| tab.t[i][k] * b[k][l] * tab.t_inv[l][j])
-                    .sum();
-                assert!((tbt - exact[i][j]).abs() < 1e-13, "T B T⁻¹ [{i}][{j}]");
-            }
-        }
-        // eigenvalues of 𝔄⁻¹ as in RADAU5
-        assert!((1.0 / g - 3.637834252744496).abs() < 1e-12);
-        let d = al * al + be * be;
-        assert!((al / d - 2.681082873627752).abs() < 1e-12);
-        assert!((be / d - 3.05043019924741).abs() < 1e-12);
     }
 }
