@@ -443,7 +443,15 @@ struct Balance {
     max_error: f64,
     /// The largest signed `T + V − E0 − W` (energy gained).
     max_gain: f64,
+    /// The energy in play: the largest of |T0| + |V0| + |W|, T, |V_g − V_g0|
+    /// and |V_e − V_e0| over the run ([`Watch::balance_at`]).
     scale: f64,
+    /// `[V_g, V_e]` at the start.
+    v0: [f64; 2],
+    /// The energy of a velocity error of `atol` in every body,
+    /// ½ Σ m · atol² (plus ½ Σ I · atol²): below it a balance error is
+    /// the tolerance's, not the run's.
+    floor: f64,
     /// Estimated error of the trapezoid quadrature of W so far, and the
     /// last step's slope of P and size.
     e_parts0: f64,
@@ -627,6 +635,15 @@ impl Watch<'_, '_, '_, '_> {
         let rheonomic = self.sys.n_constraints() > 0;
         let e0 = self.sys.mechanical_energy(q0, qd0);
         let e_parts0 = self.sys.kinetic_energy(qd0).abs() + self.sys.potential_energy(q0).abs();
+        let floor = 0.5
+            * self.atol
+            * self.atol
+            * self
+                .sys
+                .bodies()
+                .iter()
+                .map(|b| 2.0 * b.mass.abs() + b.inertia.abs())
+                .sum::<f64>();
         self.balance = Some(Balance {
             e0,
             work: [0.0; 2],
@@ -635,6 +652,8 @@ impl Watch<'_, '_, '_, '_> {
             max_error: 0.0,
             max_gain: 0.0,
             scale: e_parts0,
+            v0: [0.0; 2],
+            floor,
             e_parts0,
             quadrature_error: 0.0,
             last_slope: None,
@@ -648,8 +667,10 @@ impl Watch<'_, '_, '_, '_> {
                 .collect(),
         });
         let p = self.power(t0, q0, qd0);
+        let v0 = self.potentials(q0);
         if let Some(b) = self.balance.as_mut() {
             b.power = p;
+            b.v0 = v0;
         }
     }
 
@@ -668,6 +689,13 @@ impl Watch<'_, '_, '_, '_> {
         // the physical scale: |T0| + |V0| + the largest |W| (not T + V,
         // which grows with a solution that blows up)
         b.scale = b.scale.max(b.e_parts0 + w.abs());
+        // and the energy actually in play: the largest kinetic energy and
+        // changes of the potentials (a falling body's T, not only its T0)
+        for v in [ke, (vg - b.v0[0]).abs(), (ve - b.v0[1]).abs()] {
+            if v.is_finite() {
+                b.scale = b.scale.max(v);
+            }
+        }
         if err.is_finite() {
             b.max_error = b.max_error.max(err.abs());
             b.max_gain = b.max_gain.max(err);
@@ -1096,6 +1124,40 @@ fn stability_check(
     let Some(reach) = crate::formulation::explicit_reach(cfg.method) else {
         return Ok(());
     };
+    // Baumgarte's terms, eq. (10), make the constraint violation a mode of
+    // its own: Φ̈ + 2αΦ̇ + β²Φ = 0 decays at rates α ± √(α² − β²) (or
+    // oscillates at β), stiff for the explicit methods when α or β is large
+    let f = cfg.index1.formulation;
+    let bg = cfg.index1.baumgarte;
+    let baumgarte_rate =
+        if sys.n_constraints() > 0 && matches!(f, Formulation::Saddle | Formulation::Eliminated) {
+            let (a, b) = (bg.alpha.abs(), bg.beta.abs());
+            if a >= b {
+                a + (a * a - b * b).sqrt()
+            } else {
+                b
+            }
+        } else {
+            0.0
+        };
+    let baumgarte_limit = if baumgarte_rate > 0.0 {
+        reach / baumgarte_rate
+    } else {
+        f64::INFINITY
+    };
+    let baumgarte_steps = (cfg.t_end - cfg.t0) / baumgarte_limit;
+    if baumgarte_steps > 1e5 || cfg.ode.fixed_step.is_some_and(|h| h > baumgarte_limit) {
+        watch.warn(format!(
+            "the problem is stiff for {} through its stabilization: Baumgarte's terms \
+             (stabilization.alpha = {:e}, beta = {:e}) decay the constraint violation at a rate of \
+             {baumgarte_rate:.3e} 1/s, which limits the step to about {baumgarte_limit:.2e} s \
+             ({baumgarte_steps:.1e} steps over the span); use a smaller stabilization.alpha and \
+             beta (of the order of the mechanism's own frequencies) or stabilization.projection",
+            cfg.method.name(),
+            bg.alpha,
+            bg.beta
+        ));
+    }
     let Ok(modes) = crate::formulation::fastest_modes(sys, cfg.t0, q0, qd0, 60) else {
         return Ok(()); // the run itself will report a singular matrix
     };
@@ -1212,30 +1274,34 @@ fn finish(
     warnings.extend(report.warnings.iter().cloned());
     if let Some(b) = &watch.balance {
         // what the tolerance and the quadrature of W explain
-        let bound = 100.0 * cfg.ode.rtol * b.scale + 10.0 * b.quadrature_error;
+        let bound = (100.0 * cfg.ode.rtol * b.scale).max(b.floor) + 10.0 * b.quadrature_error;
         if !cfg.method.is_index3() && b.max_error > bound {
             warnings.push(format!(
                 "energy balance broken: |T + V − E0 − W| reached {:.3e} J, more than \
-                 100 rtol × {:.3e} J (the energy scale) + 10 × {:.3e} J (the quadrature \
+                 100 rtol × {:.3e} J (the energy in play: the largest of |T0| + |V0| + |W|, T \
+                 and the changes of V) or {:.3e} J (½ Σ (2m + I) atol², the energy of a \
+                 velocity error of atol), whichever is larger, + 10 × {:.3e} J (the quadrature \
                  error of W) = {bound:.3e} J: the integration error or the constraint drift \
                  is larger than the tolerance explains",
-                b.max_error, b.scale, b.quadrature_error
+                b.max_error, b.scale, b.floor, b.quadrature_error
             ));
         }
         // The implicit methods damp numerically (ρ∞ < 1) or conserve
         // (trapezoidal): they lose energy, they never create it. A gain
         // beyond IMPLICIT_ENERGY_GAIN of the scale (plus the quadrature
         // error of W) means the run left its manifold or its branch.
-        let gain_bound = IMPLICIT_ENERGY_GAIN * b.scale + 10.0 * b.quadrature_error;
+        let gain_bound = (IMPLICIT_ENERGY_GAIN * b.scale).max(b.floor) + 10.0 * b.quadrature_error;
         if cfg.method.is_index3() && b.max_gain > gain_bound {
             warnings.push(format!(
                 "energy balance broken: the run gained energy, T + V − E0 − W reached \
-                 +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the \
+                 +{:.3e} J, more than {} of the energy in play {:.3e} J or the energy of a \
+                 velocity error of atol {:.3e} J, whichever is larger (+ 10 × {:.3e} J, the \
                  quadrature error of W); the numerical damping of {} only removes energy, \
                  so the run left its constraint manifold or its branch of motion",
                 b.max_gain,
                 IMPLICIT_ENERGY_GAIN,
                 b.scale,
+                b.floor,
                 b.quadrature_error,
                 cfg.method.name()
             ));
