@@ -462,8 +462,9 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         chains,
         names,
         forces,
+        ends,
     } = model::build(&raw, file)?;
-    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, file)?;
+    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, &ends, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),

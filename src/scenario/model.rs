@@ -26,6 +26,9 @@ pub(super) struct Model {
     pub(super) names: HashMap<String, usize>,
     /// Each `[[force]]`'s name and the force elements it built.
     pub(super) forces: Vec<(String, std::ops::Range<usize>)>,
+    /// Half length of every rod segment and chain link by body index (the
+    /// `"first_end"`/`"last_end"` points of sensors).
+    pub(super) ends: HashMap<usize, f64>,
 }
 
 /// The body named `name` (or the ground), for errors at `key`.
@@ -213,7 +216,7 @@ impl TryFrom<toml::Value> for RawPoint {
 
 /// The body-frame coordinates of `p` on `body` (`None`: the origin); `ends`
 /// holds the half length of every rod segment and chain link by body index.
-fn body_point(
+pub(super) fn body_point(
     p: Option<RawPoint>,
     body: BodyRef,
     ends: &HashMap<usize, f64>,
@@ -561,6 +564,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         chains: components.chains,
         names,
         forces,
+        ends: components.ends,
     })
 }
 

@@ -1,7 +1,7 @@
 //! `[[sensor]]` → named [`Sensor`]s (docs/scenarios.md): `point`,
 //! `joint_angle`, `distance`, `force_element`, `contact`.
 
-use super::model::body_ref;
+use super::model::{body_point, body_ref, RawPoint};
 use super::{error, ScenarioError};
 use crate::model::{joint_short_name, Sensor, SensorKind, System};
 use serde::Deserialize;
@@ -16,12 +16,12 @@ pub(super) struct RawSensor {
     #[serde(rename = "type")]
     kind: String,
     body: Option<String>,
-    point: Option<[f64; 2]>,
+    point: Option<RawPoint>,
     joint: Option<String>,
     body_i: Option<String>,
-    point_i: Option<[f64; 2]>,
+    point_i: Option<RawPoint>,
     body_j: Option<String>,
-    point_j: Option<[f64; 2]>,
+    point_j: Option<RawPoint>,
     force: Option<String>,
 }
 
@@ -41,6 +41,7 @@ pub(super) fn build(
     system: &System,
     names: &HashMap<String, usize>,
     forces: &[(String, Range<usize>)],
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<Vec<Sensor>, ScenarioError> {
     let mut out: Vec<Sensor> = Vec::with_capacity(raw.len());
@@ -94,28 +95,28 @@ pub(super) fn build(
                 ));
             }
         }
-        for (f, p) in [
-            ("point", s.point),
-            ("point_i", s.point_i),
-            ("point_j", s.point_j),
-        ] {
-            if let Some(p) = p.filter(|p| !p.iter().all(|v| v.is_finite())) {
-                return Err(err(f, format!("{p:?} is not finite")));
-            }
-        }
         let text = |o: &Option<String>| o.clone().unwrap_or_default();
         let body = |f: &str, o: &Option<String>| body_ref(names, file, key(f), &text(o));
+        // `[x, y]`, or the ends of rod segments and chain links, as joints
+        // and forces take them
+        let point = |f: &str, p: Option<RawPoint>, b| body_point(p, b, ends, file, key(f));
         let kind = match s.kind.as_str() {
-            "point" => SensorKind::Point {
-                body: body("body", &s.body)?,
-                point: s.point.unwrap_or_default(),
-            },
-            "distance" => SensorKind::Distance {
-                body_i: body("body_i", &s.body_i)?,
-                point_i: s.point_i.unwrap_or_default(),
-                body_j: body("body_j", &s.body_j)?,
-                point_j: s.point_j.unwrap_or_default(),
-            },
+            "point" => {
+                let b = body("body", &s.body)?;
+                SensorKind::Point {
+                    body: b,
+                    point: point("point", s.point, b)?,
+                }
+            }
+            "distance" => {
+                let (bi, bj) = (body("body_i", &s.body_i)?, body("body_j", &s.body_j)?);
+                SensorKind::Distance {
+                    body_i: bi,
+                    point_i: point("point_i", s.point_i, bi)?,
+                    body_j: bj,
+                    point_j: point("point_j", s.point_j, bj)?,
+                }
+            }
             "joint_angle" => {
                 let name = text(&s.joint);
                 let c = system
