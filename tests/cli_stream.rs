@@ -476,3 +476,55 @@ fn a_fixed_step_run_that_crawls_fails_and_keeps_its_rows() {
     let csv = std::fs::read_to_string(dir.path().join("fourbar.csv")).unwrap();
     assert_eq!(csv.lines().count() as u64, rows + 1, "header + the rows");
 }
+
+/// Two SIGINTs in a row: whichever path ends the process (the run's own
+/// interrupted end, or the second signal's immediate exit), the summary
+/// says "interrupted", never "running". Before, the second signal exited
+/// at once and left the "running" summary.
+#[test]
+fn a_second_sigint_leaves_an_interrupted_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    let mut child = spawn_long(out);
+    wait_for_rows(&out.join("fourbar.csv.part"));
+    // both signals from one process, back to back
+    let ok = Command::new("sh")
+        .args(["-c", &format!("kill -INT {0}; kill -INT {0}", child.id())])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let st = child.wait().unwrap();
+    assert_eq!(st.code(), Some(130), "{st:?}");
+    let s = summary(out);
+    assert_eq!(s["status"], "interrupted", "{s}");
+}
+
+/// A table that cannot be written (the file-size limit: `ulimit -f`, with
+/// SIGXFSZ ignored so that the write fails with EFBIG) ends the run as
+/// "failed" with the error in its summary, not "running".
+#[test]
+fn a_file_too_large_error_ends_with_a_failed_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            &format!(
+                "trap '' XFSZ; ulimit -f 40; exec {} run {} --set output.dt=1e-5 --progress off --out {}",
+                env!("CARGO_BIN_EXE_mbsolve"),
+                fourbar(),
+                out.display()
+            ),
+        ])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    // an output error: exit 2, as any file the run cannot write
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let s = summary(out);
+    assert_eq!(s["status"], "failed", "{s}");
+    assert!(
+        s["message"].as_str().unwrap().contains("File too large"),
+        "{s}"
+    );
+}

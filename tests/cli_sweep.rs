@@ -189,4 +189,73 @@ fn runs_side_by_side_each_run_on_one_thread() {
             }
         }
     }
+/// SIGTERM on a sweep (and SIGINT, the same handler) ends the runs in
+/// progress at their next step, starts no new ones and still writes the
+/// table with every finished run (exit 130). The signal is sent after the
+/// first run reported done on stderr (an event, not a sleep); 400 runs of
+/// ~0.05 s each on two threads cannot all finish in between.
+#[test]
+fn sigterm_on_a_sweep_keeps_finished_runs_and_the_table() {
+    use std::io::BufRead;
+    let dir = tempfile::tempdir().unwrap();
+    let values: Vec<String> = (0..400)
+        .map(|k| format!("{}", 1.0 + k as f64 * 1e-3))
+        .collect();
+    let param = format!("body[0].mass={}", values.join(","));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args([
+            "sweep",
+            "scenarios/fourbar.toml",
+            "--param",
+            &param,
+            "--set",
+            "time.end=1.0",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("RAYON_NUM_THREADS", "2")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let mut seen = Vec::new();
+    for l in lines.by_ref() {
+        let l = l.unwrap();
+        let done = l.contains("runs done");
+        seen.push(l);
+        if done {
+            break;
+        }
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let status = child.wait().unwrap();
+    let all = [seen, rest].concat().join("\n");
+    assert_eq!(status.code(), Some(130), "{all}");
+    assert!(all.contains("sweep interrupted by a signal"), "{all}");
+    let table = std::fs::read_to_string(dir.path().join("fourbar_sweep.csv")).unwrap();
+    let rows: Vec<&str> = table.lines().skip(1).collect();
+    assert_eq!(rows.len(), 400, "every run has its row");
+    let completed = rows.iter().filter(|r| r.contains(",completed,")).count();
+    let not_run = rows.iter().filter(|r| r.contains("not run")).count();
+    assert!(completed >= 1, "{table}");
+    assert!(not_run >= 1, "{table}");
+    // every completed run has its summary
+    let summaries = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .ends_with(".summary.json")
+        })
+        .count();
+    assert!(summaries >= completed, "{summaries} < {completed}");
 }

@@ -26,6 +26,15 @@
 //! otherwise, `d min(a, b)` that of `b` where `a > b` and of `a` otherwise;
 //! `sign` has derivative 0.
 //!
+//! Bounded depth: brackets, signs, exponents and function calls nest at
+//! most [`MAX_NESTING`] deep in the text, and the parsed expression is at
+//! most [`MAX_DEPTH`] operations deep (a longer error, never a stack
+//! overflow in the parser or in the recursive differentiation after it). A
+//! sum or product of more than [`BALANCE_FROM`] terms is combined as a
+//! balanced tree (depth log₂ of the number of terms) instead of left to
+//! right, so long flat sums stay shallow; shorter ones keep the left-to-right
+//! order of rounding.
+//!
 //! Names are resolved by a caller-supplied resolver, which returns the node
 //! for the name (a variable or any expression, e.g. a relative angle built
 //! from coordinates) or `None` for an unknown name.
@@ -71,7 +80,30 @@ pub enum ParseErrorKind {
     },
     /// An exponent that is not an integer constant or 0.5.
     BadExponent,
+    /// Brackets, signs, exponents or calls nested deeper than
+    /// [`MAX_NESTING`].
+    TooNested,
+    /// The parsed expression is `depth` operations deep, more than
+    /// [`MAX_DEPTH`].
+    TooDeep {
+        /// Depth reached.
+        depth: usize,
+    },
 }
+
+/// Largest nesting of brackets, signs, exponents and function calls in the
+/// text: 200 (the recursive descent then stays far below any thread's stack).
+pub const MAX_NESTING: usize = 200;
+
+/// Largest depth (operations on the longest path to a leaf) of a parsed
+/// expression, the resolver's expressions included: 1000, so that the
+/// recursive passes over it (differentiation, substitution) stay within a
+/// 2 MiB thread stack.
+pub const MAX_DEPTH: usize = 1000;
+
+/// Sums and products of more terms than this are combined as a balanced
+/// tree: 16.
+pub const BALANCE_FROM: usize = 16;
 
 impl fmt::Display for ParseError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -93,6 +125,14 @@ impl fmt::Display for ParseError {
             BadExponent => write!(
                 f,
                 "exponent must be an integer constant or 0.5 (use sqrt or repeated products otherwise)"
+            ),
+            TooNested => write!(
+                f,
+                "brackets, signs, exponents and calls nest deeper than the limit of {MAX_NESTING}"
+            ),
+            TooDeep { depth } => write!(
+                f,
+                "the expression is {depth} operations deep; the limit is {MAX_DEPTH}"
             ),
         }?;
         write!(f, " at {}", self.pos)
@@ -183,6 +223,17 @@ struct Parser<'a, R> {
     at: usize,
     ctx: &'a mut Ctx,
     resolve: R,
+    /// Current nesting of `unary` (every bracket, sign, exponent and call
+    /// argument passes through it).
+    nesting: usize,
+}
+
+/// One operand of a flat sum or product: `inverse` marks a subtracted term
+/// or a divisor.
+#[derive(Clone, Copy)]
+struct Operand {
+    inverse: bool,
+    id: Id,
 }
 
 impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
@@ -211,36 +262,110 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
     }
 
     fn expr(&mut self) -> Result<Id, ParseError> {
-        let mut acc = self.term()?;
+        let mut ops = vec![Operand {
+            inverse: false,
+            id: self.term()?,
+        }];
         loop {
-            if self.eat('+') {
-                let r = self.term()?;
-                acc = self.ctx.add(acc, r);
+            let inverse = if self.eat('+') {
+                false
             } else if self.eat('-') {
-                let r = self.term()?;
-                acc = self.ctx.sub(acc, r);
+                true
             } else {
-                return Ok(acc);
-            }
+                return Ok(self.combine(ops, false));
+            };
+            let id = self.term()?;
+            ops.push(Operand { inverse, id });
         }
     }
 
     fn term(&mut self) -> Result<Id, ParseError> {
-        let mut acc = self.unary()?;
+        let mut ops = vec![Operand {
+            inverse: false,
+            id: self.unary()?,
+        }];
         loop {
-            if self.eat('*') {
-                let r = self.unary()?;
-                acc = self.ctx.mul(acc, r);
+            let inverse = if self.eat('*') {
+                false
             } else if self.eat('/') {
-                let r = self.unary()?;
-                acc = self.ctx.div(acc, r);
+                true
             } else {
-                return Ok(acc);
+                return Ok(self.combine(ops, true));
+            };
+            let id = self.unary()?;
+            ops.push(Operand { inverse, id });
+        }
+    }
+
+    /// `a ± b` (sum) or `a · b`, `a / b` (product).
+    fn pair(&mut self, product: bool, a: Id, b: Id, inverse: bool) -> Id {
+        match (product, inverse) {
+            (false, false) => self.ctx.add(a, b),
+            (false, true) => self.ctx.sub(a, b),
+            (true, false) => self.ctx.mul(a, b),
+            (true, true) => self.ctx.div(a, b),
+        }
+    }
+
+    /// The operands of a flat sum (or product) combined: left to right up to
+    /// [`BALANCE_FROM`] operands, else pairwise as a balanced tree.
+    fn combine(&mut self, mut ops: Vec<Operand>, product: bool) -> Id {
+        if ops.len() <= BALANCE_FROM {
+            let mut acc = ops[0].id;
+            for o in &ops[1..] {
+                acc = self.pair(product, acc, o.id, o.inverse);
             }
+            return acc;
+        }
+        while ops.len() > 1 {
+            let mut next = Vec::with_capacity(ops.len().div_ceil(2));
+            for two in ops.chunks(2) {
+                next.push(match *two {
+                    [x, y] => match (x.inverse, y.inverse) {
+                        (false, inv) => Operand {
+                            inverse: false,
+                            id: self.pair(product, x.id, y.id, inv),
+                        },
+                        (true, false) => Operand {
+                            inverse: false,
+                            id: self.pair(product, y.id, x.id, true),
+                        },
+                        (true, true) => Operand {
+                            inverse: true,
+                            id: self.pair(product, x.id, y.id, false),
+                        },
+                    },
+                    [x] => x,
+                    _ => unreachable!("chunks of two"),
+                });
+            }
+            ops = next;
+        }
+        let last = ops[0];
+        if !last.inverse {
+            last.id
+        } else if product {
+            let one = self.ctx.one();
+            self.ctx.div(one, last.id)
+        } else {
+            self.ctx.neg(last.id)
         }
     }
 
     fn unary(&mut self) -> Result<Id, ParseError> {
+        if self.nesting >= MAX_NESTING {
+            return Err(ParseError {
+                pos: self.pos(),
+                kind: ParseErrorKind::TooNested,
+            });
+        }
+        self.nesting += 1;
+        let r = self.unary_inner();
+        self.nesting -= 1;
+        r
+    }
+
+    fn unary_inner(&mut self) -> Result<Id, ParseError> {
         if self.eat('-') {
             let a = self.unary()?;
             Ok(self.ctx.neg(a))
@@ -378,10 +503,32 @@ pub fn parse(
         at: 0,
         ctx,
         resolve,
+        nesting: 0,
     };
     let e = p.expr()?;
     if *p.peek() != Tok::End {
         return Err(p.unexpected("an operator or end of input"));
     }
+    let depth = depth(p.ctx, e);
+    if depth > MAX_DEPTH {
+        return Err(ParseError {
+            pos: 0,
+            kind: ParseErrorKind::TooDeep { depth },
+        });
+    }
     Ok(e)
+}
+
+/// Operations on the longest path from `e` to a leaf, without recursion
+/// (children are interned before their parents, so ascending ids are a
+/// topological order).
+fn depth(ctx: &Ctx, e: Id) -> usize {
+    let order = ctx.reachable(&[e], |_| false);
+    let mut depth = std::collections::HashMap::with_capacity(order.len());
+    for &id in &order {
+        let mut d = 0;
+        ctx.node(id).for_each_child(|c| d = d.max(depth[&c] + 1));
+        depth.insert(id, d);
+    }
+    depth[&e]
 }

@@ -215,3 +215,96 @@ fn nonsmooth_derivatives_are_piecewise() {
     // At the tie the first argument's derivative is taken.
     assert_eq!(c.eval(&d, &[1.0, 1.0, 0.0])[..4], [1.0, 0.0, 1.0, 0.0]);
 }
+
+/// Deep inputs are errors naming the limit, never a stack overflow: run on
+/// a thread with a 2 MiB stack (rayon's and many callers' default).
+#[test]
+fn deep_nesting_is_an_error_not_a_stack_overflow() {
+    std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(|| {
+            let deep = format!("{}x{}", "(".repeat(50_000), ")".repeat(50_000));
+            let (_, kind, msg) = err(&deep);
+            assert_eq!(kind, ParseErrorKind::TooNested, "{msg}");
+            assert!(msg.contains("200"), "{msg}");
+            let signs = format!("{}x", "-".repeat(50_000));
+            assert_eq!(err(&signs).1, ParseErrorKind::TooNested);
+            let calls = format!("{}x{}", "sin(".repeat(50_000), ")".repeat(50_000));
+            assert_eq!(err(&calls).1, ParseErrorKind::TooNested);
+            // Within the nesting limit, a DAG deeper than MAX_DEPTH: each
+            // level `sin((next) + x^2 + ... + x^15)` adds 15 operations on
+            // the longest path (sums up to 16 terms fold left to right).
+            let level = |n: usize| {
+                let tail: String = (2..16).map(|k| format!("+x^{k}")).collect();
+                format!("{}x{}", "sin(".repeat(n), format!("{tail})").repeat(n))
+            };
+            assert!(parse_ok(&level(40)));
+            let (pos, kind, msg) = err(&level(100));
+            assert!(
+                matches!(kind, ParseErrorKind::TooDeep { depth } if depth > 1000),
+                "{msg}"
+            );
+            assert_eq!(pos, 0);
+            assert!(msg.contains("limit is 1000"), "{msg}");
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+fn parse_ok(text: &str) -> bool {
+    let (mut c, v) = ctx3();
+    parse(&mut c, text, |n, _| (n == "x").then_some(v[0])).is_ok()
+}
+
+/// A flat sum or product of 200 000 terms parses to a shallow expression
+/// (balanced), evaluates to the exact value and differentiates on a 2 MiB
+/// stack.
+#[test]
+fn long_flat_sums_and_products_are_shallow_and_exact() {
+    std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(|| {
+            let n = 200_000;
+            let sum = vec!["x"; n].join("+");
+            assert_eq!(eval(&sum, [0.5, 0.0, 0.0]), 0.5 * n as f64);
+            // Alternating signs: x - y + x - y ... (n even) = n/2 (x - y).
+            let alt: String = (0..n)
+                .map(|k| if k % 2 == 0 { "+x" } else { "-y" })
+                .collect::<String>()[1..]
+                .to_string();
+            assert_eq!(eval(&alt, [3.0, 1.0, 0.0]), n as f64);
+            // Products and quotients: x*y/x*y/... with powers of two exact.
+            let prod: String = (0..n)
+                .map(|k| if k % 2 == 0 { "*x" } else { "/y" })
+                .collect::<String>()[1..]
+                .to_string();
+            assert_eq!(eval(&prod, [2.0, 2.0, 0.0]), 1.0);
+            let sums: String = (0..n)
+                .map(|k| format!("{}sin({k}*x)", if k % 3 == 1 { "-" } else { "+" }))
+                .collect::<String>()[1..]
+                .to_string();
+            let (mut c, v) = ctx3();
+            let e = parse(&mut c, &sums, |m, _| (m == "x").then_some(v[0])).unwrap();
+            let d = c.diff(e, v[0]);
+            let x: f64 = 1e-3;
+            let want: f64 = (0..n)
+                .map(|k| {
+                    let s = if k % 3 == 1 { -1.0 } else { 1.0 };
+                    s * k as f64 * (k as f64 * x).cos()
+                })
+                .sum();
+            let got = c.eval(&[d], &[x, 0.0, 0.0])[0];
+            assert!((got - want).abs() <= 1e-9 * want.abs(), "{got} vs {want}");
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}
+
+/// Short sums keep the left-to-right order of rounding: (1e16 + 1) + 1 =
+/// 1e16 in floating point, not 1e16 + 2.
+#[test]
+fn short_sums_round_left_to_right() {
+    assert_eq!(eval("x + 1 + 1", [1e16, 0.0, 0.0]), 1e16);
+}

@@ -270,6 +270,8 @@ pub(super) fn add(
             (None, Some(_)) => "angle_deg",
             _ => "tilt_deg",
         };
+        // a channel narrower than the default is blamed for a penetration
+        let default_channel = p.channel_width;
         set(&mut p.length, r.length);
         set(&mut p.width, r.width);
         set(&mut p.density, r.density);
@@ -296,7 +298,18 @@ pub(super) fn add(
         p.gravity = gravity.map_or(0.0, |g| g[0].hypot(g[1]));
         let rename = [
             ("n_segments", "segments"),
-            ("tilt", tilt_key),
+            // a penetration at the start is blamed on the channel width
+            // where it was given alone or narrowed
+            (
+                "tilt",
+                if r.tilt_deg.or(r.angle_deg).is_none() && r.channel_width.is_some()
+                    || r.channel_width.is_some_and(|w| w < default_channel)
+                {
+                    "channel_width"
+                } else {
+                    tilt_key
+                },
+            ),
             ("initial_velocity", "velocity"),
             ("friction_coefficient", "friction"),
         ];

@@ -28,9 +28,9 @@ pub const MIN_SPAN_ULPS: f64 = 1e4;
 pub const MIN_STEP_ULPS: f64 = 16.0;
 
 /// Memory of the model, its evaluation buffers and the linear solver per
-/// body \[bytes\], rounded up from the falling rod at N = 10⁴ (44 MB peak
-/// RSS for a run with two output times, ode23).
-pub const MODEL_BYTES_PER_BODY: f64 = 5e3;
+/// body \[bytes\]: 8 kB, rounded up from 7.3 kB measured at N = 10⁶
+/// segments and 6.8 kB (peak RSS over N) at N = 10⁴ on the falling rod.
+pub const MODEL_BYTES_PER_BODY: f64 = 8e3;
 
 /// Memory the estimate may not exceed when the machine's is unknown \[bytes\].
 pub const FALLBACK_MEMORY: f64 = 16.0 * 1024.0 * 1024.0 * 1024.0;
@@ -104,17 +104,50 @@ pub fn memory_estimate(bodies: usize, outputs: f64) -> f64 {
     MODEL_BYTES_PER_BODY * bodies as f64 + 8.0 * outputs
 }
 
-/// The memory a run may use: the machine's physical memory (`MemTotal` of
-/// /proc/meminfo), or [`FALLBACK_MEMORY`] where that cannot be read.
+/// The memory a run may use \[bytes\]: the smallest of the machine's
+/// physical memory (`MemTotal` of /proc/meminfo, else
+/// [`FALLBACK_MEMORY`]), the cgroup's limit (v2 `memory.max`, v1
+/// `memory.limit_in_bytes`) and the address-space limit (`ulimit -v`,
+/// "Max address space" of /proc/self/limits) less the address space the
+/// process already holds (`VmSize`).
 pub fn memory_limit() -> f64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|s| {
-            let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
-            let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-            Some(kb * 1024.0)
-        })
-        .unwrap_or(FALLBACK_MEMORY)
+    memory_limits()
+        .into_iter()
+        .map(|(_, v)| v)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The limits behind [`memory_limit`], named for messages.
+pub fn memory_limits() -> Vec<(&'static str, f64)> {
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let field = |text: &str, key: &str| -> Option<f64> {
+        let line = text.lines().find(|l| l.starts_with(key))?;
+        line[key.len()..].split_whitespace().next()?.parse().ok()
+    };
+    let mut out = vec![(
+        "the machine's memory",
+        read("/proc/meminfo")
+            .and_then(|s| field(&s, "MemTotal:"))
+            .map_or(FALLBACK_MEMORY, |kb| kb * 1024.0),
+    )];
+    for p in [
+        "/sys/fs/cgroup/memory.max",
+        "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+    ] {
+        if let Some(v) = read(p).and_then(|s| s.trim().parse::<f64>().ok()) {
+            out.push(("the cgroup's memory limit", v));
+        }
+    }
+    if let Some(limit) = read("/proc/self/limits").and_then(|s| field(&s, "Max address space")) {
+        let held = read("/proc/self/status")
+            .and_then(|s| field(&s, "VmSize:"))
+            .map_or(0.0, |kb| kb * 1024.0);
+        out.push((
+            "the address-space limit (ulimit -v) less what is held",
+            (limit - held).max(0.0),
+        ));
+    }
+    out
 }
 
 /// `x` for messages: plain in [1e-4, 1e6), else in exponent form (`1e308`,
@@ -235,8 +268,9 @@ fn memory(
             file,
             key,
             format!(
-                "{what}: the run would need an estimated {} ({} kB per body), more than this \
-                 machine's memory of {} (docs/limits.md)",
+                "{what}: the run would need an estimated {} ({} kB per body), more than the {} \
+                 available: the smallest of the machine's memory, the cgroup's limit and \
+                 ulimit -v (docs/limits.md)",
                 gb(need),
                 MODEL_BYTES_PER_BODY / 1e3,
                 gb(limit)
@@ -252,12 +286,12 @@ mod tests {
 
     #[test]
     fn memory_beyond_the_limit_names_the_rod_or_the_bodies() {
-        // 10⁴ segments need 50 MB: accepted with 1 GB, refused with 10 MB.
+        // 10⁴ segments need 80 MB (8 kB each): accepted with 1 GB, refused with 10 MB.
         let rod = Some(("rod.segments", 10_000));
         assert!(memory(10_000, rod, 1e4, 1e9, "f").is_ok());
         let e = memory(10_000, rod, 1e4, 1e7, "f").unwrap_err();
         assert_eq!(e.key, "rod.segments");
-        assert!(e.message.contains("0.050 GB"), "{e}");
+        assert!(e.message.contains("0.080 GB"), "{e}");
         assert!(e.message.contains("0.010 GB"), "{e}");
         let e = memory(10_000, None, 1e4, 1e7, "f").unwrap_err();
         assert_eq!(e.key, "body");

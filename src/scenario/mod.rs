@@ -236,9 +236,20 @@ pub fn parse_with(
     let rods = doc.remove("rod");
     let mut raw: RawScenario = serde_path_to_error::deserialize(toml::Value::Table(doc)).map_err(
         |e: serde_path_to_error::Error<toml::de::Error>| {
-            let key = e.path().to_string();
+            let mut key = e.path().to_string();
+            let mut message = e.inner().message().to_string();
+            // a required top-level table is missing (e.g. an empty file):
+            // name it rather than the document's root "."
+            if key == "." {
+                if let Some(f) = message
+                    .strip_prefix("missing field `")
+                    .and_then(|m| m.split('`').next())
+                {
+                    key = f.to_string();
+                    message = format!("missing: the [{f}] table is required");
+                }
+            }
             let origin = attribute(file, &key, &set_keys);
-            let message = e.inner().message().to_string();
             ScenarioError {
                 file: origin,
                 key,
@@ -311,6 +322,12 @@ fn non_finite(doc: &toml::Table, path: &str) -> Result<(), (String, String)> {
             toml::Value::Float(f) if !f.is_finite() => {
                 Err((path.to_string(), format!("{f} is not a finite number")))
             }
+            toml::Value::Datetime(d) => Err((
+                path.to_string(),
+                format!(
+                    "{d} is a TOML date/time, which no scenario key takes (quote it for a text)"
+                ),
+            )),
             toml::Value::Table(t) => non_finite(t, path),
             toml::Value::Array(a) => a
                 .iter()
@@ -452,8 +469,9 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         chains,
         names,
         forces,
+        ends,
     } = model::build(&raw, file)?;
-    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, file)?;
+    let sensors = sensor::build(&raw.sensor, &system, &names, &forces, &ends, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     let shapes = raw.body.iter().map(|b| b.shape.clone()).collect();
     Ok(Scenario {

@@ -22,6 +22,9 @@ pub(super) struct Model {
     pub(super) names: HashMap<String, usize>,
     /// Each `[[force]]`'s name and the force elements it built.
     pub(super) forces: Vec<(String, std::ops::Range<usize>)>,
+    /// Half length of every rod segment and chain link by body index (the
+    /// `"first_end"`/`"last_end"` points of sensors).
+    pub(super) ends: HashMap<usize, f64>,
 }
 
 /// The body named `name` (or the ground), for errors at `key`.
@@ -413,5 +416,6 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         chains: components.chains,
         names,
         forces,
+        ends: components.ends,
     })
 }

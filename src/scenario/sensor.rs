@@ -2,7 +2,7 @@
 //! `joint_angle`, `distance`, `force_element`, `contact`.
 
 use super::element::{keys_of, read, tag, RawTagged};
-use super::model::body_ref;
+use super::model::{body_point, body_ref, RawPoint};
 use super::{error, ScenarioError};
 use crate::model::{joint_short_name, Sensor, SensorKind, System};
 use serde::Deserialize;
@@ -15,8 +15,9 @@ use std::ops::Range;
 struct PointSensor {
     /// A body or `"ground"`.
     body: String,
-    /// The point, body frame [m]; default the origin.
-    point: Option<[f64; 2]>,
+    /// The point, body frame [m] (or `"first_end"` / `"last_end"` on a rod
+    /// segment or chain link); default the origin.
+    point: Option<RawPoint>,
 }
 
 /// `type = "joint_angle"`: a joint's relative angle and rate.
@@ -33,12 +34,12 @@ struct JointAngleSensor {
 struct DistanceSensor {
     /// A body or `"ground"`.
     body_i: String,
-    /// Its point [m]; default the origin.
-    point_i: Option<[f64; 2]>,
+    /// Its point [m] (or an end); default the origin.
+    point_i: Option<RawPoint>,
     /// Another body or `"ground"`.
     body_j: String,
-    /// Its point [m]; default the origin.
-    point_j: Option<[f64; 2]>,
+    /// Its point [m] (or an end); default the origin.
+    point_j: Option<RawPoint>,
 }
 
 /// `type = "force_element"` (a spring's or rotational spring's readings)
@@ -112,6 +113,7 @@ pub(super) fn build(
     system: &System,
     names: &HashMap<String, usize>,
     forces: &[(String, Range<usize>)],
+    ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<Vec<Sensor>, ScenarioError> {
     let mut out: Vec<Sensor> = Vec::with_capacity(raw.len());
@@ -146,26 +148,25 @@ pub(super) fn build(
         }
         let kind = tag(s, &path, "sensor", TYPES.iter().map(|t| t.name), file)?;
         let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
-        let finite = |f: &str, p: Option<[f64; 2]>| match p {
-            Some(p) if !p.iter().all(|v| v.is_finite()) => {
-                Err(err(f, format!("{p:?} is not finite")))
-            }
-            _ => Ok(p.unwrap_or_default()),
-        };
         let body = |f: &str, n: &str| body_ref(names, file, key(f), n);
+        // `[x, y]`, or the ends of rod segments and chain links, as joints
+        // and forces take them
+        let point = |f: &str, p: Option<RawPoint>, b| body_point(p, b, ends, file, key(f));
         let kind = match (decl.read)(s, &path, file)? {
-            Spec::Point(p) => SensorKind::Point {
-                body: body("body", &p.body)?,
-                point: finite("point", p.point)?,
-            },
+            Spec::Point(p) => {
+                let b = body("body", &p.body)?;
+                SensorKind::Point {
+                    body: b,
+                    point: point("point", p.point, b)?,
+                }
+            }
             Spec::Distance(d) => {
-                let (point_i, point_j) =
-                    (finite("point_i", d.point_i)?, finite("point_j", d.point_j)?);
+                let (bi, bj) = (body("body_i", &d.body_i)?, body("body_j", &d.body_j)?);
                 SensorKind::Distance {
-                    body_i: body("body_i", &d.body_i)?,
-                    point_i,
-                    body_j: body("body_j", &d.body_j)?,
-                    point_j,
+                    body_i: bi,
+                    point_i: point("point_i", d.point_i, bi)?,
+                    body_j: bj,
+                    point_j: point("point_j", d.point_j, bj)?,
                 }
             }
             Spec::JointAngle(j) => {

@@ -370,6 +370,11 @@ struct Watch<'s, 'm, 'd, 'k> {
     jac: Vec<f64>,
     phid: Vec<f64>,
     monitors: &'m mut [&'d mut dyn Monitor],
+    /// What to change when the constraints drift, in the keys the run's
+    /// method accepts ([`drift_advice`]).
+    advice: String,
+    /// What `phi_fail` is (for its message).
+    phi_fail_why: String,
     /// Guard bounds: ‖Φ‖ warn / fail, |position| fail.
     phi_warn: f64,
     phi_fail: f64,
@@ -447,7 +452,15 @@ struct Balance {
     max_error: f64,
     /// The largest signed `T + V − E0 − W` (energy gained).
     max_gain: f64,
+    /// The energy in play: the largest of |T0| + |V0| + |W|, T, |V_g − V_g0|
+    /// and |V_e − V_e0| over the run ([`Watch::balance_at`]).
     scale: f64,
+    /// `[V_g, V_e]` at the start.
+    v0: [f64; 2],
+    /// The energy of a velocity error of `atol` in every body,
+    /// ½ Σ m · atol² (plus ½ Σ I · atol²): below it a balance error is
+    /// the tolerance's, not the run's.
+    floor: f64,
     /// Estimated error of the trapezoid quadrature of W so far, and the
     /// last step's slope of P and size.
     e_parts0: f64,
@@ -481,7 +494,41 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
         let phi_warn = g
             .constraint_warn
             .unwrap_or(100.0 * (cfg.ode.rtol * l + atol));
-        let phi_fail = g.constraint_fail.unwrap_or(l.max(10.0 * phi_warn));
+        // the mechanism's size: the diagonal of the box around the bodies'
+        // reference points at t0, at least `l`
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for b in q0.chunks(3) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(b[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        let size = if q0.is_empty() {
+            l
+        } else {
+            l.max((hi[0] - lo[0]).hypot(hi[1] - lo[1]))
+        };
+        let (phi_fail, phi_fail_why) = match g.constraint_fail {
+            Some(f) => (f, "guards.constraint_fail".to_string()),
+            None => {
+                let by_tol = l.max(10.0 * phi_warn);
+                // an incorrect start's own violation is the run's to reduce
+                let mut phi0 = vec![0.0; m];
+                sys.phi(q0, cfg.t0, &mut phi0);
+                let by_size = (SIZE_FRACTION * size).max(10.0 * norm2(&phi0));
+                if by_size < by_tol {
+                    (
+                        by_size,
+                        format!(
+                            "{SIZE_FRACTION} of the mechanism's size {size:.3e} m, or 10 × ‖Φ‖ at \
+                             the start"
+                        ),
+                    )
+                } else {
+                    (by_tol, "the larger of L and 10 × the warning bound".into())
+                }
+            }
+        };
         let o = cfg.outputs;
         let extras = if o_needs_extras(&o) || o.energy {
             // eq. (5) with the run's Baumgarte terms (none for the
@@ -512,6 +559,8 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             } else {
                 cfg.index1.projection.enabled || cfg.index1.formulation == Formulation::Partitioned
             },
+            advice: drift_advice(cfg),
+            phi_fail_why,
             phi_warn,
             phi_fail,
             pos_fail: g.position_factor * l,
@@ -595,6 +644,15 @@ impl Watch<'_, '_, '_, '_> {
         let rheonomic = self.sys.n_constraints() > 0;
         let e0 = self.sys.mechanical_energy(q0, qd0);
         let e_parts0 = self.sys.kinetic_energy(qd0).abs() + self.sys.potential_energy(q0).abs();
+        let floor = 0.5
+            * self.atol
+            * self.atol
+            * self
+                .sys
+                .bodies()
+                .iter()
+                .map(|b| 2.0 * b.mass.abs() + b.inertia.abs())
+                .sum::<f64>();
         self.balance = Some(Balance {
             e0,
             work: [0.0; 2],
@@ -603,6 +661,8 @@ impl Watch<'_, '_, '_, '_> {
             max_error: 0.0,
             max_gain: 0.0,
             scale: e_parts0,
+            v0: [0.0; 2],
+            floor,
             e_parts0,
             quadrature_error: 0.0,
             last_slope: None,
@@ -616,8 +676,10 @@ impl Watch<'_, '_, '_, '_> {
                 .collect(),
         });
         let p = self.power(t0, q0, qd0);
+        let v0 = self.potentials(q0);
         if let Some(b) = self.balance.as_mut() {
             b.power = p;
+            b.v0 = v0;
         }
     }
 
@@ -636,6 +698,13 @@ impl Watch<'_, '_, '_, '_> {
         // the physical scale: |T0| + |V0| + the largest |W| (not T + V,
         // which grows with a solution that blows up)
         b.scale = b.scale.max(b.e_parts0 + w.abs());
+        // and the energy actually in play: the largest kinetic energy and
+        // changes of the potentials (a falling body's T, not only its T0)
+        for v in [ke, (vg - b.v0[0]).abs(), (ve - b.v0[1]).abs()] {
+            if v.is_finite() {
+                b.scale = b.scale.max(v);
+            }
+        }
         if err.is_finite() {
             b.max_error = b.max_error.max(err.abs());
             b.max_gain = b.max_gain.max(err);
@@ -686,9 +755,8 @@ impl Watch<'_, '_, '_, '_> {
             self.warn(format!(
                 "velocity constraint violation ‖Φ_q q̇ + Φ_t‖ = {vn:.3e} at t = {t:e} exceeds \
                  {bound:.3e} (100 (rtol V + atol), V = {:.3e} m/s the largest body speed): the \
-                 velocities do not fit the joints; tighten the tolerances, use Baumgarte \
-                 stabilization (α > 0) or projection",
-                self.speed
+                 velocities do not fit the joints; {}",
+                self.speed, self.advice
             ));
         }
     }
@@ -699,9 +767,8 @@ impl Watch<'_, '_, '_, '_> {
             self.warned_phi = true;
             self.warn(format!(
                 "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} (100 (rtol L + atol)): \
-                 the solution is drifting off its constraints; tighten the tolerances, \
-                 use Baumgarte stabilization or an index-3 method",
-                self.phi_warn
+                 the solution is drifting off its constraints; {}",
+                self.phi_warn, self.advice
             ));
         }
         let pos = q
@@ -711,8 +778,8 @@ impl Watch<'_, '_, '_, '_> {
         let reason = if cn > self.phi_fail {
             Some(format!(
                 "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} \
-                 (the mechanism has come apart)",
-                self.phi_fail
+                 ({}): the mechanism has come apart; {}",
+                self.phi_fail, self.phi_fail_why, self.advice
             ))
         } else if pos > self.pos_fail {
             Some(format!(
@@ -738,13 +805,91 @@ impl Watch<'_, '_, '_, '_> {
     }
 }
 
+/// A constraint violation ‖Φ‖ above this fraction of the mechanism's size
+/// (the diagonal of the box around the bodies' reference points at t0, at
+/// least the largest of their coordinates) — or above 10 × ‖Φ‖ at the start
+/// where that is larger — ends the run as `"diverged"` whatever the
+/// tolerances: 0.25.
+pub const SIZE_FRACTION: f64 = 0.25;
+
+/// What to change when a run drifts off its constraints, naming only keys
+/// the run's method and formulation accept (docs/scenarios.md).
+fn drift_advice(cfg: &RunConfig) -> String {
+    let f = cfg.index1.formulation;
+    if cfg.method.is_implicit() && f == Formulation::AugmentedLagrangian {
+        "reduce integrator.step or raise stabilization.penalty".into()
+    } else if cfg.method.is_implicit() && !cfg.implicit.project {
+        "set integrator.project = true, or reduce integrator.newton_tol or the step".into()
+    } else if cfg.method.is_implicit() {
+        "reduce integrator.newton_tol or the step (integrator.project is already on)".into()
+    } else if cfg.method.is_index3() {
+        "tighten integrator.rtol and integrator.atol".into()
+    } else if f == Formulation::Penalty {
+        "tighten the tolerances or raise stabilization.penalty".into()
+    } else if f == Formulation::Partitioned {
+        "tighten the tolerances or lower stabilization.partition_condition".into()
+    } else if cfg.index1.projection.enabled {
+        "tighten the tolerances (stabilization.projection is already on), or use an \
+         index-3 method"
+            .into()
+    } else {
+        "tighten the tolerances, use Baumgarte stabilization (stabilization.alpha > 0) or \
+         stabilization.projection = true, or an index-3 method"
+            .into()
+    }
+}
+
+/// The first non-finite number of an output row, named, or `None`.
+fn first_non_finite(s: &Sample<'_>) -> Option<String> {
+    let bad = |v: &[f64]| v.iter().position(|x| !x.is_finite());
+    let named = |what: &str, v: Option<&[f64]>| {
+        v.and_then(|v| bad(v).map(|k| format!("{what}[{k}] = {}", v[k])))
+    };
+    named("q", Some(s.q))
+        .or_else(|| named("q̇", Some(s.qd)))
+        .or_else(|| named("Φ", Some(s.phi)))
+        .or_else(|| named("‖Φ‖", Some(&[s.constraint_norm])))
+        .or_else(|| named("‖Φ̇‖", Some(&[s.velocity_constraint_norm])))
+        .or_else(|| named("q̈", s.qdd))
+        .or_else(|| named("λ", s.lambda))
+        .or_else(|| named("reaction", s.reactions))
+        .or_else(|| {
+            s.energy.as_ref().and_then(|e| {
+                [
+                    ("kinetic energy", e.kinetic),
+                    ("gravity potential", e.gravity),
+                    ("elastic potential", e.elastic),
+                    ("work of forces", e.work_forces),
+                    ("work of drives", e.work_drives),
+                    ("energy balance error", e.balance_error),
+                ]
+                .into_iter()
+                .find(|(_, v)| !v.is_finite())
+                .map(|(n, v)| format!("{n} = {v}"))
+            })
+        })
+}
+
 /// Whether the outputs need q̈ and λ at every output time.
 fn o_needs_extras(o: &OutputQuantities) -> bool {
     o.accelerations || o.reactions || o.drives
 }
 
 fn norm2(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if n.is_finite() && n > 1e-150 {
+        return n;
+    }
+    // the squares overflowed or underflowed: scale by the largest modulus
+    let m = v.iter().fold(0.0, |a: f64, x| a.max(x.abs()));
+    if m == 0.0 || !m.is_finite() || v.iter().any(|x| x.is_nan()) {
+        return if v.iter().any(|x| x.is_nan()) {
+            f64::NAN
+        } else {
+            m
+        };
+    }
+    m * v.iter().map(|x| (x / m) * (x / m)).sum::<f64>().sqrt()
 }
 
 impl Observer for Watch<'_, '_, '_, '_> {
@@ -820,6 +965,15 @@ impl Observer for Watch<'_, '_, '_, '_> {
                 })
             }),
         };
+        if let Some(what) = first_non_finite(&sample) {
+            // a non-finite number is never written: the run fails here
+            let msg = format!(
+                "non-finite output at t = {t:e}: {what} (the row is not written; the run's \
+                 state or a derived quantity overflowed — check the scenario's magnitudes)"
+            );
+            self.sink_error = Some(msg.clone());
+            return ControlFlow::Break(msg);
+        }
         match self.sink.output(&sample) {
             Ok(()) => {
                 self.rows += 1;
@@ -992,6 +1146,40 @@ fn stability_check(
     let Some(reach) = crate::formulation::explicit_reach(cfg.method) else {
         return Ok(());
     };
+    // Baumgarte's terms, eq. (10), make the constraint violation a mode of
+    // its own: Φ̈ + 2αΦ̇ + β²Φ = 0 decays at rates α ± √(α² − β²) (or
+    // oscillates at β), stiff for the explicit methods when α or β is large
+    let f = cfg.index1.formulation;
+    let bg = cfg.index1.baumgarte;
+    let baumgarte_rate =
+        if sys.n_constraints() > 0 && matches!(f, Formulation::Saddle | Formulation::Eliminated) {
+            let (a, b) = (bg.alpha.abs(), bg.beta.abs());
+            if a >= b {
+                a + (a * a - b * b).sqrt()
+            } else {
+                b
+            }
+        } else {
+            0.0
+        };
+    let baumgarte_limit = if baumgarte_rate > 0.0 {
+        reach / baumgarte_rate
+    } else {
+        f64::INFINITY
+    };
+    let baumgarte_steps = (cfg.t_end - cfg.t0) / baumgarte_limit;
+    if baumgarte_steps > 1e5 || cfg.ode.fixed_step.is_some_and(|h| h > baumgarte_limit) {
+        watch.warn(format!(
+            "the problem is stiff for {} through its stabilization: Baumgarte's terms \
+             (stabilization.alpha = {:e}, beta = {:e}) decay the constraint violation at a rate of \
+             {baumgarte_rate:.3e} 1/s, which limits the step to about {baumgarte_limit:.2e} s \
+             ({baumgarte_steps:.1e} steps over the span); use a smaller stabilization.alpha and \
+             beta (of the order of the mechanism's own frequencies) or stabilization.projection",
+            cfg.method.name(),
+            bg.alpha,
+            bg.beta
+        ));
+    }
     let Ok(modes) = crate::formulation::fastest_modes(sys, cfg.t0, q0, qd0, 60) else {
         return Ok(()); // the run itself will report a singular matrix
     };
@@ -1075,10 +1263,17 @@ fn finish(
                         work.indefinite_pivots
                     ));
                 } else {
-                    // Φ_q kept its rank: the hint about singular positions would mislead
-                    m.push_str(
-                        " — no regularised pivot: Φ_q kept its rank, not a singular position",
-                    );
+                    // What was checked: the pivots of every Newton matrix's
+                    // factorisation, at the system's full size; a nearly
+                    // singular Φ_q above the regularisation threshold is not
+                    // excluded by them.
+                    m.push_str(&format!(
+                        " — no regularised pivot in the {} factorisations of the Newton matrix \
+                         ({} coordinates): none found Φ_q rank-deficient; a nearly singular \
+                         position is not excluded by that check",
+                        work.factorizations,
+                        sys.n_coords()
+                    ));
                 }
             }
             ("failed", Some(m))
@@ -1101,30 +1296,34 @@ fn finish(
     warnings.extend(report.warnings.iter().cloned());
     if let Some(b) = &watch.balance {
         // what the tolerance and the quadrature of W explain
-        let bound = 100.0 * cfg.ode.rtol * b.scale + 10.0 * b.quadrature_error;
+        let bound = (100.0 * cfg.ode.rtol * b.scale).max(b.floor) + 10.0 * b.quadrature_error;
         if !cfg.method.is_index3() && b.max_error > bound {
             warnings.push(format!(
                 "energy balance broken: |T + V − E0 − W| reached {:.3e} J, more than \
-                 100 rtol × {:.3e} J (the energy scale) + 10 × {:.3e} J (the quadrature \
+                 100 rtol × {:.3e} J (the energy in play: the largest of |T0| + |V0| + |W|, T \
+                 and the changes of V) or {:.3e} J (½ Σ (2m + I) atol², the energy of a \
+                 velocity error of atol), whichever is larger, + 10 × {:.3e} J (the quadrature \
                  error of W) = {bound:.3e} J: the integration error or the constraint drift \
                  is larger than the tolerance explains",
-                b.max_error, b.scale, b.quadrature_error
+                b.max_error, b.scale, b.floor, b.quadrature_error
             ));
         }
         // The implicit methods damp numerically (ρ∞ < 1) or conserve
         // (trapezoidal): they lose energy, they never create it. A gain
         // beyond IMPLICIT_ENERGY_GAIN of the scale (plus the quadrature
         // error of W) means the run left its manifold or its branch.
-        let gain_bound = IMPLICIT_ENERGY_GAIN * b.scale + 10.0 * b.quadrature_error;
+        let gain_bound = (IMPLICIT_ENERGY_GAIN * b.scale).max(b.floor) + 10.0 * b.quadrature_error;
         if cfg.method.is_index3() && b.max_gain > gain_bound {
             warnings.push(format!(
                 "energy balance broken: the run gained energy, T + V − E0 − W reached \
-                 +{:.3e} J, more than {} of the energy scale {:.3e} J (+ 10 × {:.3e} J, the \
+                 +{:.3e} J, more than {} of the energy in play {:.3e} J or the energy of a \
+                 velocity error of atol {:.3e} J, whichever is larger (+ 10 × {:.3e} J, the \
                  quadrature error of W); the numerical damping of {} only removes energy, \
                  so the run left its constraint manifold or its branch of motion",
                 b.max_gain,
                 IMPLICIT_ENERGY_GAIN,
                 b.scale,
+                b.floor,
                 b.quadrature_error,
                 cfg.method.name()
             ));

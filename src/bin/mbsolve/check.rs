@@ -1,6 +1,7 @@
 //! `mbsolve check FILE [--set K=V]…`: validate a scenario without running
 //! it and print the size of the system it describes.
 
+#[cfg(test)]
 use faer::Mat;
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario};
@@ -27,6 +28,7 @@ pub struct Size {
 /// Numerical rank of a dense matrix from its singular values (faer's SVD):
 /// the number of σ_i > max(m, n) · ε · σ_max (the usual rule, as in
 /// NumPy's `matrix_rank`).
+#[cfg(test)]
 pub fn rank(a: &Mat<f64>) -> Result<usize, String> {
     if a.nrows() == 0 || a.ncols() == 0 {
         return Ok(0);
@@ -39,18 +41,12 @@ pub fn rank(a: &Mat<f64>) -> Result<usize, String> {
     Ok(s.iter().filter(|&&v| v > tol).count())
 }
 
-/// Size of `sys` at positions `q`, time `t`: Φ_q assembled dense (fine for
-/// the systems one checks by hand; O(m n min(m, n)) for the SVD).
+/// Size of `sys` at positions `q`, time `t`: the rank of Φ_q from the
+/// sparse LDLᵀ of the saddle matrix `[I Φ_qᵀ; Φ_q 0]` ([`sparse_rank`]),
+/// O(nnz) for chains like every run's factorisation.
 pub fn size(sys: &System, q: &[f64], t: f64) -> Result<Size, String> {
     let (n, m) = (sys.n_coords(), sys.n_constraints());
-    let pattern = sys.jacobian_pattern();
-    let mut vals = vec![0.0; pattern.len()];
-    sys.jacobian_values(q, t, &mut vals);
-    let mut a = Mat::<f64>::zeros(m, n);
-    for (&(r, c), &v) in pattern.iter().zip(&vals) {
-        a[(r, c)] += v;
-    }
-    let r = rank(&a)?;
+    let r = sparse_rank(sys, q, t)?;
     Ok(Size {
         bodies: sys.bodies().len(),
         coordinates: n,
@@ -59,6 +55,48 @@ pub fn size(sys: &System, q: &[f64], t: f64) -> Result<Size, String> {
         dof: n - r,
         redundant: m - r,
     })
+}
+
+/// rank Φ_q at `(q, t)`: m minus the pivots the sparse LDLᵀ of
+/// `[I Φ_qᵀ; Φ_q 0]` regularised (`linalg::SparseLdlt`, its rows scaled
+/// to unit maximum, pivots of modulus below `linalg::sparse::DEFAULT_EPSILON`
+/// = 1e-11 regularised: a multiplier pivot vanishes exactly where a row of
+/// Φ_q depends on the rows eliminated before it). The same test as every
+/// run's factorisation, at the system's full size.
+pub fn sparse_rank(sys: &System, q: &[f64], t: f64) -> Result<usize, String> {
+    use mbsolve::linalg::{SaddleMatrix, SaddlePointSolver, SparseLdlt};
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    if m == 0 {
+        return Ok(0);
+    }
+    let pattern = sys.jacobian_pattern();
+    let mut vals = vec![0.0; pattern.len()];
+    sys.jacobian_values(q, t, &mut vals);
+    if let Some(k) = vals.iter().position(|v| !v.is_finite()) {
+        return Err(format!(
+            "Φ_q at the initial state has a non-finite entry at {:?}",
+            pattern[k]
+        ));
+    }
+    let mut k = SaddleMatrix::new(n, m, &[], pattern);
+    k.set_a_diagonal(&vec![1.0; n]);
+    k.set_jacobian(&vals);
+    let mut solver = SparseLdlt::default();
+    let fail = |e: mbsolve::linalg::LinalgError| format!("factorising [I Φ_qᵀ; Φ_q 0]: {e}");
+    solver.analyze(&k).map_err(fail)?;
+    let info = solver.factorize(&k).map_err(fail)?;
+    Ok(m - info.regularized_pivots.min(m))
+}
+
+/// `x` as Rust's shortest round-trip decimal where that is short, else in
+/// exponent notation (never a 300-digit number).
+fn short(x: f64) -> String {
+    let plain = format!("{x}");
+    if plain.len() <= 12 {
+        plain
+    } else {
+        format!("{x:e}")
+    }
 }
 
 /// The kind of an element from its description: the leading words up to
@@ -101,7 +139,10 @@ fn report(sc: &Scenario, s: &Size) -> String {
     line("constraint equations", s.constraints.to_string());
     line(
         "rank of Phi_q",
-        format!("{} (at the initial state)", s.rank),
+        format!(
+            "{} (at the initial state; regularised pivots of a sparse LDLᵀ of [I Φ_qᵀ; Φ_q 0])",
+            s.rank
+        ),
     );
     line("degrees of freedom", s.dof.to_string());
     line("redundant equations", s.redundant.to_string());
@@ -147,7 +188,9 @@ fn report(sc: &Scenario, s: &Size) -> String {
         "time",
         format!(
             "{} .. {} s, output every {} s",
-            sc.run.t0, sc.run.t_end, sc.run.output_dt
+            short(sc.run.t0),
+            short(sc.run.t_end),
+            short(sc.run.output_dt)
         ),
     );
     if let Some(a) = &sc.assembly {

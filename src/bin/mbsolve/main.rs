@@ -492,6 +492,9 @@ fn run(
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
     }
+    // before any file is claimed: a signal from here on ends the run with
+    // its summary written, never the process with a "running" one
+    stream::install_interrupt_handler();
     let mut files = stream::RunFiles::create(
         out,
         &stem,
@@ -512,7 +515,6 @@ fn run(
         sc.run.t0,
         sc.run.t_end,
     );
-    stream::install_interrupt_handler();
 
     let mut contacts = ContactMonitor::for_rods(&sc.rods);
     let mut monitors: Vec<&mut dyn Monitor> = Vec::new();

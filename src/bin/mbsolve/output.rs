@@ -86,10 +86,12 @@ pub fn create_fresh(path: &Path) -> Result<File, OutputError> {
         .map_err(|e| OutputError::new(path, e))
 }
 
-/// Write `text` to `path` atomically: a fresh temporary file beside it,
+/// Write `text` to `path` atomically: a fresh temporary file beside it
+/// (named with the process id),
 /// synced, renamed over `path` (which replaces a symlink, not its target).
 pub fn write_atomic(path: &Path, text: &str) -> Result<(), OutputError> {
-    let tmp = sibling(path, ".tmp");
+    // unique per process: two runs into one directory never share it
+    let tmp = sibling(path, &format!(".{}.tmp", std::process::id()));
     let mut f = create_fresh(&tmp)?;
     f.write_all(text.as_bytes())
         .and_then(|_| f.sync_all())

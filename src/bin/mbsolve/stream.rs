@@ -28,9 +28,31 @@ pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 pub fn install_interrupt_handler() {
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            // the summary must not stay "running": say what happened
+            if let Some(p) = SUMMARY.lock().ok().and_then(|g| g.clone()) {
+                let _ = std::fs::write(&p, SECOND_SIGNAL_SUMMARY);
+            }
             std::process::exit(130);
         }
     });
+}
+
+/// The summary of the run in progress, for the second signal's handler.
+static SUMMARY: std::sync::Mutex<Option<PathBuf>> = std::sync::Mutex::new(None);
+
+/// The summary a second signal leaves (written in place, no temporary file).
+const SECOND_SIGNAL_SUMMARY: &str = "{\n  \"status\": \"interrupted\",\n  \"message\": \"a second \
+    signal ended the process at once: the table was not finished; its rows up to the last \
+    flush are in the .part file\"\n}\n";
+
+/// Write `summary`; where the atomic write fails (disk full, file too
+/// large), overwrite the existing summary in place with its status and
+/// message, so that it never stays "running".
+fn write_final_summary(path: &Path, summary: &Summary) -> Result<(), OutputError> {
+    write_summary_json(path, summary).inspect_err(|_| {
+        let short = serde_json::json!({"status": summary.status, "message": summary.message});
+        let _ = std::fs::write(path, format!("{short}\n"));
+    })
 }
 
 /// How progress is shown on stderr.
@@ -166,6 +188,9 @@ impl<'s> RunFiles<'s> {
         let part = sibling(&csv, ".part");
         let text = serde_json::to_string_pretty(running).map_err(|e| OutputError::new(&json, e))?;
         write_atomic(&json, &(text + "\n"))?;
+        if let Ok(mut g) = SUMMARY.lock() {
+            *g = Some(json.clone());
+        }
         for f in Format::NAMES {
             remove_stale(&out.join(format!("{stem}.{f}")))?;
         }
@@ -198,15 +223,37 @@ impl<'s> RunFiles<'s> {
         if let Some(p) = &self.progress {
             p.clear();
         }
-        if let Some(mut t) = self.table.take() {
-            t.finish().map_err(|e| OutputError::new(&self.part, e))?;
-            drop(t);
-            std::fs::File::open(&self.part)
-                .and_then(|f| f.sync_all())
-                .map_err(|e| OutputError::new(&self.part, e))?;
-            std::fs::rename(&self.part, &self.csv).map_err(|e| OutputError::new(&self.csv, e))?;
+        let table = match self.table.take() {
+            Some(mut t) => t
+                .finish()
+                .map_err(|e| OutputError::new(&self.part, e))
+                .and_then(|()| {
+                    drop(t);
+                    std::fs::File::open(&self.part)
+                        .and_then(|f| f.sync_all())
+                        .map_err(|e| OutputError::new(&self.part, e))
+                })
+                .and_then(|()| {
+                    std::fs::rename(&self.part, &self.csv)
+                        .map_err(|e| OutputError::new(&self.csv, e))
+                }),
+            None => Ok(()),
+        };
+        match table {
+            Ok(()) => write_final_summary(&self.json, summary),
+            Err(e) => {
+                // the table could not be finished: the run failed, and its
+                // summary says so rather than staying "running"
+                let mut s = summary.clone();
+                s.message = Some(format!(
+                    "{}; finishing the table failed: {e}",
+                    s.message.as_deref().unwrap_or(&s.status)
+                ));
+                s.status = "failed".into();
+                let _ = write_final_summary(&self.json, &s);
+                Err(e)
+            }
         }
-        write_summary_json(&self.json, summary)
     }
 }
 

@@ -8,6 +8,12 @@
 //! parameters) and writes a shard table with the run index k; `--merge`
 //! joins the N shard tables into the table one unsharded sweep writes,
 //! checking that every run is present exactly once.
+//!
+//! Bounded and interruptible: a product of more than [`MAX_RUNS`] runs is an
+//! error before anything runs; SIGINT/SIGTERM end the runs in progress at
+//! their next step (status `interrupted`), start no new ones (`not run`),
+//! and the table (or shard table) and summaries of every finished run are
+//! still written (exit 130).
 
 use crate::output::write_summary_json;
 use mbsolve::parallel::Threads;
@@ -17,6 +23,11 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Most runs of one sweep's product (10⁵): every combination is listed and
+/// validated before the first run. Larger studies are split into several
+/// sweeps.
+pub const MAX_RUNS: usize = 100_000;
 
 /// One parameter of a sweep: a scenario key and its values.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,6 +75,33 @@ impl Sink for SummaryOnly {
     fn output(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         Ok(())
     }
+    fn progress(&mut self, t: f64, _: &mbsolve::integrate::Stats) -> std::ops::ControlFlow<String> {
+        if crate::stream::INTERRUPTED.load(Ordering::Relaxed) {
+            return std::ops::ControlFlow::Break(format!("interrupted by a signal at t = {t:e}"));
+        }
+        std::ops::ControlFlow::Continue(())
+    }
+}
+
+/// The number of runs of the product, or an error naming the sizes when it
+/// exceeds [`MAX_RUNS`].
+pub fn product_size(params: &[SweepParam]) -> Result<usize, String> {
+    let total = params
+        .iter()
+        .try_fold(1usize, |a, p| a.checked_mul(p.values.len()))
+        .filter(|&n| n <= MAX_RUNS);
+    total.ok_or_else(|| {
+        let sizes: Vec<String> = params
+            .iter()
+            .map(|p| format!("{} ({})", p.key, p.values.len()))
+            .collect();
+        let product: f64 = params.iter().map(|p| p.values.len() as f64).product();
+        format!(
+            "--param: the sweep has {product:.3e} runs ({}), more than the limit of {MAX_RUNS}: \
+             split it into several sweeps",
+            sizes.join(" × ")
+        )
+    })
 }
 
 /// All combinations, first parameter slowest.
@@ -141,10 +179,15 @@ pub fn run(
     // (unless its scenario forces two), not a team per run as well
     let side_by_side = total > 1 && rayon::current_num_threads() > 1;
     let done = AtomicUsize::new(0);
+    let interrupted = || crate::stream::INTERRUPTED.load(Ordering::Relaxed);
     let start = std::time::Instant::now();
     Ok(points
         .into_par_iter()
         .map(|(k, point)| {
+            if interrupted() {
+                let result = Err("not run: the sweep was interrupted by a signal".to_string());
+                return (k, SweepRun { point, result });
+            }
             let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
                 .and_then(|mut sc| {
@@ -237,6 +280,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
             ));
         }
     }
+    product_size(&params)?;
     let shard = a.shard.as_deref().map(str::parse::<Shard>).transpose()?;
     let stem = a
         .scenario
@@ -249,6 +293,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
         return merge(&a.out, &stem, &header, combinations(&params).len());
     }
     let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
+    crate::stream::install_interrupt_handler();
     let runs = run(&a.scenario, &a.set, &params, shard, &label).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let table = match shard {
@@ -312,6 +357,13 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     }
     w.flush().map_err(|e| werr(&e))?;
     say!("wrote {}", table.display());
+    if crate::stream::INTERRUPTED.load(Ordering::Relaxed) {
+        eprintln!(
+            "sweep interrupted by a signal: the finished runs are in {}",
+            table.display()
+        );
+        return Ok(ExitCode::from(130));
+    }
     Ok(if failures == 0 {
         ExitCode::SUCCESS
     } else {

@@ -139,7 +139,14 @@ impl ForceType for Expression {
                 text,
                 source,
                 ..
-            } => err(&field, format!("\"{text}\": {source}")),
+            } => {
+                // A long text is shown by its start and length.
+                let shown = match text.char_indices().nth(60) {
+                    Some((cut, _)) => format!("\"{}…\" ({} bytes)", &text[..cut], text.len()),
+                    None => format!("\"{text}\""),
+                };
+                err(&field, format!("{shown}: {source}"))
+            }
             ExpressionError::UnknownBody { body, .. } => {
                 err("body", format!("no body named '{body}' ({})", list(names)))
             }
