@@ -52,7 +52,7 @@ pub struct TeamReport {
     /// itself because the helper had not started them.
     pub halves_taken_back: usize,
     /// Joins a team ran on one thread without posting (the second thread
-    /// was found busy, [`MISS_LIMIT`]).
+    /// was found busy).
     pub halves_solo: usize,
 }
 
