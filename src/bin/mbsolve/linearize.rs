@@ -143,8 +143,10 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
         if *im > 0.0 {
             let w = re.hypot(*im);
             say!(
-                "  eigenvalue {re:.6e} ± {im:.6e} i: {:.6e} Hz undamped, damping ratio {:.4e}",
+                "  eigenvalue {re:.6e} ± {im:.6e} i: |λ|/2π = {:.6e} Hz, damped {:.6e} Hz, \
+                 damping ratio −Re λ/|λ| = {:.4e}",
                 w / std::f64::consts::TAU,
+                im / std::f64::consts::TAU,
                 -re / w
             );
         } else {

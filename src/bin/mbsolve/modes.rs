@@ -181,6 +181,7 @@ fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<
             })
             .collect(),
         log_y: false,
+        ..Default::default()
     };
     let s = format!("{stem}.modes");
     fig.save(out, &s).map_err(|e| e.to_string())?;
