@@ -228,7 +228,7 @@ impl AugmentedLagrangian {
 
     /// Integrate from `(t0, q0, q̇0)` to `t_end`, delivering `y = [q; q̇]`
     /// at `output_times` (cubic Hermite between step ends) through
-    /// [`driver::drive`]; a failure midway is `Ok` with
+    /// [`super::drive`]; a failure midway is `Ok` with
     /// [`super::Termination::Failed`].
     #[allow(clippy::too_many_arguments)]
     pub fn integrate(
