@@ -189,6 +189,8 @@ fn runs_side_by_side_each_run_on_one_thread() {
             }
         }
     }
+}
+
 /// SIGTERM on a sweep (and SIGINT, the same handler) ends the runs in
 /// progress at their next step, starts no new ones and still writes the
 /// table with every finished run (exit 130). The signal is sent after the

@@ -250,6 +250,8 @@ fn threads_environment_variable_reaches_the_run() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("MBSOLVE_THREADS") && e.contains("'many'"), "{e}");
+}
+
 /// Every `[integrator]` key against every method, with and without
 /// `adaptive = true`: the method table's row decides whether the loader
 /// accepts the key, and a refusal names the key and the method.
