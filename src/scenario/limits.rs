@@ -28,8 +28,8 @@ pub const MIN_SPAN_ULPS: f64 = 1e4;
 pub const MIN_STEP_ULPS: f64 = 16.0;
 
 /// Memory of the model, its evaluation buffers and the linear solver per
-/// body \[bytes\]: 8 kB, rounded up from 7.3 kB measured at N = 10⁶
-/// segments and 6.8 kB (peak RSS over N) at N = 10⁴ on the falling rod.
+/// body \[bytes\]: 8 kB, above the falling rod's peak resident memory per
+/// segment (the measurements are in docs/limits.md).
 pub const MODEL_BYTES_PER_BODY: f64 = 8e3;
 
 /// Memory the estimate may not exceed when the machine's is unknown \[bytes\].
