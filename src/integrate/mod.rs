@@ -50,8 +50,8 @@ mod driver;
 mod embedded;
 mod genalpha;
 mod hermite;
-mod method;
 pub mod implicit;
+mod method;
 mod ode113;
 mod options;
 mod radau;
@@ -67,12 +67,12 @@ pub use genalpha::{
     AlphaParameters, GenAlpha, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SAFETY,
     SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
+pub use implicit::ImplicitStats;
 pub(crate) use method::methods_taking;
 pub use method::{
     markdown_table as method_table_markdown, Equations, Family, KeyUse, Method, MethodInfo,
     Stepping, METHODS, STEP_CONTROL_KEYS,
 };
-pub use implicit::ImplicitStats;
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 pub use radau::{ComplexNewton, Radau5, RadauTableau};
 
