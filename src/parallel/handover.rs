@@ -4,7 +4,7 @@
 //! `--cfg loom`, where the atomics, the cell and the park/unpark calls are
 //! loom's). Imports nothing of the crate.
 //!
-//! States of [`Handover::state`] and who owns the job slot in each:
+//! States of the hand-over (`Handover::state`) and who owns the job slot in each:
 //!
 //! ```text
 //!  IDLE ──caller posts──► POSTED ──helper takes──► RUNNING ──helper ends──► DONE

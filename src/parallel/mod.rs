@@ -1,6 +1,6 @@
 //! Concurrency of one run: the size thresholds from which passes split
-//! into two concurrent halves, [`join_if`] and [`in_halves`] that run
-//! them, the run's two-thread team ([`team`]) and the user's switch
+//! into two concurrent halves, `join_if` and `in_halves` that run
+//! them, the run's two-thread team (`team`) and the user's switch
 //! ([`Threads`], scenario key `integrator.threads`, environment variable
 //! [`THREADS_ENV`]).
 //!
