@@ -458,8 +458,12 @@ fn newton_iterations_per_step() -> Vec<Check> {
 }
 
 /// Bound of [`oversubscribed_two_over_one`]: two threads may cost at most
-/// 5 % more wall time than one on a machine whose cores are all busy.
-pub const OVERSUBSCRIBED_MIN: f64 = 0.95;
+/// 25 % more wall time than one on a machine whose cores are all busy.
+/// The target is 0.95; the ratio of a correct build spreads over about
+/// 0.87–1.07 from run to run on a 2-core machine, so a gate at 0.95 would
+/// fail at random, while the regression it guards against (a team that
+/// spins on a descheduled partner) gives 0.03–0.2 (docs/scaling.md).
+pub const OVERSUBSCRIBED_MIN: f64 = 0.8;
 
 /// Busy processes, one per core, ended (killed and reaped) on drop.
 struct BusyProcesses(Vec<std::process::Child>);
