@@ -11,16 +11,7 @@
 //!
 //! Run: `cargo bench --bench codegen` (≈ 1 min).
 //!
-//! Recorded (release, shared 2-core machine, criterion median of two runs;
-//! a new q every iteration):
-//!
-//! | N      | generic  | generated (3 `System` calls) | ratio | fused    | ratio |
-//! |--------|----------|------------------------------|-------|----------|-------|
-//! | 1000   | 77.7 µs  | 22.8 µs                      | 3.4×  | 13.6 µs  | 5.7×  |
-//! | 10 000 | 778 µs   | 231 µs                       | 3.4×  | 141 µs   | 5.5×  |
-//!
-//! Without the kernels' per-body sine/cosine memo the three-call path was
-//! 2.0–2.3× (each call recomputing every body's sine and cosine).
+//! A new q every iteration. Measured figures: docs/codegen.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use mbsolve::constraints::Revolute;

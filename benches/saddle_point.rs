@@ -14,18 +14,8 @@
 //! Symbolic analysis is done once outside the timed loop, as in the solver.
 //! Run: `cargo bench --bench saddle_point` (≈ 1.5 min on 2 cores).
 //!
-//! Recorded (release, shared 2-core machine, criterion median):
-//!
-//! | N      | dim    | sparse AMD | sparse chain | sparse natural | dense    | yardstick |
-//! |--------|--------|------------|--------------|----------------|----------|-----------|
-//! | 10     | 50     | 2.6 µs     | 2.9 µs       | 2.5 µs         | 12.9 µs  | 1.6 µs    |
-//! | 100    | 500    | 27.7 µs    | 30.6 µs      | 27.0 µs        | 4.7 ms   | 16.6 µs   |
-//! | 1000   | 5000   | 0.29 ms    | 0.37 ms      | 0.27 ms        | 2.5 s    | 0.17 ms   |
-//! | 10 000 | 50 000 | 3.9 ms     | 4.5 ms       | 4.1 ms         | —        | 1.9 ms    |
-//!
-//! nnz(L) = 18N − 8 for AMD and natural, 19N − 9 for the chain order.
-//! Break-even: none — sparse 0.25 µs vs dense 0.91 µs at dim 5, 6.1 µs vs
-//! 66 µs at dim 120.
+//! Measured figures: docs/linear_solvers.md (the defaults they chose) and
+//! docs/scaling.md.
 
 // Small fixed-size block kernels read best with explicit indices.
 #![allow(clippy::needless_range_loop)]

@@ -1,5 +1,6 @@
 //! The falling rod of problem B (docs/problems.md, the builder behind
-//! `[rod]`) at N segments, one JSON line per run (issue 12, targets 2 and 3):
+//! `[rod]`) at N segments, one JSON line per run (the rod's speed
+//! comparisons and CPU slope from N = 1000 to 10 000 of docs/scaling.md):
 //! steps, Newton iterations, factorisations, failures, CPU seconds, the time
 //! of the first wall contact (a corner against a wall, [`ContactMonitor`])
 //! and, with `MBS_TRACE=FILE`, the bottom end, middle joint and tip at every

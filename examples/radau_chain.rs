@@ -1,4 +1,4 @@
-//! The stiff chain of issue 12 with radau5 (and generalized-α) at given
+//! The stiff chain of `../shared/peers/` with radau5 (and generalized-α) at given
 //! fixed steps: tip x at t_end, error against the peers' reference, steps,
 //! Newton iterations, factorisations, CPU seconds; one JSON line per run.
 //!
@@ -9,7 +9,7 @@
 //! 1e-3·rtol, `MBS_ATOL` overrides); `h` in the output line is then rtol.
 //! `TOL`: `integrator.newton_tol` (m/s²) of that run; `MBS_NEWTON_TOL`
 //! sets it for the runs without one. `MBS_T_END` (s, default 0.1).
-//! The issue-12 benchmark runs `radau5:4e-4:1` (docs/radau.md).
+//! The stiff-chain comparisons of docs/radau.md run `radau5:4e-4:1`.
 
 use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
 use mbsolve::integrate::Method;

@@ -1,5 +1,5 @@
-//! The cantilevered stiff chain of `../shared/peers/` (issue 12), run the
-//! way the peer scripts run it: one JSON line per method with the tip x at
+//! The cantilevered stiff chain of `../shared/peers/`, run the way the
+//! peer scripts run it: one JSON line per method with the tip x at
 //! t = 0.1 s, its error against `stiff_chain_reference_tip`, steps,
 //! Newton iterations and failures, wall and CPU seconds.
 //!

@@ -1,5 +1,5 @@
 //! The cantilevered stiff chain of the peer comparisons
-//! (`../shared/peers/`, issue 12): N rigid segments of the rod of problem B
+//! (`../shared/peers/`): N rigid segments of the rod of problem B
 //! (1 m, 0.03 m square steel) hanging down from a pivot at the origin, a
 //! revolute joint and a torsional spring–damper `k = E w⁴/(12 l_s)`,
 //! `c = 10⁻⁵ s · k` at every joint (ground–1 included, rest angle 0 =
@@ -19,9 +19,8 @@ use crate::model::{Gravity, ModelError, System, SystemBuilder};
 /// bdf (rtol 1e-9), two methods of different order and error control:
 /// radau5 −0.0918238669 (1e-4), −0.0918238611 (5e-5), bdf −0.0918238599
 /// (ndf rtol 1e-8: −0.0918238462), so −0.09182386 ± 2e-9 m
-/// (within the peers' −0.0918244 ± 1e-6; the earlier Richardson value
-/// −0.09182443 from generalized-α at 5e-6 and 2.5e-6 was 5.7e-7 off: the
-/// start-transient step cuts made its error irregular in h). N = 10 000:
+/// (within the peers' −0.0918244 ± 1e-6; the superseded generalized-α
+/// Richardson value is in docs/bench_exudyn.md). N = 10 000:
 /// bdf rtol 1e-9 −0.0924593219 and ndf rtol 1e-8 −0.0924593084, so
 /// −0.09245932 ± 2e-8 m.
 pub fn stiff_chain_reference_tip(n: usize) -> Option<f64> {

@@ -1,4 +1,4 @@
-//! Loads given by user expressions (issue 11): a force at a body point, a
+//! Loads given by user expressions (docs/expressions.md): a force at a body point, a
 //! torque, or a force along the line between two points, each a function of
 //! time and of the coordinates and velocities of named bodies, written in the
 //! expression language of `mbsolve-codegen` (docs/expressions.md).

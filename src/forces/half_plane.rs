@@ -1,6 +1,6 @@
 //! Contact of a body-fixed point or circle with a straight wall (a
 //! half-plane at any angle), with the rod's Hunt–Crossley normal law and
-//! regularised Coulomb friction (issue 11, item 1).
+//! regularised Coulomb friction (docs/scenarios.md, `[[force]]`).
 
 use super::contact::{friction_tanh, HuntCrossley};
 use super::{check_coordinates, FdWorkspace, ForceElement};

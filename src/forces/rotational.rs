@@ -1,5 +1,5 @@
 //! Rotational spring–damper between two bodies or a body and the ground,
-//! with linear or tabulated laws (issue 11, item 1).
+//! with linear or tabulated laws (docs/scenarios.md, `[[force]]`).
 
 use super::{check_coordinates, FdWorkspace, ForceElement, Law};
 use crate::model::{BodyRef, ModelError};

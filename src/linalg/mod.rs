@@ -206,16 +206,13 @@ impl std::str::FromStr for SolverKind {
 /// `SolverKind::Auto` uses the dense LU for saddle-point matrices of
 /// dimension `n + m` below this and the sparse LDLᵀ from it on.
 ///
-/// Measured with `cargo bench --bench saddle_point -- breakeven` (pendulum
-/// chains, numeric factorisation + one solve, release, 2-core machine):
-/// there is no break-even — `SparseLdlt` is faster at every size, from
-/// dim 5 (1 body: 0.25 µs vs 0.91 µs for `DenseLu`) through dim 30
-/// (1.5 µs vs 5.4 µs) to dim 120 (6.1 µs vs 66 µs). `DenseLu` pays an
-/// allocation and a dense copy per factorisation that the sparse path has
-/// not, and it rejects rank-deficient `Φ_q` where the sparse path
-/// regularises. So `Auto` is sparse for every dimension (threshold 0);
-/// the constant stays so that a faster dense kernel can reclaim tiny
-/// systems by re-measuring.
+/// `cargo bench --bench saddle_point -- breakeven` finds no break-even:
+/// `SparseLdlt` was faster than `DenseLu` at every size measured, from
+/// dim 5 up (docs/linear_solvers.md). `DenseLu` pays an allocation and a
+/// dense copy per factorisation that the sparse path has not, and it
+/// rejects rank-deficient `Φ_q` where the sparse path regularises. So
+/// `Auto` is sparse for every dimension (threshold 0); the constant stays
+/// so that a faster dense kernel can reclaim tiny systems by re-measuring.
 pub const AUTO_DENSE_MAX_DIM: usize = 0;
 
 /// Create the solver of `kind` for a saddle-point matrix of dimension

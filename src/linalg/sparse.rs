@@ -84,12 +84,11 @@ pub enum Ordering {
     /// matrix with full-rank constraint part, so all pivots have the
     /// expected sign. Costs ~6 % more fill than plain AMD on chains.
     ///
-    /// The default: fastest of the orders measured on chains
-    /// (`benches/saddle_point.rs`, factorisation + solve: 0.29 ms vs
-    /// 0.37 ms for [`chain_order`] at N = 1000 bodies, 3.9 ms vs 4.5 ms at
-    /// N = 10 000; a tie with [`Ordering::Natural`], which has the same fill
-    /// on a chain numbered along the chain) and general purpose (trees,
-    /// loops, coupled `A` blocks, any joint numbering).
+    /// The default: fastest of the orders measured on chains (faster
+    /// than [`chain_order`], a tie with [`Ordering::Natural`], which has
+    /// the same fill on a chain numbered along the chain;
+    /// docs/linear_solvers.md) and general purpose (trees, loops, coupled
+    /// `A` blocks, any joint numbering).
     #[default]
     Amd,
     /// The given order: all coordinates, then all multipliers. Always safe
