@@ -1,5 +1,5 @@
-//! Factorisation + one solve of the Newton matrix of the stiff chain
-//! of `../shared/peers/` (`builders::stiff_chain`) by the solver `Index3` uses
+//! Factorisation + one solve of the Newton matrix of the stiff chain of
+//! `../shared/peers/` (`builders::stiff_chain`) by the solver `Index3` uses
 //! (`ChainLdlt`, the envelope LDLᵀ), by faer's sparse LDLᵀ (no residual
 //! check) and by a hand-written block-tridiagonal LDLᵀ of the same chain
 //! written here, independent of the library's solvers: the floor the

@@ -1,6 +1,7 @@
-//! The stiff chain of `../shared/peers/` with radau5 (and generalized-α) at given
-//! fixed steps: tip x at t_end, error against the peers' reference, steps,
-//! Newton iterations, factorisations, CPU seconds; one JSON line per run.
+//! The stiff chain of `../shared/peers/` with radau5 (and generalized-α)
+//! at given fixed steps: tip x at t_end, error against the peers'
+//! reference, steps, Newton iterations, factorisations, CPU seconds; one
+//! JSON line per run.
 //!
 //! ```text
 //! cargo run --release --example radau_chain -- N [radau5:H[:TOL] | genalpha:H[:TOL] | aradau5:RTOL[:TOL] ...]

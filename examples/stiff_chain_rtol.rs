@@ -1,6 +1,6 @@
 //! Accuracy against work of the adaptive implicit methods on the stiff
-//! chain of `../shared/peers/`: for each `METHOD:RTOL` one JSON line with the tip x
-//! error at t = 0.1 s against the peers' reference
+//! chain of `../shared/peers/`: for each `METHOD:RTOL` one JSON line with
+//! the tip x error at t = 0.1 s against the peers' reference
 //! (`stiff_chain_reference_tip`), the error in units of rtol, steps,
 //! Newton iterations per step, factorisations, failed steps and CPU
 //! seconds.

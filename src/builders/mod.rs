@@ -2,9 +2,9 @@
 //! joints, bending springs, buoyancy, drag, wall contact) and the known-answer
 //! chains of problem D (docs/problems.md) (finite-segment cantilever, N-link pendulum);
 //! the parallelogram-loop chain through singular configurations with its
-//! one-degree-of-freedom reference (docs/constraint_methods.md); a chain of N uniform links
-//! with torsional springs and an optional ground pivot (`add_link_chain`,
-//! the scenario's `[[chain]]`).
+//! one-degree-of-freedom reference (docs/constraint_methods.md); a chain
+//! of N uniform links with torsional springs and an optional ground pivot
+//! (`add_link_chain`, the scenario's `[[chain]]`).
 
 mod chain;
 mod parallelogram;

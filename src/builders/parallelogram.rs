@@ -1,5 +1,6 @@
 //! A chain of parallelogram four-bars through its singular configurations
-//! (docs/constraint_methods.md), with an independent one-degree-of-freedom reference.
+//! (docs/constraint_methods.md), with an independent one-degree-of-freedom
+//! reference.
 //!
 //! `k` loops in series share their cranks: `k + 1` equal cranks of length
 //! `r` pivoted on the ground at `(i L, 0)`, `i = 0 … k`, and `k` couplers of
