@@ -573,36 +573,9 @@ fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec
         )
         .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
     }
-    let mut remaining = vec![0usize; dim];
-    for a in &adj[..n] {
-        for &r in a {
-            if r >= n {
-                remaining[r] += 1;
-            }
-        }
-    }
-    let mut pending = vec![false; dim];
-    let mut order = Vec::with_capacity(dim);
-    for &i in &fwd {
-        if i < n {
-            order.push(i);
-            for &r in &adj[i] {
-                if r >= n {
-                    remaining[r] -= 1;
-                    if remaining[r] == 0 && pending[r] {
-                        pending[r] = false;
-                        order.push(r);
-                    }
-                }
-            }
-        } else if remaining[i] == 0 {
-            order.push(i);
-        } else {
-            pending[i] = true;
-        }
-    }
+    let order = crate::linalg::postpone_multipliers(&fwd, n, |c| &adj[c]);
     if order.len() != dim {
-        return Err("a constraint row has no coordinates".into());
+        return Err("the elimination order is not a permutation".into());
     }
     Ok(order)
 }
