@@ -40,7 +40,7 @@ pub struct LinearizeArgs {
     #[arg(long, value_delimiter = ',')]
     pub outputs: Vec<String>,
     /// Independent coordinates `BODY.x|y|phi`, comma-separated [default:
-    /// chosen by complete pivoting of Φ_q].
+    /// the non-pivot columns of a sparse elimination of Φ_q].
     #[arg(long, value_delimiter = ',')]
     pub independent: Vec<String>,
     /// `auto` (exact tangent matrices at an equilibrium at rest, central
