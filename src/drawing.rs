@@ -119,12 +119,16 @@ pub enum Part {
         /// Pin point.
         at: P,
     },
-    /// A ground pivot: a triangle under the point on a hatched base.
+    /// A ground pivot: a triangle from the point towards `down` on a
+    /// hatched base.
     Support {
         /// Pivot point, global.
         at: P,
         /// Triangle height \[m\].
         size: f64,
+        /// Unit direction from the pivot into the support (`[0, −1]`: the
+        /// support under the pivot; chosen away from the pinned body).
+        down: P,
     },
     /// A fixed line with hatching on the side opposite `normal` (walls,
     /// the ground under a guide).
@@ -578,17 +582,19 @@ impl Drawing {
                 Part::Pin { body, at } => out.push(Mark::Pin {
                     centre: world(q, *body, *at),
                 }),
-                Part::Support { at, size } => {
+                Part::Support { at, size, down } => {
                     let (h, w) = (*size, 0.6 * size);
+                    let base = add(*at, mul(*down, h));
+                    let side = perp(*down);
                     out.push(Mark::Fill {
-                        points: vec![*at, add(*at, [-w, -h]), add(*at, [w, -h])],
+                        points: vec![*at, add(base, mul(side, -w)), add(base, mul(side, w))],
                         ink: Ink::Ground,
                     });
                     hatched(
                         &mut out,
-                        add(*at, [-1.6 * w, -h]),
-                        add(*at, [1.6 * w, -h]),
-                        [0.0, 1.0],
+                        add(base, mul(side, -1.6 * w)),
+                        add(base, mul(side, 1.6 * w)),
+                        mul(*down, -1.0),
                         0.4 * h,
                     );
                 }

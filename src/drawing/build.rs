@@ -198,19 +198,36 @@ impl Drawing {
                 JointGeometry::Revolute {
                     body_i: BodyRef::Ground,
                     s_i: p,
+                    body_j: other,
                     ..
                 }
                 | JointGeometry::Revolute {
                     body_j: BodyRef::Ground,
                     s_j: p,
+                    body_i: other,
                     ..
-                } => d.parts.insert(
-                    0,
-                    Part::Support {
-                        at: p,
-                        size: 0.05 * scale,
-                    },
-                ),
+                } => {
+                    // the support points away from the pinned body's
+                    // centre at the initial pose, along the nearer axis
+                    // (a body hanging from the pin gets its support above)
+                    let away =
+                        carrier(other).map_or([0.0, -1.0], |b| sub(p, [q0[3 * b], q0[3 * b + 1]]));
+                    let down = if away[0].abs() <= 1e-12 * scale && away[1].abs() <= 1e-12 * scale {
+                        [0.0, -1.0]
+                    } else if away[0].abs() > away[1].abs() {
+                        [away[0].signum(), 0.0]
+                    } else {
+                        [0.0, away[1].signum()]
+                    };
+                    d.parts.insert(
+                        0,
+                        Part::Support {
+                            at: p,
+                            size: 0.05 * scale,
+                            down,
+                        },
+                    )
+                }
                 JointGeometry::Translational {
                     body_i,
                     s_i,
