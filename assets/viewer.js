@@ -118,8 +118,10 @@
             break;
           case "support": {
             const h = p.size, w = 0.6 * p.size;
-            out.push({ kind: "fill", points: [p.at, add(p.at, [-w, -h]), add(p.at, [w, -h])], ink: "ground" });
-            hatched(out, add(p.at, [-1.6 * w, -h]), add(p.at, [1.6 * w, -h]), [0, 1], 0.4 * h);
+            const down = p.down || [0, -1];
+            const base = add(p.at, mul(down, h)), side = perp(down);
+            out.push({ kind: "fill", points: [p.at, add(base, mul(side, -w)), add(base, mul(side, w))], ink: "ground" });
+            hatched(out, add(base, mul(side, -1.6 * w)), add(base, mul(side, 1.6 * w)), mul(down, -1), 0.4 * h);
             break;
           }
           case "ground":

@@ -497,3 +497,59 @@ fn hanging_chain_approaches_the_bessel_frequencies() {
         assert!(errs[1][i] < errs[0][i], "mode {}: no convergence", i + 1);
     }
 }
+
+/// `modes --at t=T` about a swinging physical pendulum: the state the run
+/// reaches at T (reported in the JSON) and the linearised frequency about
+/// it in closed form, ω² = (m g d cos φ + m d² φ̇²) / (I + m d²) (the
+/// geometric stiffness of the pin force, which carries the weight and the
+/// centripetal force), with the energy of the reported state equal to the
+/// start's.
+#[test]
+fn cli_modes_about_the_state_of_a_run_at_t() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let (m, ic, d, start) = (1.5, 0.08, 0.4, 50.0f64);
+    let scen = dir.path().join("swing.toml");
+    std::fs::write(&scen, pendulum(m, ic, d, start)).unwrap();
+    let bin = env!("CARGO_BIN_EXE_mbsolve");
+    let out = Command::new(bin)
+        .args(["modes", "--count", "1", "--animate", "0", "--at", "t=0.23"])
+        .arg(&scen)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("swing.modes.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(r["at"], "t=0.23");
+    assert!((r["t0"].as_f64().unwrap() - 0.23).abs() < 1e-12);
+    let (phi, w) = (r["q"][2].as_f64().unwrap(), r["qd"][2].as_f64().unwrap());
+    // the run moved: about a third of the way down from 50°, fast
+    assert!(
+        phi.abs() < 45f64.to_radians() && w.abs() > 1.0,
+        "φ {phi}, φ̇ {w}"
+    );
+    let g = 9.81;
+    let io = ic + m * d * d;
+    let e0 = -m * g * d * start.to_radians().cos();
+    let e = 0.5 * io * w * w - m * g * d * phi.cos();
+    assert!((e - e0).abs() < 1e-3 * e0.abs(), "energy {e} vs {e0}");
+    let want = ((m * g * d * phi.cos() + m * d * d * w * w) / io).sqrt() / (2.0 * PI);
+    let got = r["modes"][0]["frequency_hz"].as_f64().unwrap();
+    assert!((got - want).abs() < 1e-8 * want, "{got} vs {want} Hz");
+    // a bad time is a named error
+    let bad = Command::new(bin)
+        .args(["modes", "--at", "t=abc"])
+        .arg(&scen)
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("t=abc"));
+}

@@ -313,3 +313,34 @@ fn spring_pendulum_rests_at_the_static_stretch_with_a_neutral_rotation() {
     let st = stability(&sc.system, 0.0, &eq.q, &eq.lambda, 1e-3).unwrap();
     assert_eq!((st.stable, st.unstable, st.neutral), (2, 0, 1));
 }
+
+/// A pendulum held by two identical pins (one redundant constraint pair):
+/// the stability about the equilibrium of the one-pin pendulum (its λ on
+/// the first pin, 0 on the second) is stable hanging and unstable standing
+/// up — the same verdicts as with one pin.
+#[test]
+fn redundant_pins_do_not_stop_the_stability_report() {
+    let twice = |start: f64| {
+        pendulum_text(start).replace(
+            "[time]",
+            "[[joint]]\ntype = \"revolute\"\nname = \"pivot2\"\nbody_i = \"ground\"\n\
+             point_i = [0.0, 0.0]\nbody_j = \"bob\"\npoint_j = [0.0, 0.5]\n[time]",
+        )
+    };
+    let one = scenario::parse(&pendulum_text(40.0), "p.toml", "p", &[]).unwrap();
+    let eq = static_equilibrium(&one.system, &one.q0, StaticOptions::default()).unwrap();
+    let sc = scenario::parse(&twice(40.0), "p.toml", "p", &[]).unwrap();
+    assert_eq!(sc.system.n_constraints(), 4);
+    let lam = [eq.lambda[0], eq.lambda[1], 0.0, 0.0];
+    let st = stability(&sc.system, 0.0, &eq.q, &lam, 1e-3).unwrap();
+    assert_eq!((st.stable, st.unstable, st.neutral), (1, 0, 0));
+    // the weight split between the pins: the same
+    let half = [0.5 * lam[0], 0.5 * lam[1], 0.5 * lam[0], 0.5 * lam[1]];
+    let st = stability(&sc.system, 0.0, &eq.q, &half, 1e-3).unwrap();
+    assert_eq!((st.stable, st.unstable, st.neutral), (1, 0, 0));
+    // standing up: at rest at φ = π (an equilibrium by symmetry), the pins
+    // carry the same weight, so the same multipliers
+    let up = [0.0, 0.5, PI];
+    let st = stability(&sc.system, 0.0, &up, &lam, 1e-3).unwrap();
+    assert_eq!((st.stable, st.unstable, st.neutral), (0, 1, 0));
+}

@@ -263,3 +263,44 @@ fn animate_rejects_bad_arguments() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--speed 0"), "{}", stderr(&o));
 }
+
+/// A ground pivot's support points away from the body pinned to it: a
+/// pendulum hanging from its pin gets the support above the pin (it used
+/// to be drawn under the pin, over the body), a body standing on its pin
+/// gets it below.
+#[test]
+fn ground_support_is_drawn_away_from_the_pinned_body() {
+    use mbsolve::drawing::{Drawing, Ink, Mark};
+    let text = |y: f64, pin: f64| {
+        format!(
+            "[[body]]\nname = \"bob\"\nmass = 1.0\ninertia = 0.01\nx = 0.0\ny = {y}\n\
+             [[joint]]\ntype = \"revolute\"\nname = \"pivot\"\nbody_i = \"ground\"\n\
+             point_i = [0.0, 0.0]\nbody_j = \"bob\"\npoint_j = [0.0, {pin}]\n\
+             [time]\nend = 1.0\n"
+        )
+    };
+    for (y, pin, above) in [(-0.5, 0.5, true), (0.5, -0.5, false)] {
+        let sc = mbsolve::scenario::parse(&text(y, pin), "p.toml", "p", &[]).unwrap();
+        let d = Drawing::new(&sc.system, &sc.q0, &[], &[]);
+        let ground: Vec<[f64; 2]> = d
+            .marks(&sc.q0)
+            .into_iter()
+            .filter_map(|m| match m {
+                Mark::Fill {
+                    points,
+                    ink: Ink::Ground,
+                } => Some(points),
+                _ => None,
+            })
+            .flatten()
+            .collect();
+        assert_eq!(ground.len(), 3, "one support triangle");
+        for p in ground {
+            let ok = if above { p[1] >= -1e-12 } else { p[1] <= 1e-12 };
+            assert!(
+                ok && p[0].abs() < 0.1,
+                "support point {p:?} (above: {above})"
+            );
+        }
+    }
+}

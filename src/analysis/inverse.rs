@@ -21,17 +21,19 @@
 //!
 //! A mechanism with remaining freedom is refused by [`freedom`]: how many
 //! degrees of freedom remain, a set of independent coordinates (the
-//! non-pivot columns of Φ_q under complete pivoting, Wehage & Haug 1982)
+//! non-pivot columns of Φ_q in a sparse elimination, Wehage & Haug 1982)
 //! and the joints whose relative motion is still free (a drive on any of
 //! them would remove a freedom).
 
+use super::partitioning::{partition, Partition};
 use crate::formulation::{FormulationError, Index1, Index1Options, Projection};
 use crate::linalg::full_pivot_order;
 use crate::model::{point_state, JointGeometry, ReactionMap, System};
 use crate::simulation::Sample;
 
 /// Relative pivot tolerance of the rank decisions of [`freedom`]
-/// (complete pivoting of Φ_q scaled to its largest entry).
+/// (a row of Φ_q is redundant once eliminated to this times Φ_q's
+/// largest entry).
 pub const RANK_TOL: f64 = 1e-9;
 
 /// Largest number of coordinates for which [`freedom`] also tests every
@@ -188,29 +190,43 @@ fn relative_row(sys: &System, geometry: JointGeometry, q: &[f64]) -> Option<Vec<
     Some(row)
 }
 
-/// The freedom of `sys` at `(q, t)`: rank of Φ_q by complete pivoting
-/// ([`full_pivot_order`], relative tolerance [`RANK_TOL`]), the
-/// independent coordinates (non-pivot columns) and the joints whose
-/// relative motion is free (appending its row raises the rank). Dense:
-/// `O(m² n)`, plus one elimination per joint up to
-/// [`JOINT_TEST_MAX_COORDS`] coordinates.
+/// The sparse coordinate partitioning of Φ_q at `(q, t)`
+/// ([`super::partitioning::partition`], relative tolerance [`RANK_TOL`]).
+pub fn partition_at(sys: &System, q: &[f64], t: f64) -> Partition {
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let mut vals = vec![0.0; sys.jacobian_pattern().len()];
+    sys.jacobian_values(q, t, &mut vals);
+    let entries: Vec<(usize, usize, f64)> = sys
+        .jacobian_pattern()
+        .iter()
+        .zip(&vals)
+        .map(|(&(r, c), &v)| (r, c, v))
+        .collect();
+    partition(m, n, &entries, RANK_TOL)
+}
+
+/// The freedom of `sys` at `(q, t)`: rank of Φ_q and the independent
+/// coordinates from the sparse coordinate partitioning ([`partition_at`],
+/// `O(nnz Φ_q)` for chains), and the joints whose relative motion is free
+/// (appending its row raises the rank: one dense complete pivoting
+/// ([`full_pivot_order`]) per joint, only up to
+/// [`JOINT_TEST_MAX_COORDS`] coordinates).
 pub fn freedom(sys: &System, q: &[f64], t: f64) -> Freedom {
     let (n, m) = (sys.n_coords(), sys.n_constraints());
-    let a = dense_jacobian(sys, q, t);
-    let rank_of = |mut a: Vec<f64>, rows: usize| full_pivot_order(&mut a, rows, n, RANK_TOL);
-    let order = rank_of(a.clone(), m);
-    let rank = order.rank;
-    let mut coordinates: Vec<usize> = order.cols[rank..].to_vec();
-    coordinates.sort_unstable();
+    let part = partition_at(sys, q, t);
+    let rank = part.rank;
     let mut joints = Vec::new();
     if rank < n && n <= JOINT_TEST_MAX_COORDS {
+        let a = dense_jacobian(sys, q, t);
+        let rank_of = |mut a: Vec<f64>, rows: usize| full_pivot_order(&mut a, rows, n, RANK_TOL);
+        let dense_rank = rank_of(a.clone(), m).rank;
         for (k, c) in sys.constraints().iter().enumerate() {
             let Some(row) = relative_row(sys, c.geometry(), q) else {
                 continue;
             };
             let mut b = a.clone();
             b.extend_from_slice(&row);
-            if rank_of(b, m + 1).rank > rank {
+            if rank_of(b, m + 1).rank > dense_rank {
                 joints.push(k);
             }
         }
@@ -218,7 +234,7 @@ pub fn freedom(sys: &System, q: &[f64], t: f64) -> Freedom {
     Freedom {
         dof: n - rank,
         redundant: m - rank,
-        coordinates,
+        coordinates: part.independent,
         joints,
     }
 }

@@ -5,7 +5,8 @@
 //!
 //! The state is `x = (z, ż)`, `z` a set of `f` independent coordinates
 //! (coordinate partitioning, Wehage & Haug 1982: the non-pivot columns of
-//! Φ_q under complete pivoting, or chosen by the caller). The chart
+//! a sparse elimination of Φ_q, [`super::partitioning`], or chosen by the
+//! caller). The chart
 //! `q(z)` holds `q_I = z` and solves `Φ(q, t) = 0` for the rest by Newton;
 //! its tangent is the null-space basis `V` of Φ_q with `V_I = 1`:
 //! `Φ̃ V = [0; 1]`, `Φ̃ = [Φ_q; E_Iᵀ]` (square, regular when the
@@ -50,8 +51,7 @@ use super::inverse::coordinate_label;
 use super::Tangent;
 use crate::formulation::FormulationError;
 use crate::linalg::{
-    full_pivot_order, solver_for, APattern, LinalgError, SaddleMatrix, SaddlePointSolver,
-    SolverKind, SolverOptions,
+    solver_for, APattern, LinalgError, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
 };
 use crate::model::{Sensor, System};
 use faer::linalg::solvers::Solve;
@@ -148,7 +148,8 @@ impl Method {
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearizeOptions {
     /// Independent coordinates (global indices); `None`: the non-pivot
-    /// columns of Φ_q under complete pivoting.
+    /// columns of the sparse coordinate partitioning of Φ_q
+    /// ([`independent_coordinates`]).
     pub independent: Option<Vec<usize>>,
     /// How `A` is obtained; default [`Method::Auto`].
     pub method: Method,
@@ -448,21 +449,12 @@ impl<'a> Chart<'a> {
     }
 }
 
-/// The independent coordinates of `sys` at `(q, t)`: the non-pivot
-/// columns of Φ_q under complete pivoting ([`full_pivot_order`]), sorted.
-/// Dense, `O(m² n)`.
+/// The independent coordinates of `sys` at `(q, t)`: the columns of Φ_q
+/// without a pivot in the sparse coordinate partitioning
+/// ([`super::partitioning::partition`], relative tolerance
+/// [`super::inverse::RANK_TOL`]), ascending. `O(nnz Φ_q)` for chains.
 pub fn independent_coordinates(sys: &System, q: &[f64], t: f64) -> Vec<usize> {
-    let (n, m) = (sys.n_coords(), sys.n_constraints());
-    let mut vals = vec![0.0; sys.jacobian_pattern().len()];
-    sys.jacobian_values(q, t, &mut vals);
-    let mut a = vec![0.0; m * n];
-    for (&(r, c), &v) in sys.jacobian_pattern().iter().zip(&vals) {
-        a[r * n + c] += v;
-    }
-    let order = full_pivot_order(&mut a, m, n, super::inverse::RANK_TOL);
-    let mut ind = order.cols[order.rank..].to_vec();
-    ind.sort_unstable();
-    ind
+    super::inverse::partition_at(sys, q, t).independent
 }
 
 /// Dense `f × f` `VᵀXV` of an `n × n` sparse `X` and basis columns `v`.

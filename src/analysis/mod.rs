@@ -2,11 +2,13 @@
 //! the tangent matrices ([`tangent`]: `M`, `C`, `K`, `Φ_q` and their sign
 //! convention), the static equilibrium ([`statics`]: load stepping,
 //! Newton, stability by inertia) and the eigenmodes ([`modes`]:
-//! shift-invert Lanczos, damped modes in the reduced basis).
+//! shift-invert Lanczos, damped modes in the reduced basis), the sparse
+//! choice of independent coordinates ([`partitioning`]).
 
 pub mod inverse;
 pub mod linearize;
 pub mod modes;
+pub mod partitioning;
 pub mod statics;
 pub mod tangent;
 

@@ -401,11 +401,42 @@ fn diagonal_ratio(tan: &Tangent) -> f64 {
     }
 }
 
+/// Φ_q without its redundant rows (those the sparse coordinate
+/// partitioning, [`super::partitioning::partition`], eliminates to zero),
+/// the kept rows renumbered in order: the same tangent space, full row
+/// rank.
+fn independent_rows(phi: Triplets) -> Triplets {
+    let p =
+        super::partitioning::partition(phi.rows, phi.cols, &phi.entries, super::inverse::RANK_TOL);
+    if p.redundant.is_empty() {
+        return phi;
+    }
+    let mut new_row = vec![usize::MAX; phi.rows];
+    let mut kept = 0;
+    for (r, slot) in new_row.iter_mut().enumerate() {
+        if p.redundant.binary_search(&r).is_err() {
+            *slot = kept;
+            kept += 1;
+        }
+    }
+    Triplets {
+        rows: kept,
+        cols: phi.cols,
+        entries: phi
+            .entries
+            .iter()
+            .filter(|e| new_row[e.0] != usize::MAX)
+            .map(|&(r, c, v)| (new_row[r], c, v))
+            .collect(),
+    }
+}
+
 /// The stability of the state `(q, λ)` at rest (module docs): the numbers
 /// of constrained directions with `ω² > s`, `ω² < −s` and `|ω²| ≤ s`,
 /// `s = (2π f_neutral)²` \[1/s²\], from the inertia of two sparse LDLᵀ
-/// factorisations. Assumes `Φ_q` of full row rank (a redundant row is an
-/// error naming it).
+/// factorisations. Redundant constraint rows are dropped first (the
+/// tangent space `Φ_q δq = 0` is the same; the geometric stiffness keeps
+/// every row's λ).
 pub fn stability(
     sys: &System,
     t: f64,
@@ -417,7 +448,7 @@ pub fn stability(
     let mut tan = Tangent::new(sys);
     tan.evaluate(t, q, &vec![0.0; n], lambda)?;
     let k = tan.stiffness();
-    let phi = tan.constraint_jacobian();
+    let phi = independent_rows(tan.constraint_jacobian());
     let s = (2.0 * std::f64::consts::PI * f_neutral).powi(2);
     let mass = tan.mass_diagonal();
     let below = |sigma: f64| -> Result<usize, StaticError> {
@@ -428,8 +459,8 @@ pub fn stability(
         if zero > 0 || neg < m {
             return Err(FormulationError::Invalid(format!(
                 "stability: the saddle matrix at σ = {sigma:e} 1/s² has {zero} zero and {neg} \
-                 negative pivots for {m} constraint rows: Φ_q is rank deficient (redundant \
-                 constraints) or an eigenvalue sits on the shift"
+                 negative pivots for {m} independent constraint rows: an eigenvalue sits on \
+                 the shift"
             ))
             .into());
         }
@@ -573,36 +604,9 @@ fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec
         )
         .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
     }
-    let mut remaining = vec![0usize; dim];
-    for a in &adj[..n] {
-        for &r in a {
-            if r >= n {
-                remaining[r] += 1;
-            }
-        }
-    }
-    let mut pending = vec![false; dim];
-    let mut order = Vec::with_capacity(dim);
-    for &i in &fwd {
-        if i < n {
-            order.push(i);
-            for &r in &adj[i] {
-                if r >= n {
-                    remaining[r] -= 1;
-                    if remaining[r] == 0 && pending[r] {
-                        pending[r] = false;
-                        order.push(r);
-                    }
-                }
-            }
-        } else if remaining[i] == 0 {
-            order.push(i);
-        } else {
-            pending[i] = true;
-        }
-    }
+    let order = crate::linalg::postpone_multipliers(&fwd, n, |c| &adj[c]);
     if order.len() != dim {
-        return Err("a constraint row has no coordinates".into());
+        return Err("the elimination order is not a permutation".into());
     }
     Ok(order)
 }

@@ -321,11 +321,29 @@ fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
         )
         .map_err(|e| LinalgError::Singular(format!("AMD ordering failed: {e:?}")))?;
     }
-    // Remaining (not yet eliminated) coordinates of each multiplier row.
     let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    let order = postpone_multipliers(&fwd, n, |c| &row_idx[col_ptr[c]..col_ptr[c + 1]]);
+    debug_assert_eq!(order.len(), dim);
+    Ok(order)
+}
+
+/// The fill-reducing order `fwd` (a permutation of `0..n + m`, coordinates
+/// `< n`, multipliers `≥ n`) with every multiplier moved to just after the
+/// last of the coordinates of its Jacobian row, so that an unpivoted
+/// factorisation meets a multiplier pivot only once its row is eliminated.
+/// `neighbours(c)` lists, for a coordinate `c`, the indices adjacent to it
+/// in the saddle matrix's pattern (those `≥ n` are its multiplier rows;
+/// others are ignored).
+pub(crate) fn postpone_multipliers<'a>(
+    fwd: &[usize],
+    n: usize,
+    neighbours: impl Fn(usize) -> &'a [usize],
+) -> Vec<usize> {
+    let dim = fwd.len();
+    // remaining (not yet eliminated) coordinates of each multiplier row
     let mut remaining = vec![0usize; dim];
     for c in 0..n {
-        for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+        for &r in neighbours(c) {
             if r >= n {
                 remaining[r] += 1;
             }
@@ -333,10 +351,10 @@ fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
     }
     let mut pending = vec![false; dim];
     let mut order = Vec::with_capacity(dim);
-    for &i in &fwd {
+    for &i in fwd {
         if i < n {
             order.push(i);
-            for &r in &row_idx[col_ptr[i]..col_ptr[i + 1]] {
+            for &r in neighbours(i) {
                 if r >= n {
                     remaining[r] -= 1;
                     if remaining[r] == 0 && pending[r] {
@@ -351,8 +369,7 @@ fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
             pending[i] = true;
         }
     }
-    debug_assert_eq!(order.len(), dim);
-    Ok(order)
+    order
 }
 
 impl SaddlePointSolver for SparseLdlt {

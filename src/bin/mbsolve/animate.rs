@@ -156,13 +156,15 @@ pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene
     })
 }
 
-/// Canvas size in pixels for a world box: 640 px on the long side.
+/// Canvas size in pixels for a world box: 640 px on the long side, at
+/// least 360 px on the short one (a tall rod in its channel keeps room
+/// beside it for the time stamp and the scale bar).
 pub fn canvas(b: [f64; 4]) -> (u32, u32) {
     let ar = ((b[3] - b[1]) / (b[2] - b[0]).max(1e-9)).clamp(0.25, 4.0);
     if ar <= 1.0 {
-        (640, (640.0 * ar).max(240.0) as u32)
+        (640, (640.0 * ar).max(360.0) as u32)
     } else {
-        ((640.0 / ar).max(240.0) as u32, 640)
+        ((640.0 / ar).max(360.0) as u32, 640)
     }
 }
 

@@ -40,7 +40,7 @@ pub struct LinearizeArgs {
     #[arg(long, value_delimiter = ',')]
     pub outputs: Vec<String>,
     /// Independent coordinates `BODY.x|y|phi`, comma-separated [default:
-    /// chosen by complete pivoting of Φ_q].
+    /// the non-pivot columns of a sparse elimination of Φ_q].
     #[arg(long, value_delimiter = ',')]
     pub independent: Vec<String>,
     /// `auto` (exact tangent matrices at an equilibrium at rest, central
@@ -177,31 +177,37 @@ fn state(sc: &Scenario, at: &str) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
                 .trim()
                 .parse()
                 .map_err(|_| format!("'{v}' is not a number"))?;
-            if !(t.is_finite() && t >= sc.run.t0) {
-                return Err(format!("T = {t} must be finite and ≥ t0 = {}", sc.run.t0));
-            }
-            if t == sc.run.t0 {
-                return Ok((t, sc.q0.clone(), sc.qd0.clone()));
-            }
-            let mut cfg = sc.run.clone();
-            cfg.t_end = t;
-            cfg.output_dt = t - sc.run.t0;
-            cfg.outputs = Default::default();
-            let (traj, summary) =
-                simulate(&sc.system, &sc.q0, &sc.qd0, &cfg, &mut []).map_err(|e| e.to_string())?;
-            if summary.status != "completed" {
-                return Err(format!(
-                    "the run to T stopped at t = {} ({}): {}",
-                    summary.t_reached,
-                    summary.status,
-                    summary.message.unwrap_or_default()
-                ));
-            }
-            match (traj.t.last(), traj.q.last(), traj.qd.last()) {
-                (Some(&t), Some(q), Some(qd)) => Ok((t, q.clone(), qd.clone())),
-                _ => Err("the run to T delivered no state".into()),
-            }
+            state_at_time(sc, t)
         }
+    }
+}
+
+/// The state `(t, q, q̇)` a run of the scenario (its own settings, no
+/// output files) reaches at `t` ≥ t₀.
+pub(crate) fn state_at_time(sc: &Scenario, t: f64) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
+    if !(t.is_finite() && t >= sc.run.t0) {
+        return Err(format!("T = {t} must be finite and ≥ t0 = {}", sc.run.t0));
+    }
+    if t == sc.run.t0 {
+        return Ok((t, sc.q0.clone(), sc.qd0.clone()));
+    }
+    let mut cfg = sc.run.clone();
+    cfg.t_end = t;
+    cfg.output_dt = t - sc.run.t0;
+    cfg.outputs = Default::default();
+    let (traj, summary) =
+        simulate(&sc.system, &sc.q0, &sc.qd0, &cfg, &mut []).map_err(|e| e.to_string())?;
+    if summary.status != "completed" {
+        return Err(format!(
+            "the run to T stopped at t = {} ({}): {}",
+            summary.t_reached,
+            summary.status,
+            summary.message.unwrap_or_default()
+        ));
+    }
+    match (traj.t.last(), traj.q.last(), traj.qd.last()) {
+        (Some(&t), Some(q), Some(qd)) => Ok((t, q.clone(), qd.clone())),
+        _ => Err("the run to T delivered no state".into()),
     }
 }
 

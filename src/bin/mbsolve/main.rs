@@ -250,8 +250,9 @@ enum Command {
         /// Number of modes (the lowest).
         #[arg(long, default_value_t = 6)]
         count: usize,
-        /// Linearise about the static equilibrium or the initial state.
-        #[arg(long, value_enum, default_value = "static")]
+        /// Linearise about `static` (the equilibrium), `initial` (the
+        /// initial state) or `t=T` (the state a run reaches at T s).
+        #[arg(long, default_value = "static")]
         at: modes::At,
         /// Animate the first this many modes (SVG each).
         #[arg(long, default_value_t = 6)]

@@ -1,6 +1,6 @@
-//! `mbsolve modes SCENARIO [--count K] [--at static|initial] [--out DIR]`:
+//! `mbsolve modes SCENARIO [--count K] [--at static|initial|t=T] [--out DIR]`:
 //! undamped and damped natural frequencies, damping ratios and mode shapes
-//! about the static equilibrium or the initial state
+//! about the static equilibrium, the initial state or the state a run reaches at T
 //! ([`mbsolve::analysis::modes`]); writes `DIR/<stem>.modes.json`, a
 //! figure of the first shapes (`DIR/<stem>.modes.svg`, `.png`, `.csv`) and
 //! an animation of each mode (`DIR/<stem>.mode<k>.svg`, drawn by
@@ -19,13 +19,39 @@ use serde_json::json;
 use std::path::Path;
 use std::process::ExitCode;
 
-/// Where the system is linearised.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+/// Where the system is linearised: `static`, `initial` or `t=T`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum At {
     /// The static equilibrium (`mbsolve static`), at rest.
     Static,
     /// The scenario's initial state, λ from its consistent accelerations.
     Initial,
+    /// The state a run of the scenario reaches at this time \[s\], λ from
+    /// its consistent accelerations.
+    Time(f64),
+}
+
+impl std::str::FromStr for At {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "static" => Ok(Self::Static),
+            "initial" => Ok(Self::Initial),
+            _ => {
+                let v = s
+                    .strip_prefix("t=")
+                    .ok_or_else(|| format!("'{s}': expected static, initial or t=T"))?;
+                let t: f64 = v
+                    .trim()
+                    .parse()
+                    .map_err(|_| format!("'{s}': '{v}' is not a number"))?;
+                if !t.is_finite() {
+                    return Err(format!("'{s}': T must be finite"));
+                }
+                Ok(Self::Time(t))
+            }
+        }
+    }
 }
 
 /// Arguments of the command.
@@ -50,26 +76,32 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         return Err("--count 0: must be ≥ 1".into());
     }
     let path = a.scenario;
+    let mut t_at = None;
     let (sc, q, qd, lambda) = match a.at {
         At::Static => {
             let (sc, eq) = equilibrium_of(path, a.set)?;
             let n = eq.q.len();
             (sc, eq.q, vec![0.0; n], eq.lambda)
         }
-        At::Initial => {
+        At::Initial | At::Time(_) => {
             let sc = scenario::load(path, a.set).map_err(|e| e.to_string())?;
+            let (t, q, qd) = match a.at {
+                At::Time(t) => crate::linearize::state_at_time(&sc, t)
+                    .map_err(|e| format!("{}: --at t={t}: {e}", path.display()))?,
+                _ => (sc.run.t0, sc.q0.clone(), sc.qd0.clone()),
+            };
             let (n, m) = (sc.system.n_coords(), sc.system.n_constraints());
             let mut lam = vec![0.0; m];
             let mut qdd = vec![0.0; n];
             let mut f = Index3::new(&sc.system, SolverKind::Auto).map_err(|e| e.to_string())?;
-            f.accelerations(sc.run.t0, &sc.q0, &sc.qd0, &mut qdd, &mut lam)
+            f.accelerations(t, &q, &qd, &mut qdd, &mut lam)
                 .map_err(|e| format!("{}: {e}", path.display()))?;
-            let (q0, qd0) = (sc.q0.clone(), sc.qd0.clone());
-            (sc, q0, qd0, lam)
+            t_at = Some(t);
+            (sc, q, qd, lam)
         }
     };
     let sys = &sc.system;
-    let t0 = sc.run.t0;
+    let t0 = t_at.unwrap_or(sc.run.t0);
     let mut tan = Tangent::new(sys);
     tan.evaluate(t0, &q, &qd, &lambda)
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -102,8 +134,14 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         .collect();
     let report = json!({
         "scenario": path.display().to_string(),
-        "at": match a.at { At::Static => "static", At::Initial => "initial" },
+        "at": match a.at {
+            At::Static => "static".to_string(),
+            At::Initial => "initial".to_string(),
+            At::Time(t) => format!("t={t}"),
+        },
         "t0": t0,
+        "q": q,
+        "qd": qd,
         "shift": modes.shift,
         "lanczos_steps": modes.lanczos_steps,
         "converged": modes.converged,
