@@ -190,9 +190,9 @@ pub struct TeamReport {
     /// itself because the helper had not started them.
     pub halves_taken_back: usize,
     /// Joins a team ran on one thread without posting (the second thread
-    /// was found busy).
+    /// was found busy, or the A/B rule ran that window alone).
     pub halves_solo: usize,
-    /// Passes the caller of a team counted ([`concurrent`] calls): the
+    /// Passes the caller of a team counted (`concurrent` calls): the
     /// A/B rule's measure of progress, the same whichever way it ran.
     pub passes: usize,
     /// Probes of the A/B rule that chose the team, and that chose one
