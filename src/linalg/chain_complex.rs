@@ -341,7 +341,7 @@ impl ComplexChainLdlt {
     /// Factorise `re + i·im`: two matrices of the analysed pattern (same
     /// storage and slots), the real and the imaginary part. The halves
     /// `T` and `B` (scaling, values, Crout rows) run through
-    /// [`crate::parallel::join_if`] from [`super::PARALLEL_MIN_DIM`] on,
+    /// `parallel::join_if` from [`super::PARALLEL_MIN_DIM`] on,
     /// each sequential inside, then the separator: the same bits on one
     /// thread or two.
     pub fn factorize(&mut self, re: &SaddleMatrix, im: &SaddleMatrix) -> Result<(), LinalgError> {
@@ -458,7 +458,7 @@ impl ComplexChainLdlt {
     /// `re + i·im ← K⁻¹ (re + i·im)` with the last factorisation:
     /// `L y = P S b` (the halves, then the separator), `D`, `Lᵀ z = y` by
     /// columns from the last row (the separator, then the halves),
-    /// `x = S Pᵀ z`; the halves through [`crate::parallel::join_if`] as in
+    /// `x = S Pᵀ z`; the halves through `parallel::join_if` as in
     /// [`Self::factorize`]. Errors when no factorisation is ready, on a
     /// length mismatch, or when the solution is not finite.
     pub fn solve(&mut self, re: &mut [f64], im: &mut [f64]) -> Result<(), LinalgError> {
