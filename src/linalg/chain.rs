@@ -107,12 +107,12 @@ pub(super) struct Envelope {
     pub(super) nnz: usize,
     /// `perm[i]`: row/column of `K` eliminated `i`-th.
     pub(super) perm: Vec<usize>,
-    s0: usize,
-    sb: usize,
+    pub(super) s0: usize,
+    pub(super) sb: usize,
     /// First column of row `i`'s (last) envelope segment.
     pub(super) first: Vec<usize>,
     /// Separator row `sb + r`: first column of its segment in `T`.
-    fa: Vec<usize>,
+    pub(super) fa: Vec<usize>,
     /// Row `i`'s entries left of the diagonal start at `env[ptr[i]]`
     /// (separator rows: the `T` segment, then the other).
     pub(super) ptr: Vec<usize>,
@@ -552,7 +552,7 @@ impl Envelope {
 /// permutation by the backward substitution's rows, of both halves at
 /// once: every position is written by exactly one row (`perm` is a
 /// permutation), so concurrent writes never meet.
-struct Scatter<'a> {
+pub(super) struct Scatter<'a> {
     ptr: *mut f64,
     len: usize,
     _x: std::marker::PhantomData<&'a mut [f64]>,
@@ -564,7 +564,7 @@ unsafe impl Send for Scatter<'_> {}
 unsafe impl Sync for Scatter<'_> {}
 
 impl<'a> Scatter<'a> {
-    fn new(x: &'a mut [f64]) -> Self {
+    pub(super) fn new(x: &'a mut [f64]) -> Self {
         Self {
             ptr: x.as_mut_ptr(),
             len: x.len(),
@@ -573,7 +573,7 @@ impl<'a> Scatter<'a> {
     }
 
     #[inline(always)]
-    fn set(&self, k: usize, v: f64) {
+    pub(super) fn set(&self, k: usize, v: f64) {
         assert!(k < self.len);
         // SAFETY: in bounds (checked), and no other row writes position k
         unsafe { *self.ptr.add(k) = v }

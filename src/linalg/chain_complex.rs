@@ -29,9 +29,10 @@
 //! where the real embedding `[K_r −K_i; K_i K_r]` of size `2 dim` through
 //! a sparse LU cost ≈ 50 × (measured in `docs/radau.md`).
 
-use super::chain::Envelope;
+use super::chain::{Envelope, Scatter, PARALLEL_MIN_DIM};
 use super::sparse::{coordinate_scale, multiplier_scale};
 use super::{LinalgError, SaddleMatrix, Storage, DEFAULT_EPSILON};
+use crate::parallel::join_if;
 
 /// A complex number `re + i·im` (the few operations the recurrence needs).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -102,11 +103,18 @@ pub struct ComplexChainLdlt {
     n: usize,
     nnz: usize,
     perm: Vec<usize>,
+    /// End of the top half `T` and of the bottom half `B` (unsplit:
+    /// `s0 = sb = dim`).
+    s0: usize,
+    sb: usize,
     first: Vec<usize>,
+    /// Separator row `sb + r`: first column of its segment in `T`.
+    fa: Vec<usize>,
     ptr: Vec<usize>,
-    /// Where each value of `K` goes: its slot, its position in `env` (`L`
-    /// rows, then the pivots from `ptr[dim]`), its permuted row and column.
-    fill: Vec<(u32, u32, u32, u32)>,
+    /// Where each value of `K` goes, by part (`T`, `B`, `S`): its slot,
+    /// its position in `env` (`L` rows, then the pivots from `ptr[dim]`),
+    /// its permuted row and column.
+    fill: [Vec<(u32, u32, u32, u32)>; 3],
     dslot: Vec<usize>,
     phi_ptr: Vec<usize>,
     phi_ent: Vec<(usize, usize)>,
@@ -118,11 +126,152 @@ pub struct ComplexChainLdlt {
     factorized: bool,
 }
 
+/// What the factorisation of one part reads: the pattern, the values and
+/// their slots.
+struct Part<'a> {
+    n: usize,
+    first: &'a [usize],
+    ptr: &'a [usize],
+    perm: &'a [usize],
+    dslot: &'a [usize],
+    phi_ptr: &'a [usize],
+    phi_ent: &'a [(usize, usize)],
+    vr: &'a [f64],
+    vi: &'a [f64],
+}
+
+impl Part<'_> {
+    fn value(&self, s: usize) -> C {
+        C {
+            re: self.vr[s],
+            im: self.vi[s],
+        }
+    }
+
+    /// `pscale[i − base]` for `rows` (in elimination order: a multiplier
+    /// row's Φ_q columns come before it, from row `base` on).
+    fn scale(&self, rows: std::ops::Range<usize>, base: usize, pscale: &mut [f64]) {
+        for i in rows {
+            let d = self.value(self.dslot[i]).abs();
+            pscale[i - base] = if self.perm[i] < self.n {
+                coordinate_scale(d)
+            } else {
+                let mut s = d.sqrt();
+                for &(slot, c) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
+                    s = s.max(self.value(slot).abs() * pscale[c - base]);
+                }
+                multiplier_scale(s)
+            };
+        }
+    }
+
+    /// Writes the scaled values of one part (rows from `base`) into its
+    /// zeroed storage: `lower` from `env[ptr[base]]`, `diag` from pivot
+    /// `base`; `profile = ptr[dim]`, `pscale` from permuted row `ps_base`.
+    #[allow(clippy::too_many_arguments)]
+    fn load(
+        &self,
+        fill: &[(u32, u32, u32, u32)],
+        profile: usize,
+        base: usize,
+        ps_base: usize,
+        pscale: &[f64],
+        lower: &mut [C],
+        diag: &mut [C],
+    ) -> Result<(), LinalgError> {
+        lower.fill(C::ZERO);
+        diag.fill(C::ZERO);
+        let (p0, nl) = (self.ptr[base], lower.len());
+        for &(slot, pos, row, col) in fill {
+            let v = self.value(slot as usize);
+            if !(v.re.is_finite() && v.im.is_finite()) {
+                return Err(LinalgError::NonFinite {
+                    row: self.perm[row as usize],
+                    col: self.perm[col as usize],
+                });
+            }
+            let x = v.scale(pscale[row as usize - ps_base] * pscale[col as usize - ps_base]);
+            let p = pos as usize;
+            let e = if p < profile {
+                debug_assert!(p - p0 < nl);
+                &mut lower[p - p0]
+            } else {
+                &mut diag[p - profile - base]
+            };
+            *e = C {
+                re: e.re + x.re,
+                im: e.im + x.im,
+            };
+        }
+        Ok(())
+    }
+
+    /// The Crout recurrence (module docs) of the plain envelope rows
+    /// `rows` of one half, whose envelopes stay inside it: `lower`,
+    /// `diag`, `dinv` hold that half only (from row `base`).
+    fn crout(
+        &self,
+        base: usize,
+        rows: std::ops::Range<usize>,
+        lower: &mut [C],
+        diag: &mut [C],
+        dinv: &mut [C],
+    ) -> Result<(), LinalgError> {
+        let (first, ptr) = (self.first, self.ptr);
+        let p0 = ptr[base];
+        for i in rows {
+            let (fi, pi) = (first[i], ptr[i] - p0);
+            for j in fi..i {
+                let k0 = fi.max(first[j]);
+                let (ti, lj) = (pi + (k0 - fi), ptr[j] - p0 + (k0 - first[j]));
+                let (head, row_i) = lower.split_at_mut(pi);
+                let d = cdot(
+                    &row_i[ti - pi..ti - pi + (j - k0)],
+                    &head[lj..lj + (j - k0)],
+                );
+                row_i[j - fi] = row_i[j - fi].sub(d);
+            }
+            let mut d = diag[i - base];
+            for (t, &dj) in lower[pi..ptr[i + 1] - p0]
+                .iter_mut()
+                .zip(&dinv[fi - base..i - base])
+            {
+                let l = t.mul(dj);
+                d = d.sub(t.mul(l));
+                *t = l;
+            }
+            diag[i - base] = self.pivot(i, d)?;
+            dinv[i - base] = d.inv();
+        }
+        Ok(())
+    }
+
+    /// `d` as the pivot of elimination step `i`, or the error for a
+    /// modulus at or below `DEFAULT_EPSILON` (or NaN).
+    fn pivot(&self, i: usize, d: C) -> Result<C, LinalgError> {
+        if d.abs().is_nan() || d.abs() <= DEFAULT_EPSILON {
+            return Err(LinalgError::Singular(format!(
+                "complex envelope LDLᵀ: pivot {:.3e} at elimination step {i} (row {} of K)",
+                d.abs(),
+                self.perm[i]
+            )));
+        }
+        Ok(d)
+    }
+}
+
 impl ComplexChainLdlt {
     /// The envelope of `k`'s pattern (symmetric lower storage) in the
-    /// one-sided body-by-body order, or `None` when the pattern is not a
-    /// chain's (the real [`super::ChainLdlt`] would fall back to faer too).
+    /// body-by-body order of [`super::ChainLdlt`], two-sided where the real
+    /// one is (from [`super::SPLIT_MIN_DIM`]), or `None` when the pattern
+    /// is not a chain's (the real solver would fall back to faer too).
     pub fn analyze(k: &SaddleMatrix) -> Option<Self> {
+        Self::analyze_order(k, true)
+    }
+
+    /// [`Self::analyze`] in the two-sided order when `split` (and the
+    /// pattern allows it), else in the one-sided one.
+    fn analyze_order(k: &SaddleMatrix, split: bool) -> Option<Self> {
         if k.storage() != Storage::SymmetricLower {
             return None;
         }
@@ -131,25 +280,48 @@ impl ComplexChainLdlt {
             n,
             nnz,
             perm,
+            s0,
+            sb,
             first,
+            fa,
             ptr,
             fill,
             dslot,
             phi_ptr,
             phi_ent,
             ..
-        } = Envelope::analyze(k, false)?;
-        let [fill, _, _] = fill;
-        let fill = fill.iter().map(|f| (f.slot, f.pos, f.row, f.col)).collect();
+        } = Envelope::analyze(k, split)?;
         let profile = ptr[dim];
+        // positions in each part's storage → positions in `env`
+        let parts = [0..s0, s0..sb, sb..dim];
+        let mut global: [Vec<(u32, u32, u32, u32)>; 3] = Default::default();
+        for (p, part) in fill.iter().enumerate() {
+            let r = &parts[p];
+            let (p0, nl) = (ptr[r.start], ptr[r.end] - ptr[r.start]);
+            global[p] = part
+                .iter()
+                .map(|f| {
+                    let pos = f.pos as usize;
+                    let g = if pos < nl {
+                        p0 + pos
+                    } else {
+                        profile + r.start + (pos - nl)
+                    };
+                    (f.slot, g as u32, f.row, f.col)
+                })
+                .collect();
+        }
         Some(Self {
             dim,
             n,
             nnz,
             perm,
+            s0,
+            sb,
             first,
+            fa,
             ptr,
-            fill,
+            fill: global,
             dslot,
             phi_ptr,
             phi_ent,
@@ -167,7 +339,11 @@ impl ComplexChainLdlt {
     }
 
     /// Factorise `re + i·im`: two matrices of the analysed pattern (same
-    /// storage and slots), the real and the imaginary part.
+    /// storage and slots), the real and the imaginary part. The halves
+    /// `T` and `B` (scaling, values, Crout rows) run through
+    /// `parallel::join_if` from [`super::PARALLEL_MIN_DIM`] on,
+    /// each sequential inside, then the separator: the same bits on one
+    /// thread or two.
     pub fn factorize(&mut self, re: &SaddleMatrix, im: &SaddleMatrix) -> Result<(), LinalgError> {
         for k in [re, im] {
             if k.dim() != self.dim || k.nnz() != self.nnz || k.n() != self.n {
@@ -178,80 +354,113 @@ impl ComplexChainLdlt {
             }
         }
         self.factorized = false;
-        let (vr, vi) = (re.values(), im.values());
-        let value = |s: usize| C {
-            re: vr[s],
-            im: vi[s],
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
+        let part = Part {
+            n: self.n,
+            first: &self.first,
+            ptr: &self.ptr,
+            perm: &self.perm,
+            dslot: &self.dslot,
+            phi_ptr: &self.phi_ptr,
+            phi_ent: &self.phi_ent,
+            vr: re.values(),
+            vi: im.values(),
         };
-        // scaling in elimination order (a multiplier row's Φ_q columns are
-        // eliminated before it)
-        for i in 0..self.dim {
-            let d = value(self.dslot[i]).abs();
-            self.pscale[i] = if self.perm[i] < self.n {
-                coordinate_scale(d)
-            } else {
-                let mut s = d.sqrt();
-                for &(slot, c) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
-                    s = s.max(value(slot).abs() * self.pscale[c]);
-                }
-                multiplier_scale(s)
-            };
-        }
-        self.env.fill(C::ZERO);
-        let profile = self.ptr[self.dim];
-        for &(slot, pos, row, col) in &self.fill {
-            let v = value(slot as usize);
-            if !(v.re.is_finite() && v.im.is_finite()) {
-                return Err(LinalgError::NonFinite {
-                    row: self.perm[row as usize],
-                    col: self.perm[col as usize],
-                });
-            }
-            let x = v.scale(self.pscale[row as usize] * self.pscale[col as usize]);
-            let p = pos as usize;
-            self.env[p] = C {
-                re: self.env[p].re + x.re,
-                im: self.env[p].im + x.im,
-            };
-        }
+        let (ptr, first, fa) = (&self.ptr, &self.first, &self.fa);
+        let profile = ptr[dim];
         let (lower, diag) = self.env.split_at_mut(profile);
-        let (first, ptr) = (&self.first, &self.ptr);
-        for i in 0..self.dim {
-            let (fi, pi) = (first[i], ptr[i]);
-            for j in fi..i {
-                let k0 = fi.max(first[j]);
-                let (ti, lj) = (pi + (k0 - fi), ptr[j] + (k0 - first[j]));
-                let (head, row_i) = lower.split_at_mut(pi);
-                let d = cdot(
-                    &row_i[ti - pi..ti - pi + (j - k0)],
-                    &head[lj..lj + (j - k0)],
-                );
-                row_i[j - fi] = row_i[j - fi].sub(d);
+        let (lower_t, lower_rest) = lower.split_at_mut(ptr[s0]);
+        let lower_b = &mut lower_rest[..ptr[sb] - ptr[s0]];
+        let (diag_t, diag_rest) = diag.split_at_mut(s0);
+        let diag_b = &mut diag_rest[..sb - s0];
+        let (dinv_t, dinv_rest) = self.dinv.split_at_mut(s0);
+        let dinv_b = &mut dinv_rest[..sb - s0];
+        let (ps_t, ps_rest) = self.pscale.split_at_mut(s0);
+        let ps_b = &mut ps_rest[..sb - s0];
+        let (fill_t, fill_b) = (&self.fill[0], &self.fill[1]);
+        let part = &part;
+        let (rt, rb) = join_if(
+            par,
+            || {
+                part.scale(0..s0, 0, ps_t);
+                part.load(fill_t, profile, 0, 0, ps_t, lower_t, diag_t)?;
+                part.crout(0, 0..s0, lower_t, diag_t, dinv_t)
+            },
+            || {
+                part.scale(s0..sb, s0, ps_b);
+                part.load(fill_b, profile, s0, s0, ps_b, lower_b, diag_b)?;
+                part.crout(s0, s0..sb, lower_b, diag_b, dinv_b)
+            },
+        );
+        rt?;
+        rb?;
+        if sb < dim {
+            part.scale(sb..dim, 0, &mut self.pscale);
+            let (lower, diag) = self.env.split_at_mut(profile);
+            part.load(
+                &self.fill[2],
+                profile,
+                sb,
+                0,
+                &self.pscale,
+                &mut lower[ptr[sb]..],
+                &mut diag[sb..],
+            )?;
+            // the separator: two-segment rows against every row before them
+            let dinv = &mut self.dinv;
+            for i in sb..dim {
+                let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+                let la = s0 - fai;
+                // the T segment against plain rows j of T
+                for j in fai..s0 {
+                    let k0 = fai.max(first[j]);
+                    let (a, b, len) = (pi + (k0 - fai), ptr[j] + (k0 - first[j]), j - k0);
+                    let d = cdot(&lower[a..a + len], &lower[b..b + len]);
+                    let e = pi + (j - fai);
+                    lower[e] = lower[e].sub(d);
+                }
+                // the second segment against rows of B (plain) and of S
+                // (two segments)
+                for j in fi..i {
+                    let la_j = if j >= sb { s0 - fa[j - sb] } else { 0 };
+                    let k0 = fi.max(first[j]);
+                    let (a, b, len) =
+                        (pi + la + (k0 - fi), ptr[j] + la_j + (k0 - first[j]), j - k0);
+                    let mut d = cdot(&lower[a..a + len], &lower[b..b + len]);
+                    if j >= sb {
+                        let k0 = fai.max(fa[j - sb]);
+                        let (a, b, len) = (pi + (k0 - fai), ptr[j] + (k0 - fa[j - sb]), s0 - k0);
+                        let d2 = cdot(&lower[a..a + len], &lower[b..b + len]);
+                        d = C {
+                            re: d.re + d2.re,
+                            im: d.im + d2.im,
+                        };
+                    }
+                    let e = pi + la + (j - fi);
+                    lower[e] = lower[e].sub(d);
+                }
+                let mut d = diag[i];
+                for (o, j) in (fai..s0).chain(fi..i).enumerate() {
+                    let t = lower[pi + o];
+                    let l = t.mul(dinv[j]);
+                    d = d.sub(t.mul(l));
+                    lower[pi + o] = l;
+                }
+                diag[i] = part.pivot(i, d)?;
+                dinv[i] = d.inv();
             }
-            let mut d = diag[i];
-            for (t, &dj) in lower[pi..ptr[i + 1]].iter_mut().zip(&self.dinv[fi..i]) {
-                let l = t.mul(dj);
-                d = d.sub(t.mul(l));
-                *t = l;
-            }
-            if d.abs().is_nan() || d.abs() <= DEFAULT_EPSILON {
-                return Err(LinalgError::Singular(format!(
-                    "complex envelope LDLᵀ: pivot {:.3e} at elimination step {i} (row {} of K)",
-                    d.abs(),
-                    self.perm[i]
-                )));
-            }
-            diag[i] = d;
-            self.dinv[i] = d.inv();
         }
         self.factorized = true;
         Ok(())
     }
 
     /// `re + i·im ← K⁻¹ (re + i·im)` with the last factorisation:
-    /// `L y = P S b`, `D`, `Lᵀ z = y` by columns from the last row,
-    /// `x = S Pᵀ z`. Errors when no factorisation is ready, on a length
-    /// mismatch, or when the solution is not finite.
+    /// `L y = P S b` (the halves, then the separator), `D`, `Lᵀ z = y` by
+    /// columns from the last row (the separator, then the halves),
+    /// `x = S Pᵀ z`; the halves through `parallel::join_if` as in
+    /// [`Self::factorize`]. Errors when no factorisation is ready, on a
+    /// length mismatch, or when the solution is not finite.
     pub fn solve(&mut self, re: &mut [f64], im: &mut [f64]) -> Result<(), LinalgError> {
         if !self.factorized {
             return Err(LinalgError::NotReady("factorize"));
@@ -262,32 +471,90 @@ impl ComplexChainLdlt {
                 got: re.len().min(im.len()),
             });
         }
-        let (first, ptr, perm, ps) = (&self.first, &self.ptr, &self.perm, &self.pscale);
-        let env = &self.env[..ptr[self.dim]];
+        let (dim, s0, sb) = (self.dim, self.s0, self.sb);
+        let par = dim >= PARALLEL_MIN_DIM;
+        let (first, ptr, perm, ps, fa) =
+            (&self.first, &self.ptr, &self.perm, &self.pscale, &self.fa);
+        let env = &self.env[..ptr[dim]];
+        let dinv = &self.dinv;
         let w = &mut self.w;
-        for i in 0..self.dim {
-            let b = C {
-                re: re[perm[i]],
-                im: im[perm[i]],
+        {
+            let (br, bi): (&[f64], &[f64]) = (re, im);
+            let b = |i: usize| {
+                C {
+                    re: br[perm[i]],
+                    im: bi[perm[i]],
+                }
+                .scale(ps[i])
+            };
+            // forward rows of one half, `w` from row `base`
+            let forward = |base: usize, rows: std::ops::Range<usize>, w: &mut [C]| {
+                for i in rows {
+                    let (fi, pi) = (first[i], ptr[i]);
+                    w[i - base] = b(i).sub(cdot(&env[pi..ptr[i + 1]], &w[fi - base..i - base]));
+                }
+            };
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            join_if(par, || forward(0, 0..s0, w_t), || forward(s0, s0..sb, w_b));
+            for i in sb..dim {
+                let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
+                let la = s0 - fai;
+                w[i] = b(i)
+                    .sub(cdot(&env[pi..pi + la], &w[fai..s0]))
+                    .sub(cdot(&env[pi + la..ptr[i + 1]], &w[fi..i]));
             }
-            .scale(ps[i]);
-            let (fi, pi) = (first[i], ptr[i]);
-            w[i] = b.sub(cdot(&env[pi..ptr[i + 1]], &w[fi..i]));
         }
-        for (wi, &d) in w.iter_mut().zip(&self.dinv) {
-            *wi = wi.mul(d);
+        {
+            let scale = |w: &mut [C], d: &[C]| {
+                for (wi, &di) in w.iter_mut().zip(d) {
+                    *wi = wi.mul(di);
+                }
+            };
+            let (w_lo, w_hi) = w.split_at_mut(dim / 2);
+            let (d_lo, d_hi) = dinv.split_at(dim / 2);
+            join_if(par, || scale(w_lo, d_lo), || scale(w_hi, d_hi));
         }
-        for i in (0..self.dim).rev() {
-            let z = w[i];
-            let x = z.scale(ps[i]);
-            re[perm[i]] = x.re;
-            im[perm[i]] = x.im;
-            let (fi, pi) = (first[i], ptr[i]);
-            for (v, &l) in w[fi..i].iter_mut().zip(&env[pi..ptr[i + 1]]) {
-                *v = v.sub(l.mul(z));
+        {
+            let (out_re, out_im) = (Scatter::new(re), Scatter::new(im));
+            let put = |i: usize, z: C| {
+                out_re.set(perm[i], z.re * ps[i]);
+                out_im.set(perm[i], z.im * ps[i]);
+            };
+            for i in (sb..dim).rev() {
+                let (fai, fi, pi, z) = (fa[i - sb], first[i], ptr[i], w[i]);
+                put(i, z);
+                let la = s0 - fai;
+                for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
+                    *v = v.sub(l.mul(z));
+                }
+                for (v, &l) in w[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
+                    *v = v.sub(l.mul(z));
+                }
             }
+            // backward rows of one half, `w` from row `base`
+            let backward = |base: usize, rows: std::ops::Range<usize>, w: &mut [C]| {
+                for i in rows.rev() {
+                    let (fi, pi, z) = (first[i], ptr[i], w[i - base]);
+                    put(i, z);
+                    for (v, &l) in w[fi - base..i - base].iter_mut().zip(&env[pi..ptr[i + 1]]) {
+                        *v = v.sub(l.mul(z));
+                    }
+                }
+            };
+            let (w_t, w_rest) = w.split_at_mut(s0);
+            let w_b = &mut w_rest[..sb - s0];
+            join_if(
+                par,
+                || backward(0, 0..s0, w_t),
+                || backward(s0, s0..sb, w_b),
+            );
         }
-        if re.iter().chain(im.iter()).all(|v| v.is_finite()) {
+        let finite = |a: &[f64], b: &[f64]| a.iter().chain(b).all(|v| v.is_finite());
+        let (re_lo, re_hi) = re.split_at(dim / 2);
+        let (im_lo, im_hi) = im.split_at(dim / 2);
+        let (lo, hi) = join_if(par, || finite(re_lo, im_lo), || finite(re_hi, im_hi));
+        if lo && hi {
             Ok(())
         } else {
             Err(LinalgError::NonFiniteSolution("complex envelope LDLᵀ"))
@@ -397,6 +664,108 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(diff > 1e-3, "N = {bodies}: K_i had no effect ({diff:e})");
         }
+    }
+
+    /// The residual of `x` for `b` through the two real matrices'
+    /// products (independent of the factorisation): its largest entry.
+    fn residual(
+        kr: &SaddleMatrix,
+        ki: &SaddleMatrix,
+        x: (&[f64], &[f64]),
+        b: (&[f64], &[f64]),
+    ) -> f64 {
+        let dim = kr.dim();
+        let mul = |k: &SaddleMatrix, x: &[f64]| {
+            let mut y = vec![0.0; dim];
+            k.mul_vec(x, &mut y);
+            y
+        };
+        let (rr, ii, ri, ir) = (mul(kr, x.0), mul(ki, x.1), mul(kr, x.1), mul(ki, x.0));
+        (0..dim).fold(0.0, |w: f64, i| {
+            w.max((rr[i] - ii[i] - b.0[i]).abs())
+                .max((ri[i] + ir[i] - b.1[i]).abs())
+        })
+    }
+
+    fn solve_with(
+        f: &mut ComplexChainLdlt,
+        kr: &SaddleMatrix,
+        ki: &SaddleMatrix,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let dim = kr.dim();
+        f.factorize(kr, ki).expect("nonsingular");
+        let mut xr: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut xi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
+        f.solve(&mut xr, &mut xi).expect("finite");
+        (xr, xi)
+    }
+
+    /// From SPLIT_MIN_DIM on the order is two-sided (halves and a
+    /// separator): it solves to rounding level, agrees with the one-sided
+    /// order to rounding, and a second solve with the same factors gives
+    /// the same bits.
+    #[test]
+    fn the_two_sided_order_solves_like_the_one_sided_one() {
+        for bodies in [400, 1001] {
+            let (kr, ki) = chain_pair(bodies, 3 + bodies as u64);
+            let dim = kr.dim();
+            assert!(dim >= crate::linalg::SPLIT_MIN_DIM);
+            let mut two = ComplexChainLdlt::analyze(&kr).expect("a chain pattern");
+            assert!(two.s0 < two.sb && two.sb < dim, "split");
+            let mut one = ComplexChainLdlt::analyze_order(&kr, false).expect("a chain pattern");
+            assert_eq!((one.s0, one.sb), (dim, dim));
+            let br: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+            let bi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
+            let x2 = solve_with(&mut two, &kr, &ki);
+            let x1 = solve_with(&mut one, &kr, &ki);
+            let r = residual(&kr, &ki, (&x2.0, &x2.1), (&br, &bi));
+            assert!(r < 1e-12, "N = {bodies}: residual {r:e}");
+            let diff =
+                x1.0.iter()
+                    .chain(&x1.1)
+                    .zip(x2.0.iter().chain(&x2.1))
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+            let size = x1.0.iter().chain(&x1.1).fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(diff <= 1e-12 * size, "N = {bodies}: {diff:e} of {size:e}");
+            let again = solve_with(&mut two, &kr, &ki);
+            assert!(again
+                .0
+                .iter()
+                .chain(&again.1)
+                .zip(x2.0.iter().chain(&x2.1))
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
+
+    /// Above PARALLEL_MIN_DIM the halves run through `join_if`: in pools
+    /// of one and two threads the solution has the same bits.
+    #[test]
+    fn the_halves_give_the_same_bits_on_one_thread_and_two() {
+        let (kr, ki) = chain_pair(2100, 11);
+        assert!(kr.dim() >= PARALLEL_MIN_DIM);
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let mut f = ComplexChainLdlt::analyze(&kr).expect("a chain pattern");
+                    solve_with(&mut f, &kr, &ki)
+                })
+        };
+        let (a, b) = (run(1), run(2));
+        assert!(a
+            .0
+            .iter()
+            .chain(&a.1)
+            .zip(b.0.iter().chain(&b.1))
+            .all(|(x, y)| x.to_bits() == y.to_bits()));
+        let dim = kr.dim();
+        let br: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+        let bi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
+        let r = residual(&kr, &ki, (&a.0, &a.1), (&br, &bi));
+        assert!(r < 1e-12, "residual {r:e}");
     }
 
     #[test]

@@ -40,7 +40,10 @@ pub enum Threads {
     /// inside a rayon pool with a free second thread, while the second
     /// thread keeps up: when it repeatedly has not taken a posted half
     /// by the time the caller finished its own (a busy machine), the run
-    /// continues on one thread for a while and then tries again.
+    /// continues on one thread for a while and then tries again; and
+    /// while short probe windows with and without the second thread find
+    /// it faster (`team`'s A/B rule: wall time of a few dozen passes each
+    /// way, re-probed every 8–32 windows).
     #[default]
     #[serde(rename = "auto")]
     Auto,

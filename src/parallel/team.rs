@@ -19,6 +19,24 @@
 //! and lets the helper park, then tries again: the run falls back to one
 //! thread while the second is not available.
 //!
+//! Take-backs only see a helper that is not running at all. A helper that
+//! runs but shares its core (a busy machine) can still make two threads
+//! slower than one: it spins where the caller could run, and a half it is
+//! preempted in holds the caller up. So an `Auto` team also compares the
+//! two ways directly ([`Adapt`]): it runs probe windows of
+//! [`PROBE_PASSES`] passes with the helper and without it (in the order
+//! team, alone, alone, team, so that a steady drift of the machine's load
+//! hits both alike), measures the wall time of each, and runs the next
+//! [`EXPLOIT_MIN`] … [`EXPLOIT_MAX`] windows the faster way (the team
+//! only when it took at most [`TEAM_MARGIN`] of the time alone), then
+//! probes again. A *pass* is one call of [`concurrent`] on the caller:
+//! every pass that has a two-thread and a one-thread form asks it once
+//! whatever the answer (a Newton iteration's residual and solve), so the
+//! count of passes is the same whichever way the team runs and measures
+//! progress. The decisions depend on timing; the results do not (each
+//! pass computes the same bits in either form, and each half the same
+//! bits on either thread).
+//!
 //! [`run`] opens a team around a run (the driver's loop). Under `Auto` the
 //! helper is a job spawned in a `rayon::in_place_scope` of the run's pool
 //! (so the team never uses more threads than the pool has; with no free
@@ -31,7 +49,7 @@ use super::handover::{Handover, Ran};
 use super::{policy, Threads};
 use serde::Serialize;
 use std::cell::Cell;
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 
 pub use super::handover::SPIN;
 
@@ -41,6 +59,126 @@ pub const MISS_LIMIT: u32 = 4;
 pub const SOLO_MIN: u32 = 64;
 /// The longest such stretch (each miss of the next try doubles it).
 pub const SOLO_MAX: u32 = 16_384;
+
+/// Passes ([`concurrent`] calls on the caller) in one probe window of an
+/// `Auto` team.
+pub const PROBE_PASSES: u32 = 24;
+/// Windows an `Auto` team runs the way its last probe found faster (the
+/// first time, and after a probe that changed its mind).
+pub const EXPLOIT_MIN: u32 = 8;
+/// The most windows between two probes (each probe that confirms the last
+/// decision doubles the stretch up to this).
+pub const EXPLOIT_MAX: u32 = 32;
+/// An `Auto` team runs with its helper only when its probe windows took at
+/// most this fraction of the wall time of the windows alone (a tie goes
+/// to one thread).
+pub const TEAM_MARGIN: f64 = 0.97;
+
+/// The probe windows, in order: with the helper (`false`) or alone
+/// (`true`).
+const PROBE_ORDER: [bool; 4] = [false, true, true, false];
+
+/// The A/B rule of an `Auto` team (module docs): which way the passes
+/// run now, and the wall times that decide it. Touched by the caller only.
+#[derive(Debug)]
+struct Adapt {
+    /// Passes per window.
+    window: u32,
+    /// Passes left in the current window.
+    left: u32,
+    /// Index into [`PROBE_ORDER`], or 4 while exploiting a decision.
+    phase: usize,
+    /// Whether the current window runs alone.
+    solo: bool,
+    /// Start of the current window.
+    start: Option<std::time::Instant>,
+    /// Summed wall time of the probe windows: [with the helper, alone].
+    probe: [std::time::Duration; 2],
+    /// Windows of the next exploit stretch.
+    exploit: u32,
+    /// The last decision (alone?), if any.
+    last: Option<bool>,
+    /// Decisions for the team and for one thread so far.
+    decided: [u32; 2],
+}
+
+impl Adapt {
+    fn new(window: u32) -> Self {
+        Self {
+            window: window.max(1),
+            left: window.max(1),
+            phase: 0,
+            solo: PROBE_ORDER[0],
+            start: None,
+            probe: [std::time::Duration::ZERO; 2],
+            exploit: EXPLOIT_MIN,
+            last: None,
+            decided: [0; 2],
+        }
+    }
+
+    /// Counts one pass at `now`; returns whether it runs alone and whether
+    /// the helper should be woken now (the next window runs with it after
+    /// one that ran alone).
+    fn pass(&mut self, now: std::time::Instant) -> (bool, bool) {
+        let start = *self.start.get_or_insert(now);
+        if self.left > 0 {
+            self.left -= 1;
+            let wake = self.left == 0 && self.solo && !self.next_solo();
+            return (self.solo, wake);
+        }
+        // the current window ended with the previous pass
+        let dt = now.saturating_duration_since(start);
+        self.start = Some(now);
+        if self.phase < PROBE_ORDER.len() {
+            self.probe[usize::from(self.solo)] += dt;
+            self.phase += 1;
+        } else {
+            self.phase = 0;
+        }
+        if self.phase == PROBE_ORDER.len() {
+            let [team, alone] = self.probe;
+            let solo = team.as_secs_f64() > TEAM_MARGIN * alone.as_secs_f64();
+            self.exploit = if self.last == Some(solo) {
+                (2 * self.exploit).min(EXPLOIT_MAX)
+            } else {
+                EXPLOIT_MIN
+            };
+            self.last = Some(solo);
+            self.decided[usize::from(solo)] += 1;
+            self.solo = solo;
+            self.left = self.exploit * self.window;
+        } else {
+            if self.phase == 0 {
+                self.probe = [std::time::Duration::ZERO; 2];
+            }
+            self.solo = PROBE_ORDER[self.phase];
+            self.left = self.window;
+        }
+        // this pass is the first of the new window
+        self.left -= 1;
+        let wake = self.left == 0 && self.solo && !self.next_solo();
+        (self.solo, wake)
+    }
+
+    /// Whether the window after the current one starts alone (after the
+    /// last probe window: not known yet, taken as with the helper).
+    fn next_solo(&self) -> bool {
+        match self.phase {
+            p if p + 1 < PROBE_ORDER.len() => PROBE_ORDER[p + 1],
+            p if p + 1 == PROBE_ORDER.len() => false,
+            _ => PROBE_ORDER[0],
+        }
+    }
+}
+
+#[cfg(test)]
+thread_local! {
+    /// A test's probe window (passes) for the teams opened on this thread.
+    static TEST_WINDOW: Cell<Option<u32>> = const { Cell::new(None) };
+    /// The passes of the last team closed on this thread.
+    static TEST_PASSES: Cell<usize> = const { Cell::new(0) };
+}
 
 /// What the concurrent passes of one run did ([`super::with_threads`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -52,8 +190,14 @@ pub struct TeamReport {
     /// itself because the helper had not started them.
     pub halves_taken_back: usize,
     /// Joins a team ran on one thread without posting (the second thread
-    /// was found busy).
+    /// was found busy, or the A/B rule ran that window alone).
     pub halves_solo: usize,
+    /// Passes the caller of a team counted (`concurrent` calls): the
+    /// A/B rule's measure of progress, the same whichever way it ran.
+    pub passes: usize,
+    /// Probes of the A/B rule that chose the team, and that chose one
+    /// thread.
+    pub decisions: [u32; 2],
 }
 
 impl TeamReport {
@@ -70,13 +214,22 @@ impl TeamReport {
         self.halves_split += o.halves_split;
         self.halves_taken_back += o.halves_taken_back;
         self.halves_solo += o.halves_solo;
+        self.passes += o.passes;
+        self.decisions[0] += o.decisions[0];
+        self.decisions[1] += o.decisions[1];
     }
 }
 
 thread_local! {
     /// The counts of the runs on this thread since [`super::with_threads`].
     pub(super) static REPORT: Cell<TeamReport> = const {
-        Cell::new(TeamReport { halves_split: 0, halves_taken_back: 0, halves_solo: 0 })
+        Cell::new(TeamReport {
+            halves_split: 0,
+            halves_taken_back: 0,
+            halves_solo: 0,
+            passes: 0,
+            decisions: [0; 2],
+        })
     };
     /// The team of the run this thread drives, if any.
     static CURRENT: Cell<*const Team> = const { Cell::new(std::ptr::null()) };
@@ -96,6 +249,11 @@ struct Team {
     misses: AtomicU32,
     solo_left: AtomicU32,
     backoff: AtomicU32,
+    /// The A/B rule (`Auto` teams only).
+    adapt: Option<std::sync::Mutex<Adapt>>,
+    /// Whether the A/B rule runs the current window alone.
+    ab_solo: AtomicBool,
+    passes: AtomicUsize,
 }
 
 impl Team {
@@ -109,7 +267,34 @@ impl Team {
             misses: AtomicU32::new(0),
             solo_left: AtomicU32::new(0),
             backoff: AtomicU32::new(SOLO_MIN),
+            adapt: adaptive.then(|| {
+                #[cfg(test)]
+                let window = TEST_WINDOW.with(|w| w.get()).unwrap_or(PROBE_PASSES);
+                #[cfg(not(test))]
+                let window = PROBE_PASSES;
+                std::sync::Mutex::new(Adapt::new(window))
+            }),
+            ab_solo: AtomicBool::new(false),
+            passes: AtomicUsize::new(0),
         }
+    }
+
+    /// Counts a pass for the A/B rule (caller only); returns whether it
+    /// runs alone.
+    fn pass(&self) -> bool {
+        self.passes.fetch_add(1, Ordering::Relaxed);
+        let Some(a) = &self.adapt else {
+            return false;
+        };
+        let (solo, wake) = a
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .pass(std::time::Instant::now());
+        self.ab_solo.store(solo, Ordering::Relaxed);
+        if wake {
+            self.h.wake_helper();
+        }
+        solo
     }
 
     /// Records how a posted half ran; after [`MISS_LIMIT`] take-backs in a
@@ -142,6 +327,10 @@ impl Team {
     /// one join before the next try, so that it spins when the try posts.
     fn solo_join(&self) -> bool {
         let r = Ordering::Relaxed;
+        if self.ab_solo.load(r) {
+            self.solo.fetch_add(1, r);
+            return true;
+        }
         let left = self.solo_left.load(r);
         if left == 0 {
             return false;
@@ -159,6 +348,10 @@ impl Team {
             halves_split: self.split.load(Ordering::Relaxed),
             halves_taken_back: self.taken_back.load(Ordering::Relaxed),
             halves_solo: self.solo.load(Ordering::Relaxed),
+            passes: self.passes.load(Ordering::Relaxed),
+            decisions: self.adapt.as_ref().map_or([0; 2], |a| {
+                a.lock().unwrap_or_else(|e| e.into_inner()).decided
+            }),
         }
     }
 }
@@ -216,6 +409,8 @@ fn with_team<R>(t: &Team, f: impl FnOnce() -> R) -> R {
             CURRENT.with(|c| c.set(std::ptr::null()));
             self.0.h.stop();
             let rep = self.0.report();
+            #[cfg(test)]
+            TEST_PASSES.with(|p| p.set(rep.passes));
             REPORT.with(|r| {
                 let mut v = r.get();
                 v.add(rep);
@@ -237,14 +432,19 @@ fn current_team<'a>() -> Option<&'a Team> {
 }
 
 /// Whether a [`join`] on this thread would now run its halves on two
-/// threads: inside a team whose helper runs, is free and is not backed off,
-/// or else (not on a helper, not under `One`) inside a rayon pool with
-/// more than one thread. Callers choose between a two-thread and a
-/// one-thread form of the same computation with it (results must not
-/// depend on the choice).
+/// threads: inside a team whose helper runs, is free and is not backed off
+/// (nor in a window the A/B rule runs alone), or else (not on a helper,
+/// not under `One`) inside a rayon pool with more than one thread.
+/// Callers choose between a two-thread and a one-thread form of the same
+/// computation with it (results must not depend on the choice), once per
+/// pass whatever the answer: in an `Auto` team each call counts one pass
+/// of the A/B rule's windows (module docs).
 pub fn concurrent() -> bool {
     match current_team() {
-        Some(t) => t.h.ready() && t.solo_left.load(Ordering::Relaxed) == 0,
+        Some(t) => {
+            let solo = t.pass();
+            !solo && t.h.ready() && t.solo_left.load(Ordering::Relaxed) == 0
+        }
         None => {
             !IN_HELPER.with(|h| h.get())
                 && policy() != Threads::One
@@ -377,6 +577,124 @@ mod tests {
             forced.note(Ran::TakenBack);
         }
         assert!(!forced.solo_join());
+    }
+
+    /// Drives an A/B rule of windows of `w` passes for `passes` passes
+    /// on a synthetic clock where a pass costs `cost(alone)` µs; returns
+    /// (alone, wake) per pass.
+    fn drive(a: &mut Adapt, passes: usize, cost: impl Fn(bool) -> u64) -> Vec<(bool, bool)> {
+        let t0 = Instant::now();
+        let mut t = Duration::ZERO;
+        (0..passes)
+            .map(|_| {
+                let r = a.pass(t0 + t);
+                t += Duration::from_micros(cost(r.0));
+                r
+            })
+            .collect()
+    }
+
+    /// The A/B rule probes team, alone, alone, team, runs the faster way
+    /// for EXPLOIT_MIN windows (twice as long after a confirming probe),
+    /// and changes its mind when the costs change; a tie goes to one
+    /// thread; the helper is woken on the last pass before a team window.
+    #[test]
+    fn the_ab_rule_runs_the_faster_way_and_probes_again() {
+        let w = 2usize;
+        let probe = [false, false, true, true, true, true, false, false];
+        let mut a = Adapt::new(w as u32);
+        // the team twice as fast
+        let r = drive(&mut a, 8 + 8 * w + 8 + 16 * w, |alone| {
+            if alone {
+                200
+            } else {
+                100
+            }
+        });
+        let modes: Vec<bool> = r.iter().map(|x| x.0).collect();
+        assert_eq!(modes[..8], probe);
+        assert!(modes[8..8 + 8 * w].iter().all(|&s| !s));
+        assert_eq!(modes[8 + 8 * w..16 + 8 * w], probe);
+        assert!(modes[16 + 8 * w..].iter().all(|&s| !s));
+        assert_eq!(a.exploit, 2 * EXPLOIT_MIN);
+        assert_eq!(a.decided, [2, 0]);
+        // woken exactly on the last pass of the second alone window
+        let wakes: Vec<usize> = (0..8).filter(|&i| r[i].1).collect();
+        assert_eq!(wakes, [5]);
+        // the machine gets busy: the team now 1.5× slower
+        let r = drive(&mut a, 8 + 8 * w + 8, |alone| if alone { 200 } else { 300 });
+        let modes: Vec<bool> = r.iter().map(|x| x.0).collect();
+        assert_eq!(modes[..8], probe);
+        assert!(modes[8..8 + 8 * w].iter().all(|&s| s));
+        assert_eq!(a.decided, [2, 1]);
+        assert_eq!(a.exploit, EXPLOIT_MIN);
+        // the helper is woken before the next probe's team window
+        assert!(r[8 + 8 * w - 1].1);
+        // a tie (within TEAM_MARGIN) goes to one thread
+        let mut b = Adapt::new(1);
+        drive(&mut b, 5, |alone| if alone { 100 } else { 99 });
+        assert_eq!(b.decided, [0, 1]);
+    }
+
+    /// A team whose A/B rule changes its way at every pass (windows of
+    /// one pass) gives the bits of one thread, and counts the same passes
+    /// as a team that always posts: the passes measure progress whichever
+    /// way they run.
+    #[test]
+    fn an_alternating_team_gives_the_bits_of_one_thread() {
+        use crate::integrate::{Method, OdeOptions};
+        use crate::simulation::{simulate, RunConfig};
+        let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+        for (method, step) in [
+            (Method::Bdf, None),
+            (Method::GenAlpha, Some(1e-5)),
+            (Method::Radau5, Some(1e-5)),
+        ] {
+            let cfg = RunConfig {
+                method,
+                t_end: 3e-5,
+                output_dt: 1e-5,
+                ode: OdeOptions {
+                    rtol: 1e-5,
+                    fixed_step: step,
+                    ..Default::default()
+                },
+                ..Default::default()
+            };
+            let run = |threads| {
+                let cfg = RunConfig {
+                    threads,
+                    ..cfg.clone()
+                };
+                pool(2).install(|| {
+                    TEST_WINDOW.with(|w| w.set(Some(1)));
+                    TEST_PASSES.with(|p| p.set(0));
+                    let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+                    TEST_WINDOW.with(|w| w.set(None));
+                    (traj, s, TEST_PASSES.with(|p| p.get()))
+                })
+            };
+            let (one, _, _) = run(Threads::One);
+            let (two, s2, p2) = run(Threads::Two);
+            let (auto, sa, pa) = run(Threads::Auto);
+            assert!(p2 > 10, "{method:?}: {p2} passes");
+            assert_eq!(p2, pa, "{method:?}");
+            let count = |s: &crate::simulation::Summary, k: &str| s.extra[k].as_u64().unwrap();
+            assert!(count(&sa, "halves_solo") > 0, "{method:?}");
+            for traj in [&two, &auto] {
+                assert_eq!(one.t, traj.t);
+                for (a, b) in one.q.iter().zip(&traj.q).chain(one.qd.iter().zip(&traj.qd)) {
+                    assert!(
+                        a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                        "{method:?}"
+                    );
+                }
+            }
+            assert_eq!(
+                count(&s2, "newton_iterations"),
+                count(&sa, "newton_iterations")
+            );
+        }
     }
 
     /// With no helper running, a posted half comes back to the caller.

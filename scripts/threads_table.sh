@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# The two-thread table of docs/scaling.md: the stiff chain (N = 10 000 by
+# default) with radau5, ndf and generalized-α, one thread against two
+# (`examples/threads_table.rs`: a rayon pool of 1 or 2 threads, setting
+# `auto`), on the machine as it is ("quiet") and beside one busy process
+# per core (`yes > /dev/null`, started and stopped by this script).
+# Rounds interleave 1 and 2 threads; every run is its own process.
+#
+#   scripts/threads_table.sh [N] [ROUNDS]
+#
+# Environment: T_RADAU5, T_NDF, T_GENALPHA (simulated seconds; defaults
+# 0.02, 0.02, 0.005), BUSY_MODES ("quiet busy" by default; "busy" or
+# "quiet" for one), OUT (a file for the raw JSON lines; default a
+# temporary file, printed at the end).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+N=${1:-10000}
+ROUNDS=${2:-2}
+T_RADAU5=${T_RADAU5:-0.02}
+T_NDF=${T_NDF:-0.02}
+T_GENALPHA=${T_GENALPHA:-0.005}
+BUSY_MODES=${BUSY_MODES:-"quiet busy"}
+OUT=${OUT:-$(mktemp /tmp/threads_table.XXXXXX.jsonl)}
+export CARGO_PROFILE_RELEASE_INCREMENTAL=true
+cargo build --release --example threads_table >&2
+bin=target/release/examples/threads_table
+
+busy_pids=()
+stop_busy() {
+  for p in "${busy_pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  busy_pids=()
+}
+trap stop_busy EXIT
+
+: >"$OUT"
+echo "start: $(date -u '+%Y-%m-%d %H:%M UTC'); $(uptime)" >&2
+for mode in $BUSY_MODES; do
+  if [ "$mode" = busy ]; then
+    for _ in $(seq "$(nproc)"); do
+      yes >/dev/null &
+      busy_pids+=($!)
+    done
+  fi
+  for method in radau5 ndf genalpha; do
+    case $method in
+      radau5) t=$T_RADAU5 ;;
+      ndf) t=$T_NDF ;;
+      genalpha) t=$T_GENALPHA ;;
+    esac
+    for round in $(seq "$ROUNDS"); do
+      for threads in 1 2; do
+        load=$(cut -d' ' -f1 /proc/loadavg)
+        line=$("$bin" "$N" "$method" "$t" "$threads")
+        echo "$line" | jq -c --arg mode "$mode" --arg round "$round" --arg load "$load" \
+          '. + {mode: $mode, round: ($round | tonumber), load: ($load | tonumber)}' >>"$OUT"
+        echo "$mode $method round $round threads $threads: $(echo "$line" | jq -c '{wall_s, cpu_s, halves_split, halves_solo}')" >&2
+      done
+    done
+  done
+  stop_busy
+done
+echo "end: $(date -u '+%Y-%m-%d %H:%M UTC'); $(uptime)" >&2
+echo "raw lines: $OUT" >&2
+python3 - "$OUT" <<'PY'
+import json, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / solo | same tip |")
+print("|---|---|---|---|---|---|---|---|---|")
+key = lambda r: (r["mode"], r["method"], r["round"])
+groups = {}
+for r in rows:
+    groups.setdefault(key(r), {})[r["threads"]] = r
+for (mode, method, rnd), g in groups.items():
+    if 1 not in g or 2 not in g:
+        continue
+    a, b = g[1], g[2]
+    print(f"| {method} | {mode} | {rnd} | {a['load']:.1f} | {a['wall_s']:.2f} ({a['cpu_s']:.2f}) "
+          f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× "
+          f"| {b['halves_split']} / {b['halves_solo']} | {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")
+PY
