@@ -32,6 +32,7 @@ mod initial;
 mod joints;
 pub mod limits;
 mod model;
+mod parameters;
 mod run;
 mod sensor;
 
@@ -210,6 +211,10 @@ pub fn parse_with(
             },
         )
     })?;
+    let declared: Vec<String> = match doc.get("parameters") {
+        Some(toml::Value::Table(t)) => t.keys().cloned().collect(),
+        _ => Vec::new(),
+    };
     let mut set_keys = Vec::new();
     for o in overrides {
         let bad = |m: String| ScenarioError {
@@ -225,9 +230,38 @@ pub fn parse_with(
                  cannot add one"
             )));
         }
-        let key = apply_override(&mut doc, o.spec).map_err(bad)?;
+        // a bare parameter name addresses the parameter (`--param k=…`)
+        let spec = match o.spec.split_once('=') {
+            Some((k, v)) if declared.iter().any(|d| d == k.trim()) => {
+                format!("parameters.{}={v}", k.trim())
+            }
+            _ => o.spec.to_string(),
+        };
+        if let Some(p) = spec
+            .split_once('=')
+            .and_then(|(k, _)| k.trim().strip_prefix("parameters."))
+        {
+            if !declared.iter().any(|d| d == p) {
+                return Err(bad(format!(
+                    "{file} has no parameter '{}' (parameters: {}): an override changes a \
+                     parameter and never adds one",
+                    escape(p),
+                    if declared.is_empty() {
+                        "none".to_string()
+                    } else {
+                        declared.join(", ")
+                    }
+                )));
+            }
+        }
+        let key = apply_override(&mut doc, &spec).map_err(bad)?;
         set_keys.push((o.flag, key));
     }
+    let substituted = parameters::apply(&mut doc).map_err(|(key, message)| ScenarioError {
+        file: attribute(file, &key, &set_keys),
+        key,
+        message,
+    })?;
     non_finite(&doc, "").map_err(|(key, message)| ScenarioError {
         file: attribute(file, &key, &set_keys),
         key,
@@ -249,6 +283,9 @@ pub fn parse_with(
                     message = format!("missing: the [{f}] table is required");
                 }
             }
+            if let Some(m) = substituted.explain(&key, &message) {
+                message = m;
+            }
             let origin = attribute(file, &key, &set_keys);
             ScenarioError {
                 file: origin,
@@ -267,6 +304,9 @@ pub fn parse_with(
         })?;
     build(raw, file, stem).map_err(|mut e| {
         e.file = attribute(file, &e.key, &set_keys);
+        if let Some(m) = substituted.explain(&e.key, &e.message) {
+            e.message = m;
+        }
         e
     })
 }

@@ -76,7 +76,8 @@ enum Command {
     Sweep {
         /// Scenario file (TOML).
         scenario: PathBuf,
-        /// A swept key and its values, e.g. --param stabilization.alpha=0,1,5,10 (repeatable).
+        /// A swept key (or [parameters] name) and its values, e.g. --param stabilization.alpha=0,1,5,10,
+        /// --param k=[1e3, 2e3] or --param k=linspace(1e3, 4e3, 7) (repeatable).
         #[arg(long = "param", value_name = "KEY=V1,V2,...", required = true)]
         param: Vec<String>,
         /// Fixed overrides applied to every run.
