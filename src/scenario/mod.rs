@@ -35,6 +35,7 @@ mod model;
 mod parameters;
 mod run;
 mod sensor;
+mod templates;
 
 use components::{RawChain, RawRods};
 use element::RawTagged;
@@ -211,6 +212,10 @@ pub fn parse_with(
             },
         )
     })?;
+    if doc.contains_key("include") {
+        templates::includes(&mut doc, Path::new(file), &mut Vec::new())
+            .map_err(|(file, key, message)| ScenarioError { file, key, message })?;
+    }
     let declared: Vec<String> = match doc.get("parameters") {
         Some(toml::Value::Table(t)) => t.keys().cloned().collect(),
         _ => Vec::new(),
@@ -286,6 +291,7 @@ pub fn parse_with(
             if let Some(m) = substituted.explain(&key, &message) {
                 message = m;
             }
+            let key = substituted.rekey(&key);
             let origin = attribute(file, &key, &set_keys);
             ScenarioError {
                 file: origin,
@@ -307,6 +313,7 @@ pub fn parse_with(
         if let Some(m) = substituted.explain(&e.key, &e.message) {
             e.message = m;
         }
+        e.key = substituted.rekey(&e.key);
         e
     })
 }

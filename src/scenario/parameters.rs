@@ -50,6 +50,7 @@ const TEXT_KEYS: &[&str] = &[
     "kind",
     "file",
     "include",
+    "index",
 ];
 
 /// Keys of a `type = "expression"` force that hold expressions of t and
@@ -93,9 +94,24 @@ pub(super) struct Substituted {
     pub(super) unknown: HashMap<String, Vec<String>>,
     /// The parameter names, sorted (for messages).
     pub(super) names: Vec<String>,
+    /// Copies made by `[[repeat]]`: (their key, e.g. `body[41]`; where
+    /// they come from, e.g. `repeat[1].body[0] (i = 3)`).
+    pub(super) origins: Vec<(String, String)>,
 }
 
 impl Substituted {
+    /// `key` named after the template it was copied from, when it was.
+    pub(super) fn rekey(&self, key: &str) -> String {
+        for (at, origin) in &self.origins {
+            if let Some(rest) = key.strip_prefix(at.as_str()) {
+                if rest.is_empty() || rest.starts_with('.') || rest.starts_with('[') {
+                    return format!("{origin}{rest}");
+                }
+            }
+        }
+        key.to_string()
+    }
+
     /// An explanation to add to an error at `key`, if its value came from
     /// parameters or names an unknown one.
     pub(super) fn explain(&self, key: &str, message: &str) -> Option<String> {
@@ -120,7 +136,7 @@ impl Substituted {
 }
 
 /// Is `s` a parameter name: a letter or `_`, then letters, digits, `_`?
-fn is_name(s: &str) -> bool {
+pub(super) fn is_name(s: &str) -> bool {
     let mut c = s.chars();
     c.next()
         .is_some_and(|f| f.is_ascii_alphabetic() || f == '_')
@@ -129,7 +145,10 @@ fn is_name(s: &str) -> bool {
 
 /// Evaluate `text` with the parameter values `values`; `Err` lists the
 /// names that are not parameters (or gives the parse error).
-fn evaluate(text: &str, values: &HashMap<String, f64>) -> Result<f64, Result<Vec<String>, String>> {
+pub(super) fn evaluate(
+    text: &str,
+    values: &HashMap<String, f64>,
+) -> Result<f64, Result<Vec<String>, String>> {
     let mut ctx = Ctx::new();
     let mut unknown = Vec::new();
     let r = parse(&mut ctx, text, |n, c| match values.get(n) {
@@ -206,7 +225,7 @@ fn substitute(text: &str, values: &HashMap<String, f64>) -> Option<String> {
 }
 
 /// `v` as expression text that parses back to the same bits.
-fn number_text(v: f64) -> String {
+pub(super) fn number_text(v: f64) -> String {
     // `{:e}` is the shortest round-trip form and has no leading sign issue
     // for the parser (a minus is a unary minus in brackets)
     format!("{v:e}")
@@ -250,6 +269,7 @@ pub(super) fn apply(doc: &mut toml::Table) -> Result<Substituted, (String, Strin
     for (k, v) in doc.iter_mut() {
         walk(v, k, k, false, &values, &mut done);
     }
+    super::templates::expand_repeats(doc, &values, &mut done)?;
     Ok(done)
 }
 
@@ -365,7 +385,7 @@ fn evaluate_all(raw: &toml::Table) -> Result<HashMap<String, f64>, (String, Stri
 
 /// Substitute parameters in `v` at `path` (last key segment `key`);
 /// `expression` is set inside a `type = "expression"` element.
-fn walk(
+pub(super) fn walk(
     v: &mut toml::Value,
     path: &str,
     key: &str,
