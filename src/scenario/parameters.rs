@@ -123,7 +123,7 @@ impl Substituted {
                     format!("parameters: {}", self.names.join(", "))
                 };
                 return Some(format!(
-                    "unknown parameter '{}' in \"{}\" ({names})",
+                    "{message}: unknown parameter '{}' in \"{}\" ({names})",
                     u[0],
                     self.texts.get(key).map_or("", String::as_str)
                 ));

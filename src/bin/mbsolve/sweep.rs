@@ -283,7 +283,7 @@ impl Shard {
 /// finished run.
 pub fn run(
     path: &Path,
-    base: &[String],
+    base: &Base,
     params: &[SweepParam],
     shard: Option<Shard>,
     progress: &str,
@@ -293,8 +293,13 @@ pub fn run(
         .enumerate()
         .filter(|(k, _)| shard.is_none_or(|s| s.owns(*k)))
         .collect();
-    for (_, p) in &points {
-        scenario::load_with(path, &overrides(base, p))?;
+    for (k, (_, p)) in points.iter().enumerate() {
+        let sc = scenario::load_with(path, &overrides(base, p))?;
+        if k == 0 {
+            for n in &sc.notes {
+                eprintln!("note: {n}");
+            }
+        }
     }
     let total = points.len();
     // runs side by side on the pool's threads: each run on one thread
@@ -343,15 +348,18 @@ pub fn run(
         .collect())
 }
 
-/// The `--set` overrides, then one run's `--param` values, each labelled by
-/// its flag for the scenario's errors.
-fn overrides<'a>(base: &'a [String], point: &'a [String]) -> Vec<Override<'a>> {
+/// The `--unset` keys and `--set` overrides, then one run's `--param`
+/// values, each labelled by its flag for the scenario's errors.
+fn overrides<'a>(base: &'a Base, point: &'a [String]) -> Vec<Override<'a>> {
     let tag = |flag: &'static str| move |spec: &'a String| Override { flag, spec };
-    base.iter()
-        .map(tag("--set"))
+    scenario::overrides(&base.1, &base.0)
+        .into_iter()
         .chain(point.iter().map(tag("--param")))
         .collect()
 }
+
+/// The `--set` overrides and the `--unset` keys of every run.
+pub type Base = (Vec<String>, Vec<String>);
 
 /// What `mbsolve sweep` was asked for.
 pub struct SweepArgs {
@@ -361,6 +369,8 @@ pub struct SweepArgs {
     pub params: Vec<String>,
     /// `--set` overrides of every run.
     pub set: Vec<String>,
+    /// `--unset` keys of every run.
+    pub unset: Vec<String>,
     /// Output directory.
     pub out: PathBuf,
     /// `--shard I/N`.
@@ -416,7 +426,8 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     }
     let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
     crate::stream::install_interrupt_handler();
-    let runs = run(&a.scenario, &a.set, &params, shard, &label).map_err(|e| e.to_string())?;
+    let base = (a.set.clone(), a.unset.clone());
+    let runs = run(&a.scenario, &base, &params, shard, &label).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let table = match shard {
         None => a.out.join(format!("{stem}_sweep.csv")),
