@@ -156,10 +156,8 @@ fn split_top(s: &str) -> Result<Vec<String>, String> {
             '(' => depth.push(')'),
             '[' => depth.push(']'),
             '{' => depth.push('}'),
-            ')' | ']' | '}' => {
-                if depth.pop() != Some(c) {
-                    return Err(format!("unbalanced '{c}' in '{s}'"));
-                }
+            ')' | ']' | '}' if depth.pop() != Some(c) => {
+                return Err(format!("unbalanced '{c}' in '{s}'"));
             }
             ',' if depth.is_empty() => {
                 parts.push(cur.trim().to_string());
