@@ -261,3 +261,63 @@ fn sigterm_on_a_sweep_keeps_finished_runs_and_the_table() {
         .count();
     assert!(summaries >= completed, "{summaries} < {completed}");
 }
+
+/// `--param` by parameter name, as a range and as a TOML array whose
+/// element is an expression with a comma inside `max(…)`: 3 × 2 runs in
+/// product order, each with its values.
+#[test]
+fn parameters_swept_by_name_ranges_and_arrays() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = mbsolve(&[
+        "sweep",
+        "scenarios/quarter_car_parameters.toml",
+        "--param",
+        "c_s=linspace(500, 1500, 3)",
+        "--param",
+        "road_a=[0.01, \"max(0.02, r/10)\"]",
+        "--set",
+        "time.end=0.05",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows = rows_without_wall_time(&dir.path().join("quarter_car_parameters_sweep.csv"));
+    assert_eq!(rows[0][..3], ["c_s", "road_a", "status"]);
+    let got: Vec<(&str, &str, &str)> = rows[1..]
+        .iter()
+        .map(|r| (r[0].as_str(), r[1].as_str(), r[2].as_str()))
+        .collect();
+    let a = "\"max(0.02, r/10)\"";
+    assert_eq!(
+        got,
+        [
+            ("500", "0.01", "completed"),
+            ("500", a, "completed"),
+            ("1000", "0.01", "completed"),
+            ("1000", a, "completed"),
+            ("1500", "0.01", "completed"),
+            ("1500", a, "completed"),
+        ]
+    );
+    // the road amplitude reached the model: r/10 = 0.03 > 0.02 differs
+    // from 0.01 in the run's steps or constraint history
+    assert_ne!(rows[1][3..], rows[2][3..]);
+    for (p, needle) in [
+        ("c_s=linspace(1, 2)", "linspace(a, b, n)"),
+        ("c_s=[1, 2", "not a TOML array"),
+        ("c_s=max(1, 2", "missing ')'"),
+        ("c_s=1,\"2", "unclosed"),
+        ("c_s=logspace(0, 1, 3)", "a, b > 0"),
+    ] {
+        let o = mbsolve(&[
+            "sweep",
+            "scenarios/quarter_car_parameters.toml",
+            "--param",
+            p,
+            "--out",
+            dir.path().to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(needle), "{p}: {}", stderr(&o));
+    }
+}

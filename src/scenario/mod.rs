@@ -32,8 +32,10 @@ mod initial;
 mod joints;
 pub mod limits;
 mod model;
+mod parameters;
 mod run;
 mod sensor;
+mod templates;
 
 use components::{RawChain, RawRods};
 use element::RawTagged;
@@ -91,6 +93,9 @@ pub struct Scenario {
     /// The declared `shape` of each `[[body]]`, by body index (components'
     /// bodies are not listed); drawing only.
     pub shapes: Vec<Option<crate::drawing::BodyShape>>,
+    /// Notes for the user about what loading did, e.g. the file's keys
+    /// dropped because an override chose a method they do not apply to.
+    pub notes: Vec<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -129,7 +134,8 @@ struct RawScenario {
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it
-/// came from (`--set`, `--param`), which labels its errors.
+/// came from (`--set`, `--param`), which labels its errors; with the flag
+/// `--unset` the spec is a bare `KEY`, removed from the file.
 #[derive(Debug, Clone, Copy)]
 pub struct Override<'a> {
     /// The flag, e.g. `--param`.
@@ -146,6 +152,16 @@ fn set_overrides(specs: &[String]) -> Vec<Override<'_>> {
             flag: "--set",
             spec,
         })
+        .collect()
+}
+
+/// The overrides of a command line: the `--unset` keys, then the `--set`
+/// `KEY=VALUE`s.
+pub fn overrides<'a>(unset: &'a [String], set: &'a [String]) -> Vec<Override<'a>> {
+    unset
+        .iter()
+        .map(|spec| Override { flag: UNSET, spec })
+        .chain(set_overrides(set))
         .collect()
 }
 
@@ -210,6 +226,14 @@ pub fn parse_with(
             },
         )
     })?;
+    if doc.contains_key("include") {
+        templates::includes(&mut doc, Path::new(file), &mut Vec::new())
+            .map_err(|(file, key, message)| ScenarioError { file, key, message })?;
+    }
+    let declared: Vec<String> = match doc.get("parameters") {
+        Some(toml::Value::Table(t)) => t.keys().cloned().collect(),
+        _ => Vec::new(),
+    };
     let mut set_keys = Vec::new();
     for o in overrides {
         let bad = |m: String| ScenarioError {
@@ -217,6 +241,12 @@ pub fn parse_with(
             key: escape(o.spec),
             message: m,
         };
+        if o.flag == UNSET {
+            let key = unset(&mut doc, o.spec)
+                .map_err(|m| bad(format!("{m} (in {file} after the overrides before it)")))?;
+            set_keys.push((o.flag, key));
+            continue;
+        }
         // An override changes the rod a scenario has; it never adds one.
         let head = o.spec.split(['.', '[', '=']).next().unwrap_or_default();
         if head.trim() == "rod" && !doc.contains_key("rod") {
@@ -225,9 +255,46 @@ pub fn parse_with(
                  cannot add one"
             )));
         }
-        let key = apply_override(&mut doc, o.spec).map_err(bad)?;
+        // a bare parameter name addresses the parameter (`--param k=…`)
+        let spec = match o.spec.split_once('=') {
+            Some((k, v)) if declared.iter().any(|d| d == k.trim()) => {
+                format!("parameters.{}={v}", k.trim())
+            }
+            _ => o.spec.to_string(),
+        };
+        if let Some(p) = spec
+            .split_once('=')
+            .and_then(|(k, _)| k.trim().strip_prefix("parameters."))
+        {
+            if !declared.iter().any(|d| d == p) {
+                return Err(bad(format!(
+                    "{file} has no parameter '{}' (parameters: {}): an override changes a \
+                     parameter and never adds one",
+                    escape(p),
+                    if declared.is_empty() {
+                        "none".to_string()
+                    } else {
+                        declared.join(", ")
+                    }
+                )));
+            }
+        }
+        let key = apply_override(&mut doc, &spec).map_err(bad)?;
         set_keys.push((o.flag, key));
     }
+    let substituted = parameters::apply(&mut doc).map_err(|(key, message)| ScenarioError {
+        file: attribute(file, &key, &set_keys),
+        key,
+        message,
+    })?;
+    let notes = if set_keys
+        .iter()
+        .any(|(f, k)| *f != UNSET && k == "integrator.method")
+    {
+        foreign_keys(&mut doc, &set_keys, file)
+    } else {
+        Vec::new()
+    };
     non_finite(&doc, "").map_err(|(key, message)| ScenarioError {
         file: attribute(file, &key, &set_keys),
         key,
@@ -249,6 +316,10 @@ pub fn parse_with(
                     message = format!("missing: the [{f}] table is required");
                 }
             }
+            if let Some(m) = substituted.explain(&key, &message) {
+                message = m;
+            }
+            let key = substituted.rekey(&key);
             let origin = attribute(file, &key, &set_keys);
             ScenarioError {
                 file: origin,
@@ -265,10 +336,149 @@ pub fn parse_with(
             key,
             message,
         })?;
-    build(raw, file, stem).map_err(|mut e| {
+    let mut sc = build(raw, file, stem).map_err(|mut e| {
         e.file = attribute(file, &e.key, &set_keys);
+        if let Some(m) = substituted.explain(&e.key, &e.message) {
+            e.message = m;
+        }
+        e.key = substituted.rekey(&e.key);
         e
-    })
+    })?;
+    sc.notes = notes;
+    Ok(sc)
+}
+
+/// The flag of an override that removes a key.
+pub const UNSET: &str = "--unset";
+
+/// When an override chose the method: remove the file's keys that do not
+/// apply to it (by the method table, [`crate::integrate::METHODS`]: the
+/// `[integrator]` keys, Baumgarte's `stabilization.alpha`/`beta` for the
+/// index-3 methods, a `formulation` of the other equations), except those
+/// an override wrote (still errors); one note per removed key.
+fn foreign_keys(doc: &mut toml::Table, set_keys: &[(&str, String)], file: &str) -> Vec<String> {
+    use crate::integrate::{Family, Method};
+    let by_override = |k: &str| set_keys.iter().any(|(f, s)| *f != UNSET && s == k);
+    let integrator = doc.get("integrator").and_then(toml::Value::as_table);
+    let Some(name) = integrator
+        .and_then(|t| t.get("method"))
+        .and_then(toml::Value::as_str)
+        .map(str::to_string)
+    else {
+        return Vec::new();
+    };
+    let trapezoidal = name.trim().eq_ignore_ascii_case("trapezoidal");
+    let method: Method = if trapezoidal {
+        Method::Newmark
+    } else {
+        match name.parse() {
+            Ok(m) => m,
+            Err(_) => return Vec::new(), // the typed parse names it
+        }
+    };
+    let adaptive = integrator
+        .and_then(|t| t.get("adaptive"))
+        .and_then(toml::Value::as_bool)
+        .unwrap_or(false);
+    let row = method.info();
+    let mut drop: Vec<String> = Vec::new();
+    if let Some(t) = integrator {
+        for k in t.keys() {
+            let applies = k == "method"
+                || k == "threads"
+                || (row.takes(k, adaptive) && !(trapezoidal && k == "rho_inf"));
+            if !applies && !by_override(&format!("integrator.{k}")) {
+                // only keys some method takes: an unknown key stays an error
+                if crate::integrate::METHODS
+                    .iter()
+                    .any(|m| m.key_use(k).is_some())
+                {
+                    drop.push(format!("integrator.{k}"));
+                }
+            }
+        }
+    }
+    if method.is_index3() {
+        if let Some(st) = doc.get("stabilization").and_then(toml::Value::as_table) {
+            for k in ["alpha", "beta"] {
+                let key = format!("stabilization.{k}");
+                if st.contains_key(k) && !by_override(&key) {
+                    drop.push(key);
+                }
+            }
+        }
+    }
+    if let Some(f) = doc.get("formulation").and_then(toml::Value::as_str) {
+        let alpha = method.family() == Family::GeneralizedAlpha;
+        let fits = match f {
+            "augmented_lagrangian" => alpha,
+            "saddle" => true,
+            _ => !method.is_index3(),
+        };
+        if !fits && !by_override("formulation") {
+            drop.push("formulation".into());
+        }
+    }
+    let mut notes = Vec::new();
+    for key in drop {
+        let (table, k) = key
+            .split_once('.')
+            .map_or((None, key.as_str()), |(t, k)| (Some(t), k));
+        let removed = match table {
+            Some(t) => doc
+                .get_mut(t)
+                .and_then(toml::Value::as_table_mut)
+                .and_then(|t| t.remove(k)),
+            None => doc.remove(k),
+        };
+        if let Some(v) = removed {
+            let v = match v {
+                toml::Value::Float(f) => format!("{f:e}"),
+                v => v.to_string(),
+            };
+            notes.push(format!(
+                "{file}: {key} = {v} dropped: it does not apply to integrator.method = \"{name}\" \
+                 chosen by an override"
+            ));
+        }
+    }
+    notes
+}
+
+/// Remove `key` (dotted, with `name[k]` indices as in [`apply_override`])
+/// from the document; it must exist. Returns the key.
+fn unset(doc: &mut toml::Table, key: &str) -> Result<String, String> {
+    let key = key.trim();
+    if key.contains('=') {
+        return Err("--unset takes a KEY, not KEY=VALUE".into());
+    }
+    let parts = key_parts(key)?;
+    let missing = || format!("'{}' is not set", escape(key));
+    let mut table = doc;
+    let (last, intermediate) = parts.split_last().expect("a key has a segment");
+    for &(p, index) in intermediate {
+        let v = table.get_mut(p).ok_or_else(missing)?;
+        let v = match index {
+            None => v,
+            Some(k) => v
+                .as_array_mut()
+                .and_then(|a| a.get_mut(k))
+                .ok_or_else(missing)?,
+        };
+        table = v.as_table_mut().ok_or_else(missing)?;
+    }
+    match last.1 {
+        None => table.remove(last.0).map(|_| ()).ok_or_else(missing)?,
+        Some(k) => {
+            let a = table
+                .get_mut(last.0)
+                .and_then(toml::Value::as_array_mut)
+                .filter(|a| k < a.len())
+                .ok_or_else(missing)?;
+            a.remove(k);
+        }
+    }
+    Ok(key.to_string())
 }
 
 /// The origin of an error at `key`: the file, or the file and the override
@@ -346,21 +556,9 @@ fn non_finite(doc: &toml::Table, path: &str) -> Result<(), (String, String)> {
     })
 }
 
-/// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
-/// TOML value (number, boolean, quoted string, array) or else as a bare
-/// string. Each segment of the key is a TOML bare key (letters, digits,
-/// `_`, `-`), optionally with the 0-based index of an existing array of
-/// tables (`rod[1].segments`, `body[0].mass`); tables on the way that do
-/// not exist are created.
-fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
-    let (key, value) = spec
-        .split_once('=')
-        .ok_or_else(|| "expected KEY=VALUE".to_string())?;
-    let key = key.trim();
-    let value = value.trim();
-    if key.is_empty() {
-        return Err("empty key: expected KEY=VALUE".into());
-    }
+/// The segments of a dotted key (`rod[1].segments`): each a bare TOML
+/// key with an optional 0-based array index; errors say what is wrong.
+fn key_parts(key: &str) -> Result<Vec<(&str, Option<usize>)>, String> {
     let mut parts: Vec<(&str, Option<usize>)> = Vec::new();
     for (i, p) in key.split('.').enumerate() {
         if p.is_empty() {
@@ -408,6 +606,25 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
         }
         parts.push((name, index));
     }
+    Ok(parts)
+}
+
+/// Apply `a.b.c=VALUE` to the document; returns the key. VALUE is read as a
+/// TOML value (number, boolean, quoted string, array) or else as a bare
+/// string. Each segment of the key is a TOML bare key (letters, digits,
+/// `_`, `-`), optionally with the 0-based index of an existing array of
+/// tables (`rod[1].segments`, `body[0].mass`); tables on the way that do
+/// not exist are created.
+fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
+    let (key, value) = spec
+        .split_once('=')
+        .ok_or_else(|| "expected KEY=VALUE".to_string())?;
+    let key = key.trim();
+    let value = value.trim();
+    if key.is_empty() {
+        return Err("empty key: expected KEY=VALUE".into());
+    }
+    let parts = key_parts(key)?;
     let parsed: toml::Value = format!("v = {value}")
         .parse::<toml::Table>()
         .ok()
@@ -488,6 +705,7 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         sensors,
         format,
         shapes,
+        notes: Vec::new(),
     })
 }
 

@@ -210,8 +210,8 @@ fn report(sc: &Scenario, s: &Size) -> String {
 
 /// `mbsolve check`: 0 and the report when the scenario is valid, 1 and the
 /// error otherwise.
-pub fn command(path: &Path, set: &[String]) -> ExitCode {
-    let checked = scenario::load(path, set)
+pub fn command(path: &Path, set: &[String], unset: &[String]) -> ExitCode {
+    let checked = scenario::load_with(path, &scenario::overrides(unset, set))
         .map_err(|e| e.to_string())
         .and_then(|sc| {
             let s = size(&sc.system, &sc.q0, sc.run.t0)?;
@@ -219,6 +219,9 @@ pub fn command(path: &Path, set: &[String]) -> ExitCode {
         });
     match checked {
         Ok((sc, s)) => {
+            for n in &sc.notes {
+                eprintln!("note: {n}");
+            }
             say!("{}", report(&sc, &s).trim_end());
             say!("valid");
             ExitCode::SUCCESS

@@ -55,6 +55,9 @@ enum Command {
         /// Override a scenario key, e.g. --set stabilization.alpha=10 (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Remove a key of the file, e.g. --unset integrator.rtol (repeatable; before the --set).
+        #[arg(long = "unset", value_name = "KEY")]
+        unset: Vec<String>,
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -76,12 +79,16 @@ enum Command {
     Sweep {
         /// Scenario file (TOML).
         scenario: PathBuf,
-        /// A swept key and its values, e.g. --param stabilization.alpha=0,1,5,10 (repeatable).
+        /// A swept key (or [parameters] name) and its values, e.g. --param stabilization.alpha=0,1,5,10,
+        /// --param k=[1e3, 2e3] or --param k=linspace(1e3, 4e3, 7) (repeatable).
         #[arg(long = "param", value_name = "KEY=V1,V2,...", required = true)]
         param: Vec<String>,
         /// Fixed overrides applied to every run.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Remove a key of the file, e.g. --unset integrator.rtol (repeatable; before the --set and --param).
+        #[arg(long = "unset", value_name = "KEY")]
+        unset: Vec<String>,
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -105,6 +112,9 @@ enum Command {
         /// Override a scenario key (repeatable), as for `run`.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Remove a key of the file, e.g. --unset integrator.rtol (repeatable; before the --set).
+        #[arg(long = "unset", value_name = "KEY")]
+        unset: Vec<String>,
     },
     /// Kinematics and inverse dynamics of a mechanism without freedom once
     /// its drives are counted: positions, velocities and accelerations from
@@ -300,11 +310,12 @@ fn command(cli: Cli) -> ExitCode {
         Command::Run {
             scenario,
             set,
+            unset,
             out,
             progress,
             quiet,
             view,
-        } => run(&scenario, &set, &out, progress, quiet).and_then(|code| {
+        } => run(&scenario, &set, &unset, &out, progress, quiet).and_then(|code| {
             if view && code == ExitCode::SUCCESS {
                 let stem = scenario
                     .file_stem()
@@ -362,7 +373,11 @@ fn command(cli: Cli) -> ExitCode {
             animate,
         }),
         Command::Study { which: _, out } => study_constraints(&out),
-        Command::Check { scenario, set } => Ok(check::command(&scenario, &set)),
+        Command::Check {
+            scenario,
+            set,
+            unset,
+        } => Ok(check::command(&scenario, &set, &unset)),
         Command::Animate {
             scenario,
             csv,
@@ -418,6 +433,7 @@ fn command(cli: Cli) -> ExitCode {
             scenario,
             param,
             set,
+            unset,
             out,
             shard,
             merge,
@@ -425,6 +441,7 @@ fn command(cli: Cli) -> ExitCode {
             scenario,
             params: param,
             set,
+            unset,
             out,
             shard,
             merge,
@@ -444,6 +461,7 @@ fn command(cli: Cli) -> ExitCode {
 fn run(
     path: &std::path::Path,
     set: &[String],
+    unset: &[String],
     out: &std::path::Path,
     progress: stream::ProgressMode,
     quiet: bool,
@@ -451,7 +469,11 @@ fn run(
     macro_rules! report {
         ($($t:tt)*) => {{ if !quiet { say!($($t)*); } }};
     }
-    let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
+    let sc =
+        scenario::load_with(path, &scenario::overrides(unset, set)).map_err(|e| e.to_string())?;
+    for n in &sc.notes {
+        eprintln!("note: {n}");
+    }
     if let Some(a) = &sc.assembly {
         report!(
             "assembled initial state: ‖Φ‖ = {:.2e}, ‖Φ_q q̇ + Φ_t‖ = {:.2e} ({} Newton iterations)",

@@ -40,15 +40,22 @@ pub struct SweepParam {
 
 impl std::str::FromStr for SweepParam {
     type Err = String;
-    /// `KEY=v1,v2,…`.
+    /// `KEY=v1,v2,…` (split at the commas outside brackets and quotes, so
+    /// `"max(a, b)"` is one value), `KEY=[v1, v2, …]` (a TOML array: its
+    /// elements are the values; an array value is written inside it,
+    /// `[[0, -9.81], [0, -1.62]]`), `KEY=linspace(a, b, n)` (n values
+    /// from a to b, both included) or `KEY=logspace(a, b, n)` (n values
+    /// from a to b, geometric; a, b > 0).
     fn from_str(s: &str) -> Result<Self, String> {
         let (k, v) = s
             .split_once('=')
             .ok_or_else(|| format!("--param {s}: expected KEY=v1,v2,..."))?;
-        let values: Vec<String> = v.split(',').map(|x| x.trim().to_string()).collect();
-        if k.trim().is_empty() || values.iter().any(|x| x.is_empty()) {
+        let v = v.trim();
+        let values = sweep_values(v).map_err(|m| format!("--param {s}: {m}"))?;
+        if k.trim().is_empty() || values.is_empty() || values.iter().any(|x| x.is_empty()) {
             return Err(format!(
-                "--param {s}: expected KEY=v1,v2,... with non-empty values"
+                "--param {s}: expected KEY=v1,v2,..., KEY=[v1, v2, ...] or \
+                 KEY=linspace(a, b, n), with non-empty values"
             ));
         }
         Ok(Self {
@@ -56,6 +63,119 @@ impl std::str::FromStr for SweepParam {
             values,
         })
     }
+}
+
+/// The values of `--param KEY=VALUES`, each as it would be written after
+/// `--set KEY=` (see [`SweepParam`]'s `from_str`).
+fn sweep_values(v: &str) -> Result<Vec<String>, String> {
+    if v.starts_with('[') {
+        let t: toml::Table = format!("v = {v}")
+            .parse()
+            .map_err(|e: toml::de::Error| format!("not a TOML array: {}", e.message().trim()))?;
+        return match t.get("v") {
+            Some(toml::Value::Array(a)) => Ok(a.iter().map(ToString::to_string).collect()),
+            _ => Err("not a TOML array".into()),
+        };
+    }
+    for (name, geometric) in [("linspace", false), ("logspace", true)] {
+        let Some(args) = v
+            .strip_prefix(name)
+            .map(str::trim_start)
+            .and_then(|r| r.strip_prefix('('))
+            .and_then(|r| r.strip_suffix(')'))
+        else {
+            continue;
+        };
+        let parts = split_top(args)?;
+        let bad = || format!("expected {name}(a, b, n) with numbers a, b and a count n ≥ 2");
+        let [a, b, n] = parts.as_slice() else {
+            return Err(bad());
+        };
+        let (a, b): (f64, f64) = (a.parse().map_err(|_| bad())?, b.parse().map_err(|_| bad())?);
+        let n: usize = n.parse().map_err(|_| bad())?;
+        if n < 2 || !a.is_finite() || !b.is_finite() {
+            return Err(bad());
+        }
+        if n > MAX_RUNS {
+            return Err(format!(
+                "{n} values: more than the limit of {MAX_RUNS} runs"
+            ));
+        }
+        if geometric && !(a > 0.0 && b > 0.0) {
+            return Err(format!("{name}(a, b, n) needs a, b > 0"));
+        }
+        return Ok((0..n)
+            .map(|i| {
+                let x = if i == n - 1 {
+                    b
+                } else if geometric {
+                    a * (b / a).powf(i as f64 / (n - 1) as f64)
+                } else {
+                    a + (b - a) * (i as f64 / (n - 1) as f64)
+                };
+                number(x)
+            })
+            .collect());
+    }
+    split_top(v)
+}
+
+/// `v` for `--set`: an integer when it is one (so that integer keys take
+/// it), else the shortest text that reads back to the same bits.
+fn number(v: f64) -> String {
+    if v.fract() == 0.0 && v.abs() < 9.0e15 {
+        format!("{}", v as i64)
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// `s` split at the commas outside brackets (`()`, `[]`, `{}`) and quotes
+/// (`"…"`, `'…'`), each part trimmed; unbalanced brackets or quotes are
+/// errors.
+fn split_top(s: &str) -> Result<Vec<String>, String> {
+    let mut parts = Vec::new();
+    let mut depth: Vec<char> = Vec::new();
+    let mut quote: Option<char> = None;
+    let mut cur = String::new();
+    let mut escaped = false;
+    for c in s.chars() {
+        if let Some(q) = quote {
+            cur.push(c);
+            if escaped {
+                escaped = false;
+            } else if c == '\\' && q == '"' {
+                escaped = true;
+            } else if c == q {
+                quote = None;
+            }
+            continue;
+        }
+        match c {
+            '"' | '\'' => quote = Some(c),
+            '(' => depth.push(')'),
+            '[' => depth.push(']'),
+            '{' => depth.push('}'),
+            ')' | ']' | '}' if depth.pop() != Some(c) => {
+                return Err(format!("unbalanced '{c}' in '{s}'"));
+            }
+            ',' if depth.is_empty() => {
+                parts.push(cur.trim().to_string());
+                cur.clear();
+                continue;
+            }
+            _ => {}
+        }
+        cur.push(c);
+    }
+    if let Some(q) = quote {
+        return Err(format!("unclosed {q} in '{s}'"));
+    }
+    if let Some(c) = depth.pop() {
+        return Err(format!("missing '{c}' in '{s}'"));
+    }
+    parts.push(cur.trim().to_string());
+    Ok(parts)
 }
 
 /// The outcome of one run of a sweep.
@@ -161,7 +281,7 @@ impl Shard {
 /// finished run.
 pub fn run(
     path: &Path,
-    base: &[String],
+    base: &Base,
     params: &[SweepParam],
     shard: Option<Shard>,
     progress: &str,
@@ -171,8 +291,13 @@ pub fn run(
         .enumerate()
         .filter(|(k, _)| shard.is_none_or(|s| s.owns(*k)))
         .collect();
-    for (_, p) in &points {
-        scenario::load_with(path, &overrides(base, p))?;
+    for (k, (_, p)) in points.iter().enumerate() {
+        let sc = scenario::load_with(path, &overrides(base, p))?;
+        if k == 0 {
+            for n in &sc.notes {
+                eprintln!("note: {n}");
+            }
+        }
     }
     let total = points.len();
     // runs side by side on the pool's threads: each run on one thread
@@ -221,15 +346,18 @@ pub fn run(
         .collect())
 }
 
-/// The `--set` overrides, then one run's `--param` values, each labelled by
-/// its flag for the scenario's errors.
-fn overrides<'a>(base: &'a [String], point: &'a [String]) -> Vec<Override<'a>> {
+/// The `--unset` keys and `--set` overrides, then one run's `--param`
+/// values, each labelled by its flag for the scenario's errors.
+fn overrides<'a>(base: &'a Base, point: &'a [String]) -> Vec<Override<'a>> {
     let tag = |flag: &'static str| move |spec: &'a String| Override { flag, spec };
-    base.iter()
-        .map(tag("--set"))
+    scenario::overrides(&base.1, &base.0)
+        .into_iter()
         .chain(point.iter().map(tag("--param")))
         .collect()
 }
+
+/// The `--set` overrides and the `--unset` keys of every run.
+pub type Base = (Vec<String>, Vec<String>);
 
 /// What `mbsolve sweep` was asked for.
 pub struct SweepArgs {
@@ -239,6 +367,8 @@ pub struct SweepArgs {
     pub params: Vec<String>,
     /// `--set` overrides of every run.
     pub set: Vec<String>,
+    /// `--unset` keys of every run.
+    pub unset: Vec<String>,
     /// Output directory.
     pub out: PathBuf,
     /// `--shard I/N`.
@@ -294,7 +424,8 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     }
     let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
     crate::stream::install_interrupt_handler();
-    let runs = run(&a.scenario, &a.set, &params, shard, &label).map_err(|e| e.to_string())?;
+    let base = (a.set.clone(), a.unset.clone());
+    let runs = run(&a.scenario, &base, &params, shard, &label).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let table = match shard {
         None => a.out.join(format!("{stem}_sweep.csv")),
@@ -484,4 +615,34 @@ fn merge(dir: &Path, stem: &str, header: &[String], total: usize) -> Result<Exit
     } else {
         ExitCode::from(1)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_split_outside_brackets_and_quotes() {
+        let p: SweepParam = "k=1, \"max(a, b)\", [1, 2], 'x,y'".parse().unwrap();
+        assert_eq!(p.values, ["1", "\"max(a, b)\"", "[1, 2]", "'x,y'"]);
+        let p: SweepParam = "k=[1e3, \"a, b\", [0, -1.5]]".parse().unwrap();
+        assert_eq!(p.values, ["1000.0", "\"a, b\"", "[0, -1.5]"]);
+    }
+
+    #[test]
+    fn ranges_include_both_ends_and_read_back_exactly() {
+        let p: SweepParam = "k=linspace(1e3, 4e3, 7)".parse().unwrap();
+        assert_eq!(
+            p.values,
+            ["1000", "1500", "2000", "2500", "3000", "3500", "4000"]
+        );
+        let p: SweepParam = "k=linspace(0, 1, 4)".parse().unwrap();
+        let back: Vec<f64> = p.values.iter().map(|v| v.parse().unwrap()).collect();
+        assert_eq!(back, [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0]);
+        let p: SweepParam = "k=logspace(1, 1000, 4)".parse().unwrap();
+        let back: Vec<f64> = p.values.iter().map(|v| v.parse().unwrap()).collect();
+        for (b, w) in back.iter().zip([1.0, 10.0, 100.0, 1000.0]) {
+            assert!((b - w).abs() < 1e-12 * w, "{back:?}");
+        }
+    }
 }
