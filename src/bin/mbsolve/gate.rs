@@ -40,9 +40,10 @@
 //!   [`hot_paths_against_yardstick`]). A hot path done twice fails it.
 //!
 //! Timings of the ratio checks are the minimum over interleaved
-//! repetitions (robust to a shared machine) on a single thread (so the
-//! ratio measures algorithmic scaling, not the concurrency that only large
-//! N switch on), except the oversubscribed check.
+//! repetitions of the thread's CPU time (robust to a shared machine: the
+//! time other processes hold the core is not counted) on a single thread
+//! (so the ratio measures algorithmic scaling, not the concurrency that
+//! only large N switch on), except the oversubscribed check (wall time).
 
 use mbsolve::builders::{build_rod, stiff_chain, RodParams};
 use mbsolve::formulation::{Index1, Index1Options};
@@ -87,15 +88,14 @@ impl RhsCase {
         Self { sys, q, qd }
     }
 
-    /// Seconds per RHS evaluation: min over `reps` batches of `batch` evaluations.
+    /// Seconds per RHS evaluation over a batch of `batch` evaluations
+    /// (thread CPU time, [`per_call`]).
     fn time(&self, f: &mut Index1<'_>, batch: usize) -> f64 {
         let mut qdd = vec![0.0; self.sys.n_coords()];
-        let t = Instant::now();
-        for _ in 0..batch {
+        per_call(batch, &mut || {
             f.accelerations(0.0, &self.q, &self.qd, &mut qdd)
                 .expect("RHS evaluates");
-        }
-        t.elapsed().as_secs_f64() / batch as f64
+        })
     }
 }
 
@@ -147,6 +147,18 @@ fn with_retries(mut check: impl FnMut() -> Check) -> Check {
     }
 }
 
+/// `check` measured [`ATTEMPTS`] times; the attempt with the median ratio
+/// is reported (the others in its detail). Unlike [`with_retries`], one
+/// lucky attempt does not pass a regression: two of three must.
+fn median_of_attempts(mut check: impl FnMut() -> Check) -> Check {
+    let mut all: Vec<Check> = (0..ATTEMPTS).map(|_| check()).collect();
+    all.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
+    let ratios: Vec<String> = all.iter().map(|c| format!("{:.2}", c.ratio)).collect();
+    let mut c = all.swap_remove(ATTEMPTS / 2);
+    c.detail = format!("{} (median of attempts at {})", c.detail, ratios.join(", "));
+    c
+}
+
 /// Run every check (about 15–30 s on the 2-core CI machine).
 pub fn run() -> Vec<Check> {
     let pool = rayon::ThreadPoolBuilder::new()
@@ -173,7 +185,7 @@ fn one_thread_checks(pool: &rayon::ThreadPool) -> Vec<Check> {
         let large = RhsCase::rod(8000);
         let mut fs = Index1::new(&small.sys, sparse).expect("formulation");
         let mut fl = Index1::new(&large.sys, sparse).expect("formulation");
-        checks.push(with_retries(|| {
+        checks.push(median_of_attempts(|| {
             let (ts, tl) = ratio_of(&small, &mut fs, 40, &large, &mut fl, 5, 60);
             let r = tl / ts;
             Check {
@@ -227,13 +239,13 @@ fn one_thread_checks(pool: &rayon::ThreadPool) -> Vec<Check> {
             let mut jac = vec![0.0; chain.sys.jacobian_pattern().len()];
             let mut q = chain.q.clone();
             let mut time = |sys: &System, q: &mut Vec<f64>| {
-                let t = Instant::now();
-                for k in 0..200 {
+                let mut k = 0;
+                per_call(200, &mut || {
                     // a new state each time (no caching across evaluations)
                     q[2] = 1e-3 * k as f64;
+                    k += 1;
                     sys.constraint_terms(q, &chain.qd, 0.0, Some(&mut phi), &mut jac, &mut gam);
-                }
-                t.elapsed().as_secs_f64() / 200.0
+                })
             };
             let (mut tg, mut tgen) = (f64::MAX, f64::MAX);
             for _ in 0..20 {
@@ -251,7 +263,7 @@ fn one_thread_checks(pool: &rayon::ThreadPool) -> Vec<Check> {
             (tg, tgen)
         };
         let r = tg / tgen;
-        checks.push(with_retries(implicit_generated_over_generic));
+        checks.push(median_of_attempts(implicit_generated_over_generic));
         checks.push(split_chain_solve_over_one_sided());
         checks.push(Check {
             name: "Φ, Φ_q, γ of the rod chain N = 1000, generated over generic".into(),
@@ -368,7 +380,8 @@ pub const SPLIT_SOLVE_MAX: f64 = 1.2;
 /// two-sided envelope LDLᵀ `Index3` uses (`ChainLdlt`, its halves
 /// concurrent with more threads) over the one-sided one, on the gate's one
 /// thread: the split must cost (almost) nothing where it cannot run in
-/// parallel. Wall time, minimum over interleaved batches.
+/// parallel. Thread CPU time ([`per_call`]), minimum over interleaved
+/// batches.
 pub fn split_chain_solve_over_one_sided() -> Check {
     use mbsolve::formulation::Index3;
     use mbsolve::linalg::{ChainLdlt, SaddlePointSolver};
@@ -391,13 +404,12 @@ pub fn split_chain_solve_over_one_sided() -> Check {
     let mut best = [f64::MAX; 2];
     for _ in 0..15 {
         for (s, t) in solvers.iter_mut().zip(&mut best) {
-            let t0 = Instant::now();
-            for _ in 0..4 {
+            let per = per_call(4, &mut || {
                 s.factorize(k).expect("factorises");
                 x.copy_from_slice(&b);
                 s.solve_in_place(k, &mut x).expect("solves");
-            }
-            *t = t.min(t0.elapsed().as_secs_f64() / 4.0);
+            });
+            *t = t.min(per);
         }
     }
     let r = best[0] / best[1];
