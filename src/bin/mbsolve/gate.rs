@@ -775,7 +775,7 @@ fn thread_cpu_seconds() -> Option<f64> {
     // SAFETY: `ts` is a valid, writable timespec of the C layout
     // (`time_t` and `long` are `long` on Linux); the call only writes it.
     let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    (rc == 0).then(|| ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
+    (rc == 0).then_some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
 }
 
 #[cfg(not(target_os = "linux"))]
@@ -893,8 +893,9 @@ pub fn hot_paths_against_yardstick() -> Vec<Check> {
     let mut l_diag = vec![[0.0; 9]; YARD_BLOCKS];
     let mut l_off = vec![[0.0; 9]; YARD_BLOCKS];
     let mut xy = vec![[0.0; 3]; YARD_BLOCKS];
-    let mut sink = 0.0;
-    let mut yard = || sink += yardstick(&mut l_diag, &mut l_off, &mut xy);
+    let mut yard = || {
+        std::hint::black_box(yardstick(&mut l_diag, &mut l_off, &mut xy));
+    };
     // warm-up and batch sizes of ≈ 4 ms each
     let t_yard = per_call(3, &mut yard);
     let batch = |t: f64| ((4e-3 / t.max(1e-9)).ceil() as usize).clamp(1, 1000);
@@ -914,8 +915,6 @@ pub fn hot_paths_against_yardstick() -> Vec<Check> {
             ratios[i].push(tp / ty);
         }
     }
-    drop(yard);
-    std::hint::black_box(sink);
     let median = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
