@@ -8,9 +8,16 @@ use std::process::Command;
 struct Row {
     max_phi: f64,
     final_phi: f64,
+    deviation: f64,
     status: String,
     pass: bool,
 }
+
+/// The study's criteria, typed in from its documentation (a position
+/// within 1e-3 m of the reference; the incorrect start back below
+/// ‖Φ‖ = 1e-5 m at the end; a completed run).
+const POSITION_TOL: f64 = 1e-3;
+const RECOVERY_TOL: f64 = 1e-5;
 
 #[test]
 fn constraint_study_table_and_figures() {
@@ -34,6 +41,7 @@ fn constraint_study_table_and_figures() {
             Row {
                 max_phi: f[col("max_phi")].parse().unwrap(),
                 final_phi: f[col("final_phi")].parse().unwrap(),
+                deviation: f[col("deviation")].parse().unwrap(),
                 status: f[col("status")].to_string(),
                 pass: f[col("pass")] == "true",
             },
@@ -57,6 +65,39 @@ fn constraint_study_table_and_figures() {
         for f in ["norm", "energy"] {
             assert!(d.join(format!("{p}_{f}.svg")).exists());
             assert!(d.join(format!("{p}_{f}.csv")).exists());
+        }
+    }
+    // The pass column re-checked from the numbers beside it: a row passes
+    // only if its run completed and its number is within the criterion
+    // (the recovery problem: the final ‖Φ‖; the others: the deviation
+    // from the reference); a row within them fails only for a reason
+    // the table states (energy drift, energy gained).
+    let md = std::fs::read_to_string(d.join("table.md")).unwrap();
+    for ((p, m), r) in &rows {
+        let within = if p == "fourbar_incorrect" {
+            r.final_phi <= RECOVERY_TOL
+        } else {
+            r.deviation <= POSITION_TOL
+        };
+        let ok = r.status == "completed" && within;
+        if r.pass {
+            assert!(
+                ok,
+                "{p}/{m} passes with status {}, final ‖Φ‖ {:e}, deviation {:e}",
+                r.status, r.final_phi, r.deviation
+            );
+        } else if ok {
+            let why = md
+                .lines()
+                .find(|l| {
+                    l.starts_with(&format!("| {p} |"))
+                        && l.contains("FAIL")
+                        && (l.contains("energy"))
+                })
+                .unwrap_or_else(|| {
+                    panic!("{p}/{m} fails within the criteria without an energy reason")
+                });
+            assert!(why.contains("energy"), "{why}");
         }
     }
     // Baumgarte and projection bring the incorrect start back to the

@@ -61,6 +61,7 @@ mod tableau;
 pub use augmented::{
     AugmentedDae, AugmentedLagrangian, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, SLOW_CONTRACTION,
 };
+pub use bdf::NDF_KAPPA;
 pub use bdf::{Bdf, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
