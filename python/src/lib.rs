@@ -76,10 +76,7 @@ enum Failure {
 }
 
 /// Run `f` with the GIL released, catching a panic.
-fn guarded<T: Send>(
-    py: Python<'_>,
-    f: impl FnOnce() -> Result<T, Failure> + Send,
-) -> PyResult<T> {
+fn guarded<T: Send>(py: Python<'_>, f: impl FnOnce() -> Result<T, Failure> + Send) -> PyResult<T> {
     let out = py.detach(|| {
         catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|p| {
             let what = p
@@ -99,12 +96,7 @@ fn guarded<T: Send>(
     })
 }
 
-fn parse(
-    text: &str,
-    file: &str,
-    stem: &str,
-    overrides: &[String],
-) -> Result<Scenario, Failure> {
+fn parse(text: &str, file: &str, stem: &str, overrides: &[String]) -> Result<Scenario, Failure> {
     scenario::parse(text, file, stem, overrides).map_err(Failure::Scenario)
 }
 
@@ -325,7 +317,9 @@ fn builtin_scenario(name: &str) -> PyResult<&'static str> {
 /// Raise a caught Rust panic (tests of the boundary only).
 #[pyfunction]
 fn _panic_for_test(py: Python<'_>) -> PyResult<()> {
-    guarded(py, || -> Result<(), Failure> { panic!("a deliberate panic") })
+    guarded(py, || -> Result<(), Failure> {
+        panic!("a deliberate panic")
+    })
 }
 
 /// The extension module.

@@ -108,7 +108,9 @@ def test_check_matches_the_cli(cli):
     assert c["constraint_equations"] == int(lines["constraint equations"]) == 8
     assert c["dof"] == int(lines["degrees of freedom"]) == 1
     assert c["redundant"] == int(lines["redundant equations"]) == 0
-    assert len(c["joints"]) == 4 and len(c["forces"]) == 1
+    assert len(c["joints"]) == int(lines["joints"].split()[0]) == 4
+    # the torque and gravity
+    assert len(c["forces"]) == int(lines["force elements"].split()[0]) == 2
     assert lines["method"].startswith(c["method"])
 
 
