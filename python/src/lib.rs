@@ -290,7 +290,7 @@ fn run_scenario(
     let json = serde_json::to_string(&summary).map_err(|e| Failure::Run(e.to_string()))?;
     // column-major: each column contiguous for NumPy, pandas and Arrow
     let (ncols, rows) = (sink.ncols, sink.rows);
-    let nrows = if ncols == 0 { 0 } else { rows.len() / ncols };
+    let nrows = rows.len().checked_div(ncols).unwrap_or(0);
     let mut data = vec![0.0; rows.len()];
     for (i, row) in rows.chunks_exact(ncols.max(1)).enumerate() {
         for (k, v) in row.iter().enumerate() {
