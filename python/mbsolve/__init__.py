@@ -1,0 +1,302 @@
+"""mbsolve: dynamics of constrained planar multibody systems, from Python.
+
+The package wraps the Rust library ``mbsolve`` (the same code the ``mbsolve``
+command runs; nothing is implemented twice):
+
+- :func:`load` reads a scenario file, :meth:`Scenario.from_toml` takes its
+  text; overrides use the command line's ``--set`` key paths
+  (``{"stabilization.alpha": 10}`` or ``stabilization__alpha=10``);
+- :meth:`Scenario.check` returns what ``mbsolve check`` prints, as a dict;
+- :meth:`Scenario.run` runs it with the GIL released and returns a
+  :class:`Result`: the columns of ``mbsolve run``'s CSV as NumPy arrays
+  (views of one block, no copy per value), :meth:`Result.to_pandas`,
+  :meth:`Result.to_arrow` (units in the field metadata), the summary as a
+  dict and the warnings as a list.
+
+Errors: an invalid scenario or override raises :class:`ScenarioError` (a
+``ValueError``) naming the file and the key path; a run that cannot start
+raises :class:`RunError` (a ``RuntimeError``); a run that fails midway or is
+interrupted (Ctrl-C) returns a ``Result`` whose ``status`` says so, with the
+rows computed so far. A Rust panic is caught and raised as ``RuntimeError``.
+
+Example::
+
+    import mbsolve
+    sc = mbsolve.load("scenarios/fourbar.toml", stabilization__alpha=10)
+    print(sc.check()["dof"])            # 1
+    r = sc.run()
+    print(r.status, r.summary["max_constraint_norm"])
+    df = r.to_pandas()                   # columns t, x1, y1, phi1, ...
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _mbsolve
+from ._mbsolve import RunError, ScenarioError
+
+__version__: str = _mbsolve.__version__
+
+__all__ = [
+    "Scenario",
+    "Result",
+    "ScenarioError",
+    "RunError",
+    "load",
+    "builtin",
+    "override_specs",
+    "__version__",
+]
+
+OverrideValue = Union[bool, int, float, str, List[Any], Tuple[Any, ...]]
+
+
+def _toml_value(v: Any, key: str) -> str:
+    """The text of an override value as the command line's ``--set`` reads
+    it: booleans, numbers and lists as TOML values; a string verbatim (read
+    as TOML if it is one, e.g. ``"[1, 2]"``, else as a bare string, as
+    ``--set integrator.method=ode45``)."""
+    if isinstance(v, bool) or isinstance(v, np.bool_):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        if math.isnan(f):
+            return "nan"
+        if math.isinf(f):
+            return "inf" if f > 0 else "-inf"
+        return repr(f)  # shortest round-trip decimal
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        parts = [json.dumps(x) if isinstance(x, str) else _toml_value(x, key) for x in v]
+        return "[" + ", ".join(parts) + "]"
+    raise ScenarioError(
+        f"override {key}: a value of type {type(v).__name__} is not a scenario value "
+        "(bool, int, float, str or a list of them)"
+    )
+
+
+def override_specs(
+    overrides: Optional[Mapping[str, OverrideValue]] = None, **kwargs: OverrideValue
+) -> List[str]:
+    """The ``KEY=VALUE`` specs of ``mbsolve run --set`` for a dict of key
+    paths (``{"body[1].mass": 2.0}``) and keyword arguments, in which a
+    double underscore stands for the dot (``stabilization__alpha=10`` is
+    ``stabilization.alpha=10``). Applied in order: the dict, then the
+    keywords."""
+    specs = []
+    items = list((overrides or {}).items()) + [
+        (k.replace("__", "."), v) for k, v in kwargs.items()
+    ]
+    for k, v in items:
+        if not isinstance(k, str):
+            raise ScenarioError(f"override key {k!r} is not a string (a key path such as time.end)")
+        specs.append(f"{k}={_toml_value(v, k)}")
+    return specs
+
+
+class Scenario:
+    """A validated scenario: its TOML text, the file it came from and the
+    ``--set`` overrides applied to it. Immutable; :meth:`with_overrides`
+    returns a new one. Built by :func:`load`, :meth:`from_toml` or
+    ``Model.scenario()``."""
+
+    __slots__ = ("_text", "_file", "_stem", "_overrides", "_name")
+
+    def __init__(self, text: str, file: str = "<string>", stem: str = "scenario",
+                 overrides: Iterable[str] = ()) -> None:
+        self._text = str(text)
+        self._file = str(file)
+        self._stem = str(stem)
+        self._overrides = list(overrides)
+        self._name = _mbsolve.validate(self._text, self._file, self._stem, self._overrides)
+
+    @classmethod
+    def from_toml(cls, text: str, overrides: Optional[Mapping[str, OverrideValue]] = None,
+                  *, name: str = "scenario", file: str = "<string>",
+                  **kwargs: OverrideValue) -> "Scenario":
+        """A scenario from TOML text (the scenario file format); ``name`` is
+        its name when the text gives none, ``file`` names it in errors."""
+        return cls(text, file, name, override_specs(overrides, **kwargs))
+
+    @property
+    def name(self) -> str:
+        """The scenario's name (its ``name`` key, else the file stem)."""
+        return self._name
+
+    @property
+    def text(self) -> str:
+        """The scenario's TOML text (without the overrides)."""
+        return self._text
+
+    @property
+    def file(self) -> str:
+        """The file (or ``<string>``) named in errors."""
+        return self._file
+
+    @property
+    def overrides(self) -> List[str]:
+        """The ``KEY=VALUE`` overrides, in the order they apply."""
+        return list(self._overrides)
+
+    def with_overrides(self, overrides: Optional[Mapping[str, OverrideValue]] = None,
+                       **kwargs: OverrideValue) -> "Scenario":
+        """A new scenario with more overrides (after the present ones)."""
+        return Scenario(self._text, self._file, self._stem,
+                        self._overrides + override_specs(overrides, **kwargs))
+
+    def check(self) -> Dict[str, Any]:
+        """What ``mbsolve check`` reports, as a dict: ``bodies``,
+        ``coordinates``, ``constraint_equations``, ``rank`` (of Φ_q at the
+        initial state), ``dof``, ``redundant``, ``joints`` and ``forces``
+        (element descriptions), ``sensors``, ``evaluation``, ``method``,
+        ``formulation``, ``linear_solver``, ``t0``, ``t_end``, ``output_dt``
+        [s] and, when the initial state was assembled, ``initial_assembly``."""
+        return json.loads(_mbsolve.check_json(self._text, self._file, self._stem, self._overrides))
+
+    def run(self, overrides: Optional[Mapping[str, OverrideValue]] = None,
+            **kwargs: OverrideValue) -> "Result":
+        """Run the scenario (with further overrides, if given) and return its
+        :class:`Result`. The GIL is released while it runs; Ctrl-C ends it
+        with status ``"interrupted"`` and the rows so far. Raises
+        :class:`ScenarioError` for an invalid override, :class:`RunError`
+        when the run cannot start."""
+        specs = self._overrides + override_specs(overrides, **kwargs)
+        table, names, units, summary = _mbsolve.run(self._text, self._file, self._stem, specs)
+        return Result(table, names, units, json.loads(summary))
+
+    def __repr__(self) -> str:
+        extra = f", overrides={self._overrides!r}" if self._overrides else ""
+        return f"Scenario({self._name!r}, file={self._file!r}{extra})"
+
+
+def load(path: Union[str, "os.PathLike[str]"],
+         overrides: Optional[Mapping[str, OverrideValue]] = None,
+         **kwargs: OverrideValue) -> Scenario:
+    """Read and validate a scenario file (TOML), with overrides as for
+    ``mbsolve run --set`` (a dict of key paths and/or keywords with ``__``
+    for the dot). Raises :class:`ScenarioError` naming the file and key."""
+    p = os.fspath(path)
+    try:
+        with open(p, encoding="utf-8") as f:
+            text = f.read()
+    except (OSError, UnicodeDecodeError) as e:
+        err = ScenarioError(f"{p}: -: cannot read the file: {e}")
+        err.file, err.key, err.problem = p, "-", f"cannot read the file: {e}"
+        raise err from e
+    stem = os.path.splitext(os.path.basename(p))[0] or "scenario"
+    return Scenario(text, p, stem, override_specs(overrides, **kwargs))
+
+
+def builtin(name: str, overrides: Optional[Mapping[str, OverrideValue]] = None,
+            **kwargs: OverrideValue) -> Scenario:
+    """A scenario shipped inside the library: ``"fourbar"`` (the paper's
+    four-bar, problem A) or ``"falling_rod"`` (problem B)."""
+    return Scenario(_mbsolve.builtin_scenario(name), f"<builtin {name}>", name,
+                    override_specs(overrides, **kwargs))
+
+
+class Result:
+    """A run's output: the columns of ``mbsolve run``'s table (same names,
+    same units, same values) and its summary.
+
+    ``result["x1"]`` is a column as a read-only NumPy float64 array, a view
+    of one block held by the Rust side (no copy); ``result.data`` is that
+    block, shape (columns, rows)."""
+
+    __slots__ = ("_table", "data", "columns", "units", "summary", "_index")
+
+    def __init__(self, table: Any, columns: List[str], units: List[str],
+                 summary: Dict[str, Any]) -> None:
+        self._table = table
+        #: The whole table, shape (len(columns), rows), read-only float64.
+        self.data: np.ndarray = np.asarray(table)
+        #: Column names, in table order (``t``, ``x1``, ``y1``, ``phi1``, ...).
+        self.columns: List[str] = list(columns)
+        #: Unit of each column (SI; ``""`` for none), as in ``columns.json``.
+        self.units: Dict[str, str] = dict(zip(columns, units))
+        #: The run summary (``mbsolve run``'s ``summary.json``) as a dict.
+        self.summary: Dict[str, Any] = summary
+        self._index = {c: k for k, c in enumerate(columns)}
+
+    @property
+    def status(self) -> str:
+        """``"completed"``, ``"failed"`` or ``"interrupted"``."""
+        return self.summary["status"]
+
+    @property
+    def message(self) -> Optional[str]:
+        """Why the run ended early (None when it completed)."""
+        return self.summary.get("message")
+
+    @property
+    def warnings(self) -> List[str]:
+        """The run's warnings, in order."""
+        return list(self.summary.get("warnings", []))
+
+    @property
+    def t(self) -> np.ndarray:
+        """Output times [s]."""
+        return self["t"]
+
+    def __len__(self) -> int:
+        """Number of rows (output times)."""
+        return self.data.shape[1]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._index
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Column ``name`` (a view, no copy)."""
+        try:
+            return self.data[self._index[name]]
+        except KeyError:
+            raise KeyError(
+                f"no column {name!r}; the columns are {', '.join(self.columns[:12])}"
+                + (", ..." if len(self.columns) > 12 else "")
+            ) from None
+
+    def to_dict(self) -> Dict[str, np.ndarray]:
+        """Every column by name (views)."""
+        return {c: self.data[k] for k, c in enumerate(self.columns)}
+
+    def to_pandas(self) -> "Any":
+        """A ``pandas.DataFrame``, one column per table column (float64);
+        the units are in ``df.attrs["units"]``, the summary in
+        ``df.attrs["summary"]``. Requires pandas."""
+        import pandas as pd
+
+        df = pd.DataFrame(self.data.T, columns=self.columns, copy=False)
+        df.attrs["units"] = dict(self.units)
+        df.attrs["summary"] = self.summary
+        return df
+
+    def to_arrow(self) -> "Any":
+        """A ``pyarrow.Table`` with the run's schema: float64 fields, the
+        unit of each in its field metadata ``{"unit": ...}`` (as the
+        library's Arrow IPC output) and the summary as JSON in the schema
+        metadata ``{"summary": ...}``. Requires pyarrow."""
+        import pyarrow as pa
+
+        fields = [pa.field(c, pa.float64(), nullable=False, metadata={"unit": self.units[c]})
+                  for c in self.columns]
+        schema = pa.schema(fields, metadata={"summary": json.dumps(self.summary)})
+        arrays = [pa.array(self.data[k]) for k in range(len(self.columns))]
+        return pa.Table.from_arrays(arrays, schema=schema)
+
+    def __repr__(self) -> str:
+        return (f"Result(status={self.status!r}, rows={len(self)}, "
+                f"columns={len(self.columns)})")
+
+
+from .model import Model, to_toml  # noqa: E402
+
+__all__ += ["Model", "to_toml"]

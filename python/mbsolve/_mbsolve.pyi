@@ -1,0 +1,41 @@
+"""Type stubs of the Rust extension ``mbsolve._mbsolve`` (internal; use the
+``mbsolve`` package's functions)."""
+
+from typing import List, Tuple
+
+__version__: str
+
+class ScenarioError(ValueError):
+    """An invalid scenario, override or model; ``file``, ``key`` (dotted key
+    path) and ``problem`` say where and what."""
+
+    file: str
+    key: str
+    problem: str
+
+class RunError(RuntimeError):
+    """A run that could not start."""
+
+class Table:
+    """A run's table, column-major float64, viewed by NumPy without a copy."""
+
+    @property
+    def __array_interface__(self) -> dict: ...
+    @property
+    def shape(self) -> Tuple[int, int]: ...
+
+def validate(text: str, file: str, stem: str, overrides: List[str]) -> str:
+    """Parse and validate; returns the scenario's name."""
+
+def check_json(text: str, file: str, stem: str, overrides: List[str]) -> str:
+    """What ``mbsolve check`` reports, as JSON text."""
+
+def run(
+    text: str, file: str, stem: str, overrides: List[str], check_signals: bool = True
+) -> Tuple[Table, List[str], List[str], str]:
+    """Run: (table, column names, units, summary JSON)."""
+
+def builtin_scenario(name: str) -> str:
+    """The TOML text of a shipped scenario (``fourbar``, ``falling_rod``)."""
+
+def _panic_for_test() -> None: ...
