@@ -286,6 +286,7 @@ impl ForceKernels for ContactJacobians {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::generated::ChainKernels;
     use crate::model::ConstraintKernels;
 
     /// The drag forces from the chain's shared memo of sines and cosines
