@@ -488,11 +488,8 @@ impl<'g, 's> Run<'g, 's> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn counters(&self) -> ImplicitStats {
-        self.stats
-    }
-    fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
+        (self.stats, &mut self.warnings)
     }
 }
 
