@@ -17,7 +17,7 @@ use std::time::Instant;
 
 mod methods;
 mod watch;
-use methods::{AugmentedRun, BdfRun, Explicit, Implicit, MethodRun, Partition, RadauRun};
+use methods::{AugmentedRun, BdfRun, Explicit, GenAlphaRun, MethodRun, Partition, RadauRun, Span};
 use watch::Watch;
 pub use watch::{IMPLICIT_ENERGY_GAIN, SIZE_FRACTION, STALL_FACTOR, STALL_SLACK};
 
@@ -412,7 +412,7 @@ pub fn simulate_into(
     // the augmented Lagrangian and coordinate partitioning are formulations
     let mut method: Box<dyn MethodRun + '_> = match (cfg.method.family(), cfg.index1.formulation) {
         (_, Formulation::AugmentedLagrangian) => Box::new(AugmentedRun::new(sys, cfg)?),
-        (Family::GeneralizedAlpha, _) => Box::new(Implicit::new(sys, cfg)?),
+        (Family::GeneralizedAlpha, _) => Box::new(GenAlphaRun::new(sys, cfg)?),
         (Family::Bdf, _) => Box::new(BdfRun::new(sys, cfg)?),
         (Family::Radau, _) => Box::new(RadauRun::new(sys, cfg)?),
         (Family::RungeKutta | Family::Adams, Formulation::Partitioned) => {
@@ -432,7 +432,13 @@ pub fn simulate_into(
     let times = cfg.output_times();
     let start = Instant::now();
     let (report, team) = with_threads(threads, || {
-        method.integrate(cfg, &q0, &qd0, &times, &mut watch)
+        let span = Span {
+            cfg,
+            q0: &q0,
+            qd0: &qd0,
+            times: &times,
+        };
+        method.integrate(&span, &mut watch)
     });
     let report = report?;
     let wall_s = start.elapsed().as_secs_f64();
