@@ -52,3 +52,4 @@ pub mod output;
 pub mod parallel;
 pub mod scenario;
 pub mod simulation;
+pub mod trig;

@@ -203,3 +203,27 @@ fn every_method_follows_the_slider_crank_kinematics() {
         assert!(e < 1e-6, "{label}: {e:e}");
     }
 }
+
+/// A method-table alias fixes its parameter: `trapezoidal` is newmark
+/// with ρ∞ = 1 (β = ¼, γ = ½), and giving `integrator.rho_inf` as well
+/// is an error naming the key and what the alias fixes.
+#[test]
+fn the_trapezoidal_alias_is_newmark_with_rho_inf_one() {
+    let keys = ["integrator.method=trapezoidal", "integrator.step=1e-3"];
+    let sc = parse(FOURBAR_TOML, &keys);
+    assert_eq!(sc.run.method, mbsolve::integrate::Method::Newmark);
+    assert_eq!(sc.run.implicit.rho_inf, 1.0);
+    let o: Vec<String> = keys
+        .iter()
+        .map(|s| s.to_string())
+        .chain(["integrator.rho_inf=0.5".to_string()])
+        .collect();
+    let e = scenario::parse(FOURBAR_TOML, "test.toml", "test", &o)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("integrator.rho_inf")
+            && e.contains("0.5 is given, but method = \"trapezoidal\" is newmark with rho_inf = 1"),
+        "{e}"
+    );
+}

@@ -57,7 +57,7 @@ impl Drag {
     pub fn force(&self, phi: f64, v: [f64; 3]) -> [f64; 3] {
         // the generated kernels' sine and cosine (one reduction for both,
         // the bits of `DragJacobians::add_forces`' four-lane ones)
-        let (sn, cs) = crate::generated::sin_cos(phi);
+        let (sn, cs) = crate::trig::sin_cos(phi);
         drag_force(self.coefficients(), sn, cs, v)
     }
 }
@@ -105,7 +105,7 @@ impl ForceElement for Drag {
     ) {
         let o = 3 * self.body;
         let (at, aa, ar) = self.coefficients();
-        let (sn, cs) = crate::generated::sin_cos(q[o + 2]);
+        let (sn, cs) = crate::trig::sin_cos(q[o + 2]);
         let (vx, vy, w) = (qd[o], qd[o + 1], qd[o + 2]);
         let vt = vx * cs + vy * sn;
         let va = -vx * sn + vy * cs;

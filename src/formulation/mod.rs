@@ -36,6 +36,7 @@ mod index3_complex;
 mod initial;
 mod partitioning;
 mod penalty;
+mod singularity;
 mod stability;
 
 pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
@@ -46,11 +47,9 @@ pub use initial::{
     consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
     Lock, LockKind, StartCorrection, START_MAX_ITER, START_TOL,
 };
-pub use partitioning::{
-    PartitionOptions, PartitionStats, Partitioned, SingularCrossing, SingularityMonitor,
-    MAX_PARTITION_COORDS, MONITOR_MAX_COORDS, SINGULAR_RATIO,
-};
+pub use partitioning::{PartitionOptions, PartitionStats, Partitioned, MAX_PARTITION_COORDS};
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
+pub use singularity::{SingularCrossing, SingularityMonitor, MONITOR_MAX_COORDS, SINGULAR_RATIO};
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
 
 use crate::linalg::{LinalgError, SaddleMatrix, SaddlePointSolver};

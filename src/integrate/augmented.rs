@@ -80,9 +80,12 @@ pub const MAX_PENALTY_FACTOR: f64 = 1e4;
 use std::sync::Arc;
 
 use super::driver::{Failure, StepCut, Stepper};
-use super::genalpha::{AlphaParameters, NOISE_REL, ROUNDING_ULPS, STAGNATION};
+use super::genalpha::{AlphaParameters, ROUNDING_ULPS};
 use super::hermite::cubic;
-use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
+use super::implicit::{
+    run as run_implicit, validate_run, Assessment, Convergence, ConvergenceOptions, ImplicitStats,
+    ImplicitStepper, Next, Remainder, Renewal, RenewalOptions,
+};
 use super::{common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report};
 use super::{Stats, SystemError};
 
@@ -263,6 +266,11 @@ impl AugmentedLagrangian {
             stats: ImplicitStats::default(),
             warnings: Vec::new(),
             last_newton: None,
+            renewal: Renewal::new(RenewalOptions {
+                band: 0.0,
+                across_attempts: false,
+                every_correction: false,
+            }),
         };
         let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
@@ -313,6 +321,8 @@ struct Run<'g, 's> {
     stats: ImplicitStats,
     warnings: Vec<String>,
     last_newton: Option<StepCut>,
+    /// The Newton matrix is renewed at every predictor.
+    renewal: Renewal,
 }
 
 impl Run<'_, '_> {
@@ -352,20 +362,36 @@ impl Run<'_, '_> {
             new.lam.copy_from_slice(&cur.lam);
         }
         let tol_q = self.opts.newton_tol / gp.max(bp).max(1.0);
-        let mut prev = f64::NAN;
-        let mut refreshed = 0;
-        let mut fresh = false;
+        // the correction itself against the tolerance: the multiplier
+        // update after each correction contracts only linearly
+        let mut conv = Convergence::new(
+            ConvergenceOptions {
+                remainder: Remainder::Correction {
+                    slow: SLOW_CONTRACTION,
+                },
+                max_iterations: self.opts.max_newton,
+                renew_when_exhausted: false,
+                renew_on_divergence: false,
+                reset_rate_on_renewal: false,
+            },
+            1.0,
+        );
+        // a fresh matrix at the predictor (`across_attempts` false), again
+        // at the iterate when the iteration is slow
+        let mut renew_now = self.renewal.at_predictor(h);
         let mut boost = 1.0;
         for it in 0.. {
             if it > 0 {
                 let new = &mut self.new;
                 self.sys.update_multipliers(t1, &new.q, &mut new.lam)?;
             }
-            if !fresh {
+            if renew_now {
                 self.stats.factorizations += 1;
+                self.renewal.factorising();
                 let new = &self.new;
                 self.sys.factorize(t1, &new.q, &new.v, &new.lam, c)?;
-                fresh = true;
+                self.renewal.factorised(h);
+                renew_now = false;
             }
             self.stats.residual_evaluations += 1;
             let new = &self.new;
@@ -394,28 +420,23 @@ impl Run<'_, '_> {
                 new.qdd[i] += bp * d;
                 new.a[i] += ap * d;
             }
-            let theta = dnorm / prev;
-            prev = dnorm;
-            if dnorm <= 1.0 || (theta >= 1.0 && (dnorm <= STAGNATION || drel <= NOISE_REL)) {
-                // converged (or at the noise floor of the solve, as
-                // generalized-α's Newton): the last multiplier update at
-                // the converged positions
-                let new = &mut self.new;
-                return self.sys.update_multipliers(t1, &new.q, &mut new.lam);
-            }
-            if theta >= 1.0 && it >= 2 && refreshed > 0 {
-                return Err(SystemError::msg(format!(
-                    "Newton diverges (contraction θ = {theta:.3}, correction {dnorm:.3e} × tol)"
-                )));
-            }
-            if theta > SLOW_CONTRACTION {
-                if refreshed == 0 {
+            let mut restart = false;
+            match conv.assess(dnorm, || drel, false) {
+                Assessment::Done => {
+                    // converged (or at the noise floor of the solve): the
+                    // last multiplier update at the converged positions
+                    let new = &mut self.new;
+                    return self.sys.update_multipliers(t1, &new.q, &mut new.lam);
+                }
+                Assessment::Slow if !conv.renewed() => {
                     // first: the matrix of the predictor may be stale
-                    refreshed += 1;
-                    fresh = false;
-                } else if boost < 0.5 * MAX_PENALTY_FACTOR {
+                    conv.renewed_by_scheme();
+                    renew_now = true;
+                }
+                Assessment::Slow if boost < 0.5 * MAX_PENALTY_FACTOR => {
                     // still slow with a fresh matrix: a nearly lost
                     // constraint direction (module docs, "Penalty growth")
+                    let theta = conv.theta();
                     let f = ((1.0 / TARGET_CONTRACTION - 1.0) / (1.0 / theta - 1.0))
                         .max(2.0)
                         .min(MAX_PENALTY_FACTOR / boost);
@@ -423,17 +444,27 @@ impl Run<'_, '_> {
                     self.sys.scale_penalty(f);
                     self.stats.penalty_increases += 1;
                     self.stats.max_penalty_factor = self.stats.max_penalty_factor.max(boost);
-                    refreshed += 1;
-                    fresh = false;
-                    prev = f64::NAN;
+                    renew_now = true;
+                    restart = true;
+                }
+                Assessment::NotYet | Assessment::Slow => {}
+                Assessment::Diverged | Assessment::Hopeless | Assessment::RenewAfterUndo => {
+                    return Err(SystemError::msg(format!(
+                        "Newton diverges (contraction θ = {:.3}, correction {dnorm:.3e} × tol)",
+                        conv.theta()
+                    )));
                 }
             }
-            if it + 1 >= self.opts.max_newton {
+            if conv.next(dnorm, false) == Some(Next::Exhausted) {
                 return Err(SystemError::msg(format!(
                     "no convergence in {} iterations (last correction {dnorm:.3e} × tol, θ = \
-                     {theta:.3})",
-                    it + 1
+                     {:.3})",
+                    it + 1,
+                    conv.theta()
                 )));
+            }
+            if restart {
+                conv.restart();
             }
         }
         unreachable!()
@@ -441,11 +472,8 @@ impl Run<'_, '_> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn counters(&self) -> ImplicitStats {
-        self.stats
-    }
-    fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
+        (self.stats, &mut self.warnings)
     }
 }
 

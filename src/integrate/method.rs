@@ -117,9 +117,10 @@ pub struct MethodInfo {
     pub method: Method,
     /// Its name (`integrator.method`, CLI, outputs).
     pub name: &'static str,
-    /// Other names the scenario key `integrator.method` accepts for it and
-    /// what they set (`trapezoidal` = Newmark with ρ∞ = 1).
-    pub aliases: &'static [(&'static str, &'static str)],
+    /// Other names the scenario key `integrator.method` accepts for it,
+    /// each with the parameter it fixes (`trapezoidal` = Newmark with
+    /// ρ∞ = 1).
+    pub aliases: &'static [Alias],
     /// Its family.
     pub family: Family,
     /// The equations it integrates.
@@ -132,6 +133,26 @@ pub struct MethodInfo {
     pub threads: &'static str,
     /// The `[integrator]` keys that apply to it besides `method`, and when.
     pub keys: &'static [(&'static str, KeyUse)],
+}
+
+/// Another name of a method that fixes its spectral radius: the
+/// trapezoidal rule is Newmark (β = ¼, γ = ½), i.e. generalized-α with
+/// ρ∞ = 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Alias {
+    /// The name `integrator.method` accepts.
+    pub name: &'static str,
+    /// The `integrator.rho_inf` it fixes (giving the key as well is an
+    /// error).
+    pub rho_inf: f64,
+}
+
+/// The method row and alias an alias name stands for (`None`: not an
+/// alias).
+pub fn alias(name: &str) -> Option<(&'static MethodInfo, Alias)> {
+    METHODS
+        .iter()
+        .find_map(|m| m.aliases.iter().find(|a| a.name == name).map(|a| (m, *a)))
 }
 
 /// The step-control keys of the adaptive methods.
@@ -248,7 +269,10 @@ pub const METHODS: [MethodInfo; 9] = [
     MethodInfo {
         method: Method::Newmark,
         name: "newmark",
-        aliases: &[("trapezoidal", "rho_inf = 1")],
+        aliases: &[Alias {
+            name: "trapezoidal",
+            rho_inf: 1.0,
+        }],
         family: Family::GeneralizedAlpha,
         equations: Equations::Index3,
         stepping: Stepping::FixedOrAdaptive,
@@ -428,7 +452,11 @@ pub fn markdown_table() -> String {
     );
     for m in &METHODS {
         let names = std::iter::once(format!("`{}`", m.name))
-            .chain(m.aliases.iter().map(|(a, what)| format!("`{a}` ({what})")))
+            .chain(
+                m.aliases
+                    .iter()
+                    .map(|a| format!("`{}` (rho_inf = {})", a.name, a.rho_inf)),
+            )
             .collect::<Vec<_>>()
             .join(", ");
         let equations = match m.equations {
@@ -462,6 +490,14 @@ pub fn markdown_table() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_alias_names_its_row_and_the_parameter_it_fixes() {
+        let (row, a) = alias("trapezoidal").unwrap();
+        assert_eq!(row.method, Method::Newmark);
+        assert_eq!(a.rho_inf, 1.0);
+        assert!(alias("newmark").is_none() && alias("trapezoid").is_none());
+    }
 
     #[test]
     fn rows_are_in_method_order_and_names_parse_back() {

@@ -71,8 +71,8 @@ pub use genalpha::{
 pub use implicit::ImplicitStats;
 pub(crate) use method::methods_taking;
 pub use method::{
-    markdown_table as method_table_markdown, Equations, Family, KeyUse, Method, MethodInfo,
-    Stepping, METHODS, STEP_CONTROL_KEYS,
+    alias as method_alias, markdown_table as method_table_markdown, Alias, Equations, Family,
+    KeyUse, Method, MethodInfo, Stepping, METHODS, STEP_CONTROL_KEYS,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 pub use radau::{ComplexNewton, Radau5, RadauTableau};

@@ -8,8 +8,8 @@ use crate::formulation::{
     PartitionOptions, PenaltyParams, Projection,
 };
 use crate::integrate::{
-    methods_taking, Equations, Family, ImplicitOptions, IntegratorError, KeyUse, Method,
-    OdeOptions, Tolerance, METHODS, STEP_CONTROL_KEYS,
+    method_alias, methods_taking, Equations, Family, ImplicitOptions, IntegratorError, KeyUse,
+    Method, OdeOptions, Tolerance, METHODS, STEP_CONTROL_KEYS,
 };
 use crate::linalg::SolverKind;
 use crate::output::Format;
@@ -108,20 +108,24 @@ pub(super) fn output_format(raw: &RawScenario, file: &str) -> Result<Format, Sce
 /// Build the run settings of `raw`; errors name keys of `file`.
 pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, ScenarioError> {
     let err = |key: String, message: String| error(file, key, message);
-    // "trapezoidal" is Newmark with ρ∞ = 1 (β = ¼, γ = ½)
-    let trapezoidal = raw.integrator.method.as_deref() == Some("trapezoidal");
-    if let (true, Some(r)) = (trapezoidal, raw.integrator.rho_inf) {
+    // an alias of the method table fixes ρ∞ ("trapezoidal": Newmark
+    // with ρ∞ = 1)
+    let alias = raw.integrator.method.as_deref().and_then(method_alias);
+    if let (Some((row, a)), Some(r)) = (alias, raw.integrator.rho_inf) {
         return Err(err(
             "integrator.rho_inf".into(),
-            format!("{r} is given, but method = \"trapezoidal\" is newmark with rho_inf = 1"),
+            format!(
+                "{r} is given, but method = \"{}\" is {} with rho_inf = {}",
+                a.name, row.name, a.rho_inf
+            ),
         ));
     }
-    let method: Method = match &raw.integrator.method {
-        Some(_) if trapezoidal => Method::Newmark,
-        Some(m) => m.parse().map_err(|e: crate::integrate::IntegratorError| {
+    let method: Method = match (&raw.integrator.method, alias) {
+        (_, Some((row, _))) => row.method,
+        (Some(m), None) => m.parse().map_err(|e: crate::integrate::IntegratorError| {
             err("integrator.method".into(), e.to_string())
         })?,
-        None => Method::Ode23,
+        (None, None) => Method::Ode23,
     };
     let ri = &raw.integrator;
     let mut ode = OdeOptions::default();
@@ -151,8 +155,8 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     }
     .map_err(|m| err("integrator.threads".into(), m))?;
     let mut implicit = ImplicitOptions::default();
-    if trapezoidal {
-        implicit.rho_inf = 1.0;
+    if let Some((_, a)) = alias {
+        implicit.rho_inf = a.rho_inf;
     }
     if let Some(r) = ri.rho_inf {
         implicit.rho_inf = r;
@@ -639,7 +643,7 @@ fn inapplicable(
         let alphas: Vec<&str> = METHODS
             .iter()
             .filter(|m| m.family == Family::GeneralizedAlpha)
-            .flat_map(|m| std::iter::once(m.name).chain(m.aliases.iter().map(|a| a.0)))
+            .flat_map(|m| std::iter::once(m.name).chain(m.aliases.iter().map(|a| a.name)))
             .collect();
         return Err((
             "formulation".into(),

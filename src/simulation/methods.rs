@@ -19,16 +19,26 @@ fn index3_start(
     Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
 }
 
+/// What a run integrates: its settings, the initial state `(q0, q̇0)`
+/// and the output times.
+pub(super) struct Span<'a> {
+    /// The run's settings (`t0`, `t_end`, method, options).
+    pub cfg: &'a RunConfig,
+    /// Initial positions.
+    pub q0: &'a [f64],
+    /// Initial velocities.
+    pub qd0: &'a [f64],
+    /// Output times.
+    pub times: &'a [f64],
+}
+
 /// A method bound to its formulation: the one interface [`simulate`]
 /// drives, whichever the method.
 pub(super) trait MethodRun {
     /// Integrate from `(q0, q̇0)`, delivering `times` to `obs`.
     fn integrate(
         &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError>;
     /// Move an inconsistent initial state onto the constraint manifold
@@ -68,16 +78,14 @@ impl<'s> Explicit<'s> {
 impl MethodRun for Explicit<'_> {
     fn integrate(
         &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        let mut y0 = q0.to_vec();
-        y0.extend_from_slice(qd0);
+        let mut y0 = s.q0.to_vec();
+        y0.extend_from_slice(s.qd0);
+        let cfg = s.cfg;
         self.integ
-            .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, times, obs)
+            .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, s.times, obs)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let stats = self.f.stats();
@@ -122,14 +130,13 @@ pub(super) struct Partition<'s> {
 impl MethodRun for Partition<'_> {
     fn integrate(
         &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        self.f
-            .integrate(cfg.method, &cfg.ode, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+        let cfg = s.cfg;
+        self.f.integrate(
+            cfg.method, &cfg.ode, cfg.t0, cfg.t_end, s.q0, s.qd0, s.times, obs,
+        )
     }
     fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let ps = self.f.stats();
@@ -196,14 +203,12 @@ impl<'s> AugmentedRun<'s> {
 impl MethodRun for AugmentedRun<'_> {
     fn integrate(
         &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
+        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         self.integ
-            .integrate(&mut self.f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+            .integrate(&mut self.f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
     fn consistent_start(
         &mut self,
@@ -326,10 +331,7 @@ pub(super) trait Index3Scheme {
     fn integrate(
         &mut self,
         f: &mut Index3<'_>,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError>;
     /// The factorisations of the run (all Newton matrices) and the
@@ -352,16 +354,27 @@ pub(super) struct Index3Run<'s, S> {
     scheme: S,
 }
 
+impl<'s, S> Index3Run<'s, S> {
+    /// `scheme` on the index-3 form of `sys` with the Newton matrix in
+    /// `newton`.
+    fn with_scheme(
+        sys: &'s System,
+        cfg: &RunConfig,
+        newton: NewtonSolverKind,
+        scheme: S,
+    ) -> Result<Self, SimulationError> {
+        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+        Ok(Self { f, scheme })
+    }
+}
+
 impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
     fn integrate(
         &mut self,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        self.scheme.integrate(&mut self.f, cfg, q0, qd0, times, obs)
+        self.scheme.integrate(&mut self.f, s, obs)
     }
     fn consistent_start(
         &mut self,
@@ -390,9 +403,9 @@ impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
 /// `rho_inf`, `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`,
 /// `fixed_step` (or null), `adaptive`, `newton_tol`, `min_step_taken`,
 /// `max_step_taken`.
-pub(super) type Implicit<'s> = Index3Run<'s, GenAlpha>;
+pub(super) type GenAlphaRun<'s> = Index3Run<'s, GenAlpha>;
 
-impl<'s> Implicit<'s> {
+impl<'s> GenAlphaRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         let scheme = GenAlpha::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
         let newton = if cfg.implicit.lu {
@@ -400,8 +413,7 @@ impl<'s> Implicit<'s> {
         } else {
             NewtonSolverKind::SymmetricLdlt
         };
-        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
-        Ok(Self { f, scheme })
+        Self::with_scheme(sys, cfg, newton, scheme)
     }
 }
 
@@ -409,13 +421,11 @@ impl Index3Scheme for GenAlpha {
     fn integrate(
         &mut self,
         f: &mut Index3<'_>,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        GenAlpha::integrate(self, f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
+        GenAlpha::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
     fn work(
         &self,
@@ -455,12 +465,7 @@ pub(super) type BdfRun<'s> = Index3Run<'s, Bdf>;
 impl<'s> BdfRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         let scheme = Bdf::new(cfg.ode.clone())?;
-        let f = Index3::with_newton_solver(
-            sys,
-            cfg.index1.linear_solver,
-            NewtonSolverKind::SymmetricLdlt,
-        )?;
-        Ok(Self { f, scheme })
+        Self::with_scheme(sys, cfg, NewtonSolverKind::SymmetricLdlt, scheme)
     }
 }
 
@@ -468,13 +473,11 @@ impl Index3Scheme for Bdf {
     fn integrate(
         &mut self,
         f: &mut Index3<'_>,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        Bdf::integrate(self, f, cfg.t0, cfg.t_end, q0, qd0, times, obs)
+        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
+        Bdf::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
     fn work(
         &self,
@@ -508,16 +511,11 @@ pub(super) struct RadauScheme<'s> {
 impl<'s> RadauRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         let integ = Radau5::new(cfg.implicit.clone(), cfg.ode.clone())?;
-        let f = Index3::with_newton_solver(
-            sys,
-            cfg.index1.linear_solver,
-            NewtonSolverKind::SymmetricLdlt,
-        )?;
-        let c = Index3Complex::new(sys)?;
-        Ok(Self {
-            f,
-            scheme: RadauScheme { integ, c },
-        })
+        let scheme = RadauScheme {
+            integ,
+            c: Index3Complex::new(sys)?,
+        };
+        Self::with_scheme(sys, cfg, NewtonSolverKind::SymmetricLdlt, scheme)
     }
 }
 
@@ -525,15 +523,12 @@ impl Index3Scheme for RadauScheme<'_> {
     fn integrate(
         &mut self,
         f: &mut Index3<'_>,
-        cfg: &RunConfig,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
+        s: &Span<'_>,
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        let (t0, t1) = (cfg.t0, cfg.t_end);
+        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         self.integ
-            .integrate(f, &mut self.c, t0, t1, q0, qd0, times, obs)
+            .integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
     }
     fn work(
         &self,

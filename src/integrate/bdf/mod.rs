@@ -39,7 +39,7 @@
 //! Reichelt 1997): one correction suffices if `θ/(1 − θ)·‖Δ‖ ≤
 //! κ_1 rtol` with the rate θ measured before on the same matrix (at least
 //! [`THETA_FIRST`]), later ones when `θ/(1 − θ)·‖Δ‖ ≤ κ rtol`
-//! (κ_1 = [`NEWTON_KAPPA_FIRST`], κ = [`NEWTON_KAPPA`]); `θ > 0.9`, or a
+//! (κ_1 = [`NEWTON_KAPPA_FIRST`], κ = [`NEWTON_KAPPA`]); θ > [`DIVERGE_ABOVE`], or a
 //! rate that cannot reach the tolerance within [`MAX_NEWTON`] iterations,
 //! is a failure; a correction at the rounding floor of `q` or below
 //! [`NEWTON_FLOOR`]·rtol ends it. The velocity weights `a_0 Δq ./ w_v`
@@ -93,10 +93,12 @@ mod newton;
 
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
-use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
+use super::implicit::{
+    run as run_implicit, validate_run, ImplicitStats, ImplicitStepper, Renewal, RenewalOptions,
+};
 use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
-    Tolerance, REUSE_BAND, ROUNDING_ULPS, THETA_REFACTOR,
+    Tolerance, REUSE_BAND, ROUNDING_ULPS,
 };
 use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
 
@@ -138,6 +140,8 @@ pub const NEWTON_FLOOR: f64 = 1e-4;
 /// (a tiny θ measured at the rounding floor must not accept a large first
 /// correction).
 pub const THETA_FIRST: f64 = 0.3;
+/// A contraction θ above this fails the attempt (ode15s: 0.9).
+pub const DIVERGE_ABOVE: f64 = 0.9;
 
 /// The BDF integrator (module docs).
 #[derive(Debug, Clone)]
@@ -254,9 +258,9 @@ struct BdfRun<'s> {
     klast: usize,
     steps_at_k: usize,
     absh: f64,
-    /// `a_0` the factorisation was made for.
-    a0_fact: Option<f64>,
-    refactor: bool,
+    /// When the Newton matrix is renewed (band on the `a_0` it was made
+    /// for).
+    renewal: Renewal,
     /// Contraction rate measured on the current matrix (ode15s's `rate`).
     rate: Option<f64>,
     // Newton buffers
@@ -319,8 +323,11 @@ impl<'s> BdfRun<'s> {
             klast: 1,
             steps_at_k: 0,
             absh: 0.0,
-            a0_fact: None,
-            refactor: true,
+            renewal: Renewal::new(RenewalOptions {
+                band: REUSE_BAND,
+                across_attempts: true,
+                every_correction: false,
+            }),
             rate: None,
             q: vec![0.0; n],
             v: vec![0.0; n],
@@ -468,11 +475,8 @@ impl EstimateIn<'_> {
 }
 
 impl ImplicitStepper for BdfRun<'_> {
-    fn counters(&self) -> ImplicitStats {
-        self.stats
-    }
-    fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
+        (self.stats, &mut self.warnings)
     }
 }
 

@@ -3,12 +3,13 @@
 //! the predictor and history sums in one pass (`predict`), each
 //! correction's update in one pass (`newton_update`).
 
+use super::super::implicit::{Assessment, Convergence, ConvergenceOptions, Next, Remainder};
 use super::*;
 
 impl BdfRun<'_> {
     pub(super) fn factor(&mut self, t1: f64, a0: f64) -> Result<(), SystemError> {
         self.stats.factorizations += 1;
-        self.a0_fact = None;
+        self.renewal.factorising();
         self.sys.factorize(
             t1,
             &self.q,
@@ -16,8 +17,7 @@ impl BdfRun<'_> {
             &self.lam_new,
             [1.0, 1.0 / a0, 1.0 / (a0 * a0)],
         )?;
-        self.a0_fact = Some(a0);
-        self.refactor = false;
+        self.renewal.factorised(a0);
         self.rate = None;
         Ok(())
     }
@@ -90,24 +90,34 @@ impl BdfRun<'_> {
             |(), ()| (),
         );
         self.lam_new.copy_from_slice(&self.lam);
-        let stale = match self.a0_fact {
-            None => true,
-            Some(af) => (a0 / af - 1.0).abs() > REUSE_BAND,
-        };
-        let mut fresh = false;
-        if self.refactor || stale {
+        if self.renewal.at_predictor(a0) {
             if let Err(e) = self.factor(t1, a0) {
                 return Newton::Failed(e, true);
             }
-            fresh = true;
         }
+        let fresh = self.renewal.fresh();
         let s = 1.0 / (a0 * a0);
         // a position error δ makes a velocity error a_0 δ, which the error
         // test weighs as h·a_0·δ (`estimates`): one factor on the q-norm
         let vfac = (a0 * h).max(1.0);
         let floor = ROUNDING_ULPS * f64::EPSILON;
-        let mut prev = f64::NAN;
-        let mut it = 0;
+        // ode15s's test (Shampine & Reichelt 1997) with the rate kept on
+        // this matrix
+        let mut conv = Convergence::with_rate(
+            ConvergenceOptions {
+                remainder: Remainder::Ode15s {
+                    tol: NEWTON_KAPPA * self.rtol,
+                    tol_first: NEWTON_KAPPA_FIRST * self.rtol,
+                    first_rate: THETA_FIRST,
+                    diverge_above: DIVERGE_ABOVE,
+                },
+                max_iterations: MAX_NEWTON,
+                renew_when_exhausted: false,
+                renew_on_divergence: false,
+                reset_rate_on_renewal: false,
+            },
+            self.rate,
+        );
         loop {
             self.stats.residual_evaluations += 1;
             if let Err(e) = self.sys.residual(
@@ -128,7 +138,6 @@ impl BdfRun<'_> {
                 return self.newton_failed(e, fresh);
             }
             self.stats.newton_iterations += 1;
-            it += 1;
             // q += Δq, with q̇ and q̈ from it, the error test's norm of Δq
             // (velocities through `vfac`) and the rounding floor of q: one
             // pass, in two fixed halves concurrently for large n
@@ -166,51 +175,34 @@ impl BdfRun<'_> {
                 },
                 |(), ()| (),
             );
-            if at_floor || dnorm <= NEWTON_FLOOR * self.rtol {
-                return Newton::Converged;
-            }
-            if it == 1 {
-                // one correction suffices only with a contraction rate
-                // measured on this matrix (ode15s: 0.05 rtol)
-                if let Some(rate) = self.rate {
-                    let rate = rate.max(THETA_FIRST);
-                    if dnorm * rate / (1.0 - rate) <= NEWTON_KAPPA_FIRST * self.rtol {
-                        return Newton::Converged;
-                    }
-                }
-            } else {
-                let theta = dnorm / prev;
-                if theta > 0.9 {
-                    return self.newton_failed(
-                        SystemError::msg(format!(
-                            "Newton contracts too slowly (θ = {theta:.3}, correction {dnorm:.3e} of the weights)"
-                        )), fresh);
-                }
-                let rate = self.rate.map_or(theta, |r| theta.max(0.9 * r));
-                self.rate = Some(rate);
-                let errit = dnorm * rate / (1.0 - rate);
-                if errit <= NEWTON_KAPPA * self.rtol {
-                    if rate > THETA_REFACTOR {
-                        self.refactor = true;
+            // a correction at the rounding floor of q, or below
+            // NEWTON_FLOOR·rtol, ends the iteration
+            let accept = at_floor || dnorm <= NEWTON_FLOOR * self.rtol;
+            let verdict = conv.assess(dnorm, || 0.0, accept);
+            self.rate = conv.rate();
+            let theta = conv.theta();
+            let why = match verdict {
+                Assessment::Done => {
+                    if conv.slow() {
+                        self.renewal.renew();
                     }
                     return Newton::Converged;
                 }
-                if it >= MAX_NEWTON
-                    || errit * rate.powi((MAX_NEWTON - it) as i32) > NEWTON_KAPPA * self.rtol
-                {
-                    return self.newton_failed(
-                        SystemError::msg(format!(
-                            "no convergence in {MAX_NEWTON} iterations expected (correction {dnorm:.3e} of the weights, θ = {theta:.3})"
-                        )), fresh);
-                }
-            }
-            prev = dnorm;
+                Assessment::NotYet if conv.next(dnorm, false) != Some(Next::Exhausted) => continue,
+                Assessment::Diverged => format!(
+                    "Newton contracts too slowly (θ = {theta:.3}, correction {dnorm:.3e} of the weights)"
+                ),
+                _ => format!(
+                    "no convergence in {MAX_NEWTON} iterations expected (correction {dnorm:.3e} of the weights, θ = {theta:.3})"
+                ),
+            };
+            return self.newton_failed(SystemError::msg(why), fresh);
         }
     }
 
     /// A failed Newton attempt: the matrix is renewed at the next one.
     pub(super) fn newton_failed(&mut self, e: SystemError, fresh: bool) -> Newton {
-        self.refactor = true;
+        self.renewal.renew();
         Newton::Failed(e, fresh)
     }
 }

@@ -167,7 +167,9 @@ use newton::Attempt;
 
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
-use super::implicit::{run as run_implicit, validate_run, ImplicitStats, ImplicitStepper};
+use super::implicit::{
+    run as run_implicit, validate_run, ImplicitStats, ImplicitStepper, Renewal, RenewalOptions,
+};
 use super::Tolerance;
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
@@ -366,14 +368,11 @@ struct Run<'g, 's> {
     phi: Vec<f64>,
     err: Vec<f64>,
     y: Vec<f64>,
-    /// Step the current factorisation was computed for (None: none valid).
-    h_fact: Option<f64>,
-    /// Renew the factorisation at the next attempt.
-    refactor: bool,
+    /// When the Newton matrix is renewed (the step it was made for, a
+    /// renewal asked for, whether this attempt made its own).
+    renewal: Renewal,
     /// η = θ/(1 − θ) of the last converged iteration.
     eta: f64,
-    /// Whether the last attempt computed its own factorisation.
-    last_attempt_fresh: bool,
     /// Quadratic convergence constant `C = ‖Δq₂‖/‖Δq₁‖²` (tolerance units)
     /// of the last attempt on a matrix factorised at its predictor, the
     /// step it was measured at and the single-correction acceptances made
@@ -439,10 +438,12 @@ impl<'g, 's> Run<'g, 's> {
             phi: vec![0.0; m],
             err: vec![0.0; n + m],
             y: [q0, qd0].concat(),
-            h_fact: None,
-            refactor: true,
+            renewal: Renewal::new(RenewalOptions {
+                band: REUSE_BAND,
+                across_attempts: g.opts.reuse,
+                every_correction: !g.opts.reuse,
+            }),
             eta: 1.0,
-            last_attempt_fresh: false,
             quad: None,
             newton_its: (None, None),
             renewals: 0,
@@ -487,11 +488,8 @@ impl<'g, 's> Run<'g, 's> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn counters(&self) -> ImplicitStats {
-        self.stats
-    }
-    fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
+        (self.stats, &mut self.warnings)
     }
 }
 
@@ -578,8 +576,8 @@ impl Stepper for Run<'_, '_> {
             // Attempt, with one retry on a fresh factorisation.
             let mut outcome = self.attempt(t_new, h_try);
             if let Attempt::Failed(_) = &outcome {
-                if !self.last_attempt_fresh {
-                    self.refactor = true;
+                if !self.renewal.fresh() {
+                    self.renewal.renew();
                     outcome = self.attempt(t_new, h_try);
                 }
             }

@@ -1,7 +1,9 @@
 //! Newton iteration on the positions and reuse of factorisations (module
 //! docs of [`super`], "Newton iteration").
 
-use super::super::implicit::{Assessment, Convergence, ConvergenceOptions, Next, ROUNDING_ULPS};
+use super::super::implicit::{
+    Assessment, Convergence, ConvergenceOptions, Next, Remainder, ROUNDING_ULPS,
+};
 use super::*;
 use crate::parallel::{in_halves, Slices, PARALLEL_MIN_COORDS};
 
@@ -106,12 +108,10 @@ impl Run<'_, '_> {
     /// Factorise the iteration matrix at the current iterate.
     pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), SystemError> {
         self.stats.factorizations += 1;
-        self.h_fact = None;
+        self.renewal.factorising();
         self.sys
             .factorize(t1, &self.new.q, &self.new.v, &self.new.lam, c)?;
-        self.h_fact = Some(h);
-        self.refactor = false;
-        self.last_attempt_fresh = true;
+        self.renewal.factorised(h);
         Ok(())
     }
 
@@ -159,12 +159,7 @@ impl Run<'_, '_> {
             );
             new.lam.copy_from_slice(&cur.lam);
         }
-        self.last_attempt_fresh = false;
-        let stale = match self.h_fact {
-            None => true,
-            Some(hf) => (h / hf - 1.0).abs() > REUSE_BAND,
-        };
-        if self.refactor || stale || !self.opts.reuse {
+        if self.renewal.at_predictor(h) {
             if let Err(e) = self.factor(t1, h, c) {
                 return Attempt::Failed(e);
             }
@@ -177,7 +172,7 @@ impl Run<'_, '_> {
         self.new.lam.fill(0.0);
         // the matrix was factorised at this step's predictor: Newton
         // converges quadratically from the first correction on
-        let fresh = self.last_attempt_fresh;
+        let fresh = self.renewal.fresh();
         // position-equivalent tolerance of the acceleration (and velocity)
         // corrections, floored at a few ulps of the positions
         let tol_q = tol / gp.max(bp).max(1.0);
@@ -188,6 +183,7 @@ impl Run<'_, '_> {
         };
         let mut conv = Convergence::new(
             ConvergenceOptions {
+                remainder: Remainder::Rate,
                 max_iterations: self.opts.max_newton,
                 renew_when_exhausted: self.opts.reuse,
                 renew_on_divergence: false,
@@ -199,7 +195,7 @@ impl Run<'_, '_> {
         let mut first = f64::NAN;
         let mut it = 0;
         loop {
-            if conv.round() > 0 && !self.opts.reuse {
+            if self.renewal.before_correction(conv.round()) {
                 if let Err(e) = self.factor(t1, h, c) {
                     return Attempt::Failed(e);
                 }
@@ -280,7 +276,10 @@ impl Run<'_, '_> {
             let mut done = match conv.assess(dnorm, || drel, single) {
                 Assessment::Done => true,
                 Assessment::NotYet => false,
-                Assessment::Diverged | Assessment::RenewAfterUndo => {
+                Assessment::Diverged
+                | Assessment::RenewAfterUndo
+                | Assessment::Hopeless
+                | Assessment::Slow => {
                     return Attempt::Failed(SystemError::msg(format!(
                         "Newton diverges (contraction θ = {:.3}, correction {:.3e} × tol)",
                         conv.theta(),
@@ -289,7 +288,7 @@ impl Run<'_, '_> {
                 }
             };
             if conv.slow() {
-                self.refactor = true;
+                self.renewal.renew();
             }
             if done && self.opts.check_constraints {
                 self.sys.constraints(t1, &self.new.q, &mut self.phi);
@@ -303,7 +302,7 @@ impl Run<'_, '_> {
                         self.eta = eta;
                     }
                     if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
-                        self.refactor = true;
+                        self.renewal.renew();
                     }
                     return Attempt::Converged;
                 }

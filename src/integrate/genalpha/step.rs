@@ -41,7 +41,7 @@ impl Run<'_, '_> {
         for i in 0..n {
             self.err[i] = cst * (self.new.a[i] - self.cur.a[i]);
         }
-        if self.opts.filter_error && self.h_fact.is_some() {
+        if self.opts.filter_error && self.renewal.valid() {
             let c_m = (1.0 - p.alpha_m) / (1.0 - p.alpha_f);
             let mass = self.sys.mass_diagonal();
             for (e, m) in self.err[..n].iter_mut().zip(mass) {

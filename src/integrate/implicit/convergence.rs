@@ -1,9 +1,14 @@
 //! The one convergence test of the implicit schemes' simplified Newton
 //! iterations: the contraction rate θ = ‖Δ_k‖/‖Δ_{k−1}‖ and the estimate
 //! η‖Δ_k‖ (η = θ/(1 − θ)) of the remaining error (Hairer & Wanner II,
-//! §IV.8, eq. (8.10)–(8.11)), divergence at θ ≥ 1, stagnation at the
-//! linear solve's noise, and when the Newton matrix is renewed within an
-//! attempt. Norms are in units of the tolerance (converged at ≤ 1).
+//! §IV.8, eq. (8.10)–(8.11)), divergence, stagnation at the linear solve's
+//! noise, and when the Newton matrix is renewed within an attempt. Where
+//! the schemes' rules differ they are options ([`Remainder`],
+//! [`ConvergenceOptions`]): generalized-α and Radau IIA estimate the
+//! remainder with η kept from the last converged attempt; BDF/NDF with
+//! ode15s's rate on the current matrix (Shampine & Reichelt 1997); the
+//! augmented Lagrangian, whose multiplier update after each correction
+//! contracts only linearly, takes the correction itself.
 
 /// Contraction factor θ above which the factorisation is renewed at the
 /// next step (the iteration converges, but slowly).
@@ -29,9 +34,50 @@ pub const STAGNATION: f64 = 100.0;
 /// shrinks the tolerance further.
 pub const NOISE_REL: f64 = 1e-10;
 
+/// How the remaining error after a correction is estimated and what
+/// counts as divergence: the per-scheme part of [`Convergence`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Remainder {
+    /// `η‖Δ‖ ≤ 1` (norms in tolerances) with `η = θ/(1 − θ)`, η of the
+    /// first correction kept from the last converged attempt (at least 1);
+    /// divergence at θ ≥ 1 above the noise (Hairer & Wanner II, §IV.8;
+    /// generalized-α, Radau IIA).
+    Rate,
+    /// ode15s's test (Shampine & Reichelt 1997) on raw norms: the rate
+    /// `ρ = max(θ, 0.9 ρ_prev)` measured on the current matrix (none after
+    /// a factorisation); the first correction converges only with a rate
+    /// measured before, `ρ' = max(ρ, first_rate)`, at
+    /// `‖Δ‖ρ'/(1 − ρ') ≤ tol_first`; later ones at `‖Δ‖ρ/(1 − ρ) ≤ tol`;
+    /// θ above `diverge_above`, or a rate that cannot reach `tol` within
+    /// [`ConvergenceOptions::max_iterations`], fails (no stagnation rule).
+    /// BDF/NDF.
+    Ode15s {
+        /// Bound of the estimated remainder (ode15s: κ·rtol).
+        tol: f64,
+        /// Bound for the first correction (ode15s: κ₁·rtol).
+        tol_first: f64,
+        /// Smallest rate assumed for the first correction.
+        first_rate: f64,
+        /// Contraction above which the iteration fails (ode15s: 0.9).
+        diverge_above: f64,
+    },
+    /// The correction itself, `‖Δ‖ ≤ 1` (norms in tolerances), for an
+    /// iteration that contracts linearly (the augmented Lagrangian's
+    /// multiplier update); a contraction above `slow` asks the scheme to
+    /// act ([`Assessment::Slow`]: renew the matrix, raise the penalty);
+    /// divergence counts only from the third correction on and after the
+    /// scheme renewed something ([`Convergence::renewed_by_scheme`]).
+    Correction {
+        /// Contraction above which the scheme is asked to act.
+        slow: f64,
+    },
+}
+
 /// Where the rules of [`Convergence`] differ between schemes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConvergenceOptions {
+    /// The remainder estimate and divergence rule.
+    pub remainder: Remainder,
     /// Corrections per round (on one factorisation) before the iteration
     /// counts as exhausted (`max_newton`).
     pub max_iterations: usize,
@@ -59,8 +105,14 @@ pub enum Assessment {
     /// Diverging: undo the correction and renew the matrix at the iterate
     /// ([`ConvergenceOptions::renew_on_divergence`], once per attempt).
     RenewAfterUndo,
-    /// Diverging (θ ≥ 1 above [`STAGNATION`] and above the noise).
+    /// Diverging (θ ≥ 1 above [`STAGNATION`] and above the noise; with
+    /// [`Remainder::Ode15s`] θ above its bound).
     Diverged,
+    /// [`Remainder::Ode15s`]: the rate cannot reach the tolerance within
+    /// [`ConvergenceOptions::max_iterations`] corrections.
+    Hopeless,
+    /// [`Remainder::Correction`]: contracting slower than its `slow`.
+    Slow,
 }
 
 /// What to do after a correction that did not converge
@@ -92,11 +144,15 @@ pub struct Convergence {
     round: usize,
     /// The matrix was renewed within the attempt.
     renewed: bool,
+    /// [`Remainder::Ode15s`]: the rate measured on the current matrix.
+    rate: Option<f64>,
+    /// The last assessment asks for a renewal at the next step.
+    slow: bool,
 }
 
 impl Convergence {
     /// A new attempt, starting from the rate `eta` kept from the last
-    /// converged attempt (at least 1).
+    /// converged attempt (at least 1; [`Remainder::Rate`]).
     pub fn new(opts: ConvergenceOptions, eta: f64) -> Self {
         Self {
             opts,
@@ -105,7 +161,41 @@ impl Convergence {
             theta: f64::NAN,
             round: 0,
             renewed: false,
+            rate: None,
+            slow: false,
         }
+    }
+
+    /// A new attempt of [`Remainder::Ode15s`] on a matrix whose rate was
+    /// measured before (`None` for a fresh matrix).
+    pub fn with_rate(opts: ConvergenceOptions, rate: Option<f64>) -> Self {
+        Self {
+            rate,
+            ..Self::new(opts, 1.0)
+        }
+    }
+
+    /// [`Remainder::Ode15s`]: the rate measured on the current matrix, to
+    /// keep while the matrix is kept.
+    pub fn rate(&self) -> Option<f64> {
+        self.rate
+    }
+
+    /// The scheme renewed the matrix (or the problem) within the attempt
+    /// ([`Remainder::Correction`]).
+    pub fn renewed_by_scheme(&mut self) {
+        self.renewed = true;
+    }
+
+    /// Whether the matrix was renewed within the attempt.
+    pub fn renewed(&self) -> bool {
+        self.renewed
+    }
+
+    /// The next correction starts a new rate measurement (no θ), after the
+    /// scheme changed the problem (the augmented Lagrangian's penalty).
+    pub fn restart(&mut self) {
+        self.prev = f64::NAN;
     }
 
     /// Corrections since the last renewal of the matrix.
@@ -124,10 +214,11 @@ impl Convergence {
         self.prev
     }
 
-    /// The last correction contracted with θ > [`THETA_REFACTOR`]: the
-    /// matrix is to be renewed at the next step.
+    /// The last assessed correction contracted with θ (ode15s: the
+    /// converged rate) above [`THETA_REFACTOR`]: the matrix is to be
+    /// renewed at the next step.
     pub fn slow(&self) -> bool {
-        self.theta > THETA_REFACTOR && self.theta < 1.0
+        self.slow
     }
 
     /// η to keep for the next attempt after convergence: that of a
@@ -136,14 +227,39 @@ impl Convergence {
         (self.theta < 1.0).then_some(self.eta)
     }
 
-    /// Test a correction of norm `dnorm` (in tolerances; finite); `drel`
-    /// gives its size relative to `max(|q|, 1)` where stagnation asks for
-    /// it; `single`: the scheme accepts this first correction by its own
-    /// model (generalized-α's quadratic model on a fresh matrix).
-    pub fn assess(&mut self, dnorm: f64, drel: impl FnOnce() -> f64, single: bool) -> Assessment {
+    /// Test a correction of norm `dnorm` (in tolerances, or raw with
+    /// [`Remainder::Ode15s`]; finite); `drel` gives its size relative to
+    /// `max(|q|, 1)` where stagnation asks for it; `accept`: the scheme
+    /// accepts this correction by its own rule (generalized-α's quadratic
+    /// model on a fresh matrix, BDF's rounding floor).
+    pub fn assess(&mut self, dnorm: f64, drel: impl FnOnce() -> f64, accept: bool) -> Assessment {
+        self.slow = false;
+        if accept {
+            self.theta = f64::NAN;
+            return Assessment::Done;
+        }
+        match self.opts.remainder {
+            Remainder::Rate => self.assess_rate(dnorm, drel),
+            Remainder::Ode15s {
+                tol,
+                tol_first,
+                first_rate,
+                diverge_above,
+            } => self.assess_ode15s(dnorm, tol, tol_first, first_rate, diverge_above),
+            Remainder::Correction { slow } => self.assess_correction(dnorm, drel, slow),
+        }
+    }
+
+    /// Whether the iteration stagnates at the solve's noise (θ ≥ 1 with
+    /// corrections this small).
+    fn at_noise(dnorm: f64, drel: impl FnOnce() -> f64) -> bool {
+        dnorm <= STAGNATION || drel() <= NOISE_REL
+    }
+
+    fn assess_rate(&mut self, dnorm: f64, drel: impl FnOnce() -> f64) -> Assessment {
         if self.round == 0 {
             self.theta = f64::NAN;
-            return if single || dnorm * self.eta <= 1.0 {
+            return if dnorm * self.eta <= 1.0 {
                 Assessment::Done
             } else {
                 Assessment::NotYet
@@ -152,7 +268,7 @@ impl Convergence {
         let theta = dnorm / self.prev;
         self.theta = theta;
         if theta >= 1.0 {
-            if dnorm <= STAGNATION || drel() <= NOISE_REL {
+            if Self::at_noise(dnorm, drel) {
                 // no contraction among corrections this small: the
                 // iteration has reached the noise floor of the solve
                 return Assessment::Done;
@@ -165,12 +281,73 @@ impl Convergence {
             }
             return Assessment::Diverged;
         }
+        self.slow = theta > THETA_REFACTOR;
         self.eta = theta / (1.0 - theta);
         if self.eta * dnorm <= 1.0 {
             Assessment::Done
         } else {
             Assessment::NotYet
         }
+    }
+
+    fn assess_ode15s(
+        &mut self,
+        dnorm: f64,
+        tol: f64,
+        tol_first: f64,
+        first_rate: f64,
+        diverge_above: f64,
+    ) -> Assessment {
+        if self.round == 0 {
+            self.theta = f64::NAN;
+            // one correction suffices only with a contraction rate
+            // measured on this matrix
+            if let Some(rate) = self.rate {
+                let rate = rate.max(first_rate);
+                if dnorm * rate / (1.0 - rate) <= tol_first {
+                    return Assessment::Done;
+                }
+            }
+            return Assessment::NotYet;
+        }
+        let theta = dnorm / self.prev;
+        self.theta = theta;
+        if theta > diverge_above {
+            return Assessment::Diverged;
+        }
+        let rate = self.rate.map_or(theta, |r| theta.max(0.9 * r));
+        self.rate = Some(rate);
+        let errit = dnorm * rate / (1.0 - rate);
+        if errit <= tol {
+            self.slow = rate > THETA_REFACTOR;
+            return Assessment::Done;
+        }
+        let it = self.round + 1;
+        let max = self.opts.max_iterations;
+        if it >= max || errit * rate.powi((max - it) as i32) > tol {
+            return Assessment::Hopeless;
+        }
+        Assessment::NotYet
+    }
+
+    fn assess_correction(
+        &mut self,
+        dnorm: f64,
+        drel: impl FnOnce() -> f64,
+        slow: f64,
+    ) -> Assessment {
+        let theta = dnorm / self.prev;
+        self.theta = theta;
+        if dnorm <= 1.0 || (theta >= 1.0 && Self::at_noise(dnorm, drel)) {
+            return Assessment::Done;
+        }
+        if theta >= 1.0 && self.round >= 2 && self.renewed {
+            return Assessment::Diverged;
+        }
+        if theta > slow {
+            return Assessment::Slow;
+        }
+        Assessment::NotYet
     }
 
     /// After an assessed correction of norm `dnorm`: whether it converged
@@ -205,6 +382,7 @@ mod tests {
 
     fn opts(renew_on_divergence: bool) -> ConvergenceOptions {
         ConvergenceOptions {
+            remainder: Remainder::Rate,
             max_iterations: 4,
             renew_when_exhausted: true,
             renew_on_divergence,
@@ -276,5 +454,100 @@ mod tests {
             Iterate, Iterate, Iterate, Renew, Iterate, Iterate, Iterate, Exhausted,
         ];
         assert_eq!(nexts, expect.map(Some));
+    }
+
+    fn ode15s() -> ConvergenceOptions {
+        ConvergenceOptions {
+            remainder: Remainder::Ode15s {
+                tol: 0.1,
+                tol_first: 0.02,
+                first_rate: 0.3,
+                diverge_above: 0.9,
+            },
+            max_iterations: 4,
+            renew_when_exhausted: false,
+            renew_on_divergence: false,
+            reset_rate_on_renewal: false,
+        }
+    }
+
+    #[test]
+    fn ode15s_accepts_one_correction_only_with_a_rate_measured_on_the_matrix() {
+        // a fresh matrix: no rate, the first correction never suffices
+        let mut c = Convergence::with_rate(ode15s(), None);
+        assert_eq!(c.assess(1e-6, || 1.0, false), Assessment::NotYet);
+        // a kept rate 0.1 is floored at 0.3: η = 3/7, 0.04·3/7 ≈ 0.017 ≤ 0.02
+        let mut c = Convergence::with_rate(ode15s(), Some(0.1));
+        assert_eq!(c.assess(0.04, || 1.0, false), Assessment::Done);
+        let mut c = Convergence::with_rate(ode15s(), Some(0.1));
+        assert_eq!(c.assess(0.05, || 1.0, false), Assessment::NotYet);
+        // the scheme's own acceptance (BDF's rounding floor) at any round
+        c.next(0.05, false);
+        assert_eq!(c.assess(0.05, || 1.0, true), Assessment::Done);
+        assert!(!c.slow());
+    }
+
+    #[test]
+    fn ode15s_rate_has_memory_and_slow_or_hopeless_iterations_end() {
+        // 1, 0.3: θ = ρ = 0.3, remainder 0.129 > 0.1 (reachable: 0.129 ρ²
+        // ≤ 0.1); 0.05: θ = 1/6, ρ = max(1/6, 0.9·0.3) = 0.27, remainder
+        // 0.018 ≤ 0.1, slow (ρ > 0.2)
+        let mut c = Convergence::with_rate(ode15s(), None);
+        assert_eq!(c.assess(1.0, || 1.0, false), Assessment::NotYet);
+        c.next(1.0, false);
+        assert_eq!(c.assess(0.3, || 1.0, false), Assessment::NotYet);
+        assert_eq!(c.rate(), Some(0.3));
+        assert!(!c.slow(), "not converged");
+        c.next(0.3, false);
+        assert_eq!(c.assess(0.05, || 1.0, false), Assessment::Done);
+        assert_eq!(c.rate(), Some(0.9 * 0.3));
+        assert!(c.slow());
+        // θ above 0.9 diverges, even at the noise (no stagnation rule)
+        let mut c = Convergence::with_rate(ode15s(), None);
+        c.assess(1.0, || 1.0, false);
+        c.next(1.0, false);
+        assert_eq!(c.assess(0.95, || 0.0, false), Assessment::Diverged);
+        // 100 → 50: the remainder 50 would need ρ² ≤ 0.002 in the two
+        // corrections left
+        let mut c = Convergence::with_rate(ode15s(), None);
+        c.assess(100.0, || 1.0, false);
+        c.next(100.0, false);
+        assert_eq!(c.assess(50.0, || 1.0, false), Assessment::Hopeless);
+    }
+
+    #[test]
+    fn the_correction_test_asks_for_action_when_slow_and_diverges_only_after_a_renewal() {
+        let opts = ConvergenceOptions {
+            remainder: Remainder::Correction { slow: 0.5 },
+            max_iterations: 30,
+            renew_when_exhausted: false,
+            renew_on_divergence: false,
+            reset_rate_on_renewal: false,
+        };
+        let mut c = Convergence::new(opts, 1.0);
+        assert_eq!(c.assess(1e3, || 1.0, false), Assessment::NotYet);
+        c.next(1e3, false);
+        // growing before any renewal: slow, the scheme renews
+        assert_eq!(c.assess(2e3, || 1.0, false), Assessment::Slow);
+        c.renewed_by_scheme();
+        c.next(2e3, false);
+        assert_eq!(c.assess(4e3, || 1.0, false), Assessment::Diverged);
+        // growth at the noise of the solve converges; ‖Δ‖ ≤ 1 converges
+        // whatever θ (no rate estimate)
+        let mut c = Convergence::new(opts, 1.0);
+        c.assess(1e3, || 1.0, false);
+        c.next(1e3, false);
+        assert_eq!(c.assess(2e3, || 1e-12, false), Assessment::Done);
+        let mut c = Convergence::new(opts, 1.0);
+        c.assess(2.0, || 1.0, false);
+        c.next(2.0, false);
+        assert_eq!(c.assess(1.0, || 1.0, false), Assessment::Done);
+        // a restart forgets the last correction: no θ, no verdict on it
+        let mut c = Convergence::new(opts, 1.0);
+        c.assess(1e3, || 1.0, false);
+        c.next(1e3, false);
+        c.restart();
+        assert_eq!(c.assess(2e3, || 1.0, false), Assessment::NotYet);
+        assert!(c.theta().is_nan());
     }
 }

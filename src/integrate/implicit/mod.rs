@@ -1,15 +1,18 @@
 //! The one core of the implicit (index-3) schemes — generalized-α (with
 //! HHT, Newmark and the trapezoidal rule), BDF/NDF, Radau IIA and the
 //! augmented Lagrangian: their statistics, the convergence test of their
-//! Newton iterations and the run skeleton on `drive`.
+//! Newton iterations, the policy for renewing the Newton matrix and the
+//! run skeleton on `drive`.
 
 mod convergence;
+mod renewal;
 mod run;
 mod stats;
 
 pub use convergence::{
-    Assessment, Convergence, ConvergenceOptions, Next, NOISE_REL, ROUNDING_ULPS, STAGNATION,
-    THETA_REFACTOR,
+    Assessment, Convergence, ConvergenceOptions, Next, Remainder, NOISE_REL, ROUNDING_ULPS,
+    STAGNATION, THETA_REFACTOR,
 };
+pub use renewal::{Renewal, RenewalOptions};
 pub(crate) use run::{run, validate_run, ImplicitStepper};
 pub use stats::{ImplicitStats, COUNTED_ORDERS};

@@ -8,10 +8,9 @@ use super::ImplicitStats;
 /// A scheme's run as [`run`] drives it: a [`Stepper`] that counts its
 /// work in [`ImplicitStats`] and collects warnings.
 pub(crate) trait ImplicitStepper: Stepper {
-    /// The counters so far.
-    fn counters(&self) -> ImplicitStats;
-    /// The warnings of the run, taken out at its end.
-    fn take_warnings(&mut self) -> Vec<String>;
+    /// The counters so far and the warnings of the run (taken out at its
+    /// end).
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>);
 }
 
 /// Drive `st` through [`driver::drive`] to `t_end`, delivering
@@ -26,12 +25,13 @@ pub(crate) fn run<S: ImplicitStepper>(
     obs: &mut dyn Observer,
 ) -> (Report, ImplicitStats) {
     let (termination, t_reached) = driver::drive(st, output_times, max_steps, t_end, obs);
-    let stats = st.counters().finished();
+    let (stats, warnings) = st.books();
+    let stats = stats.finished();
     let report = Report {
         stats: stats.counts(),
         termination,
         t_reached,
-        warnings: st.take_warnings(),
+        warnings: std::mem::take(warnings),
     };
     (report, stats)
 }

@@ -119,7 +119,7 @@ pub use tableau::RadauTableau;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
     run as run_implicit, validate_run, Assessment, Convergence, ConvergenceOptions, ImplicitStats,
-    ImplicitStepper, Next,
+    ImplicitStepper, Next, Remainder, Renewal, RenewalOptions,
 };
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
@@ -279,9 +279,15 @@ impl Radau5 {
             r: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
             x: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
             y: [q0, qd0].concat(),
-            h_fact: None,
-            refactor: true,
-            fresh: false,
+            renewal: Renewal::new(RenewalOptions {
+                band: if self.opts.adaptive {
+                    ADAPTIVE_REUSE_BAND
+                } else {
+                    SAME_STEP
+                },
+                across_attempts: self.opts.reuse,
+                every_correction: !self.opts.reuse,
+            }),
             eta: 1.0,
             h_last: 0.0,
             h_prev: None,
@@ -337,9 +343,8 @@ struct Run<'g, 's> {
     r: [Vec<f64>; 3],
     x: [Vec<f64>; 3],
     y: Vec<f64>,
-    h_fact: Option<f64>,
-    refactor: bool,
-    fresh: bool,
+    /// When the Newton matrices are renewed.
+    renewal: Renewal,
     eta: f64,
     h_last: f64,
     h_prev: Option<f64>,
@@ -445,11 +450,8 @@ impl Run<'_, '_> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn counters(&self) -> ImplicitStats {
-        self.stats
-    }
-    fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
+    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
+        (self.stats, &mut self.warnings)
     }
 }
 
@@ -510,8 +512,8 @@ impl Stepper for Run<'_, '_> {
                 self.t + h
             };
             let mut outcome = self.attempt(h);
-            if outcome.is_err() && !self.fresh {
-                self.refactor = true;
+            if outcome.is_err() && !self.renewal.fresh() {
+                self.renewal.renew();
                 outcome = self.attempt(h);
             }
             if let Err(reason) = outcome {
@@ -520,7 +522,7 @@ impl Stepper for Run<'_, '_> {
                 if self.warnings.len() < 20 {
                     self.warnings.push(msg);
                 }
-                self.refactor = true;
+                self.renewal.renew();
                 let cut = StepCut::Newton {
                     t: t_new,
                     h,

@@ -19,7 +19,7 @@ impl Run<'_, '_> {
         let (g, mu) = (tab.gamma, tab.mu);
         let hmu = [h * mu[0], h * mu[1]];
         let h2mu2 = cmul(hmu, hmu);
-        self.h_fact = None;
+        self.renewal.factorising();
         if at_end {
             self.stage_state(2, h);
         }
@@ -34,9 +34,7 @@ impl Run<'_, '_> {
         self.stats.complex_factorizations += 1;
         self.cplx
             .factorize_complex(t, q, v, lam, [[1.0, 0.0], hmu, h2mu2])?;
-        self.h_fact = Some(h);
-        self.refactor = false;
-        self.fresh = true;
+        self.renewal.factorised(h);
         Ok(())
     }
 
@@ -68,17 +66,10 @@ impl Run<'_, '_> {
                 }
             }
         }
-        self.fresh = false;
-        // the matrix of another step size is renewed; a step that differs
+        // the matrix of another step size is renewed (a step that differs
         // from the factorised one by the rounding of the grid's
-        // arithmetic (`target − t`) is the same step
-        let band = if self.opts.adaptive {
-            ADAPTIVE_REUSE_BAND
-        } else {
-            SAME_STEP
-        };
-        let other_step = self.h_fact.is_none_or(|hf| (h / hf - 1.0).abs() > band);
-        if self.refactor || other_step || !self.opts.reuse {
+        // arithmetic, `target − t`, is the same step: `SAME_STEP`)
+        if self.renewal.at_predictor(h) {
             self.factor(h)?;
         }
         let (g, mu) = (tab.gamma, tab.mu);
@@ -102,6 +93,7 @@ impl Run<'_, '_> {
         };
         let mut conv = Convergence::new(
             ConvergenceOptions {
+                remainder: Remainder::Rate,
                 max_iterations: self.opts.max_newton,
                 renew_when_exhausted: true,
                 renew_on_divergence: true,
@@ -111,7 +103,7 @@ impl Run<'_, '_> {
         );
         let mut its = 0usize;
         loop {
-            if conv.round() > 0 && !self.opts.reuse {
+            if self.renewal.before_correction(conv.round()) {
                 self.factor(h)?;
             }
             // residuals of the three stages
@@ -234,7 +226,7 @@ impl Run<'_, '_> {
                     self.factor_at(h, true)?;
                     continue;
                 }
-                Assessment::Diverged => {
+                Assessment::Diverged | Assessment::Hopeless | Assessment::Slow => {
                     return Err(SystemError::msg(format!(
                         "Newton diverges (contraction θ = {:.3}, correction {dnorm:.3e} × tol)",
                         conv.theta()
@@ -242,7 +234,7 @@ impl Run<'_, '_> {
                 }
             };
             if conv.slow() {
-                self.refactor = true;
+                self.renewal.renew();
             }
             match conv.next(dnorm, done) {
                 None => {

@@ -1,0 +1,448 @@
+//! Generated kernels of a revolute chain (the rod), optionally with one
+//! ground revolute (the N-link pendulum, the cantilever).
+
+use super::memo::{SharedTrig, TrigMemo};
+use super::{arr, arr_mut, kernels, revolute};
+use crate::model::{BodyRef, ConstraintKernels, System};
+
+/// A revolute joint between the ground and one body.
+#[derive(Debug, Clone)]
+struct GroundJoint {
+    /// The ground is side i (`Revolute::body_i`)?
+    ground_is_i: bool,
+    /// The body's first coordinate.
+    off: usize,
+    row0: usize,
+    jac0: usize,
+    params: [f64; 4],
+}
+
+impl GroundJoint {
+    fn phi(&self, q: &[f64], out: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi(qb, &self.params, &[], o);
+        }
+    }
+    fn jacobian(&self, q: &[f64], vals: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut vals[self.jac0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_jacobian(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_jacobian(qb, &self.params, &[], o);
+        }
+    }
+    fn phi_t(&self, q: &[f64], out: &mut [f64]) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi_t(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi_t(qb, &self.params, &[], o);
+        }
+    }
+    fn gamma(&self, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
+        let o = arr_mut(&mut out[self.row0..]);
+        if self.ground_is_i {
+            kernels::revolute_gb_gamma(qb, vb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_gamma(qb, vb, &self.params, &[], o);
+        }
+    }
+    fn eval(&self, q: &[f64], qd: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]) {
+        let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
+        let (p, v, g) = (
+            arr_mut(&mut phi[self.row0..]),
+            arr_mut(&mut vals[self.jac0..]),
+            arr_mut(&mut gamma[self.row0..]),
+        );
+        if self.ground_is_i {
+            kernels::revolute_gb_eval(qb, vb, &self.params, &[], p, v, g);
+        } else {
+            kernels::revolute_bg_eval(qb, vb, &self.params, &[], p, v, g);
+        }
+    }
+    /// Φ into `phi` (the range's rows) and Φ_qᵀλ added to `g` (λ: the
+    /// range's multipliers), from the 4 Φ_q values.
+    fn phi_tmul(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64]) {
+        self.phi_tmul_at(q, lambda, phi, g, self.row0)
+    }
+    /// [`GroundJoint::phi_tmul`] with the joint's rows at `row0` of `phi`
+    /// and `lambda`.
+    fn phi_tmul_at(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64], row0: usize) {
+        let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut phi[row0..]));
+        if self.ground_is_i {
+            kernels::revolute_gb_phi(qb, &self.params, &[], o);
+        } else {
+            kernels::revolute_bg_phi(qb, &self.params, &[], o);
+        }
+        let mut vals = [0.0; 4];
+        let qb = arr(&q[self.off..]);
+        let pattern = if self.ground_is_i {
+            kernels::revolute_gb_jacobian(qb, &self.params, &[], &mut vals);
+            kernels::REVOLUTE_GB_JAC_PATTERN
+        } else {
+            kernels::revolute_bg_jacobian(qb, &self.params, &[], &mut vals);
+            kernels::REVOLUTE_BG_JAC_PATTERN
+        };
+        for (&(r, c), v) in pattern.iter().zip(vals) {
+            g[self.off + c] += v * lambda[row0 + r];
+        }
+    }
+    fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+        let qb = arr(&q[self.off..]);
+        let l = arr(&lambda[self.row0..]);
+        let o = arr_mut(vals);
+        if self.ground_is_i {
+            kernels::revolute_gb_hessian(qb, &self.params, &[], l, o);
+        } else {
+            kernels::revolute_bg_hessian(qb, &self.params, &[], l, o);
+        }
+    }
+}
+
+/// Generated kernels for a revolute chain (the rod), optionally with one
+/// ground revolute (the N-link pendulum, the cantilever).
+#[derive(Debug)]
+pub struct ChainKernels {
+    name: String,
+    /// First coordinate of the chain's first body.
+    q0: usize,
+    n_joints: usize,
+    row0: usize,
+    jac0: usize,
+    params: Vec<f64>,
+    ground: Option<GroundJoint>,
+    memo: std::sync::Arc<std::sync::RwLock<TrigMemo>>,
+}
+
+/// A ground pivot of a chain: a revolute between the ground and `body`,
+/// attached before (`first`) or after the chain's joints.
+#[derive(Debug, Clone, Copy)]
+pub struct GroundPivot {
+    /// The pivot is the first joint of the range (else the last).
+    pub first: bool,
+    /// The ground is the joint's side i.
+    pub ground_is_i: bool,
+    /// The pivoted body.
+    pub body: usize,
+    /// `[s_i, s_j]` of the joint (the ground's point global).
+    pub points: [f64; 4],
+}
+
+impl ChainKernels {
+    /// Kernels for the joints of a chain of bodies `body0, body0 + 1, …`:
+    /// joint `k` a revolute between `body0 + k` (point `s_i`) and
+    /// `body0 + k + 1` (point `s_j`), `joints[k] = [s_i, s_j]`, in row order;
+    /// with an optional ground pivot before or after them.
+    pub fn new(body0: usize, joints: &[[f64; 4]], pivot: Option<GroundPivot>) -> Self {
+        let nj = joints.len();
+        let (row0, jac0, ground) = match pivot {
+            None => (0, 0, None),
+            Some(p) => {
+                let gj = GroundJoint {
+                    ground_is_i: p.ground_is_i,
+                    off: 3 * p.body,
+                    row0: if p.first { 0 } else { 2 * nj },
+                    jac0: if p.first { 0 } else { 8 * nj },
+                    params: p.points,
+                };
+                if p.first {
+                    (2, 4, Some(gj))
+                } else {
+                    (0, 0, Some(gj))
+                }
+            }
+        };
+        let name = if ground.is_some() {
+            "generated:pendulum_chain"
+        } else {
+            "generated:rod_chain"
+        };
+        ChainKernels {
+            name: name.into(),
+            q0: 3 * body0,
+            n_joints: nj,
+            row0,
+            jac0,
+            params: joints.iter().flatten().copied().collect(),
+            ground,
+            memo: std::sync::Arc::new(std::sync::RwLock::new(TrigMemo::new(nj + 1))),
+        }
+    }
+
+    /// Kernels for the whole of `sys` if its joints form a revolute chain
+    /// (see the module documentation), else `None`.
+    pub fn recognise(sys: &System) -> Option<Self> {
+        let nb = sys.bodies().len();
+        let revs: Vec<(BodyRef, BodyRef, [f64; 4])> = sys
+            .constraints()
+            .iter()
+            .map(|c| revolute(c.geometry()))
+            .collect::<Option<_>>()?;
+        let is_ground =
+            |r: &(BodyRef, BodyRef, [f64; 4])| r.0 == BodyRef::Ground || r.1 == BodyRef::Ground;
+        let grounds: Vec<usize> = (0..revs.len()).filter(|&k| is_ground(&revs[k])).collect();
+        let ground_pos = match grounds.as_slice() {
+            [] => None,
+            [g] if *g == 0 || *g + 1 == revs.len() => Some(*g),
+            _ => return None,
+        };
+        let chain: Vec<[f64; 4]> = revs
+            .iter()
+            .filter(|r| !is_ground(r))
+            .enumerate()
+            .map(|(k, r)| (r.0 == BodyRef::Body(k) && r.1 == BodyRef::Body(k + 1)).then_some(r.2))
+            .collect::<Option<_>>()?;
+        if chain.len() + 1 != nb {
+            return None;
+        }
+        let pivot = match ground_pos {
+            None => None,
+            Some(g) => {
+                let (ground_is_i, body) = match (revs[g].0, revs[g].1) {
+                    (BodyRef::Ground, BodyRef::Body(b)) => (true, b),
+                    (BodyRef::Body(b), BodyRef::Ground) => (false, b),
+                    _ => return None,
+                };
+                Some(GroundPivot {
+                    first: g == 0,
+                    ground_is_i,
+                    body,
+                    points: revs[g].2,
+                })
+            }
+        };
+        let k = ChainKernels::new(0, &chain, pivot);
+        (k.pattern() == sys.jacobian_pattern()).then_some(k)
+    }
+
+    /// The Φ_q pattern these kernels write (must equal the system's).
+    fn pattern(&self) -> Vec<(usize, usize)> {
+        let mut p = vec![(0, 0); 8 * self.n_joints + 4 * usize::from(self.ground.is_some())];
+        for k in 0..self.n_joints {
+            for (e, &(r, c)) in kernels::REVOLUTE_CHAIN_JOINT_JAC_PATTERN.iter().enumerate() {
+                p[self.jac0 + 8 * k + e] = (self.row0 + 2 * k + r, self.q0 + 3 * k + c);
+            }
+        }
+        if let Some(g) = &self.ground {
+            for (e, &(r, c)) in kernels::REVOLUTE_GB_JAC_PATTERN.iter().enumerate() {
+                p[g.jac0 + e] = (g.row0 + r, g.off + c);
+            }
+        }
+        p
+    }
+
+    /// The chain's part of q (or q̇): its bodies' coordinates.
+    fn chain_q<'q>(&self, q: &'q [f64]) -> &'q [f64] {
+        &q[self.q0..self.q0 + 3 * (self.n_joints + 1)]
+    }
+
+    /// The memo of the chain's sines and cosines, to share with force
+    /// kernels on the chain's bodies ([`SharedTrig`]).
+    pub fn shared_trig(&self) -> SharedTrig {
+        SharedTrig {
+            memo: self.memo.clone(),
+            q0: self.q0,
+            n_bodies: self.n_joints + 1,
+        }
+    }
+
+    fn chain_rows(&self) -> std::ops::Range<usize> {
+        self.row0..self.row0 + 2 * self.n_joints
+    }
+    fn chain_vals(&self) -> std::ops::Range<usize> {
+        self.jac0..self.jac0 + 8 * self.n_joints
+    }
+
+    /// Φ, Φ_q values and γ in one pass (sines and cosines computed once per
+    /// body instead of once per function and joint side).
+    pub fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        let (r, v) = (self.chain_rows(), self.chain_vals());
+        kernels::revolute_chain_eval(
+            self.chain_q(q),
+            self.chain_q(qd),
+            &self.params,
+            &mut phi[r.clone()],
+            &mut vals[v],
+            &mut gamma[r],
+        );
+        if let Some(g) = &self.ground {
+            g.eval(q, qd, phi, vals, gamma);
+        }
+    }
+
+    /// Add (Φ_qᵀλ)_q in the order of the joints' `hessian_pattern`s,
+    /// joint after joint (2 values per chain joint, 1 for the ground joint).
+    pub fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+        let nh = 2 * self.n_joints;
+        let (chain_at, ground_at) = match &self.ground {
+            Some(g) if g.row0 == 0 => (1, 0),
+            _ => (0, nh),
+        };
+        let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
+        let o = &mut vals[chain_at..chain_at + nh];
+        // memoised sines and cosines (shared with Φ, Φ_q, γ at the same q);
+        // computed afresh when another thread holds the memo
+        match self.memo.try_write() {
+            Ok(mut m) => kernels::revolute_chain_hessian_sc(qc, m.update(qc), p, l, o),
+            Err(_) => kernels::revolute_chain_hessian(qc, p, l, o),
+        }
+        if let Some(g) = &self.ground {
+            g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
+        }
+    }
+}
+
+impl ConstraintKernels for ChainKernels {
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        self.pattern()
+    }
+    fn has_hessian(&self) -> bool {
+        true
+    }
+    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
+        ChainKernels::add_hessian(self, q, lambda, vals)
+    }
+    fn evaluate(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        _t: f64,
+        phi: &mut [f64],
+        vals: &mut [f64],
+        gamma: &mut [f64],
+    ) {
+        ChainKernels::evaluate(self, q, qd, phi, vals, gamma)
+    }
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn phi(&self, q_all: &[f64], _t: f64, out: &mut [f64]) {
+        let o = &mut out[self.chain_rows()];
+        let (p, q) = (&self.params, self.chain_q(q_all));
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_write() {
+            Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
+            Err(_) => kernels::revolute_chain_phi(q, p, o),
+        }
+        if let Some(g) = &self.ground {
+            g.phi(q_all, out);
+        }
+    }
+    fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
+        let o = &mut vals[self.chain_vals()];
+        let (p, q) = (&self.params, self.chain_q(q_all));
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_write() {
+            Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
+            Err(_) => kernels::revolute_chain_jacobian(q, p, o),
+        }
+        if let Some(g) = &self.ground {
+            g.jacobian(q_all, vals);
+        }
+    }
+    fn phi_tmul(
+        &self,
+        q_all: &[f64],
+        _t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        g: &mut [f64],
+    ) -> bool {
+        let rows = self.chain_rows();
+        let (p, q, l) = (&self.params, self.chain_q(q_all), &lambda[rows.clone()]);
+        let (o, gc) = (
+            &mut phi[rows],
+            &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
+        );
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_write() {
+            Ok(mut m) => kernels::revolute_chain_phi_tmul_sc(q, m.update(q), p, l, o, gc),
+            Err(_) => kernels::revolute_chain_phi_tmul(q, p, l, o, gc),
+        }
+        if let Some(gj) = &self.ground {
+            gj.phi_tmul(q_all, lambda, phi, g);
+        }
+        true
+    }
+    /// The sines and cosines of every angle into the memo (its two halves
+    /// concurrently for long chains).
+    fn prepare(&self, q: &[f64], _t: f64) {
+        if let Ok(mut m) = self.memo.try_write() {
+            m.update(self.chain_q(q));
+        }
+    }
+    /// `phi_tmul` of the joints `joints`: the chain's joints among them
+    /// with the memo's sines and cosines where current (else computed,
+    /// the same bits), then the ground joint when among them — the order
+    /// of `phi_tmul`.
+    fn phi_tmul_joints(
+        &self,
+        q_all: &[f64],
+        _t: f64,
+        lambda: &[f64],
+        phi: &mut [f64],
+        g: &mut [f64],
+        joints: std::ops::Range<usize>,
+    ) -> bool {
+        let nj = self.n_joints;
+        let ground_first = matches!(&self.ground, Some(gj) if gj.row0 == 0);
+        // local index of chain joint 0, and the chain joints in the range
+        let c0 = usize::from(ground_first);
+        let ka = joints.start.saturating_sub(c0).min(nj);
+        let kb = joints.end.saturating_sub(c0).min(nj);
+        if ka < kb {
+            let r = 2 * (ka + c0 - joints.start)..2 * (kb + c0 - joints.start);
+            let qc = self.chain_q(q_all);
+            let (qk, p) = (&qc[3 * ka..3 * (kb + 1)], &self.params[4 * ka..4 * kb]);
+            let (l, o) = (&lambda[r.clone()], &mut phi[r]);
+            let gc = &mut g[self.q0 + 3 * ka..self.q0 + 3 * (kb + 1)];
+            match self.memo.try_read() {
+                Ok(m) if m.current(qc, ka..kb + 1) => kernels::revolute_chain_phi_tmul_sc(
+                    qk,
+                    &m.sc[2 * ka..2 * (kb + 1)],
+                    p,
+                    l,
+                    o,
+                    gc,
+                ),
+                _ => kernels::revolute_chain_phi_tmul(qk, p, l, o, gc),
+            }
+        }
+        if let Some(gj) = &self.ground {
+            let jg = if ground_first { 0 } else { nj };
+            if joints.contains(&jg) {
+                gj.phi_tmul_at(q_all, lambda, phi, g, 2 * (jg - joints.start));
+            }
+        }
+        true
+    }
+    fn phi_t(&self, q: &[f64], _t: f64, out: &mut [f64]) {
+        kernels::revolute_chain_phi_t(self.chain_q(q), &self.params, &mut out[self.chain_rows()]);
+        if let Some(g) = &self.ground {
+            g.phi_t(q, out);
+        }
+    }
+    fn gamma(&self, q_all: &[f64], qd_all: &[f64], _t: f64, out: &mut [f64]) {
+        let o = &mut out[self.chain_rows()];
+        let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
+        // memoised sines and cosines; computed afresh when another thread holds the memo
+        match self.memo.try_write() {
+            Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
+            Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
+        }
+        if let Some(g) = &self.ground {
+            g.gamma(q_all, qd_all, out);
+        }
+    }
+}

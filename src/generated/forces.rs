@@ -1,0 +1,352 @@
+//! Generated Jacobians of force elements for the Newton matrix: the
+//! torsional spring–dampers along a chain, drag on every body, wall
+//! contacts.
+
+use super::kernels;
+use super::memo::SharedTrig;
+use crate::forces::drag_force;
+use crate::forces::Clearance;
+use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
+use crate::model::{ForceElement, ForceKernels};
+use crate::trig::{sin_cos, sin_cos4};
+
+/// Generated Jacobians of the torsional spring–dampers between neighbours of
+/// a chain of bodies `body0, body0 + 1, …` (the rod's bending springs), for
+/// the Newton matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct TorsionalChainJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+}
+
+impl TorsionalChainJacobians {
+    /// Kernels for `springs[k]` between bodies `body0 + k` and `body0 + k + 1`.
+    pub fn new(body0: usize, springs: &[TorsionalSpringDamper]) -> Self {
+        Self {
+            q0: 3 * body0,
+            fp: springs
+                .iter()
+                .flat_map(|s| [s.k, s.c, s.rest_angle])
+                .collect(),
+        }
+    }
+    fn n(&self) -> usize {
+        self.fp.len() / 3
+    }
+}
+
+impl ForceKernels for TorsionalChainJacobians {
+    fn name(&self) -> &str {
+        "generated:torsional_chain"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.n())
+            .map(|k| vec![self.q0 + 3 * k + 2, self.q0 + 3 * k + 5])
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + 3 * (self.n() + 1);
+        kernels::torsional_chain_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+    /// `t = k(φ_j − φ_i − r) + c(φ̇_j − φ̇_i)` added to g_i and subtracted
+    /// from g_j, spring after spring: the element's `−T` with the same
+    /// roundings, in the same order into each entry (bit-identical;
+    /// tests/codegen.rs).
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        self.add_forces_range(t, q, qd, g, 0..self.n())
+    }
+    /// Springs `elements` only: bodies `elements.start ..= elements.end`.
+    fn add_forces_range(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        let (a, b) = (elements.start, elements.end);
+        let r = self.q0 + 3 * a..self.q0 + 3 * (b + 1);
+        let fp = &self.fp[3 * a..3 * b];
+        kernels::torsional_chain_forces(&q[r.clone()], &qd[r.clone()], fp, &mut g[r]);
+        true
+    }
+}
+
+/// Generated Jacobians of the quadratic fluid drag on bodies `body0,
+/// body0 + 1, …` (the rod's segments; paper's problem B), for the Newton
+/// matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct DragJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+    /// The chain's memo of the bodies' sines and cosines, when shared.
+    trig: Option<SharedTrig>,
+}
+
+impl DragJacobians {
+    /// Kernels for `drags[k]` acting on body `body0 + k`.
+    pub fn new(body0: usize, drags: &[Drag]) -> Self {
+        Self {
+            trig: None,
+            q0: 3 * body0,
+            fp: drags
+                .iter()
+                .flat_map(|d| {
+                    let (at, aa, ar) = d.coefficients();
+                    [at, aa, ar]
+                })
+                .collect(),
+        }
+    }
+}
+
+impl DragJacobians {
+    /// Take the sines and cosines from a chain's memo ([`SharedTrig`]) when
+    /// it starts at the same body and covers every drag's body; otherwise
+    /// (or while another thread holds the memo) they are computed here.
+    pub fn with_trig(mut self, trig: SharedTrig) -> Self {
+        if trig.q0 == self.q0 && 3 * trig.n_bodies >= self.fp.len() {
+            self.trig = Some(trig);
+        }
+        self
+    }
+}
+
+impl ForceKernels for DragJacobians {
+    fn name(&self) -> &str {
+        "generated:drag_bodies"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.fp.len() / 3)
+            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + self.fp.len();
+        kernels::drag_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+    /// The drag forces of every body in one loop: the angles' sines and
+    /// cosines from the chain's memo (updated here) when shared, else
+    /// computed (`DragJacobians::forces_on`).
+    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        let nb = self.fp.len() / 3;
+        if let Some(t) = &self.trig {
+            if let Ok(mut m) = t.memo.try_write() {
+                let sc = m.update(&q[t.q0..t.q0 + 3 * t.n_bodies]);
+                for k in 0..nb {
+                    self.force(k, sc[2 * k], sc[2 * k + 1], qd, g);
+                }
+                return true;
+            }
+        }
+        self.forces_on(0..nb, q, qd, g);
+        true
+    }
+    /// The drag forces of bodies `elements`: the memo's sines and cosines
+    /// where current (read, not updated: the two halves of the residual
+    /// read it at once), else computed.
+    fn add_forces_range(
+        &self,
+        _t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        if let Some(t) = &self.trig {
+            if let Ok(m) = t.memo.try_read() {
+                if m.current(&q[t.q0..], elements.clone()) {
+                    for k in elements {
+                        self.force(k, m.sc[2 * k], m.sc[2 * k + 1], qd, g);
+                    }
+                    return true;
+                }
+            }
+        }
+        self.forces_on(elements, q, qd, g);
+        true
+    }
+}
+
+impl DragJacobians {
+    /// The drag force of body `k` with its angle's sine and cosine added
+    /// to `g`: the roundings of `Drag::force` (bit-identical;
+    /// tests/codegen.rs).
+    fn force(&self, k: usize, sn: f64, cs: f64, qd: &[f64], g: &mut [f64]) {
+        let (o, a) = (self.q0 + 3 * k, 3 * k);
+        let f = drag_force(
+            (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
+            sn,
+            cs,
+            [qd[o], qd[o + 1], qd[o + 2]],
+        );
+        g[o] += f[0];
+        g[o + 1] += f[1];
+        g[o + 2] += f[2];
+    }
+    /// The drag forces of bodies `ks`, the sines and cosines computed four
+    /// at a time ([`sin_cos4`], else [`sin_cos`]; the same bits).
+    fn forces_on(&self, ks: std::ops::Range<usize>, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        let mut k = ks.start;
+        while k < ks.end {
+            let m = (ks.end - k).min(4);
+            let mut x = [0.0; 4];
+            for (l, xl) in x.iter_mut().enumerate().take(m) {
+                *xl = q[self.q0 + 3 * (k + l) + 2];
+            }
+            let sc4 = if m == 4 { sin_cos4(x) } else { None };
+            for l in 0..m {
+                let (sn, cs) = match sc4 {
+                    Some((s, c)) => (s[l], c[l]),
+                    None => sin_cos(x[l]),
+                };
+                self.force(k + l, sn, cs, qd, g);
+            }
+            k += m;
+        }
+    }
+}
+
+/// Generated Jacobians of the Hunt–Crossley wall contacts of bodies `body0,
+/// body0 + 1, …` (the rod's segment corners against the channel walls), for
+/// the Newton matrix ([`crate::model::ForceKernels`]).
+#[derive(Debug, Clone)]
+pub struct ContactJacobians {
+    q0: usize,
+    fp: Vec<f64>,
+    /// The elements, for their forces in one loop, and their wall tests.
+    contacts: Vec<WallContact>,
+    clearance: Vec<Clearance>,
+}
+
+impl ContactJacobians {
+    /// Kernels for `contacts[k]` of body `body0 + k`.
+    pub fn new(body0: usize, contacts: &[WallContact]) -> Self {
+        Self {
+            q0: 3 * body0,
+            contacts: contacts.to_vec(),
+            clearance: contacts.iter().map(WallContact::clearance).collect(),
+            fp: contacts
+                .iter()
+                .flat_map(|e| {
+                    [
+                        0.5 * e.width,
+                        0.5 * e.length,
+                        e.left_wall,
+                        e.right_wall,
+                        e.stiffness,
+                        e.damping,
+                        e.friction,
+                        e.slip_velocity,
+                    ]
+                })
+                .collect(),
+        }
+    }
+}
+
+impl ForceKernels for ContactJacobians {
+    fn name(&self) -> &str {
+        "generated:contact_bodies"
+    }
+    fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
+        (0..self.fp.len() / 8)
+            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
+            .collect()
+    }
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        let r = self.q0..self.q0 + 3 * (self.fp.len() / 8);
+        kernels::contact_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+    }
+    /// The contact forces in one loop over the elements: the segments clear
+    /// of both walls (most of a long rod's) are skipped by the elements' own
+    /// first test, made here in the loop; the others call their element's
+    /// `add_forces`. The same operations in the same order as the elements
+    /// called one by one.
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
+        self.add_forces_range(t, q, qd, g, 0..self.contacts.len())
+    }
+    fn add_forces_range(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        g: &mut [f64],
+        elements: std::ops::Range<usize>,
+    ) -> bool {
+        for k in elements {
+            if !self.clearance[k].clear(q[self.q0 + 3 * k]) {
+                ForceElement::add_forces(&self.contacts[k], t, q, qd, g);
+            }
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generated::ChainKernels;
+    use crate::model::ConstraintKernels;
+
+    /// The drag forces from the chain's shared memo of sines and cosines
+    /// have the bits of the drag's own: with the memo cold, warmed by the
+    /// constraints at the same q (a hit), and left at another q with only
+    /// some angles changed; a memo of other bodies is not taken.
+    #[test]
+    fn drag_with_the_chain_memo_has_the_bits_of_its_own_trigonometry() {
+        let nb = 37;
+        let (hinge, half) = (0.05, 0.05);
+        let points = vec![[0.0, hinge, 0.0, -hinge]; nb - 1];
+        let chain = ChainKernels::new(0, &points, None);
+        let drags: Vec<Drag> = (0..nb)
+            .map(|b| Drag {
+                body: b,
+                width: 0.01,
+                length: 2.0 * half,
+                fluid_density: 1000.0,
+                c_transverse: 1.2,
+                c_skin: 0.02,
+                c_end: 1.0,
+                end_face: b == 0,
+            })
+            .collect();
+        let own = DragJacobians::new(0, &drags);
+        let shared = DragJacobians::new(0, &drags).with_trig(chain.shared_trig());
+        assert!(shared.trig.is_some());
+        assert!(DragJacobians::new(1, &drags[1..])
+            .with_trig(chain.shared_trig())
+            .trig
+            .is_none());
+        let mut seed = 17u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 4.0 - 2.0
+        };
+        let n = 3 * nb;
+        let mut q: Vec<f64> = (0..n).map(|_| next()).collect();
+        let qd: Vec<f64> = (0..n).map(|_| next()).collect();
+        let mut phi = vec![0.0; 2 * (nb - 1)];
+        for case in 0..3 {
+            match case {
+                // the constraints first: the drag hits the memo
+                1 => chain.phi(&q, 0.0, &mut phi),
+                // a few angles changed since the memo was filled
+                2 => {
+                    for b in [0, 5, 6, 36] {
+                        q[3 * b + 2] += 0.3;
+                    }
+                }
+                _ => {}
+            }
+            let (mut ga, mut gb) = (vec![0.0; n], vec![0.0; n]);
+            assert!(own.add_forces(0.0, &q, &qd, &mut ga));
+            assert!(shared.add_forces(0.0, &q, &qd, &mut gb));
+            for (k, (a, b)) in ga.iter().zip(&gb).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "case {case}, g[{k}]");
+            }
+        }
+    }
+}
