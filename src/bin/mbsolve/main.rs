@@ -531,7 +531,7 @@ fn run(
     ) {
         Ok(s) => s,
         Err(e) => {
-            let msg = e.to_string();
+            let msg = format!("{}: {e}", path.display());
             files.abandon(&msg).map_err(|e| e.to_string())?;
             return Err(msg);
         }
@@ -574,7 +574,7 @@ fn run(
         status => {
             eprintln!(
                 "error: run {status} at t = {}: {}",
-                summary.t_reached,
+                stream::time_text(summary.t_reached),
                 summary.message.unwrap_or_default()
             );
             Ok(ExitCode::from(if status == "interrupted" {

@@ -55,6 +55,16 @@ fn write_final_summary(path: &Path, summary: &Summary) -> Result<(), OutputError
     })
 }
 
+/// A time \[s\] for a message: plain decimals between 10⁻³ and 10⁶ (and
+/// 0), scientific notation otherwise (never hundreds of digits).
+pub fn time_text(t: f64) -> String {
+    if t == 0.0 || (1e-3..1e6).contains(&t.abs()) {
+        format!("{t}")
+    } else {
+        format!("{t:e}")
+    }
+}
+
 /// How progress is shown on stderr.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ProgressMode {
