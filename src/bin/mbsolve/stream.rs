@@ -87,7 +87,7 @@ fn free_space(dir: &Path) -> (Option<f64>, Option<f64>) {
             // SAFETY: a valid C string and a zeroed statvfs to fill
             let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
             let r = unsafe { libc::statvfs(c.as_ptr(), &mut st) };
-            (r == 0).then(|| st.f_bavail as f64 * st.f_frsize as f64)
+            (r == 0).then_some(st.f_bavail as f64 * st.f_frsize as f64)
         });
     // SAFETY: a zeroed rlimit to fill
     let mut rl: libc::rlimit = unsafe { std::mem::zeroed() };
