@@ -257,13 +257,19 @@ fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
         let s = summary(dir.path());
         assert_eq!(s["status"], "diverged");
         let t = s["t_reached"].as_f64().unwrap();
-        assert!(
-            s["message"]
-                .as_str()
-                .unwrap()
-                .contains(&format!("t = {t:e}")),
-            "{s}"
-        );
+        let m = s["message"].as_str().unwrap();
+        if m.contains("in the output at t = ") {
+            // an interpolated row between the last steps, before t_reached
+            let at: f64 = m
+                .split("in the output at t = ")
+                .nth(1)
+                .and_then(|r| r.split(',').next())
+                .and_then(|v| v.parse().ok())
+                .expect("the output time");
+            assert!(at <= t, "{s}");
+        } else {
+            assert!(m.contains(&format!("t = {t:e}")), "{s}");
+        }
         if sets[0] == "time.end=50" {
             // warned first, at the time it happened, before stopping
             assert!(e.contains("warning: constraint violation"), "{e}");
@@ -506,11 +512,34 @@ fn a_second_sigint_leaves_an_interrupted_summary() {
 fn a_file_too_large_error_ends_with_a_failed_summary() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path();
+    // a limit between the table's size estimated before the run (a lower
+    // bound: 17 bytes a CSV value) and its true size, which the run
+    // reaches only while writing: measured by the same run unlimited
+    let args = "--set time.end=0.2 --set output.dt=1e-5 --progress off";
+    let full = dir.path().join("full");
     let o = Command::new("sh")
         .args([
             "-c",
             &format!(
-                "trap '' XFSZ; ulimit -f 40; exec {} run {} --set output.dt=1e-5 --progress off --out {}",
+                "exec {} run {} {args} --out {}",
+                env!("CARGO_BIN_EXE_mbsolve"),
+                fourbar(),
+                full.display()
+            ),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let csv = std::fs::read_to_string(full.join("fourbar.csv")).unwrap();
+    let cols = csv.lines().next().unwrap().split(',').count();
+    let estimate = 20001 * cols * 17;
+    let blocks = (estimate + csv.len()) / 2 / 512;
+    assert!(blocks * 512 > estimate + 512 && blocks * 512 + 512 < csv.len());
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            &format!(
+                "trap '' XFSZ; ulimit -f {blocks}; exec {} run {} {args} --out {}",
                 env!("CARGO_BIN_EXE_mbsolve"),
                 fourbar(),
                 out.display()
@@ -527,4 +556,76 @@ fn a_file_too_large_error_ends_with_a_failed_summary() {
         s["message"].as_str().unwrap().contains("File too large"),
         "{s}"
     );
+}
+
+/// Two runs into one `--out`: the second refuses up front, naming the
+/// first one's process, and leaves the first one's files alone; a lock
+/// left by a killed run is taken over.
+#[test]
+fn a_second_run_into_the_same_files_refuses_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    let mut child = spawn_long(out);
+    wait_for_rows(&out.join("fourbar.csv.part"));
+    let o = run(&["run", &fourbar(), "--out", out.to_str().unwrap()]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains(&format!("another mbsolve run (process {})", child.id())),
+        "{e}"
+    );
+    assert_eq!(summary(out)["status"], "running");
+    assert!(out.join("fourbar.csv.part").exists());
+    signal(&child, "-KILL");
+    let _ = child.wait();
+    assert!(out.join("fourbar.lock").exists());
+    // the killed run's lock is stale: the next run takes it and ends clean
+    let o = run(&["run", &fourbar(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(out)["status"], "completed");
+    assert!(!out.join("fourbar.lock").exists());
+}
+
+/// The table's size is estimated before the run (rows × columns × bytes
+/// per value) against the file-size limit and the free space: 5e7 rows of
+/// the four-bar cannot fit under `ulimit -f`; refused before any file.
+#[test]
+fn a_table_larger_than_the_space_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            &format!(
+                "ulimit -f 100000; exec {} run {} --set output.dt=4e-8 --progress off --out {}",
+                env!("CARGO_BIN_EXE_mbsolve"),
+                fourbar(),
+                out.display()
+            ),
+        ])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    // 5e7 + 1 rows; the limit: 100000 blocks of 512 bytes
+    assert!(e.contains("(50000001 rows × "), "{e}");
+    assert!(e.contains("file-size limit of 0.051 GB"), "{e}");
+    assert!(!out.join("fourbar.summary.json").exists());
+    // without the limit, against the free space: the falling rod of 10⁴
+    // segments (10⁴ rows of 3·10⁴ columns or more) at 1e-6 s: 0.5 TB at least
+    let rod = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/falling_rod.toml");
+    let o = run(&[
+        "run",
+        rod.to_str().unwrap(),
+        "--set",
+        "rod.segments=10000",
+        "--set",
+        "output.dt=1e-6",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("free on its file system"), "{e}");
+    assert!(!out.join("falling_rod.summary.json").exists());
 }

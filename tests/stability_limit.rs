@@ -196,16 +196,27 @@ fn adaptive_explicit_methods_warn_that_the_problem_is_stiff() {
             &format!("[integrator]\nmethod = \"{method}\"\n"),
         );
         sc.run.t_end = 1.0;
-        sc.run.ode.max_steps = 200; // the warning comes before the run
-        let (_, summary) =
-            simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+        // the warning comes before the run; the sink stops it at once
+        let mut sink = FirstRow::default();
+        simulation::simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut sink)
+            .unwrap();
         assert!(
-            summary
-                .warnings
+            sink.0
                 .iter()
                 .any(|w| w.contains(&format!("the problem is stiff for {method}"))),
             "{method}: {:?}",
-            summary.warnings
+            sink.0
+        );
+        // more steps than the cap (2.9e5 > 200): refused, naming the element
+        sc.run.ode.max_steps = 200;
+        let err = simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("too stiff for {method}"))
+                && err.contains("more than the cap of 2.0e2")
+                && err.contains("torsional spring-damper"),
+            "{err}"
         );
     }
     // a soft chain over a short span gets no such warning
@@ -258,4 +269,145 @@ fn falling_rod_rk4_above_its_limit_stops_at_once() {
     assert!(limit > 0.0 && limit < 1e-9, "{limit}");
     assert!(!stderr.contains("singular"), "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A slider on a guide along x, pushed by a spring from the ground point
+/// (0, d) compressed to length d < L0: the potential ½ k (r − L0)²,
+/// r = √(x² + d²), has V''(0) = k (1 − L0/d) < 0, so the equilibrium
+/// x = 0 is unstable with growth rate γ = √(k (L0/d − 1) / m).
+fn compressed_slider(k: f64, free_length: f64, extra: &str) -> scenario::Scenario {
+    let text = format!(
+        r#"
+gravity = [0.0, 0.0]
+[[body]]
+name = "slider"
+mass = 2.0
+inertia = 0.1
+[[joint]]
+type = "translational"
+name = "guide"
+body_i = "ground"
+point_i = [0.0, 0.0]
+axis_i = [1.0, 0.0]
+body_j = "slider"
+point_j = [0.0, 0.0]
+[[force]]
+type = "spring"
+name = "push"
+body_i = "ground"
+point_i = [0.0, 0.5]
+body_j = "slider"
+point_j = [0.0, 0.0]
+free_length = {free_length}
+stiffness = {k}
+{extra}
+[time]
+end = 1.0
+[output]
+dt = 0.01
+"#
+    );
+    scenario::parse(&text, "slider.toml", "slider", &[]).unwrap()
+}
+
+#[test]
+fn growth_rate_of_a_compressed_spring_matches_its_potential() {
+    let (k, l0, d, m) = (1.0e3, 0.8, 0.5, 2.0);
+    let sc = compressed_slider(k, l0, "");
+    let modes = fastest_modes(&sc.system, 0.0, &sc.q0, &sc.qd0, 200).unwrap();
+    let gamma = (k * (l0 / d - 1.0) / m).sqrt();
+    println!("γ = {:.10e} (analytic {gamma:.10e})", modes.growth);
+    assert!((modes.growth / gamma - 1.0).abs() < 1e-8, "{modes:?}");
+    // the spring is the source of the growth
+    assert_eq!(modes.sources[2], Some(0), "{modes:?}");
+    // stretched instead (L0 < d): stable along the guide, no growth
+    let sc = compressed_slider(k, 0.3, "");
+    let modes = fastest_modes(&sc.system, 0.0, &sc.q0, &sc.qd0, 200).unwrap();
+    assert_eq!(modes.growth, 0.0, "{modes:?}");
+}
+
+/// Collects the warnings and stops the run at its first output.
+#[derive(Default)]
+struct FirstRow(Vec<String>);
+
+impl simulation::Sink for FirstRow {
+    fn output(
+        &mut self,
+        _: &simulation::Sample<'_>,
+    ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Err("stopped by the test".into())
+    }
+    fn warning(&mut self, message: &str) {
+        self.0.push(message.to_string());
+    }
+}
+
+#[test]
+fn statically_unstable_start_warns_and_refuses_beyond_the_step_cap() {
+    let methods = [
+        "method = \"ode45\"",
+        "method = \"genalpha\"\nadaptive = true",
+    ];
+    for method in methods {
+        let start = |k: f64| {
+            let sc = compressed_slider(k, 0.8, &format!("[integrator]\n{method}\n"));
+            let mut sink = FirstRow::default();
+            simulation::simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut sink)
+                .map(|_| sink.0)
+        };
+        // k = 1e18: γ = √(k · 0.3) ≈ 5.5e8 1/s, more steps over the span of
+        // 1 s than the cap of 5e7: refused before any step, naming the
+        // element and the rate
+        let err = start(1e18).unwrap_err().to_string();
+        println!("{method}: {err}");
+        assert!(err.contains("statically unstable"), "{err}");
+        assert!(err.contains("force element #0"), "{err}");
+        assert!(err.contains("γ = 5.477e8"), "{err}");
+        // k = 1e12: γ ≈ 5.5e5 1/s, 5.5e5 steps: a warning
+        let warnings = start(1e12).unwrap();
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("statically unstable") && w.contains("γ = 5.477e5")),
+            "{method}: {warnings:?}"
+        );
+        // k = 1e3: γ ≈ 17 1/s: nothing
+        let warnings = start(1e3).unwrap();
+        assert!(
+            !warnings.iter().any(|w| w.contains("unstable")),
+            "{method}: {warnings:?}"
+        );
+    }
+}
+
+/// Loads out of scale: the two rods' brace with a free length of 1e6 m
+/// pushes with 2.8e8 N; the run would take minutes. The warning at t0
+/// names the element and the time scale √(2 L / a) against the span.
+#[test]
+fn loads_out_of_scale_are_named_before_the_run() {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two_rods.toml");
+    let start = |free_length: &str| {
+        let sc = scenario::load(&p, &[format!("force[0].free_length={free_length}")]).unwrap();
+        let mut sink = FirstRow::default();
+        simulation::simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut sink)
+            .map(|_| sink.0)
+    };
+    let warnings = start("1e6").unwrap();
+    let w = warnings
+        .iter()
+        .find(|w| w.contains("the loads at t0 accelerate body"))
+        .unwrap_or_else(|| panic!("{warnings:?}"));
+    // the brace is force[0] of the file, element #18 after the rods' 18
+    // torsional springs; its force k (L0 − L) = 200 · (1e6 − 0.707) N
+    assert!(w.contains("point spring-damper"), "{w}");
+    assert!(w.contains("norm 2.829e8"), "{w}");
+    // the shipped free length: nothing
+    let warnings = start("0.7071067811865476").unwrap();
+    assert!(
+        !warnings.iter().any(|w| w.contains("loads")),
+        "{warnings:?}"
+    );
+    // 1e12 m: more crossings than the step cap, refused
+    let err = start("1e12").unwrap_err().to_string();
+    assert!(err.contains("more than the cap of 5.0e7 steps"), "{err}");
 }

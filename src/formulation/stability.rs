@@ -11,6 +11,15 @@
 //! quotients never exceed the true maxima, so a limit derived from them is
 //! never stricter than the truth.
 //!
+//! A negative stiffness (a compressed spring's geometric stiffness, a
+//! load that grows with the displacement) makes a statically unstable
+//! mode growing like `exp(γ t)`, `γ² = −λ_min(K, M)`: no method, implicit
+//! or explicit, follows it accurately with steps much above `1/γ`. The
+//! second power iteration, shifted by the first one's Rayleigh quotient
+//! `s`, on `A − s M`, finds the other end of the spectrum. Each rate names
+//! the force element with the largest share `xᵀ A_e x` of the Rayleigh
+//! quotient of its mode.
+//!
 //! Covered: the stiffness and damping of the force elements (springs,
 //! dampers, contacts in contact). Not covered: the geometric stiffness of
 //! the constraint forces `(Φ_qᵀλ)_q` (slow pendulum-like modes).
@@ -27,6 +36,19 @@ pub struct FastestModes {
     pub omega: f64,
     /// Largest damping rate σ \[1/s\] (0 without damping).
     pub sigma: f64,
+    /// Largest growth rate γ = √(−λ_min) \[1/s\] of a statically unstable
+    /// mode (negative stiffness on the constrained motion); 0 without one.
+    pub growth: f64,
+    /// Index in [`System::forces`] of the element with the largest share of
+    /// ω, σ and γ (in that order); `None` where the rate is 0.
+    pub sources: [Option<usize>; 3],
+    /// Largest translational acceleration \[m/s²\] the loads alone give a
+    /// body at the state, `|(ẍ, ÿ)|` of `[M Φ_qᵀ; Φ_q 0] [q̈; λ] = [g; 0]`
+    /// (velocity terms left out).
+    pub accel: f64,
+    /// That body's index, and the force element with the largest
+    /// unconstrained acceleration `‖M^{-1/2} g_e‖` (`None` without loads).
+    pub accel_source: (usize, Option<usize>),
 }
 
 impl FastestModes {
@@ -74,16 +96,6 @@ pub fn fastest_modes(
     let n = sys.n_coords();
     let m = sys.n_constraints();
     let pattern = sys.force_jacobian_pattern();
-    if pattern.is_empty() {
-        return Ok(FastestModes {
-            omega: 0.0,
-            sigma: 0.0,
-        });
-    }
-    let mut dq = vec![0.0; pattern.len()];
-    let mut dqd = vec![0.0; pattern.len()];
-    let mut ws = FdWorkspace::default();
-    sys.add_force_jacobians(t, q, qd, &mut dq, &mut dqd, &mut ws);
 
     // [M Φ_qᵀ; Φ_q 0], factorised once.
     let mut k = SaddleMatrix::new(n, m, &[], sys.jacobian_pattern());
@@ -96,12 +108,85 @@ pub fn fastest_modes(
     solver.analyze(&k).map_err(lin)?;
     solver.factorize(&k).map_err(lin)?;
 
+    // the loads' accelerations from rest
     let mass = sys.mass_diagonal();
-    let mut rates = [0.0; 2];
-    for (rate, d) in rates.iter_mut().zip([&dq, &dqd]) {
-        // y = ½ (A + Aᵀ) x with A = −∂g/∂(q or q̇)
+    let mut rhs = vec![0.0; n + m];
+    sys.forces_into(t, q, qd, &mut rhs[..n]);
+    solver.solve_in_place(&k, &mut rhs).map_err(lin)?;
+    let (accel_body, accel) = rhs[..n]
+        .chunks(3)
+        .map(|b| b[0].hypot(b[1]))
+        .enumerate()
+        .fold(
+            (0, 0.0),
+            |a, b| if b.1 > a.1 || b.1.is_nan() { b } else { a },
+        );
+    let mut g = vec![0.0; n];
+    let mut loudest = (None, 0.0);
+    for (e, f) in sys.forces().iter().enumerate() {
+        g.fill(0.0);
+        f.add_forces(t, q, qd, &mut g);
+        let a: f64 = g.iter().zip(mass).map(|(v, mi)| v * v / mi).sum::<f64>();
+        if a > loudest.1 || (a.is_nan() && loudest.0.is_none()) {
+            loudest = (Some(e), a);
+        }
+    }
+    let accel_source = (accel_body, loudest.0);
+
+    if pattern.is_empty() {
+        return Ok(FastestModes {
+            omega: 0.0,
+            sigma: 0.0,
+            growth: 0.0,
+            sources: [None; 3],
+            accel,
+            accel_source,
+        });
+    }
+    let mut dq = vec![0.0; pattern.len()];
+    let mut dqd = vec![0.0; pattern.len()];
+    let mut ws = FdWorkspace::default();
+    sys.add_force_jacobians(t, q, qd, &mut dq, &mut dqd, &mut ws);
+
+    // each element's block of the pattern: element after element, k × k
+    let mut blocks = Vec::with_capacity(sys.forces().len());
+    let mut at = 0;
+    for e in sys.forces() {
+        let k = e.jacobian_coordinates().len();
+        blocks.push(at..at + k * k);
+        at += k * k;
+    }
+    let blocks = if at == pattern.len() {
+        blocks
+    } else {
+        Vec::new()
+    };
+    // the element with the largest share `sign · xᵀ A_e x`,
+    // A_e = −½ (J_e + J_eᵀ)
+    let source = |x: &[f64], d: &[f64], sign: f64| -> Option<usize> {
+        let share = |r: &std::ops::Range<usize>| -> f64 {
+            let s: f64 = pattern[r.clone()]
+                .iter()
+                .zip(&d[r.clone()])
+                .map(|(&(i, j), v)| -v * x[i] * x[j])
+                .sum();
+            sign * s
+        };
+        let (best, v) = blocks
+            .iter()
+            .enumerate()
+            .map(|(e, r)| (e, share(r)))
+            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        (v > 0.0).then_some(best)
+    };
+    // Rayleigh quotient and vector of the power iteration on
+    // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A
+    let mut iterate = |d: &[f64], s: f64| -> Result<(f64, Vec<f64>), FormulationError> {
+        // y = ½ (A + Aᵀ) x − s M x with A = −∂g/∂(q or q̇)
         let apply = |x: &[f64], y: &mut [f64]| {
-            y.fill(0.0);
+            for i in 0..n {
+                y[i] = -s * mass[i] * x[i];
+            }
             for (&(r, c), &v) in pattern.iter().zip(d.iter()) {
                 y[r] -= 0.5 * v * x[c];
                 y[c] -= 0.5 * v * x[r];
@@ -141,10 +226,35 @@ pub fn fastest_modes(
             apply(&x, &mut y);
             rq = x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>();
         }
-        *rate = rq.max(0.0);
-    }
+        Ok((rq + s, x))
+    };
+    // stiffness: the dominant end of the spectrum, then the other one
+    let (l1, x1) = iterate(&dq, 0.0)?;
+    let (l2, x2) = if l1.is_finite() && l1 != 0.0 {
+        iterate(&dq, l1)?
+    } else {
+        (l1, x1.clone())
+    };
+    let ((hi, xh), (lo, xl)) = if l1 >= l2 {
+        ((l1, x1), (l2, x2))
+    } else {
+        ((l2, x2), (l1, x1))
+    };
+    let (sigma, xs) = iterate(&dqd, 0.0)?;
+    let omega = hi.max(0.0).sqrt();
+    let sigma = sigma.max(0.0);
+    let growth = (-lo).max(0.0).sqrt();
+    let sources = [
+        (omega > 0.0).then(|| source(&xh, &dq, 1.0)).flatten(),
+        (sigma > 0.0).then(|| source(&xs, &dqd, 1.0)).flatten(),
+        (growth > 0.0).then(|| source(&xl, &dq, -1.0)).flatten(),
+    ];
     Ok(FastestModes {
-        omega: rates[0].sqrt(),
-        sigma: rates[1],
+        omega,
+        sigma,
+        growth,
+        sources,
+        accel,
+        accel_source,
     })
 }

@@ -9,7 +9,7 @@
 #[cfg(feature = "arrow")]
 mod arrow;
 #[cfg(feature = "arrow")]
-pub use arrow::ArrowTable;
+pub use arrow::{recover as recover_arrow, ArrowTable};
 
 use std::io::Write;
 
@@ -249,6 +249,17 @@ impl Format {
         match self {
             Format::Csv => "csv",
             Format::Arrow => "arrow",
+        }
+    }
+
+    /// The fewest bytes a value takes in the table, for a lower bound of a
+    /// run's file size before it starts: CSV 17 (`{:.12e}` and a comma,
+    /// e.g. `1.234567890123e0,`; signs and longer exponents take more),
+    /// Arrow 8 (`Float64`; batch headers aside).
+    pub fn bytes_per_value(self) -> f64 {
+        match self {
+            Format::Csv => 17.0,
+            Format::Arrow => 8.0,
         }
     }
 

@@ -411,9 +411,11 @@ impl Watch<'_, '_, '_, '_> {
         }
     }
 
-    /// The guards of [`Guards`] after an accepted step.
-    fn guard(&mut self, t: f64, q: &[f64], cn: f64) -> ControlFlow<String> {
-        if cn > self.phi_warn && !self.warned_phi {
+    /// The guards of [`Guards`] after an accepted step, and (`at_output`:
+    /// the interpolated states written between steps, without the drift
+    /// warning) at each output.
+    fn guard(&mut self, t: f64, q: &[f64], cn: f64, at_output: bool) -> ControlFlow<String> {
+        if cn > self.phi_warn && !self.warned_phi && !at_output {
             self.warned_phi = true;
             self.warn(format!(
                 "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} (100 (rtol L + atol)): \
@@ -425,7 +427,14 @@ impl Watch<'_, '_, '_, '_> {
             .chunks(3)
             .flat_map(|b| b[..2].iter())
             .fold(0.0, |a: f64, v| a.max(v.abs()));
-        let reason = if cn > self.phi_fail {
+        let reason = if cn > self.phi_fail && at_output {
+            Some(format!(
+                "constraint violation ‖Φ‖ = {cn:.3e} in the output at t = {t:e}, interpolated \
+                 between steps, exceeds {:.3e} ({}): the step is too large for the motion \
+                 between outputs; reduce the step (integrator.step or the tolerances)",
+                self.phi_fail, self.phi_fail_why
+            ))
+        } else if cn > self.phi_fail {
             Some(format!(
                 "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} \
                  ({}): the mechanism has come apart; {}",
@@ -558,6 +567,13 @@ impl Observer for Watch<'_, '_, '_, '_> {
         self.max_norm = self.max_norm.max(cn);
         self.max_velocity_norm = self.max_velocity_norm.max(vn);
         self.final_norm = cn;
+        // the guards on the finite rows after the start (a non-finite one
+        // fails below; the start's own violation is the steps' to judge)
+        if self.rows > 0 && cn.is_finite() && vn.is_finite() && y.iter().all(|v| v.is_finite()) {
+            if let ControlFlow::Break(r) = self.guard(t, q, cn, true) {
+                return ControlFlow::Break(r);
+            }
+        }
         let balance = self.balance_at(t, q, qd, false);
         let mut have_extras = false;
         if let Some(f) = self
@@ -662,7 +678,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
                 c.t, c.ratio
             ));
         }
-        self.guard(t, q, cn)
+        self.guard(t, q, cn, false)
     }
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
         if let Some((budget, h, t0)) = self.step_budget {

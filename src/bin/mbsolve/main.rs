@@ -73,6 +73,16 @@ enum Command {
         #[arg(long)]
         view: bool,
     },
+    /// Recover a killed run's Arrow table: the complete record batches of
+    /// DIR/<stem>.arrow.part (rows up to the run's last flush, at least
+    /// every minute) written as the finished file DIR/<stem>.arrow.
+    Recover {
+        /// The `.arrow.part` file a killed run left.
+        part: PathBuf,
+        /// The file to write (default: the part's name without `.part`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Run a scenario over the Cartesian product of parameter values, in
     /// parallel; writes DIR/<stem>_sweep.csv (one row per run) and a
     /// summary JSON per run.
@@ -427,6 +437,7 @@ fn command(cli: Cli) -> ExitCode {
             ExitCode::SUCCESS
         }),
         Command::Inverse { scenario, set, out } => inverse::command(&scenario, &set, &out),
+        Command::Recover { part, out } => stream::recover(&part, out.as_deref()),
         Command::Linearize(args) => linearize::command(&args),
         Command::BenchGate { json } => bench_gate(json.as_deref()),
         Command::Sweep {
@@ -510,10 +521,18 @@ fn run(
     running.insert("status".into(), "running".into());
     running.insert(
         "message".into(),
-        "the run has not ended (or was killed): the CSV is incomplete".into(),
+        "the run has not ended (or was killed): the table is incomplete; a killed run's \
+         .csv.part holds whole rows up to its last flush, an .arrow.part is read with \
+         `mbsolve recover DIR/STEM.arrow.part`"
+            .into(),
     );
     for (k, v) in &provenance {
         running.insert((*k).into(), v.clone());
+    }
+    // the table's size against the free space, before any file is claimed
+    let ncols = mbsolve::output::columns(&sc.system, &sc.run.outputs, &sc.sensors).len();
+    if let Some(w) = stream::check_space(out, sc.run.output_intervals() + 1.0, ncols, sc.format)? {
+        eprintln!("warning: {w}");
     }
     // before any file is claimed: a signal from here on ends the run with
     // its summary written, never the process with a "running" one
@@ -554,7 +573,7 @@ fn run(
     ) {
         Ok(s) => s,
         Err(e) => {
-            let msg = e.to_string();
+            let msg = format!("{}: {e}", path.display());
             files.abandon(&msg).map_err(|e| e.to_string())?;
             return Err(msg);
         }
@@ -597,7 +616,7 @@ fn run(
         status => {
             eprintln!(
                 "error: run {status} at t = {}: {}",
-                summary.t_reached,
+                stream::time_text(summary.t_reached),
                 summary.message.unwrap_or_default()
             );
             Ok(ExitCode::from(if status == "interrupted" {

@@ -55,6 +55,199 @@ fn write_final_summary(path: &Path, summary: &Summary) -> Result<(), OutputError
     })
 }
 
+/// A time \[s\] for a message: plain decimals between 10⁻³ and 10⁶ (and
+/// 0), scientific notation otherwise (never hundreds of digits).
+pub fn time_text(t: f64) -> String {
+    if t == 0.0 || (1e-3..1e6).contains(&t.abs()) {
+        format!("{t}")
+    } else {
+        format!("{t:e}")
+    }
+}
+
+/// Free bytes for an unprivileged writer on the file system holding
+/// `dir` (or its nearest existing ancestor), and the process's file-size
+/// limit (`RLIMIT_FSIZE`, `None` when unlimited); `None` where unknown.
+#[cfg(unix)]
+fn free_space(dir: &Path) -> (Option<f64>, Option<f64>) {
+    use std::os::unix::ffi::OsStrExt;
+    let mut d = dir;
+    while !d.exists() {
+        match d.parent() {
+            Some(p) if !p.as_os_str().is_empty() => d = p,
+            _ => {
+                d = Path::new(".");
+                break;
+            }
+        }
+    }
+    let free = std::ffi::CString::new(d.as_os_str().as_bytes())
+        .ok()
+        .and_then(|c| {
+            // SAFETY: a valid C string and a zeroed statvfs to fill
+            let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+            let r = unsafe { libc::statvfs(c.as_ptr(), &mut st) };
+            (r == 0).then_some(st.f_bavail as f64 * st.f_frsize as f64)
+        });
+    // SAFETY: a zeroed rlimit to fill
+    let mut rl: libc::rlimit = unsafe { std::mem::zeroed() };
+    let limit = (unsafe { libc::getrlimit(libc::RLIMIT_FSIZE, &mut rl) } == 0
+        && rl.rlim_cur != libc::RLIM_INFINITY)
+        .then_some(rl.rlim_cur as f64);
+    (free, limit)
+}
+
+#[cfg(not(unix))]
+fn free_space(_: &Path) -> (Option<f64>, Option<f64>) {
+    (None, None)
+}
+
+/// The table's size before the run, at least `rows × columns ×`
+/// [`Format::bytes_per_value`], against the free space of the output's
+/// file system and the file-size limit. More than either: an error naming the
+/// size, the space and what to change; more than half the free space: a
+/// warning (returned).
+pub fn check_space(
+    dir: &Path,
+    rows: f64,
+    columns: usize,
+    format: Format,
+) -> Result<Option<String>, String> {
+    let bytes = rows * columns as f64 * format.bytes_per_value();
+    let gb = |b: f64| format!("{:.3} GB", b / 1e9);
+    let size = format!(
+        "the table will take at least {} ({rows:.0} rows × {columns} columns × {} bytes, \
+         {} format)",
+        gb(bytes),
+        format.bytes_per_value(),
+        format.extension()
+    );
+    let fix = "raise output.dt, trim output.quantities, or choose another --out";
+    let (free, limit) = free_space(dir);
+    if let Some(l) = limit.filter(|&l| bytes > l) {
+        return Err(format!(
+            "{}: {size}, more than the process's file-size limit of {} (ulimit -f); {fix}",
+            dir.display(),
+            gb(l)
+        ));
+    }
+    match free {
+        Some(f) if bytes > f => Err(format!(
+            "{}: {size}, more than the {} free on its file system; {fix}",
+            dir.display(),
+            gb(f)
+        )),
+        Some(f) if bytes > 0.5 * f => Ok(Some(format!(
+            "{}: {size}, more than half the {} free on its file system",
+            dir.display(),
+            gb(f)
+        ))),
+        _ => Ok(None),
+    }
+}
+
+/// `DIR/<stem>.lock`, holding the process id of the run writing
+/// `DIR/<stem>.*`: a second run into the same files refuses up front; a
+/// lock whose process is gone (killed) is taken over. Removed on drop.
+pub struct RunLock {
+    path: PathBuf,
+}
+
+/// Whether process `pid` exists.
+fn alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        // SAFETY: signal 0 only checks that the process exists
+        let r = unsafe { libc::kill(pid as libc::pid_t, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+impl RunLock {
+    /// Take the lock of `DIR/<stem>.*` (module docs).
+    pub fn take(dir: &Path, stem: &str) -> Result<Self, OutputError> {
+        let path = dir.join(format!("{stem}.lock"));
+        for _ in 0..3 {
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+            {
+                Ok(mut f) => {
+                    writeln!(f, "{}", std::process::id())
+                        .map_err(|e| OutputError::new(&path, e))?;
+                    return Ok(Self { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let holder = std::fs::read_to_string(&path)
+                        .ok()
+                        .and_then(|s| s.trim().parse::<u32>().ok());
+                    match holder {
+                        Some(pid) if pid != std::process::id() && alive(pid) => {
+                            return Err(OutputError::new(
+                                &path,
+                                format!(
+                                    "another mbsolve run (process {pid}) is writing {stem}.* in \
+                                     this directory; choose another --out or wait for it to end"
+                                ),
+                            ))
+                        }
+                        // a killed run's lock, or one being written: take it over
+                        _ => remove_stale(&path)?,
+                    }
+                }
+                Err(e) => return Err(OutputError::new(&path, e)),
+            }
+        }
+        Err(OutputError::new(&path, "could not be taken"))
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// `mbsolve recover`: [`mbsolve::output::recover_arrow`] from `part` into
+/// `out` (default: `part` without `.part`), written beside it and renamed.
+pub fn recover(part: &Path, out: Option<&Path>) -> Result<std::process::ExitCode, String> {
+    #[cfg(feature = "arrow")]
+    {
+        let name = part.to_string_lossy();
+        let out = match (out, name.strip_suffix(".part")) {
+            (Some(o), _) => o.to_path_buf(),
+            (None, Some(stem)) => PathBuf::from(stem),
+            (None, None) => {
+                return Err(format!(
+                    "{}: not a .part file; name the file to write with --out",
+                    part.display()
+                ))
+            }
+        };
+        let r = std::fs::File::open(part).map_err(|e| format!("{}: {e}", part.display()))?;
+        let tmp = sibling(&out, &format!(".{}.tmp", std::process::id()));
+        let w = std::io::BufWriter::new(create_fresh(&tmp).map_err(|e| e.to_string())?);
+        let rows = mbsolve::output::recover_arrow(r, w).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            format!("{}: {e}", part.display())
+        })?;
+        std::fs::rename(&tmp, &out).map_err(|e| format!("{}: {e}", out.display()))?;
+        println!("wrote {} ({rows} rows recovered)", out.display());
+        Ok(std::process::ExitCode::SUCCESS)
+    }
+    #[cfg(not(feature = "arrow"))]
+    {
+        let _ = (part, out);
+        Err("recover: this build has no Arrow support (feature 'arrow')".into())
+    }
+}
+
 /// How progress is shown on stderr.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ProgressMode {
@@ -166,6 +359,8 @@ pub struct RunFiles<'s> {
     pub progress: Option<Progress>,
     /// Warnings seen while running (printed as they come).
     pub warnings: usize,
+    /// Held until the files are finished (dropped last).
+    _lock: RunLock,
 }
 
 impl<'s> RunFiles<'s> {
@@ -183,6 +378,7 @@ impl<'s> RunFiles<'s> {
         running: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Self, OutputError> {
         std::fs::create_dir_all(out).map_err(|e| OutputError::new(out, e))?;
+        let lock = RunLock::take(out, stem)?;
         let csv = out.join(format!("{stem}.{}", format.extension()));
         let json = out.join(format!("{stem}.summary.json"));
         let part = sibling(&csv, ".part");
@@ -213,6 +409,7 @@ impl<'s> RunFiles<'s> {
             builder: RowBuilder::new(sys, quantities, sensors),
             progress: None,
             warnings: 0,
+            _lock: lock,
         })
     }
 
