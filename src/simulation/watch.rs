@@ -534,7 +534,7 @@ fn o_needs_extras(o: &OutputQuantities) -> bool {
     o.accelerations || o.reactions || o.drives
 }
 
-fn norm2(v: &[f64]) -> f64 {
+pub(super) fn norm2(v: &[f64]) -> f64 {
     let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
     if n.is_finite() && n > 1e-150 {
         return n;
