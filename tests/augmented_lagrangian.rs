@@ -1,4 +1,4 @@
-//! Issue 10, item 2: the index-3 augmented Lagrangian with mass-orthogonal
+//! The index-3 augmented Lagrangian with mass-orthogonal
 //! projections (ALI3-P, Bayo & Ledesma 1996) with the trapezoidal rule and
 //! generalized-α — through singular configurations, with redundant
 //! constraints, and converging to ode45 with order 2.
@@ -135,7 +135,7 @@ fn parallelogram_chain_keeps_its_branch_through_singular_configurations() {
 
 #[test]
 fn genalpha_small_step_passes_singular_positions() {
-    // Issue 10 item 6: generalized-α (index 3) at h = 1e-4 stopped at a
+    // Generalized-α (index 3) at h = 1e-4 once stopped at a
     // singular position: its Newton corrections stagnated at the noise of
     // the regularised solve (~1e-11 m), above `STAGNATION` tolerances, and
     // each step cut shrank the tolerance further. Now the driven two-loop

@@ -42,7 +42,7 @@ fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
     e
 }
 
-/// The stiff chain of issue 12: `n` segments of problem B's rod hanging
+/// The stiff chain of `../shared/peers/`: `n` segments of problem B's rod hanging
 /// from a ground pivot, a torsional spring–damper (k = E w⁴/(12 l_s),
 /// c = 1e-5 s·k) in every joint between segments, gravity, released
 /// straight at 5° from the vertical, at rest.
@@ -226,7 +226,7 @@ fn stiff_chain_completes_and_converges() {
     assert!(errs[2] < 1e-6, "{errs:?}");
 }
 
-/// Issue 12, item 4: on the peers' stiff chain (`builders::stiff_chain`,
+/// On the peers' stiff chain (`builders::stiff_chain`,
 /// N = 10 and 100, stressed ground spring: initial accelerations ≈ 1e10
 /// rad/s² at N = 100) the tip x error at t = 0.1 s against the peers'
 /// reference (SciPy Radau at rtol 1e-10) stays within 10 rtol over rtol
@@ -317,7 +317,7 @@ fn bdf_keys_that_do_not_apply_are_errors() {
     }
 }
 
-/// Issue 12, item 2: the peers' stiff chain at N = 4000 from rest
+/// The peers' stiff chain at N = 4000 from rest
 /// (initial accelerations ≈ 1e12 rad/s², first step ≈ 1e-9 s): bdf runs
 /// through the start without a Newton failure and agrees with
 /// generalized-α at h = 2.5e-8 over the first 1e-5 s. Before, the

@@ -1,4 +1,4 @@
-//! Issue 13 items 4 and 5: every input that crashed, looped or named the
+//! Every input that crashed, looped or named the
 //! wrong thing is a clear error from `mbsolve run`/`sweep` naming the file
 //! (or the flag), the key and the value, with exit status 2 (or the run's
 //! own status) — never a panic (101), an abort (134) or a hang — and bounded
@@ -47,7 +47,7 @@ fn rejects(args: &[&str], needles: &[&str], limit: Duration) {
     );
 }
 
-/// The crash inputs of issue 13: each is rejected before the model is built
+/// The inputs that once crashed: each is rejected before the model is built
 /// or the output times are allocated (an allocation of 16 GB or a capacity
 /// overflow before; a loop of zero-length steps for the tiny span).
 #[test]

@@ -1,4 +1,4 @@
-//! `mbsolve study constraints` (issue 10, item 8): every method on every
+//! `mbsolve study constraints`: every method on every
 //! problem, judged against its reference. The assertions are the physics
 //! the study is meant to show, each of which a regression would break.
 

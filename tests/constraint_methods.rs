@@ -1,4 +1,4 @@
-//! Issue 10: the mass-orthogonal projection of the index-1 integrators, the
+//! The mass-orthogonal projection of the index-1 integrators, the
 //! penalty formulation, and the parallelogram-loop chain through its
 //! singular configurations against its one-degree-of-freedom reference.
 

@@ -1,4 +1,4 @@
-//! Issue 10's first test: every constraint-enforcement method, selected by
+//! Every constraint-enforcement method, selected by
 //! scenario keys, converges to the same motion — on the four-bar against
 //! ode45 at rtol 1e-12 (an independent run of eq. (5) with projection), on
 //! the driven slider-crank against its closed-form kinematics — and the

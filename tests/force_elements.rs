@@ -1,4 +1,4 @@
-//! Force elements on any bodies (issue 11, item 1): laws, forces and
+//! Force elements on any bodies: laws, forces and
 //! Jacobians against central finite differences, potential energy against
 //! the work of the force, damper power, law validation, static cases.
 

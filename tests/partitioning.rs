@@ -1,4 +1,4 @@
-//! Issue 10 items 4–5: generalized coordinate partitioning (Wehage & Haug
+//! Generalized coordinate partitioning (Wehage & Haug
 //! 1982), the direct violation correction (Yu & Chen 2000) and the
 //! step-size Baumgarte rule.
 

@@ -142,7 +142,7 @@ fn branch_errors(
 
 #[test]
 fn genalpha_passes_singular_positions_of_parallelogram_chains_at_small_steps() {
-    // Issue 10 item 6: generalized-α (index 3) on two parallelogram loops
+    // Generalized-α (index 3) on two parallelogram loops
     // over the constraint study's 10 s (≥ 4 crossings of the aligned,
     // singular position), with one redundant coupler (Φ_q rank-deficient
     // everywhere) and without. Before the multipliers were restarted from
@@ -200,7 +200,7 @@ fn genalpha_passes_singular_positions_of_parallelogram_chains_at_small_steps() {
 
 #[test]
 fn an_implicit_run_that_gains_energy_says_so() {
-    // Issue 10 item 7 for the implicit methods: their numerical damping
+    // For the implicit methods: their numerical damping
     // only removes energy, so a gain beyond 1 % of the scale is a warning.
     // The trapezoidal rule (newmark, ρ∞ = 1) on the index-3 four-bar at
     // h = 5e-3 has no damping of the constraint-velocity error, which
@@ -285,7 +285,7 @@ fn index3_methods_project_an_inconsistent_start() {
         assert!(pn <= 1e-10 && vn <= 1e-10, "{method}: {pn:e} {vn:e}");
         assert!((0.01..0.1).contains(&moved), "{method}: moved {moved}");
         // the same motion by ode45 from the projected state (bdf: its
-        // accuracy on the four-bar is an open item of issue 12 — 3.2e-3
+        // accuracy on the four-bar is an open item — 3.2e-3
         // off at rtol 1e-8 — so only the start is checked here)
         if method == "bdf" {
             continue;

@@ -1,4 +1,4 @@
-//! Issue 11 items 2, 3, 7: rods (`[[rod]]`) and chains (`[[chain]]`) as
+//! Rods (`[[rod]]`) and chains (`[[chain]]`) as
 //! scenario components — against the same systems built independently
 //! (the library builders, `[[body]]`/`[[joint]]`/`[[force]]`), the shipped
 //! two-rod assembly through generalized-α at N = 100 per rod, the generated

@@ -1,4 +1,4 @@
-//! `[[force]]` types of scenario files (issue 11): each table builds the
+//! `[[force]]` types of scenario files: each table builds the
 //! library element it names (forces compared with the element built
 //! directly), and bad input is an error naming file, key and value.
 

@@ -1,4 +1,4 @@
-//! Issue 10 item 6: rank loss of Φ_q along a run is reported — the time
+//! Rank loss of Φ_q along a run is reported — the time
 //! of the singular configuration and a method that handles it — and
 //! redundant joints are reported as redundant, not as a singularity.
 

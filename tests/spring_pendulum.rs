@@ -1,4 +1,4 @@
-//! The shipped spring pendulum (scenarios/spring_pendulum.toml, issue 11)
+//! The shipped spring pendulum (scenarios/spring_pendulum.toml)
 //! through the library's scenario API, against independent solutions
 //! integrated here by a classical RK4: the polar equations of the elastic
 //! pendulum (spring at the bob's centre) and, with the spring moved to an

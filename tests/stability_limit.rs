@@ -1,5 +1,5 @@
-//! The explicit methods' stability limit (issue 12 item 6,
-//! `formulation::fastest_modes` and the check before an explicit run):
+//! The explicit methods' stability limit
+//! (`formulation::fastest_modes` and the check before an explicit run):
 //! the fastest mode of a pivoted spring chain against the same chain in
 //! minimal coordinates (joint angles, written here), a fixed rk4 step just
 //! above the limit refused with a message naming it and one just below it

@@ -1,4 +1,4 @@
-//! The cantilevered stiff chain of the peer comparisons (issue 12):
+//! The cantilevered stiff chain of the peer comparisons (`../shared/peers/`):
 //! the builder against the peers' independent reference (SciPy Radau at
 //! rtol 1e-10 on two hand-derived minimal-coordinate models) at N = 10,
 //! with the index-1 path (ode45) and generalized-α.
@@ -67,7 +67,7 @@ fn stiff_chain_n10_matches_the_peer_reference() {
 
 #[test]
 fn newton_needs_at_most_two_and_a_half_corrections_per_step_at_n100() {
-    // Issue 12 item 3: N = 100, h = 1e-5 over 0.1 s, released from rest.
+    // N = 100, h = 1e-5 over 0.1 s, released from rest.
     // Before: 3.35 corrections per step (a reused matrix contracts by
     // θ ≈ 0.025 per step of its age); now a fresh matrix at the predictor
     // where that saves about a factorisation's cost, and a single
@@ -136,7 +136,7 @@ fn smooth_phase_corrections(n: usize, extrapolate: bool) -> (f64, f64) {
 
 #[test]
 fn history_predictor_converges_in_two_corrections_on_the_smooth_phase() {
-    // Issue 12 item 3, "≤ 2 Newton iterations per step on smooth phases":
+    // "≤ 2 Newton iterations per step on smooth phases":
     // with `extrapolate`, q̈ is predicted by whichever of the constant and
     // the linear extrapolation predicted the last step better. Measured
     // 1.90 corrections per step at N = 100 (2.22 with the constant

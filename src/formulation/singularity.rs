@@ -30,7 +30,7 @@ pub struct SingularCrossing {
     pub ratio: f64,
 }
 
-/// Rank loss of Φ_q along a run, from accepted steps only (issue 10):
+/// Rank loss of Φ_q along a run, from accepted steps only:
 /// the rank r₀ and independent rows R at t0 (m − r₀ > 0: redundant
 /// constraints, [`SingularityMonitor::redundant_rows`]) and, at every step,
 /// the sign of `det Φ_R,u` for a split chosen by complete pivoting. A sign

@@ -131,7 +131,7 @@ pub struct ImplicitOptions {
     /// at 1–5 % more CPU time (the matrix is renewed at the predictor more
     /// often, which pays for the saved corrections); problem C at h = 2.5e-5 over 0.3 s: −12 % /
     /// −7 % iterations at N = 100 / 1000 but +8 % CPU at N = 1000 (4× the
-    /// factorisations); hence off by default. (Before stop 28 true always
+    /// factorisations); hence off by default. (Before 747da1b (2026-11-27) true always
     /// extrapolated: +14 % iterations at N = 100 and twice the iterations
     /// in free fall, where the constant predictor is exact.)
     pub extrapolate: bool,

@@ -1,4 +1,4 @@
-//! Bounded work before a run starts (issue 13, item 4): the time span must
+//! Bounded work before a run starts: the time span must
 //! be resolvable in floating point, and the number of output times, of
 //! bodies and the estimated memory have limits, each checked before
 //! anything scales with them is allocated. Each is an error naming the key

@@ -490,7 +490,7 @@ fn finish(
         (Termination::Completed, _, _) => ("completed", None),
         (Termination::Failed { reason, .. }, _, _) => {
             let mut m = reason.to_string();
-            // issue 10: a Newton collapse of the index-3 form where Φ_q lost rank
+            // a Newton collapse of the index-3 form where Φ_q lost rank
             if let (
                 "index3",
                 crate::integrate::Failure::StepTooSmall {

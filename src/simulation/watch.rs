@@ -71,7 +71,7 @@ pub(super) struct Watch<'s, 'm, 'd, 'k> {
 /// Energy gain, as a fraction of the run's energy scale, above which an
 /// implicit run (generalized-α, HHT, Newmark, the augmented Lagrangian,
 /// bdf, radau5) warns that its energy balance broke: their numerical damping only
-/// removes energy (issue 10, item 7). The constraint study's passing
+/// removes energy. The constraint study's passing
 /// implicit runs from consistent starts drift by at most 1.7e-4 of E0,
 /// either sign; the trapezoidal rule (newmark, ρ∞ = 1) on the four-bar at
 /// h = 5e-3 gains 1.5 J on a scale of 5.5 J by t = 0.5 s, its

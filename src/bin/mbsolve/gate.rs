@@ -9,7 +9,7 @@
 //!   the build-time generated kernels against the generic per-joint
 //!   evaluation (fails below 2×);
 //! * generated over generic on the whole implicit run: 400 generalized-α
-//!   steps of the stiff chain at N = 1000 (issue 12) with the generated
+//!   steps of the stiff chain at N = 1000 (`../shared/peers/`) with the generated
 //!   Newton assembly against the generic per-joint, per-element one
 //!   (fails below [`IMPLICIT_GENERATED_MIN`]; [`implicit_generated_over_generic`]).
 //! * the two-sided chain LDLᵀ over the one-sided one on one thread: factor
@@ -297,7 +297,7 @@ fn cpu_seconds() -> f64 {
     }
 }
 
-/// Bound of [`implicit_generated_over_generic`]: issue 12's 1.5. Measured
+/// Bound of [`implicit_generated_over_generic`]: the speed target's 1.5. Measured
 /// 1.66–1.70 on the 2-core machine since the residual's constraint part
 /// (Φ with Φ_qᵀλ) and the springs' forces come from generated loops (1.51–1.56
 /// before, when the bound was 1.35 so as not to flicker; CPU ticks of 10 ms
@@ -427,7 +427,7 @@ pub fn split_chain_solve_over_one_sided() -> Check {
     }
 }
 
-/// Most Newton iterations per accepted step on the stiff chain (issue 12).
+/// Most Newton iterations per accepted step on the stiff chain (`../shared/peers/`).
 pub const NEWTON_PER_STEP_MAX: f64 = 2.5;
 
 /// Newton iterations per accepted step of generalized-α (h = 1e-5) and

@@ -1,5 +1,5 @@
 //! `mbsolve study constraints`: the paper's review of constraint
-//! enforcement (§3) run side by side (issue 10, item 8).
+//! enforcement (§3) run side by side.
 //!
 //! Every method of [`methods`] runs on every problem of [`problems`]: the
 //! four-bar of problem A with the correct and the incorrect initial state,
