@@ -81,8 +81,10 @@ def test_two_threads_give_the_bits_of_one_after_the_other():
 
 
 def test_ctrl_c_ends_the_run_as_interrupted_keeping_rows():
-    # the falling rod runs for seconds: interrupt it after 0.3 s
-    sc = mbsolve.builtin("falling_rod")
+    # the falling rod over 100 s runs for tens of seconds (its 1 s takes a
+    # fraction of one on a quiet machine): interrupt it after 0.3 s
+    sc = mbsolve.builtin("falling_rod").with_overrides(
+        {"time.end": 100, "output.dt": 0.01})
     timer = threading.Timer(0.3, _thread.interrupt_main)
     timer.start()
     try:
