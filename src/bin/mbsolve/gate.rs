@@ -123,22 +123,18 @@ fn ratio_of(
 pub const ATTEMPTS: usize = 3;
 
 /// Bound of the falling rod's RHS cost at N = 8000 over N = 1000 (linear
-/// work: 8): 12 = 8 × 1.5. The measured ratio sits above 8 with the same
-/// work per body (docs/scaling.md: 8.2–8.4 on an earlier host, 9.0–10.8 on
-/// the 2-core CI machine, whose 512 KiB L2 cache per core holds the
-/// N = 1000 factor but not the N = 8000 one); a cost growing like N log N
-/// in the factorisation gives 8 × ln 8000 / ln 1000 ≈ 10.4 before that
-/// memory factor, one growing like N² gives 64. Constant-factor slowdowns
-/// are the work counts' and the yardstick checks' to catch.
+/// work: 8): 12 = 8 × 1.5, room for the memory hierarchy (the N = 1000
+/// factor fits a core's L2 cache, the N = 8000 one does not; measurements
+/// in docs/scaling.md). A cost growing like N log N in the factorisation
+/// gives 8 × ln 8000 / ln 1000 ≈ 10.4 before that memory factor, one
+/// growing like N² gives 64; constant-factor slowdowns are the work
+/// counts' and the yardstick checks' to catch.
 pub const RHS_SCALING_MAX: f64 = 12.0;
 
 /// `check` measured until it passes, at most [`ATTEMPTS`] times; the last
 /// measurement is reported, with the failed ones before it in its detail.
-/// The machine is shared: in this session's CI runs, right after the test
-/// suite, the N = 8000 / N = 1000 RHS cost measured 11.9 once where every
-/// other run gave 7.5–9.4, and the whole-implicit-run ratio 1.25 and 1.32
-/// where runs around them gave 1.52–2.04. A real regression (a cost that
-/// grows faster than N, generated kernels unused) fails every attempt.
+/// The machine is shared, and one attempt can land on a burst of load
+/// (docs/scaling.md); a real regression fails every attempt.
 fn with_retries(mut check: impl FnMut() -> Check) -> Check {
     let mut failed = Vec::new();
     loop {
@@ -307,11 +303,8 @@ fn cpu_seconds() -> f64 {
     }
 }
 
-/// Bound of [`implicit_generated_over_generic`]: the speed target's 1.5. Measured
-/// 1.66–1.70 on the 2-core machine since the residual's constraint part
-/// (Φ with Φ_qᵀλ) and the springs' forces come from generated loops (1.51–1.56
-/// before, when the bound was 1.35 so as not to flicker; CPU ticks of 10 ms
-/// on runs of ≈ 0.4 s).
+/// Bound of [`implicit_generated_over_generic`]: the speed target's 1.5
+/// (measurements in docs/scaling.md).
 pub const IMPLICIT_GENERATED_MIN: f64 = 1.5;
 
 /// Whole generalized-α run of the stiff chain (N = 1000, h = 1e-5, 400
@@ -753,8 +746,8 @@ fn yardstick(l_diag: &mut [[f64; 9]], l_off: &mut [[f64; 9]], x: &mut [[f64; 3]]
 /// ([`HOT_PATH_CLEAN`]). A path done twice costs at least 1.5× (2× its
 /// repeated part; the sparse factor + solve done twice, its scaling and
 /// scatter once: 1.6×), while a clean run's median stays within about
-/// 1.1× of the clean ratio (thread CPU time; seven runs at load 15): 1.3
-/// sits at the geometric middle of the two.
+/// 1.1× of the clean ratio (thread CPU time; docs/scaling.md): 1.3 sits at
+/// the geometric middle of the two.
 pub const HOT_PATH_MARGIN: f64 = 1.3;
 
 /// Repetitions of each hot-path measurement; the median of the per-round
@@ -964,9 +957,8 @@ pub fn hot_paths_against_yardstick() -> Vec<Check> {
 
 /// Ratios (path time / yardstick time) of [`hot_paths_against_yardstick`]
 /// on a clean build, in the order of the paths there: sparse, chain,
-/// residual, Newton iteration (pins: the median of the medians of seven
-/// gate runs on the 2-core machine at load 15, docs/scaling.md "The
-/// gate's hot paths and work counts").
+/// residual, Newton iteration (pins from clean gate runs: docs/scaling.md,
+/// "The gate's hot paths and work counts").
 pub const HOT_PATH_CLEAN: [f64; 4] = [0.217, 0.142, 0.0086, 0.198];
 
 /// Work counts of fixed runs, deterministic (no timing): per accepted
