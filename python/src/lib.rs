@@ -332,7 +332,7 @@ fn run(
         let hooks = add_python_forces(&mut sc, forces)?;
         run_scenario(&sc, &text, &file, &overrides, check_signals, hooks, progress)
     })?;
-    let raised = raised.map(|e| e.into_value(py).into_any().unbind());
+    let raised = raised.map(|e| e.into_value(py).into_any());
     Ok((table, names, units, json, raised))
 }
 

@@ -406,7 +406,7 @@ mod tests {
     /// Duplicate, missing and out-of-range coordinates are refused.
     #[test]
     fn bad_coordinates_are_refused() {
-        let ok = |_t: f64, _q: &[f64], _qd: &[f64], _g: &mut [f64]| Ok(());
+        let ok = |_t: f64, _q: &[f64], _qd: &[f64], _g: &mut [f64]| Ok::<(), String>(());
         let mut c = pendulum("ode45", false);
         for (coords, why) in [
             (vec![], "at least one"),
