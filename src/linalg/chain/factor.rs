@@ -8,6 +8,8 @@ use crate::linalg::{LinalgError, SaddleMatrix};
 use crate::parallel::join_if;
 
 impl Envelope {
+    /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
+    /// halves `T` and `B` concurrently (`join_if`; each is sequential
     /// inside and touches only its own rows), then the separator.
     pub(super) fn factorize(
         &mut self,

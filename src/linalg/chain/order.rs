@@ -209,6 +209,4 @@ impl Envelope {
     pub(super) fn is_split(&self) -> bool {
         self.s0 < self.dim
     }
-
-    /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
 }
