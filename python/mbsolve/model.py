@@ -222,11 +222,12 @@ class Model:
         """What ``mbsolve check`` reports (see :meth:`mbsolve.Scenario.check`)."""
         return self.scenario().check()
 
-    def run(self, overrides: Optional[Dict[str, Any]] = None, *, progress: Any = False,
-            **kwargs: Any) -> Any:
-        """Validate and run (with the Python forces); returns a
-        :class:`mbsolve.Result`. ``progress`` as for :meth:`mbsolve.Scenario.run`."""
-        return self.scenario(overrides, **kwargs).run(progress=progress)
+    def run(self, overrides: Optional[Dict[str, Any]] = None, *, forces: Any = (),
+            progress: Any = False, **kwargs: Any) -> Any:
+        """Validate and run (with the model's Python forces and ``forces``);
+        returns a :class:`mbsolve.Result`. ``progress`` as for
+        :meth:`mbsolve.Scenario.run`."""
+        return self.scenario(overrides, **kwargs).run(forces=forces, progress=progress)
 
     def __repr__(self) -> str:
         n = {k: len(v) for k, v in self._doc.items() if isinstance(v, list) and k != "gravity"}

@@ -33,7 +33,9 @@ def pendulum(method, expression=False, end=1.0):
             point_j=[-0.5, 0.0])
     if expression:
         m.force("expression", name="law", body="bob", torque=LAW)
-    m.integrator(method=method).time(end=end).output(dt=0.01)
+    extra = {"genalpha": {"step": 1e-3}, "radau5": {"adaptive": True}}.get(method, {})
+    m.integrator(method=method, **extra)
+    m.time(end=end).output(dt=0.01)
     return m
 
 

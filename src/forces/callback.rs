@@ -282,11 +282,16 @@ mod tests {
         } else {
             ""
         };
+        let step = match method {
+            "genalpha" => "step = 1e-3\n",
+            "radau5" => "adaptive = true\n",
+            _ => "",
+        };
         let text = format!(
             "gravity = [0.0, -9.81]\n[[body]]\nname = \"bob\"\nmass = 1.0\ninertia = 0.02\n\
              x = 0.5\ny = 0.0\nphi = 0.0\n[[joint]]\ntype = \"revolute\"\nbody_i = \"ground\"\n\
              point_i = [0.0, 0.0]\nbody_j = \"bob\"\npoint_j = [-0.5, 0.0]\n{force}\
-             [integrator]\nmethod = \"{method}\"\n[time]\nend = 1.0\n[output]\ndt = 0.01\n"
+             [integrator]\nmethod = \"{method}\"\n{step}[time]\nend = 1.0\n[output]\ndt = 0.01\n"
         );
         scenario::parse(&text, "pendulum.toml", "pendulum", &[]).expect("valid scenario")
     }
