@@ -375,7 +375,8 @@ class Result:
         units of ``columns.json``; with several columns of different units
         the y label lists each. Without columns: ``constraint_norm`` on a
         log scale. ``ax``: an existing ``Axes`` to draw on; ``logy``: a
-        logarithmic y axis; other keywords go to ``Axes.plot``."""
+        logarithmic y axis; ``label``: the legend entry of a single column
+        (default its name); other keywords go to ``Axes.plot``."""
         try:
             import matplotlib.pyplot as plt
         except ImportError as e:  # pragma: no cover - depends on the environment
@@ -385,8 +386,10 @@ class Result:
         xs = self[x]
         if ax is None:
             _, ax = plt.subplots()
+        given = line_kw.pop("label", None)
         for c in columns:
-            ax.plot(xs, self[c], label=c, **line_kw)
+            ax.plot(xs, self[c], label=given if given is not None and len(columns) == 1 else c,
+                    **line_kw)
         ax.set_xlabel(self.label(x))
         units = {self.units.get(c, "") for c in columns}
         if len(columns) == 1:
