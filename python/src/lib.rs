@@ -15,8 +15,8 @@ use mbsolve::events::ContactMonitor;
 use mbsolve::forces::{CallbackError, CallbackForce, CallbackLaw};
 use mbsolve::integrate::Stats;
 use mbsolve::model::Sensor;
-use mbsolve::parallel::Threads;
 use mbsolve::output::{columns, RowBuilder};
+use mbsolve::parallel::Threads;
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::{self, Monitor, Sample, Sink};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
@@ -210,7 +210,10 @@ impl Table {
             )));
         }
         let col = |k: usize| &self.data[k * self.nrows..(k + 1) * self.nrows];
-        let (lo, hi) = (t_from.unwrap_or(f64::NEG_INFINITY), t_to.unwrap_or(f64::INFINITY));
+        let (lo, hi) = (
+            t_from.unwrap_or(f64::NEG_INFINITY),
+            t_to.unwrap_or(f64::INFINITY),
+        );
         let vals: Vec<f64> = col(time)
             .iter()
             .zip(col(column))
@@ -271,7 +274,11 @@ impl Sink for Collect<'_> {
                 self.last_progress = Instant::now();
                 // a failing progress display must not end the run: it is
                 // printed and not called again
-                let failed = Python::attach(|py| p.call1(py, (t, self.span.0, self.span.1)).map_err(|e| e.print(py)).is_err());
+                let failed = Python::attach(|py| {
+                    p.call1(py, (t, self.span.0, self.span.1))
+                        .map_err(|e| e.print(py))
+                        .is_err()
+                });
                 if failed {
                     self.progress = None;
                 }
@@ -330,7 +337,15 @@ fn run(
             sc.run.threads = Threads::One;
         }
         let hooks = add_python_forces(&mut sc, forces)?;
-        run_scenario(&sc, &text, &file, &overrides, check_signals, hooks, progress)
+        run_scenario(
+            &sc,
+            &text,
+            &file,
+            &overrides,
+            check_signals,
+            hooks,
+            progress,
+        )
     })?;
     let raised = raised.map(|e| e.into_value(py).into_any());
     Ok((table, names, units, json, raised))
