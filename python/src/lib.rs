@@ -299,6 +299,10 @@ impl Sink for Collect<'_> {
 /// the summary JSON, and the first exception a Python force raised.
 type RunOutput = (Table, Vec<String>, Vec<String>, String, Option<PyErr>);
 
+/// What `run` returns to Python: [`RunOutput`] with the exception as a
+/// Python object.
+type PyRunOutput = (Table, Vec<String>, Vec<String>, String, Option<Py<PyAny>>);
+
 /// A Python force as the Python layer hands it over (`PythonForce`): its
 /// name, the names of its bodies, `force(t, q, qd) -> list` (k = 3 × bodies
 /// values), optionally `jacobian(t, q, qd) -> list` (2k² values: ∂g/∂q then
@@ -328,7 +332,7 @@ fn run(
     forces: Vec<ForceSpec>,
     progress: Option<Py<PyAny>>,
     one_thread: bool,
-) -> PyResult<(Table, Vec<String>, Vec<String>, String, Option<Py<PyAny>>)> {
+) -> PyResult<PyRunOutput> {
     let (table, names, units, json, raised) = guarded(py, move || {
         let mut sc = parse(&text, &file, &stem, &overrides)?;
         // runs side by side (a sweep): each on one thread, as `mbsolve

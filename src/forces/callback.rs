@@ -17,7 +17,7 @@
 //! // a linear torsion spring on body 0's angle (coordinate 2), k = 3 N m/rad
 //! let spring = CallbackForce::new("spring", vec![2], |_t: f64, q: &[f64], _qd: &[f64], g: &mut [f64]| {
 //!     g[0] = -3.0 * q[0];
-//!     Ok(())
+//!     Ok::<(), String>(())
 //! });
 //! assert_eq!(spring.error_handle().get(), None);
 //! ```
