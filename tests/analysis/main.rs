@@ -1,0 +1,9 @@
+//! Integration tests of the analyses: statics, eigenmodes, linearisation, inverse
+//! dynamics, partitioning and the tangent matrices, against independent references.
+
+mod inverse;
+mod linearize;
+mod modes;
+mod partitioning;
+mod statics;
+mod tangent;

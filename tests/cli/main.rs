@@ -1,0 +1,17 @@
+//! Integration tests of the `mbsolve` binary: run, check, sweep, plot, animate,
+//! view, study, streamed outputs, Arrow files, figures, bad input and the fuzz corpus.
+
+mod animate;
+mod arrow;
+mod bad_input;
+mod check;
+mod figures;
+mod fuzz_corpus;
+mod outputs;
+mod plot;
+mod run;
+mod sensors;
+mod stream;
+mod study;
+mod sweep;
+mod view;

@@ -1,0 +1,9 @@
+//! Integration tests of scenario files: components, force types, keys, overrides,
+//! parameters, templates and includes.
+
+mod components;
+mod forces;
+mod keys;
+mod overrides;
+mod parameters;
+mod templates;
