@@ -13,15 +13,12 @@ use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptio
 use mbsolve::builders::{cantilever, RodParams};
 use mbsolve::scenario;
 use std::f64::consts::PI;
+use crate::common::rod::cantilever_at;
 
 /// The chain of the peers (`../shared/peers/chain_model.py`) without
 /// gravity: hanging straight down, springs and dampers at every joint.
 fn chain(n: usize) -> (mbsolve::model::System, Vec<f64>, RodParams) {
-    let mut p = RodParams::problem_b(n);
-    p.tilt = PI;
-    let (sys, _) = cantilever(&p, [0.0, 0.0]).unwrap();
-    let (q0, _) = sys.initial_state();
-    (sys, q0, p)
+    cantilever_at(n, PI, [0.0, 0.0])
 }
 
 /// The lowest `count` ω of the chain linearised about the straight state

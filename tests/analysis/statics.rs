@@ -13,14 +13,11 @@ use mbsolve::analysis::{stability, static_equilibrium, StaticError, StaticOption
 use mbsolve::builders::{cantilever, RodParams};
 use mbsolve::scenario;
 use std::f64::consts::PI;
+use crate::common::rod::cantilever_at;
 
 /// A horizontal cantilever along +x (tilt −π/2: segment axes along +x).
 fn horizontal(n: usize, tip: [f64; 2]) -> (mbsolve::model::System, Vec<f64>, RodParams) {
-    let mut p = RodParams::problem_b(n);
-    p.tilt = -PI / 2.0;
-    let (sys, _) = cantilever(&p, tip).unwrap();
-    let (q0, _) = sys.initial_state();
-    (sys, q0, p)
+    cantilever_at(n, -PI / 2.0, tip)
 }
 
 /// Tip (free end) position from the coordinates.

@@ -5,22 +5,7 @@
 
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+use crate::common::cli::{mbsolve, stderr, stdout};
 
 /// Run a scenario with overrides into `dir`; returns the CSV path.
 fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {

@@ -8,16 +8,8 @@ use arrow_array::{Array, Float64Array};
 use arrow_ipc::reader::FileReader;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-fn exe() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_mbsolve"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
-
-fn run(args: &[&str]) -> Output {
-    exe().args(args).output().expect("binary runs")
-}
+use crate::common::cli::{exe, mbsolve as run};
+use crate::common::process;
 
 /// Columns (name, unit, values) of an Arrow IPC file.
 fn read_arrow(path: &Path) -> Vec<(String, String, Vec<f64>)> {
@@ -220,14 +212,10 @@ fn a_killed_arrow_run_is_recovered() {
         .unwrap();
     // the first record batch (8 MB of values) is on disk
     let part = out.join("fourbar.arrow.part");
-    let start = std::time::Instant::now();
-    while std::fs::metadata(&part).map_or(0, |m| m.len()) < 1 << 23 {
-        assert!(
-            start.elapsed() < std::time::Duration::from_secs(120),
-            "no batch written"
-        );
-        assert!(child.try_wait().unwrap().is_none(), "the run ended early");
-        std::thread::sleep(std::time::Duration::from_millis(50));
+    // an event, bounded by the run's CPU time (not the wall clock)
+    let batch = || std::fs::metadata(&part).map_or(0, |m| m.len()) >= 1 << 23;
+    if let Err(e) = process::wait_for(&mut child, "a batch written", 120.0, batch) {
+        panic!("{e}");
     }
     assert!(Command::new("kill")
         .args(["-KILL", &child.id().to_string()])

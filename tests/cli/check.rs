@@ -5,16 +5,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-#[path = "common/cpu.rs"]
-mod cpu;
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
+use crate::common::process;
+use crate::common::cli::{exe, mbsolve};
 
 /// The value printed after `label` in the report.
 fn field(out: &str, label: &str) -> usize {
@@ -131,15 +123,13 @@ fn check_rejects_bad_scenarios_with_exit_1() {
 #[test]
 fn check_rank_is_sparse_and_scales_to_ten_thousand_bodies() {
     // CPU seconds, not wall time: a loaded machine does not move them
-    let (o, took) = cpu::output_with_cpu(
-        env!("CARGO_BIN_EXE_mbsolve"),
-        &[
-            "check",
-            "scenarios/falling_rod.toml",
-            "--set",
-            "rod.segments=10000",
-        ],
-    );
+    let (o, usage) = process::output_with_usage(exe().args([
+        "check",
+        "scenarios/falling_rod.toml",
+        "--set",
+        "rod.segments=10000",
+    ]));
+    let took = usage.cpu_s;
     let (code, out, err) = (
         o.status.code(),
         String::from_utf8_lossy(&o.stdout).into_owned(),

@@ -5,18 +5,7 @@
 
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use crate::common::cli::{mbsolve, stderr};
 
 /// Write a CSV of `t` and the named columns.
 fn write_csv(path: &Path, t: &[f64], cols: &[(&str, Vec<f64>)]) {

@@ -1,6 +1,9 @@
 //! Integration tests of the `mbsolve` binary: run, check, sweep, plot, animate,
 //! view, study, streamed outputs, Arrow files, figures, bad input and the fuzz corpus.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 mod animate;
 mod arrow;
 mod bad_input;

@@ -2,14 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
+use crate::common::cli::{mbsolve, stderr};
 
 fn fourbar_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml")
@@ -25,10 +18,6 @@ fn variant(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
     p
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 #[test]

@@ -6,23 +6,14 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
-
-fn exe() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_mbsolve"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
+use crate::common::cli::{exe, mbsolve as run};
+use crate::common::process;
 
 fn fourbar() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenarios/fourbar.toml")
         .display()
         .to_string()
-}
-
-fn run(args: &[&str]) -> Output {
-    exe().args(args).output().expect("binary runs")
 }
 
 /// A four-bar run long enough to be interrupted (10⁵ s simulated, rows
@@ -55,15 +46,12 @@ fn summary(out: &Path) -> serde_json::Value {
     serde_json::from_str(&text).expect("summary is complete JSON")
 }
 
-/// Wait until the streamed CSV has some rows on disk.
-fn wait_for_rows(part: &Path) {
-    let start = Instant::now();
-    while std::fs::metadata(part).map_or(0, |m| m.len()) < 10_000 {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "no rows streamed"
-        );
-        std::thread::sleep(Duration::from_millis(50));
+/// Wait until the streamed CSV has some rows on disk (an event, not a
+/// time): fails if the run ends first or uses 60 CPU-s without writing them.
+fn wait_for_rows(child: &mut Child, part: &Path) {
+    let rows = || std::fs::metadata(part).map_or(0, |m| m.len()) >= 10_000;
+    if let Err(e) = process::wait_for(child, "rows streamed", 60.0, rows) {
+        panic!("{}: {e}", part.display());
     }
 }
 
@@ -95,8 +83,8 @@ fn sigint_and_sigterm_end_the_run_with_truthful_files() {
     for sig in ["-INT", "-TERM"] {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path();
-        let child = spawn_long(out);
-        wait_for_rows(&out.join("fourbar.csv.part"));
+        let mut child = spawn_long(out);
+        wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
         assert_eq!(summary(out)["status"], "running");
         signal(&child, sig);
         let o = child.wait_with_output().unwrap();
@@ -143,7 +131,7 @@ fn a_killed_run_leaves_no_file_that_claims_completion() {
     assert!(out.join("fourbar.csv").exists());
 
     let mut child = spawn_long(out);
-    wait_for_rows(&out.join("fourbar.csv.part"));
+    wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
     signal(&child, "-KILL");
     let _ = child.wait();
     let s = summary(out);
@@ -206,20 +194,20 @@ fn unwritable_outputs_are_refused_before_the_run() {
     std::fs::write(&file, "x").unwrap();
     let bad: Vec<PathBuf> = vec![file.join("sub"), PathBuf::from("/proc/mbsolve-no")];
     for out in bad {
-        let start = Instant::now();
-        let o = run(&[
+        let (o, cpu) = process::output_with_usage(exe().args([
             "run",
             &fourbar(),
             "--set",
             "time.end=1e5",
             "--out",
             out.to_str().unwrap(),
-        ]);
+        ]));
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{e}");
         assert!(e.contains(out.to_str().unwrap()), "names the path: {e}");
-        // refused before integrating 10⁵ s
-        assert!(start.elapsed() < Duration::from_secs(20));
+        // refused before integrating 10⁵ s (minutes of work): the refusal
+        // costs the parse and the checks, well under a CPU-second
+        assert!(cpu.cpu_s < 20.0, "{} CPU-s before the refusal", cpu.cpu_s);
     }
 }
 
@@ -331,8 +319,9 @@ fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
     }
 }
 
-/// Peak resident memory (VmHWM, kB) of a run, polled from /proc while it
-/// runs.
+/// Peak resident memory (kB) of a run, as the kernel accounts it when the
+/// process is reaped (`ru_maxrss`, the same figure as /proc's VmHWM, read
+/// exactly instead of sampled), and the rows of its CSV.
 fn peak_rss_kb(args: &[&str]) -> (u64, usize) {
     let mut child = exe()
         .args(args)
@@ -340,20 +329,8 @@ fn peak_rss_kb(args: &[&str]) -> (u64, usize) {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let status = format!("/proc/{}/status", child.id());
-    let mut peak = 0;
-    loop {
-        if let Ok(text) = std::fs::read_to_string(&status) {
-            if let Some(l) = text.lines().find(|l| l.starts_with("VmHWM:")) {
-                let kb: u64 = l.split_whitespace().nth(1).unwrap().parse().unwrap();
-                peak = peak.max(kb);
-            }
-        }
-        if child.try_wait().unwrap().is_some() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let (_, usage) = process::wait_with_usage(&mut child);
+    let peak = usage.max_rss_kb;
     let out = args[args.len() - 1];
     let rows = std::fs::read_to_string(Path::new(out).join("fourbar.csv"))
         .unwrap()
@@ -492,7 +469,7 @@ fn a_second_sigint_leaves_an_interrupted_summary() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path();
     let mut child = spawn_long(out);
-    wait_for_rows(&out.join("fourbar.csv.part"));
+    wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
     // both signals from one process, back to back
     let ok = Command::new("sh")
         .args(["-c", &format!("kill -INT {0}; kill -INT {0}", child.id())])
@@ -566,7 +543,7 @@ fn a_second_run_into_the_same_files_refuses_up_front() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path();
     let mut child = spawn_long(out);
-    wait_for_rows(&out.join("fourbar.csv.part"));
+    wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
     let o = run(&["run", &fourbar(), "--out", out.to_str().unwrap()]);
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");

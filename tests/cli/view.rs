@@ -8,18 +8,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use crate::common::cli::{mbsolve, stderr};
 
 #[test]
 fn page_is_self_contained_and_escapes_user_text() {

@@ -11,11 +11,9 @@ use mbsolve::integrate::{Method, OdeSystem, Tolerance};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-
-fn fourbar(overrides: &[&str]) -> Scenario {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(FOURBAR_TOML, "scenarios/fourbar.toml", "fourbar", &o).unwrap()
-}
+use crate::common::fourbar::fourbar;
+use crate::common::parallelogram::{crossings, departure as chain_error};
+use crate::common::trajectory::max_diff;
 
 fn norm_inf(v: &[f64]) -> f64 {
     v.iter().fold(0.0_f64, |a, b| a.max(b.abs()))
@@ -152,17 +150,6 @@ fn run(sc: &Scenario, cfg: &RunConfig) -> (Trajectory, Summary) {
     let (t, s) = simulate(&sc.system, &sc.q0, &sc.qd0, cfg, &mut []).unwrap();
     assert_eq!(s.status, "completed", "{:?}", s.message);
     (t, s)
-}
-
-fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-    assert_eq!(a.t.len(), b.t.len());
-    let mut w: f64 = 0.0;
-    for (x, y) in a.q.iter().zip(&b.q) {
-        for (u, v) in x.iter().zip(y) {
-            w = w.max((u - v).abs());
-        }
-    }
-    w
 }
 
 #[test]
@@ -458,37 +445,6 @@ fn chain_summary(p: &ParallelogramChain, cfg: &RunConfig) -> (Trajectory, Summar
         s.status, s.message, s.steps, s.regularized_pivots, s.max_constraint_norm
     );
     (traj, s)
-}
-
-/// Largest distance of the marked point from the reference, and the first
-/// output time where it exceeds `tol` (if any).
-fn chain_error(p: &ParallelogramChain, traj: &Trajectory, tol: f64) -> (f64, Option<f64>) {
-    let reference = p.reference(&traj.t, 1e-4);
-    let mut worst: f64 = 0.0;
-    let mut first = None;
-    for ((q, t), (th, _)) in traj.q.iter().zip(&traj.t).zip(&reference) {
-        let a = p.marked_point_of(q);
-        let b = p.marked_point(*th);
-        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-        worst = worst.max(d);
-        if d > tol && first.is_none() {
-            first = Some(*t);
-        }
-    }
-    (worst, first)
-}
-
-/// Singular crossings of the reference (θ through a multiple of π).
-fn crossings(p: &ParallelogramChain, t_end: f64) -> usize {
-    let times: Vec<f64> = (0..=(t_end * 1000.0) as usize)
-        .map(|k| k as f64 * 1e-3)
-        .collect();
-    let th = p.reference(&times, 1e-4);
-    th.windows(2)
-        .filter(|w| {
-            (w[0].0 / std::f64::consts::PI).floor() != (w[1].0 / std::f64::consts::PI).floor()
-        })
-        .count()
 }
 
 #[test]

@@ -5,11 +5,7 @@ use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::simulate;
-
-fn fourbar(overrides: &[&str]) -> Scenario {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(FOURBAR_TOML, "scenarios/fourbar.toml", "fourbar", &o).unwrap()
-}
+use crate::common::fourbar::fourbar;
 
 fn tight(sc: &mut Scenario) {
     sc.run.method = Method::Ode45;

@@ -2,6 +2,9 @@
 //! constraint-enforcement methods, initial states by joint coordinates, redundant
 //! and singular configurations, coordinate partitioning, the four-bar of problem A.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 mod constraint_methods;
 mod constraints;
 mod fourbar;

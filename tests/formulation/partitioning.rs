@@ -9,22 +9,12 @@ use mbsolve::formulation::{
 use mbsolve::integrate::{Method, OdeSystem, Tolerance};
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-
-fn fourbar(overrides: &[&str]) -> Scenario {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(FOURBAR_TOML, "scenarios/fourbar.toml", "fourbar", &o).unwrap()
-}
+use crate::common::fourbar::fourbar;
+use crate::common::parallelogram::crossings;
+use crate::common::trajectory::max_diff;
 
 fn run(sc: &Scenario, cfg: &RunConfig) -> (Trajectory, Summary) {
     simulate(&sc.system, &sc.q0, &sc.qd0, cfg, &mut []).unwrap()
-}
-
-fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-    assert_eq!(a.t.len(), b.t.len());
-    a.q.iter()
-        .zip(&b.q)
-        .flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()))
-        .fold(0.0, f64::max)
 }
 
 fn tight(method: Method, rtol: f64, formulation: Formulation, t_end: f64) -> RunConfig {
@@ -88,19 +78,6 @@ fn partitioned_fourbar_matches_tight_ode45_and_rechooses() {
     assert!(s.max_velocity_constraint_norm < 1e-10);
 }
 
-/// Singular crossings of the reference (θ through a multiple of π).
-fn crossings(p: &ParallelogramChain, t_end: f64) -> usize {
-    let times: Vec<f64> = (0..=(t_end * 1000.0) as usize)
-        .map(|k| k as f64 * 1e-3)
-        .collect();
-    let th = p.reference(&times, 1e-4);
-    th.windows(2)
-        .filter(|w| {
-            (w[0].0 / std::f64::consts::PI).floor() != (w[1].0 / std::f64::consts::PI).floor()
-        })
-        .count()
-}
-
 #[test]
 fn partitioned_parallelogram_chain_keeps_its_branch() {
     // Through ≥ 4 singular crossings in 10 s: the marked point within 1 mm
@@ -151,7 +128,7 @@ fn partitioned_parallelogram_chain_keeps_its_branch() {
     assert!(extra_f64(&s, "repartitions") >= 4.0);
 }
 
-const SLIDER_CRANK: &str = include_str!("../scenarios/slider_crank.toml");
+const SLIDER_CRANK: &str = include_str!("../../scenarios/slider_crank.toml");
 
 #[test]
 fn partitioned_slider_crank_follows_closed_form_kinematics() {

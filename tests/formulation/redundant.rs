@@ -5,6 +5,7 @@
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
+use crate::common::parallelogram::branch_errors;
 
 fn with_extra(text: &str, overrides: &[&str]) -> scenario::Scenario {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
@@ -118,26 +119,6 @@ fn parallelogram_passes_its_singular_position_without_nans() {
         s.status, s.message, s.regularized_pivots, s.max_constraint_norm
     );
     assert_eq!(s.status, "completed", "{:?}", s.message);
-}
-
-/// Largest distance of the marked point from the chain's independent
-/// one-degree-of-freedom reference over the trajectory, and the largest
-/// relative error of the mechanical energy against the reference's
-/// (conserved) `½ I θ̇₀² + C sin θ₀`.
-fn branch_errors(
-    p: &mbsolve::builders::ParallelogramChain,
-    sys: &mbsolve::model::System,
-    traj: &mbsolve::simulation::Trajectory,
-) -> (f64, f64) {
-    let reference = p.reference(&traj.t, 1e-4);
-    let e0 = p.reduced_energy(p.theta0, p.rate0);
-    let (mut worst, mut de) = (0.0_f64, 0.0_f64);
-    for ((q, qd), (th, _)) in traj.q.iter().zip(&traj.qd).zip(&reference) {
-        let (a, b) = (p.marked_point_of(q), p.marked_point(*th));
-        worst = worst.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt());
-        de = de.max((sys.mechanical_energy(q, qd) - e0).abs() / e0.abs());
-    }
-    (worst, de)
 }
 
 #[test]

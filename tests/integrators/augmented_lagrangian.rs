@@ -8,6 +8,8 @@ use mbsolve::formulation::Formulation;
 use mbsolve::integrate::Method;
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
+use crate::common::parallelogram::{branch_errors, crossings};
+use crate::common::trajectory::max_diff;
 
 fn parse(text: &str, overrides: &[&str]) -> Result<Scenario, String> {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
@@ -58,31 +60,7 @@ fn chain_run(p: &ParallelogramChain, cfg: &RunConfig) -> (Trajectory, Summary) {
 /// Largest distance of the marked point from the 1-DOF reference, and the
 /// largest relative energy error.
 fn chain_errors(p: &ParallelogramChain, traj: &Trajectory) -> (f64, f64) {
-    let sys = parallelogram_chain(p).unwrap();
-    let reference = p.reference(&traj.t, 1e-4);
-    let e0 = p.reduced_energy(p.theta0, p.rate0);
-    let mut worst: f64 = 0.0;
-    let mut de: f64 = 0.0;
-    for ((q, qd), (th, _)) in traj.q.iter().zip(&traj.qd).zip(&reference) {
-        let a = p.marked_point_of(q);
-        let b = p.marked_point(*th);
-        worst = worst.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt());
-        de = de.max((sys.mechanical_energy(q, qd) - e0).abs() / e0.abs());
-    }
-    (worst, de)
-}
-
-/// Singular crossings of the reference (θ through a multiple of π).
-fn crossings(p: &ParallelogramChain, t_end: f64) -> usize {
-    let times: Vec<f64> = (0..=(t_end * 1000.0) as usize)
-        .map(|k| k as f64 * 1e-3)
-        .collect();
-    let th = p.reference(&times, 1e-4);
-    th.windows(2)
-        .filter(|w| {
-            (w[0].0 / std::f64::consts::PI).floor() != (w[1].0 / std::f64::consts::PI).floor()
-        })
-        .count()
+    branch_errors(p, &parallelogram_chain(p).unwrap(), traj)
 }
 
 #[test]
@@ -172,15 +150,6 @@ body_j = "coupler"
 point_j = [-0.2, 0.0]
 "#;
 
-/// Largest position difference over the common output times.
-fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-    assert_eq!(a.t.len(), b.t.len());
-    a.q.iter()
-        .zip(&b.q)
-        .flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()))
-        .fold(0.0, f64::max)
-}
-
 fn run(sc: &Scenario) -> (Trajectory, Summary) {
     let (t, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
     assert_eq!(s.status, "completed", "{:?}", s.message);
@@ -249,7 +218,7 @@ fn slider_crank_follows_its_closed_form_kinematics() {
     // step: positions held to the Newton tolerance, velocities by the
     // projection.
     // the shipped file's ode45 tolerances do not apply to a fixed step
-    let text = include_str!("../scenarios/slider_crank.toml")
+    let text = include_str!("../../scenarios/slider_crank.toml")
         .replace("rtol = 1e-10\n", "")
         .replace("atol = 1e-12\n", "");
     let text = text.as_str();

@@ -9,7 +9,7 @@
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, Trajectory};
 
-const SLIDER_TOML: &str = include_str!("../scenarios/slider_crank.toml");
+const SLIDER_TOML: &str = include_str!("../../scenarios/slider_crank.toml");
 
 fn parse(text: &str, overrides: &[&str]) -> Scenario {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();

@@ -2,6 +2,9 @@
 //! ode113, rk4), generalized-α, BDF/NDF, Radau IIA, the augmented Lagrangian, their
 //! error control and stability limits, and the stiff chain against the peers' reference.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 mod augmented_lagrangian;
 mod bdf;
 mod error_control;

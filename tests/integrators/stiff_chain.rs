@@ -6,13 +6,13 @@
 use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
 use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::simulation::{simulate, RunConfig};
+use crate::common::stiff_chain::{tip_after, T_END};
 
 fn tip_at_end(method: Method, h: Option<f64>, rtol: f64) -> (f64, usize, Option<u64>) {
-    let (sys, q0, qd0, info) = stiff_chain(10, 5f64.to_radians()).unwrap();
     let mut cfg = RunConfig {
         method,
-        t_end: 0.1,
-        output_dt: 0.1,
+        t_end: T_END,
+        output_dt: T_END,
         ..Default::default()
     };
     cfg.ode.fixed_step = h;
@@ -20,11 +20,9 @@ fn tip_at_end(method: Method, h: Option<f64>, rtol: f64) -> (f64, usize, Option<
         cfg.ode.rtol = rtol;
         cfg.ode.atol = Tolerance::Scalar(rtol * 1e-2);
     }
-    let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{s:?}");
-    let q = traj.q.last().unwrap();
+    let (tip, s, _) = tip_after(10, &cfg);
     (
-        stiff_chain_tip_x(&info, q),
+        tip,
         s.steps,
         s.extra.get("newton_iterations").and_then(|v| v.as_u64()),
     )

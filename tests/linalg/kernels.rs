@@ -11,9 +11,7 @@ use mbsolve::model::{Body, BodyRef, Evaluation, FdWorkspace, System, SystemBuild
 use mbsolve::scenario::{self, FALLING_ROD_TOML};
 use mbsolve::simulation::simulate;
 
-#[path = "common/counting.rs"]
-mod counting;
-use counting::allocations;
+use crate::counting::allocations;
 
 /// Deterministic pseudo-random numbers (xorshift).
 struct Rng(u64);

@@ -2,6 +2,9 @@
 //! saddle-point solver, the chain LDLᵀ and Newton-matrix assembly, the residual's
 //! halves, allocation-free kernels, results independent of the thread count.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 // The counting global allocator of the allocation-free tests (one per binary).
 #[path = "../common/counting.rs"]
 mod counting;

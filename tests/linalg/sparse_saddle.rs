@@ -11,9 +11,7 @@ use std::ops::Range;
 // ---------------------------------------------------------------------------
 // Allocation counter (per thread, so parallel tests do not interfere).
 
-#[path = "common/counting.rs"]
-mod counting;
-use counting::allocations;
+use crate::counting::allocations;
 
 // ---------------------------------------------------------------------------
 // Random numbers (xorshift; no extra dependency).

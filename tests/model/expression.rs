@@ -5,9 +5,7 @@ use mbsolve::forces::{
     ExpressionError, ExpressionLoadBuilder, FdWorkspace, ForceElement, LinePoint,
 };
 
-#[path = "common/counting.rs"]
-mod counting;
-use counting::allocations;
+use crate::counting::allocations;
 
 const Q: [f64; 9] = [0.1, -0.2, 0.3, 1.2, 0.4, -0.7, 2.0, 2.0, 2.0];
 const QD: [f64; 9] = [0.5, -0.3, 0.8, -0.2, 0.6, 1.1, 0.0, 0.0, 0.0];

@@ -2,6 +2,9 @@
 //! problem B, the cantilever of problem D, contact events, expression loads, the
 //! generated kernels against the generic evaluation, energies.
 
+#[path = "../common/mod.rs"]
+mod common;
+
 // The counting global allocator of the allocation-free tests (one per binary).
 #[path = "../common/counting.rs"]
 mod counting;

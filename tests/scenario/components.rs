@@ -12,15 +12,7 @@ use mbsolve::scenario;
 use mbsolve::simulation::{simulate, Trajectory};
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("binary runs")
-}
+use crate::common::cli::mbsolve;
 
 fn shipped(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
