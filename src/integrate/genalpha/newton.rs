@@ -380,11 +380,6 @@ impl Run<'_, '_> {
                 // iterate once and carry on
                 Some(Next::Renew) => renew_now = true,
                 Some(Next::Exhausted) => {
-                    match self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q]) {
-                        Ok(true) => return Attempt::Converged,
-                        Ok(false) => {}
-                        Err(e) => return Attempt::Failed(e),
-                    }
                     return Attempt::Failed(SystemError::msg(format!(
                         "no convergence in {it} iterations (last correction {:.3e} × tol, θ = {:.3})",
                         conv.last(),
