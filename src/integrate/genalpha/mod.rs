@@ -132,12 +132,15 @@
 //! ratios of rounding quanta) at a size set by σ, not by the tolerance,
 //! and a smaller step — whose grid comes closer to the singular position —
 //! only makes them larger relative to the tolerance. So before an attempt
-//! fails by divergence or exhaustion, the residual itself is asked
+//! fails by divergence (θ ≥ 1), the residual itself is asked
 //! (`Run::at_constraint_noise`): if `‖Φ‖∞` at the iterate is at its
 //! rounding floor (20 ulps of `max(|q|, 1)`) and the correction the
 //! dynamic rows alone ask for is within the tolerance, the iterate solves
 //! the equations to working precision and the attempt converges (with
-//! that last correction applied).
+//! that last correction applied, and λ computed whole from zero at the
+//! accepted positions, as every attempt's first correction computes it:
+//! the sum over the non-contracting corrections carries their noise, and
+//! the next predictor's matrix takes λ in its geometric stiffness).
 //!
 //! # Step size
 //!

@@ -392,19 +392,20 @@ impl Run<'_, '_> {
 }
 
 impl Run<'_, '_> {
-    /// Before an attempt whose corrections stopped contracting fails:
+    /// Before an attempt whose corrections stopped contracting (θ ≥ 1)
+    /// fails:
     /// whether its iterate already solves the equations to working
     /// precision (module docs of [`super`], "Noise near a singular
     /// position"): `‖Φ‖∞` at the corrected iterate is at its rounding
     /// floor ([`ROUNDING_ULPS`] ulps of `max(|q|, 1)`), and the correction
     /// asked for by the dynamic rows of the residual alone (its constraint
     /// rows zeroed) is within the tolerance; that correction is then
-    /// applied. Near a singular position the corrections of the full
+    /// applied and λ computed whole from zero at the accepted positions. Near a singular position the corrections of the full
     /// residual are the rounding of Φ amplified by the inverse of Φ_q's
     /// smallest singular value, in its near-null direction, and do not
     /// contract whatever the step. `c = [γ', β', 1/(βh²), tol_q]` as for
     /// [`correct`]. Costs one evaluation of Φ and, if it is at the floor,
-    /// one residual and one solve, on this failure path only.
+    /// two residuals and two solves, on this failure path only.
     fn at_constraint_noise(&mut self, t1: f64, s: f64, c: [f64; 4]) -> Result<bool, SystemError> {
         let n = self.n;
         if self.phi.is_empty() {
@@ -440,8 +441,20 @@ impl Run<'_, '_> {
             new.qdd[i] -= bp * di;
             new.a[i] -= ap * di;
         }
-        for (l, d) in new.lam.iter_mut().zip(&self.r[n..]) {
-            *l -= d / s;
+        // λ whole from zero at the accepted positions (as the first
+        // correction of every attempt computes it): the sum over the
+        // non-contracting corrections carries their noise in the
+        // (near-)null space of Φ_qᵀ, which the next predictor's geometric
+        // stiffness (Φ_qᵀλ)_q would take
+        new.lam.fill(0.0);
+        self.stats.residual_evaluations += 1;
+        let new = &self.new;
+        self.sys
+            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+        self.r[n..].fill(0.0);
+        self.sys.solve(t1, &mut self.r)?;
+        for (l, d) in self.new.lam.iter_mut().zip(&self.r[n..]) {
+            *l = -d / s;
         }
         Ok(true)
     }
