@@ -124,6 +124,20 @@
 //! (`SINGLE_CORRECTION_AT_FLOOR`: a remainder of 80 ulps).
 //! Optionally also `‖Φ(q_{n+1})‖∞` must be below the position-equivalent
 //! tolerance ([`ImplicitOptions::check_constraints`]).
+//! **Noise near a singular position.** Where Φ_q is close to losing rank
+//! (smallest singular value σ, left and right singular vectors u, v), the
+//! constraint rows of the solve turn the rounding of Φ (a few ulps of the
+//! positions) into a correction `(uᵀΦ)/σ` along v, and the multipliers
+//! into its `1/σ²`: the corrections stop contracting (θ = 1, 2, 3, 1.5 …:
+//! ratios of rounding quanta) at a size set by σ, not by the tolerance,
+//! and a smaller step — whose grid comes closer to the singular position —
+//! only makes them larger relative to the tolerance. So before an attempt
+//! fails by divergence or exhaustion, the residual itself is asked
+//! (`Run::at_constraint_noise`): if `‖Φ‖∞` at the iterate is at its
+//! rounding floor (20 ulps of `max(|q|, 1)`) and the correction the
+//! dynamic rows alone ask for is within the tolerance, the iterate solves
+//! the equations to working precision and the attempt converges (with
+//! that last correction applied).
 //!
 //! # Step size
 //!

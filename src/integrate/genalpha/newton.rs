@@ -310,6 +310,11 @@ impl Run<'_, '_> {
                     false
                 }
                 Assessment::Diverged | Assessment::RenewAfterUndo | Assessment::Hopeless => {
+                    // an iterate at the constraints' rounding floor has converged
+                    // (the augmented Lagrangian has its own noise rule)
+                    if !augmented && self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q])? {
+                        return Ok(());
+                    }
                     return Err(SystemError::msg(format!(
                         "Newton diverges (contraction θ = {:.3}, correction {:.3e} × tol)",
                         conv.theta(),
@@ -354,6 +359,11 @@ impl Run<'_, '_> {
                 // iterate once and carry on
                 Some(Next::Renew) => renew_now = true,
                 Some(Next::Exhausted) => {
+                    // an iterate at the constraints' rounding floor has converged
+                    // (the augmented Lagrangian has its own noise rule)
+                    if !augmented && self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q])? {
+                        return Ok(());
+                    }
                     return Err(SystemError::msg(format!(
                         "no convergence in {it} iterations (last correction {:.3e} × tol, θ = {:.3})",
                         conv.last(),
@@ -362,6 +372,62 @@ impl Run<'_, '_> {
                 }
             }
         }
+    }
+}
+
+impl Run<'_, '_> {
+    /// Before an attempt whose corrections stopped contracting fails:
+    /// whether its iterate already solves the equations to working
+    /// precision (module docs of [`super`], "Noise near a singular
+    /// position"): `‖Φ‖∞` at the corrected iterate is at its rounding
+    /// floor ([`ROUNDING_ULPS`] ulps of `max(|q|, 1)`), and the correction
+    /// asked for by the dynamic rows of the residual alone (its constraint
+    /// rows zeroed) is within the tolerance; that correction is then
+    /// applied. Near a singular position the corrections of the full
+    /// residual are the rounding of Φ amplified by the inverse of Φ_q's
+    /// smallest singular value, in its near-null direction, and do not
+    /// contract whatever the step. `c = [γ', β', 1/(βh²), tol_q]` as for
+    /// [`correct`]. Costs one evaluation of Φ and, if it is at the floor,
+    /// one residual and one solve, on this failure path only.
+    fn at_constraint_noise(&mut self, t1: f64, s: f64, c: [f64; 4]) -> Result<bool, SystemError> {
+        let n = self.n;
+        if self.phi.is_empty() {
+            return Ok(false);
+        }
+        self.sys.constraints(t1, &self.new.q, &mut self.phi);
+        let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+        if !(phi <= ROUNDING_ULPS * f64::EPSILON * scale) {
+            return Ok(false);
+        }
+        self.stats.residual_evaluations += 1;
+        let new = &self.new;
+        self.sys
+            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+        self.r[n..].fill(0.0);
+        self.sys.solve(t1, &mut self.r)?;
+        self.stats.newton_iterations += 1;
+        let [gp, bp, ap, tol_q] = c;
+        let floor = ROUNDING_ULPS * f64::EPSILON;
+        let (q, d) = (&self.new.q, &self.r[..n]);
+        let dnorm = d.iter().zip(q).fold(0.0_f64, |a, (di, qi)| {
+            a.max(di.abs() / (tol_q + floor * qi.abs().max(1.0)))
+        });
+        if !(dnorm <= 1.0) {
+            return Ok(false);
+        }
+        // `r` holds the correction negated, as in the Newton loop
+        let new = &mut self.new;
+        for (i, &di) in self.r[..n].iter().enumerate() {
+            new.q[i] -= di;
+            new.v[i] -= gp * di;
+            new.qdd[i] -= bp * di;
+            new.a[i] -= ap * di;
+        }
+        for (l, d) in new.lam.iter_mut().zip(&self.r[n..]) {
+            *l -= d / s;
+        }
+        Ok(true)
     }
 }
 
