@@ -5,8 +5,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use crate::common::process;
 use crate::common::cli::{exe, mbsolve};
+use crate::common::process;
 
 /// The value printed after `label` in the report.
 fn field(out: &str, label: &str) -> usize {

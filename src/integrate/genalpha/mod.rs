@@ -184,13 +184,11 @@ pub use newton::{REUSE_BAND, SLOW_ITERATIONS};
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 
-use newton::Attempt;
-
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    run as run_implicit, validate_run, ImplicitStats, ImplicitStepper, Renewal, RenewalOptions,
-    SecondOrderDae,
+    attempt_or_cut, run as run_implicit, validate_run, Attempted, CutRules, Cuts, ImplicitStats,
+    ImplicitStepper, Renewal, RenewalOptions, SecondOrderDae, Shrink, StepTry, Warn,
 };
 use super::Tolerance;
 use super::{
@@ -391,8 +389,8 @@ struct Run<'g, 's> {
     /// Start and size of the last accepted step (dense output).
     t_old: f64,
     h_last: f64,
-    /// The last Newton failure (named when the step collapses).
-    last_newton: Option<StepCut>,
+    /// The failure path's state (the cause named when the step collapses).
+    cuts: Cuts,
 }
 
 impl<'g, 's> Run<'g, 's> {
@@ -461,7 +459,17 @@ impl<'g, 's> Run<'g, 's> {
             last_acc: None,
             t_old: t0,
             h_last: 0.0,
-            last_newton: None,
+            // the augmented Lagrangian names the first failure of a
+            // collapse and keeps the first warnings
+            cuts: Cuts::new(CutRules {
+                shrink: Shrink::Halve,
+                warn: if augmented {
+                    Warn::First
+                } else {
+                    Warn::FirstAndLatest
+                },
+                first_cause: augmented,
+            }),
         }
     }
 
@@ -490,8 +498,17 @@ impl<'g, 's> Run<'g, 's> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
-        (self.stats, &mut self.warnings)
+    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
+        (&mut self.stats, &mut self.warnings)
+    }
+    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
+        self.attempt(t_new, h)
+    }
+    fn renewal(&mut self) -> &mut Renewal {
+        &mut self.renewal
+    }
+    fn cuts(&mut self) -> &mut Cuts {
+        &mut self.cuts
     }
 }
 
@@ -564,52 +581,22 @@ impl Stepper for Run<'_, '_> {
             }
             let hmin = self.min_step(self.t);
             if h_try < hmin && self.t + h_try < self.t_end {
-                let cause = self
-                    .last_newton
-                    .clone()
-                    .unwrap_or(StepCut::ErrorTest { err: f64::NAN });
-                return Err(self.too_small(h_try, hmin, cause));
+                return Err(self.too_small(h_try, hmin, self.cuts.cause()));
             }
             let t_new = if h_try == self.t_end - self.t {
                 self.t_end
             } else {
                 self.t + h_try
             };
-            // Attempt, with one retry on a fresh factorisation.
-            let mut outcome = self.attempt(t_new, h_try);
-            if let Attempt::Failed(_) = &outcome {
-                if !self.renewal.fresh() && !self.augmented {
-                    self.renewal.renew();
-                    outcome = self.attempt(t_new, h_try);
-                }
-            }
-            if let Attempt::Failed(reason) = outcome {
-                self.stats.newton_failures += 1;
-                let msg = format!("Newton failed at t = {t_new} with h = {h_try:.3e}: {reason}");
-                if self.warnings.len() < 20 {
-                    self.warnings.push(msg);
-                } else if let (false, Some(last)) = (self.augmented, self.warnings.last_mut()) {
-                    *last = msg;
-                }
-                let cut = StepCut::Newton {
-                    t: t_new,
-                    h: h_try,
-                    source: Arc::new(reason),
-                };
-                let h_min = self.min_step(self.t);
-                if h_try * 0.5 < h_min {
-                    let cause = match self.augmented {
-                        true => self.last_newton.take().unwrap_or(cut),
-                        false => cut,
-                    };
-                    return Err(self.too_small(h_try * 0.5, h_min, cause));
-                }
-                if self.augmented {
-                    self.last_newton.get_or_insert(cut);
-                } else {
-                    self.last_newton = Some(cut);
-                }
-                self.h = h_try * 0.5;
+            let x = StepTry {
+                t: self.t,
+                t_new,
+                h: h_try,
+                h_ctl: h_try,
+                h_min: hmin,
+            };
+            if let Attempted::Cut(h) = attempt_or_cut(self, x)? {
+                self.h = h;
                 self.no_growth = true;
                 continue;
             }
@@ -659,8 +646,8 @@ impl Stepper for Run<'_, '_> {
             }
             if self.augmented {
                 self.project_motion(t_new, h_try)?;
-                self.last_newton = None;
             }
+            self.cuts.accepted();
             self.t_old = self.t;
             self.h_last = h_try;
             if self.opts.extrapolate {

@@ -45,13 +45,6 @@ pub(super) const SINGLE_CORRECTION_AT_FLOOR: f64 = 4.0;
 /// predictors before one step runs on the older matrix again.
 pub(super) const QUAD_REUSE: usize = 10;
 
-/// How a step attempt ended.
-pub(super) enum Attempt {
-    Converged,
-    /// Newton did not converge (reason).
-    Failed(SystemError),
-}
-
 impl Run<'_, '_> {
     /// With [`ImplicitOptions::extrapolate`], after the step `h` to
     /// `self.new` was accepted: the next predictor extrapolates q̈ linearly
@@ -121,7 +114,7 @@ impl Run<'_, '_> {
     /// augmented Lagrangian's hook ([`SecondOrderDae::multiplier_update`])
     /// λ* kept from the last step and updated after every correction
     /// (module docs of [`super::augmented`]).
-    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Attempt {
+    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Result<(), SystemError> {
         let p = self.p;
         let (n, tol) = (self.n, self.opts.newton_tol);
         let s = p.beta * h * h;
@@ -168,9 +161,7 @@ impl Run<'_, '_> {
             new.lam.copy_from_slice(&cur.lam);
         }
         if self.renewal.at_predictor(h) {
-            if let Err(e) = self.factor(t1, h, c) {
-                return Attempt::Failed(e);
-            }
+            self.factor(t1, h, c)?;
         }
         // The multipliers start from 0 (module docs of [`super`], "Newton
         // iteration"): the first correction computes λ_{n+1} whole, in the
@@ -222,32 +213,22 @@ impl Run<'_, '_> {
             if it > 0 {
                 if let Some(al) = self.sys.multiplier_update() {
                     let new = &mut self.new;
-                    if let Err(e) = al.update_multipliers(t1, &new.q, &mut new.lam) {
-                        return Attempt::Failed(e);
-                    }
+                    al.update_multipliers(t1, &new.q, &mut new.lam)?;
                 }
             }
             if renew_now || self.renewal.before_correction(conv.round()) {
                 renew_now = false;
-                if let Err(e) = self.factor(t1, h, c) {
-                    return Attempt::Failed(e);
-                }
+                self.factor(t1, h, c)?;
             }
             self.stats.residual_evaluations += 1;
             let new = &self.new;
-            if let Err(e) =
-                self.sys
-                    .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)
-            {
-                return Attempt::Failed(e);
-            }
+            self.sys
+                .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
             // solving for r (not −r) gives −Δ, the correction negated
             // exactly (the solve is linear and rounds symmetrically):
             // `correct` and the multipliers subtract it, the same bits as
             // adding Δ
-            if let Err(e) = self.sys.solve(t1, &mut self.r) {
-                return Attempt::Failed(e);
-            }
+            self.sys.solve(t1, &mut self.r)?;
             self.stats.newton_iterations += 1;
             it += 1;
             // the correction's norm in tolerances (floored at a few ulps of
@@ -268,7 +249,7 @@ impl Run<'_, '_> {
                 |(n0, r0), (n1, r1)| (n0.max(n1), r0.max(r1)),
             );
             if !dnorm.is_finite() {
-                return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
+                return Err(SystemError::msg("non-finite Newton correction"));
             }
             // λ −= (−Δλ)/s, in two fixed halves concurrently for large n
             // (the augmented Lagrangian's solve has no multiplier rows)
@@ -329,12 +310,12 @@ impl Run<'_, '_> {
                     false
                 }
                 Assessment::Diverged | Assessment::RenewAfterUndo | Assessment::Hopeless => {
-                    match self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q]) {
-                        Ok(true) => return Attempt::Converged,
-                        Ok(false) => {}
-                        Err(e) => return Attempt::Failed(e),
+                    // an iterate at the constraints' rounding floor has converged
+                    // (the augmented Lagrangian has its own noise rule)
+                    if !augmented && self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q])? {
+                        return Ok(());
                     }
-                    return Attempt::Failed(SystemError::msg(format!(
+                    return Err(SystemError::msg(format!(
                         "Newton diverges (contraction θ = {:.3}, correction {:.3e} × tol)",
                         conv.theta(),
                         dnorm
@@ -355,11 +336,9 @@ impl Run<'_, '_> {
                     // the last multiplier update at the converged positions
                     if let Some(al) = self.sys.multiplier_update() {
                         let new = &mut self.new;
-                        if let Err(e) = al.update_multipliers(t1, &new.q, &mut new.lam) {
-                            return Attempt::Failed(e);
-                        }
+                        al.update_multipliers(t1, &new.q, &mut new.lam)?;
                     }
-                    return Attempt::Converged;
+                    return Ok(());
                 }
                 None => {
                     if let Some(eta) = conv.rate_to_keep() {
@@ -368,7 +347,7 @@ impl Run<'_, '_> {
                     if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
                         self.renewal.renew();
                     }
-                    return Attempt::Converged;
+                    return Ok(());
                 }
                 Some(Next::Iterate) => {
                     if restart {
@@ -380,7 +359,7 @@ impl Run<'_, '_> {
                 // iterate once and carry on
                 Some(Next::Renew) => renew_now = true,
                 Some(Next::Exhausted) => {
-                    return Attempt::Failed(SystemError::msg(format!(
+                    return Err(SystemError::msg(format!(
                         "no convergence in {it} iterations (last correction {:.3e} × tol, θ = {:.3})",
                         conv.last(),
                         conv.theta()
