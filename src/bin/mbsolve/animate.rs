@@ -523,17 +523,21 @@ pub fn nearest_row(t: &[f64], at: Option<f64>) -> usize {
     }
 }
 
+/// The SVG `points` attribute of `p` through the pixel map `px`:
+/// `"x,y x,y …"` with two decimals.
+fn svg_points(p: &[[f64; 2]], px: &dyn Fn([f64; 2]) -> (f64, f64)) -> String {
+    p.iter()
+        .map(|q| {
+            let (a, b) = px(*q);
+            format!("{a:.2},{b:.2}")
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// One mark as SVG, through the pixel map `px` (world or body frame).
 fn svg_mark(o: &mut String, m: &Mark, px: &dyn Fn([f64; 2]) -> (f64, f64), k: f64) {
-    let pts = |p: &[[f64; 2]]| {
-        p.iter()
-            .map(|q| {
-                let (a, b) = px(*q);
-                format!("{a:.2},{b:.2}")
-            })
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
+    let pts = |p: &[[f64; 2]]| svg_points(p, px);
     match m {
         Mark::Fill { points, ink } => {
             let fill = if *ink == Ink::Body {
@@ -693,15 +697,7 @@ fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), Str
         let (Mark::Line { points, ink } | Mark::Fill { points, ink }) = m else {
             continue;
         };
-        let pts = |p: &[[f64; 2]]| {
-            p.iter()
-                .map(|q| {
-                    let (a, b) = world_px(*q);
-                    format!("{a:.2},{b:.2}")
-                })
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
+        let pts = |p: &[[f64; 2]]| svg_points(p, &world_px);
         let values: Vec<String> = frames
             .iter()
             .map(|f| match &f[j] {
