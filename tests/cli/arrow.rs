@@ -4,12 +4,12 @@
 //! also after SIGINT, and a clear error for an unknown format.
 #![cfg(feature = "arrow")]
 
+use crate::common::cli::{exe, mbsolve as run};
+use crate::common::process;
 use arrow_array::{Array, Float64Array};
 use arrow_ipc::reader::FileReader;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use crate::common::cli::{exe, mbsolve as run};
-use crate::common::process;
+use std::process::{Command, Stdio};
 
 /// Columns (name, unit, values) of an Arrow IPC file.
 fn read_arrow(path: &Path) -> Vec<(String, String, Vec<f64>)> {

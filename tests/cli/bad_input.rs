@@ -4,10 +4,10 @@
 //! own status) — never a panic (101), an abort (134) or a hang — and bounded
 //! work is checked before anything large is allocated.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
 use crate::common::cli::{exe, mbsolve, scenario, stderr};
 use crate::common::process;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 
 /// Runs `args`; asserts exit status 2 after at most `cpu_limit_s` CPU
 /// seconds (the work the binary did, whatever the machine's load), no
@@ -403,11 +403,7 @@ fn bad_keys_and_values_on_the_command_line_and_in_toml() {
         ),
         ("gravity=[0, inf]", &["(--set gravity)", "gravity[1]: inf"]),
     ] {
-        rejects(
-            &["run", &f, "--set", set, "--out", out],
-            needles,
-            20.0,
-        );
+        rejects(&["run", &f, "--set", set, "--out", out], needles, 20.0);
     }
     for (param, needles) in [
         (

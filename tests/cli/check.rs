@@ -3,10 +3,9 @@
 //! Grübler's count and a deliberately doubled joint) and clear errors.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-use crate::common::process;
 use crate::common::cli::{exe, mbsolve};
+use crate::common::process;
 
 /// The value printed after `label` in the report.
 fn field(out: &str, label: &str) -> usize {

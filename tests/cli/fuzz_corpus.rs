@@ -24,9 +24,9 @@
 //! In the scenario text, `@repeat(N, "text")@` stands for `text` repeated
 //! N times (large inputs without large files).
 
+use crate::common::process;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use crate::common::process;
 
 struct Case {
     args: Vec<String>,

@@ -1,9 +1,8 @@
 //! `mbsolve plot` and `mbsolve animate`: files with the requested content,
 //! clear errors for bad requests.
 
-use std::path::Path;
-use std::process::{Command, Output};
 use crate::common::cli::{mbsolve, stderr};
+use std::path::Path;
 
 /// Run the four-bar with output every `dt` into `dir`; returns the CSV path.
 fn fourbar_run(dir: &Path, dt: &str) -> String {

@@ -1,8 +1,8 @@
 //! The `mbsolve` binary: outputs of `run`, `--set`, and clear errors for bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use crate::common::cli::{mbsolve, stderr};
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 fn fourbar_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml")

@@ -4,10 +4,10 @@
 //! a killed run leaves no file that claims completion; no writing through
 //! symlinks; unwritable outputs are refused before the run.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
 use crate::common::cli::{exe, mbsolve as run};
 use crate::common::process;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
 
 fn fourbar() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -5,8 +5,8 @@
 //! and wait for events (a file, a line) instead of sleeping for a guessed
 //! time.
 
-use std::os::unix::process::ExitStatusExt;
 use std::io::Read;
+use std::os::unix::process::ExitStatusExt;
 use std::process::{Child, Command, ExitStatus, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -66,7 +66,10 @@ pub fn wait_with_usage(child: &mut Child) -> (ExitStatus, Usage) {
 /// slow machine, whose runnable processes still get several percent) is
 /// killed and reported too, so that a hang fails instead of stalling the
 /// suite.
-pub fn wait_cpu_bounded(child: &mut Child, cpu_limit_s: f64) -> Result<(ExitStatus, Usage), String> {
+pub fn wait_cpu_bounded(
+    child: &mut Child,
+    cpu_limit_s: f64,
+) -> Result<(ExitStatus, Usage), String> {
     let start = Instant::now();
     loop {
         if let Some(done) = try_reap(child, false) {
@@ -113,7 +116,9 @@ pub fn wait_for(
             return Err(format!("{cpu:.1} CPU-s used and not yet {what}"));
         }
         if wall > 60.0 && cpu < 0.01 * wall {
-            return Err(format!("blocked ({cpu:.2} CPU-s in {wall:.0} s) before {what}"));
+            return Err(format!(
+                "blocked ({cpu:.2} CPU-s in {wall:.0} s) before {what}"
+            ));
         }
         std::thread::sleep(Duration::from_millis(20));
     }

@@ -8,7 +8,12 @@ pub fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
     assert_eq!(a.t.len(), b.t.len(), "output grids differ in length");
     let mut e: f64 = 0.0;
     for k in 0..a.t.len() {
-        assert!((a.t[k] - b.t[k]).abs() < 1e-12, "output {k}: t {} vs {}", a.t[k], b.t[k]);
+        assert!(
+            (a.t[k] - b.t[k]).abs() < 1e-12,
+            "output {k}: t {} vs {}",
+            a.t[k],
+            b.t[k]
+        );
         for (x, y) in a.q[k].iter().zip(&b.q[k]) {
             e = e.max((x - y).abs());
         }

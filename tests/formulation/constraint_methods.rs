@@ -2,6 +2,9 @@
 //! penalty formulation, and the parallelogram-loop chain through its
 //! singular configurations against its one-degree-of-freedom reference.
 
+use crate::common::fourbar::fourbar;
+use crate::common::parallelogram::{crossings, departure as chain_error};
+use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::{
     Baumgarte, Formulation, FormulationError, Index1, Index1Options, Penalty, PenaltyParams,
@@ -11,9 +14,6 @@ use mbsolve::integrate::{Method, OdeSystem, Tolerance};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-use crate::common::fourbar::fourbar;
-use crate::common::parallelogram::{crossings, departure as chain_error};
-use crate::common::trajectory::max_diff;
 
 fn norm_inf(v: &[f64]) -> f64 {
     v.iter().fold(0.0_f64, |a, b| a.max(b.abs()))

@@ -1,11 +1,11 @@
 //! Problem A (four-bar, paper §4.1): physics checks of the whole pipeline.
 
+use crate::common::fourbar::fourbar;
 use mbsolve::formulation::{Baumgarte, Formulation, Index1, Index1Options};
 use mbsolve::integrate::{Method, Tolerance};
-use mbsolve::scenario::FOURBAR_TOML;
-use mbsolve::scenario::{self, Scenario};
+
+use mbsolve::scenario::Scenario;
 use mbsolve::simulation::simulate;
-use crate::common::fourbar::fourbar;
 
 fn tight(sc: &mut Scenario) {
     sc.run.method = Method::Ode45;

@@ -2,6 +2,9 @@
 //! 1982), the direct violation correction (Yu & Chen 2000) and the
 //! step-size Baumgarte rule.
 
+use crate::common::fourbar::fourbar;
+use crate::common::parallelogram::crossings;
+use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::{
     Baumgarte, BaumgarteRule, Correction, Formulation, Index1, Index1Options, Projection,
@@ -9,9 +12,6 @@ use mbsolve::formulation::{
 use mbsolve::integrate::{Method, OdeSystem, Tolerance};
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-use crate::common::fourbar::fourbar;
-use crate::common::parallelogram::crossings;
-use crate::common::trajectory::max_diff;
 
 fn run(sc: &Scenario, cfg: &RunConfig) -> (Trajectory, Summary) {
     simulate(&sc.system, &sc.q0, &sc.qd0, cfg, &mut []).unwrap()

@@ -2,10 +2,10 @@
 //! the regularised sparse LDLᵀ solves them without NaNs and the summary
 //! counts the regularised pivots.
 
+use crate::common::parallelogram::branch_errors;
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
-use crate::common::parallelogram::branch_errors;
 
 fn with_extra(text: &str, overrides: &[&str]) -> scenario::Scenario {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();

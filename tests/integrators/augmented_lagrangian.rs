@@ -3,13 +3,13 @@
 //! generalized-α — through singular configurations, with redundant
 //! constraints, and converging to ode45 with order 2.
 
+use crate::common::parallelogram::{branch_errors, crossings};
+use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::Formulation;
 use mbsolve::integrate::Method;
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-use crate::common::parallelogram::{branch_errors, crossings};
-use crate::common::trajectory::max_diff;
 
 fn parse(text: &str, overrides: &[&str]) -> Result<Scenario, String> {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();

@@ -3,10 +3,10 @@
 //! rtol 1e-10 on two hand-derived minimal-coordinate models) at N = 10,
 //! with the index-1 path (ode45) and generalized-α.
 
+use crate::common::stiff_chain::{tip_after, T_END};
 use mbsolve::builders::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};
 use mbsolve::integrate::{Method, Tolerance};
 use mbsolve::simulation::{simulate, RunConfig};
-use crate::common::stiff_chain::{tip_after, T_END};
 
 fn tip_at_end(method: Method, h: Option<f64>, rtol: f64) -> (f64, usize, Option<u64>) {
     let mut cfg = RunConfig {

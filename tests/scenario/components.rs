@@ -4,6 +4,7 @@
 //! two-rod assembly through generalized-α at N = 100 per rod, the generated
 //! kernels, and bad input naming file, key and value.
 
+use crate::common::cli::mbsolve;
 use mbsolve::builders::{add_named_rod, n_link_pendulum, RodParams};
 use mbsolve::constraints::Revolute;
 use mbsolve::forces::{Law, PointSpringDamper};
@@ -11,8 +12,6 @@ use mbsolve::model::{BodyRef, SystemBuilder};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, Trajectory};
 use std::path::Path;
-use std::process::{Command, Output};
-use crate::common::cli::mbsolve;
 
 fn shipped(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
