@@ -11,7 +11,7 @@
 use crate::common::rod::cantilever_at;
 use faer::{Mat, Side};
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
-use mbsolve::builders::{cantilever, RodParams};
+use mbsolve::builders::RodParams;
 use mbsolve::scenario;
 use std::f64::consts::PI;
 

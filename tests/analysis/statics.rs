@@ -11,7 +11,7 @@
 use crate::common::rod::cantilever_at;
 use faer::Mat;
 use mbsolve::analysis::{stability, static_equilibrium, StaticError, StaticOptions};
-use mbsolve::builders::{cantilever, RodParams};
+use mbsolve::builders::RodParams;
 use mbsolve::scenario;
 use std::f64::consts::PI;
 

@@ -5,7 +5,6 @@
 
 use crate::common::cli::{mbsolve, stderr, stdout};
 use std::path::Path;
-use std::process::{Command, Output};
 
 /// Run a scenario with overrides into `dir`; returns the CSV path.
 fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {

@@ -9,7 +9,7 @@ use crate::common::process;
 use arrow_array::{Array, Float64Array};
 use arrow_ipc::reader::FileReader;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 /// Columns (name, unit, values) of an Arrow IPC file.
 fn read_arrow(path: &Path) -> Vec<(String, String, Vec<f64>)> {

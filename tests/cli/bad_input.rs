@@ -7,7 +7,7 @@
 use crate::common::cli::{exe, mbsolve, scenario, stderr};
 use crate::common::process;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 /// Runs `args`; asserts exit status 2 after at most `cpu_limit_s` CPU
 /// seconds (the work the binary did, whatever the machine's load), no

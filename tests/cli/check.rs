@@ -3,7 +3,6 @@
 //! Grübler's count and a deliberately doubled joint) and clear errors.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use crate::common::cli::{exe, mbsolve};
 use crate::common::process;

@@ -5,7 +5,6 @@
 
 use crate::common::cli::{mbsolve, stderr};
 use std::path::Path;
-use std::process::{Command, Output};
 
 /// Write a CSV of `t` and the named columns.
 fn write_csv(path: &Path, t: &[f64], cols: &[(&str, Vec<f64>)]) {

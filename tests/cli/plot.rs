@@ -3,7 +3,6 @@
 
 use crate::common::cli::{mbsolve, stderr};
 use std::path::Path;
-use std::process::{Command, Output};
 
 /// Run the four-bar with output every `dt` into `dir`; returns the CSV path.
 fn fourbar_run(dir: &Path, dt: &str) -> String {

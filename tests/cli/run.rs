@@ -2,7 +2,7 @@
 
 use crate::common::cli::{mbsolve, stderr};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 fn fourbar_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml")

@@ -7,7 +7,7 @@
 use crate::common::cli::{exe, mbsolve as run};
 use crate::common::process;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 
 fn fourbar() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))

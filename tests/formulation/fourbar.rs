@@ -3,8 +3,8 @@
 use crate::common::fourbar::fourbar;
 use mbsolve::formulation::{Baumgarte, Formulation, Index1, Index1Options};
 use mbsolve::integrate::{Method, Tolerance};
-use mbsolve::scenario::FOURBAR_TOML;
-use mbsolve::scenario::{self, Scenario};
+
+use mbsolve::scenario::Scenario;
 use mbsolve::simulation::simulate;
 
 fn tight(sc: &mut Scenario) {

@@ -24,7 +24,7 @@ use mbsolve::integrate::{
     integrator, ComplexNewton, FnSystem, ImplicitOptions, Method, Observer, OdeOptions, Radau5,
     RadauTableau, SecondOrderDae, SystemError, Tolerance,
 };
-use mbsolve::simulation::{simulate, RunConfig};
+use mbsolve::simulation::RunConfig;
 use std::ops::ControlFlow;
 
 // ---------------------------------------------------------------------------

@@ -12,7 +12,6 @@ use mbsolve::model::{BodyRef, SystemBuilder};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, Trajectory};
 use std::path::Path;
-use std::process::{Command, Output};
 
 fn shipped(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
