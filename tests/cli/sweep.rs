@@ -186,6 +186,7 @@ fn runs_side_by_side_each_run_on_one_thread() {
             assert_eq!(s["threads_setting"], expect, "{set:?} run {k}");
             if expect == "1" {
                 assert_eq!(s["halves_split"], 0);
+                assert_eq!(s["threads_rule"]["decision"], "one");
             }
         }
     }

@@ -291,10 +291,11 @@ fn threads_environment_variable_reaches_the_run() {
         )
         .unwrap()
     };
-    for (env, set, expect) in [
-        ("1", &[][..], "1"),
-        ("2", &[][..], "2"),
-        ("2", &["integrator.threads=1"][..], "1"),
+    for (env, set, expect, decision) in [
+        ("1", &[][..], "1", "one"),
+        ("2", &[][..], "2", "two"),
+        ("2", &["integrator.threads=1"][..], "1", "one"),
+        ("auto", &[][..], "auto", "small"),
     ] {
         let o = run(env, set);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -303,6 +304,17 @@ fn threads_environment_variable_reaches_the_run() {
             s["threads_setting"], expect,
             "MBSOLVE_THREADS={env} {set:?}"
         );
+        // the rule's decision and reason, in the summary and on the console
+        assert_eq!(s["threads_rule"]["decision"], decision, "{env} {set:?}");
+        let reason = s["threads_reason"].as_str().unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        let split = if s["split"] == true {
+            "split"
+        } else {
+            "not split"
+        };
+        let line = format!("threads: {} used, solves {split}; {reason}", s["threads"]);
+        assert!(out.contains(&line), "{out}");
         if expect == "1" {
             assert_eq!(s["threads"], 1);
             assert_eq!(s["halves_split"], 0);

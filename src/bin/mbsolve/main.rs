@@ -616,6 +616,18 @@ fn run(
         summary.max_constraint_norm,
         summary.final_constraint_norm
     );
+    // the thread rule's decision (crate::parallel::Rule)
+    let extra = |k: &str| summary.extra.get(k).cloned().unwrap_or_default();
+    report!(
+        "threads: {} used, solves {}; {}",
+        extra("threads"),
+        if extra("split").as_bool() == Some(true) {
+            "split"
+        } else {
+            "not split"
+        },
+        extra("threads_reason").as_str().unwrap_or("")
+    );
     if let Some(c) = &contacts {
         match c.first_contact() {
             Some(t) => report!(
