@@ -6,8 +6,8 @@ use crate::formulation::{
     Index3, Index3Complex, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
-    integrator, AugmentedLagrangian, Bdf, Family, GenAlpha, ImplicitOptions, Integrator,
-    IntegratorError, Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
+    integrator, Bdf, Family, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method,
+    Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use crate::parallel::{with_threads, Threads};
