@@ -550,3 +550,72 @@ fn cli_modes_about_the_state_of_a_run_at_t() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("t=abc"));
 }
+
+/// The shipped quarter car (bodies only: the road a driven body, the wheel
+/// and the chassis held to vertical motion by drives): `modes` draws each
+/// mode with the model's drawing (animated SVG, GIF, a PNG of the largest
+/// deflection), and the motion drawn is the 2 × 2 closed form's shape —
+/// body bounce (the wheel follows at (k_s − ω² m_s)/k_s ≈ 0.1 of the
+/// chassis) and wheel hop (the wheel at ≈ −78 times the chassis).
+#[test]
+fn quarter_car_mode_animations_show_body_bounce_and_wheel_hop() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    let scen = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/quarter_car.toml");
+    let md = std::process::Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args(["modes", scen, "--count", "2", "--animate", "2", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        md.status.success(),
+        "{}",
+        String::from_utf8_lossy(&md.stderr)
+    );
+    let (ms, mu, ks, kt): (f64, f64, f64, f64) = (250.0, 35.0, 16000.0, 160000.0);
+    let (a, b, c) = (ms * mu, -(ms * (ks + kt) + mu * ks), ks * kt);
+    let disc = (b * b - 4.0 * a * c).sqrt();
+    let w2 = [(-b - disc) / (2.0 * a), (-b + disc) / (2.0 * a)];
+    for k in 0..2 {
+        for ext in ["svg", "gif", "png"] {
+            let p = out.join(format!("quarter_car.mode{}.{ext}", k + 1));
+            assert!(std::fs::metadata(&p).unwrap().len() > 0, "{}", p.display());
+        }
+        let svg =
+            std::fs::read_to_string(out.join(format!("quarter_car.mode{}.svg", k + 1))).unwrap();
+        let hz = w2[k].sqrt() / (2.0 * PI);
+        assert!(
+            svg.contains(&format!("mode {}: {hz:.4} Hz", k + 1)),
+            "no caption with {hz:.4} Hz"
+        );
+        let dec = png::Decoder::new(
+            std::fs::File::open(out.join(format!("quarter_car.mode{}.png", k + 1))).unwrap(),
+        );
+        let info = dec.read_info().unwrap().info().clone();
+        assert!(info.width >= 360 && info.height >= 360);
+        // the drawn motion: rows 0 (the equilibrium) and 12 (a quarter of
+        // the 48-frame period: the largest deflection)
+        let mut r =
+            csv::Reader::from_path(out.join(format!("quarter_car.mode{}.csv", k + 1))).unwrap();
+        let h = r.headers().unwrap().clone();
+        let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+        let rows: Vec<Vec<f64>> = r
+            .records()
+            .map(|x| x.unwrap().iter().map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let (yw, yc) = (col("y2"), col("y3"));
+        let ratio = (rows[12][yw] - rows[0][yw]) / (rows[12][yc] - rows[0][yc]);
+        let want = (ks - w2[k] * ms) / ks;
+        println!("mode {}: wheel/chassis {ratio} vs {want}", k + 1);
+        assert!(
+            (ratio - want).abs() < 1e-8 * want.abs().max(1.0),
+            "{ratio} vs {want}"
+        );
+        // x and φ held by the drives: no sideways or rotating motion drawn
+        for name in ["x2", "phi2", "x3", "phi3"] {
+            assert!(rows
+                .iter()
+                .all(|row| (row[col(name)] - rows[0][col(name)]).abs() < 1e-12));
+        }
+    }
+}

@@ -341,3 +341,69 @@ fn redundant_pins_do_not_stop_the_stability_report() {
     let st = stability(&sc.system, 0.0, &up, &lam, 1e-3).unwrap();
     assert_eq!((st.stable, st.unstable, st.neutral), (0, 1, 0));
 }
+
+/// A parallelogram with a redundant link (one rigid coupler pinned to the
+/// tips of three cranks: 12 rows of rank 11) hangs at rest under
+/// gravity: the same configuration as the chain of two separate couplers
+/// (no redundancy), the cranks straight down (θ = −π/2, the minimum of
+/// V = C sin θ), the ground pivots carrying the whole weight (Newton–Euler
+/// of the mechanism), the redundant rows' λ zero as documented.
+#[test]
+fn redundant_parallelogram_hangs_like_its_non_redundant_twin() {
+    use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
+    let p = ParallelogramChain {
+        loops: 2,
+        theta0: -1.2,
+        rate0: 0.0,
+        redundant: true,
+        ..Default::default()
+    };
+    let (r, g) = (p.crank_length, p.gravity);
+    let weight = g * (3.0 * p.crank_mass + 2.0 * p.coupler_mass);
+    let mut equilibria = Vec::new();
+    for redundant in [true, false] {
+        let p = ParallelogramChain {
+            redundant,
+            ..p.clone()
+        };
+        let sys = parallelogram_chain(&p).unwrap();
+        let (q0, _) = sys.initial_state();
+        let eq = static_equilibrium(&sys, &q0, StaticOptions::default())
+            .unwrap_or_else(|e| panic!("redundant = {redundant}: {e}"));
+        let dropped = usize::from(redundant);
+        assert_eq!(eq.redundant.len(), dropped, "{:?}", eq.redundant);
+        for &row in &eq.redundant {
+            assert_eq!(eq.lambda[row], 0.0);
+        }
+        assert!(eq.constraint_residual < 1e-12, "{}", eq.constraint_residual);
+        // cranks straight down: angle −π/2, centre at (i L, −r/2)
+        for i in 0..3 {
+            let ang = eq.q[3 * i + 2].rem_euclid(2.0 * PI);
+            assert!((ang - 1.5 * PI).abs() < 1e-9, "crank {i}: φ = {ang}");
+            assert!((eq.q[3 * i] - i as f64 * p.spacing).abs() < 1e-12);
+            assert!((eq.q[3 * i + 1] + 0.5 * r).abs() < 1e-12);
+        }
+        // the couplers' centres at y = −r
+        for b in 3..sys.bodies().len() {
+            assert!((eq.q[3 * b + 1] + r).abs() < 1e-12, "body {b}");
+        }
+        // the ground pivots (joints 0 … 2) carry the weight, no side force
+        let map = sys.reaction_map();
+        let mut jac = vec![0.0; sys.jacobian_pattern().len()];
+        sys.jacobian_values(&eq.q, 0.0, &mut jac);
+        let mut react = vec![0.0; 3 * sys.constraints().len()];
+        sys.joint_reactions(&map, &jac, &eq.lambda, &mut react);
+        let (fx, fy) = (0..3).fold((0.0, 0.0), |(a, b), j| {
+            (a + react[3 * j], b + react[3 * j + 1])
+        });
+        println!("redundant = {redundant}: pivots carry ({fx}, {fy}) N of {weight} N");
+        assert!(fx.abs() < 1e-9 * weight, "{fx}");
+        assert!((fy - weight).abs() < 1e-9 * weight, "{fy} vs {weight}");
+        let st = stability(&sys, 0.0, &eq.q, &eq.lambda, 1e-3).unwrap();
+        assert_eq!((st.stable, st.unstable, st.neutral), (1, 0, 0), "{st:?}");
+        equilibria.push(eq.q[..9].to_vec());
+    }
+    for (a, b) in equilibria[0].iter().zip(&equilibria[1]) {
+        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    }
+}

@@ -288,3 +288,90 @@ fn ground_support_is_drawn_away_from_the_pinned_body() {
         }
     }
 }
+
+/// The delays (numerator, denominator) of every frame of an APNG, and the
+/// frame count its animation control announces, decoded by the `png` crate.
+fn apng_delays(path: &Path) -> (u32, Vec<(u16, u16)>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = dec.read_info().expect("a PNG");
+    let announced = reader
+        .info()
+        .animation_control
+        .expect("an animated PNG (acTL)")
+        .num_frames;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let mut delays = Vec::new();
+    while reader.next_frame(&mut buf).is_ok() {
+        let fc = reader.info().frame_control.expect("a frame control (fcTL)");
+        delays.push((fc.delay_num, fc.delay_den));
+    }
+    (announced, delays)
+}
+
+#[test]
+fn apng_plays_at_the_speed_it_states() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.001"]);
+    let apng = dir.path().join("a.apng");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--speed",
+        "2",
+        "--out",
+        apng.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (announced, delays) = apng_delays(&apng);
+    // 2 s at twice real time: a frame every 20 ms of wall time, 51 frames
+    assert_eq!(announced as usize, delays.len());
+    assert_eq!(delays.len(), 51);
+    assert!(
+        delays.iter().all(|&(n, d)| d == 1000 && n >= 20),
+        "{delays:?}"
+    );
+    let shown: u32 = delays[..delays.len() - 1].iter().map(|d| d.0 as u32).sum();
+    assert_eq!(shown, 1000, "the frames before the last span 2 s / 2");
+    assert!(
+        stdout(&o).contains("APNG: 51 of 2001 output rows shown"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// MP4 through ffmpeg where it is on the PATH; without it the command
+/// fails with a message that names ffmpeg and the formats that need no
+/// external tool (the test says which case it checked).
+#[test]
+fn video_needs_ffmpeg_or_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.01"]);
+    let mp4 = dir.path().join("a.mp4");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--out",
+        mp4.to_str().unwrap(),
+    ]);
+    let has_ffmpeg = Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if has_ffmpeg {
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(std::fs::metadata(&mp4).unwrap().len() > 0);
+        assert!(stdout(&o).contains("video: "), "{}", stdout(&o));
+    } else {
+        println!(
+            "skipped the MP4 encoding: ffmpeg is not on the PATH; checked the message instead"
+        );
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(
+            e.contains("ffmpeg") && e.contains(".gif") && e.contains(".apng"),
+            "{e}"
+        );
+    }
+}

@@ -368,4 +368,61 @@ fn reproduce_writes_every_figure_with_its_data_and_the_velocity_norm() {
         redraw.contains("=-2.5e1'") && redraw.contains("=2.5e1'"),
         "{redraw}"
     );
+
+    // the chain's first three mode shapes beside the Euler–Bernoulli
+    // cantilever's, with its data
+    let cm = dir.path().join("chain_modes");
+    for ext in ["svg", "csv", "columns.json", "redraw.txt"] {
+        assert!(cm.join(format!("chain_modes.{ext}")).exists(), "{ext}");
+    }
+    let joints = cm.join("chain_modes_joints.csv");
+    let s = csv_column(&joints, "s [m]");
+    // the beam's shapes from 1 + cos β cosh β = 0, solved here by bisection
+    let root = |mut a: f64, mut b: f64| {
+        let f = |x: f64| 1.0 + x.cos() * x.cosh();
+        for _ in 0..200 {
+            let c = 0.5 * (a + b);
+            if f(a) * f(c) <= 0.0 {
+                b = c;
+            } else {
+                a = c;
+            }
+        }
+        0.5 * (a + b)
+    };
+    let betas = [root(1.0, 3.0), root(4.0, 6.0), root(7.0, 9.0)];
+    let header = std::fs::read_to_string(cm.join("chain_modes.csv")).unwrap();
+    let header = header.lines().next().unwrap().to_string();
+    let (ei, rho_a) = (2.1e11 * 0.03f64.powi(4) / 12.0, 7850.0 * 0.03 * 0.03);
+    for (k, &b) in betas.iter().enumerate() {
+        let w = |x: f64| {
+            let sg = (b.cosh() + b.cos()) / (b.sinh() + b.sin());
+            (b * x).cosh() - (b * x).cos() - sg * ((b * x).sinh() - (b * x).sin())
+        };
+        let beam = csv_column(&joints, &format!("Euler–Bernoulli mode {}", k + 1));
+        for (x, v) in s.iter().zip(&beam) {
+            assert!((v - w(*x) / w(1.0)).abs() < 1e-9, "beam mode {}", k + 1);
+        }
+        let hz = b * b * (ei / rho_a).sqrt() / (2.0 * std::f64::consts::PI);
+        assert!(
+            header.contains(&format!("Euler–Bernoulli, mode {} ({hz:.2} Hz)", k + 1)),
+            "{header}"
+        );
+        // the chain's shape: pinned at the pivot, 1 at the free end, k − 1
+        // nodes as the beam's, within 0.08 of it at N = 20 (first order)
+        let chain = csv_column(&joints, &format!("chain mode {}", k + 1));
+        assert!(chain[0].abs() < 1e-12 && (chain[chain.len() - 1] - 1.0).abs() < 1e-12);
+        let signs: Vec<f64> = chain
+            .iter()
+            .filter(|v| v.abs() > 1e-9)
+            .map(|v| v.signum())
+            .collect();
+        let nodes = signs.windows(2).filter(|p| p[0] != p[1]).count();
+        assert_eq!(nodes, k, "chain mode {}", k + 1);
+        let diff = chain
+            .iter()
+            .zip(&beam)
+            .fold(0.0f64, |a, (c, e)| a.max((c - e).abs()));
+        assert!(diff < 0.08, "chain mode {}: {diff}", k + 1);
+    }
 }
