@@ -63,9 +63,10 @@ fn every_contact_element_is_reported() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("contact floor: first at t = "), "{stdout}");
     assert!(stdout.contains("contact ceiling: none"), "{stdout}");
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap())
-            .unwrap();
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap(),
+    )
+    .unwrap();
     let c = s["contacts"].as_array().expect("contacts in the summary");
     assert_eq!(c.len(), 2);
     let (floor, ceiling) = (&c[0], &c[1]);

@@ -20,10 +20,9 @@ fn stderr(o: &Output) -> String {
 
 /// The metric example of docs/scenarios.md.
 fn example() -> String {
-    let doc = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scenarios.md"),
-    )
-    .unwrap();
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scenarios.md"))
+            .unwrap();
     doc.split("```toml\n")
         .skip(1)
         .map(|b| b.split("```").next().unwrap())
@@ -48,7 +47,10 @@ fn columns(path: &Path) -> HashMap<String, Vec<f64>> {
     h.iter()
         .enumerate()
         .map(|(k, n)| {
-            let v = rows.iter().map(|r: &Vec<String>| r[k].parse().unwrap()).collect();
+            let v = rows
+                .iter()
+                .map(|r: &Vec<String>| r[k].parse().unwrap())
+                .collect();
             (n.clone(), v)
         })
         .collect()
@@ -101,7 +103,11 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (h, rows) = table(&out.join("pendulum_sweep.csv"));
-    let at = |n: &str| h.iter().position(|c| c == n).unwrap_or_else(|| panic!("{n}: {h:?}"));
+    let at = |n: &str| {
+        h.iter()
+            .position(|c| c == n)
+            .unwrap_or_else(|| panic!("{n}: {h:?}"))
+    };
     assert_eq!(h.last().map(String::as_str), Some("message"));
     assert_eq!(rows.len(), 2);
     for (k, l) in [0.5, 1.0].into_iter().enumerate() {
@@ -120,7 +126,9 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
         assert!(min_y < -0.4 * l, "{min_y}");
         // first downward crossing of y + l/4 = 0, interpolated
         let s: Vec<f64> = y.iter().map(|y| y + l / 4.0).collect();
-        let i = (1..s.len()).find(|&i| s[i - 1] > 0.0 && s[i] <= 0.0).unwrap();
+        let i = (1..s.len())
+            .find(|&i| s[i - 1] > 0.0 && s[i] <= 0.0)
+            .unwrap();
         let cross = t[i - 1] + (0.0 - s[i - 1]) / (s[i] - s[i - 1]) * (t[i] - t[i - 1]);
         close(cell("first_below"), cross, "first_below");
         let sq: Vec<f64> = phi.iter().map(|p| p * p).collect();
@@ -149,8 +157,18 @@ fn bad_metrics_are_named() {
     let dir = tempfile::tempdir().unwrap();
     let base = example();
     let cases = [
-        ("column = \"y1\"", "column = \"chassis_y\"", "metric[0].column", "chassis_y"),
-        ("reduce = \"min\"", "reduce = \"median\"", "metric[0].reduce", "median"),
+        (
+            "column = \"y1\"",
+            "column = \"chassis_y\"",
+            "metric[0].column",
+            "chassis_y",
+        ),
+        (
+            "reduce = \"min\"",
+            "reduce = \"median\"",
+            "metric[0].reduce",
+            "median",
+        ),
         (
             "reduce = \"min\"",
             "reduce = \"min\"\nwindow = [0.5, 0.5]",
@@ -189,7 +207,10 @@ fn bad_metrics_are_named() {
         let o = mbsolve(&["check", file.to_str().unwrap()]);
         let e = stderr(&o);
         assert!(!o.status.success(), "{to}: {e}");
-        assert!(e.contains(&format!("{key}:")) && e.contains(needle), "{to}: {e}");
+        assert!(
+            e.contains(&format!("{key}:")) && e.contains(needle),
+            "{to}: {e}"
+        );
     }
     let file = dir.path().join("good.toml");
     std::fs::write(&file, &base).unwrap();
@@ -212,8 +233,14 @@ fn bad_metrics_are_named() {
         ]);
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{metric}: {e}");
-        assert!(e.contains("--metric") || e.contains("metric '"), "{metric}: {e}");
+        assert!(
+            e.contains("--metric") || e.contains("metric '"),
+            "{metric}: {e}"
+        );
         assert!(e.contains(needle), "{metric}: {e}");
-        assert!(!dir.path().join("out/good_sweep.csv").exists(), "{metric}: nothing ran");
+        assert!(
+            !dir.path().join("out/good_sweep.csv").exists(),
+            "{metric}: nothing ran"
+        );
     }
 }

@@ -126,7 +126,10 @@ impl Reduction {
             "rms" => Reduction::Rms,
             "crossing" => {
                 let threshold = threshold.ok_or_else(|| {
-                    err("threshold", "missing: reduce = \"crossing\" needs a threshold")
+                    err(
+                        "threshold",
+                        "missing: reduce = \"crossing\" needs a threshold",
+                    )
                 })?;
                 if !threshold.is_finite() {
                     return Err(err("threshold", format!("{threshold} is not finite")));
@@ -228,7 +231,10 @@ impl Metric {
         let (mut threshold, mut direction) = (None, None);
         if reduce == "crossing" {
             let (t, r) = rest.split_first().ok_or_else(|| {
-                err("threshold", format!("'{text}': crossing(QUANTITY, THRESHOLD, …)"))
+                err(
+                    "threshold",
+                    format!("'{text}': crossing(QUANTITY, THRESHOLD, …)"),
+                )
             })?;
             threshold = Some(number(t, "threshold")?);
             rest = r;
@@ -351,18 +357,20 @@ impl Reducer {
             // variables in the context's order: (column, its variable)
             let mut bound: Vec<(usize, mbsolve_codegen::Id)> = Vec::new();
             let mut unknown = None;
-            let e = parse(&mut ctx, q, |n, ctx| match names.iter().position(|c| *c == n) {
-                Some(k) => match bound.iter().find(|b| b.0 == k) {
-                    Some(b) => Some(b.1),
+            let e = parse(&mut ctx, q, |n, ctx| {
+                match names.iter().position(|c| *c == n) {
+                    Some(k) => match bound.iter().find(|b| b.0 == k) {
+                        Some(b) => Some(b.1),
+                        None => {
+                            let v = ctx.var(n);
+                            bound.push((k, v));
+                            Some(v)
+                        }
+                    },
                     None => {
-                        let v = ctx.var(n);
-                        bound.push((k, v));
-                        Some(v)
+                        unknown = Some(n.to_string());
+                        None
                     }
-                },
-                None => {
-                    unknown = Some(n.to_string());
-                    None
                 }
             });
             let field = if is_name(q) { "column" } else { "expression" };
@@ -460,8 +468,16 @@ impl Reducer {
             }
         }
         // NaN propagates into min/max (f64::min would skip it)
-        self.min = if v < self.min || v.is_nan() { v } else { self.min };
-        self.max = if v > self.max || v.is_nan() { v } else { self.max };
+        self.min = if v < self.min || v.is_nan() {
+            v
+        } else {
+            self.min
+        };
+        self.max = if v > self.max || v.is_nan() {
+            v
+        } else {
+            self.max
+        };
         if self.min.is_nan() || self.max.is_nan() {
             self.min = f64::NAN;
             self.max = f64::NAN;

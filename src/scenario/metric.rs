@@ -97,7 +97,8 @@ pub(super) fn build(
         if quantity.trim().is_empty() {
             return Err(error(file, format!("{key}.{field}"), "is empty"));
         }
-        let reduction = Reduction::new(&m.reduce, m.threshold, m.direction.as_deref()).map_err(at)?;
+        let reduction =
+            Reduction::new(&m.reduce, m.threshold, m.direction.as_deref()).map_err(at)?;
         let window = m.window.map(check_window).transpose().map_err(at)?;
         let name = m
             .name

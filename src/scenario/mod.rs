@@ -373,7 +373,11 @@ const RADIAN_KEYS: [(&str, &str); 3] = [
 /// radians ([`RADIAN_KEYS`]): legal (a wound-up spring, a start after
 /// several turns) but often degrees in the wrong field; the note names the
 /// key, the value and the `_deg` key.
-fn angle_notes(doc: &toml::Table, file: &str, substituted: &parameters::Substituted) -> Vec<String> {
+fn angle_notes(
+    doc: &toml::Table,
+    file: &str,
+    substituted: &parameters::Substituted,
+) -> Vec<String> {
     let mut notes = Vec::new();
     for (table, key) in RADIAN_KEYS {
         let array = match table.split_once('.') {

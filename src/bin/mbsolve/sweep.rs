@@ -265,7 +265,10 @@ impl<'s> Recorder<'s> {
         let values = self
             .reducers
             .iter()
-            .map(|r| r.finish().map_err(|e| format!("metric '{}': {e}", r.metric().name)))
+            .map(|r| {
+                r.finish()
+                    .map_err(|e| format!("metric '{}': {e}", r.metric().name))
+            })
             .collect();
         let kept = self.kept.take().and_then(|mut k| {
             let done = k
@@ -602,7 +605,8 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     // the metric columns: the file's [[metric]]s (as the first run loads
     // them), then the --metric names; every column name once
     let first = combinations(&params).into_iter().next().unwrap_or_default();
-    let sc = scenario::load_with(&a.scenario, &overrides(&base, &first)).map_err(|e| e.to_string())?;
+    let sc =
+        scenario::load_with(&a.scenario, &overrides(&base, &first)).map_err(|e| e.to_string())?;
     let mut header: Vec<String> = params.iter().map(|p| p.key.clone()).collect();
     header.extend(RESULT_COLUMNS.map(String::from));
     let metric_names: Vec<String> = sc
