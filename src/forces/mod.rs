@@ -3,10 +3,13 @@
 //! Jacobians ∂g/∂q and ∂g/∂q̇.
 //!
 //! Users add their own forces by implementing [`ForceElement`] (defined in
-//! [`crate::model`] with [`FdWorkspace`] and [`Gravity`], re-exported here).
+//! [`crate::model`] with [`FdWorkspace`] and [`Gravity`], re-exported here),
+//! or as a closure in a [`CallbackForce`] (also on a built system:
+//! [`crate::model::System::add_force`]).
 
 mod applied;
 mod buoyancy;
+mod callback;
 mod contact;
 mod drag;
 mod expression;
@@ -19,6 +22,7 @@ mod torsional;
 
 pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
+pub use callback::{CallbackError, CallbackForce, CallbackLaw};
 pub(crate) use contact::Clearance;
 pub use contact::{CornerState, Wall, WallContact};
 pub(crate) use drag::drag_force;

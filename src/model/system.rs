@@ -211,17 +211,7 @@ impl SystemBuilder {
         let mut force_jac_offset = vec![0];
         let mut force_jac_pattern = Vec::new();
         for f in &self.forces {
-            f.validate(n)?;
-            let cols = f.jacobian_coordinates();
-            if let Some(&c) = cols.iter().find(|&&c| c >= n) {
-                return Err(ModelError::InvalidParameter {
-                    element: f.name(),
-                    field: "jacobian_coordinates".into(),
-                    value: c.to_string(),
-                    why: format!("outside the {n} coordinates"),
-                });
-            }
-            force_jac_pattern.extend(cols.iter().flat_map(|&r| cols.iter().map(move |&c| (r, c))));
+            force_jacobian_block(f.as_ref(), n, &mut force_jac_pattern)?;
             force_jac_offset.push(force_jac_pattern.len());
         }
         let mass_diag = self
@@ -257,7 +247,41 @@ impl SystemBuilder {
     }
 }
 
+/// Validate force element `f` in a system of `n` coordinates and append
+/// its Jacobian block (k × k over its Jacobian coordinates) to `pattern`.
+fn force_jacobian_block(
+    f: &dyn ForceElement,
+    n: usize,
+    pattern: &mut Vec<(usize, usize)>,
+) -> Result<(), ModelError> {
+    f.validate(n)?;
+    let cols = f.jacobian_coordinates();
+    if let Some(&c) = cols.iter().find(|&&c| c >= n) {
+        return Err(ModelError::InvalidParameter {
+            element: f.name(),
+            field: "jacobian_coordinates".into(),
+            value: c.to_string(),
+            why: format!("outside the {n} coordinates"),
+        });
+    }
+    pattern.extend(cols.iter().flat_map(|&r| cols.iter().map(move |&c| (r, c))));
+    Ok(())
+}
+
 impl System {
+    /// Append a force element to a built system (after every element it
+    /// has, gravity included), validated as [`SystemBuilder::build`] does;
+    /// returns its index. Its Jacobian block goes last in
+    /// [`System::force_jacobian_pattern`]; attached kernels keep theirs.
+    /// For forces a scenario file cannot describe, such as a
+    /// [`crate::forces::CallbackForce`] added to a loaded scenario's system.
+    pub fn add_force(&mut self, f: Box<dyn ForceElement>) -> Result<usize, ModelError> {
+        force_jacobian_block(f.as_ref(), self.n_coords(), &mut self.force_jac_pattern)?;
+        self.force_jac_offset.push(self.force_jac_pattern.len());
+        self.forces.push(f);
+        self.make_plan();
+        Ok(self.forces.len() - 1)
+    }
     /// Bodies in numbering order.
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
