@@ -8,6 +8,8 @@
 
 #[cfg(feature = "arrow")]
 mod arrow;
+pub mod metrics;
+
 #[cfg(feature = "arrow")]
 pub use arrow::{recover as recover_arrow, ArrowTable};
 

@@ -31,6 +31,7 @@ mod forces;
 mod initial;
 mod joints;
 pub mod limits;
+pub mod metric;
 mod model;
 mod parameters;
 mod run;
@@ -96,6 +97,13 @@ pub struct Scenario {
     /// Notes for the user about what loading did, e.g. the file's keys
     /// dropped because an override chose a method they do not apply to.
     pub notes: Vec<String>,
+    /// The `[[metric]]`s, in file order, checked against the run's output
+    /// columns and time span (a sweep writes one column per metric).
+    pub metrics: Vec<crate::output::metrics::Metric>,
+    /// Every `[[force]]`'s force elements: (its name, index into
+    /// [`System::forces`]); the contacts among them are reported by
+    /// [`crate::events::ElementContacts`].
+    pub force_elements: Vec<(String, usize)>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -131,6 +139,8 @@ struct RawScenario {
     constraints: RawConstraints,
     #[serde(default)]
     sensor: Vec<RawTagged>,
+    #[serde(default)]
+    metric: Vec<metric::RawMetric>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it
@@ -295,6 +305,8 @@ pub fn parse_with(
     } else {
         Vec::new()
     };
+    let mut notes = notes;
+    notes.extend(angle_notes(&doc, file, &substituted));
     non_finite(&doc, "").map_err(|(key, message)| ScenarioError {
         file: attribute(file, &key, &set_keys),
         key,
@@ -346,6 +358,55 @@ pub fn parse_with(
     })?;
     sc.notes = notes;
     Ok(sc)
+}
+
+/// The keys given in radians whose values are angles of a position (not
+/// rates): a value beyond 2π there is more likely degrees written in a
+/// radians field. (table, key) pairs; the table an array of tables.
+const RADIAN_KEYS: [(&str, &str); 3] = [
+    ("body", "phi"),
+    ("force", "rest_angle"),
+    ("initial.joint", "angle"),
+];
+
+/// A note for every angle above 2π in magnitude in a field given in
+/// radians ([`RADIAN_KEYS`]): legal (a wound-up spring, a start after
+/// several turns) but often degrees in the wrong field; the note names the
+/// key, the value and the `_deg` key.
+fn angle_notes(
+    doc: &toml::Table,
+    file: &str,
+    substituted: &parameters::Substituted,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    for (table, key) in RADIAN_KEYS {
+        let array = match table.split_once('.') {
+            Some((t, a)) => doc
+                .get(t)
+                .and_then(toml::Value::as_table)
+                .and_then(|t| t.get(a)),
+            None => doc.get(table),
+        };
+        let Some(items) = array.and_then(toml::Value::as_array) else {
+            continue;
+        };
+        for (i, item) in items.iter().enumerate() {
+            let v = match item.get(key) {
+                Some(toml::Value::Float(f)) => *f,
+                Some(toml::Value::Integer(n)) => *n as f64,
+                _ => continue,
+            };
+            if v.is_finite() && v.abs() > std::f64::consts::TAU {
+                let at = substituted.rekey(&format!("{table}[{i}].{key}"));
+                notes.push(format!(
+                    "{file}: {at} = {v} rad is more than 2π ({:.1} turns): if degrees were \
+                     meant, write {key}_deg = {v}",
+                    v.abs() / std::f64::consts::TAU
+                ));
+            }
+        }
+    }
+    notes
 }
 
 /// The flag of an override that removes a key.
@@ -691,6 +752,11 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
     let sensors = sensor::build(&raw.sensor, &system, &names, &forces, &ends, file)?;
     let (q0, qd0, assembly) = initial::build(&raw.initial, &system, &names, &run, file)?;
     let shapes = raw.body.iter().map(|b| b.shape.clone()).collect();
+    let metrics = metric::build(&raw.metric, &system, &run, &sensors, file)?;
+    let force_elements = forces
+        .iter()
+        .flat_map(|(n, r)| r.clone().map(move |i| (n.clone(), i)))
+        .collect();
     Ok(Scenario {
         name: raw.name.unwrap_or_else(|| stem.to_string()),
         description: raw.description.unwrap_or_default(),
@@ -706,6 +772,8 @@ fn build(raw: RawScenario, file: &str, stem: &str) -> Result<Scenario, ScenarioE
         format,
         shapes,
         notes: Vec::new(),
+        metrics,
+        force_elements,
     })
 }
 

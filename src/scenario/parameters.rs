@@ -51,11 +51,15 @@ const TEXT_KEYS: &[&str] = &[
     "file",
     "include",
     "index",
+    "column",
+    "reduce",
+    "direction",
 ];
 
 /// Keys of a `type = "expression"` force that hold expressions of t and
-/// coordinates: parameters are substituted inside them.
-const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force"];
+/// coordinates, and the `expression` of a `[[metric]]`: parameters are
+/// substituted inside them.
+const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression"];
 
 /// Top-level keys and tables of a scenario: no parameter may be named
 /// like one (`--param NAME=…` addresses a parameter by its bare name).
@@ -81,6 +85,7 @@ const RESERVED: &[&str] = &[
     "parameters",
     "include",
     "repeat",
+    "metric",
 ];
 
 /// What the pass did: the original text of each replaced value by key path
@@ -395,7 +400,8 @@ pub(super) fn walk(
 ) {
     match v {
         toml::Value::Table(t) => {
-            let expr = t.get("type").and_then(toml::Value::as_str) == Some("expression");
+            let expr = t.get("type").and_then(toml::Value::as_str) == Some("expression")
+                || path.starts_with("metric[");
             for (k, x) in t.iter_mut() {
                 walk(x, &format!("{path}.{k}"), k, expr, values, done);
             }

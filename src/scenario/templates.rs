@@ -18,7 +18,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// The groups a `[[repeat]]` may hold.
-const GROUPS: &[&str] = &["body", "joint", "force", "sensor", "chain", "rod"];
+const GROUPS: &[&str] = &["body", "joint", "force", "sensor", "chain", "rod", "metric"];
 
 /// Most copies of all `[[repeat]]`s of a scenario (10⁶, as many as
 /// [`super::limits::MAX_BODIES`]).

@@ -28,7 +28,7 @@ mod study;
 mod sweep;
 mod view;
 
-use mbsolve::events::ContactMonitor;
+use mbsolve::events::{ContactMonitor, ElementContacts};
 use mbsolve::simulation::Monitor;
 use mbsolve::{scenario, simulation};
 use sha2::Digest as _;
@@ -99,6 +99,16 @@ enum Command {
         /// Remove a key of the file, e.g. --unset integrator.rtol (repeatable; before the --set and --param).
         #[arg(long = "unset", value_name = "KEY")]
         unset: Vec<String>,
+        /// A result column: a column or expression reduced over each run,
+        /// e.g. --metric 'rms(ay2, 1, 5)', --metric 'peak=max(phi1)',
+        /// --metric 'crossing(y2, 0.1, up)'; reductions final, min, max,
+        /// mean, rms, crossing (repeatable; after the file's [[metric]]s).
+        #[arg(long = "metric", value_name = "[NAME=]REDUCE(QUANTITY[, T0, T1])")]
+        metric: Vec<String>,
+        /// `runs`: keep each run's table as DIR/<stem>_sweep<k>.csv (k: the
+        /// run's index in the product) with its columns.json.
+        #[arg(long, value_enum)]
+        keep: Option<sweep::Keep>,
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -186,7 +196,8 @@ enum Command {
         y_label: Option<String>,
     },
     /// Animate a run: the mechanism's motion from the scenario's geometry and
-    /// the run's CSV, as an animated SVG (SMIL) or a GIF.
+    /// the run's CSV, as an animated SVG (SMIL), a GIF, an APNG or (with
+    /// ffmpeg on the PATH) an MP4/WebM.
     Animate {
         /// Scenario file of the run.
         scenario: PathBuf,
@@ -195,8 +206,8 @@ enum Command {
         /// The overrides the run used (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Output file: .svg (animated), .gif, or .png (one still) [default:
-        /// the CSV's path with .svg].
+        /// Output file: .svg (animated), .gif, .apng, .mp4, .webm, or .png
+        /// (one still) [default: the CSV's path with .svg].
         #[arg(long)]
         out: Option<PathBuf>,
         /// Playback speed: simulated seconds per second.
@@ -274,7 +285,8 @@ enum Command {
         /// initial state) or `t=T` (the state a run reaches at T s).
         #[arg(long, default_value = "static")]
         at: modes::At,
-        /// Animate the first this many modes (SVG each).
+        /// Animate the first this many modes (SVG, GIF and a PNG of the
+        /// largest deflection each).
         #[arg(long, default_value_t = 6)]
         animate: usize,
         /// Output directory.
@@ -445,6 +457,8 @@ fn command(cli: Cli) -> ExitCode {
             param,
             set,
             unset,
+            metric,
+            keep,
             out,
             shard,
             merge,
@@ -453,6 +467,8 @@ fn command(cli: Cli) -> ExitCode {
             params: param,
             set,
             unset,
+            metrics: metric,
+            keep_runs: keep == Some(sweep::Keep::Runs),
             out,
             shard,
             merge,
@@ -501,6 +517,12 @@ fn run(
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| sc.name.clone());
+    if sc.name != stem {
+        report!(
+            "note: the output files are named after the scenario file ({stem}.*); name = {:?} labels the run",
+            sc.name
+        );
+    }
     // What the summary records of the input.
     let text = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let digest = sha2::Sha256::digest(&text);
@@ -559,8 +581,12 @@ fn run(
     );
 
     let mut contacts = ContactMonitor::for_rods(&sc.rods);
+    let mut element_contacts = ElementContacts::new(&sc.system, &sc.force_elements);
     let mut monitors: Vec<&mut dyn Monitor> = Vec::new();
     if let Some(c) = contacts.as_mut() {
+        monitors.push(c);
+    }
+    if let Some(c) = element_contacts.as_mut() {
         monitors.push(c);
     }
     let mut summary = match simulation::simulate_into(
@@ -592,6 +618,18 @@ fn run(
         summary.max_constraint_norm,
         summary.final_constraint_norm
     );
+    // the thread rule's decision (crate::parallel::Rule)
+    let extra = |k: &str| summary.extra.get(k).cloned().unwrap_or_default();
+    report!(
+        "threads: {} used, solves {}; {}",
+        extra("threads"),
+        if extra("split").as_bool() == Some(true) {
+            "split"
+        } else {
+            "not split"
+        },
+        extra("threads_reason").as_str().unwrap_or("")
+    );
     if let Some(c) = &contacts {
         match c.first_contact() {
             Some(t) => report!(
@@ -600,6 +638,19 @@ fn run(
                 c.peak.as_ref().map_or(0.0, |p| p.force)
             ),
             None => report!("contacts: none"),
+        }
+    }
+    for c in element_contacts.iter().flat_map(|c| &c.contacts) {
+        match c.first_contact_time {
+            Some(t) => report!(
+                "contact {}: first at t = {t:.4} s, {} starts, {} ends, peak normal force {:.4e} N at t = {:.4} s",
+                c.force,
+                c.starts.len(),
+                c.ends.len(),
+                c.peak_normal_force,
+                c.peak_time.unwrap_or(t)
+            ),
+            None => report!("contact {}: none", c.force),
         }
     }
     for w in summary.warnings.iter().skip(files.warnings) {
@@ -640,6 +691,16 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     say!("falling rod, N = 10: {} runs", rod.len());
     say!("{}", reproduce::rod_table(&rod).trim_end());
     say!("wrote {}", out.join("falling_rod").display());
+    let modes = reproduce::chain_modes_study(out).map_err(|e| e.to_string())?;
+    say!(
+        "cantilevered chain, N = {}: modes {:.3?} Hz (Euler–Bernoulli {:.3?} Hz), \
+         largest shape difference {:.1e}",
+        modes.n,
+        modes.chain_hz,
+        modes.beam_hz,
+        modes.shape_difference.iter().fold(0.0f64, |a, &b| a.max(b))
+    );
+    say!("wrote {}", out.join("chain_modes").display());
     Ok(ExitCode::SUCCESS)
 }
 

@@ -14,10 +14,19 @@
 //! their next step (status `interrupted`), start no new ones (`not run`),
 //! and the table (or shard table) and summaries of every finished run are
 //! still written (exit 130).
+//!
+//! Results, not only statistics: the scenario's `[[metric]]`s and the
+//! `--metric`s are reduced over each run's rows as they come
+//! ([`mbsolve::output::metrics::Reducer`]) and written as columns after the
+//! run statistics; `--keep runs` also writes each run's table as
+//! `<stem>_sweep<k>.csv` (k: the run's index in the product) with its
+//! `columns.json`, beside its `<stem>_sweep<k>.summary.json`.
 
-use crate::output::write_summary_json;
+use crate::output::{columns_json, create_fresh, sibling, write_atomic, write_summary_json};
+use mbsolve::output::metrics::{Metric, Reducer};
+use mbsolve::output::{columns, RowBuilder, TableWriter};
 use mbsolve::parallel::Threads;
-use mbsolve::scenario::{self, Override, ScenarioError};
+use mbsolve::scenario::{self, Override, Scenario, ScenarioError};
 use mbsolve::simulation::{simulate_into, Sample, Sink, Summary};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -185,14 +194,108 @@ pub struct SweepRun {
     pub point: Vec<String>,
     /// The summary, or why the run could not start.
     pub result: Result<Summary, String>,
+    /// Each metric's value (NaN: a crossing that did not happen), or why it
+    /// has none; empty when the run did not start.
+    pub metrics: Vec<Result<f64, String>>,
 }
 
-/// A sweep keeps only each run's summary: its output rows are dropped as
+/// What a sweep keeps of each run's rows: the metrics' reductions, and the
+/// table itself with `--keep runs`. Without either, rows are dropped as
 /// they come, so a sweep's memory does not grow with the output times.
-struct SummaryOnly;
+struct Recorder<'s> {
+    builder: Option<RowBuilder<'s>>,
+    reducers: Vec<Reducer>,
+    kept: Option<Kept>,
+}
 
-impl Sink for SummaryOnly {
-    fn output(&mut self, _: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+/// A run's table being kept: the writer, its temporary and final paths.
+struct Kept {
+    table: Box<dyn TableWriter + Send>,
+    part: PathBuf,
+    path: PathBuf,
+}
+
+impl<'s> Recorder<'s> {
+    /// The recorder of run `sc` with `metrics`; with `keep`, the table is
+    /// written to `keep` (`.part` until the run ends) and its columns to
+    /// the `columns.json` beside it.
+    fn new(sc: &'s Scenario, metrics: &[Metric], keep: Option<PathBuf>) -> Result<Self, String> {
+        if metrics.is_empty() && keep.is_none() {
+            return Ok(Self {
+                builder: None,
+                reducers: Vec::new(),
+                kept: None,
+            });
+        }
+        let cols = columns(&sc.system, &sc.run.outputs, &sc.sensors);
+        let names: Vec<&str> = cols.iter().map(|c| c.name.as_str()).collect();
+        let reducers = metrics
+            .iter()
+            .map(|m| Reducer::new(m, &names).map_err(|e| format!("metric '{}': {e}", m.name)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let kept = match keep {
+            None => None,
+            Some(path) => {
+                let part = sibling(&path, ".part");
+                let file = create_fresh(&part).map_err(|e| e.to_string())?;
+                let table = sc
+                    .format
+                    .writer(std::io::BufWriter::new(file), &cols)
+                    .map_err(|e| format!("{}: {e}", part.display()))?;
+                let stem = path.with_extension("");
+                write_atomic(&sibling(&stem, ".columns.json"), &columns_json(&cols))
+                    .map_err(|e| e.to_string())?;
+                Some(Kept { table, part, path })
+            }
+        };
+        Ok(Self {
+            builder: Some(RowBuilder::new(
+                &sc.system,
+                sc.run.outputs,
+                sc.sensors.as_slice(),
+            )),
+            reducers,
+            kept,
+        })
+    }
+
+    /// The metrics' values, and the kept table finished and renamed into
+    /// place (whatever the run's status: its rows so far).
+    fn finish(mut self) -> (Vec<Result<f64, String>>, Option<String>) {
+        let values = self
+            .reducers
+            .iter()
+            .map(|r| {
+                r.finish()
+                    .map_err(|e| format!("metric '{}': {e}", r.metric().name))
+            })
+            .collect();
+        let kept = self.kept.take().and_then(|mut k| {
+            let done = k
+                .table
+                .finish()
+                .map_err(|e| e.to_string())
+                .and_then(|()| std::fs::rename(&k.part, &k.path).map_err(|e| e.to_string()));
+            done.err().map(|e| format!("{}: {e}", k.path.display()))
+        });
+        (values, kept)
+    }
+}
+
+impl Sink for Recorder<'_> {
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let Some(b) = self.builder.as_mut() else {
+            return Ok(());
+        };
+        let row = b.row(s);
+        for r in &mut self.reducers {
+            r.push(row);
+        }
+        if let Some(k) = self.kept.as_mut() {
+            k.table
+                .write_row(row)
+                .map_err(|e| format!("{}: {e}", k.part.display()))?;
+        }
         Ok(())
     }
     fn progress(&mut self, t: f64, _: &mbsolve::integrate::Stats) -> std::ops::ControlFlow<String> {
@@ -274,17 +377,43 @@ impl Shard {
     }
 }
 
+/// What each run of a sweep records besides its statistics.
+pub struct Record<'a> {
+    /// The `--metric`s (after the scenario's `[[metric]]`s).
+    pub metrics: &'a [(String, Metric)],
+    /// `--keep runs`: each run's table as `DIR/<stem>_sweep<k>.<ext>`.
+    pub keep: Option<(&'a Path, &'a str)>,
+}
+
+/// The metrics of run `sc`: its `[[metric]]`s, then the `--metric`s
+/// checked against its columns and time span (errors name the flag).
+fn run_metrics(sc: &Scenario, cli: &[(String, Metric)]) -> Result<Vec<Metric>, ScenarioError> {
+    let mut all = sc.metrics.clone();
+    for (text, m) in cli {
+        scenario::metric::check(m, &sc.system, &sc.run, &sc.sensors).map_err(|e| {
+            ScenarioError {
+                file: "--metric".into(),
+                key: text.clone(),
+                message: e.to_string(),
+            }
+        })?;
+        all.push(m.clone());
+    }
+    Ok(all)
+}
+
 /// Run the sweep over `path` (with `base` overrides applied first), only
 /// the runs of `shard` when given; returns (run index in the product, run).
-/// Every combination is validated before anything runs, so a bad key fails
-/// fast with the scenario's error. `progress` labels a line on stderr per
-/// finished run.
+/// Every combination is validated before anything runs (its metrics
+/// included), so a bad key fails fast with the scenario's error. `progress`
+/// labels a line on stderr per finished run.
 pub fn run(
     path: &Path,
     base: &Base,
     params: &[SweepParam],
     shard: Option<Shard>,
     progress: &str,
+    record: &Record,
 ) -> Result<Vec<(usize, SweepRun)>, ScenarioError> {
     let points: Vec<(usize, Vec<String>)> = combinations(params)
         .into_iter()
@@ -293,6 +422,7 @@ pub fn run(
         .collect();
     for (k, (_, p)) in points.iter().enumerate() {
         let sc = scenario::load_with(path, &overrides(base, p))?;
+        run_metrics(&sc, record.metrics)?;
         if k == 0 {
             for n in &sc.notes {
                 eprintln!("note: {n}");
@@ -310,24 +440,40 @@ pub fn run(
         .into_par_iter()
         .map(|(k, point)| {
             if interrupted() {
-                let result = Err("not run: the sweep was interrupted by a signal".to_string());
-                return (k, SweepRun { point, result });
+                let result = Err(NOT_RUN.to_string());
+                let metrics = Vec::new();
+                return (k, SweepRun { point, result, metrics });
             }
+            let mut metrics = Vec::new();
             let result = scenario::load_with(path, &overrides(base, &point))
                 .map_err(|e| e.to_string())
                 .and_then(|mut sc| {
                     if side_by_side && sc.run.threads == Threads::Auto {
                         sc.run.threads = Threads::One;
                     }
-                    simulate_into(
+                    let wanted = run_metrics(&sc, record.metrics).map_err(|e| e.to_string())?;
+                    let keep = record.keep.map(|(dir, stem)| {
+                        dir.join(format!("{stem}_sweep{k}.{}", sc.format.extension()))
+                    });
+                    let mut rec = Recorder::new(&sc, &wanted, keep)?;
+                    let summary = simulate_into(
                         &sc.system,
                         &sc.q0,
                         &sc.qd0,
                         &sc.run,
                         &mut [],
-                        &mut SummaryOnly,
+                        &mut rec,
                     )
-                    .map_err(|e| e.to_string())
+                    .map_err(|e| e.to_string());
+                    let (values, kept) = rec.finish();
+                    metrics = values;
+                    match (summary, kept) {
+                        (Ok(mut s), Some(e)) => {
+                            s.warnings.push(format!("the run's table was not kept: {e}"));
+                            Ok(s)
+                        }
+                        (s, _) => s,
+                    }
                 });
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             let wall = start.elapsed().as_secs_f64();
@@ -341,10 +487,13 @@ pub fn run(
                 "{progress}{d}/{total} runs done, {wall:.1} s, ETA {eta:.0} s (run {k}: {}: {outcome})",
                 point.join(" ")
             );
-            (k, SweepRun { point, result })
+            (k, SweepRun { point, result, metrics })
         })
         .collect())
 }
+
+/// The status of a run the sweep did not start because of a signal.
+const NOT_RUN: &str = "not run: the sweep was interrupted by a signal";
 
 /// The `--unset` keys and `--set` overrides, then one run's `--param`
 /// values, each labelled by its flag for the scenario's errors.
@@ -359,6 +508,14 @@ fn overrides<'a>(base: &'a Base, point: &'a [String]) -> Vec<Override<'a>> {
 /// The `--set` overrides and the `--unset` keys of every run.
 pub type Base = (Vec<String>, Vec<String>);
 
+/// What `--keep` keeps besides the sweep table and the summaries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Keep {
+    /// Each run's table, `<stem>_sweep<k>.csv` (or `.arrow`), with its
+    /// `columns.json`.
+    Runs,
+}
+
 /// What `mbsolve sweep` was asked for.
 pub struct SweepArgs {
     /// Scenario file.
@@ -369,6 +526,10 @@ pub struct SweepArgs {
     pub set: Vec<String>,
     /// `--unset` keys of every run.
     pub unset: Vec<String>,
+    /// `--metric [NAME=]REDUCE(QUANTITY[, T0, T1])` arguments.
+    pub metrics: Vec<String>,
+    /// `--keep runs`: keep each run's table.
+    pub keep_runs: bool,
     /// Output directory.
     pub out: PathBuf,
     /// `--shard I/N`.
@@ -377,7 +538,8 @@ pub struct SweepArgs {
     pub merge: bool,
 }
 
-/// Columns after the parameters in a sweep table.
+/// Columns after the parameters in a sweep table; the metrics follow, then
+/// [`MESSAGE_COLUMN`].
 const RESULT_COLUMNS: [&str; 7] = [
     "status",
     "steps",
@@ -387,6 +549,19 @@ const RESULT_COLUMNS: [&str; 7] = [
     "max_constraint_norm",
     "final_constraint_norm",
 ];
+
+/// The last column of a sweep table: why a run did not complete, or why a
+/// metric has no value (empty otherwise).
+const MESSAGE_COLUMN: &str = "message";
+
+/// A metric's cell: `{:.12e}` as in run tables, empty for NaN.
+fn metric_cell(v: f64) -> String {
+    if v.is_nan() {
+        String::new()
+    } else {
+        format!("{v:.12e}")
+    }
+}
 
 /// `mbsolve sweep`: run (all or one shard) or merge.
 pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
@@ -410,6 +585,15 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
             ));
         }
     }
+    let cli_metrics = a
+        .metrics
+        .iter()
+        .map(|t| {
+            Metric::parse(t)
+                .map(|m| (t.clone(), m))
+                .map_err(|e| format!("--metric {t}: {e}"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     product_size(&params)?;
     let shard = a.shard.as_deref().map(str::parse::<Shard>).transpose()?;
     let stem = a
@@ -417,16 +601,50 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scenario".into());
+    let base = (a.set.clone(), a.unset.clone());
+    // the metric columns: the file's [[metric]]s (as the first run loads
+    // them), then the --metric names; every column name once
+    let first = combinations(&params).into_iter().next().unwrap_or_default();
+    let sc =
+        scenario::load_with(&a.scenario, &overrides(&base, &first)).map_err(|e| e.to_string())?;
     let mut header: Vec<String> = params.iter().map(|p| p.key.clone()).collect();
     header.extend(RESULT_COLUMNS.map(String::from));
+    let metric_names: Vec<String> = sc
+        .metrics
+        .iter()
+        .map(|m| m.name.clone())
+        .chain(cli_metrics.iter().map(|(_, m)| m.name.clone()))
+        .collect();
+    for (k, n) in metric_names.iter().enumerate() {
+        if header.contains(n) || metric_names[..k].contains(n) || n == MESSAGE_COLUMN {
+            return Err(format!(
+                "metric '{n}': another column of the sweep table has this name: name the \
+                 metric (--metric NAME=REDUCE(...), or name = ... in [[metric]])"
+            ));
+        }
+    }
+    drop(sc);
+    header.extend(metric_names.iter().cloned());
+    header.push(MESSAGE_COLUMN.into());
+    let status_column = params.len();
     if a.merge {
-        return merge(&a.out, &stem, &header, combinations(&params).len());
+        return merge(
+            &a.out,
+            &stem,
+            &header,
+            status_column,
+            combinations(&params).len(),
+        );
     }
     let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
     crate::stream::install_interrupt_handler();
-    let base = (a.set.clone(), a.unset.clone());
-    let runs = run(&a.scenario, &base, &params, shard, &label).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let record = Record {
+        metrics: &cli_metrics,
+        keep: a.keep_runs.then_some((a.out.as_path(), stem.as_str())),
+    };
+    let runs =
+        run(&a.scenario, &base, &params, shard, &label, &record).map_err(|e| e.to_string())?;
     let table = match shard {
         None => a.out.join(format!("{stem}_sweep.csv")),
         Some(s) => a
@@ -454,12 +672,14 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                 .iter()
                 .map(|p| p.split_once('=').map_or(String::new(), |x| x.1.to_string())),
         );
+        let mut messages: Vec<String> = Vec::new();
         match &r.result {
             Ok(s) => {
                 write_summary_json(&a.out.join(format!("{stem}_sweep{k}.summary.json")), s)
                     .map_err(|e| e.to_string())?;
                 if s.status != "completed" {
                     failures += 1;
+                    messages.push(s.message.clone().unwrap_or_else(|| s.status.clone()));
                 }
                 row.extend([
                     s.status.clone(),
@@ -470,6 +690,22 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                     format!("{:.6e}", s.max_constraint_norm),
                     format!("{:.6e}", s.final_constraint_norm),
                 ]);
+                // a run that did not complete has no final value, peak or
+                // mean over its span: its metric cells stay empty
+                let completed = s.status == "completed";
+                for m in &r.metrics {
+                    match m {
+                        Ok(v) if completed => row.push(metric_cell(*v)),
+                        Ok(_) => row.push(String::new()),
+                        Err(e) => {
+                            row.push(String::new());
+                            if completed {
+                                failures += 1;
+                                messages.push(e.clone());
+                            }
+                        }
+                    }
+                }
                 say!(
                     "{}: {} steps, max ‖Φ‖ = {:.3e}",
                     r.point.join(" "),
@@ -479,11 +715,14 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
             }
             Err(e) => {
                 failures += 1;
-                row.extend(["error".to_string(), e.clone()]);
-                row.resize(first.len(), String::new());
-                say!("{}: error: {e}", r.point.join(" "));
+                let status = if e == NOT_RUN { "not run" } else { "error" };
+                row.push(status.into());
+                messages.push(e.clone());
+                say!("{}: {status}: {e}", r.point.join(" "));
             }
         }
+        row.resize(first.len() - 1, String::new());
+        row.push(messages.join("; "));
         w.write_record(&row).map_err(|e| werr(&e))?;
     }
     w.flush().map_err(|e| werr(&e))?;
@@ -506,7 +745,13 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
 /// `<stem>_sweep.csv` (product order, without the run column). Every run
 /// 0 … total−1 must appear exactly once, all shards must share one N and
 /// the sweep's columns. Exit status 1 when a merged run did not complete.
-fn merge(dir: &Path, stem: &str, header: &[String], total: usize) -> Result<ExitCode, String> {
+fn merge(
+    dir: &Path,
+    stem: &str,
+    header: &[String],
+    status: usize,
+    total: usize,
+) -> Result<ExitCode, String> {
     let prefix = format!("{stem}_sweep.shard-");
     let mut shards: Vec<(PathBuf, usize, usize)> = Vec::new();
     let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -597,10 +842,9 @@ fn merge(dir: &Path, stem: &str, header: &[String], total: usize) -> Result<Exit
     let werr = |e: &dyn std::fmt::Display| format!("{}: {e}", table.display());
     let mut w = csv::Writer::from_path(&table).map_err(|e| werr(&e))?;
     w.write_record(header).map_err(|e| werr(&e))?;
-    let status = header.len() - RESULT_COLUMNS.len();
     let mut failures = 0;
     for rec in rows.into_iter().flatten() {
-        if &rec[status] != "completed" {
+        if &rec[status] != "completed" || rec.get(rec.len() - 1).is_some_and(|m| !m.is_empty()) {
             failures += 1;
         }
         w.write_record(&rec).map_err(|e| werr(&e))?;

@@ -1,0 +1,134 @@
+//! The contact report of every `type = "contact"` `[[force]]` (not only the
+//! rods'): a ball dropped on a floor against the closed forms of free fall
+//! and of Hertz's elastic impact; the note on an angle beyond 2π in a
+//! radians field.
+
+use std::process::Command;
+
+const BALL: &str = r#"
+gravity = [0.0, -9.81]
+
+[[body]]
+name = "ball"
+mass = 1.0
+inertia = 0.004
+y = 0.3
+
+[[force]]
+type = "contact"
+name = "floor"
+body = "ball"
+radius = 0.1
+wall_point = [0.0, 0.0]
+wall_normal_deg = 90.0
+stiffness = 1e6
+
+[[force]]
+type = "contact"
+name = "ceiling"
+body = "ball"
+radius = 0.1
+wall_point = [0.0, 2.0]
+wall_normal_deg = -90.0
+stiffness = 1e6
+
+[integrator]
+method = "rk4"
+step = 1e-4
+
+[time]
+end = 0.3
+"#;
+
+/// First contact at the free-fall time √(2h/g) (h = 0.2 m: the circle's
+/// bottom above the floor) to within a step; the contact starts and ends
+/// once; the peak normal force k δ^{3/2} at the largest compression δ of
+/// the energy balance ½ m v² + m g δ = (2/5) k δ^{5/2} (no damping) within
+/// 1 % (sampled at steps); the ceiling is never touched.
+#[test]
+fn every_contact_element_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ball.toml");
+    std::fs::write(&file, BALL).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args([
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            dir.path().to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("contact floor: first at t = "), "{stdout}");
+    assert!(stdout.contains("contact ceiling: none"), "{stdout}");
+    let s: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap(),
+    )
+    .unwrap();
+    let c = s["contacts"].as_array().expect("contacts in the summary");
+    assert_eq!(c.len(), 2);
+    let (floor, ceiling) = (&c[0], &c[1]);
+    assert_eq!(floor["force"], "floor");
+    let (g, h, m, k) = (9.81, 0.2, 1.0, 1e6);
+    let t_hit = (2.0 * h / g as f64).sqrt();
+    let first = floor["first_contact_time"].as_f64().unwrap();
+    assert!(
+        first >= t_hit - 1e-9 && first <= t_hit + 1e-4 + 1e-9,
+        "{first} against {t_hit}"
+    );
+    let starts = floor["starts"].as_array().unwrap();
+    let ends = floor["ends"].as_array().unwrap();
+    assert_eq!((starts.len(), ends.len()), (1, 1), "{floor}");
+    assert_eq!(starts[0].as_f64(), Some(first));
+    // an elastic Hertz impact lasts ≈ 3.2 δ_max / v: a few milliseconds
+    let v2 = 2.0 * g * h;
+    let energy = |d: f64| 0.4 * k * d.powf(2.5) - 0.5 * m * v2 - m * g * d;
+    let (mut lo, mut hi) = (0.0, 0.1);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if energy(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let peak = k * lo.powf(1.5);
+    let got = floor["peak_normal_force"].as_f64().unwrap();
+    assert!((got / peak - 1.0).abs() < 0.01, "{got} N against {peak} N");
+    let duration = ends[0].as_f64().unwrap() - first;
+    assert!(
+        duration > 2.0 * lo / v2.sqrt() && duration < 4.0 * lo / v2.sqrt(),
+        "{duration} s"
+    );
+    assert_eq!(ceiling["force"], "ceiling");
+    assert!(ceiling["first_contact_time"].is_null(), "{ceiling}");
+    assert_eq!(ceiling["peak_normal_force"].as_f64(), Some(0.0));
+}
+
+/// `phi = 90` (degrees in a radians field) is legal but noted by `check`,
+/// naming the key and the `_deg` key; `phi = 1.5` is not.
+#[test]
+fn an_angle_beyond_two_pi_in_radians_is_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ball.toml");
+    for (phi, noted) in [("90", true), ("1.5", false)] {
+        std::fs::write(
+            &file,
+            BALL.replacen("y = 0.3", &format!("y = 0.3\nphi = {phi}"), 1),
+        )
+        .unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+            .args(["check", file.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{e}");
+        assert_eq!(
+            e.contains("body[0].phi = 90 rad is more than 2π") && e.contains("phi_deg = 90"),
+            noted,
+            "{e}"
+        );
+    }
+}
