@@ -209,7 +209,7 @@ impl System {
     }
 
     /// The evaluation plans for the current choice of evaluation.
-    fn make_plan(&mut self) {
+    pub(super) fn make_plan(&mut self) {
         let on = self.use_kernels;
         let joints: Vec<Range<usize>> = self.kernels.iter().map(|b| b.joints.clone()).collect();
         self.plan = plan(on, &joints, self.constraints.len());
