@@ -10,7 +10,8 @@ if [ ! -x "$VENV/bin/python" ]; then
   python3 -m venv "$VENV"
 fi
 "$VENV/bin/pip" install -q --disable-pip-version-check \
-  'maturin>=1.5,<2' pytest numpy pandas pyarrow
+  'maturin>=1.5,<2' pytest numpy pandas pyarrow matplotlib tqdm dask distributed \
+  nbclient nbformat ipykernel
 start=$SECONDS
 (cd python && VIRTUAL_ENV="$VENV" "$VENV/bin/maturin" develop --release --quiet)
 echo "python: package built and installed in $((SECONDS - start)) s"

@@ -32,6 +32,10 @@
 //! 8. [`output`]: a run's rows as tables (CSV, Arrow IPC) streamed to any
 //!    writer in bounded memory.
 //!
+//! [`prelude`] re-exports what an embedding program needs (scenario
+//! loading, model building, the simulate entry points, results, errors,
+//! the analyses); `numeric` and `trig` are crate-internal leaves.
+//!
 //! The `mbsolve` binary (src/bin/mbsolve/) adds the CLI, the paper's
 //! studies, sweeps, the performance gate, figures and animations.
 #![warn(missing_docs)]
@@ -47,9 +51,10 @@ pub mod generated;
 pub mod integrate;
 pub mod linalg;
 pub mod model;
-pub mod numeric;
+pub(crate) mod numeric;
 pub mod output;
 pub mod parallel;
+pub mod prelude;
 pub mod scenario;
 pub mod simulation;
-pub mod trig;
+pub(crate) mod trig;

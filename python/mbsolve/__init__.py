@@ -11,7 +11,15 @@ command runs; nothing is implemented twice):
   :class:`Result`: the columns of ``mbsolve run``'s CSV as NumPy arrays
   (views of one block, no copy per value), :meth:`Result.to_pandas`,
   :meth:`Result.to_arrow` (units in the field metadata), the summary as a
-  dict and the warnings as a list.
+  dict and the warnings as a list; ``progress=True`` shows a progress bar
+  (tqdm if installed), :meth:`Result.plot` draws columns with matplotlib;
+- :class:`PythonForce`: a force law or controller written in Python,
+  called from the running integration (``run(forces=[...])``);
+- :class:`Model` builds a scenario in Python (``to_toml`` writes its file);
+- :func:`sweep` runs a scenario for a grid of overrides in parallel and
+  returns one row per run with metrics (``final``, ``max``, ``min``,
+  ``rms`` reductions or Python functions); ``mbsolve.dask`` spreads the
+  same sweep over a Dask cluster.
 
 Errors: an invalid scenario or override raises :class:`ScenarioError` (a
 ``ValueError``) naming the file and the key path; a run that cannot start
@@ -38,14 +46,17 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from . import _mbsolve
+from . import _mbsolve, _progress
 from ._mbsolve import RunError, ScenarioError
+from ._progress import ProgressArg
+from .forces import PythonForce
 
 __version__: str = _mbsolve.__version__
 
 __all__ = [
     "Scenario",
     "Result",
+    "PythonForce",
     "ScenarioError",
     "RunError",
     "load",
@@ -109,14 +120,15 @@ class Scenario:
     returns a new one. Built by :func:`load`, :meth:`from_toml` or
     ``Model.scenario()``."""
 
-    __slots__ = ("_text", "_file", "_stem", "_overrides", "_name")
+    __slots__ = ("_text", "_file", "_stem", "_overrides", "_name", "_forces")
 
     def __init__(self, text: str, file: str = "<string>", stem: str = "scenario",
-                 overrides: Iterable[str] = ()) -> None:
+                 overrides: Iterable[str] = (), forces: Iterable[PythonForce] = ()) -> None:
         self._text = str(text)
         self._file = str(file)
         self._stem = str(stem)
         self._overrides = list(overrides)
+        self._forces = _check_forces(forces)
         self._name = _mbsolve.validate(self._text, self._file, self._stem, self._overrides)
 
     @classmethod
@@ -147,11 +159,22 @@ class Scenario:
         """The ``KEY=VALUE`` overrides, in the order they apply."""
         return list(self._overrides)
 
+    @property
+    def forces(self) -> List[PythonForce]:
+        """The :class:`PythonForce` laws added to every run of this scenario."""
+        return list(self._forces)
+
     def with_overrides(self, overrides: Optional[Mapping[str, OverrideValue]] = None,
                        **kwargs: OverrideValue) -> "Scenario":
         """A new scenario with more overrides (after the present ones)."""
         return Scenario(self._text, self._file, self._stem,
-                        self._overrides + override_specs(overrides, **kwargs))
+                        self._overrides + override_specs(overrides, **kwargs), self._forces)
+
+    def with_forces(self, *forces: PythonForce) -> "Scenario":
+        """A new scenario with more :class:`PythonForce` laws (after the
+        present ones)."""
+        return Scenario(self._text, self._file, self._stem, self._overrides,
+                        self._forces + _check_forces(forces))
 
     def check(self) -> Dict[str, Any]:
         """What ``mbsolve check`` reports, as a dict: ``bodies``,
@@ -162,20 +185,51 @@ class Scenario:
         [s] and, when the initial state was assembled, ``initial_assembly``."""
         return json.loads(_mbsolve.check_json(self._text, self._file, self._stem, self._overrides))
 
-    def run(self, overrides: Optional[Mapping[str, OverrideValue]] = None,
-            **kwargs: OverrideValue) -> "Result":
+    def run(self, overrides: Optional[Mapping[str, OverrideValue]] = None, *,
+            forces: Iterable[PythonForce] = (), progress: ProgressArg = False,
+            _one_thread: bool = False, **kwargs: OverrideValue) -> "Result":
         """Run the scenario (with further overrides, if given) and return its
-        :class:`Result`. The GIL is released while it runs; Ctrl-C ends it
-        with status ``"interrupted"`` and the rows so far. Raises
-        :class:`ScenarioError` for an invalid override, :class:`RunError`
-        when the run cannot start."""
+        :class:`Result`. The GIL is released while it runs (and taken only
+        to call Python forces and the progress display); Ctrl-C ends it with
+        status ``"interrupted"`` and the rows so far.
+
+        ``forces``: :class:`PythonForce` laws added for this run (after the
+        scenario's own). ``progress``: ``True`` for a progress bar (tqdm if
+        installed — in Jupyter its widget — else one line on stderr), or a
+        callable ``progress(t, t0, t_end)`` called at most every 0.1 s.
+
+        Raises :class:`ScenarioError` for an invalid override or a Python
+        force naming a body the scenario lacks, :class:`RunError` when the
+        run cannot start."""
         specs = self._overrides + override_specs(overrides, **kwargs)
-        table, names, units, summary = _mbsolve.run(self._text, self._file, self._stem, specs)
-        return Result(table, names, units, json.loads(summary))
+        laws = self._forces + _check_forces(forces)
+        bar = _progress.make(progress, self._name)
+        try:
+            table, names, units, summary, raised = _mbsolve.run(
+                self._text, self._file, self._stem, specs, True,
+                [f._spec() for f in laws], bar, _one_thread)
+        finally:
+            if isinstance(bar, _progress.Progress):
+                bar.close()
+        return Result(table, names, units, json.loads(summary), raised)
+
+    def __reduce__(self) -> Tuple[Any, ...]:
+        """Pickled as its text, file, name, overrides and Python forces
+        (for Dask workers; lambdas need cloudpickle, which Dask uses)."""
+        return (Scenario, (self._text, self._file, self._stem, self._overrides, self._forces))
 
     def __repr__(self) -> str:
         extra = f", overrides={self._overrides!r}" if self._overrides else ""
         return f"Scenario({self._name!r}, file={self._file!r}{extra})"
+
+
+def _check_forces(forces: Iterable[Any]) -> Tuple[PythonForce, ...]:
+    """The laws as a tuple, each a :class:`PythonForce`."""
+    out = tuple(forces)
+    for f in out:
+        if not isinstance(f, PythonForce):
+            raise TypeError(f"forces: expected mbsolve.PythonForce, not {type(f).__name__}")
+    return out
 
 
 def load(path: Union[str, "os.PathLike[str]"],
@@ -212,10 +266,10 @@ class Result:
     of one block held by the Rust side (no copy); ``result.data`` is that
     block, shape (columns, rows)."""
 
-    __slots__ = ("_table", "data", "columns", "units", "summary", "_index")
+    __slots__ = ("_table", "data", "columns", "units", "summary", "_index", "exception")
 
     def __init__(self, table: Any, columns: List[str], units: List[str],
-                 summary: Dict[str, Any]) -> None:
+                 summary: Dict[str, Any], exception: Optional[BaseException] = None) -> None:
         self._table = table
         #: The whole table, shape (len(columns), rows), read-only float64.
         self.data: np.ndarray = np.asarray(table)
@@ -226,6 +280,8 @@ class Result:
         #: The run summary (``mbsolve run``'s ``summary.json``) as a dict.
         self.summary: Dict[str, Any] = summary
         self._index = {c: k for k, c in enumerate(columns)}
+        #: The exception a :class:`PythonForce` raised (it ended the run), or None.
+        self.exception: Optional[BaseException] = exception
 
     @property
     def status(self) -> str:
@@ -292,11 +348,73 @@ class Result:
         arrays = [pa.array(self.data[k]) for k in range(len(self.columns))]
         return pa.Table.from_arrays(arrays, schema=schema)
 
+    def reduce(self, kind: str, column: str, window: Optional[Tuple[Optional[float],
+               Optional[float]]] = None) -> float:
+        """A named reduction of a column over the output rows with ``t`` in
+        ``window = (t_from, t_to)`` [s] (default all rows; ``None`` for an
+        open end): ``"final"``, ``"initial"``, ``"max"``, ``"min"``,
+        ``"absmax"``, ``"mean"`` or ``"rms"`` (over the rows of the uniform
+        output grid). Computed in Rust on the result's block (no copy)."""
+        if column not in self._index:
+            self[column]  # raises the KeyError listing the columns
+        lo, hi = window if window is not None else (None, None)
+        return self._table.reduce(self._index[column], kind, self._index["t"],
+                                  None if lo is None else float(lo),
+                                  None if hi is None else float(hi))
+
+    def label(self, name: str) -> str:
+        """Axis label of column ``name``: the name and its unit in
+        brackets (``"phi1 [rad]"``; no brackets for unitless columns)."""
+        unit = self.units.get(name, "")
+        return f"{name} [{unit}]" if unit else name
+
+    def plot(self, *columns: str, x: str = "t", ax: Any = None, logy: bool = False,
+             **line_kw: Any) -> Any:
+        """Plot columns against ``x`` (default ``t``) with matplotlib
+        (optional dependency) and return the ``Axes``. Axis labels carry the
+        units of ``columns.json``; with several columns of different units
+        the y label lists each. Without columns: ``constraint_norm`` on a
+        log scale. ``ax``: an existing ``Axes`` to draw on; ``logy``: a
+        logarithmic y axis; ``label``: the legend entry of a single column
+        (default its name); other keywords go to ``Axes.plot``."""
+        try:
+            import matplotlib.pyplot as plt
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError("Result.plot needs matplotlib (pip install matplotlib)") from e
+        if not columns:
+            columns, logy = ("constraint_norm",), True
+        xs = self[x]
+        if ax is None:
+            _, ax = plt.subplots()
+        given = line_kw.pop("label", None)
+        for c in columns:
+            ax.plot(xs, self[c], label=given if given is not None and len(columns) == 1 else c,
+                    **line_kw)
+        ax.set_xlabel(self.label(x))
+        units = {self.units.get(c, "") for c in columns}
+        if len(columns) == 1:
+            ax.set_ylabel(self.label(columns[0]))
+        elif len(units) == 1:
+            u = units.pop()
+            ax.set_ylabel(f"[{u}]" if u else "")
+        else:
+            ax.set_ylabel(", ".join(self.label(c) for c in columns))
+        if len(columns) > 1:
+            ax.legend()
+        if logy:
+            ax.set_yscale("log")
+        title = self.summary.get("scenario")
+        status = self.status
+        ax.set_title(f"{os.path.basename(str(title)) if title else ''}"
+                     + ("" if status == "completed" else f" ({status})"))
+        return ax
+
     def __repr__(self) -> str:
         return (f"Result(status={self.status!r}, rows={len(self)}, "
                 f"columns={len(self.columns)})")
 
 
 from .model import Model, to_toml  # noqa: E402
+from .sweeps import sweep  # noqa: E402
 
-__all__ += ["Model", "to_toml"]
+__all__ += ["Model", "to_toml", "sweep"]

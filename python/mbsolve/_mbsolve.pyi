@@ -1,7 +1,7 @@
 """Type stubs of the Rust extension ``mbsolve._mbsolve`` (internal; use the
 ``mbsolve`` package's functions)."""
 
-from typing import List, Tuple
+from typing import Any, Callable, List, Optional, Sequence, Tuple
 
 __version__: str
 
@@ -23,6 +23,10 @@ class Table:
     def __array_interface__(self) -> dict: ...
     @property
     def shape(self) -> Tuple[int, int]: ...
+    def reduce(self, column: int, kind: str, time: int = 0, t_from: Optional[float] = None,
+               t_to: Optional[float] = None) -> float:
+        """final, initial, max, min, absmax, mean or rms of a column over
+        the rows with t_from <= t <= t_to."""
 
 def validate(text: str, file: str, stem: str, overrides: List[str]) -> str:
     """Parse and validate; returns the scenario's name."""
@@ -30,10 +34,16 @@ def validate(text: str, file: str, stem: str, overrides: List[str]) -> str:
 def check_json(text: str, file: str, stem: str, overrides: List[str]) -> str:
     """What ``mbsolve check`` reports, as JSON text."""
 
+ForceSpec = Tuple[str, List[str], Callable[..., Any], Optional[Callable[..., Any]],
+                  Optional[Callable[..., Any]]]
+
 def run(
-    text: str, file: str, stem: str, overrides: List[str], check_signals: bool = True
-) -> Tuple[Table, List[str], List[str], str]:
-    """Run: (table, column names, units, summary JSON)."""
+    text: str, file: str, stem: str, overrides: List[str], check_signals: bool = True,
+    forces: Sequence[ForceSpec] = (), progress: Optional[Callable[[float, float, float], Any]] = None,
+    one_thread: bool = False,
+) -> Tuple[Table, List[str], List[str], str, Optional[BaseException]]:
+    """Run: (table, column names, units, summary JSON, the first exception
+    a Python force raised)."""
 
 def builtin_scenario(name: str) -> str:
     """The TOML text of a shipped scenario (``fourbar``, ``falling_rod``)."""

@@ -105,6 +105,7 @@ class Model:
     def __init__(self, name: Optional[str] = None, *, description: Optional[str] = None,
                  gravity: Optional[Any] = None, **top: Any) -> None:
         self._doc: Dict[str, Any] = {}
+        self._forces: List[Any] = []
         if name is not None:
             self._doc["name"] = name
         if description is not None:
@@ -141,6 +142,17 @@ class Model:
         ``rotational_spring``, ``contact``, ``fluid``, ``expression``, ...,
         with its keys."""
         return self._append("force", {"type": type, **keys})
+
+    def python_force(self, name: str, bodies: Any, force: Any, *, jacobian: Any = None,
+                     step: Any = None) -> "Model":
+        """A force law written in Python on the named bodies (a
+        :class:`mbsolve.PythonForce`; see there for ``force(t, q, qd)``,
+        ``jacobian`` and ``step``). Not part of :meth:`to_toml` (a scenario
+        file holds no Python); :meth:`scenario` and :meth:`run` carry it."""
+        from .forces import PythonForce
+
+        self._forces.append(PythonForce(name, bodies, force, jacobian=jacobian, step=step))
+        return self
 
     def rod(self, **keys: Any) -> "Model":
         """A flexible rod (``[[rod]]``; one rod without ``name`` is written
@@ -204,15 +216,18 @@ class Model:
 
         name = str(self._doc.get("name", "model"))
         return Scenario(self.to_toml(), f"<model {name}>", name,
-                        override_specs(overrides, **kwargs))
+                        override_specs(overrides, **kwargs), self._forces)
 
     def check(self) -> Dict[str, Any]:
         """What ``mbsolve check`` reports (see :meth:`mbsolve.Scenario.check`)."""
         return self.scenario().check()
 
-    def run(self, overrides: Optional[Dict[str, Any]] = None, **kwargs: Any) -> Any:
-        """Validate and run; returns a :class:`mbsolve.Result`."""
-        return self.scenario(overrides, **kwargs).run()
+    def run(self, overrides: Optional[Dict[str, Any]] = None, *, forces: Any = (),
+            progress: Any = False, **kwargs: Any) -> Any:
+        """Validate and run (with the model's Python forces and ``forces``);
+        returns a :class:`mbsolve.Result`. ``progress`` as for
+        :meth:`mbsolve.Scenario.run`."""
+        return self.scenario(overrides, **kwargs).run(forces=forces, progress=progress)
 
     def __repr__(self) -> str:
         n = {k: len(v) for k, v in self._doc.items() if isinstance(v, list) and k != "gravity"}

@@ -12,17 +12,20 @@
 //! panic into a Python `RuntimeError` instead of a crash.
 
 use mbsolve::events::ContactMonitor;
+use mbsolve::forces::{CallbackError, CallbackForce, CallbackLaw};
 use mbsolve::integrate::Stats;
 use mbsolve::model::Sensor;
+use mbsolve::parallel::Threads;
 use mbsolve::output::{columns, RowBuilder};
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::{self, Monitor, Sample, Sink};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 use sha2::Digest as _;
 use std::ops::ControlFlow;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 /// `say!` for the binary's `check` module compiled in below (its
@@ -183,6 +186,59 @@ impl Table {
     fn shape(&self) -> (usize, usize) {
         (self.ncols, self.nrows)
     }
+
+    /// A named reduction of column `column` over the rows whose time
+    /// (column `time`) lies in `[t_from, t_to]` (open ends: `None`):
+    /// `final` (the last row's value), `initial`, `max`, `min`, `absmax`,
+    /// `mean` and `rms` (over the rows: the output grid is uniform). A
+    /// window without rows, an unknown reduction or column raise
+    /// `ValueError`.
+    #[pyo3(signature = (column, kind, time = 0, t_from = None, t_to = None))]
+    fn reduce(
+        &self,
+        column: usize,
+        kind: &str,
+        time: usize,
+        t_from: Option<f64>,
+        t_to: Option<f64>,
+    ) -> PyResult<f64> {
+        if column >= self.ncols || time >= self.ncols {
+            return Err(PyValueError::new_err(format!(
+                "column {} of a table of {} columns",
+                column.max(time),
+                self.ncols
+            )));
+        }
+        let col = |k: usize| &self.data[k * self.nrows..(k + 1) * self.nrows];
+        let (lo, hi) = (t_from.unwrap_or(f64::NEG_INFINITY), t_to.unwrap_or(f64::INFINITY));
+        let vals: Vec<f64> = col(time)
+            .iter()
+            .zip(col(column))
+            .filter(|(t, _)| **t >= lo && **t <= hi)
+            .map(|(_, v)| *v)
+            .collect();
+        let (Some(&first), Some(&last)) = (vals.first(), vals.last()) else {
+            return Err(PyValueError::new_err(format!(
+                "{kind}: no output rows with {lo} <= t <= {hi} (the run has {} rows)",
+                self.nrows
+            )));
+        };
+        let n = vals.len() as f64;
+        Ok(match kind {
+            "final" => last,
+            "initial" => first,
+            "max" => vals.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            "min" => vals.iter().copied().fold(f64::INFINITY, f64::min),
+            "absmax" => vals.iter().fold(0.0, |m: f64, v| m.max(v.abs())),
+            "mean" => vals.iter().sum::<f64>() / n,
+            "rms" => (vals.iter().map(|v| v * v).sum::<f64>() / n).sqrt(),
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown reduction '{other}' (final, initial, max, min, absmax, mean, rms)"
+                )))
+            }
+        })
+    }
 }
 
 /// The in-memory sink: rows through the library's `RowBuilder` (the CLI's
@@ -194,6 +250,11 @@ struct Collect<'s> {
     ncols: usize,
     last_signal_check: Instant,
     check_signals: bool,
+    /// Python's `progress(t, t0, t_end)` [s], called at most every 100 ms
+    /// of wall time.
+    progress: Option<Py<PyAny>>,
+    span: (f64, f64),
+    last_progress: Instant,
 }
 
 impl Sink for Collect<'_> {
@@ -205,6 +266,17 @@ impl Sink for Collect<'_> {
     }
 
     fn progress(&mut self, t: f64, _stats: &Stats) -> ControlFlow<String> {
+        if let Some(p) = &self.progress {
+            if self.last_progress.elapsed() >= Duration::from_millis(100) {
+                self.last_progress = Instant::now();
+                // a failing progress display must not end the run: it is
+                // printed and not called again
+                let failed = Python::attach(|py| p.call1(py, (t, self.span.0, self.span.1)).map_err(|e| e.print(py)).is_err());
+                if failed {
+                    self.progress = None;
+                }
+            }
+        }
         if self.check_signals && self.last_signal_check.elapsed() >= Duration::from_millis(50) {
             self.last_signal_check = Instant::now();
             let interrupted = Python::attach(|py| py.check_signals().is_err());
@@ -216,14 +288,29 @@ impl Sink for Collect<'_> {
     }
 }
 
-/// Everything a run hands back to Python.
-type RunOutput = (Table, Vec<String>, Vec<String>, String);
+/// Everything a run hands back to Python: the table, column names, units,
+/// the summary JSON, and the first exception a Python force raised.
+type RunOutput = (Table, Vec<String>, Vec<String>, String, Option<PyErr>);
+
+/// A Python force as the Python layer hands it over (`PythonForce`): its
+/// name, the names of its bodies, `force(t, q, qd) -> list` (k = 3 × bodies
+/// values), optionally `jacobian(t, q, qd) -> list` (2k² values: ∂g/∂q then
+/// ∂g/∂q̇, row-major) and `step(t, q, qd)` (after each accepted step).
+type ForceSpec = (
+    String,
+    Vec<String>,
+    Py<PyAny>,
+    Option<Py<PyAny>>,
+    Option<Py<PyAny>>,
+);
 
 /// Run scenario text with overrides: (table, column names, units, summary
-/// JSON). The summary records what `mbsolve run` records (plus the
-/// provenance of the text: its SHA-256, the overrides, the version).
+/// JSON, first exception of a Python force). The summary records what
+/// `mbsolve run` records (plus the provenance of the text: its SHA-256,
+/// the overrides, the version).
 #[pyfunction]
-#[pyo3(signature = (text, file, stem, overrides, check_signals = true))]
+#[pyo3(signature = (text, file, stem, overrides, check_signals = true, forces = Vec::new(), progress = None, one_thread = false))]
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
     text: String,
@@ -231,11 +318,209 @@ fn run(
     stem: String,
     overrides: Vec<String>,
     check_signals: bool,
-) -> PyResult<RunOutput> {
-    guarded(py, move || {
-        let sc = parse(&text, &file, &stem, &overrides)?;
-        run_scenario(&sc, &text, &file, &overrides, check_signals)
-    })
+    forces: Vec<ForceSpec>,
+    progress: Option<Py<PyAny>>,
+    one_thread: bool,
+) -> PyResult<(Table, Vec<String>, Vec<String>, String, Option<Py<PyAny>>)> {
+    let (table, names, units, json, raised) = guarded(py, move || {
+        let mut sc = parse(&text, &file, &stem, &overrides)?;
+        // runs side by side (a sweep): each on one thread, as `mbsolve
+        // sweep` does (the results do not depend on it)
+        if one_thread && sc.run.threads == Threads::Auto {
+            sc.run.threads = Threads::One;
+        }
+        let hooks = add_python_forces(&mut sc, forces)?;
+        run_scenario(&sc, &text, &file, &overrides, check_signals, hooks, progress)
+    })?;
+    let raised = raised.map(|e| e.into_value(py).into_any());
+    Ok((table, names, units, json, raised))
+}
+
+/// The first exception raised by any Python force of a run, with the
+/// message the summary gives.
+type Raised = Arc<Mutex<Option<(String, PyErr)>>>;
+
+/// What `add_python_forces` leaves for the run: the step hooks (monitors),
+/// the forces' error slots and the first exception.
+struct PythonHooks {
+    steps: Vec<PyStep>,
+    errors: Vec<CallbackError>,
+    raised: Raised,
+}
+
+/// Record `e` (raised by Python force `name` at `t`) unless an exception
+/// is recorded already; returns the message.
+fn record(py: Python<'_>, raised: &Raised, name: &str, what: &str, t: f64, e: PyErr) -> String {
+    let ty = e
+        .get_type(py)
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "exception".into());
+    let v = e.value(py).str().map(|s| s.to_string()).unwrap_or_default();
+    let m = format!("python force '{name}': {what} raised {ty}: {v} (at t = {t:e})");
+    let mut r = raised.lock().unwrap_or_else(PoisonError::into_inner);
+    if r.is_none() {
+        *r = Some((m.clone(), e));
+    }
+    m
+}
+
+/// A Python force's law: its `force` (and `jacobian`) callables, called
+/// with the GIL taken for each evaluation.
+struct PyLaw {
+    name: String,
+    force: Py<PyAny>,
+    jacobian: Option<Py<PyAny>>,
+    raised: Raised,
+}
+
+impl PyLaw {
+    /// Call `f(t, q, qd)` and read `n` floats from what it returns.
+    fn call(
+        &self,
+        py: Python<'_>,
+        f: &Py<PyAny>,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        n: usize,
+    ) -> PyResult<Vec<f64>> {
+        let out = f.call1(py, (t, PyList::new(py, q)?, PyList::new(py, qd)?))?;
+        let v: Vec<f64> = out.extract(py)?;
+        if v.len() != n {
+            return Err(PyValueError::new_err(format!(
+                "returned {} values, expected {n}",
+                v.len()
+            )));
+        }
+        Ok(v)
+    }
+}
+
+impl CallbackLaw for PyLaw {
+    fn forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> Result<(), String> {
+        Python::attach(|py| match self.call(py, &self.force, t, q, qd, g.len()) {
+            Ok(v) => {
+                g.copy_from_slice(&v);
+                Ok(())
+            }
+            Err(e) => Err(record(py, &self.raised, &self.name, "force", t, e)),
+        })
+    }
+
+    fn jacobians(
+        &self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        dq: &mut [f64],
+        dqd: &mut [f64],
+    ) -> Result<bool, String> {
+        let Some(j) = &self.jacobian else {
+            return Ok(false);
+        };
+        let kk = dq.len();
+        Python::attach(|py| match self.call(py, j, t, q, qd, 2 * kk) {
+            Ok(v) => {
+                dq.copy_from_slice(&v[..kk]);
+                dqd.copy_from_slice(&v[kk..]);
+                Ok(true)
+            }
+            Err(e) => Err(record(py, &self.raised, &self.name, "jacobian", t, e)),
+        })
+    }
+}
+
+/// A Python force's `step(t, q, qd)`, called after each accepted step with
+/// its bodies' coordinates; an exception stops the run through the force's
+/// error slot.
+struct PyStep {
+    name: String,
+    coords: Vec<usize>,
+    step: Py<PyAny>,
+    error: CallbackError,
+    raised: Raised,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+}
+
+impl Monitor for PyStep {
+    fn step(&mut self, t: f64, q: &[f64], qd: &[f64]) {
+        if self.error.get().is_some() {
+            return;
+        }
+        for (i, &c) in self.coords.iter().enumerate() {
+            self.q[i] = q[c];
+            self.qd[i] = qd[c];
+        }
+        Python::attach(|py| {
+            let r = PyList::new(py, &self.q)
+                .and_then(|a| Ok((a, PyList::new(py, &self.qd)?)))
+                .and_then(|(a, b)| self.step.call1(py, (t, a, b)));
+            if let Err(e) = r {
+                let m = record(py, &self.raised, &self.name, "step", t, e);
+                self.error.set(m);
+            }
+        });
+    }
+    fn report(&self, _extra: &mut serde_json::Map<String, serde_json::Value>) {}
+}
+
+/// Add the Python forces to the scenario's system (bodies by name).
+fn add_python_forces(sc: &mut Scenario, forces: Vec<ForceSpec>) -> Result<PythonHooks, Failure> {
+    let raised: Raised = Arc::default();
+    let mut hooks = PythonHooks {
+        steps: Vec::new(),
+        errors: Vec::new(),
+        raised: raised.clone(),
+    };
+    for (name, bodies, force, jacobian, step) in forces {
+        let bad = |message: String| {
+            Failure::Scenario(scenario::ScenarioError {
+                file: format!("<python force '{name}'>"),
+                key: "bodies".into(),
+                message,
+            })
+        };
+        let all = sc.system.bodies();
+        let mut coords = Vec::new();
+        for b in &bodies {
+            let Some(i) = all.iter().position(|x| &x.name == b) else {
+                let names: Vec<&str> = all.iter().take(12).map(|x| x.name.as_str()).collect();
+                let more = if all.len() > 12 { ", ..." } else { "" };
+                return Err(bad(format!(
+                    "no body '{b}' in the scenario (bodies: {}{more})",
+                    names.join(", ")
+                )));
+            };
+            coords.extend([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let law = PyLaw {
+            name: name.clone(),
+            force,
+            jacobian,
+            raised: raised.clone(),
+        };
+        let f = CallbackForce::new(&name, coords.clone(), law);
+        let error = f.error_handle();
+        sc.system
+            .add_force(Box::new(f))
+            .map_err(|e| bad(e.to_string()))?;
+        if let Some(step) = step {
+            let k = coords.len();
+            hooks.steps.push(PyStep {
+                name: name.clone(),
+                coords,
+                step,
+                error: error.clone(),
+                raised: raised.clone(),
+                q: vec![0.0; k],
+                qd: vec![0.0; k],
+            });
+        }
+        hooks.errors.push(error);
+    }
+    Ok(hooks)
 }
 
 fn run_scenario(
@@ -244,6 +529,8 @@ fn run_scenario(
     file: &str,
     overrides: &[String],
     check_signals: bool,
+    mut hooks: PythonHooks,
+    progress: Option<Py<PyAny>>,
 ) -> Result<RunOutput, Failure> {
     let sensors: &[Sensor] = &sc.sensors;
     let cols = columns(&sc.system, &sc.run.outputs, sensors);
@@ -253,11 +540,17 @@ fn run_scenario(
         ncols: cols.len(),
         last_signal_check: Instant::now(),
         check_signals,
+        progress,
+        span: (sc.run.t0, sc.run.t_end),
+        last_progress: Instant::now(),
     };
     let mut contacts = ContactMonitor::for_rods(&sc.rods);
     let mut monitors: Vec<&mut dyn Monitor> = Vec::new();
     if let Some(c) = contacts.as_mut() {
         monitors.push(c);
+    }
+    for s in hooks.steps.iter_mut() {
+        monitors.push(s);
     }
     let mut summary = simulation::simulate_into(
         &sc.system,
@@ -268,6 +561,28 @@ fn run_scenario(
         &mut sink,
     )
     .map_err(|e| Failure::Run(e.to_string()))?;
+    // a Python force raised: the run ended at that evaluation (its forces
+    // came out NaN, or a step hook failed after the last step)
+    let first = hooks
+        .raised
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .take();
+    let raised = match first {
+        Some((m, e)) => {
+            let interrupt = Python::attach(|py| e.is_instance_of::<PyKeyboardInterrupt>(py));
+            summary.status = if interrupt { "interrupted" } else { "failed" }.into();
+            summary.message = Some(m);
+            Some(e)
+        }
+        None => {
+            if let Some(m) = hooks.errors.iter().find_map(|e| e.get()) {
+                summary.status = "failed".into();
+                summary.message = Some(m);
+            }
+            None
+        }
+    };
     let hash: String = sha2::Sha256::digest(text.as_bytes())
         .iter()
         .map(|b| format!("{b:02x}"))
@@ -299,7 +614,7 @@ fn run_scenario(
     }
     let names = cols.iter().map(|c| c.name.clone()).collect();
     let units = cols.iter().map(|c| c.unit.to_string()).collect();
-    Ok((Table { data, ncols, nrows }, names, units, json))
+    Ok((Table { data, ncols, nrows }, names, units, json, raised))
 }
 
 /// The scenario shipped with the tool: `fourbar` or `falling_rod`.

@@ -24,6 +24,16 @@
 //! the search stops with [`StaticError::NoEquilibrium`] (the load factor
 //! reached and the residual).
 //!
+//! **Redundant constraints.** Rows of `Φ_q` that the sparse coordinate
+//! partitioning ([`super::partitioning::partition`]) eliminates to zero at
+//! the start (a parallelogram's extra coupler pin) are left out of the
+//! Newton matrix, which is then nonsingular; `Φ = 0` of those rows follows
+//! from the others and is still checked by the convergence test. Their λ
+//! are 0: with rigid bodies the split of the reactions among redundant
+//! joints is statically indeterminate, and this is the particular solution
+//! in which the rows the partitioning keeps carry all of it
+//! ([`Equilibrium::redundant`] lists the rows left out).
+//!
 //! **Stability** ([`stability`]): the equilibrium is stable when `K` is
 //! positive definite on the tangent space `Φ_q δq = 0`. The signs of the
 //! eigenvalues of the constrained pencil `(K, M)` (ω² of the modes) come
@@ -90,6 +100,9 @@ pub struct Equilibrium {
     pub residual: f64,
     /// `‖Φ‖∞` at the solution.
     pub constraint_residual: f64,
+    /// Constraint rows left out as redundant (module docs), ascending;
+    /// their λ are 0. Empty when Φ_q has full row rank at the start.
+    pub redundant: Vec<usize>,
 }
 
 /// Counts of the constrained stiffness's eigenvalue signs ([`stability`]).
@@ -209,28 +222,46 @@ pub fn static_equilibrium(
         zero: vec![0.0; n],
     };
     let mut tan = Tangent::new(sys);
-    let mut k = tan.saddle_matrix(Storage::Full);
-    let mut solver = solver_for(SolverKind::SparseLu, n + m, SolverOptions::default());
+    // the rows kept in the Newton matrix: all but the redundant ones at q₀
+    let zero = vec![0.0; n];
+    let redundant = if m > 0 && tan.evaluate(t, q0, &zero, &vec![0.0; m]).is_ok() {
+        let phi = tan.constraint_jacobian();
+        super::partitioning::partition(phi.rows, phi.cols, &phi.entries, super::inverse::RANK_TOL)
+            .redundant
+    } else {
+        Vec::new()
+    };
+    let kept: Vec<usize> = (0..m)
+        .filter(|r| redundant.binary_search(r).is_err())
+        .collect();
+    let mk = kept.len();
+    let mut k = tan.saddle_matrix_of_rows(Storage::Full, &kept);
+    let mut solver = solver_for(SolverKind::SparseLu, n + mk, SolverOptions::default());
     let lin = |source| FormulationError::Linear { t, source };
     solver.analyze(&k).map_err(lin)?;
     // λ₀: the multipliers of the start at rest (M q̈ + Φ_qᵀλ = g,
     // Φ_q q̈ = γ), so that K holds the constraint forces' geometric
     // stiffness from the first iteration on (a mechanism held only by it —
     // a pendulum under gravity — has a singular Newton matrix at λ = 0);
-    // 0 when that solve fails (redundant constraints: the iteration finds λ)
+    // 0 when that solve fails (the iteration finds λ)
     let mut lam0 = vec![0.0; m];
     {
-        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU
-        let zero = vec![0.0; n];
+        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU (kept rows)
         let mut ok = tan.evaluate(t, q0, &zero, &lam0).is_ok();
         if ok {
-            tan.write_saddle(&mut k, [1.0, 0.0, 0.0]);
-            let mut rhs = vec![0.0; n + m];
+            tan.write_saddle_of_rows(&mut k, [1.0, 0.0, 0.0], &kept);
+            let mut rhs = vec![0.0; n + mk];
+            let mut gamma = vec![0.0; m];
             sys.forces_into(t, q0, &zero, &mut rhs[..n]);
-            sys.gamma(q0, &zero, t, &mut rhs[n..]);
+            sys.gamma(q0, &zero, t, &mut gamma);
+            for (x, &r) in rhs[n..].iter_mut().zip(&kept) {
+                *x = gamma[r];
+            }
             ok = solver.factorize(&k).is_ok() && solver.solve_in_place(&k, &mut rhs).is_ok();
             if ok {
-                lam0.copy_from_slice(&rhs[n..]);
+                for (x, &r) in rhs[n..].iter().zip(&kept) {
+                    lam0[r] = *x;
+                }
             }
         }
         if !ok || lam0.iter().any(|v| !v.is_finite()) {
@@ -252,7 +283,7 @@ pub fn static_equilibrium(
     let (mut mu, mut dmu) = (0.0f64, 1.0f64);
     let (mut steps, mut iterations) = (0usize, 0usize);
     let mut f = vec![0.0; n];
-    let mut x = vec![0.0; n + m];
+    let mut x = vec![0.0; n + mk];
     let mut last = (f64::INFINITY, f64::INFINITY);
     let mut reason = String::new();
     while mu < 1.0 {
@@ -308,11 +339,11 @@ pub fn static_equilibrium(
             // Newton step, the residual stays exact)
             let mut eps = 0.0;
             let solved = loop {
-                tan.write_saddle(&mut k, [eps, 0.0, 1.0]);
+                tan.write_saddle_of_rows(&mut k, [eps, 0.0, 1.0], &kept);
                 if solver.factorize(&k).is_ok() {
                     x[..n].copy_from_slice(&f);
-                    for (xi, p) in x[n..].iter_mut().zip(&w.phi) {
-                        *xi = -p;
+                    for (xi, &r) in x[n..].iter_mut().zip(&kept) {
+                        *xi = -w.phi[r];
                     }
                     let big = 1e8 * qscale;
                     if solver.solve_in_place(&k, &mut x).is_ok()
@@ -339,8 +370,8 @@ pub fn static_equilibrium(
             for (qi, d) in qt.iter_mut().zip(&x[..n]) {
                 *qi += d;
             }
-            for (li, d) in lt.iter_mut().zip(&x[n..]) {
-                *li += d;
+            for (&r, d) in kept.iter().zip(&x[n..]) {
+                lt[r] += d;
             }
         }
         if converged {
@@ -377,6 +408,7 @@ pub fn static_equilibrium(
         iterations,
         residual,
         constraint_residual,
+        redundant,
     })
 }
 

@@ -299,6 +299,44 @@ impl<'a> Tangent<'a> {
         k.set_jacobian(&self.jac);
     }
 
+    /// [`Tangent::saddle_matrix`] with only the constraint rows `rows`
+    /// (ascending, distinct), renumbered `0 … rows.len() − 1` in that
+    /// order: the saddle matrix of the constraints without their redundant
+    /// rows (fill with [`Tangent::write_saddle_of_rows`]).
+    pub fn saddle_matrix_of_rows(&self, storage: Storage, rows: &[usize]) -> SaddleMatrix {
+        let (pattern, _) = self.row_subset(rows);
+        SaddleMatrix::with_storage(self.n(), rows.len(), &self.a, &pattern, storage)
+    }
+
+    /// [`Tangent::write_saddle`] into a matrix of
+    /// [`Tangent::saddle_matrix_of_rows`] with the same `rows`: `A` in full,
+    /// `Φ_q` of those rows only.
+    pub fn write_saddle_of_rows(&self, k: &mut SaddleMatrix, coeffs: [f64; 3], rows: &[usize]) {
+        self.assert_evaluated();
+        self.blocks.write(self.sys, k, coeffs);
+        let (_, which) = self.row_subset(rows);
+        let vals: Vec<f64> = which.iter().map(|&e| self.jac[e]).collect();
+        k.set_jacobian(&vals);
+    }
+
+    /// The Jacobian pattern of the constraint rows `rows`, renumbered, and
+    /// the positions of its entries in [`System::jacobian_pattern`].
+    fn row_subset(&self, rows: &[usize]) -> (Vec<(usize, usize)>, Vec<usize>) {
+        let mut new_row = vec![usize::MAX; self.m()];
+        for (k, &r) in rows.iter().enumerate() {
+            new_row[r] = k;
+        }
+        let mut pattern = Vec::new();
+        let mut which = Vec::new();
+        for (e, &(r, c)) in self.sys.jacobian_pattern().iter().enumerate() {
+            if new_row[r] != usize::MAX {
+                pattern.push((new_row[r], c));
+                which.push(e);
+            }
+        }
+        (pattern, which)
+    }
+
     fn assert_evaluated(&self) {
         assert!(
             self.evaluated,

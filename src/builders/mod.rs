@@ -7,10 +7,12 @@
 //! (`add_link_chain`, the scenario's `[[chain]]`).
 
 mod chain;
+mod known_answer;
 mod parallelogram;
 mod rod;
 mod stiff_chain;
 pub use chain::{add_link_chain, ChainInfo, LinkChain};
+pub use known_answer::{add_cantilever, cantilever, n_link_pendulum};
 pub use parallelogram::{parallelogram_chain, ParallelogramChain};
 pub use rod::*;
 pub use stiff_chain::{stiff_chain, stiff_chain_reference_tip, stiff_chain_tip_x};

@@ -1,13 +1,13 @@
-//! The falling flexible rod (docs/problems.md, problem B) and the chains of problem D (docs/problems.md).
+//! The falling flexible rod (docs/problems.md, problem B) and the chain
+//! helpers it shares with the known-answer chains of problem D
+//! ([`super::known_answer`]).
 
 use crate::constraints::Revolute;
-use crate::forces::{
-    AppliedForce, Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
-};
+use crate::forces::{Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact};
 use crate::generated::{
     ChainKernels, ContactJacobians, DragJacobians, GroundPivot, SharedTrig, TorsionalChainJacobians,
 };
-use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
+use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder};
 use serde::{Deserialize, Serialize};
 
 /// Every physical input of the falling-rod problem (docs/problems.md, problem B), SI units.
@@ -154,7 +154,7 @@ impl RodParams {
         self.damping_time * self.spring_stiffness()
     }
     /// Rod axis `e_a = (−sin φ0, cos φ0)` of the initial straight rod.
-    fn axis(&self) -> [f64; 2] {
+    pub(super) fn axis(&self) -> [f64; 2] {
         let (s, c) = self.tilt.sin_cos();
         [-s, c]
     }
@@ -183,7 +183,7 @@ impl RodParams {
     }
 
     /// The parameters shared by every chain built from a `RodParams`.
-    fn validate_structure(&self) -> Result<(), ModelError> {
+    pub(super) fn validate_structure(&self) -> Result<(), ModelError> {
         if self.n_segments == 0 {
             return Err(invalid(
                 ROD,
@@ -386,7 +386,7 @@ pub struct RodInfo {
 }
 
 impl RodInfo {
-    fn empty() -> Self {
+    pub(super) fn empty() -> Self {
         Self {
             bodies: Vec::new(),
             joints: Vec::new(),
@@ -709,196 +709,5 @@ pub fn build_rod(params: &RodParams) -> Result<(System, RodInfo), ModelError> {
             }),
         );
     }
-    Ok((builder.build()?, info))
-}
-
-/// The finite-segment cantilever of problem D (docs/problems.md).
-///
-/// The rod of `params` (length, width, density, Young's modulus, damping
-/// time, segment count and tilt are used) stands straight along the
-/// direction of `params.tilt` (φ = 0: vertical, pointing up) with the bottom
-/// end of segment 1 pinned to the ground at the origin by a revolute joint
-/// and a [`TorsionalSpringDamper`] of the same `k`, `c` as the other joints
-/// (relaxed in the straight state). A constant force `tip_load` `(F_x, F_y)`,
-/// fixed in the global frame, acts at the top end of segment N (omitted when
-/// zero). No fluid, contact or gravity; the initial state is at rest.
-///
-/// Euler–Bernoulli limits: tip deflection `P l³ / (3 E I_A)`,
-/// `ω_n = (β_n l)² sqrt(E I_A / (ρ A l⁴))`, `I_A = w⁴/12`, `A = w²`.
-pub fn cantilever(params: &RodParams, tip_load: [f64; 2]) -> Result<(System, RodInfo), ModelError> {
-    let mut builder = SystemBuilder::new();
-    let info = add_cantilever(&mut builder, params, tip_load)?;
-    Ok((builder.build()?, info))
-}
-
-/// [`cantilever`] added to `builder` (its bodies and joints after those
-/// already there), with its kernels attached to its own ranges.
-pub fn add_cantilever(
-    builder: &mut SystemBuilder,
-    params: &RodParams,
-    tip_load: [f64; 2],
-) -> Result<RodInfo, ModelError> {
-    params.validate_structure()?;
-    if !tip_load.iter().all(|v| v.is_finite()) {
-        return Err(invalid(
-            "cantilever",
-            "tip_load",
-            format!("{tip_load:?}"),
-            "must be finite".into(),
-        ));
-    }
-    let p = params;
-    let n = p.n_segments;
-    let ls = p.segment_length();
-    let e = p.axis();
-    let (m, inertia) = (p.segment_mass(), p.segment_inertia());
-    let (bodies, joints, points) = add_chain(
-        builder,
-        ChainNames::Numbered("segment"),
-        n,
-        m,
-        inertia,
-        p.tilt,
-        [0.0, 0.0],
-        0.5 * ls,
-        |i| {
-            let a = (i as f64 + 0.5) * ls;
-            [a * e[0], a * e[1]]
-        },
-    );
-    let mut info = RodInfo::empty();
-    let base = builder.add_constraint(Revolute::new(
-        "cantilever base",
-        BodyRef::Ground,
-        [0.0, 0.0],
-        BodyRef::Body(bodies[0]),
-        [0.0, -0.5 * ls],
-    ));
-    info.base_joint = Some(base);
-    let pivot = GroundPivot {
-        first: false,
-        ground_is_i: true,
-        body: bodies[0],
-        points: [0.0, 0.0, 0.0, -0.5 * ls],
-    };
-    attach_chain_kernels(builder, &bodies, &joints, &points, Some((base, pivot)));
-    info.segment_length = ls;
-    info.segment_mass = m;
-    info.segment_inertia = inertia;
-    info.spring_stiffness = p.spring_stiffness();
-    info.spring_damping = p.spring_damping();
-    info.springs.push(builder.add_force(TorsionalSpringDamper {
-        body_i: BodyRef::Ground,
-        body_j: BodyRef::Body(bodies[0]),
-        k: info.spring_stiffness,
-        c: info.spring_damping,
-        rest_angle: p.tilt,
-    }));
-    for b in bodies.windows(2) {
-        info.springs
-            .push(builder.add_force(TorsionalSpringDamper::new(
-                BodyRef::Body(b[0]),
-                BodyRef::Body(b[1]),
-                info.spring_stiffness,
-                info.spring_damping,
-            )));
-    }
-    if tip_load != [0.0, 0.0] {
-        info.tip_load = Some(builder.add_force(AppliedForce {
-            name: "tip load".into(),
-            body: bodies[n - 1],
-            point: [0.0, 0.5 * ls],
-            fx: TimeFunction::Constant(tip_load[0]),
-            fy: TimeFunction::Constant(tip_load[1]),
-        }));
-    }
-    info.bodies = bodies;
-    info.joints = joints;
-    Ok(info)
-}
-
-/// The conservative N-link pendulum of problem D (docs/problems.md): `n` uniform slender
-/// links (length `link_length`, mass `link_mass`, inertia `m l²/12`), body
-/// frame y along the link with ends at local `(0, ∓l/2)`, numbered from the
-/// pivot: the top end of link 1 is pinned to the ground at the origin, the
-/// bottom end of link i to the top end of link i+1. No springs, drag or
-/// contact; a [`Gravity`] element `(0, −gravity)` (omitted when 0).
-///
-/// Initial state: a straight chain at rest, every `φ_i = initial_angle`
-/// (φ = 0 hangs straight down; positive swings the chain towards +x).
-pub fn n_link_pendulum(
-    n: usize,
-    link_length: f64,
-    link_mass: f64,
-    initial_angle: f64,
-    gravity: f64,
-) -> Result<(System, RodInfo), ModelError> {
-    const PEND: &str = "n-link pendulum";
-    if n == 0 {
-        return Err(invalid(
-            PEND,
-            "n",
-            "0".into(),
-            "the pendulum needs at least one link".into(),
-        ));
-    }
-    check_value(PEND, "link_length", link_length, true)?;
-    check_value(PEND, "link_mass", link_mass, true)?;
-    check_value(PEND, "gravity", gravity, false)?;
-    if !initial_angle.is_finite() {
-        return Err(invalid(
-            PEND,
-            "initial_angle",
-            initial_angle.to_string(),
-            "must be finite".into(),
-        ));
-    }
-    let (s, c) = initial_angle.sin_cos();
-    let down = [s, -c]; // −e_a: from the top end towards the bottom end
-    let inertia = link_mass * link_length * link_length / 12.0;
-    let mut builder = SystemBuilder::new();
-    // Link i's bottom (0, −l/2) meets link i+1's top (0, +l/2): joint
-    // "hinge" −l/2 on the upper link, +l/2 on the lower.
-    let (bodies, joints, points) = add_chain(
-        &mut builder,
-        ChainNames::Numbered("link"),
-        n,
-        link_mass,
-        inertia,
-        initial_angle,
-        [0.0, 0.0],
-        -0.5 * link_length,
-        |i| {
-            let a = (i as f64 + 0.5) * link_length;
-            [a * down[0], a * down[1]]
-        },
-    );
-    let mut info = RodInfo::empty();
-    let base = builder.add_constraint(Revolute::new(
-        "pendulum pivot",
-        BodyRef::Ground,
-        [0.0, 0.0],
-        BodyRef::Body(bodies[0]),
-        [0.0, 0.5 * link_length],
-    ));
-    info.base_joint = Some(base);
-    let pivot = GroundPivot {
-        first: false,
-        ground_is_i: true,
-        body: bodies[0],
-        points: [0.0, 0.0, 0.0, 0.5 * link_length],
-    };
-    attach_chain_kernels(&mut builder, &bodies, &joints, &points, Some((base, pivot)));
-    if gravity != 0.0 {
-        info.gravity = Some(builder.add_force(Gravity {
-            g: [0.0, -gravity],
-            bodies: bodies.iter().map(|&b| (b, link_mass)).collect(),
-        }));
-    }
-    info.segment_length = link_length;
-    info.segment_mass = link_mass;
-    info.segment_inertia = inertia;
-    info.bodies = bodies;
-    info.joints = joints;
     Ok((builder.build()?, info))
 }

@@ -7,7 +7,8 @@
 //! segment turned θ₀ = 5° counter-clockwise from the downward vertical.
 //! Reported: x of the free end at t = 0.1 s.
 
-use super::rod::{add_cantilever, RodInfo, RodParams};
+use super::known_answer::add_cantilever;
+use super::rod::{RodInfo, RodParams};
 use crate::model::{Gravity, ModelError, System, SystemBuilder};
 
 /// Tip x at t = 0.1 s. N = 10 and 100: the peers' references

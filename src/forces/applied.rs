@@ -1,6 +1,6 @@
 //! Applied loads prescribed in time.
 
-use super::ForceElement;
+use super::{Check, ForceElement};
 use crate::model::{rotate, ModelError, TimeFunction};
 
 /// A torque `T(t)` on one body (counter-clockwise positive).
@@ -29,12 +29,10 @@ impl ForceElement for AppliedTorque {
     }
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         if !self.torque.is_finite() {
-            return Err(ModelError::InvalidParameter {
-                element: self.name(),
-                field: "torque".into(),
-                value: format!("{:?}", self.torque),
-                why: "must be finite".into(),
-            });
+            let check = Check {
+                element: &self.name(),
+            };
+            return Err(check.fail("torque", format!("{:?}", self.torque), "must be finite"));
         }
         super::check_coordinates(&self.name(), &self.coordinates(), n_coords)
     }
@@ -91,12 +89,11 @@ impl ForceElement for AppliedForce {
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         if !(self.fx.is_finite() && self.fy.is_finite() && self.point.iter().all(|v| v.is_finite()))
         {
-            return Err(ModelError::InvalidParameter {
-                element: self.name(),
-                field: "force/point".into(),
-                value: format!("{:?}, {:?} at {:?}", self.fx, self.fy, self.point),
-                why: "must be finite".into(),
-            });
+            let check = Check {
+                element: &self.name(),
+            };
+            let value = format!("{:?}, {:?} at {:?}", self.fx, self.fy, self.point);
+            return Err(check.fail("force/point", value, "must be finite"));
         }
         super::check_coordinates(&self.name(), &self.coordinates(), n_coords)
     }

@@ -1,6 +1,6 @@
 //! Static buoyancy (docs/problems.md, problem B).
 
-use super::{check_coordinates, ForceElement};
+use super::{check_coordinates, Check, ForceElement};
 use crate::model::ModelError;
 
 /// Static buoyancy of fully submerged bodies in still fluid (docs/problems.md, problem B,
@@ -74,29 +74,13 @@ impl ForceElement for Buoyancy {
     }
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
-        let bad = |field: &str, value: String, why: &str| ModelError::InvalidParameter {
-            element: self.name(),
-            field: field.into(),
-            value,
-            why: why.into(),
-        };
-        if !(self.fluid_density.is_finite() && self.fluid_density >= 0.0) {
-            return Err(bad(
-                "fluid_density",
-                self.fluid_density.to_string(),
-                "must be finite and >= 0",
-            ));
-        }
-        if !(self.gravity.is_finite() && self.gravity >= 0.0) {
-            return Err(bad(
-                "gravity",
-                self.gravity.to_string(),
-                "must be finite and >= 0",
-            ));
-        }
+        let name = self.name();
+        let check = Check { element: &name };
+        check.sign("fluid_density", self.fluid_density, false)?;
+        check.sign("gravity", self.gravity, false)?;
         for &(b, v) in &self.bodies {
             if !(v.is_finite() && v > 0.0) {
-                return Err(bad(
+                return Err(check.fail(
                     "volume",
                     format!("{v} (body {b})"),
                     "must be finite and > 0",
@@ -104,12 +88,12 @@ impl ForceElement for Buoyancy {
             }
         }
         if self.coordinates().len() != self.bodies.len() {
-            return Err(bad(
+            return Err(check.fail(
                 "bodies",
                 format!("{:?}", self.bodies),
                 "each body may appear only once",
             ));
         }
-        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+        check_coordinates(&name, &self.coordinates(), n_coords)
     }
 }

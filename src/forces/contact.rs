@@ -1,6 +1,6 @@
 //! Contact of a rod segment's corners with the two channel walls (docs/problems.md, problem B).
 
-use super::{check_coordinates, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, FdWorkspace, ForceElement};
 use crate::model::ModelError;
 
 /// One of the two vertical channel walls.
@@ -343,42 +343,21 @@ impl ForceElement for WallContact {
     }
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
-        let bad = |field: &str, value: f64, why: &str| ModelError::InvalidParameter {
-            element: self.name(),
-            field: field.into(),
-            value: value.to_string(),
-            why: why.into(),
-        };
-        for (field, v) in [
-            ("width", self.width),
-            ("length", self.length),
-            ("stiffness", self.stiffness),
-            ("slip_velocity", self.slip_velocity),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(bad(field, v, "must be finite and > 0"));
-            }
-        }
-        for (field, v) in [("damping", self.damping), ("friction", self.friction)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(bad(field, v, "must be finite and >= 0"));
-            }
-        }
-        for (field, v) in [
-            ("left_wall", self.left_wall),
-            ("right_wall", self.right_wall),
-        ] {
-            if !v.is_finite() {
-                return Err(bad(field, v, "must be finite"));
-            }
-        }
+        let name = self.name();
+        let check = Check { element: &name };
+        check.positive(&[("width", self.width), ("length", self.length)])?;
+        check.positive(&[("stiffness", self.stiffness)])?;
+        check.positive(&[("slip_velocity", self.slip_velocity)])?;
+        check.non_negative(&[("damping", self.damping), ("friction", self.friction)])?;
+        check.finite("left_wall", self.left_wall)?;
+        check.finite("right_wall", self.right_wall)?;
         if self.right_wall - self.left_wall <= self.width {
-            return Err(bad(
+            return Err(check.fail(
                 "right_wall",
-                self.right_wall,
+                self.right_wall.to_string(),
                 "the gap between the walls must exceed the segment width",
             ));
         }
-        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+        check_coordinates(&name, &self.coordinates(), n_coords)
     }
 }

@@ -1,6 +1,6 @@
 //! Quadratic fluid drag on a rod segment (docs/problems.md, problem B).
 
-use super::{check_coordinates, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, FdWorkspace, ForceElement};
 use crate::model::ModelError;
 
 /// Quadratic drag of still fluid on one rod segment (docs/problems.md, problem B, "drag").
@@ -128,29 +128,12 @@ impl ForceElement for Drag {
     }
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
-        let checks: [(&str, f64, bool); 6] = [
-            ("width", self.width, true),
-            ("length", self.length, true),
-            ("fluid_density", self.fluid_density, false),
-            ("c_transverse", self.c_transverse, false),
-            ("c_skin", self.c_skin, false),
-            ("c_end", self.c_end, false),
-        ];
-        for (field, v, strict) in checks {
-            let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
-            if !ok {
-                return Err(ModelError::InvalidParameter {
-                    element: self.name(),
-                    field: field.into(),
-                    value: v.to_string(),
-                    why: if strict {
-                        "must be finite and > 0".into()
-                    } else {
-                        "must be finite and >= 0".into()
-                    },
-                });
-            }
-        }
-        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+        let name = self.name();
+        let check = Check { element: &name };
+        check.positive(&[("width", self.width), ("length", self.length)])?;
+        check.non_negative(&[("fluid_density", self.fluid_density)])?;
+        check.non_negative(&[("c_transverse", self.c_transverse), ("c_skin", self.c_skin)])?;
+        check.non_negative(&[("c_end", self.c_end)])?;
+        check_coordinates(&name, &self.coordinates(), n_coords)
     }
 }

@@ -3,7 +3,7 @@
 //! regularised Coulomb friction (docs/scenarios.md, `[[force]]`).
 
 use super::contact::{friction_tanh, HuntCrossley};
-use super::{check_coordinates, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, FdWorkspace, ForceElement};
 use crate::model::ModelError;
 
 /// Penalty contact of a circle of radius `R ≥ 0` (a point for `R = 0`),
@@ -275,42 +275,22 @@ impl ForceElement for HalfPlaneContact {
     }
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
-        let bad = |field: &str, value: String, why: &str| ModelError::InvalidParameter {
-            element: self.name(),
-            field: field.into(),
-            value,
-            why: why.into(),
-        };
-        for (field, p) in [("point", self.point), ("wall_point", self.wall_point)] {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err(bad(field, format!("{p:?}"), "must be finite"));
-            }
-        }
+        let name = self.name();
+        let check = Check { element: &name };
+        check.finite_point("point", self.point)?;
+        check.finite_point("wall_point", self.wall_point)?;
         let len = self.normal[0].hypot(self.normal[1]);
         if !(len.is_finite() && (len - 1.0).abs() < 1e-12) {
-            return Err(bad(
+            return Err(check.fail(
                 "normal",
                 format!("{:?}", self.normal),
                 "must be a unit vector (a finite, non-zero normal given to `new`)",
             ));
         }
-        for (field, v, strict) in [
-            ("stiffness", self.stiffness, true),
-            ("slip_velocity", self.slip_velocity, true),
-            ("radius", self.radius, false),
-            ("damping", self.damping, false),
-            ("friction", self.friction, false),
-        ] {
-            let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
-            if !ok {
-                let why = if strict {
-                    "must be finite and > 0"
-                } else {
-                    "must be finite and >= 0"
-                };
-                return Err(bad(field, v.to_string(), why));
-            }
-        }
-        check_coordinates(&self.name(), &self.coordinates(), n_coords)
+        check.positive(&[("stiffness", self.stiffness)])?;
+        check.positive(&[("slip_velocity", self.slip_velocity)])?;
+        check.non_negative(&[("radius", self.radius), ("damping", self.damping)])?;
+        check.non_negative(&[("friction", self.friction)])?;
+        check_coordinates(&name, &self.coordinates(), n_coords)
     }
 }

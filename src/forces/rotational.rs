@@ -1,7 +1,8 @@
 //! Rotational spring–damper between two bodies or a body and the ground,
 //! with linear or tabulated laws (docs/scenarios.md, `[[force]]`).
 
-use super::{check_coordinates, FdWorkspace, ForceElement, Law};
+use super::relative_angle::AnglePair;
+use super::{check_coordinates, Check, FdWorkspace, ForceElement, Law};
 use crate::model::{BodyRef, ModelError};
 
 /// Rotational spring–damper on the relative angle `Δφ = φ_j − φ_i` (the
@@ -45,31 +46,21 @@ impl RotationalSpringDamper {
         }
     }
 
+    /// The two bodies.
+    fn pair(&self) -> AnglePair {
+        AnglePair::new(self.body_i, self.body_j)
+    }
+
     /// `(Δφ − rest_angle, Δφ̇)`.
     fn relative(&self, q: &[f64], qd: &[f64]) -> (f64, f64) {
-        let ang = |b: BodyRef, v: &[f64]| b.offset().map_or(0.0, |o| v[o + 2]);
-        (
-            ang(self.body_j, q) - ang(self.body_i, q) - self.rest_angle,
-            ang(self.body_j, qd) - ang(self.body_i, qd),
-        )
+        let (d, r) = self.pair().relative(q, qd);
+        (d - self.rest_angle, r)
     }
 
     /// The torque `T` on body j \[N m\] (body i receives `−T`).
     pub fn torque(&self, q: &[f64], qd: &[f64]) -> f64 {
         let (d, r) = self.relative(q, qd);
         -self.stiffness.value(d) - self.damping.value(r)
-    }
-
-    /// Signs (−1 for body i, +1 for body j) of the non-ground sides, in the
-    /// order of [`ForceElement::coordinates`].
-    fn signs(&self) -> ([f64; 2], usize) {
-        match (self.body_i.offset(), self.body_j.offset()) {
-            (Some(a), Some(b)) if a < b => ([-1.0, 1.0], 2),
-            (Some(_), Some(_)) => ([1.0, -1.0], 2),
-            (Some(_), None) => ([-1.0, 0.0], 1),
-            (None, Some(_)) => ([1.0, 0.0], 1),
-            (None, None) => ([0.0; 2], 0),
-        }
     }
 }
 
@@ -82,22 +73,11 @@ impl ForceElement for RotationalSpringDamper {
     }
 
     fn coordinates(&self) -> Vec<usize> {
-        let mut c: Vec<usize> = [self.body_i, self.body_j]
-            .iter()
-            .filter_map(|b| b.offset().map(|o| o + 2))
-            .collect();
-        c.sort_unstable();
-        c
+        self.pair().coordinates()
     }
 
     fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        let t = self.torque(q, qd);
-        if let Some(o) = self.body_j.offset() {
-            g[o + 2] += t;
-        }
-        if let Some(o) = self.body_i.offset() {
-            g[o + 2] -= t;
-        }
+        self.pair().add_torque(self.torque(q, qd), g);
     }
 
     fn add_jacobians(
@@ -112,13 +92,7 @@ impl ForceElement for RotationalSpringDamper {
         // g_a = s_a T, Δφ = Σ_b s_b φ_b: ∂g_a/∂φ_b = −k' s_a s_b.
         let (d, r) = self.relative(q, qd);
         let (ks, cs) = (self.stiffness.slope(d), self.damping.slope(r));
-        let (s, n) = self.signs();
-        for a in 0..n {
-            for b in 0..n {
-                dq[a * n + b] -= ks * s[a] * s[b];
-                dqd[a * n + b] -= cs * s[a] * s[b];
-            }
-        }
+        self.pair().add_jacobians(ks, cs, dq, dqd);
     }
 
     fn readings(&self) -> &'static [(&'static str, &'static str)] {
@@ -140,22 +114,9 @@ impl ForceElement for RotationalSpringDamper {
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         let name = self.name();
-        if self.body_i == self.body_j {
-            return Err(ModelError::InvalidParameter {
-                element: name,
-                field: "bodies".into(),
-                value: format!("{:?}", self.body_i),
-                why: "a spring-damper must connect two different bodies".into(),
-            });
-        }
-        if !self.rest_angle.is_finite() {
-            return Err(ModelError::InvalidParameter {
-                element: name,
-                field: "rest_angle".into(),
-                value: self.rest_angle.to_string(),
-                why: "must be finite".into(),
-            });
-        }
+        let check = Check { element: &name };
+        check.two_bodies(self.body_i, self.body_j)?;
+        check.finite("rest_angle", self.rest_angle)?;
         self.stiffness.validate(&name, "stiffness", true)?;
         self.damping.validate(&name, "damping", true)?;
         check_coordinates(&name, &self.coordinates(), n_coords)

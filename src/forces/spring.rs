@@ -1,7 +1,7 @@
 //! Point-to-point spring–damper–actuator between two body-fixed points (or a
 //! body point and a ground point).
 
-use super::{check_coordinates, FdWorkspace, ForceElement, Law};
+use super::{check_coordinates, Check, FdWorkspace, ForceElement, Law};
 use crate::model::{BodyRef, ModelError, TimeFunction};
 
 /// Lengths below this \[m\] have no direction: the element applies no force.
@@ -307,34 +307,12 @@ impl ForceElement for PointSpringDamper {
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         let name = self.name();
-        let bad = |field: &str, value: String, why: &str| ModelError::InvalidParameter {
-            element: name.clone(),
-            field: field.into(),
-            value,
-            why: why.into(),
-        };
-        if self.body_i == self.body_j {
-            return Err(bad(
-                "bodies",
-                format!("{:?}", self.body_i),
-                "a spring-damper must connect two different bodies",
-            ));
-        }
-        for (field, p) in [("point_i", self.point_i), ("point_j", self.point_j)] {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err(bad(field, format!("{p:?}"), "must be finite"));
-            }
-        }
-        if !(self.free_length.is_finite() && self.free_length >= 0.0) {
-            return Err(bad(
-                "free_length",
-                self.free_length.to_string(),
-                "must be finite and >= 0",
-            ));
-        }
-        if !self.preload.is_finite() {
-            return Err(bad("preload", self.preload.to_string(), "must be finite"));
-        }
+        let check = Check { element: &name };
+        check.two_bodies(self.body_i, self.body_j)?;
+        check.finite_point("point_i", self.point_i)?;
+        check.finite_point("point_j", self.point_j)?;
+        check.sign("free_length", self.free_length, false)?;
+        check.finite("preload", self.preload)?;
         self.stiffness.validate(&name, "stiffness", true)?;
         self.damping.validate(&name, "damping", true)?;
         check_coordinates(&name, &self.coordinates(), n_coords)

@@ -1,8 +1,9 @@
 //! The index-3 augmented Lagrangian formulation with mass-orthogonal
-//! projections (ALI3-P; Bayo & Ledesma 1996) of a [`System`]: the system
-//! side ([`crate::integrate::AugmentedDae`]) of
-//! [`crate::integrate::AugmentedLagrangian`], whose module docs give the
-//! scheme.
+//! projections (ALI3-P; Bayo & Ledesma 1996) of a [`System`]: a
+//! [`SecondOrderDae`] whose multipliers are iterated
+//! ([`MultiplierUpdate`]), integrated by [`crate::integrate::GenAlpha`]
+//! (the scheme: docs/constraint_methods.md and the generalized-α module's
+//! part on the augmented Lagrangian).
 //!
 //! `M q̈ + Φ_qᵀ(αΦ + λ*) = g`, `λ*_{i+1} = λ*_i + αΦ_{i+1}`: the Newton
 //! matrix `W = c_m M + c_c C + c_k (K + Φ_qᵀαΦ_q)` (`C = −∂g/∂q̇`,
@@ -48,7 +49,7 @@ use super::dynamic_blocks::{DynamicBlocks, PenaltyBlock};
 use super::{
     all_finite, check_state, FormulationError, StartCorrection, START_MAX_ITER, START_TOL,
 };
-use crate::integrate::{AugmentedDae, SystemError};
+use crate::integrate::{MultiplierUpdate, SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
@@ -471,27 +472,15 @@ fn sys_err(e: FormulationError) -> SystemError {
     SystemError::new(e)
 }
 
-impl AugmentedDae for Augmented<'_> {
+impl SecondOrderDae for Augmented<'_> {
     fn n(&self) -> usize {
         self.sys.n_coords()
     }
     fn m(&self) -> usize {
         self.sys.n_constraints()
     }
-    fn set_step_scale(&mut self, s: f64) {
-        self.alpha = self.params.penalty(self.sys, s);
-    }
-    fn scale_penalty(&mut self, factor: f64) {
-        self.alpha *= factor;
-    }
-    fn consistent_state(
-        &mut self,
-        t: f64,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SystemError> {
-        let c = self.consistent_start(t, q, qd).map_err(sys_err)?;
-        Ok(c.changed().then(|| c.describe(t, "augmented-Lagrangian")))
+    fn mass_diagonal(&self) -> &[f64] {
+        self.sys.mass_diagonal()
     }
     fn accelerations(
         &mut self,
@@ -504,19 +493,8 @@ impl AugmentedDae for Augmented<'_> {
         self.initial_accelerations(t, q, qd, qdd, lam)
             .map_err(sys_err)
     }
-    fn update_multipliers(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        lam: &mut [f64],
-    ) -> Result<(), SystemError> {
-        self.sys.phi(q, t, &mut self.phi);
-        all_finite(t, &[("the constraints Φ", &self.phi)]).map_err(sys_err)?;
-        for (l, p) in lam.iter_mut().zip(&self.phi) {
-            *l += self.alpha * p;
-        }
-        Ok(())
-    }
+    /// The scaled residual `r = s (M q̈ + Φ_qᵀ(αΦ + λ*) − g(q, q̇, t))` (n
+    /// rows; λ is λ*).
     fn residual(
         &mut self,
         t: f64,
@@ -553,6 +531,10 @@ impl AugmentedDae for Augmented<'_> {
         )
         .map_err(sys_err)
     }
+    fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]) {
+        self.sys.phi(q, t, phi);
+    }
+    /// Assemble and factorise `W = c[0] M + c[1] C + c[2] (K + Φ_qᵀαΦ_q)`.
     fn factorize(
         &mut self,
         t: f64,
@@ -565,15 +547,42 @@ impl AugmentedDae for Augmented<'_> {
         self.assemble(t, q, qd, lam, c[0], c[1], c[2], cp)
             .map_err(sys_err)
     }
-    fn solve(&mut self, x: &mut [f64]) -> Result<(), SystemError> {
-        self.solver.solve_in_place(&self.k, x).map_err(|source| {
-            sys_err(FormulationError::Linear {
-                t: f64::NAN,
-                source,
-            })
-        })
+    /// Solve `W x = b` (n rows) in place with the last factorisation.
+    fn solve(&mut self, t: f64, x: &mut [f64]) -> Result<(), SystemError> {
+        self.solver
+            .solve_in_place(&self.k, x)
+            .map_err(|source| sys_err(FormulationError::Linear { t, source }))
     }
-    fn project(
+    /// The mass-orthogonal projection of [`Augmented::consistent_start`].
+    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError> {
+        self.consistent_start(t, q, qd).map(|_| ()).map_err(sys_err)
+    }
+    fn multiplier_update(&mut self) -> Option<&mut dyn MultiplierUpdate> {
+        Some(self)
+    }
+}
+
+impl MultiplierUpdate for Augmented<'_> {
+    fn set_step_scale(&mut self, s: f64) {
+        self.alpha = self.params.penalty(self.sys, s);
+    }
+    fn scale_penalty(&mut self, factor: f64) {
+        self.alpha *= factor;
+    }
+    fn update_multipliers(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        lam: &mut [f64],
+    ) -> Result<(), SystemError> {
+        self.sys.phi(q, t, &mut self.phi);
+        all_finite(t, &[("the constraints Φ", &self.phi)]).map_err(sys_err)?;
+        for (l, p) in lam.iter_mut().zip(&self.phi) {
+            *l += self.alpha * p;
+        }
+        Ok(())
+    }
+    fn project_motion(
         &mut self,
         t: f64,
         q: &[f64],

@@ -14,7 +14,7 @@
 //! * [`Augmented`]: the index-3 augmented Lagrangian with mass-orthogonal
 //!   projections (Bayo & Ledesma 1996; [`Formulation::AugmentedLagrangian`]),
 //!   `M q̈ + Φ_qᵀ(αΦ + λ*) = g`, `λ*_{i+1} = λ*_i + αΦ_{i+1}`, for
-//!   [`crate::integrate::AugmentedLagrangian`].
+//!   [`crate::integrate::GenAlpha`] (a system with a multiplier update).
 //! * [`ExplicitForm`]: whichever of the two the options choose, for the
 //!   explicit integrators.
 //! * [`Projection`]: the mass-orthogonal projection of positions and
@@ -96,7 +96,8 @@ pub enum Formulation {
     Penalty,
     /// The index-3 augmented Lagrangian with projections (ALI3-P, Bayo &
     /// Ledesma 1996): [`Augmented`], integrated by
-    /// [`crate::integrate::AugmentedLagrangian`] (implicit methods only).
+    /// [`crate::integrate::GenAlpha`] (generalized-α, HHT, Newmark and the
+    /// trapezoidal rule only).
     AugmentedLagrangian,
     /// Generalized coordinate partitioning ([`Partitioned`], Wehage & Haug
     /// 1982): the independent coordinates integrated, the dependent ones

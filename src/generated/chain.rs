@@ -5,6 +5,18 @@ use super::memo::{SharedTrig, TrigMemo};
 use super::{arr, arr_mut, kernels, revolute};
 use crate::model::{BodyRef, ConstraintKernels, System};
 
+/// The kernel `$gb` when the ground is the joint's side i, else `$bg`
+/// (the same kernel of the other orientation).
+macro_rules! side {
+    ($joint:expr, $gb:ident, $bg:ident) => {
+        if $joint.ground_is_i {
+            kernels::$gb
+        } else {
+            kernels::$bg
+        }
+    };
+}
+
 /// A revolute joint between the ground and one body.
 #[derive(Debug, Clone)]
 struct GroundJoint {
@@ -20,36 +32,20 @@ struct GroundJoint {
 impl GroundJoint {
     fn phi(&self, q: &[f64], out: &mut [f64]) {
         let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
-        if self.ground_is_i {
-            kernels::revolute_gb_phi(qb, &self.params, &[], o);
-        } else {
-            kernels::revolute_bg_phi(qb, &self.params, &[], o);
-        }
+        side!(self, revolute_gb_phi, revolute_bg_phi)(qb, &self.params, &[], o);
     }
     fn jacobian(&self, q: &[f64], vals: &mut [f64]) {
         let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut vals[self.jac0..]));
-        if self.ground_is_i {
-            kernels::revolute_gb_jacobian(qb, &self.params, &[], o);
-        } else {
-            kernels::revolute_bg_jacobian(qb, &self.params, &[], o);
-        }
+        side!(self, revolute_gb_jacobian, revolute_bg_jacobian)(qb, &self.params, &[], o);
     }
     fn phi_t(&self, q: &[f64], out: &mut [f64]) {
         let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut out[self.row0..]));
-        if self.ground_is_i {
-            kernels::revolute_gb_phi_t(qb, &self.params, &[], o);
-        } else {
-            kernels::revolute_bg_phi_t(qb, &self.params, &[], o);
-        }
+        side!(self, revolute_gb_phi_t, revolute_bg_phi_t)(qb, &self.params, &[], o);
     }
     fn gamma(&self, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
         let o = arr_mut(&mut out[self.row0..]);
-        if self.ground_is_i {
-            kernels::revolute_gb_gamma(qb, vb, &self.params, &[], o);
-        } else {
-            kernels::revolute_bg_gamma(qb, vb, &self.params, &[], o);
-        }
+        side!(self, revolute_gb_gamma, revolute_bg_gamma)(qb, vb, &self.params, &[], o);
     }
     fn eval(&self, q: &[f64], qd: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]) {
         let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
@@ -58,11 +54,7 @@ impl GroundJoint {
             arr_mut(&mut vals[self.jac0..]),
             arr_mut(&mut gamma[self.row0..]),
         );
-        if self.ground_is_i {
-            kernels::revolute_gb_eval(qb, vb, &self.params, &[], p, v, g);
-        } else {
-            kernels::revolute_bg_eval(qb, vb, &self.params, &[], p, v, g);
-        }
+        side!(self, revolute_gb_eval, revolute_bg_eval)(qb, vb, &self.params, &[], p, v, g);
     }
     /// Φ into `phi` (the range's rows) and Φ_qᵀλ added to `g` (λ: the
     /// range's multipliers), from the 4 Φ_q values.
@@ -73,11 +65,7 @@ impl GroundJoint {
     /// and `lambda`.
     fn phi_tmul_at(&self, q: &[f64], lambda: &[f64], phi: &mut [f64], g: &mut [f64], row0: usize) {
         let (qb, o) = (arr(&q[self.off..]), arr_mut(&mut phi[row0..]));
-        if self.ground_is_i {
-            kernels::revolute_gb_phi(qb, &self.params, &[], o);
-        } else {
-            kernels::revolute_bg_phi(qb, &self.params, &[], o);
-        }
+        side!(self, revolute_gb_phi, revolute_bg_phi)(qb, &self.params, &[], o);
         let mut vals = [0.0; 4];
         let qb = arr(&q[self.off..]);
         let pattern = if self.ground_is_i {
@@ -95,11 +83,7 @@ impl GroundJoint {
         let qb = arr(&q[self.off..]);
         let l = arr(&lambda[self.row0..]);
         let o = arr_mut(vals);
-        if self.ground_is_i {
-            kernels::revolute_gb_hessian(qb, &self.params, &[], l, o);
-        } else {
-            kernels::revolute_bg_hessian(qb, &self.params, &[], l, o);
-        }
+        side!(self, revolute_gb_hessian, revolute_bg_hessian)(qb, &self.params, &[], l, o);
     }
 }
 

@@ -117,9 +117,7 @@ impl ForceKernels for DragJacobians {
         "generated:drag_bodies"
     }
     fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
-        (0..self.fp.len() / 3)
-            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
-            .collect()
+        body_blocks(self.q0, self.fp.len() / 3)
     }
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
         let r = self.q0..self.q0 + self.fp.len();
@@ -250,9 +248,7 @@ impl ForceKernels for ContactJacobians {
         "generated:contact_bodies"
     }
     fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
-        (0..self.fp.len() / 8)
-            .map(|k| (0..3).map(|c| self.q0 + 3 * k + c).collect())
-            .collect()
+        body_blocks(self.q0, self.fp.len() / 8)
     }
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
         let r = self.q0..self.q0 + 3 * (self.fp.len() / 8);
@@ -281,6 +277,14 @@ impl ForceKernels for ContactJacobians {
         }
         true
     }
+}
+
+/// The Jacobian blocks of `n` one-body elements on consecutive bodies from
+/// coordinate `q0`: each body's `x, y, φ`.
+fn body_blocks(q0: usize, n: usize) -> Vec<Vec<usize>> {
+    (0..n)
+        .map(|k| (0..3).map(|c| q0 + 3 * k + c).collect())
+        .collect()
 }
 
 #[cfg(test)]

@@ -165,8 +165,11 @@ pub fn drive(
     t_end: f64,
     obs: &mut dyn Observer,
 ) -> (Termination, f64) {
-    let large = st.state().1.len() >= 2 * crate::parallel::PARALLEL_MIN_COORDS;
-    crate::parallel::team::run(large, || drive_loop(st, times, max_steps, t_end, obs))
+    let state = st.state().1.len();
+    let large = state >= 2 * crate::parallel::PARALLEL_MIN_COORDS;
+    crate::parallel::team::run(large, state, || {
+        drive_loop(st, times, max_steps, t_end, obs)
+    })
 }
 
 /// [`drive`]'s loop.

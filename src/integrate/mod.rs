@@ -43,7 +43,6 @@
 //! * No events, mass matrix, NonNegative or NormControl options.
 //! * A cap on the number of steps ([`OdeOptions::max_steps`]).
 
-mod augmented;
 mod bdf;
 mod common;
 mod driver;
@@ -58,17 +57,14 @@ mod radau;
 mod rk4;
 mod tableau;
 
-pub use augmented::{
-    AugmentedDae, AugmentedLagrangian, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, SLOW_CONTRACTION,
-};
 pub use bdf::NDF_KAPPA;
 pub use bdf::{Bdf, MAX_NEWTON as BDF_MAX_NEWTON, MAX_ORDER as BDF_MAX_ORDER};
 pub use driver::{drive, Failure, StepCut, Stepper};
 pub use genalpha::{
-    AlphaParameters, GenAlpha, SecondOrderDae, NOISE_REL, REUSE_BAND, ROUNDING_ULPS, SAFETY,
-    SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
+    AlphaParameters, GenAlpha, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, NOISE_REL, REUSE_BAND,
+    ROUNDING_ULPS, SAFETY, SLOW_CONTRACTION, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
-pub use implicit::ImplicitStats;
+pub use implicit::{ImplicitStats, MultiplierUpdate, SecondOrderDae};
 pub(crate) use method::methods_taking;
 pub use method::{
     alias as method_alias, markdown_table as method_table_markdown, Alias, Equations, Family,

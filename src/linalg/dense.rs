@@ -1,8 +1,12 @@
-//! Dense LU with partial pivoting (faer): for tiny systems and cross-checks.
+//! Dense LU with partial pivoting (faer): for tiny systems and cross-checks;
+//! complete pivoting (faer) for the rank and the pivot order of small dense
+//! Jacobians.
 
 use super::{FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::lu::full_pivoting;
 use faer::linalg::solvers::{PartialPivLu, Solve};
-use faer::MatMut;
+use faer::{Mat, MatMut, Par};
 
 /// Dense LU of the full saddle-point matrix (either storage). `O((n+m)³)`
 /// per factorisation: only for small systems and as an independent
@@ -89,48 +93,74 @@ pub struct PivotOrder {
 
 /// Gaussian elimination with complete pivoting (Golub & Van Loan, Matrix
 /// Computations, Alg. 3.4.2) of the row-major `m × n` matrix `a`
-/// (overwritten): at each stage the entry of largest magnitude of the
-/// remaining submatrix is the pivot; elimination stops when it falls to
-/// `tol` times the first pivot (rank revealed). Used to choose the
+/// (overwritten with the factors of `P a Q`), by faer's full-pivoting LU
+/// (`faer::linalg::lu::full_pivoting`, sequential, so the order does not
+/// depend on the thread count): at each stage the entry of largest
+/// magnitude of the remaining submatrix is the pivot; the rank is the
+/// number of leading pivots whose magnitude exceeds `tol` times the first
+/// (rank revealed; `tol = 0`: the nonzero ones). Used to choose the
 /// dependent coordinates of coordinate partitioning (Wehage & Haug 1982):
 /// the pivot columns of Φ_q are the best-conditioned dependent set this
-/// greedy order finds. Dense, `O(m² n)`.
+/// greedy order finds. Among entries of equal magnitude (the ±1 entries of
+/// Φ_q) faer's search picks by its own scan order (SIMD lanes, fixed by
+/// faer's aligned storage, so the same matrix always gives the same
+/// order), which may differ from a row-by-row scan's: of the shipped
+/// scenarios only the 40-loop parallelogram chain's independent coordinate
+/// changes (98 for 119, an equally regular block); the rank does not
+/// (tests/dense_pivoting.rs). Dense, `O(m n min(m, n))`, allocates a copy,
+/// its permutations and faer's scratch.
 pub fn full_pivot_order(a: &mut [f64], m: usize, n: usize, tol: f64) -> PivotOrder {
     assert_eq!(a.len(), m * n, "full_pivot_order: matrix size");
-    let mut rows: Vec<usize> = (0..m).collect();
-    let mut cols: Vec<usize> = (0..n).collect();
+    let (mut rows, mut rows_inv) = (vec![0usize; m], vec![0usize; m]);
+    let (mut cols, mut cols_inv) = (vec![0usize; n], vec![0usize; n]);
+    let size = m.min(n);
+    if size == 0 {
+        return PivotOrder {
+            rank: 0,
+            rows: (0..m).collect(),
+            cols: (0..n).collect(),
+            pivots: Vec::new(),
+        };
+    }
+    let mut mem = MemBuffer::new(full_pivoting::factor::lu_in_place_scratch::<usize, f64>(
+        m,
+        n,
+        Par::Seq,
+        Default::default(),
+    ));
+    // faer's own storage (aligned columns): its SIMD search visits the
+    // entries in an order that depends on their alignment, so on a slice
+    // of any address a tie could be broken differently from run to run
+    let mut lu = Mat::<f64>::from_fn(m, n, |i, j| a[i * n + j]);
+    full_pivoting::factor::lu_in_place(
+        lu.as_mut(),
+        &mut rows,
+        &mut rows_inv,
+        &mut cols,
+        &mut cols_inv,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    for i in 0..m {
+        for j in 0..n {
+            a[i * n + j] = lu[(i, j)];
+        }
+    }
+    // U's diagonal holds the pivots in the order taken; faer stops (and
+    // leaves the rest of the diagonal as it is) when the largest remaining
+    // entry is below the smallest normal number
     let mut pivots = Vec::new();
     let mut first = 0.0;
-    for k in 0..m.min(n) {
-        // largest remaining entry (in the permuted indexing)
-        let (mut bi, mut bj, mut best) = (k, k, -1.0_f64);
-        for i in k..m {
-            for j in k..n {
-                let v = a[rows[i] * n + cols[j]].abs();
-                if v > best {
-                    (bi, bj, best) = (i, j, v);
-                }
-            }
-        }
+    for k in 0..size {
+        let v = a[k * n + k].abs();
         if k == 0 {
-            first = best;
+            first = v;
         }
-        if best <= tol * first || best == 0.0 || best.is_nan() {
+        if v <= tol * first || v < f64::MIN_POSITIVE || v.is_nan() {
             break;
         }
-        rows.swap(k, bi);
-        cols.swap(k, bj);
-        pivots.push(best);
-        let (pr, pc) = (rows[k], cols[k]);
-        let p = a[pr * n + pc];
-        for &r in &rows[k + 1..] {
-            let f = a[r * n + pc] / p;
-            if f != 0.0 {
-                for &c in &cols[k..] {
-                    a[r * n + c] -= f * a[pr * n + c];
-                }
-            }
-        }
+        pivots.push(v);
     }
     PivotOrder {
         rank: pivots.len(),

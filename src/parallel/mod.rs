@@ -16,7 +16,7 @@
 mod handover;
 pub(crate) mod team;
 
-pub use team::{TeamReport, SPIN};
+pub use team::{Rule, TeamReport, SPIN};
 
 use serde::Serialize;
 use std::cell::Cell;

@@ -100,6 +100,9 @@ struct Adapt {
     last: Option<bool>,
     /// Decisions for the team and for one thread so far.
     decided: [u32; 2],
+    /// Wall time of the last probe's windows with the helper over that
+    /// of its windows alone.
+    last_ratio: Option<f64>,
 }
 
 impl Adapt {
@@ -114,6 +117,7 @@ impl Adapt {
             exploit: EXPLOIT_MIN,
             last: None,
             decided: [0; 2],
+            last_ratio: None,
         }
     }
 
@@ -139,6 +143,7 @@ impl Adapt {
         if self.phase == PROBE_ORDER.len() {
             let [team, alone] = self.probe;
             let solo = team.as_secs_f64() > TEAM_MARGIN * alone.as_secs_f64();
+            self.last_ratio = Some(team.as_secs_f64() / alone.as_secs_f64().max(1e-12));
             self.exploit = if self.last == Some(solo) {
                 (2 * self.exploit).min(EXPLOIT_MAX)
             } else {
@@ -181,7 +186,7 @@ thread_local! {
 }
 
 /// What the concurrent passes of one run did ([`super::with_threads`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct TeamReport {
     /// Halves that ran on a second thread (a team's helper or a rayon
     /// worker).
@@ -198,6 +203,102 @@ pub struct TeamReport {
     /// Probes of the A/B rule that chose the team, and that chose one
     /// thread.
     pub decisions: [u32; 2],
+    /// Why the run used the threads it did (the last integration of the
+    /// run that reached the rule).
+    pub rule: Rule,
+}
+
+/// The thread rule's decision for one integration (`run`), with its
+/// reason: reported in the run summary (`threads_rule`, and as text by
+/// [`Rule::reason`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[serde(tag = "decision", rename_all = "snake_case")]
+pub enum Rule {
+    /// No integration reached the rule.
+    #[default]
+    None,
+    /// The setting is one thread (`integrator.threads = 1`,
+    /// `MBSOLVE_THREADS=1`, or a sweep that runs its runs side by side,
+    /// each on one thread).
+    One,
+    /// `auto`, one thread: the state (`q` and `q̇`) has `state` entries,
+    /// fewer than `min` (2·[`PARALLEL_MIN_COORDS`](super::PARALLEL_MIN_COORDS)),
+    /// the size from which concurrent passes pay.
+    Small {
+        /// Entries of the run's state.
+        state: usize,
+        /// The size from which a team is opened.
+        min: usize,
+    },
+    /// `auto`, one thread: no second thread to run on — the run is not on
+    /// a worker of a rayon pool (`in_pool` false), or its pool has `pool`
+    /// thread(s) (`RAYON_NUM_THREADS=1`).
+    NoSecondThread {
+        /// Threads of the pool the run is on (or of the global pool).
+        pool: usize,
+        /// Whether the run is on a pool's worker thread.
+        in_pool: bool,
+    },
+    /// The setting is two threads (`integrator.threads = 2`): a team
+    /// whose helper takes every half it can, without probing.
+    Two,
+    /// `auto` with a team: its A/B rule's probes (module docs) chose the
+    /// team `team` times and one thread `alone` times; `last_ratio` is the
+    /// last probe's wall time with the helper over its time alone (the
+    /// team is chosen at ≤ [`TEAM_MARGIN`]; `None`: the run ended before
+    /// its first probe did).
+    Probed {
+        /// Probes that chose the team.
+        team: u32,
+        /// Probes that chose one thread.
+        alone: u32,
+        /// The last probe's time with the helper over its time alone.
+        last_ratio: Option<f64>,
+    },
+}
+
+impl Rule {
+    /// The decision and its reason as one sentence for the run's console
+    /// line and summary.
+    pub fn reason(&self) -> String {
+        match *self {
+            Rule::None => "no integration reached the thread rule".into(),
+            Rule::One => {
+                "one thread: the setting is 1 (integrator.threads = 1, MBSOLVE_THREADS=1, \
+                 or a sweep running its runs side by side)"
+                    .into()
+            }
+            Rule::Small { state, min } => format!(
+                "auto: one thread, the state has {state} entries, fewer than the {min} \
+                 from which concurrent passes pay"
+            ),
+            Rule::NoSecondThread { pool, in_pool } => {
+                if in_pool {
+                    format!(
+                        "auto: one thread, the thread pool has {pool} thread{} (RAYON_NUM_THREADS)",
+                        if pool == 1 { "" } else { "s" }
+                    )
+                } else {
+                    "auto: one thread, the run is not on a worker of a thread pool".into()
+                }
+            }
+            Rule::Two => "two threads forced: integrator.threads = 2 (or MBSOLVE_THREADS=2)".into(),
+            Rule::Probed {
+                team,
+                alone,
+                last_ratio,
+            } => match last_ratio {
+                None => "auto: a two-thread team; the run ended before its first probe".into(),
+                Some(r) => format!(
+                    "auto: a two-thread team whose probes chose two threads {team} time{} \
+                     and one thread {alone} time{}; the last probe took {r:.2}× the time \
+                     alone with the helper (two threads at ≤ {TEAM_MARGIN})",
+                    if team == 1 { "" } else { "s" },
+                    if alone == 1 { "" } else { "s" },
+                ),
+            },
+        }
+    }
 }
 
 impl TeamReport {
@@ -217,6 +318,9 @@ impl TeamReport {
         self.passes += o.passes;
         self.decisions[0] += o.decisions[0];
         self.decisions[1] += o.decisions[1];
+        if o.rule != Rule::None {
+            self.rule = o.rule;
+        }
     }
 }
 
@@ -229,6 +333,7 @@ thread_local! {
             halves_solo: 0,
             passes: 0,
             decisions: [0; 2],
+            rule: Rule::None,
         })
     };
     /// The team of the run this thread drives, if any.
@@ -344,14 +449,26 @@ impl Team {
     }
 
     fn report(&self) -> TeamReport {
+        let (decisions, rule) = match &self.adapt {
+            None => ([0; 2], Rule::Two),
+            Some(a) => {
+                let a = a.lock().unwrap_or_else(|e| e.into_inner());
+                let [team, alone] = a.decided;
+                let rule = Rule::Probed {
+                    team,
+                    alone,
+                    last_ratio: a.last_ratio,
+                };
+                (a.decided, rule)
+            }
+        };
         TeamReport {
             halves_split: self.split.load(Ordering::Relaxed),
             halves_taken_back: self.taken_back.load(Ordering::Relaxed),
             halves_solo: self.solo.load(Ordering::Relaxed),
             passes: self.passes.load(Ordering::Relaxed),
-            decisions: self.adapt.as_ref().map_or([0; 2], |a| {
-                a.lock().unwrap_or_else(|e| e.into_inner()).decided
-            }),
+            decisions,
+            rule,
         }
     }
 }
@@ -362,17 +479,36 @@ impl Team {
 /// and `large` (the run has enough coordinates for its joins to pay);
 /// under `Two` always; never under `One`. Else, and for nested calls, just
 /// `f()`.
-pub(crate) fn run<R>(large: bool, f: impl FnOnce() -> R) -> R {
+/// `state` is the number of entries of the run's state (reported in the
+/// [`Rule`]).
+pub(crate) fn run<R>(large: bool, state: usize, f: impl FnOnce() -> R) -> R {
     if !CURRENT.with(|c| c.get()).is_null() || IN_HELPER.with(|h| h.get()) {
         return f();
     }
+    let decided = |rule: Rule| {
+        REPORT.with(|r| {
+            let mut v = r.get();
+            v.rule = rule;
+            r.set(v);
+        })
+    };
     match policy() {
-        Threads::One => f(),
+        Threads::One => {
+            decided(Rule::One);
+            f()
+        }
         Threads::Auto => {
-            if !(large
-                && rayon::current_thread_index().is_some()
-                && rayon::current_num_threads() > 1)
-            {
+            let in_pool = rayon::current_thread_index().is_some();
+            let pool = rayon::current_num_threads();
+            if !large {
+                decided(Rule::Small {
+                    state,
+                    min: 2 * super::PARALLEL_MIN_COORDS,
+                });
+                return f();
+            }
+            if !(in_pool && pool > 1) {
+                decided(Rule::NoSecondThread { pool, in_pool });
                 return f();
             }
             let team = Team::new(true);
@@ -523,7 +659,7 @@ mod tests {
     #[test]
     fn a_half_the_helper_started_runs_there_and_returns_its_result() {
         let (_, rep) = with_threads(Threads::Two, || {
-            run(false, || {
+            run(false, 0, || {
                 assert!(helper_ready(), "the helper started");
                 let me = std::thread::current().id();
                 for k in 0..200u64 {
@@ -680,6 +816,15 @@ mod tests {
             assert_eq!(p2, pa, "{method:?}");
             let count = |s: &crate::simulation::Summary, k: &str| s.extra[k].as_u64().unwrap();
             assert!(count(&sa, "halves_solo") > 0, "{method:?}");
+            // the summary names the rule's decision: the probes of windows
+            // of one pass decided at least once
+            let rule = &sa.extra["threads_rule"];
+            assert_eq!(rule["decision"], "probed", "{method:?}");
+            let probes = rule["team"].as_u64().unwrap() + rule["alone"].as_u64().unwrap();
+            assert!(probes > 0 && rule["last_ratio"].as_f64().unwrap() > 0.0);
+            let reason = sa.extra["threads_reason"].as_str().unwrap();
+            assert!(reason.contains("probes chose"), "{reason}");
+            assert_eq!(s2.extra["threads_rule"]["decision"], "two");
             for traj in [&two, &auto] {
                 assert_eq!(one.t, traj.t);
                 for (a, b) in one.q.iter().zip(&traj.q).chain(one.qd.iter().zip(&traj.qd)) {
@@ -694,6 +839,57 @@ mod tests {
                 count(&sa, "newton_iterations")
             );
         }
+    }
+
+    /// The rule's decision and reason for a run that opens no team: a
+    /// small state, a pool of one thread, the setting one.
+    #[test]
+    fn the_summary_says_why_a_run_used_one_thread() {
+        use crate::integrate::{Method, OdeOptions};
+        use crate::simulation::{simulate, RunConfig};
+        let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
+        let cfg = RunConfig {
+            method: Method::Bdf,
+            t_end: 1e-5,
+            output_dt: 1e-5,
+            ode: OdeOptions {
+                rtol: 1e-5,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let rule = |n, pool_threads, threads| {
+            let (sys, q0, qd0, _) = chain(n);
+            let cfg = RunConfig {
+                threads,
+                ..cfg.clone()
+            };
+            let (_, s) =
+                pool(pool_threads).install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
+            assert_eq!(s.extra["threads"], 1);
+            assert_eq!(s.extra["split"], false);
+            (
+                s.extra["threads_rule"].clone(),
+                s.extra["threads_reason"].as_str().unwrap().to_string(),
+            )
+        };
+        // 10 segments: a state of 60 entries
+        let (r, why) = rule(10, 2, Threads::Auto);
+        assert_eq!(r["decision"], "small");
+        assert_eq!(r["state"], 60);
+        assert_eq!(r["min"], 2 * super::super::PARALLEL_MIN_COORDS);
+        assert!(why.contains("60 entries"), "{why}");
+        // 2000 segments (12 000 entries) in a pool of one thread
+        let (r, why) = rule(2000, 1, Threads::Auto);
+        assert_eq!(r["decision"], "no_second_thread");
+        assert_eq!(
+            (r["pool"].clone(), r["in_pool"].clone()),
+            (1.into(), true.into())
+        );
+        assert!(why.contains("pool has 1 thread "), "{why}");
+        let (r, why) = rule(2000, 2, Threads::One);
+        assert_eq!(r["decision"], "one");
+        assert!(why.starts_with("one thread"), "{why}");
     }
 
     /// With no helper running, a posted half comes back to the caller.
@@ -745,7 +941,7 @@ mod tests {
     fn one_thread_pool_and_nested_joins_run_in_order() {
         pool(1).install(|| {
             with_threads(Threads::Auto, || {
-                run(true, || {
+                run(true, 0, || {
                     assert!(!concurrent());
                     let (a, b) = join(|| 1, || 2);
                     assert_eq!((a, b), (1, 2));
@@ -753,7 +949,7 @@ mod tests {
             })
         });
         with_threads(Threads::Two, || {
-            run(true, || {
+            run(true, 0, || {
                 let ((a, b), (c, d)) = join(|| join(|| 1, || 2), || join(|| 3, || 4));
                 assert_eq!((a, b, c, d), (1, 2, 3, 4));
             })
@@ -762,7 +958,7 @@ mod tests {
         pool(2).install(|| {
             let me = std::thread::current().id();
             let ((a, b), rep) = with_threads(Threads::One, || {
-                run(true, || {
+                run(true, 0, || {
                     assert!(!concurrent());
                     join(
                         || std::thread::current().id(),
@@ -771,14 +967,18 @@ mod tests {
                 })
             });
             assert_eq!((a, b), (me, me));
-            assert_eq!(rep, TeamReport::default());
+            let one = TeamReport {
+                rule: Rule::One,
+                ..TeamReport::default()
+            };
+            assert_eq!(rep, one);
         });
     }
 
     #[test]
     fn a_panic_in_either_half_reaches_the_caller_after_both_ended() {
         with_threads(Threads::Two, || {
-            run(true, || {
+            run(true, 0, || {
                 assert!(helper_ready(), "the helper started");
                 for side in 0..2 {
                     let done = AtomicBool::new(false);

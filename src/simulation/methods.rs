@@ -162,8 +162,9 @@ impl MethodRun for Partition<'_> {
     }
 }
 
-/// The index-3 augmented Lagrangian with projections ([`Augmented`],
-/// [`AugmentedLagrangian`]) on the scheme of an implicit method (newmark
+/// The index-3 augmented Lagrangian with projections ([`Augmented`], a
+/// system with a multiplier update) on the generalized-α scheme
+/// ([`GenAlpha`]) of an implicit method (newmark
 /// with ρ∞ = 1: the trapezoidal rule). Summary: `formulation =
 /// "augmented_lagrangian"`, `factorizations` of `W`; `extra` adds
 /// `penalty` (that of the step; growth within attempts is in
@@ -172,7 +173,7 @@ impl MethodRun for Partition<'_> {
 /// `fixed_step`.
 pub(super) struct AugmentedRun<'s> {
     f: Augmented<'s>,
-    integ: AugmentedLagrangian,
+    integ: GenAlpha,
     /// The penalty of the run's step (before any growth within an attempt).
     penalty: f64,
 }
@@ -191,7 +192,8 @@ impl<'s> AugmentedRun<'s> {
             }
             .into());
         }
-        let integ = AugmentedLagrangian::new(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
+        let integ =
+            GenAlpha::for_augmented_lagrangian(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
         let h = cfg.ode.fixed_step.unwrap_or(f64::NAN);
         let s0 = integ.params().beta * h * h;
         let f = Augmented::new(sys, cfg.augmented, cfg.index1.linear_solver, s0)?;

@@ -6,8 +6,8 @@ use crate::formulation::{
     Index3, Index3Complex, NewtonSolverKind, Partitioned, SingularityMonitor,
 };
 use crate::integrate::{
-    integrator, AugmentedLagrangian, Bdf, Family, GenAlpha, ImplicitOptions, Integrator,
-    IntegratorError, Method, Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
+    integrator, Bdf, Family, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method,
+    Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use crate::parallel::{with_threads, Threads};
@@ -459,6 +459,11 @@ pub fn simulate_into(
     extra.insert("halves_split".into(), team.halves_split.into());
     extra.insert("halves_taken_back".into(), team.halves_taken_back.into());
     extra.insert("halves_solo".into(), team.halves_solo.into());
+    extra.insert(
+        "threads_rule".into(),
+        serde_json::to_value(team.rule).unwrap_or_default(),
+    );
+    extra.insert("threads_reason".into(), team.rule.reason().into());
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
 }
 

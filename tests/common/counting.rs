@@ -1,8 +1,9 @@
 //! A counting global allocator for the allocation-free tests: every
 //! allocation on the current thread increments a counter that
-//! [`allocations`] reads. Include with
-//! `#[path = "common/counting.rs"] mod counting;` (it installs itself as the
-//! test binary's global allocator).
+//! [`allocations`] reads. Include once per test binary, in its `main.rs`,
+//! with `#[path = "../common/counting.rs"] mod counting;` (it installs
+//! itself as the binary's global allocator); modules read it through
+//! `crate::counting::allocations`.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;

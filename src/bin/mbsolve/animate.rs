@@ -1,6 +1,7 @@
 //! `mbsolve animate`: the motion of a run, as an animated SVG (SMIL), a GIF,
-//! an MP4/WebM (through `ffmpeg` on the PATH) or a still PNG of one output
-//! time.
+//! an APNG (full colour, no external tool), an MP4/WebM (through `ffmpeg`
+//! on the PATH; without it the command says so and names the other
+//! formats) or a still PNG of one output time.
 //!
 //! What is drawn is the library's drawing model ([`mbsolve::drawing`]):
 //! bodies as their shapes, joints, guides, springs, dampers, contacts and
@@ -31,7 +32,8 @@ pub struct AnimateArgs {
     pub set: Vec<String>,
     /// The run's trajectory CSV.
     pub csv: PathBuf,
-    /// Output: .svg (animated, SMIL), .gif, .mp4, .webm or .png (still).
+    /// Output: .svg (animated, SMIL), .gif, .apng, .mp4, .webm or .png
+    /// (still).
     pub out: PathBuf,
     /// Playback speed: simulated seconds per wall-clock second.
     pub speed: f64,
@@ -51,6 +53,18 @@ pub struct Scene {
     pub poses: Vec<Vec<f64>>,
     /// Canvas size in pixels.
     pub size: (u32, u32),
+    /// Text and reference pose drawn on every frame ([`Annotation`]).
+    pub note: Annotation,
+}
+
+/// What a frame shows besides the motion (default: nothing).
+#[derive(Debug, Clone, Default)]
+pub struct Annotation {
+    /// A line under the time stamp (e.g. a mode's frequency); empty: none.
+    pub caption: String,
+    /// A pose (x, y, φ per body) drawn faded under the motion, e.g. the
+    /// equilibrium a mode oscillates about; `None`: none.
+    pub ghost: Option<Vec<f64>>,
 }
 
 /// The CSV columns of body `b`'s coordinates (x, y, φ): the one place that
@@ -70,6 +84,11 @@ const SVG_MIN_DELAY: f64 = 0.01;
 
 /// Write the animation; returns the path written.
 pub fn animate(a: &AnimateArgs) -> Result<PathBuf, String> {
+    animate_annotated(a, Annotation::default())
+}
+
+/// [`animate`] with a caption and a reference pose on every frame.
+pub fn animate_annotated(a: &AnimateArgs, note: Annotation) -> Result<PathBuf, String> {
     if !(a.speed.is_finite() && a.speed > 0.0) {
         return Err(format!("--speed {}: must be finite and > 0", a.speed));
     }
@@ -77,18 +96,30 @@ pub fn animate(a: &AnimateArgs) -> Result<PathBuf, String> {
         return Err("--every 0: must be ≥ 1".into());
     }
     let ext = extension(&a.out);
-    if !["svg", "gif", "png", "mp4", "webm"].contains(&ext.as_str()) {
+    if !["svg", "gif", "apng", "png", "mp4", "webm"].contains(&ext.as_str()) {
         return Err(format!(
-            "--out {}: unknown animation format '{ext}': use .svg, .gif, .mp4, .webm or .png (one still)",
+            "--out {}: unknown animation format '{ext}': use .svg, .gif, .apng, .mp4, .webm or .png (one still)",
             a.out.display()
         ));
     }
     let sc = scenario::load(&a.scenario, &a.set).map_err(|e| e.to_string())?;
     let table = Table::read(&a.csv)?;
-    let scene = scene(&sc, &table, &a.csv)?;
+    let mut scene = scene(&sc, &table, &a.csv)?;
+    if let Some(g) = &note.ghost {
+        if g.len() != scene.poses[0].len() || g.iter().any(|v| !v.is_finite()) {
+            return Err(format!(
+                "{}: the reference pose has {} finite entries, the model {} coordinates",
+                a.csv.display(),
+                g.len(),
+                scene.poses[0].len()
+            ));
+        }
+    }
+    scene.note = note;
     match ext.as_str() {
         "svg" => write_svg(&scene, &a.out, a.speed, a.every)?,
         "gif" => write_gif(&scene, &a.out, a.speed, a.every)?,
+        "apng" => write_apng(&scene, &a.out, a.speed, a.every)?,
         "mp4" | "webm" => write_video(&scene, &a.out, a.speed, a.every)?,
         _ => write_png(&scene, &a.out, a.at)?,
     }
@@ -153,6 +184,7 @@ pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene
         t,
         poses,
         size,
+        note: Annotation::default(),
     })
 }
 
@@ -279,62 +311,22 @@ fn draw_frame<DB: DrawingBackend>(
             (off[1] - k * p[1]).round() as i32,
         )
     };
-    let fill = RGBColor(0x56, 0xB4, 0xE9).mix(0.5);
-    let ground_fill = RGBColor(0xbb, 0xbb, 0xbb);
     if !blank {
         root.fill(&WHITE)?;
     }
-    for m in s.drawing.marks(&s.poses[f]) {
-        match m {
-            Mark::Fill { points, ink } => {
-                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
-                if ink == Ink::Body {
-                    root.draw(&Polygon::new(pts.clone(), fill.filled()))?;
-                } else {
-                    root.draw(&Polygon::new(pts.clone(), ground_fill.filled()))?;
-                }
-                let mut closed = pts.clone();
-                closed.push(pts[0]);
-                root.draw(&PathElement::new(
-                    closed,
-                    ink_rgb(ink).stroke_width(ink_width(ink)),
-                ))?;
-            }
-            Mark::Line { points, ink } => {
-                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
-                root.draw(&PathElement::new(
-                    pts,
-                    ink_rgb(ink).stroke_width(ink_width(ink)),
-                ))?;
-            }
-            Mark::Circle {
-                centre,
-                radius,
-                ink,
-                filled,
-            } => {
-                let r = ((k * radius).round() as i32).max(1);
-                if filled {
-                    root.draw(&Circle::new(px(centre), r, fill.filled()))?;
-                }
-                root.draw(&Circle::new(
-                    px(centre),
-                    r,
-                    ink_rgb(ink).stroke_width(ink_width(ink)),
-                ))?;
-            }
-            Mark::Pin { centre } => {
-                root.draw(&Circle::new(px(centre), 4, WHITE.filled()))?;
-                root.draw(&Circle::new(px(centre), 4, BLACK.stroke_width(1)))?;
-            }
-        }
+    if let Some(g) = &s.note.ghost {
+        draw_marks(root, &s.drawing.marks(g), &px, k, true)?;
     }
+    draw_marks(root, &s.drawing.marks(&s.poses[f]), &px, k, false)?;
     let font = ("sans-serif", 14.0).into_font();
     root.draw(&Text::new(
         format!("t = {:.3} s", s.t[f]),
         (8, 8),
         font.clone(),
     ))?;
+    if !s.note.caption.is_empty() {
+        root.draw(&Text::new(s.note.caption.as_str(), (8, 28), font.clone()))?;
+    }
     let (bar, label) = scale_bar(k, size.0 as f64);
     let (x0, y0) = (10, size.1 as i32 - 12);
     let x1 = x0 + (bar * k).round() as i32;
@@ -343,6 +335,73 @@ fn draw_frame<DB: DrawingBackend>(
         BLACK.stroke_width(2),
     ))?;
     root.draw(&Text::new(label, (x1 + 6, y0 - 12), font))?;
+    Ok(())
+}
+
+/// Draw marks through the pixel map `px` (`k` pixels per metre); `faded`:
+/// light grey outlines only (a reference pose under the motion).
+fn draw_marks<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    marks: &[Mark],
+    px: &dyn Fn([f64; 2]) -> (i32, i32),
+    k: f64,
+    faded: bool,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let fill = RGBColor(0x56, 0xB4, 0xE9).mix(0.5);
+    let ground_fill = RGBColor(0xbb, 0xbb, 0xbb);
+    let faint = RGBColor(0xc8, 0xc8, 0xc8);
+    let ink = |i: Ink| if faded { faint } else { ink_rgb(i) };
+    for m in marks {
+        match m {
+            Mark::Fill { points, ink: i } => {
+                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
+                if !faded {
+                    let f = if *i == Ink::Body {
+                        fill.filled()
+                    } else {
+                        ground_fill.filled()
+                    };
+                    root.draw(&Polygon::new(pts.clone(), f))?;
+                }
+                let mut closed = pts.clone();
+                closed.push(pts[0]);
+                root.draw(&PathElement::new(
+                    closed,
+                    ink(*i).stroke_width(ink_width(*i)),
+                ))?;
+            }
+            Mark::Line { points, ink: i } => {
+                let pts: Vec<(i32, i32)> = points.iter().map(|p| px(*p)).collect();
+                root.draw(&PathElement::new(pts, ink(*i).stroke_width(ink_width(*i))))?;
+            }
+            Mark::Circle {
+                centre,
+                radius,
+                ink: i,
+                filled,
+            } => {
+                let r = ((k * radius).round() as i32).max(1);
+                if *filled && !faded {
+                    root.draw(&Circle::new(px(*centre), r, fill.filled()))?;
+                }
+                root.draw(&Circle::new(
+                    px(*centre),
+                    r,
+                    ink(*i).stroke_width(ink_width(*i)),
+                ))?;
+            }
+            Mark::Pin { centre } => {
+                if !faded {
+                    root.draw(&Circle::new(px(*centre), 4, WHITE.filled()))?;
+                }
+                root.draw(&Circle::new(
+                    px(*centre),
+                    4,
+                    (if faded { faint } else { BLACK }).stroke_width(1),
+                ))?;
+            }
+        }
+    }
     Ok(())
 }
 
@@ -443,6 +502,46 @@ fn write_gif(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), Str
     Ok(())
 }
 
+/// Shortest APNG frame \[s\] (as the GIF's: browsers slow shorter ones
+/// down) and its delay tick (the frame delay is ms/1000).
+const APNG_MIN_DELAY: f64 = 0.02;
+const APNG_TICK: f64 = 0.001;
+
+/// The APNG: full-colour frames chosen by [`schedule`] at 1 ms delay
+/// resolution, drawn in parallel (64 at a time), written in order.
+fn write_apng(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
+    crate::figure::register_font();
+    let (rows, delays) = schedule(&s.t, speed, APNG_MIN_DELAY, every, APNG_TICK);
+    let (w, h) = s.size;
+    let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_animated(rows.len() as u32, 0)
+        .map_err(|e| err(&e))?;
+    let mut writer = enc.write_header().map_err(|e| err(&e))?;
+    for chunk in rows.iter().zip(&delays).collect::<Vec<_>>().chunks(64) {
+        let frames: Vec<Vec<u8>> = chunk
+            .par_iter()
+            .map(|(&r, _)| render_rgb(s, r))
+            .collect::<Result<_, String>>()?;
+        for (rgb, (_, &d)) in frames.iter().zip(chunk) {
+            // a delay beyond u16 ms (65 s) in whole seconds
+            let (num, den) = if d <= u16::MAX as u32 {
+                (d as u16, 1000)
+            } else {
+                (((d + 500) / 1000).min(u16::MAX as u32) as u16, 1)
+            };
+            writer.set_frame_delay(num, den).map_err(|e| err(&e))?;
+            writer.write_image_data(rgb).map_err(|e| err(&e))?;
+        }
+    }
+    writer.finish().map_err(|e| err(&e))?;
+    report_schedule(s, &rows, &delays, APNG_TICK, speed, "APNG");
+    Ok(())
+}
+
 /// MP4 or WebM through `ffmpeg` on the PATH: constant frame rate (50 fps
 /// at most), each frame the output row nearest its wall-clock time.
 fn write_video(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
@@ -474,7 +573,7 @@ fn write_video(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), S
         .spawn()
         .map_err(|e| {
             format!(
-                "{}: MP4/WebM need ffmpeg on the PATH ({e}); write a .gif instead",
+                "{}: MP4/WebM need ffmpeg on the PATH ({e}); write a .gif or .apng instead",
                 path.display()
             )
         })?;
@@ -523,17 +622,21 @@ pub fn nearest_row(t: &[f64], at: Option<f64>) -> usize {
     }
 }
 
+/// The SVG `points` attribute of `p` through the pixel map `px`:
+/// `"x,y x,y …"` with two decimals.
+fn svg_points(p: &[[f64; 2]], px: &dyn Fn([f64; 2]) -> (f64, f64)) -> String {
+    p.iter()
+        .map(|q| {
+            let (a, b) = px(*q);
+            format!("{a:.2},{b:.2}")
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// One mark as SVG, through the pixel map `px` (world or body frame).
 fn svg_mark(o: &mut String, m: &Mark, px: &dyn Fn([f64; 2]) -> (f64, f64), k: f64) {
-    let pts = |p: &[[f64; 2]]| {
-        p.iter()
-            .map(|q| {
-                let (a, b) = px(*q);
-                format!("{a:.2},{b:.2}")
-            })
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
+    let pts = |p: &[[f64; 2]]| svg_points(p, px);
     match m {
         Mark::Fill { points, ink } => {
             let fill = if *ink == Ink::Body {
@@ -655,8 +758,22 @@ fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), Str
         16.0 + bar * k,
         y0,
     );
+    if !s.note.caption.is_empty() {
+        let _ = writeln!(
+            o,
+            r#"<text x="8" y="36" font-family="sans-serif" font-size="13">{}</text>"#,
+            crate::view::escape_html(&s.note.caption)
+        );
+    }
     for m in ground.marks(&identity) {
         svg_mark(&mut o, &m, &world_px, k);
+    }
+    if let Some(g) = &s.note.ghost {
+        let _ = writeln!(o, r#"<g opacity="0.3">"#);
+        for m in s.drawing.marks(g) {
+            svg_mark(&mut o, &m, &world_px, k);
+        }
+        let _ = writeln!(o, "</g>");
     }
     for (i, d) in per_body.iter().enumerate() {
         let tr: Vec<String> = rows
@@ -693,15 +810,7 @@ fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), Str
         let (Mark::Line { points, ink } | Mark::Fill { points, ink }) = m else {
             continue;
         };
-        let pts = |p: &[[f64; 2]]| {
-            p.iter()
-                .map(|q| {
-                    let (a, b) = world_px(*q);
-                    format!("{a:.2},{b:.2}")
-                })
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
+        let pts = |p: &[[f64; 2]]| svg_points(p, &world_px);
         let values: Vec<String> = frames
             .iter()
             .map(|f| match &f[j] {

@@ -211,16 +211,27 @@ pub(crate) fn state_at_time(sc: &Scenario, t: f64) -> Result<(f64, Vec<f64>, Vec
     }
 }
 
-/// `BODY.x|y|phi` → (coordinate, false); `BODY.vx|vy|omega` → (coordinate, true).
-fn parse_coordinate(sys: &System, s: &str) -> Result<(usize, bool), String> {
+/// `BODY.QUANTITY` → (index of the body named BODY, QUANTITY); `expected`
+/// names the form in the error.
+fn body_and_quantity<'a>(
+    sys: &System,
+    s: &'a str,
+    expected: &str,
+) -> Result<(usize, &'a str), String> {
     let (body, q) = s
         .rsplit_once('.')
-        .ok_or_else(|| format!("'{s}': expected BODY.QUANTITY"))?;
+        .ok_or_else(|| format!("'{s}': expected {expected}"))?;
     let b = sys
         .bodies()
         .iter()
         .position(|x| x.name == body)
         .ok_or_else(|| format!("'{s}': no body named '{body}'"))?;
+    Ok((b, q))
+}
+
+/// `BODY.x|y|phi` → (coordinate, false); `BODY.vx|vy|omega` → (coordinate, true).
+fn parse_coordinate(sys: &System, s: &str) -> Result<(usize, bool), String> {
+    let (b, q) = body_and_quantity(sys, s, "BODY.QUANTITY")?;
     let (k, vel) = match q {
         "x" => (0, false),
         "y" => (1, false),
@@ -238,14 +249,7 @@ fn parse_coordinate(sys: &System, s: &str) -> Result<(usize, bool), String> {
 }
 
 fn parse_input(sys: &System, s: &str) -> Result<Input, String> {
-    let (body, q) = s
-        .rsplit_once('.')
-        .ok_or_else(|| format!("'{s}': expected BODY.fx, BODY.fy or BODY.mz"))?;
-    let b = sys
-        .bodies()
-        .iter()
-        .position(|x| x.name == body)
-        .ok_or_else(|| format!("'{s}': no body named '{body}'"))?;
+    let (b, q) = body_and_quantity(sys, s, "BODY.fx, BODY.fy or BODY.mz")?;
     let k = match q {
         "fx" => 0,
         "fy" => 1,

@@ -196,7 +196,8 @@ enum Command {
         y_label: Option<String>,
     },
     /// Animate a run: the mechanism's motion from the scenario's geometry and
-    /// the run's CSV, as an animated SVG (SMIL) or a GIF.
+    /// the run's CSV, as an animated SVG (SMIL), a GIF, an APNG or (with
+    /// ffmpeg on the PATH) an MP4/WebM.
     Animate {
         /// Scenario file of the run.
         scenario: PathBuf,
@@ -205,8 +206,8 @@ enum Command {
         /// The overrides the run used (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Output file: .svg (animated), .gif, or .png (one still) [default:
-        /// the CSV's path with .svg].
+        /// Output file: .svg (animated), .gif, .apng, .mp4, .webm, or .png
+        /// (one still) [default: the CSV's path with .svg].
         #[arg(long)]
         out: Option<PathBuf>,
         /// Playback speed: simulated seconds per second.
@@ -284,7 +285,8 @@ enum Command {
         /// initial state) or `t=T` (the state a run reaches at T s).
         #[arg(long, default_value = "static")]
         at: modes::At,
-        /// Animate the first this many modes (SVG each).
+        /// Animate the first this many modes (SVG, GIF and a PNG of the
+        /// largest deflection each).
         #[arg(long, default_value_t = 6)]
         animate: usize,
         /// Output directory.
@@ -616,6 +618,18 @@ fn run(
         summary.max_constraint_norm,
         summary.final_constraint_norm
     );
+    // the thread rule's decision (crate::parallel::Rule)
+    let extra = |k: &str| summary.extra.get(k).cloned().unwrap_or_default();
+    report!(
+        "threads: {} used, solves {}; {}",
+        extra("threads"),
+        if extra("split").as_bool() == Some(true) {
+            "split"
+        } else {
+            "not split"
+        },
+        extra("threads_reason").as_str().unwrap_or("")
+    );
     if let Some(c) = &contacts {
         match c.first_contact() {
             Some(t) => report!(
@@ -677,6 +691,16 @@ fn reproduce_all(out: &std::path::Path) -> Result<ExitCode, String> {
     say!("falling rod, N = 10: {} runs", rod.len());
     say!("{}", reproduce::rod_table(&rod).trim_end());
     say!("wrote {}", out.join("falling_rod").display());
+    let modes = reproduce::chain_modes_study(out).map_err(|e| e.to_string())?;
+    say!(
+        "cantilevered chain, N = {}: modes {:.3?} Hz (Euler–Bernoulli {:.3?} Hz), \
+         largest shape difference {:.1e}",
+        modes.n,
+        modes.chain_hz,
+        modes.beam_hz,
+        modes.shape_difference.iter().fold(0.0f64, |a, &b| a.max(b))
+    );
+    say!("wrote {}", out.join("chain_modes").display());
     Ok(ExitCode::SUCCESS)
 }
 

@@ -3,8 +3,10 @@
 //! about the static equilibrium, the initial state or the state a run reaches at T
 //! ([`mbsolve::analysis::modes`]); writes `DIR/<stem>.modes.json`, a
 //! figure of the first shapes (`DIR/<stem>.modes.svg`, `.png`, `.csv`) and
-//! an animation of each mode (`DIR/<stem>.mode<k>.svg`, drawn by
-//! `animate` from a synthetic run table `q₀ + a sin(ωt) x`).
+//! an animation of each mode drawn with the model's drawing
+//! (`DIR/<stem>.mode<k>.svg` and `.gif`, one period in 2 s; `.png` the
+//! largest deflection; from the synthetic run table `<stem>.mode<k>.csv`
+//! of `q₀ + a sin(ωt) x`).
 
 use crate::animate::{self, coordinate_columns};
 use crate::figure::{Figure, Series};
@@ -173,8 +175,9 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     say!("wrote {}", json_path.display());
     shapes_figure(&modes, sys, a.out, &stem)?;
     for k in 0..a.animate.min(modes.modes.len()) {
-        let p = animation(a, &q, &modes, k, &stem)?;
-        say!("wrote {}", p.display());
+        for p in animation(a, &q, &modes, k, &stem)? {
+            say!("wrote {}", p.display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -229,15 +232,16 @@ fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<
     Ok(())
 }
 
-/// Mode `k` as a synthetic run table over one period and its animation
-/// (SVG, drawn by `animate`).
+/// Mode `k` as a synthetic run table over one period, drawn by `animate`
+/// with the model's drawing over the faded state it oscillates about:
+/// an animated SVG, a GIF and a PNG of the largest deflection.
 fn animation(
     a: &ModesArgs,
     q0: &[f64],
     modes: &Modes,
     k: usize,
     stem: &str,
-) -> Result<std::path::PathBuf, String> {
+) -> Result<Vec<std::path::PathBuf>, String> {
     let md = &modes.modes[k];
     let n = q0.len();
     let nb = n / 3;
@@ -282,14 +286,31 @@ fn animation(
     }
     let csv = a.out.join(format!("{stem}.mode{}.csv", k + 1));
     write_atomic(&csv, &text).map_err(|e| e.to_string())?;
-    animate::animate(&animate::AnimateArgs {
-        scenario: a.scenario.to_path_buf(),
-        set: a.set.to_vec(),
-        csv: csv.clone(),
-        out: a.out.join(format!("{stem}.mode{}.svg", k + 1)),
-        // one period in 2 s of playback
-        speed: period / 2.0,
-        every: 1,
-        at: None,
-    })
+    let note = animate::Annotation {
+        caption: format!(
+            "mode {}: {:.4} Hz (grey: the state it oscillates about)",
+            k + 1,
+            md.frequency_hz
+        ),
+        ghost: Some(q0.to_vec()),
+    };
+    let mut written = Vec::new();
+    // the animated SVG and the GIF play one period in 2 s; the PNG is the
+    // largest deflection (a quarter period)
+    for (ext, at) in [("svg", None), ("gif", None), ("png", Some(0.25 * period))] {
+        let p = animate::animate_annotated(
+            &animate::AnimateArgs {
+                scenario: a.scenario.to_path_buf(),
+                set: a.set.to_vec(),
+                csv: csv.clone(),
+                out: a.out.join(format!("{stem}.mode{}.{ext}", k + 1)),
+                speed: period / 2.0,
+                every: 1,
+                at,
+            },
+            note.clone(),
+        )?;
+        written.push(p);
+    }
+    Ok(written)
 }

@@ -6,6 +6,9 @@
 //! * Falling rod (§4.2, fig. 5–7), N = 10: x of segments 1, N/2, N; relative
 //!   angles φ_i − φ_1; one joint's constraint with and without Baumgarte
 //!   stabilization; ode23 and ode45; contact events.
+//! * The cantilevered chain (problem D) without gravity: its first three
+//!   mode shapes beside the Euler–Bernoulli cantilever's
+//!   ([`chain_modes_study`]).
 
 use crate::figure::{Figure, Series};
 use crate::output::{write_columns_csv, OutputError};
@@ -485,4 +488,201 @@ pub fn rod_table(cases: &[RodCase]) -> String {
         );
     }
     s
+}
+
+/// Segments of the chain whose mode shapes [`chain_modes_study`] draws.
+pub const CHAIN_MODES_N: usize = 20;
+
+/// Samples per segment of the figure's abscissa (the chain is linear
+/// between its joints, the beam's shapes are smooth).
+const CHAIN_MODES_SAMPLES: usize = 10;
+
+/// The chain's lowest modes beside the Euler–Bernoulli cantilever's.
+#[derive(Debug, Clone)]
+pub struct ChainModes {
+    /// Segments.
+    pub n: usize,
+    /// The chain's undamped natural frequencies \[Hz\], lowest first.
+    pub chain_hz: Vec<f64>,
+    /// The Euler–Bernoulli cantilever's \[Hz\].
+    pub beam_hz: Vec<f64>,
+    /// Largest |chain − beam| of each normalised shape over the joints.
+    pub shape_difference: Vec<f64>,
+}
+
+/// Root `β L` of the cantilever's frequency equation `1 + cos β cosh β = 0`
+/// near `guess` (Newton).
+pub fn cantilever_root(guess: f64) -> f64 {
+    let mut b = guess;
+    for _ in 0..50 {
+        let f = 1.0 + b.cos() * b.cosh();
+        let df = -b.sin() * b.cosh() + b.cos() * b.sinh();
+        let step = f / df;
+        b -= step;
+        if step.abs() < 1e-15 * b {
+            break;
+        }
+    }
+    b
+}
+
+/// The Euler–Bernoulli cantilever's mode shape of root `bl = β L` at
+/// `x / L = xi`, `cosh βx − cos βx − σ (sinh βx − sin βx)` with
+/// `σ = (cosh βL + cos βL) / (sinh βL + sin βL)`, scaled to 1 at the tip.
+pub fn cantilever_shape(bl: f64, xi: f64) -> f64 {
+    let sigma = (bl.cosh() + bl.cos()) / (bl.sinh() + bl.sin());
+    let w = |x: f64| (x.cosh() - x.cos()) - sigma * (x.sinh() - x.sin());
+    w(bl * xi) / w(bl)
+}
+
+/// The first three mode shapes of the cantilevered stiff chain
+/// (docs/problems.md, problem D; the peers' chain without gravity) at
+/// [`CHAIN_MODES_N`] segments, hanging straight down, drawn as lateral
+/// deflection against the position along the rod beside the
+/// Euler–Bernoulli cantilever's shapes, each scaled to 1 at the free end,
+/// frequencies in the legend. Writes under `out/chain_modes/`:
+/// `chain_modes.svg` with its CSV (sampled along the rod; the chain's
+/// rigid segments are linear between their joints), `chain_modes_joints.csv`
+/// (the chain's deflection at its joints beside the beam's) and
+/// `chain_modes_table.md`.
+pub fn chain_modes_study(out: &Path) -> Result<ChainModes, ReproduceError> {
+    use mbsolve::analysis::{eigenmodes, ModeOptions, Tangent};
+    use mbsolve::builders::{cantilever, RodParams};
+    let dir = out.join("chain_modes");
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| ReproduceError::Io(format!("{}: {e}", dir.display())))?;
+    let n = CHAIN_MODES_N;
+    let mut p = RodParams::problem_b(n);
+    p.tilt = std::f64::consts::PI;
+    let study = |e: String| ReproduceError::Study(format!("chain modes: {e}"));
+    let (sys, info) = cantilever(&p, [0.0, 0.0]).map_err(|e| study(e.to_string()))?;
+    let (q0, _) = sys.initial_state();
+    let mut tan = Tangent::new(&sys);
+    tan.evaluate(
+        0.0,
+        &q0,
+        &vec![0.0; sys.n_coords()],
+        &vec![0.0; sys.n_constraints()],
+    )
+    .map_err(|e| study(e.to_string()))?;
+    let modes = eigenmodes(
+        &tan,
+        ModeOptions {
+            count: 3,
+            ..Default::default()
+        },
+    )
+    .map_err(|e| study(e.to_string()))?;
+    if modes.modes.len() < 3 || !modes.converged {
+        return Err(study("the three lowest modes did not converge".into()));
+    }
+    let ls = info.segment_length;
+    // lateral (x) deflection of the joints: the pivot end of segment 1,
+    // then the free end of every segment (local (0, ∓l_s/2), linearised)
+    let joints = |shape: &[f64]| -> Vec<f64> {
+        let mut v = Vec::with_capacity(n + 1);
+        let b0 = info.bodies[0];
+        v.push(shape[3 * b0] + 0.5 * ls * q0[3 * b0 + 2].cos() * shape[3 * b0 + 2]);
+        for &b in &info.bodies {
+            v.push(shape[3 * b] - 0.5 * ls * q0[3 * b + 2].cos() * shape[3 * b + 2]);
+        }
+        let tip = v[n];
+        v.iter().map(|d| d / tip).collect()
+    };
+    let ei = p.youngs_modulus * p.width.powi(4) / 12.0;
+    let rho_a = p.density * p.width * p.width;
+    let roots: Vec<f64> = [1.875, 4.694, 7.855]
+        .iter()
+        .map(|&g| cantilever_root(g))
+        .collect();
+    let beam_hz: Vec<f64> = roots
+        .iter()
+        .map(|b| b * b * (ei / (rho_a * p.length.powi(4))).sqrt() / (2.0 * std::f64::consts::PI))
+        .collect();
+    let s_joint: Vec<f64> = (0..=n).map(|k| k as f64 * ls).collect();
+    let xi: Vec<f64> = s_joint.iter().map(|s| s / p.length).collect();
+    let chain_joint: Vec<Vec<f64>> = modes.modes.iter().map(|m| joints(&m.shape)).collect();
+    let beam_joint: Vec<Vec<f64>> = roots
+        .iter()
+        .map(|&b| xi.iter().map(|&x| cantilever_shape(b, x)).collect())
+        .collect();
+    let shape_difference: Vec<f64> = chain_joint
+        .iter()
+        .zip(&beam_joint)
+        .map(|(c, b)| {
+            c.iter()
+                .zip(b)
+                .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()))
+        })
+        .collect();
+    let chain_hz: Vec<f64> = modes.modes.iter().map(|m| m.frequency_hz).collect();
+    // the joints' table
+    let mut cols: Vec<(String, &[f64])> = vec![("s [m]".into(), &s_joint)];
+    for k in 0..3 {
+        cols.push((format!("chain mode {}", k + 1), &chain_joint[k]));
+        cols.push((format!("Euler–Bernoulli mode {}", k + 1), &beam_joint[k]));
+    }
+    let refs: Vec<(&str, &[f64])> = cols.iter().map(|(a, b)| (a.as_str(), *b)).collect();
+    write_columns_csv(&dir.join("chain_modes_joints.csv"), &refs)?;
+    // the figure, sampled along the rod
+    let samples = n * CHAIN_MODES_SAMPLES;
+    let s: Vec<f64> = (0..=samples)
+        .map(|j| p.length * j as f64 / samples as f64)
+        .collect();
+    let on_chain = |v: &[f64], x: f64| -> f64 {
+        let u = (x / ls).clamp(0.0, n as f64);
+        let k = (u.floor() as usize).min(n - 1);
+        let f = u - k as f64;
+        (1.0 - f) * v[k] + f * v[k + 1]
+    };
+    let mut series = Vec::new();
+    for k in 0..3 {
+        series.push(Series {
+            label: format!("chain, mode {} ({:.2} Hz)", k + 1, chain_hz[k]),
+            x: s.clone(),
+            y: s.iter().map(|&x| on_chain(&chain_joint[k], x)).collect(),
+        });
+    }
+    for k in 0..3 {
+        series.push(Series {
+            label: format!("Euler–Bernoulli, mode {} ({:.2} Hz)", k + 1, beam_hz[k]),
+            x: s.clone(),
+            y: s.iter()
+                .map(|&x| cantilever_shape(roots[k], x / p.length))
+                .collect(),
+        });
+    }
+    Figure {
+        title: format!(
+            "Cantilevered chain, N = {n}, no gravity: first three mode shapes beside the Euler–Bernoulli beam"
+        ),
+        x_label: "position along the rod from the pivot [m]".into(),
+        y_label: "lateral deflection / tip deflection [-]".into(),
+        series,
+        ..Default::default()
+    }
+    .save(&dir, "chain_modes")?;
+    let mut table = String::from(
+        "| mode | chain [Hz] | Euler–Bernoulli [Hz] | relative difference | max shape difference |\n|---|---|---|---|---|\n",
+    );
+    for k in 0..3 {
+        let _ = writeln!(
+            table,
+            "| {} | {:.4} | {:.4} | {:.3e} | {:.3e} |",
+            k + 1,
+            chain_hz[k],
+            beam_hz[k],
+            chain_hz[k] / beam_hz[k] - 1.0,
+            shape_difference[k]
+        );
+    }
+    let path = dir.join("chain_modes_table.md");
+    std::fs::write(&path, &table)
+        .map_err(|e| ReproduceError::Io(format!("{}: {e}", path.display())))?;
+    Ok(ChainModes {
+        n,
+        chain_hz,
+        beam_hz,
+        shape_difference,
+    })
 }

@@ -91,6 +91,7 @@ pub fn command(
         "newton_iterations": eq.iterations,
         "residual": eq.residual,
         "constraint_residual": eq.constraint_residual,
+        "redundant_rows": eq.redundant,
         "stability": {
             "verdict": st.verdict(),
             "stable": st.stable,
@@ -117,6 +118,14 @@ pub fn command(
         eq.residual,
         eq.constraint_residual
     );
+    if !eq.redundant.is_empty() {
+        say!(
+            "{} redundant constraint rows left out (their λ are 0: the split of the reactions \
+             among redundant joints is statically indeterminate): {:?}",
+            eq.redundant.len(),
+            eq.redundant
+        );
+    }
     say!(
         "stability: {} ({} stable, {} unstable, {} neutral directions; neutral below {neutral_hz} Hz)",
         st.verdict(),

@@ -94,7 +94,8 @@ mod newton;
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
-    run as run_implicit, validate_run, ImplicitStats, ImplicitStepper, Renewal, RenewalOptions,
+    attempt_or_cut, run as run_implicit, validate_run, Attempted, CutRules, Cuts, ImplicitStats,
+    ImplicitStepper, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
@@ -261,6 +262,8 @@ struct BdfRun<'s> {
     /// When the Newton matrix is renewed (band on the `a_0` it was made
     /// for).
     renewal: Renewal,
+    /// The failure path's state.
+    cuts: Cuts,
     /// Contraction rate measured on the current matrix (ode15s's `rate`).
     rate: Option<f64>,
     // Newton buffers
@@ -277,13 +280,6 @@ struct BdfRun<'s> {
     ynew: Vec<f64>,
     stats: ImplicitStats,
     warnings: Vec<String>,
-}
-
-/// How a Newton attempt ended.
-enum Newton {
-    Converged,
-    /// Why, and whether the matrix was fresh (made for this attempt).
-    Failed(SystemError, bool),
 }
 
 impl<'s> BdfRun<'s> {
@@ -327,6 +323,12 @@ impl<'s> BdfRun<'s> {
                 band: REUSE_BAND,
                 across_attempts: true,
                 every_correction: false,
+            }),
+            // ode15s: Newton failures are counted, not warned of
+            cuts: Cuts::new(CutRules {
+                shrink: Shrink::Ode15s,
+                warn: Warn::Never,
+                first_cause: false,
             }),
             rate: None,
             q: vec![0.0; n],
@@ -475,8 +477,17 @@ impl EstimateIn<'_> {
 }
 
 impl ImplicitStepper for BdfRun<'_> {
-    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
-        (self.stats, &mut self.warnings)
+    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
+        (&mut self.stats, &mut self.warnings)
+    }
+    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
+        self.attempt(t_new, h)
+    }
+    fn renewal(&mut self) -> &mut Renewal {
+        &mut self.renewal
+    }
+    fn cuts(&mut self) -> &mut Cuts {
+        &mut self.cuts
     }
 }
 
@@ -538,7 +549,6 @@ impl Stepper for BdfRun<'_> {
             done = true;
         }
         let mut rejections = 0;
-        let mut newton_retry = false;
         let (t1, err, est_lower, est_higher) = loop {
             let t1 = if done { self.t_end } else { t + h };
             h = t1 - t;
@@ -550,35 +560,19 @@ impl Stepper for BdfRun<'_> {
                     cause: StepCut::NoProgress,
                 });
             }
-            match self.attempt(t1, h) {
-                Newton::Failed(e, fresh) => {
-                    // a stale matrix: retry at once with a fresh one
-                    if !fresh && !newton_retry {
-                        newton_retry = true;
-                        continue;
-                    }
-                    newton_retry = false;
-                    self.stats.newton_failures += 1;
-                    if absh <= hmin {
-                        return Err(Failure::StepTooSmall {
-                            t,
-                            h: absh,
-                            h_min: hmin,
-                            cause: StepCut::Newton {
-                                t: t1,
-                                h,
-                                source: Arc::new(e),
-                            },
-                        });
-                    }
-                    absh = hmin.max(0.3 * absh);
-                    h = absh;
-                    done = false;
-                    continue;
-                }
-                Newton::Converged => {}
+            let x = StepTry {
+                t,
+                t_new: t1,
+                h,
+                h_ctl: absh,
+                h_min: hmin,
+            };
+            if let Attempted::Cut(next) = attempt_or_cut(self, x)? {
+                absh = next;
+                h = absh;
+                done = false;
+                continue;
             }
-            newton_retry = false;
             // copy [q; q̇] and check it finite in one pass (located only
             // on failure), in two fixed halves concurrently for large n
             let (yq, yv) = self.ynew.split_at_mut(n);

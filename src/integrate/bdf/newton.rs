@@ -23,7 +23,7 @@ impl BdfRun<'_> {
     }
 
     /// Predictor and Newton for the step to `t1` at order `k` (module docs).
-    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Newton {
+    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Result<(), SystemError> {
         let (n, k) = (self.n, self.k);
         let mut nodes = [0.0; MAX_ORDER + 2];
         let mut a = [0.0; MAX_ORDER + 2];
@@ -91,11 +91,8 @@ impl BdfRun<'_> {
         );
         self.lam_new.copy_from_slice(&self.lam);
         if self.renewal.at_predictor(a0) {
-            if let Err(e) = self.factor(t1, a0) {
-                return Newton::Failed(e, true);
-            }
+            self.factor(t1, a0)?;
         }
-        let fresh = self.renewal.fresh();
         let s = 1.0 / (a0 * a0);
         // a position error δ makes a velocity error a_0 δ, which the error
         // test weighs as h·a_0·δ (`estimates`): one factor on the q-norm
@@ -120,7 +117,7 @@ impl BdfRun<'_> {
         );
         loop {
             self.stats.residual_evaluations += 1;
-            if let Err(e) = self.sys.residual(
+            self.sys.residual(
                 t1,
                 &self.q,
                 &self.v,
@@ -128,15 +125,11 @@ impl BdfRun<'_> {
                 &self.lam_new,
                 s,
                 &mut self.r,
-            ) {
-                return self.newton_failed(e, fresh);
-            }
+            )?;
             // solving for r (not −r) gives −Δ, the correction negated
             // exactly (the solve is linear and rounds symmetrically):
             // subtracted below, the same bits as adding Δ
-            if let Err(e) = self.sys.solve(t1, &mut self.r) {
-                return self.newton_failed(e, fresh);
-            }
+            self.sys.solve(t1, &mut self.r)?;
             self.stats.newton_iterations += 1;
             // q += Δq, with q̇ and q̈ from it, the error test's norm of Δq
             // (velocities through `vfac`) and the rounding floor of q: one
@@ -155,7 +148,7 @@ impl BdfRun<'_> {
             );
             dnorm *= vfac;
             if !dnorm.is_finite() {
-                return self.newton_failed(SystemError::msg("non-finite Newton correction"), fresh);
+                return Err(SystemError::msg("non-finite Newton correction"));
             }
             // λ −= Δλ/s, in two fixed halves concurrently for large n
             let m = dl.len();
@@ -186,7 +179,7 @@ impl BdfRun<'_> {
                     if conv.slow() {
                         self.renewal.renew();
                     }
-                    return Newton::Converged;
+                    return Ok(());
                 }
                 Assessment::NotYet if conv.next(dnorm, false) != Some(Next::Exhausted) => continue,
                 Assessment::Diverged => format!(
@@ -196,14 +189,8 @@ impl BdfRun<'_> {
                     "no convergence in {MAX_NEWTON} iterations expected (correction {dnorm:.3e} of the weights, θ = {theta:.3})"
                 ),
             };
-            return self.newton_failed(SystemError::msg(why), fresh);
+            return Err(SystemError::msg(why));
         }
-    }
-
-    /// A failed Newton attempt: the matrix is renewed at the next one.
-    pub(super) fn newton_failed(&mut self, e: SystemError, fresh: bool) -> Newton {
-        self.renewal.renew();
-        Newton::Failed(e, fresh)
     }
 }
 

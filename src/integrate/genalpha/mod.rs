@@ -3,7 +3,9 @@
 //!
 //! Split by idea: `params` (the method's parameters from ρ∞, the options),
 //! `newton` (Newton iteration and factorisation reuse), `step` (error
-//! estimate and step-size choice); this module holds the system trait, the
+//! estimate and step-size choice), `augmented` (the augmented Lagrangian:
+//! the same scheme on a system with a multiplier update,
+//! [`SecondOrderDae::multiplier_update`]); this module holds the
 //! integrator and its run loop.
 //!
 //! # The scheme
@@ -122,6 +124,23 @@
 //! (`SINGLE_CORRECTION_AT_FLOOR`: a remainder of 80 ulps).
 //! Optionally also `‖Φ(q_{n+1})‖∞` must be below the position-equivalent
 //! tolerance ([`ImplicitOptions::check_constraints`]).
+//! **Noise near a singular position.** Where Φ_q is close to losing rank
+//! (smallest singular value σ, left and right singular vectors u, v), the
+//! constraint rows of the solve turn the rounding of Φ (a few ulps of the
+//! positions) into a correction `(uᵀΦ)/σ` along v, and the multipliers
+//! into its `1/σ²`: the corrections stop contracting (θ = 1, 2, 3, 1.5 …:
+//! ratios of rounding quanta) at a size set by σ, not by the tolerance,
+//! and a smaller step — whose grid comes closer to the singular position —
+//! only makes them larger relative to the tolerance. So before an attempt
+//! fails by divergence (θ ≥ 1), the residual itself is asked
+//! (`Run::at_constraint_noise`): if `‖Φ‖∞` at the iterate is at its
+//! rounding floor (20 ulps of `max(|q|, 1)`) and the correction the
+//! dynamic rows alone ask for is within the tolerance, the iterate solves
+//! the equations to working precision and the attempt converges (with
+//! that last correction applied, and λ computed whole from zero at the
+//! accepted positions, as every attempt's first correction computes it:
+//! the sum over the non-contracting corrections carries their noise, and
+//! the next predictor's matrix takes λ in its geometric stiffness).
 //!
 //! # Step size
 //!
@@ -154,21 +173,22 @@
 //! [`Termination::Failed`] after every output up to the last accepted
 //! step was delivered.
 
+mod augmented;
 mod newton;
 mod params;
 mod step;
 
 pub use super::implicit::{NOISE_REL, ROUNDING_ULPS, STAGNATION, THETA_REFACTOR};
+pub use augmented::{ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, SLOW_CONTRACTION};
 pub use newton::{REUSE_BAND, SLOW_ITERATIONS};
 pub use params::AlphaParameters;
 pub use step::SAFETY;
 
-use newton::Attempt;
-
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    run as run_implicit, validate_run, ImplicitStats, ImplicitStepper, Renewal, RenewalOptions,
+    attempt_or_cut, run as run_implicit, validate_run, Attempted, CutRules, Cuts, ImplicitStats,
+    ImplicitStepper, Renewal, RenewalOptions, SecondOrderDae, Shrink, StepTry, Warn,
 };
 use super::Tolerance;
 use super::{
@@ -176,64 +196,6 @@ use super::{
     SystemError,
 };
 use std::sync::Arc;
-
-/// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
-/// `Φ(q, t) = 0` with a diagonal mass matrix, as the implicit integrators
-/// see it (implemented for multibody systems by
-/// [`crate::formulation::Index3`]).
-///
-/// Every method returns `Err` with the system's typed error
-/// ([`SystemError`]) on failure (non-finite values, a
-/// singular matrix); the integrator then cuts the step or stops.
-pub trait SecondOrderDae {
-    /// Number of coordinates n.
-    fn n(&self) -> usize;
-    /// Number of constraint equations m.
-    fn m(&self) -> usize;
-    /// Diagonal of M.
-    fn mass_diagonal(&self) -> &[f64];
-    /// Consistent accelerations and multipliers at `(t, q, q̇)`:
-    /// `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`.
-    fn accelerations(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &mut [f64],
-        lambda: &mut [f64],
-    ) -> Result<(), SystemError>;
-    /// Scaled residual: `r[..n] = scale (M q̈ + Φ_qᵀ λ − g)`, `r[n..] = Φ(q, t)`.
-    #[allow(clippy::too_many_arguments)]
-    fn residual(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &[f64],
-        lambda: &[f64],
-        scale: f64,
-        r: &mut [f64],
-    ) -> Result<(), SystemError>;
-    /// Φ(q, t) into `phi`.
-    fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]);
-    /// Assemble and factorise the iteration matrix
-    /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)` with
-    /// `C_t = −∂g/∂q̇`, `K_t = −∂g/∂q + (Φ_qᵀ λ)_q` (or an approximation
-    /// of them, e.g. [`crate::formulation::Index3`]'s reciprocal part of
-    /// unsymmetric force Jacobians).
-    fn factorize(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lambda: &[f64],
-        c: [f64; 3],
-    ) -> Result<(), SystemError>;
-    /// Overwrite `rhs` (length n + m) with the solution of the last factorised matrix.
-    fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), SystemError>;
-    /// Project `(q, q̇)` onto `Φ = 0`, `Φ_q q̇ + Φ_t = 0`.
-    fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError>;
-}
 
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
@@ -296,6 +258,20 @@ impl GenAlpha {
         })
     }
 
+    /// [`GenAlpha::new`] for the augmented Lagrangian (a system with a
+    /// [`SecondOrderDae::multiplier_update`]): a fixed step;
+    /// `adaptive`, `project`, `reuse`, `filter_error`,
+    /// `check_constraints`, `lu`, `extrapolate` do not apply
+    /// ([`IntegratorError::NotApplicable`]).
+    pub fn for_augmented_lagrangian(
+        method: Method,
+        opts: ImplicitOptions,
+        ode: OdeOptions,
+    ) -> Result<Self, IntegratorError> {
+        augmented::check_options(method, &opts)?;
+        Self::new(method, opts, ode)
+    }
+
     /// The method.
     pub fn method(&self) -> Method {
         self.method
@@ -313,7 +289,11 @@ impl GenAlpha {
         self.stats
     }
 
-    /// Integrate from `(t0, q0, q̇0)` to `t_end`.
+    /// Integrate from `(t0, q0, q̇0)` to `t_end` (with the augmented
+    /// Lagrangian's [`SecondOrderDae::multiplier_update`]: `(q0, q̇0)`
+    /// consistent, fixed step; `adaptive`, `project`, `reuse`,
+    /// `filter_error`, `check_constraints`, `lu`, `extrapolate` are
+    /// [`IntegratorError::NotApplicable`]).
     ///
     /// The observer receives `y = [q; q̇]`: `output` at each requested time
     /// (exact at step ends, else cubic Hermite interpolation of q with q̇
@@ -333,6 +313,9 @@ impl GenAlpha {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let (n, m) = (sys.n(), sys.m());
+        if sys.multiplier_update().is_some() {
+            augmented::check_options(self.method, &self.opts)?;
+        }
         validate_run(
             n,
             t0,
@@ -358,6 +341,9 @@ struct Run<'g, 's> {
     ode: &'g OdeOptions,
     h_fixed: f64,
     sys: &'s mut dyn SecondOrderDae,
+    /// The system iterates its multipliers (the augmented Lagrangian,
+    /// [`SecondOrderDae::multiplier_update`]): they are no Newton unknowns.
+    augmented: bool,
     n: usize,
     t0: f64,
     t_end: f64,
@@ -403,8 +389,8 @@ struct Run<'g, 's> {
     /// Start and size of the last accepted step (dense output).
     t_old: f64,
     h_last: f64,
-    /// The last Newton failure (named when the step collapses).
-    last_newton: Option<StepCut>,
+    /// The failure path's state (the cause named when the step collapses).
+    cuts: Cuts,
 }
 
 impl<'g, 's> Run<'g, 's> {
@@ -422,27 +408,41 @@ impl<'g, 's> Run<'g, 's> {
         let mut cur = State::new(n, m);
         cur.q.copy_from_slice(q0);
         cur.v.copy_from_slice(qd0);
+        let augmented = sys.multiplier_update().is_some();
+        // the augmented Lagrangian's Newton system has no multiplier rows;
+        // its matrix is renewed at every predictor
+        let rows = if augmented { n } else { n + m };
+        let renewal = if augmented {
+            RenewalOptions {
+                band: 0.0,
+                across_attempts: false,
+                every_correction: false,
+            }
+        } else {
+            RenewalOptions {
+                band: REUSE_BAND,
+                across_attempts: g.opts.reuse,
+                every_correction: !g.opts.reuse,
+            }
+        };
         Self {
             p: g.params,
             opts: &g.opts,
             ode: &g.ode,
             h_fixed: g.h_fixed,
             sys,
+            augmented,
             n,
             t0,
             t_end,
             t: t0,
             new: cur.clone(),
             cur,
-            r: vec![0.0; n + m],
+            r: vec![0.0; rows],
             phi: vec![0.0; m],
-            err: vec![0.0; n + m],
+            err: vec![0.0; rows],
             y: [q0, qd0].concat(),
-            renewal: Renewal::new(RenewalOptions {
-                band: REUSE_BAND,
-                across_attempts: g.opts.reuse,
-                every_correction: !g.opts.reuse,
-            }),
+            renewal: Renewal::new(renewal),
             eta: 1.0,
             quad: None,
             newton_its: (None, None),
@@ -459,7 +459,17 @@ impl<'g, 's> Run<'g, 's> {
             last_acc: None,
             t_old: t0,
             h_last: 0.0,
-            last_newton: None,
+            // the augmented Lagrangian names the first failure of a
+            // collapse and keeps the first warnings
+            cuts: Cuts::new(CutRules {
+                shrink: Shrink::Halve,
+                warn: if augmented {
+                    Warn::First
+                } else {
+                    Warn::FirstAndLatest
+                },
+                first_cause: augmented,
+            }),
         }
     }
 
@@ -488,8 +498,17 @@ impl<'g, 's> Run<'g, 's> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
-        (self.stats, &mut self.warnings)
+    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
+        (&mut self.stats, &mut self.warnings)
+    }
+    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
+        self.attempt(t_new, h)
+    }
+    fn renewal(&mut self) -> &mut Renewal {
+        &mut self.renewal
+    }
+    fn cuts(&mut self) -> &mut Cuts {
+        &mut self.cuts
     }
 }
 
@@ -562,44 +581,22 @@ impl Stepper for Run<'_, '_> {
             }
             let hmin = self.min_step(self.t);
             if h_try < hmin && self.t + h_try < self.t_end {
-                let cause = self
-                    .last_newton
-                    .clone()
-                    .unwrap_or(StepCut::ErrorTest { err: f64::NAN });
-                return Err(self.too_small(h_try, hmin, cause));
+                return Err(self.too_small(h_try, hmin, self.cuts.cause()));
             }
             let t_new = if h_try == self.t_end - self.t {
                 self.t_end
             } else {
                 self.t + h_try
             };
-            // Attempt, with one retry on a fresh factorisation.
-            let mut outcome = self.attempt(t_new, h_try);
-            if let Attempt::Failed(_) = &outcome {
-                if !self.renewal.fresh() {
-                    self.renewal.renew();
-                    outcome = self.attempt(t_new, h_try);
-                }
-            }
-            if let Attempt::Failed(reason) = outcome {
-                self.stats.newton_failures += 1;
-                let msg = format!("Newton failed at t = {t_new} with h = {h_try:.3e}: {reason}");
-                if self.warnings.len() < 20 {
-                    self.warnings.push(msg);
-                } else if let Some(last) = self.warnings.last_mut() {
-                    *last = msg;
-                }
-                let cut = StepCut::Newton {
-                    t: t_new,
-                    h: h_try,
-                    source: Arc::new(reason),
-                };
-                let h_min = self.min_step(self.t);
-                if h_try * 0.5 < h_min {
-                    return Err(self.too_small(h_try * 0.5, h_min, cut));
-                }
-                self.last_newton = Some(cut);
-                self.h = h_try * 0.5;
+            let x = StepTry {
+                t: self.t,
+                t_new,
+                h: h_try,
+                h_ctl: h_try,
+                h_min: hmin,
+            };
+            if let Attempted::Cut(h) = attempt_or_cut(self, x)? {
+                self.h = h;
                 self.no_growth = true;
                 continue;
             }
@@ -647,6 +644,10 @@ impl Stepper for Run<'_, '_> {
                     source: Arc::new(e),
                 })?;
             }
+            if self.augmented {
+                self.project_motion(t_new, h_try)?;
+            }
+            self.cuts.accepted();
             self.t_old = self.t;
             self.h_last = h_try;
             if self.opts.extrapolate {

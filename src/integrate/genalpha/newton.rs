@@ -4,6 +4,7 @@
 use super::super::implicit::{
     Assessment, Convergence, ConvergenceOptions, Next, Remainder, ROUNDING_ULPS,
 };
+use super::augmented::{SlowAnswer, SLOW_CONTRACTION};
 use super::*;
 use crate::parallel::{in_halves, Slices, PARALLEL_MIN_COORDS};
 
@@ -43,13 +44,6 @@ pub(super) const SINGLE_CORRECTION_AT_FLOOR: f64 = 4.0;
 /// with the state); likewise renewals of the matrix at consecutive
 /// predictors before one step runs on the older matrix again.
 pub(super) const QUAD_REUSE: usize = 10;
-
-/// How a step attempt ended.
-pub(super) enum Attempt {
-    Converged,
-    /// Newton did not converge (reason).
-    Failed(SystemError),
-}
 
 impl Run<'_, '_> {
     /// With [`ImplicitOptions::extrapolate`], after the step `h` to
@@ -116,8 +110,11 @@ impl Run<'_, '_> {
     }
 
     /// One step attempt from `(self.t, self.cur)` to `t1 = self.t + h`
-    /// into `self.new`: predictor, then (modified) Newton.
-    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Attempt {
+    /// into `self.new`: predictor, then (modified) Newton; with the
+    /// augmented Lagrangian's hook ([`SecondOrderDae::multiplier_update`])
+    /// λ* kept from the last step and updated after every correction
+    /// (module docs of [`super::augmented`]).
+    pub(super) fn attempt(&mut self, t1: f64, h: f64) -> Result<(), SystemError> {
         let p = self.p;
         let (n, tol) = (self.n, self.opts.newton_tol);
         let s = p.beta * h * h;
@@ -126,6 +123,10 @@ impl Run<'_, '_> {
         let gp = p.gamma / (p.beta * h); // ∂q̇/∂q
         let bp = c_m / s; // ∂q̈/∂q
         let ap = 1.0 / s; // ∂a/∂q
+        let augmented = self.augmented;
+        if let Some(al) = self.sys.multiplier_update() {
+            al.set_step_scale(s);
+        }
         {
             let (cur, new) = (&self.cur, &mut self.new);
             let (am, af, g, b) = (p.alpha_m, p.alpha_f, p.gamma, p.beta);
@@ -160,16 +161,17 @@ impl Run<'_, '_> {
             new.lam.copy_from_slice(&cur.lam);
         }
         if self.renewal.at_predictor(h) {
-            if let Err(e) = self.factor(t1, h, c) {
-                return Attempt::Failed(e);
-            }
+            self.factor(t1, h, c)?;
         }
         // The multipliers start from 0 (module docs of [`super`], "Newton
         // iteration"): the first correction computes λ_{n+1} whole, in the
         // representative the regularised solve picks, instead of adding an
         // increment to λ_n that carries the previous steps' components in
-        // the (near-)null space of Φ_qᵀ.
-        self.new.lam.fill(0.0);
+        // the (near-)null space of Φ_qᵀ. The augmented Lagrangian's λ* is
+        // no unknown: it starts from λ*_n and is iterated.
+        if !augmented {
+            self.new.lam.fill(0.0);
+        }
         // the matrix was factorised at this step's predictor: Newton
         // converges quadratically from the first correction on
         let fresh = self.renewal.fresh();
@@ -183,9 +185,18 @@ impl Run<'_, '_> {
         };
         let mut conv = Convergence::new(
             ConvergenceOptions {
-                remainder: Remainder::Rate,
+                // the augmented Lagrangian: the correction itself against
+                // the tolerance (the multiplier update after each
+                // correction contracts only linearly)
+                remainder: if augmented {
+                    Remainder::Correction {
+                        slow: SLOW_CONTRACTION,
+                    }
+                } else {
+                    Remainder::Rate
+                },
                 max_iterations: self.opts.max_newton,
-                renew_when_exhausted: self.opts.reuse,
+                renew_when_exhausted: self.opts.reuse && !augmented,
                 renew_on_divergence: false,
                 reset_rate_on_renewal: true,
             },
@@ -194,27 +205,30 @@ impl Run<'_, '_> {
         // the first correction's norm (for the quadratic model)
         let mut first = f64::NAN;
         let mut it = 0;
+        // renew the matrix at the iterate before the next correction
+        let mut renew_now = false;
+        // the augmented Lagrangian's penalty factor within this attempt
+        let mut boost = 1.0;
         loop {
-            if self.renewal.before_correction(conv.round()) {
-                if let Err(e) = self.factor(t1, h, c) {
-                    return Attempt::Failed(e);
+            if it > 0 {
+                if let Some(al) = self.sys.multiplier_update() {
+                    let new = &mut self.new;
+                    al.update_multipliers(t1, &new.q, &mut new.lam)?;
                 }
+            }
+            if renew_now || self.renewal.before_correction(conv.round()) {
+                renew_now = false;
+                self.factor(t1, h, c)?;
             }
             self.stats.residual_evaluations += 1;
             let new = &self.new;
-            if let Err(e) =
-                self.sys
-                    .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)
-            {
-                return Attempt::Failed(e);
-            }
+            self.sys
+                .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
             // solving for r (not −r) gives −Δ, the correction negated
             // exactly (the solve is linear and rounds symmetrically):
             // `correct` and the multipliers subtract it, the same bits as
             // adding Δ
-            if let Err(e) = self.sys.solve(t1, &mut self.r) {
-                return Attempt::Failed(e);
-            }
+            self.sys.solve(t1, &mut self.r)?;
             self.stats.newton_iterations += 1;
             it += 1;
             // the correction's norm in tolerances (floored at a few ulps of
@@ -235,26 +249,29 @@ impl Run<'_, '_> {
                 |(n0, r0), (n1, r1)| (n0.max(n1), r0.max(r1)),
             );
             if !dnorm.is_finite() {
-                return Attempt::Failed(SystemError::msg("non-finite Newton correction"));
+                return Err(SystemError::msg("non-finite Newton correction"));
             }
             // λ −= (−Δλ)/s, in two fixed halves concurrently for large n
-            in_halves(
-                n >= PARALLEL_MIN_COORDS,
-                dx.len() - n,
-                Slices {
-                    base: 0,
-                    w: [&mut new.lam],
-                    r: [&dx[n..]],
-                },
-                |u| {
-                    let ([l], [d]) = (u.w, u.r);
-                    for (l, d) in l.iter_mut().zip(d) {
-                        *l -= d / s;
-                    }
-                },
-                |(), ()| (),
-            );
-            if fresh && it == 2 {
+            // (the augmented Lagrangian's solve has no multiplier rows)
+            if !augmented {
+                in_halves(
+                    n >= PARALLEL_MIN_COORDS,
+                    dx.len() - n,
+                    Slices {
+                        base: 0,
+                        w: [&mut new.lam],
+                        r: [&dx[n..]],
+                    },
+                    |u| {
+                        let ([l], [d]) = (u.w, u.r);
+                        for (l, d) in l.iter_mut().zip(d) {
+                            *l -= d / s;
+                        }
+                    },
+                    |(), ()| (),
+                );
+            }
+            if fresh && it == 2 && !augmented {
                 // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)
                 self.quad = Some((dnorm / (first * first), h, 0));
             }
@@ -266,21 +283,39 @@ impl Run<'_, '_> {
             // would only iterate into the rounding floor
             let single = match &mut self.quad {
                 // measured at this step size (the tolerance units move with h)
-                Some((quad, hq, uses)) if fresh && it == 1 && *uses < QUAD_REUSE && *hq == h => {
+                Some((quad, hq, uses))
+                    if fresh && it == 1 && *uses < QUAD_REUSE && *hq == h && !augmented =>
+                {
                     let single = *quad * dnorm * dnorm <= single_max;
                     *uses += single as usize;
                     single
                 }
                 _ => false,
             };
+            let mut restart = false;
             let mut done = match conv.assess(dnorm, || drel, single) {
                 Assessment::Done => true,
                 Assessment::NotYet => false,
-                Assessment::Diverged
-                | Assessment::RenewAfterUndo
-                | Assessment::Hopeless
-                | Assessment::Slow => {
-                    return Attempt::Failed(SystemError::msg(format!(
+                // the augmented Lagrangian's slow multiplier iteration
+                // (module docs of [`super::augmented`], "Penalty growth")
+                Assessment::Slow => {
+                    match self.slow_multipliers(&mut conv, &mut boost) {
+                        SlowAnswer::Renew => renew_now = true,
+                        SlowAnswer::RaisedPenalty => {
+                            renew_now = true;
+                            restart = true;
+                        }
+                        SlowAnswer::Nothing => {}
+                    }
+                    false
+                }
+                Assessment::Diverged | Assessment::RenewAfterUndo | Assessment::Hopeless => {
+                    // an iterate at the constraints' rounding floor has converged
+                    // (the augmented Lagrangian has its own noise rule)
+                    if !augmented && self.at_constraint_noise(t1, s, [gp, bp, ap, tol_q])? {
+                        return Ok(());
+                    }
+                    return Err(SystemError::msg(format!(
                         "Newton diverges (contraction θ = {:.3}, correction {:.3e} × tol)",
                         conv.theta(),
                         dnorm
@@ -297,6 +332,14 @@ impl Run<'_, '_> {
                 done = phi <= tol_q + ROUNDING_ULPS * f64::EPSILON * scale;
             }
             match conv.next(dnorm, done) {
+                None if augmented => {
+                    // the last multiplier update at the converged positions
+                    if let Some(al) = self.sys.multiplier_update() {
+                        let new = &mut self.new;
+                        al.update_multipliers(t1, &new.q, &mut new.lam)?;
+                    }
+                    return Ok(());
+                }
                 None => {
                     if let Some(eta) = conv.rate_to_keep() {
                         self.eta = eta;
@@ -304,18 +347,19 @@ impl Run<'_, '_> {
                     if it > SLOW_ITERATIONS || self.renew_pays(fresh, it) {
                         self.renewal.renew();
                     }
-                    return Attempt::Converged;
+                    return Ok(());
                 }
-                Some(Next::Iterate) => {}
-                Some(Next::Renew) => {
-                    // still contracting: renew the matrix at this (much
-                    // better) iterate once and carry on
-                    if let Err(e) = self.factor(t1, h, c) {
-                        return Attempt::Failed(e);
+                Some(Next::Iterate) => {
+                    if restart {
+                        // the penalty changed: a new rate measurement
+                        conv.restart();
                     }
                 }
+                // still contracting: renew the matrix at this (much better)
+                // iterate once and carry on
+                Some(Next::Renew) => renew_now = true,
                 Some(Next::Exhausted) => {
-                    return Attempt::Failed(SystemError::msg(format!(
+                    return Err(SystemError::msg(format!(
                         "no convergence in {it} iterations (last correction {:.3e} × tol, θ = {:.3})",
                         conv.last(),
                         conv.theta()
@@ -323,6 +367,75 @@ impl Run<'_, '_> {
                 }
             }
         }
+    }
+}
+
+impl Run<'_, '_> {
+    /// Before an attempt whose corrections stopped contracting (θ ≥ 1)
+    /// fails:
+    /// whether its iterate already solves the equations to working
+    /// precision (module docs of [`super`], "Noise near a singular
+    /// position"): `‖Φ‖∞` at the corrected iterate is at its rounding
+    /// floor ([`ROUNDING_ULPS`] ulps of `max(|q|, 1)`), and the correction
+    /// asked for by the dynamic rows of the residual alone (its constraint
+    /// rows zeroed) is within the tolerance; that correction is then
+    /// applied and λ computed whole from zero at the accepted positions. Near a singular position the corrections of the full
+    /// residual are the rounding of Φ amplified by the inverse of Φ_q's
+    /// smallest singular value, in its near-null direction, and do not
+    /// contract whatever the step. `c = [γ', β', 1/(βh²), tol_q]` as for
+    /// [`correct`]. Costs one evaluation of Φ and, if it is at the floor,
+    /// two residuals and two solves, on this failure path only.
+    fn at_constraint_noise(&mut self, t1: f64, s: f64, c: [f64; 4]) -> Result<bool, SystemError> {
+        let n = self.n;
+        if self.phi.is_empty() {
+            return Ok(false);
+        }
+        self.sys.constraints(t1, &self.new.q, &mut self.phi);
+        let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+        if !(phi <= ROUNDING_ULPS * f64::EPSILON * scale) {
+            return Ok(false);
+        }
+        self.stats.residual_evaluations += 1;
+        let new = &self.new;
+        self.sys
+            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+        self.r[n..].fill(0.0);
+        self.sys.solve(t1, &mut self.r)?;
+        self.stats.newton_iterations += 1;
+        let [gp, bp, ap, tol_q] = c;
+        let floor = ROUNDING_ULPS * f64::EPSILON;
+        let (q, d) = (&self.new.q, &self.r[..n]);
+        let dnorm = d.iter().zip(q).fold(0.0_f64, |a, (di, qi)| {
+            a.max(di.abs() / (tol_q + floor * qi.abs().max(1.0)))
+        });
+        if !(dnorm <= 1.0) {
+            return Ok(false);
+        }
+        // `r` holds the correction negated, as in the Newton loop
+        let new = &mut self.new;
+        for (i, &di) in self.r[..n].iter().enumerate() {
+            new.q[i] -= di;
+            new.v[i] -= gp * di;
+            new.qdd[i] -= bp * di;
+            new.a[i] -= ap * di;
+        }
+        // λ whole from zero at the accepted positions (as the first
+        // correction of every attempt computes it): the sum over the
+        // non-contracting corrections carries their noise in the
+        // (near-)null space of Φ_qᵀ, which the next predictor's geometric
+        // stiffness (Φ_qᵀλ)_q would take
+        new.lam.fill(0.0);
+        self.stats.residual_evaluations += 1;
+        let new = &self.new;
+        self.sys
+            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+        self.r[n..].fill(0.0);
+        self.sys.solve(t1, &mut self.r)?;
+        for (l, d) in self.new.lam.iter_mut().zip(&self.r[n..]) {
+            *l = -d / s;
+        }
+        Ok(true)
     }
 }
 

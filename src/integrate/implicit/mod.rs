@@ -1,10 +1,14 @@
 //! The one core of the implicit (index-3) schemes — generalized-α (with
 //! HHT, Newmark and the trapezoidal rule), BDF/NDF, Radau IIA and the
-//! augmented Lagrangian: their statistics, the convergence test of their
+//! augmented Lagrangian: the problem they solve (with the augmented
+//! Lagrangian's multiplier update as a hook), their statistics, the one
+//! path of a failed Newton attempt, the convergence test of their
 //! Newton iterations, the policy for renewing the Newton matrix and the
 //! run skeleton on `drive`.
 
 mod convergence;
+mod failure;
+mod problem;
 mod renewal;
 mod run;
 mod stats;
@@ -13,6 +17,8 @@ pub use convergence::{
     Assessment, Convergence, ConvergenceOptions, Next, Remainder, NOISE_REL, ROUNDING_ULPS,
     STAGNATION, THETA_REFACTOR,
 };
+pub(crate) use failure::{attempt_or_cut, Attempted, CutRules, Cuts, Shrink, StepTry, Warn};
+pub use problem::{MultiplierUpdate, SecondOrderDae};
 pub use renewal::{Renewal, RenewalOptions};
 pub(crate) use run::{run, validate_run, ImplicitStepper};
 pub use stats::{ImplicitStats, COUNTED_ORDERS};

@@ -35,6 +35,8 @@ pub struct Renewal {
     stale: bool,
     /// The current attempt has factorised (at its predictor or later).
     fresh: bool,
+    /// The current attempt has made or tried to make a factorisation.
+    made: bool,
 }
 
 impl Renewal {
@@ -45,6 +47,7 @@ impl Renewal {
             at: None,
             stale: true,
             fresh: false,
+            made: false,
         }
     }
 
@@ -52,6 +55,7 @@ impl Renewal {
     /// to factorise now.
     pub fn at_predictor(&mut self, p: f64) -> bool {
         self.fresh = false;
+        self.made = false;
         let moved = self
             .at
             .is_none_or(|pf| (p / pf - 1.0).abs() > self.opts.band);
@@ -68,6 +72,7 @@ impl Renewal {
     /// [`Renewal::factorised`] (a failed factorisation leaves none).
     pub fn factorising(&mut self) {
         self.at = None;
+        self.made = true;
     }
 
     /// A factorisation was made for step parameter `p`.
@@ -85,6 +90,13 @@ impl Renewal {
     /// Whether the current attempt has factorised its own matrix.
     pub fn fresh(&self) -> bool {
         self.fresh
+    }
+
+    /// Whether the current attempt has made, or tried to make, its own
+    /// factorisation: a failure without one is worth a retry on a fresh
+    /// matrix ([`super::attempt_or_cut`]).
+    pub fn made_own(&self) -> bool {
+        self.made
     }
 
     /// Whether a valid factorisation exists.
@@ -108,17 +120,18 @@ mod tests {
         assert!(r.at_predictor(1.0), "no factorisation yet");
         r.factorising();
         r.factorised(1.0);
-        assert!(r.fresh() && r.valid());
+        assert!(r.fresh() && r.valid() && r.made_own());
         assert!(!r.at_predictor(1.2), "within 25 %");
-        assert!(!r.fresh());
+        assert!(!r.fresh() && !r.made_own());
         assert!(r.at_predictor(1.3), "outside 25 %");
         assert!(r.at_predictor(0.7));
         r.renew();
         assert!(r.at_predictor(1.0), "asked for");
         assert!(!r.before_correction(1));
-        // a failed factorisation leaves none valid
+        // a failed factorisation leaves none valid, and was the attempt's own
         r.factorising();
-        assert!(!r.valid() && r.at_predictor(1.0));
+        assert!(!r.valid() && !r.fresh() && r.made_own());
+        assert!(r.at_predictor(1.0));
     }
 
     #[test]

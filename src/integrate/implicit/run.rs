@@ -2,15 +2,23 @@
 //! run loop [`driver::drive`] and the [`Report`] with the counters.
 
 use super::super::driver::{self, Stepper};
-use super::super::{common, IntegratorError, Observer, OdeOptions, Report, Tolerance};
-use super::ImplicitStats;
+use super::super::{common, IntegratorError, Observer, OdeOptions, Report, SystemError, Tolerance};
+use super::{Cuts, ImplicitStats, Renewal};
 
 /// A scheme's run as [`run`] drives it: a [`Stepper`] that counts its
-/// work in [`ImplicitStats`] and collects warnings.
+/// work in [`ImplicitStats`], collects warnings, and whose step attempts
+/// go through the one failure path ([`super::attempt_or_cut`]).
 pub(crate) trait ImplicitStepper: Stepper {
     /// The counters so far and the warnings of the run (taken out at its
     /// end).
-    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>);
+    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>);
+    /// One attempt of the step of size `h` to `t_new`: the scheme's
+    /// predictor and Newton iteration; `Err` when Newton fails.
+    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError>;
+    /// The scheme's Newton-matrix policy.
+    fn renewal(&mut self) -> &mut Renewal;
+    /// The failure path's state.
+    fn cuts(&mut self) -> &mut Cuts;
 }
 
 /// Drive `st` through [`driver::drive`] to `t_end`, delivering

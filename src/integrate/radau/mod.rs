@@ -116,10 +116,11 @@ mod tableau;
 use tableau::cmul;
 pub use tableau::RadauTableau;
 
-use super::driver::{Failure, StepCut, Stepper};
+use super::driver::{Failure, Stepper};
 use super::implicit::{
-    run as run_implicit, validate_run, Assessment, Convergence, ConvergenceOptions, ImplicitStats,
-    ImplicitStepper, Next, Remainder, Renewal, RenewalOptions,
+    attempt_or_cut, run as run_implicit, validate_run, Assessment, Attempted, Convergence,
+    ConvergenceOptions, CutRules, Cuts, ImplicitStats, ImplicitStepper, Next, Remainder, Renewal,
+    RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
@@ -294,7 +295,11 @@ impl Radau5 {
             stats: ImplicitStats::default(),
             ode: &self.ode,
             warnings: Vec::new(),
-            last_newton: None,
+            cuts: Cuts::new(CutRules {
+                shrink: Shrink::Halve,
+                warn: Warn::First,
+                first_cause: false,
+            }),
         };
         let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
         self.stats = stats;
@@ -350,7 +355,8 @@ struct Run<'g, 's> {
     h_prev: Option<f64>,
     stats: ImplicitStats,
     warnings: Vec<String>,
-    last_newton: Option<StepCut>,
+    /// The failure path's state (the cause named when the step collapses).
+    cuts: Cuts,
 }
 
 impl Run<'_, '_> {
@@ -450,8 +456,17 @@ impl Run<'_, '_> {
 }
 
 impl ImplicitStepper for Run<'_, '_> {
-    fn books(&mut self) -> (ImplicitStats, &mut Vec<String>) {
-        (self.stats, &mut self.warnings)
+    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
+        (&mut self.stats, &mut self.warnings)
+    }
+    fn newton_attempt(&mut self, _t_new: f64, h: f64) -> Result<(), SystemError> {
+        self.attempt(h)
+    }
+    fn renewal(&mut self) -> &mut Renewal {
+        &mut self.renewal
+    }
+    fn cuts(&mut self) -> &mut Cuts {
+        &mut self.cuts
     }
 }
 
@@ -493,15 +508,11 @@ impl Stepper for Run<'_, '_> {
             let floor = 16.0 * common::eps(self.t);
             let h_min = self.opts.min_step.map_or(floor, |m| m.max(floor));
             if h < h_min && self.t + h < self.t_end {
-                let cause = self
-                    .last_newton
-                    .clone()
-                    .unwrap_or(StepCut::ErrorTest { err: f64::NAN });
                 return Err(Failure::StepTooSmall {
                     t: self.t,
                     h,
                     h_min,
-                    cause,
+                    cause: self.cuts.cause(),
                 });
             }
             let t_new = if (target - self.t_end).abs() <= 1e-9 * scale
@@ -511,33 +522,15 @@ impl Stepper for Run<'_, '_> {
             } else {
                 self.t + h
             };
-            let mut outcome = self.attempt(h);
-            if outcome.is_err() && !self.renewal.fresh() {
-                self.renewal.renew();
-                outcome = self.attempt(h);
-            }
-            if let Err(reason) = outcome {
-                self.stats.newton_failures += 1;
-                let msg = format!("Newton failed at t = {t_new} with h = {h:.3e}: {reason}");
-                if self.warnings.len() < 20 {
-                    self.warnings.push(msg);
-                }
-                self.renewal.renew();
-                let cut = StepCut::Newton {
-                    t: t_new,
-                    h,
-                    source: Arc::new(reason),
-                };
-                if 0.5 * h < h_min {
-                    return Err(Failure::StepTooSmall {
-                        t: self.t,
-                        h: 0.5 * h,
-                        h_min,
-                        cause: cut,
-                    });
-                }
-                self.last_newton = Some(cut);
-                self.h = 0.5 * h;
+            let x = StepTry {
+                t: self.t,
+                t_new,
+                h,
+                h_ctl: h,
+                h_min,
+            };
+            if let Attempted::Cut(h) = attempt_or_cut(self, x)? {
+                self.h = h;
                 self.rejected = adaptive;
                 continue;
             }
@@ -563,7 +556,7 @@ impl Stepper for Run<'_, '_> {
                     } else {
                         h_new
                     };
-                    self.last_newton = Some(StepCut::ErrorTest { err });
+                    self.cuts.error_test(err);
                     continue;
                 }
                 // Gustafsson's predictive controller (RADAU5's `PRED`):

@@ -1,0 +1,12 @@
+//! Integration tests of the analyses: statics, eigenmodes, linearisation, inverse
+//! dynamics, partitioning and the tangent matrices, against independent references.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod inverse;
+mod linearize;
+mod modes;
+mod partitioning;
+mod statics;
+mod tangent;

@@ -1,0 +1,377 @@
+//! `mbsolve animate`: the drawing of the model (shapes, springs, dampers),
+//! honest time (frames chosen so that each lasts at least the format's
+//! minimum, delays summing to the simulated span over the speed), the SVG's
+//! structure, and bad input.
+
+use crate::common::cli::{mbsolve, stderr, stdout};
+use std::path::Path;
+
+/// Run a scenario with overrides into `dir`; returns the CSV path.
+fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {
+    let mut args = vec!["run", scenario, "--out", dir.to_str().unwrap(), "-q"];
+    for s in set {
+        args.extend(["--set", s]);
+    }
+    let o = mbsolve(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stem = Path::new(scenario).file_stem().unwrap().to_str().unwrap();
+    dir.join(format!("{stem}.csv"))
+        .to_str()
+        .unwrap()
+        .to_string()
+}
+
+/// The delays (in 10 ms) of every frame of a GIF, decoded by the `gif` crate.
+fn gif_delays(path: &Path) -> Vec<u16> {
+    let mut opts = gif::DecodeOptions::new();
+    opts.set_color_output(gif::ColorOutput::Indexed);
+    let mut d = opts
+        .read_info(std::fs::File::open(path).unwrap())
+        .expect("a GIF");
+    let mut delays = Vec::new();
+    while let Some(f) = d.read_next_frame().unwrap() {
+        delays.push(f.delay);
+    }
+    delays
+}
+
+#[test]
+fn gif_plays_at_the_speed_it_states() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2 s at 1 ms: 2001 rows, far more than a GIF can show
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.001"]);
+    let gif = dir.path().join("a.gif");
+    for (speed, frames, total_cs) in [("1", 101, 200), ("0.5", 201, 400), ("4", 26, 50)] {
+        let o = mbsolve(&[
+            "animate",
+            "scenarios/fourbar.toml",
+            &csv,
+            "--speed",
+            speed,
+            "--out",
+            gif.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let delays = gif_delays(&gif);
+        // frames every 20 ms of wall time (GIF's shortest honest delay)
+        assert_eq!(delays.len(), frames, "speed {speed}");
+        assert!(delays.iter().all(|&d| d >= 2), "{delays:?}");
+        // the frames before the last span the simulated 2 s / speed
+        let shown: u32 = delays[..delays.len() - 1].iter().map(|&d| d as u32).sum();
+        assert_eq!(shown, total_cs, "speed {speed}: {delays:?}");
+        let said = stdout(&o);
+        assert!(
+            said.contains(&format!("{frames} of 2001 output rows shown"))
+                && said.contains("frames of ≥ 20 ms"),
+            "{said}"
+        );
+    }
+}
+
+#[test]
+fn gif_keeps_every_row_when_rows_are_slow_enough() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.05"]);
+    let gif = dir.path().join("a.gif");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--out",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = gif_delays(&gif);
+    assert_eq!(d.len(), 41, "2 s at 0.05 s: every row");
+    assert!(d.iter().all(|&x| x == 5), "{d:?}");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--every",
+        "10",
+        "--out",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = gif_delays(&gif);
+    assert_eq!(d, vec![50; 5], "rows 0, 10, 20, 30, 40, half a second each");
+}
+
+#[test]
+fn svg_animates_bodies_and_springs() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.05"]);
+    let svg = dir.path().join("a.svg");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    // three bodies, each with an animated translation and rotation
+    assert_eq!(text.matches("<animateTransform").count(), 6);
+    assert_eq!(text.matches("<g transform=\"translate(").count(), 3);
+    let key_times = text.split("keyTimes=\"").nth(1).unwrap();
+    let key_times = &key_times[..key_times.find('"').unwrap()];
+    assert_eq!(key_times.split(';').count(), 41);
+    // four revolute joints, one pin each; two bars' outlines drawn per body
+    assert_eq!(text.matches("r=\"3.5\"").count(), 4);
+    assert_eq!(
+        text.matches("<polygon").count(),
+        3 + 2,
+        "3 bars, 2 supports"
+    );
+
+    // the quarter car: two springs (zig-zags) and one damper (4 polylines),
+    // their points animated
+    let csv = run(dir.path(), "scenarios/quarter_car.toml", &["time.end=0.5"]);
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/quarter_car.toml",
+        &csv,
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert_eq!(text.matches("stroke=\"#D55E00\"").count(), 2, "springs");
+    assert_eq!(text.matches("stroke=\"#009E73\"").count(), 4, "damper");
+    assert_eq!(text.matches("<animate attributeName=\"points\"").count(), 6);
+}
+
+/// Pixels of a PNG as RGB rows.
+fn png_rgb(path: &Path) -> (usize, usize, Vec<u8>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).unwrap();
+    let ch = info.color_type.samples();
+    let rgb = buf[..info.buffer_size()]
+        .chunks(ch)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (info.width as usize, info.height as usize, rgb)
+}
+
+#[test]
+fn quarter_car_still_shows_springs_where_the_run_puts_the_bodies() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/quarter_car.toml", &["time.end=1"]);
+    let png_path = dir.path().join("q.png");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/quarter_car.toml",
+        &csv,
+        "--at",
+        "1",
+        "--out",
+        png_path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (w, h, px) = png_rgb(&png_path);
+    let rows_of = |c: [u8; 3]| -> Vec<usize> {
+        (0..h)
+            .filter(|&y| (0..w).any(|x| px[3 * (y * w + x)..3 * (y * w + x) + 3] == c))
+            .collect()
+    };
+    let spring = rows_of([0xD5, 0x5E, 0x00]);
+    let damper = rows_of([0x00, 0x9E, 0x73]);
+    assert!(!spring.is_empty() && !damper.is_empty());
+    // The suspension's damper spans the gap between the wheel's top and
+    // the chassis' bottom: its pixel height over the spring's whole
+    // extent (tyre and suspension) is the ratio of the run's lengths.
+    let table = std::fs::read_to_string(&csv).unwrap();
+    let last = table.lines().last().unwrap();
+    let v: Vec<f64> = last.split(',').map(|x| x.parse().unwrap()).collect();
+    let (y_road, y_wheel, y_chassis) = (v[2], v[5], v[8]);
+    let susp = (y_chassis - 0.15) - (y_wheel + 0.3);
+    let all = (y_chassis - 0.15) - (y_road + 0.025);
+    let px_susp = (damper.last().unwrap() - damper[0]) as f64;
+    let px_all = (spring.last().unwrap() - spring[0]) as f64;
+    let ratio = px_susp / px_all;
+    assert!(
+        (ratio - susp / all).abs() < 0.03,
+        "damper/spring extents {px_susp}/{px_all} = {ratio:.3}, lengths {susp:.4}/{all:.4} = {:.3}",
+        susp / all
+    );
+}
+
+#[test]
+fn bad_shape_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quarter_car.toml"),
+    )
+    .unwrap();
+    for (bad, want) in [
+        ("shape = { circle = -0.3 }", "circle radius -0.3"),
+        ("shape = { hexagon = 1.0 }", "hexagon"),
+        (
+            "shape = { polygon = [[0.0, 0.0], [1.0, 0.0]] }",
+            "at least 3",
+        ),
+    ] {
+        let p = dir.path().join("q.toml");
+        std::fs::write(&p, text.replacen("shape = { circle = 0.3 }", bad, 1)).unwrap();
+        let o = mbsolve(&["check", p.to_str().unwrap()]);
+        assert!(!o.status.success());
+        let e = stderr(&o) + &stdout(&o);
+        assert!(e.contains("body[1].shape") || e.contains("body[1]"), "{e}");
+        assert!(e.contains(want), "{bad}: {e}");
+    }
+}
+
+#[test]
+fn animate_rejects_bad_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.1"]);
+    let out = dir.path().join("a.avi");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("unknown animation format 'avi'"),
+        "{}",
+        stderr(&o)
+    );
+    let o = mbsolve(&["animate", "scenarios/fourbar.toml", &csv, "--speed", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--speed 0"), "{}", stderr(&o));
+}
+
+/// A ground pivot's support points away from the body pinned to it: a
+/// pendulum hanging from its pin gets the support above the pin (it used
+/// to be drawn under the pin, over the body), a body standing on its pin
+/// gets it below.
+#[test]
+fn ground_support_is_drawn_away_from_the_pinned_body() {
+    use mbsolve::drawing::{Drawing, Ink, Mark};
+    let text = |y: f64, pin: f64| {
+        format!(
+            "[[body]]\nname = \"bob\"\nmass = 1.0\ninertia = 0.01\nx = 0.0\ny = {y}\n\
+             [[joint]]\ntype = \"revolute\"\nname = \"pivot\"\nbody_i = \"ground\"\n\
+             point_i = [0.0, 0.0]\nbody_j = \"bob\"\npoint_j = [0.0, {pin}]\n\
+             [time]\nend = 1.0\n"
+        )
+    };
+    for (y, pin, above) in [(-0.5, 0.5, true), (0.5, -0.5, false)] {
+        let sc = mbsolve::scenario::parse(&text(y, pin), "p.toml", "p", &[]).unwrap();
+        let d = Drawing::new(&sc.system, &sc.q0, &[], &[]);
+        let ground: Vec<[f64; 2]> = d
+            .marks(&sc.q0)
+            .into_iter()
+            .filter_map(|m| match m {
+                Mark::Fill {
+                    points,
+                    ink: Ink::Ground,
+                } => Some(points),
+                _ => None,
+            })
+            .flatten()
+            .collect();
+        assert_eq!(ground.len(), 3, "one support triangle");
+        for p in ground {
+            let ok = if above { p[1] >= -1e-12 } else { p[1] <= 1e-12 };
+            assert!(
+                ok && p[0].abs() < 0.1,
+                "support point {p:?} (above: {above})"
+            );
+        }
+    }
+}
+
+/// The delays (numerator, denominator) of every frame of an APNG, and the
+/// frame count its animation control announces, decoded by the `png` crate.
+fn apng_delays(path: &Path) -> (u32, Vec<(u16, u16)>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = dec.read_info().expect("a PNG");
+    let announced = reader
+        .info()
+        .animation_control
+        .expect("an animated PNG (acTL)")
+        .num_frames;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let mut delays = Vec::new();
+    while reader.next_frame(&mut buf).is_ok() {
+        let fc = reader.info().frame_control.expect("a frame control (fcTL)");
+        delays.push((fc.delay_num, fc.delay_den));
+    }
+    (announced, delays)
+}
+
+#[test]
+fn apng_plays_at_the_speed_it_states() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.001"]);
+    let apng = dir.path().join("a.apng");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--speed",
+        "2",
+        "--out",
+        apng.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (announced, delays) = apng_delays(&apng);
+    // 2 s at twice real time: a frame every 20 ms of wall time, 51 frames
+    assert_eq!(announced as usize, delays.len());
+    assert_eq!(delays.len(), 51);
+    assert!(
+        delays.iter().all(|&(n, d)| d == 1000 && n >= 20),
+        "{delays:?}"
+    );
+    let shown: u32 = delays[..delays.len() - 1].iter().map(|d| d.0 as u32).sum();
+    assert_eq!(shown, 1000, "the frames before the last span 2 s / 2");
+    assert!(
+        stdout(&o).contains("APNG: 51 of 2001 output rows shown"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// MP4 through ffmpeg where it is on the PATH; without it the command
+/// fails with a message that names ffmpeg and the formats that need no
+/// external tool (the test says which case it checked).
+#[test]
+fn video_needs_ffmpeg_or_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.01"]);
+    let mp4 = dir.path().join("a.mp4");
+    let o = mbsolve(&[
+        "animate",
+        "scenarios/fourbar.toml",
+        &csv,
+        "--out",
+        mp4.to_str().unwrap(),
+    ]);
+    let has_ffmpeg = Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if has_ffmpeg {
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(std::fs::metadata(&mp4).unwrap().len() > 0);
+        assert!(stdout(&o).contains("video: "), "{}", stdout(&o));
+    } else {
+        println!(
+            "skipped the MP4 encoding: ffmpeg is not on the PATH; checked the message instead"
+        );
+        assert!(!o.status.success());
+        let e = stderr(&o);
+        assert!(
+            e.contains("ffmpeg") && e.contains(".gif") && e.contains(".apng"),
+            "{e}"
+        );
+    }
+}

@@ -1,0 +1,15 @@
+//! Fixtures and helpers shared by the test binaries. Each `tests/AREA/main.rs`
+//! includes this module with `#[path = "../common/mod.rs"] mod common;`;
+//! a binary uses only part of it.
+//!
+//! `counting.rs` (the counting global allocator) is not part of it: a binary
+//! that wants it includes it once, in its `main.rs`.
+#![allow(dead_code)]
+
+pub mod cli;
+pub mod fourbar;
+pub mod parallelogram;
+pub mod process;
+pub mod rod;
+pub mod stiff_chain;
+pub mod trajectory;

@@ -1,0 +1,12 @@
+//! Integration tests of scenario files: components, force types, keys, overrides,
+//! parameters, templates and includes.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod components;
+mod forces;
+mod keys;
+mod overrides;
+mod parameters;
+mod templates;
