@@ -71,8 +71,8 @@ fn every_contact_element_is_reported() {
     assert_eq!(c.len(), 2);
     let (floor, ceiling) = (&c[0], &c[1]);
     assert_eq!(floor["force"], "floor");
-    let (g, h, m, k) = (9.81, 0.2, 1.0, 1e6);
-    let t_hit = (2.0 * h / g as f64).sqrt();
+    let (g, h, m, k): (f64, f64, f64, f64) = (9.81, 0.2, 1.0, 1e6);
+    let t_hit = (2.0 * h / g).sqrt();
     let first = floor["first_contact_time"].as_f64().unwrap();
     assert!(
         first >= t_hit - 1e-9 && first <= t_hit + 1e-4 + 1e-9,
