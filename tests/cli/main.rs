@@ -17,4 +17,5 @@ mod sensors;
 mod stream;
 mod study;
 mod sweep;
+mod sweep_metrics;
 mod view;
