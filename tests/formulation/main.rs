@@ -12,3 +12,4 @@ mod initial_joints;
 mod partitioning;
 mod redundant;
 mod singular;
+mod singular_small_steps;

@@ -9,6 +9,7 @@ mod common;
 #[path = "../common/counting.rs"]
 mod counting;
 
+mod dense_pivoting;
 mod determinism;
 mod kernels;
 mod newton_assembly;
