@@ -8,12 +8,12 @@
 // matrices are indexed by row and column throughout
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::rod::cantilever_at;
 use faer::{Mat, Side};
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
 use mbsolve::builders::{cantilever, RodParams};
 use mbsolve::scenario;
 use std::f64::consts::PI;
-use crate::common::rod::cantilever_at;
 
 /// The chain of the peers (`../shared/peers/chain_model.py`) without
 /// gravity: hanging straight down, springs and dampers at every joint.

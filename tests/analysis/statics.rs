@@ -8,12 +8,12 @@
 // matrices are indexed by row and column throughout
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::rod::cantilever_at;
 use faer::Mat;
 use mbsolve::analysis::{stability, static_equilibrium, StaticError, StaticOptions};
 use mbsolve::builders::{cantilever, RodParams};
 use mbsolve::scenario;
 use std::f64::consts::PI;
-use crate::common::rod::cantilever_at;
 
 /// A horizontal cantilever along +x (tilt −π/2: segment axes along +x).
 fn horizontal(n: usize, tip: [f64; 2]) -> (mbsolve::model::System, Vec<f64>, RodParams) {

@@ -3,9 +3,9 @@
 //! minimum, delays summing to the simulated span over the speed), the SVG's
 //! structure, and bad input.
 
-use std::path::Path;
-use std::process::{Command, Output};
 use crate::common::cli::{mbsolve, stderr, stdout};
+use std::path::Path;
+use std::process::Command;
 
 /// Run a scenario with overrides into `dir`; returns the CSV path.
 fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {

@@ -3,9 +3,8 @@
 //! joining across them, units from `columns.json`, and the figure set of
 //! `mbsolve reproduce` with its data beside every figure.
 
-use std::path::Path;
-use std::process::{Command, Output};
 use crate::common::cli::{mbsolve, stderr};
+use std::path::Path;
 
 /// Write a CSV of `t` and the named columns.
 fn write_csv(path: &Path, t: &[f64], cols: &[(&str, Vec<f64>)]) {

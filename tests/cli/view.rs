@@ -6,9 +6,9 @@
 //! JavaScript). Skipped with a message when `chromium` is not installed,
 //! except under `CI=true`, where its absence fails.
 
+use crate::common::cli::{mbsolve, stderr};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use crate::common::cli::{mbsolve, stderr};
 
 #[test]
 fn page_is_self_contained_and_escapes_user_text() {
