@@ -5,6 +5,7 @@
 
 use crate::common::cli::{mbsolve, stderr, stdout};
 use std::path::Path;
+use std::process::Command;
 
 /// Run a scenario with overrides into `dir`; returns the CSV path.
 fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {
