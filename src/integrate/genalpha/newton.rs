@@ -414,7 +414,7 @@ impl Run<'_, '_> {
         self.sys.constraints(t1, &self.new.q, &mut self.phi);
         let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
         let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
-        if !(phi <= ROUNDING_ULPS * f64::EPSILON * scale) {
+        if phi.is_nan() || phi > ROUNDING_ULPS * f64::EPSILON * scale {
             return Ok(false);
         }
         self.stats.residual_evaluations += 1;
@@ -430,7 +430,7 @@ impl Run<'_, '_> {
         let dnorm = d.iter().zip(q).fold(0.0_f64, |a, (di, qi)| {
             a.max(di.abs() / (tol_q + floor * qi.abs().max(1.0)))
         });
-        if !(dnorm <= 1.0) {
+        if dnorm.is_nan() || dnorm > 1.0 {
             return Ok(false);
         }
         // `r` holds the correction negated, as in the Newton loop
