@@ -245,7 +245,7 @@ pub enum Rule {
     /// `auto` with a team: its A/B rule's probes (module docs) chose the
     /// team `team` times and one thread `alone` times; `last_ratio` is the
     /// last probe's wall time with the helper over its time alone (the
-    /// team is chosen at ≤ [`TEAM_MARGIN`]; `None`: the run ended before
+    /// team is chosen at ≤ `TEAM_MARGIN` (0.97); `None`: the run ended before
     /// its first probe did).
     Probed {
         /// Probes that chose the team.

@@ -94,7 +94,7 @@ impl Renewal {
 
     /// Whether the current attempt has made, or tried to make, its own
     /// factorisation: a failure without one is worth a retry on a fresh
-    /// matrix ([`super::attempt_or_cut`]).
+    /// matrix (`attempt_or_cut`).
     pub fn made_own(&self) -> bool {
         self.made
     }

@@ -10,7 +10,7 @@ use std::ops::Range;
 /// a contiguous range of joints, e.g. code emitted at build time by
 /// `mbsolve-codegen` for a known topology ([`crate::generated`]).
 ///
-/// Attached to a range of joints ([`SystemBuilder::attach_kernels`],
+/// Attached to a range of joints ([`crate::model::SystemBuilder::attach_kernels`],
 /// [`System::attach_kernels`]), the kernels read the global q and q̇ and
 /// write the range's rows (`out`, `gamma`: the range's rows only) and Φ_q
 /// values (`vals`: the range's entries of [`System::jacobian_pattern`]).
@@ -27,7 +27,7 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         false
     }
     /// Add (Φ_qᵀλ)_q of the range's joints, joint after joint in the order of
-    /// their [`Constraint::hessian_pattern`]s (λ: the range's multipliers).
+    /// their [`crate::model::Constraint::hessian_pattern`]s (λ: the range's multipliers).
     /// Called only when [`ConstraintKernels::has_hessian`].
     fn add_hessian(&self, q: &[f64], t: f64, lambda: &[f64], vals: &mut [f64]) {
         let _ = (q, t, lambda, vals);
@@ -99,7 +99,7 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
 pub trait ForceKernels: Send + Sync + std::fmt::Debug {
     /// Name for summaries, e.g. "generated:drag_bodies".
     fn name(&self) -> &str;
-    /// Each element's [`ForceElement::jacobian_coordinates`], in order (checked
+    /// Each element's [`crate::model::ForceElement::jacobian_coordinates`], in order (checked
     /// against the elements' own when attached).
     fn jacobian_coordinates(&self) -> Vec<Vec<usize>>;
     /// Add the elements' Jacobian blocks (each `k × k` row-major over its
