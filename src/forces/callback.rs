@@ -403,10 +403,7 @@ mod tests {
             // t = 0.5: the rows end at the last accepted step before it,
             // up to one of ode45's steps (≈ 0.1 s on this pendulum) earlier
             let last = *tr.t.last().unwrap();
-            assert!(
-                last > 0.3 && last <= 0.5,
-                "{method}: rows up to t = {last}"
-            );
+            assert!(last > 0.3 && last <= 0.5, "{method}: rows up to t = {last}");
             assert_eq!(tr.t.len(), s.output_rows);
         }
     }
