@@ -7,7 +7,7 @@ use mbsolve_codegen::{parse, Ctx, Id, Tape};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-// Allocation counter (per thread), the pattern of mbsolve's tests/linalg.rs.
+// Allocation counter (per thread), the pattern of mbsolve's tests/linalg/sparse_saddle.rs.
 struct Counting;
 thread_local! {
     static ALLOCS: Cell<usize> = const { Cell::new(0) };

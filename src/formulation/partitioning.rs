@@ -20,7 +20,7 @@
 //! regularisation (the rows R are independent at t0): near a singular
 //! configuration the regularised sparse LDLᵀ of the full system returns a
 //! least-squares q̈ that took the parallelogram chain 8 mm off its branch
-//! in 10 s, the exact dense solve 4.5 µm (tests/partitioning.rs).
+//! in 10 s, the exact dense solve 4.5 µm (tests/formulation/partitioning.rs).
 //!
 //! so positions and velocities satisfy the constraints to the Newton
 //! tolerance by construction (no drift, no Baumgarte terms). The split is

@@ -51,7 +51,7 @@ impl ForceKernels for TorsionalChainJacobians {
     /// `t = k(φ_j − φ_i − r) + c(φ̇_j − φ̇_i)` added to g_i and subtracted
     /// from g_j, spring after spring: the element's `−T` with the same
     /// roundings, in the same order into each entry (bit-identical;
-    /// tests/codegen.rs).
+    /// tests/model/codegen.rs).
     fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
         self.add_forces_range(t, q, qd, g, 0..self.n())
     }
@@ -169,7 +169,7 @@ impl ForceKernels for DragJacobians {
 impl DragJacobians {
     /// The drag force of body `k` with its angle's sine and cosine added
     /// to `g`: the roundings of `Drag::force` (bit-identical;
-    /// tests/codegen.rs).
+    /// tests/model/codegen.rs).
     fn force(&self, k: usize, sn: f64, cs: f64, qd: &[f64], g: &mut [f64]) {
         let (o, a) = (self.q0 + 3 * k, 3 * k);
         let f = drag_force(

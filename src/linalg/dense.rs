@@ -107,7 +107,7 @@ pub struct PivotOrder {
 /// order), which may differ from a row-by-row scan's: of the shipped
 /// scenarios only the 40-loop parallelogram chain's independent coordinate
 /// changes (98 for 119, an equally regular block); the rank does not
-/// (tests/dense_pivoting.rs). Dense, `O(m n min(m, n))`, allocates a copy,
+/// (tests/linalg/dense_pivoting.rs). Dense, `O(m n min(m, n))`, allocates a copy,
 /// its permutations and faer's scratch.
 pub fn full_pivot_order(a: &mut [f64], m: usize, n: usize, tol: f64) -> PivotOrder {
     assert_eq!(a.len(), m * n, "full_pivot_order: matrix size");

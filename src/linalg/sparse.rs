@@ -15,7 +15,7 @@
 //!   and faer's numeric LDLᵀ into the pre-allocated factor storage. No
 //!   sorting, no symbolic work and no heap allocation at all: faer's
 //!   numeric kernels take all their scratch from the pre-sized `MemStack`
-//!   (`tests/linalg.rs` checks with a counting allocator that
+//!   (`tests/linalg/sparse_saddle.rs` checks with a counting allocator that
 //!   re-factorisation and solve perform zero allocations, on the
 //!   simplicial and the supernodal path). The simplicial/supernodal numeric
 //!   kernels are called directly rather than through

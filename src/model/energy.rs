@@ -19,7 +19,7 @@
 //! should see.
 //!
 //! So `E(t) − E(0) = ∫₀ᵗ (P_nc + P_c) dτ` with `E = T + V` along an exact
-//! solution (tested in `tests/energy.rs`).
+//! solution (tested in `tests/model/energy.rs`).
 
 use super::{ForceElement, System};
 

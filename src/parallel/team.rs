@@ -906,7 +906,7 @@ mod tests {
 
     /// A bdf run of a stiff chain above the parallel thresholds with two
     /// threads forced: the driver opens a team and posts halves (the
-    /// results' independence of the thread count: tests/parallel_newton.rs).
+    /// results' independence of the thread count: tests/linalg/parallel_newton.rs).
     #[test]
     fn a_large_implicit_run_posts_halves_to_the_helper() {
         use crate::integrate::{Method, OdeOptions};

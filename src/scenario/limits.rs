@@ -9,7 +9,7 @@ use crate::integrate::eps;
 use crate::simulation::RunConfig;
 
 /// Most output times of one run (10⁸; the largest documented run has 10⁴,
-/// the long-run tests of `tests/cli_stream.rs` 5·10⁷). Rows are streamed,
+/// the long-run tests of `tests/cli/stream.rs` 5·10⁷). Rows are streamed,
 /// but the output times themselves are one vector (8 B each: 800 MB here).
 pub const MAX_OUTPUT_TIMES: f64 = 1e8;
 

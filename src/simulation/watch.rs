@@ -75,7 +75,7 @@ pub(super) struct Watch<'s, 'm, 'd, 'k> {
 /// implicit runs from consistent starts drift by at most 1.7e-4 of E0,
 /// either sign; the trapezoidal rule (newmark, ρ∞ = 1) on the four-bar at
 /// h = 5e-3 gains 1.5 J on a scale of 5.5 J by t = 0.5 s, its
-/// constraint-velocity error undamped (tests/redundant.rs).
+/// constraint-velocity error undamped (tests/formulation/redundant.rs).
 pub const IMPLICIT_ENERGY_GAIN: f64 = 1e-2;
 
 /// A fixed-step implicit run that has taken this many times the steps its

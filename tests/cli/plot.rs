@@ -226,7 +226,7 @@ fn animate_writes_one_frame_per_output_time() {
     let key_times = text.split("keyTimes=\"").nth(1).unwrap();
     let key_times = &key_times[..key_times.find('"').unwrap()];
     assert_eq!(key_times.split(';').count(), rows);
-    // four revolute joints, one pin each (tests/cli_animate.rs: the rest)
+    // four revolute joints, one pin each (tests/cli/animate.rs: the rest)
     assert_eq!(text.matches("r=\"3.5\"").count(), 4);
 
     let gif = dir.path().join("a.gif");

@@ -118,7 +118,7 @@ fn genalpha_small_step_passes_singular_positions() {
     // the regularised solve (~1e-11 m), above `STAGNATION` tolerances, and
     // each step cut shrank the tolerance further. Now the driven two-loop
     // chain and the free three-loop chain run through 10 s. The redundant
-    // chain at h = 1e-4 and 5e-4: tests/redundant.rs.
+    // chain at h = 1e-4 and 5e-4: tests/formulation/redundant.rs.
     for (loops, driven) in [(2, true), (3, false)] {
         let p = ParallelogramChain {
             loops,

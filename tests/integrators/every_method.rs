@@ -3,7 +3,7 @@
 //! ode45 at rtol 1e-12 (an independent run of eq. (5) with projection), on
 //! the driven slider-crank against its closed-form kinematics — and the
 //! fixed-step index-3 methods with their order 2. (The penalty method
-//! converges as its penalty grows: tests/constraint_methods.rs,
+//! converges as its penalty grows: tests/formulation/constraint_methods.rs,
 //! `penalty_violation_falls_like_one_over_alpha`.)
 
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};

@@ -366,7 +366,7 @@ fn a_run_that_cannot_proceed_fails_cleanly_and_keeps_its_output() {
     // the minimum; the run stops there with everything before it kept.
     // (At h = 1e-3 the same run crawls at a mean step of 1.2e-5 s and the
     // stall guard stops it first, at 10 × the nominal steps:
-    // tests/cli_stream.rs.)
+    // tests/cli/stream.rs.)
     let cfg = implicit(
         Method::GenAlpha,
         2e-4,

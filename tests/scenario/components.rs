@@ -358,7 +358,7 @@ fn component_bodies_are_addressable_by_name() {
 }
 
 /// Runs `args`; asserts exit status 2, no panic, and every needle in the
-/// message (the CLI bad-input style of tests/cli_bad_input.rs).
+/// message (the CLI bad-input style of tests/cli/bad_input.rs).
 fn rejects(args: &[&str], needles: &[&str]) {
     let o = mbsolve(args);
     let e = String::from_utf8_lossy(&o.stderr).into_owned();

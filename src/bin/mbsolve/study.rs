@@ -301,7 +301,7 @@ fn chain_problem(
         qd0,
         base,
         // generalized-α's numerical damping at 1e-3 s loses 1.3e-4 of the
-        // energy over 10 s; 5e-4 s is the step of tests/augmented_lagrangian.rs
+        // energy over 10 s; 5e-4 s is the step of tests/integrators/augmented_lagrangian.rs
         h: 5e-4,
         reference: Reference::Chain(p, points),
     })

@@ -8,7 +8,7 @@
 //! serialised to JSON; `assets/viewer.js` resolves its parts into marks
 //! exactly as [`mbsolve::drawing::Drawing::marks`] does, on a canvas of
 //! the size `animate` uses, so a still PNG of `animate` and the page's
-//! frame agree (tests/cli_view.rs compares them in headless Chromium).
+//! frame agree (tests/cli/view.rs compares them in headless Chromium).
 //! `view.html#t=0.5` opens paused at the output time nearest 0.5 s.
 //! Everything from user files reaches the page as JSON text or escaped
 //! HTML and is shown through `textContent`, never as markup.

@@ -26,7 +26,7 @@
 //! polynomials of degree k, so the order stays k). It changes `a_0` by
 //! `−κγ/h` and adds `κγ/h·ŷ` to the history sums — nothing else — and
 //! multiplies the error constant `1/(k+1)` by `1 + (k+1)κ_kγ_k`
-//! (0.63, 0.50, 0.40, 0.57, 1 for k = 1 … 5; tests/bdf.rs measures 0.630
+//! (0.63, 0.50, 0.40, 0.57, 1 for k = 1 … 5; tests/integrators/bdf.rs measures 0.630
 //! and 0.505 at k = 1, 2). **Highest order** [`OdeOptions::max_order`]
 //! (`ode15s`'s `MaxOrder`).
 //!
@@ -127,7 +127,7 @@ const LANES: usize = 8;
 pub const MAX_NEWTON: usize = 4;
 /// Newton stops when the estimated remaining error `θ/(1 − θ)·‖Δ‖` is
 /// below `κ·rtol` (ode15s: 0.5; with 0.5 and 0.05 the four-bar of
-/// tests/bdf.rs lost its convergence in rtol, 2.4e-4 off at rtol 1e-9
+/// tests/integrators/bdf.rs lost its convergence in rtol, 2.4e-4 off at rtol 1e-9
 /// against 2.7e-5 with 0.1 and 0.02).
 pub const NEWTON_KAPPA: f64 = 0.1;
 /// κ for a step's first correction, judged with the contraction rate

@@ -72,7 +72,7 @@
 //! changing Φ_qᵀ turned that into 1e5 N of residual at every predictor and
 //! Newton into a slow linear contraction (θ ≈ 0.9) until the step
 //! collapsed at t = 7.9 s; from zero, |λ| stays physical and the run
-//! completes (tests/redundant.rs). On the stiff chain it also saves ≈ 0.45
+//! completes (tests/formulation/redundant.rs). On the stiff chain it also saves ≈ 0.45
 //! corrections per step.
 //!
 //! **Reuse (modified Newton).** A factorisation is kept across iterations

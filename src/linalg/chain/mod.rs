@@ -63,7 +63,7 @@
 //! The split point is fixed by the pattern, never by the thread count, and
 //! each row does the same operations in the same order on either path, so
 //! the results are bit-identical for one thread and two
-//! (tests/parallel_newton.rs). The
+//! (tests/linalg/parallel_newton.rs). The
 //! two-sided order rounds differently from the one-sided one (a different
 //! elimination order), at rounding level.
 //!
