@@ -1,0 +1,379 @@
+//! Unit tests of the two-thread team (`super`).
+
+use super::super::with_threads;
+use super::*;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+/// Wait until the helper runs and is free.
+fn helper_ready() -> bool {
+    // an event, not a deadline: the helper starts when the scheduler
+    // runs it (a helper that never starts hangs the test, and CI's step
+    // limit names it)
+    while !concurrent() {
+        std::thread::yield_now();
+    }
+    true
+}
+
+fn pool(n: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap()
+}
+
+/// `b` runs on the helper whenever `a` waits until `b` has started: the
+/// caller cannot take it back then (no dependence on timing).
+#[test]
+fn a_half_the_helper_started_runs_there_and_returns_its_result() {
+    let (_, rep) = with_threads(Threads::Two, || {
+        run(false, 0, || {
+            assert!(helper_ready(), "the helper started");
+            let me = std::thread::current().id();
+            for k in 0..200u64 {
+                let started = AtomicBool::new(false);
+                let (a, (b, id)) = join(
+                    || {
+                        while !started.load(Ordering::SeqCst) {
+                            std::hint::spin_loop();
+                        }
+                        k * 2
+                    },
+                    || {
+                        started.store(true, Ordering::SeqCst);
+                        (k * 3, std::thread::current().id())
+                    },
+                );
+                assert_eq!((a, b), (2 * k, 3 * k));
+                assert_ne!(id, me, "join {k}");
+            }
+        })
+    });
+    assert_eq!(rep.halves_split, 200);
+    assert_eq!(rep.threads(), 2);
+}
+
+/// After MISS_LIMIT take-backs in a row an adaptive team runs joins
+/// alone, longer after each further miss; a hit resets it.
+#[test]
+fn a_team_whose_helper_misses_backs_off() {
+    let team = Team::new(true);
+    for _ in 0..MISS_LIMIT {
+        team.note(Ran::TakenBack);
+    }
+    assert_eq!(team.solo_left.load(Ordering::Relaxed), SOLO_MIN);
+    let mut alone = 0;
+    while team.solo_join() {
+        alone += 1;
+    }
+    assert_eq!(alone, SOLO_MIN);
+    // the next try misses again: twice as long alone
+    team.note(Ran::TakenBack);
+    assert_eq!(team.solo_left.load(Ordering::Relaxed), 2 * SOLO_MIN);
+    // a hit resets
+    team.note(Ran::Helper);
+    assert_eq!(team.backoff.load(Ordering::Relaxed), SOLO_MIN);
+    assert_eq!(team.misses.load(Ordering::Relaxed), 0);
+    // a forced team never backs off
+    let forced = Team::new(false);
+    for _ in 0..10 * MISS_LIMIT {
+        forced.note(Ran::TakenBack);
+    }
+    assert!(!forced.solo_join());
+}
+
+/// Drives an A/B rule of windows of `w` passes for `passes` passes
+/// on a synthetic clock where a pass costs `cost(alone)` µs; returns
+/// (alone, wake) per pass.
+fn drive(a: &mut Adapt, passes: usize, cost: impl Fn(bool) -> u64) -> Vec<(bool, bool)> {
+    let t0 = Instant::now();
+    let mut t = Duration::ZERO;
+    (0..passes)
+        .map(|_| {
+            let r = a.pass(t0 + t);
+            t += Duration::from_micros(cost(r.0));
+            r
+        })
+        .collect()
+}
+
+/// The A/B rule probes team, alone, alone, team, runs the faster way
+/// for EXPLOIT_MIN windows (twice as long after a confirming probe),
+/// and changes its mind when the costs change; a tie goes to one
+/// thread; the helper is woken on the last pass before a team window.
+#[test]
+fn the_ab_rule_runs_the_faster_way_and_probes_again() {
+    let w = 2usize;
+    let probe = [false, false, true, true, true, true, false, false];
+    let mut a = Adapt::new(w as u32);
+    // the team twice as fast
+    let r = drive(&mut a, 8 + 8 * w + 8 + 16 * w, |alone| {
+        if alone {
+            200
+        } else {
+            100
+        }
+    });
+    let modes: Vec<bool> = r.iter().map(|x| x.0).collect();
+    assert_eq!(modes[..8], probe);
+    assert!(modes[8..8 + 8 * w].iter().all(|&s| !s));
+    assert_eq!(modes[8 + 8 * w..16 + 8 * w], probe);
+    assert!(modes[16 + 8 * w..].iter().all(|&s| !s));
+    assert_eq!(a.exploit, 2 * EXPLOIT_MIN);
+    assert_eq!(a.decided, [2, 0]);
+    // woken exactly on the last pass of the second alone window
+    let wakes: Vec<usize> = (0..8).filter(|&i| r[i].1).collect();
+    assert_eq!(wakes, [5]);
+    // the machine gets busy: the team now 1.5× slower
+    let r = drive(&mut a, 8 + 8 * w + 8, |alone| if alone { 200 } else { 300 });
+    let modes: Vec<bool> = r.iter().map(|x| x.0).collect();
+    assert_eq!(modes[..8], probe);
+    assert!(modes[8..8 + 8 * w].iter().all(|&s| s));
+    assert_eq!(a.decided, [2, 1]);
+    assert_eq!(a.exploit, EXPLOIT_MIN);
+    // the helper is woken before the next probe's team window
+    assert!(r[8 + 8 * w - 1].1);
+    // a tie (within TEAM_MARGIN) goes to one thread
+    let mut b = Adapt::new(1);
+    drive(&mut b, 5, |alone| if alone { 100 } else { 99 });
+    assert_eq!(b.decided, [0, 1]);
+}
+
+/// A team whose A/B rule changes its way at every pass (windows of
+/// one pass) gives the bits of one thread, and counts the same passes
+/// as a team that always posts: the passes measure progress whichever
+/// way they run.
+#[test]
+fn an_alternating_team_gives_the_bits_of_one_thread() {
+    use crate::integrate::{Method, OdeOptions};
+    use crate::simulation::{simulate, RunConfig};
+    let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+    for (method, step) in [
+        (Method::Bdf, None),
+        (Method::GenAlpha, Some(1e-5)),
+        (Method::Radau5, Some(1e-5)),
+    ] {
+        let cfg = RunConfig {
+            method,
+            t_end: 3e-5,
+            output_dt: 1e-5,
+            ode: OdeOptions {
+                rtol: 1e-5,
+                fixed_step: step,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let run = |threads| {
+            let cfg = RunConfig {
+                threads,
+                ..cfg.clone()
+            };
+            pool(2).install(|| {
+                TEST_WINDOW.with(|w| w.set(Some(1)));
+                TEST_PASSES.with(|p| p.set(0));
+                let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+                TEST_WINDOW.with(|w| w.set(None));
+                (traj, s, TEST_PASSES.with(|p| p.get()))
+            })
+        };
+        let (one, _, _) = run(Threads::One);
+        let (two, s2, p2) = run(Threads::Two);
+        let (auto, sa, pa) = run(Threads::Auto);
+        assert!(p2 > 10, "{method:?}: {p2} passes");
+        assert_eq!(p2, pa, "{method:?}");
+        let count = |s: &crate::simulation::Summary, k: &str| s.extra[k].as_u64().unwrap();
+        assert!(count(&sa, "halves_solo") > 0, "{method:?}");
+        // the summary names the rule's decision: the probes of windows
+        // of one pass decided at least once
+        let rule = &sa.extra["threads_rule"];
+        assert_eq!(rule["decision"], "probed", "{method:?}");
+        let probes = rule["team"].as_u64().unwrap() + rule["alone"].as_u64().unwrap();
+        assert!(probes > 0 && rule["last_ratio"].as_f64().unwrap() > 0.0);
+        let reason = sa.extra["threads_reason"].as_str().unwrap();
+        assert!(reason.contains("probes chose"), "{reason}");
+        assert_eq!(s2.extra["threads_rule"]["decision"], "two");
+        for traj in [&two, &auto] {
+            assert_eq!(one.t, traj.t);
+            for (a, b) in one.q.iter().zip(&traj.q).chain(one.qd.iter().zip(&traj.qd)) {
+                assert!(
+                    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{method:?}"
+                );
+            }
+        }
+        assert_eq!(
+            count(&s2, "newton_iterations"),
+            count(&sa, "newton_iterations")
+        );
+    }
+}
+
+/// The rule's decision and reason for a run that opens no team: a
+/// small state, a pool of one thread, the setting one.
+#[test]
+fn the_summary_says_why_a_run_used_one_thread() {
+    use crate::integrate::{Method, OdeOptions};
+    use crate::simulation::{simulate, RunConfig};
+    let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
+    let cfg = RunConfig {
+        method: Method::Bdf,
+        t_end: 1e-5,
+        output_dt: 1e-5,
+        ode: OdeOptions {
+            rtol: 1e-5,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let rule = |n, pool_threads, threads| {
+        let (sys, q0, qd0, _) = chain(n);
+        let cfg = RunConfig {
+            threads,
+            ..cfg.clone()
+        };
+        let (_, s) =
+            pool(pool_threads).install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
+        assert_eq!(s.extra["threads"], 1);
+        assert_eq!(s.extra["split"], false);
+        (
+            s.extra["threads_rule"].clone(),
+            s.extra["threads_reason"].as_str().unwrap().to_string(),
+        )
+    };
+    // 10 segments: a state of 60 entries
+    let (r, why) = rule(10, 2, Threads::Auto);
+    assert_eq!(r["decision"], "small");
+    assert_eq!(r["state"], 60);
+    assert_eq!(r["min"], 2 * super::super::PARALLEL_MIN_COORDS);
+    assert!(why.contains("60 entries"), "{why}");
+    // 2000 segments (12 000 entries) in a pool of one thread
+    let (r, why) = rule(2000, 1, Threads::Auto);
+    assert_eq!(r["decision"], "no_second_thread");
+    assert_eq!(
+        (r["pool"].clone(), r["in_pool"].clone()),
+        (1.into(), true.into())
+    );
+    assert!(why.contains("pool has 1 thread "), "{why}");
+    let (r, why) = rule(2000, 2, Threads::One);
+    assert_eq!(r["decision"], "one");
+    assert!(why.starts_with("one thread"), "{why}");
+}
+
+/// With no helper running, a posted half comes back to the caller.
+#[test]
+fn a_posted_half_nobody_takes_runs_on_the_caller() {
+    let h = Handover::new();
+    // no helper: `join` is called directly on the hand-over
+    for k in 0..10u64 {
+        let me = std::thread::current().id();
+        let ((a, (b, id)), ran) = h.join(|| k, || (k + 1, std::thread::current().id()));
+        assert_eq!((a, b, id, ran), (k, k + 1, me, Ran::TakenBack));
+    }
+}
+
+/// A bdf run of a stiff chain above the parallel thresholds with two
+/// threads forced: the driver opens a team and posts halves (the
+/// results' independence of the thread count: tests/linalg/parallel_newton.rs).
+#[test]
+fn a_large_implicit_run_posts_halves_to_the_helper() {
+    use crate::integrate::{Method, OdeOptions};
+    use crate::simulation::{simulate, RunConfig};
+    let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+    let mut cfg = RunConfig {
+        method: Method::Bdf,
+        t_end: 2e-4,
+        output_dt: 1e-4,
+        ode: OdeOptions {
+            rtol: 1e-5,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    cfg.threads = Threads::Two;
+    let (_, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    let posted =
+        s.extra["halves_split"].as_u64().unwrap() + s.extra["halves_taken_back"].as_u64().unwrap();
+    assert!(posted > 100, "{posted} halves posted");
+    assert_eq!(s.extra["halves_solo"].as_u64(), Some(0));
+    // one thread: no team, nothing split
+    cfg.threads = Threads::One;
+    let (_, s) = pool(2).install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
+    assert_eq!(s.extra["threads"].as_u64(), Some(1));
+    assert_eq!(s.extra["halves_split"].as_u64(), Some(0));
+    assert_eq!(s.extra["halves_taken_back"].as_u64(), Some(0));
+}
+
+#[test]
+fn one_thread_pool_and_nested_joins_run_in_order() {
+    pool(1).install(|| {
+        with_threads(Threads::Auto, || {
+            run(true, 0, || {
+                assert!(!concurrent());
+                let (a, b) = join(|| 1, || 2);
+                assert_eq!((a, b), (1, 2));
+            })
+        })
+    });
+    with_threads(Threads::Two, || {
+        run(true, 0, || {
+            let ((a, b), (c, d)) = join(|| join(|| 1, || 2), || join(|| 3, || 4));
+            assert_eq!((a, b, c, d), (1, 2, 3, 4));
+        })
+    });
+    // under One nothing leaves the thread, not even through rayon
+    pool(2).install(|| {
+        let me = std::thread::current().id();
+        let ((a, b), rep) = with_threads(Threads::One, || {
+            run(true, 0, || {
+                assert!(!concurrent());
+                join(
+                    || std::thread::current().id(),
+                    || std::thread::current().id(),
+                )
+            })
+        });
+        assert_eq!((a, b), (me, me));
+        let one = TeamReport {
+            rule: Rule::One,
+            ..TeamReport::default()
+        };
+        assert_eq!(rep, one);
+    });
+}
+
+#[test]
+fn a_panic_in_either_half_reaches_the_caller_after_both_ended() {
+    with_threads(Threads::Two, || {
+        run(true, 0, || {
+            assert!(helper_ready(), "the helper started");
+            for side in 0..2 {
+                let done = AtomicBool::new(false);
+                let r = catch_unwind(AssertUnwindSafe(|| {
+                    join(
+                        || {
+                            if side == 0 {
+                                panic!("a")
+                            }
+                        },
+                        || {
+                            std::thread::sleep(Duration::from_millis(2));
+                            done.store(true, Ordering::SeqCst);
+                            if side == 1 {
+                                panic!("b")
+                            }
+                        },
+                    )
+                }));
+                assert!(r.is_err());
+                assert!(done.load(Ordering::SeqCst), "b ended before the unwind");
+                // the team is usable afterwards
+                assert!(helper_ready());
+                assert_eq!(join(|| 5, || 6), (5, 6));
+            }
+        })
+    });
+}
