@@ -401,7 +401,7 @@ mod tests {
             assert!(s.message.unwrap().contains("not finite"), "{method}");
             // the failing call is a stage of the step that would cross
             // t = 0.5: the rows end at the last accepted step before it,
-            // up to one of ode45's steps (≈ 0.1 s on this pendulum) earlier
+            // up to one of ode45's steps earlier
             let last = *tr.t.last().unwrap();
             assert!(last > 0.3 && last <= 0.5, "{method}: rows up to t = {last}");
             assert_eq!(tr.t.len(), s.output_rows);

@@ -159,9 +159,9 @@ fn chain_converges_to_euler_bernoulli_at_first_order() {
             errs[2][i]
         );
         // first order in 1/N (the base spring has the full k of an
-        // interior joint; module docs of tests/model/beam.rs): measured rates
-        // 0.96/0.97 (mode 1), 0.91/0.91 (mode 2), 0.85/0.82 (mode 3, still
-        // pre-asymptotic at N ≤ 80: more segments per wavelength needed)
+        // interior joint; module docs of tests/model/beam.rs): the observed
+        // rates must reach `lo` per mode, lower for higher modes, which are
+        // still pre-asymptotic at N ≤ 80 (fewer segments per wavelength)
         assert!(errs[2][i] < errs[1][i] && errs[1][i] < errs[0][i]);
         let lo = [0.93, 0.88, 0.8][i];
         assert!((lo..1.1).contains(&r1), "mode {}: rate {r1}", i + 1);

@@ -51,8 +51,8 @@
 //! `1/(1 + x)` per iteration along a constraint direction, `x = c_k α σ²/m`
 //! with `σ²/m` its eigenvalue of `Φ_q M⁻¹Φ_qᵀ`; near a singular position σ
 //! goes to zero and the iteration crawls (two parallelogram loops crossing
-//! together: θ ≈ 0.87 … 0.99, so the default Newton tolerance was never
-//! reached and the step collapsed). When the contraction θ stays above
+//! together contract with θ close to 1, so the default Newton tolerance
+//! is never reached and the step collapses). When the contraction θ stays above
 //! [`SLOW_CONTRACTION`] after the matrix was renewed at the iterate, α is
 //! multiplied for the rest of the attempt by `(1/0.1 − 1)/(1/θ − 1)`
 //! (the factor that turns θ into 0.1), at most [`MAX_PENALTY_FACTOR`] in

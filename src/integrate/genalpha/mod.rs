@@ -67,13 +67,10 @@
 //! null space of Φ_qᵀ — the unreachable constraint residual (rounding of Φ)
 //! of a redundant row divided by the regularised pivot and by `β h²`, which
 //! grows as h shrinks, and near a singular position by a pivot just above
-//! the threshold. Measured on the redundant parallelogram chain at
-//! h = 1e-4: |λ| walked from 40 N to 1e9 N by the first crossing, the
-//! changing Φ_qᵀ turned that into 1e5 N of residual at every predictor and
-//! Newton into a slow linear contraction (θ ≈ 0.9) until the step
-//! collapsed at t = 7.9 s; from zero, |λ| stays physical and the run
-//! completes (tests/formulation/redundant.rs). On the stiff chain it also saves ≈ 0.45
-//! corrections per step.
+//! the threshold: carried across steps, λ's null-space part grows without
+//! bound on a redundant chain and the changing Φ_qᵀ turns it into residual
+//! at every predictor; from zero, |λ| stays physical
+//! (tests/formulation/redundant.rs; figures in docs/constraint_methods.md).
 //!
 //! **Reuse (modified Newton).** A factorisation is kept across iterations
 //! and steps while the iteration contracts fast enough. It is renewed
