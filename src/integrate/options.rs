@@ -396,10 +396,4 @@ impl ImplicitOptions {
         .find(|(differs, f)| *differs && filter(f))
         .map(|(_, f)| f)
     }
-
-    /// The first field (in declaration order) whose value differs from
-    /// [`ImplicitOptions::default`].
-    pub fn first_non_default(&self) -> Option<&'static str> {
-        self.first_non_default_where(|_| true)
-    }
 }
