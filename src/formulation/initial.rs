@@ -179,7 +179,7 @@ pub struct ConsistentState {
 
 /// Correct `(q, q̇)` onto the constraint manifold at `t0`, keeping the
 /// coordinates listed in `independent` (and their velocities) at the given
-/// values ([`consistent_initial_state_locked`] with coordinate locks).
+/// values (`consistent_initial_state_locked` with coordinate locks).
 pub fn consistent_initial_state(
     sys: &System,
     t0: f64,

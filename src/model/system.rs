@@ -276,7 +276,7 @@ impl System {
     /// Append a force element to a built system (after every element it
     /// has, gravity included), validated as [`SystemBuilder::build`] does;
     /// returns its index. Its Jacobian block goes last in
-    /// [`System::force_jacobian_pattern`]; attached kernels keep theirs.
+    /// `System::force_jacobian_pattern`; attached kernels keep theirs.
     /// For forces a scenario file cannot describe, such as a
     /// [`crate::forces::CallbackForce`] added to a loaded scenario's system.
     pub fn add_force(&mut self, f: Box<dyn ForceElement>) -> Result<usize, ModelError> {

@@ -66,7 +66,7 @@ pub enum Remainder {
     /// multiplier update); a contraction above `slow` asks the scheme to
     /// act ([`Assessment::Slow`]: renew the matrix, raise the penalty);
     /// divergence counts only from the third correction on and after the
-    /// scheme renewed something ([`Convergence::renewed_by_scheme`]).
+    /// scheme renewed something (`Convergence::renewed_by_scheme`).
     Correction {
         /// Contraction above which the scheme is asked to act.
         slow: f64,
@@ -94,7 +94,7 @@ pub struct ConvergenceOptions {
     pub reset_rate_on_renewal: bool,
 }
 
-/// What the test says after one correction ([`Convergence::assess`]).
+/// What the test says after one correction (`Convergence::assess`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Assessment {
     /// The remaining error is within the tolerance, or the iteration

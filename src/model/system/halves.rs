@@ -65,13 +65,13 @@ impl ResidualHalves {
         self.split
     }
     /// The constraint rows in consecutive runs, in order, each with its
-    /// side (true: the high half): [`System::residual_half`] takes its
+    /// side (true: the high half): `System::residual_half` takes its
     /// side's runs of Φ in this order.
     pub fn row_runs(&self) -> impl Iterator<Item = (bool, Range<usize>)> + '_ {
         self.runs.iter().map(|(h, _, r)| (*h, r.clone()))
     }
     /// Coordinates of the high half that the low half also loads: their
-    /// entries come from [`System::residual_boundary`].
+    /// entries come from `System::residual_boundary`.
     pub fn boundary(&self) -> &[usize] {
         &self.boundary
     }
