@@ -129,7 +129,7 @@ fn main() {
         t_end: 1.0,
         output_dt: 0.1,
         ode: Default::default(),
-        index1: Default::default(),
+        formulation: Default::default(),
         ..Default::default()
     };
     let (traj, s) = simulate(&sys, &ic.q, &ic.qd, &cfg, &mut []).expect("runs");

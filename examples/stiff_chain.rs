@@ -65,7 +65,7 @@ fn main() {
             cfg.implicit.reuse = false;
         }
         if std::env::var("MBS_SPARSE").is_ok() {
-            cfg.index1.linear_solver = mbsolve::linalg::SolverKind::Sparse;
+            cfg.formulation.linear_solver = mbsolve::linalg::SolverKind::Sparse;
         }
         if let Some(t) = std::env::var("MBS_T_END").ok().and_then(|v| v.parse().ok()) {
             cfg.t_end = t;

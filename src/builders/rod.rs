@@ -158,16 +158,11 @@ impl RodParams {
         let (s, c) = self.tilt.sin_cos();
         [-s, c]
     }
-    /// Initial centre of segment `i` (0-based from the bottom): the rod
-    /// centre at the origin, the segments along the tilted axis.
-    pub fn initial_centre(&self, i: usize) -> [f64; 2] {
-        self.placed_centre(None, i)
-    }
     /// Initial centre of segment `i` (0-based from the first end) of the
     /// straight rod whose first end (the bottom of segment 1) is at
     /// `first_end`: `first_end + (i + ½) l_s e_a`; `None`: the rod centre at
-    /// the origin ([`RodParams::initial_centre`]).
-    pub fn placed_centre(&self, first_end: Option<[f64; 2]>, i: usize) -> [f64; 2] {
+    /// the origin, the segments along the tilted axis.
+    pub(crate) fn placed_centre(&self, first_end: Option<[f64; 2]>, i: usize) -> [f64; 2] {
         let ls = self.segment_length();
         let e = self.axis();
         match first_end {
@@ -221,7 +216,7 @@ impl RodParams {
 
     /// [`RodParams::validate`] for the rod placed with its first end at
     /// `first_end` ([`RodParams::placed_centre`]).
-    pub fn validate_at(&self, first_end: Option<[f64; 2]>) -> Result<(), ModelError> {
+    pub(crate) fn validate_at(&self, first_end: Option<[f64; 2]>) -> Result<(), ModelError> {
         self.validate_structure()?;
         if let Some(p) = first_end {
             if !p.iter().all(|v| v.is_finite()) {

@@ -16,8 +16,8 @@ pub use revolute::Revolute;
 pub use translational::Translational;
 
 pub(crate) use crate::model::check_bodies;
-pub use crate::model::{touched_columns, Constraint, JointGeometry};
 use crate::model::{BodyRef, ModelError};
+pub use crate::model::{Constraint, JointGeometry};
 
 /// Global position of a body-fixed point and its rotated offset `R(φ) s`.
 /// For the ground, `s` is a global point and the offset is zero-motion.

@@ -1,6 +1,6 @@
 //! Applied loads prescribed in time.
 
-use super::{Check, ForceElement};
+use super::{Check, ForceElement, ForceJacobians};
 use crate::model::{rotate, ModelError, TimeFunction};
 
 /// A torque `T(t)` on one body (counter-clockwise positive).
@@ -73,15 +73,8 @@ impl ForceElement for AppliedForce {
     fn jacobian_coordinates(&self) -> Vec<usize> {
         vec![3 * self.body + 2]
     }
-    fn add_jacobians(
-        &self,
-        t: f64,
-        q: &[f64],
-        _qd: &[f64],
-        dq: &mut [f64],
-        _dqd: &mut [f64],
-        _ws: &mut super::FdWorkspace,
-    ) {
+    fn add_jacobians(&self, t: f64, q: &[f64], _qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, .. } = out;
         // ∂/∂φ of (R s) × F = (J R s) × F = −(R s)·F
         let rs = rotate(q[3 * self.body + 2], self.point);
         dq[0] -= rs[0] * self.fx.value(t) + rs[1] * self.fy.value(t);

@@ -22,7 +22,7 @@
 //! assert_eq!(spring.error_handle().get(), None);
 //! ```
 
-use crate::model::{check_coordinates, FdWorkspace, ForceElement, ModelError};
+use crate::model::{check_coordinates, ForceElement, ForceJacobians, ModelError};
 use std::fmt;
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -133,7 +133,7 @@ impl CallbackForce {
     }
 
     /// [`CallbackForce::new`] with a boxed law.
-    pub fn boxed(name: &str, coords: Vec<usize>, law: Box<dyn CallbackLaw>) -> Self {
+    pub(crate) fn boxed(name: &str, coords: Vec<usize>, law: Box<dyn CallbackLaw>) -> Self {
         let k = coords.len();
         Self {
             name: name.to_string(),
@@ -153,11 +153,6 @@ impl CallbackForce {
     /// The slot holding the law's first error (a clone sharing it).
     pub fn error_handle(&self) -> CallbackError {
         self.error.clone()
-    }
-
-    /// The global coordinates, in the law's order.
-    pub fn law_coordinates(&self) -> &[usize] {
-        &self.coords
     }
 
     /// Gather q, q̇ of the element's coordinates into the scratch.
@@ -201,15 +196,8 @@ impl ForceElement for CallbackForce {
             g[c] = f64::NAN;
         }
     }
-    fn add_jacobians(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, ws } = out;
         let given = {
             let mut guard = self.scratch.lock().unwrap_or_else(PoisonError::into_inner);
             let s = &mut *guard;

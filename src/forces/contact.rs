@@ -1,6 +1,6 @@
 //! Contact of a rod segment's corners with the two channel walls (docs/problems.md, problem B).
 
-use super::{check_coordinates, Check, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians};
 use crate::model::ModelError;
 
 /// One of the two vertical channel walls.
@@ -284,15 +284,8 @@ impl ForceElement for WallContact {
         });
     }
 
-    fn add_jacobians(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         let w = qd[3 * self.body + 2];
         let (mu, vs) = (self.friction, self.slip_velocity);
         let law = self.law();

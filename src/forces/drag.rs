@@ -1,6 +1,6 @@
 //! Quadratic fluid drag on a rod segment (docs/problems.md, problem B).
 
-use super::{check_coordinates, Check, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians};
 use crate::model::ModelError;
 
 /// Quadratic drag of still fluid on one rod segment (docs/problems.md, problem B, "drag").
@@ -94,15 +94,8 @@ impl ForceElement for Drag {
         g[o + 2] += f[2];
     }
 
-    fn add_jacobians(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         let o = 3 * self.body;
         let (at, aa, ar) = self.coefficients();
         let (sn, cs) = crate::trig::sin_cos(q[o + 2]);

@@ -8,7 +8,7 @@
 //! so ∂g/∂q and ∂g/∂q̇ are exact symbolic derivatives (chain rule included)
 //! and are compiled with g into one allocation-free [`Tape`].
 
-use super::{FdWorkspace, ForceElement};
+use super::{ForceElement, ForceJacobians};
 use mbsolve_codegen::{parse, Ctx, Id, ParseError, Tape};
 use std::sync::Mutex;
 
@@ -353,15 +353,8 @@ impl ForceElement for ExpressionLoad {
             g[c] += s.out[i];
         }
     }
-    fn add_jacobians(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         let s = self.run(t, q, qd);
         let n = self.coords.len();
         for col in 0..n {

@@ -3,7 +3,7 @@
 //! regularised Coulomb friction (docs/scenarios.md, `[[force]]`).
 
 use super::contact::{friction_tanh, HuntCrossley};
-use super::{check_coordinates, Check, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians};
 use crate::model::ModelError;
 
 /// Penalty contact of a circle of radius `R ≥ 0` (a point for `R = 0`),
@@ -196,15 +196,8 @@ impl ForceElement for HalfPlaneContact {
         g[o + 2] += e.c[0] * f[1] - e.c[1] * f[0];
     }
 
-    fn add_jacobians(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         let Some(e) = self.eval(q, qd) else { return };
         if e.fn_ <= 0.0 {
             return; // clamped: force and derivatives vanish

@@ -34,7 +34,7 @@ pub use rotational::RotationalSpringDamper;
 pub use spring::PointSpringDamper;
 pub use torsional::TorsionalSpringDamper;
 
-pub use crate::model::{check_coordinates, FdWorkspace, ForceElement, Gravity};
+pub use crate::model::{check_coordinates, FdWorkspace, ForceElement, ForceJacobians, Gravity};
 
 use crate::model::{BodyRef, ModelError};
 

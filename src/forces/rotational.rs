@@ -2,7 +2,7 @@
 //! with linear or tabulated laws (docs/scenarios.md, `[[force]]`).
 
 use super::relative_angle::AnglePair;
-use super::{check_coordinates, Check, FdWorkspace, ForceElement, Law};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians, Law};
 use crate::model::{BodyRef, ModelError};
 
 /// Rotational spring–damper on the relative angle `Δφ = φ_j − φ_i` (the
@@ -80,15 +80,8 @@ impl ForceElement for RotationalSpringDamper {
         self.pair().add_torque(self.torque(q, qd), g);
     }
 
-    fn add_jacobians(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         // g_a = s_a T, Δφ = Σ_b s_b φ_b: ∂g_a/∂φ_b = −k' s_a s_b.
         let (d, r) = self.relative(q, qd);
         let (ks, cs) = (self.stiffness.slope(d), self.damping.slope(r));

@@ -1,7 +1,7 @@
 //! Point-to-point spring–damper–actuator between two body-fixed points (or a
 //! body point and a ground point).
 
-use super::{check_coordinates, Check, FdWorkspace, ForceElement, Law};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians, Law};
 use crate::model::{BodyRef, ModelError, TimeFunction};
 
 /// Lengths below this \[m\] have no direction: the element applies no force.
@@ -243,15 +243,8 @@ impl ForceElement for PointSpringDamper {
         }
     }
 
-    fn add_jacobians(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         let Some(k) = self.kin(q, qd) else { return };
         let f = self.tension(t, k.len, k.rate);
         let ks = self.stiffness.slope(k.len - self.free_length);

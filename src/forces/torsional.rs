@@ -1,7 +1,7 @@
 //! Torsional spring–damper between two bodies (bending of the rod, problem B (docs/problems.md)).
 
 use super::relative_angle::AnglePair;
-use super::{check_coordinates, Check, FdWorkspace, ForceElement};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians};
 use crate::model::{BodyRef, ModelError};
 
 /// Linear torsional spring–damper acting on the relative angle of two bodies
@@ -67,15 +67,8 @@ impl ForceElement for TorsionalSpringDamper {
         self.pair().add_torque(self.torque(q, qd), g);
     }
 
-    fn add_jacobians(
-        &self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        _ws: &mut FdWorkspace,
-    ) {
+    fn add_jacobians(&self, _t: f64, _q: &[f64], _qd: &[f64], out: ForceJacobians<'_>) {
+        let ForceJacobians { dq, dqd, .. } = out;
         // g_j = −k(φ_j − φ_i − r) − c(φ̇_j − φ̇_i), g_i = −g_j
         self.pair().add_jacobians(self.k, self.c, dq, dqd);
     }

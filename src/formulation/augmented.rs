@@ -47,7 +47,8 @@
 
 use super::dynamic_blocks::{DynamicBlocks, PenaltyBlock};
 use super::{
-    all_finite, check_state, FormulationError, StartCorrection, START_MAX_ITER, START_TOL,
+    all_finite, check_state, linear_at, FormulationError, StartCorrection, START_MAX_ITER,
+    START_TOL,
 };
 use crate::integrate::{MultiplierUpdate, SecondOrderDae, SystemError};
 use crate::linalg::{
@@ -176,12 +177,7 @@ impl<'a> Augmented<'a> {
             },
         );
         let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
-        solver
-            .analyze(&k)
-            .map_err(|source| FormulationError::Linear {
-                t: f64::NAN,
-                source,
-            })?;
+        solver.analyze(&k).map_err(linear_at(f64::NAN))?;
         let m = sys.n_constraints();
         Ok(Self {
             sys,
@@ -250,7 +246,7 @@ impl<'a> Augmented<'a> {
         self.solver
             .factorize(&self.k)
             .map(|_| ())
-            .map_err(|source| FormulationError::Linear { t, source })
+            .map_err(linear_at(t))
     }
 
     /// `x += −c Φ_qᵀ e` solved with `W`: `Δ = −W⁻¹ c Φ_qᵀ e` into `v`.
@@ -261,7 +257,7 @@ impl<'a> Augmented<'a> {
         }
         self.solver
             .solve_in_place(&self.k, &mut self.x)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+            .map_err(linear_at(t))?;
         for (vi, d) in v.iter_mut().zip(&self.x) {
             *vi += d;
         }
@@ -293,7 +289,7 @@ impl<'a> Augmented<'a> {
         }
         self.solver
             .solve_in_place(&self.k, &mut self.x)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+            .map_err(linear_at(t))?;
         let mut dmax: f64 = 0.0;
         for (vi, d) in v.iter_mut().zip(&self.x) {
             *vi += d;
@@ -420,7 +416,7 @@ impl<'a> Augmented<'a> {
     /// multiplier iteration at acceleration level (module docs), until
     /// `‖Φ_q q̈ − γ‖∞ ≤ 1e-12 (1 + ‖γ‖∞)` or the correction stalls (at a
     /// singular or redundant Φ_q: the least-squares answer).
-    pub fn initial_accelerations(
+    pub(crate) fn initial_accelerations(
         &mut self,
         t: f64,
         q: &[f64],
@@ -450,7 +446,7 @@ impl<'a> Augmented<'a> {
             }
             self.solver
                 .solve_in_place(&self.k, &mut self.x)
-                .map_err(|source| FormulationError::Linear { t, source })?;
+                .map_err(linear_at(t))?;
             qdd.copy_from_slice(&self.x);
             sys.jacobian_mul(&self.jac, qdd, &mut self.e);
             let mut res: f64 = 0.0;
@@ -551,7 +547,7 @@ impl SecondOrderDae for Augmented<'_> {
     fn solve(&mut self, t: f64, x: &mut [f64]) -> Result<(), SystemError> {
         self.solver
             .solve_in_place(&self.k, x)
-            .map_err(|source| sys_err(FormulationError::Linear { t, source }))
+            .map_err(|source| sys_err(linear_at(t)(source)))
     }
     /// The mass-orthogonal projection of [`Augmented::consistent_start`].
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError> {

@@ -1,8 +1,8 @@
 //! The index-1 form, eq. (5), with Baumgarte terms, eq. (11).
 
 use super::{
-    all_finite, check_state, feedback, mass_orthogonal_step, Baumgarte, Correction, Formulation,
-    FormulationError, PartitionOptions, PenaltyParams, Projection,
+    all_finite, check_state, feedback, linear_at, mass_orthogonal_step, Baumgarte, Correction,
+    Formulation, FormulationError, PartitionOptions, PenaltyParams, Projection,
 };
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
@@ -104,12 +104,7 @@ impl<'a> Index1<'a> {
             sys.jacobian_pattern(),
             solver.storage(),
         );
-        solver
-            .analyze(&k)
-            .map_err(|source| FormulationError::Linear {
-                t: f64::NAN,
-                source,
-            })?;
+        solver.analyze(&k).map_err(linear_at(f64::NAN))?;
         Ok(Self {
             sys,
             opts,
@@ -204,7 +199,7 @@ impl<'a> Index1<'a> {
         )?;
         self.k.set_a_diagonal(sys.mass_diagonal());
         self.k.set_jacobian(&self.jac);
-        let lin = |source| FormulationError::Linear { t, source };
+        let lin = linear_at(t);
         let info = self.solver.factorize(&self.k).map_err(lin)?;
         if info.regularized_pivots > 0 && self.stats.first_regularized_t.is_none() {
             self.stats.first_regularized_t = Some(t);
@@ -226,9 +221,7 @@ impl Index1<'_> {
         self.sys.jacobian_values(q, t, &mut self.jac);
         self.k.set_a_diagonal(self.sys.mass_diagonal());
         self.k.set_jacobian(&self.jac);
-        self.solver
-            .factorize(&self.k)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+        self.solver.factorize(&self.k).map_err(linear_at(t))?;
         Ok(())
     }
 
@@ -250,7 +243,7 @@ impl Index1<'_> {
         qd: &mut [f64],
     ) -> Result<usize, FormulationError> {
         let p = self.opts.projection;
-        let lin = |source| FormulationError::Linear { t, source };
+        let lin = linear_at(t);
         let mut iterations = 0;
         loop {
             self.sys.phi(q, t, &mut self.phi);

@@ -65,7 +65,7 @@
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::dynamic_blocks::DynamicBlocks;
-use super::{all_finite, mass_orthogonal_step, FormulationError};
+use super::{all_finite, linear_at, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
@@ -199,10 +199,7 @@ impl<'a> Index3<'a> {
         };
         let mut solver = solver_for(kind, n + m, newton_opts);
         let k = SaddleMatrix::with_storage(n, m, &a, sys.jacobian_pattern(), solver.storage());
-        let lin = |source| FormulationError::Linear {
-            t: f64::NAN,
-            source,
-        };
+        let lin = linear_at(f64::NAN);
         solver.analyze(&k).map_err(lin)?;
         let mut psolver = solver_for(linear_solver, n + m, SolverOptions::default());
         let kp = SaddleMatrix::with_storage(
@@ -459,9 +456,7 @@ impl<'a> Index3<'a> {
             &mut self.jac,
         )?;
         self.k.set_jacobian(&self.jac);
-        self.solver
-            .factorize(&self.k)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+        self.solver.factorize(&self.k).map_err(linear_at(t))?;
         Ok(())
     }
 
@@ -470,7 +465,7 @@ impl<'a> Index3<'a> {
     pub fn solve_newton(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), FormulationError> {
         self.solver
             .solve_in_place(&self.k, rhs)
-            .map_err(|source| FormulationError::Linear { t, source })
+            .map_err(linear_at(t))
     }
 
     /// Factorise the mass saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` at `q`.
@@ -479,9 +474,7 @@ impl<'a> Index3<'a> {
         all_finite(t, &[("the constraint Jacobian Φ_q", &self.jac)])?;
         self.kp.set_a_diagonal(self.sys.mass_diagonal());
         self.kp.set_jacobian(&self.jac);
-        self.psolver
-            .factorize(&self.kp)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+        self.psolver.factorize(&self.kp).map_err(linear_at(t))?;
         Ok(())
     }
 
@@ -510,7 +503,7 @@ impl<'a> Index3<'a> {
         )?;
         self.psolver
             .solve_in_place(&self.kp, &mut self.x)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+            .map_err(linear_at(t))?;
         qdd.copy_from_slice(&self.x[..n]);
         lambda.copy_from_slice(&self.x[n..]);
         Ok(())
@@ -542,7 +535,7 @@ impl<'a> Index3<'a> {
         qd: &mut [f64],
     ) -> Result<(), FormulationError> {
         let n = self.n;
-        let lin = |source| FormulationError::Linear { t, source };
+        let lin = linear_at(t);
         self.stats.projections += 1;
         self.factor_mass(t, q)?;
         // positions

@@ -38,11 +38,11 @@
 //! the LU, built then, for the rest of the run.
 
 use super::dynamic_blocks::DynamicBlocks;
-use super::{all_finite, FormulationError};
+use super::{all_finite, linear_at, FormulationError};
 use crate::integrate::{ComplexNewton, SystemError};
 use crate::linalg::{
     solver_for, APattern, ComplexChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind,
-    SolverOptions, SolverStats, Storage, Symmetry,
+    SolverOptions, Storage, Symmetry,
 };
 use crate::model::{FdWorkspace, System};
 
@@ -106,7 +106,7 @@ impl ChainPath {
         self.ki.set_jacobian(&self.zeros);
         self.ldlt
             .factorize(&self.kr, &self.ki)
-            .map_err(|source| FormulationError::Linear { t, source })
+            .map_err(linear_at(t))
     }
 }
 
@@ -214,13 +214,6 @@ impl<'a> Index3Complex<'a> {
         self.factorizations
     }
 
-    /// Counters of the sparse LU (zero while the chain path runs).
-    pub fn solver_stats(&self) -> SolverStats {
-        self.lu
-            .as_ref()
-            .map_or_else(SolverStats::default, |l| l.solver.stats())
-    }
-
     /// Assemble `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)`
     /// (coefficients `[re, im]`) and factorise it (module docs).
     #[allow(clippy::too_many_arguments)]
@@ -261,7 +254,7 @@ impl<'a> Index3Complex<'a> {
         re: &mut [f64],
         im: &mut [f64],
     ) -> Result<(), FormulationError> {
-        let lin = |source| FormulationError::Linear { t, source };
+        let lin = linear_at(t);
         match (&mut self.chain, &mut self.lu) {
             (Some(ch), _) if self.on_chain => ch.ldlt.solve(re, im).map_err(lin),
             (_, Some(lu)) => lu.solve_in_place(t, self.n, self.m, re, im),
@@ -315,12 +308,7 @@ impl LuPath {
             },
         );
         let k = SaddleMatrix::with_storage(2 * n, 2 * m, &a, &jp2, solver.storage());
-        solver
-            .analyze(&k)
-            .map_err(|source| FormulationError::Linear {
-                t: f64::NAN,
-                source,
-            })?;
+        solver.analyze(&k).map_err(linear_at(f64::NAN))?;
         Ok(Self {
             k,
             solver,
@@ -392,9 +380,7 @@ impl LuPath {
         self.jac2[..l].copy_from_slice(&self.jac);
         self.jac2[l..].copy_from_slice(&self.jac);
         k.set_jacobian(&self.jac2);
-        self.solver
-            .factorize(k)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+        self.solver.factorize(k).map_err(linear_at(t))?;
         Ok(())
     }
 
@@ -414,7 +400,7 @@ impl LuPath {
         x[2 * n + m..].copy_from_slice(&im[n..]);
         self.solver
             .solve_in_place(&self.k, x)
-            .map_err(|source| FormulationError::Linear { t, source })?;
+            .map_err(linear_at(t))?;
         re[..n].copy_from_slice(&x[..n]);
         im[..n].copy_from_slice(&x[n..2 * n]);
         re[n..].copy_from_slice(&x[2 * n..2 * n + m]);

@@ -1,7 +1,7 @@
 //! Consistent initial conditions (paper §2): positions on Φ(q, t₀) = 0 and
 //! velocities on Φ_q q̇ = −Φ_t, given the independent coordinates.
 
-use super::{all_finite, FormulationError};
+use super::{all_finite, linear_at, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::{BodyRef, System};
 use serde::Serialize;
@@ -179,7 +179,7 @@ pub struct ConsistentState {
 
 /// Correct `(q, q̇)` onto the constraint manifold at `t0`, keeping the
 /// coordinates listed in `independent` (and their velocities) at the given
-/// values ([`consistent_initial_state_locked`] with coordinate locks).
+/// values (`consistent_initial_state_locked` with coordinate locks).
 pub fn consistent_initial_state(
     sys: &System,
     t0: f64,
@@ -214,7 +214,7 @@ pub fn consistent_initial_state(
 /// Φ — the same sparse machinery as the equations of motion. The velocities
 /// are the closest to the given ones with `Φ_q q̇ = −Φ_t` and the locks'
 /// rates.
-pub fn consistent_initial_state_locked(
+pub(crate) fn consistent_initial_state_locked(
     sys: &System,
     t0: f64,
     q: &[f64],
@@ -236,7 +236,7 @@ pub fn consistent_initial_state_locked(
     }
     let mut kmat = SaddleMatrix::new(n, m + nl, &[], &pattern);
     let mut solver = solver_for(opts.linear_solver, n + m + nl, SolverOptions::default());
-    let lin = |source| FormulationError::Linear { t: t0, source };
+    let lin = linear_at(t0);
     solver.analyze(&kmat).map_err(lin)?;
     kmat.set_a_diagonal(&vec![1.0; n]);
 

@@ -43,9 +43,10 @@ pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCAL
 pub use index1::{Index1, Index1Options, RhsStats};
 pub use index3::{Index3, Index3Stats, NewtonSolverKind};
 pub use index3_complex::{ComplexSolverKind, Index3Complex};
+pub(crate) use initial::consistent_initial_state_locked;
 pub use initial::{
-    consistent_initial_state, consistent_initial_state_locked, ConsistentState, InitialOptions,
-    Lock, LockKind, StartCorrection, START_MAX_ITER, START_TOL,
+    consistent_initial_state, ConsistentState, InitialOptions, Lock, LockKind, StartCorrection,
+    START_MAX_ITER, START_TOL,
 };
 pub use partitioning::{PartitionOptions, PartitionStats, Partitioned, MAX_PARTITION_COORDS};
 pub use penalty::{ExplicitForm, Penalty, PenaltyParams};
@@ -366,6 +367,12 @@ impl Projection {
         }
         Ok(())
     }
+}
+
+/// A linear-solver failure of an evaluation at `t` as a
+/// [`FormulationError::Linear`] (`t` = NaN: before any evaluation).
+pub(crate) fn linear_at(t: f64) -> impl Fn(LinalgError) -> FormulationError + Copy {
+    move |source| FormulationError::Linear { t, source }
 }
 
 /// Failures of a formulation.

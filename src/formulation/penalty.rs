@@ -22,7 +22,8 @@
 
 use super::dynamic_blocks::PenaltyBlock;
 use super::{
-    check_state, feedback, Formulation, FormulationError, Index1, Index1Options, RhsStats,
+    check_state, feedback, linear_at, Formulation, FormulationError, Index1, Index1Options,
+    RhsStats,
 };
 use crate::integrate::{OdeSystem, SystemError};
 use crate::linalg::{
@@ -136,12 +137,7 @@ impl<'a> Penalty<'a> {
         let block = PenaltyBlock::register(sys, &mut a);
         let mut solver = solver_for(opts.linear_solver, n, SolverOptions::default());
         let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
-        solver
-            .analyze(&k)
-            .map_err(|source| FormulationError::Linear {
-                t: f64::NAN,
-                source,
-            })?;
+        solver.analyze(&k).map_err(linear_at(f64::NAN))?;
         let m = sys.n_constraints();
         Ok(Self {
             sys,
@@ -221,7 +217,7 @@ impl<'a> Penalty<'a> {
             self.k.add_diagonal(i, m);
         }
         self.block.add(&mut self.k, alpha, &self.jac);
-        let lin = |source| FormulationError::Linear { t, source };
+        let lin = linear_at(t);
         self.solver.factorize(&self.k).map_err(lin)?;
         sys.jacobian_tmul(&self.jac, &self.gamma, &mut self.x);
         for (x, g) in self.x.iter_mut().zip(&self.g) {

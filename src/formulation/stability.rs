@@ -24,7 +24,7 @@
 //! dampers, contacts in contact). Not covered: the geometric stiffness of
 //! the constraint forces `(Φ_qᵀλ)_q` (slow pendulum-like modes).
 
-use super::FormulationError;
+use super::{linear_at, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::{FdWorkspace, System};
 
@@ -104,7 +104,7 @@ pub fn fastest_modes(
     k.set_a_diagonal(sys.mass_diagonal());
     k.set_jacobian(&jac);
     let mut solver = solver_for(SolverKind::Sparse, n + m, SolverOptions::default());
-    let lin = |source| FormulationError::Linear { t, source };
+    let lin = linear_at(t);
     solver.analyze(&k).map_err(lin)?;
     solver.factorize(&k).map_err(lin)?;
 

@@ -226,7 +226,7 @@ impl ChainKernels {
 
     /// The memo of the chain's sines and cosines, to share with force
     /// kernels on the chain's bodies ([`SharedTrig`]).
-    pub fn shared_trig(&self) -> SharedTrig {
+    pub(crate) fn shared_trig(&self) -> SharedTrig {
         SharedTrig {
             memo: self.memo.clone(),
             q0: self.q0,

@@ -104,7 +104,7 @@ impl DragJacobians {
     /// Take the sines and cosines from a chain's memo ([`SharedTrig`]) when
     /// it starts at the same body and covers every drag's body; otherwise
     /// (or while another thread holds the memo) they are computed here.
-    pub fn with_trig(mut self, trig: SharedTrig) -> Self {
+    pub(crate) fn with_trig(mut self, trig: SharedTrig) -> Self {
         if trig.q0 == self.q0 && 3 * trig.n_bodies >= self.fp.len() {
             self.trig = Some(trig);
         }

@@ -51,8 +51,8 @@ impl TrigMemo {
 /// two concurrent halves ([`TrigMemo`]).
 const TRIG_PARALLEL_MIN_BODIES: usize = 2000;
 
-/// A chain's memo of sines and cosines ([`super::ChainKernels::shared_trig`]),
-/// for force kernels on the same bodies ([`super::DragJacobians::with_trig`]):
+/// A chain's memo of sines and cosines (`ChainKernels::shared_trig`),
+/// for force kernels on the same bodies (`DragJacobians::with_trig`):
 /// the residual evaluates the forces and the constraint terms at the same
 /// q, so the angles' sines and cosines are computed once for both. Same
 /// bits: the memo holds [`sin_cos`](crate::trig::sin_cos)'s values.

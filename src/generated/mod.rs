@@ -89,17 +89,6 @@ pub fn recognise(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
     ChainKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
 }
 
-/// Kernels for a revolute chain (optionally with a ground pivot) — the
-/// chain part of [`recognise`].
-pub fn chain_kernels(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
-    ChainKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
-}
-
-/// Kernels for the four-bar — the four-bar part of [`recognise`].
-pub fn fourbar_kernels(sys: &System) -> Option<Box<dyn ConstraintKernels>> {
-    FourBarKernels::recognise(sys).map(|k| Box::new(k) as Box<dyn ConstraintKernels>)
-}
-
 /// Recognise `sys`'s topology and attach the generated kernels to all its
 /// joints, replacing kernels attached before (used from then on, see
 /// [`System::attach_kernels`]). Returns whether kernels were attached; the

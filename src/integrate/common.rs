@@ -158,7 +158,7 @@ impl StepEnds {
     }
 
     /// The step to `tnew` (in `ynew`) is accepted.
-    pub fn accept(&mut self, tnew: f64) {
+    pub(crate) fn accept(&mut self, tnew: f64) {
         self.tnew = tnew;
         self.pending = true;
     }
@@ -286,7 +286,7 @@ impl<'a> OutputCursor<'a> {
     }
 
     /// Delivers `output(t0, y0)` if `t0` is a requested time.
-    pub fn deliver_initial(
+    pub(crate) fn deliver_initial(
         &mut self,
         t0: f64,
         y0: &[f64],
@@ -307,7 +307,7 @@ impl<'a> OutputCursor<'a> {
     /// steps land on the output times only up to rounding), earlier ones
     /// get `interp(t_out, buf)` (the continuous extension).
     #[allow(clippy::too_many_arguments)]
-    pub fn deliver_step_snapped(
+    pub(crate) fn deliver_step_snapped(
         &mut self,
         t_new: f64,
         snap: f64,

@@ -30,53 +30,9 @@
 use super::common::{
     self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, StepEnds,
 };
-use super::driver::{self, Failure, StepCut, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
-use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
-
-/// Adaptive embedded RK integrator with MATLAB's step-size control.
-pub(crate) struct EmbeddedRk {
-    method: Method,
-    options: OdeOptions,
-    tableau: &'static EmbeddedTableau,
-}
-
-impl EmbeddedRk {
-    pub fn new(method: Method, options: OdeOptions, tableau: &'static EmbeddedTableau) -> Self {
-        Self {
-            method,
-            options,
-            tableau,
-        }
-    }
-}
-
-impl Integrator for EmbeddedRk {
-    fn method(&self) -> Method {
-        self.method
-    }
-
-    fn integrate(
-        &mut self,
-        sys: &mut dyn OdeSystem,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let n = common::validate_run(sys, &self.options, t0, t_end, y0, output_times)?;
-        let mut st = EmbeddedStepper::new(sys, &self.options, self.tableau, t0, t_end, y0, n);
-        let (termination, t_reached) =
-            driver::drive(&mut st, output_times, self.options.max_steps, t_end, obs);
-        Ok(Report {
-            stats: st.stats,
-            termination,
-            t_reached,
-            warnings: st.warnings,
-        })
-    }
-}
+use super::{OdeOptions, OdeSystem, Stats};
 
 /// One run of the embedded pair: the system, MATLAB's step-control state
 /// and the work arrays (allocated once).
@@ -104,7 +60,8 @@ pub(crate) struct EmbeddedStepper<'a> {
 }
 
 impl<'a> EmbeddedStepper<'a> {
-    fn new(
+    /// The stepper of one run of the pair `tab` (`n` = `sys.dim()`).
+    pub(crate) fn new(
         sys: &'a mut dyn OdeSystem,
         opts: &OdeOptions,
         tab: &'static EmbeddedTableau,

@@ -383,13 +383,6 @@ impl Method {
         self.family() == Family::GeneralizedAlpha
     }
 
-    /// Former name of [`Method::is_generalized_alpha`] (it never included
-    /// bdf and radau5, which are implicit too).
-    #[doc(hidden)]
-    pub fn is_implicit(&self) -> bool {
-        self.is_generalized_alpha()
-    }
-
     /// The methods that integrate the index-3 equations (the
     /// generalized-α family, bdf and radau5): no Baumgarte terms,
     /// numerical damping that only removes energy.

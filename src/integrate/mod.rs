@@ -359,15 +359,56 @@ pub fn integrator(
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
     options.validate(method, false)?;
-    Ok(match method {
-        Method::Ode23 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::BS23)),
-        Method::Ode45 => Box::new(embedded::EmbeddedRk::new(method, options, &tableau::DP54)),
-        Method::Rk4 => Box::new(rk4::Rk4::new(options)),
-        Method::Ode113 => Box::new(ode113::Ode113::new(options)),
-        Method::Bdf | Method::GenAlpha | Method::Hht | Method::Newmark | Method::Radau5 => {
-            return Err(IntegratorError::ImplicitMethod(method.name()))
-        }
-    })
+    Ok(Box::new(Explicit { method, options }))
+}
+
+/// The explicit methods as an [`Integrator`]: the inputs checked, the
+/// method's [`driver::Stepper`] driven by [`driver::drive`].
+struct Explicit {
+    method: Method,
+    options: OdeOptions,
+}
+
+impl Integrator for Explicit {
+    fn method(&self) -> Method {
+        self.method
+    }
+
+    fn integrate(
+        &mut self,
+        sys: &mut dyn OdeSystem,
+        t0: f64,
+        t_end: f64,
+        y0: &[f64],
+        output_times: &[f64],
+        obs: &mut dyn Observer,
+    ) -> Result<Report, IntegratorError> {
+        let opts = &self.options;
+        let n = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
+        let mut st: Box<dyn driver::Stepper + '_> = match self.method {
+            Method::Ode23 | Method::Ode45 => {
+                let tab = if self.method == Method::Ode23 {
+                    &tableau::BS23
+                } else {
+                    &tableau::DP54
+                };
+                Box::new(embedded::EmbeddedStepper::new(
+                    sys, opts, tab, t0, t_end, y0, n,
+                ))
+            }
+            Method::Rk4 => Box::new(rk4::Rk4Stepper::new(sys, opts, t0, t_end, y0, n)),
+            Method::Ode113 => Box::new(ode113::Ode113Stepper::new(sys, opts, t0, t_end, y0, n)),
+            m => return Err(IntegratorError::ImplicitMethod(m.name())),
+        };
+        let (termination, t_reached) =
+            driver::drive(st.as_mut(), output_times, opts.max_steps, t_end, obs);
+        Ok(Report {
+            stats: st.stats(),
+            termination,
+            t_reached,
+            warnings: st.warnings().to_vec(),
+        })
+    }
 }
 
 #[cfg(test)]

@@ -36,8 +36,8 @@
 #![allow(clippy::needless_range_loop)] // 1-based transcription of STEP/INTRP
 
 use super::common::{self, call_rhs, post_step};
-use super::driver::{self, Failure, StepCut, Stepper};
-use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
+use super::driver::{Failure, StepCut, Stepper};
+use super::{OdeOptions, OdeSystem, Stats};
 
 /// Highest order of the predictor (the corrector is one higher).
 const MAXK: usize = 12;
@@ -48,44 +48,6 @@ const GSTAR: [f64; 14] = [
     0.0, 0.5, 0.0833, 0.0417, 0.0264, 0.0188, 0.0143, 0.0114, 0.00936, 0.00789, 0.00679, 0.00592,
     0.00524, 0.00468,
 ];
-
-/// MATLAB's `ode113` (module docs).
-pub(crate) struct Ode113 {
-    options: OdeOptions,
-}
-
-impl Ode113 {
-    pub fn new(options: OdeOptions) -> Self {
-        Self { options }
-    }
-}
-
-impl Integrator for Ode113 {
-    fn method(&self) -> Method {
-        Method::Ode113
-    }
-
-    fn integrate(
-        &mut self,
-        sys: &mut dyn OdeSystem,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let n = common::validate_run(sys, &self.options, t0, t_end, y0, output_times)?;
-        let mut st = Ode113Stepper::new(sys, &self.options, t0, t_end, y0, n);
-        let (termination, t_reached) =
-            driver::drive(&mut st, output_times, self.options.max_steps, t_end, obs);
-        Ok(Report {
-            stats: st.stats,
-            termination,
-            t_reached,
-            warnings: st.warnings,
-        })
-    }
-}
 
 /// `max_i |x_i| · invwt_i` (a `0·∞` term — `atol = 0`, `y_i = 0` — is
 /// ignored as MATLAB's `max` ignores NaN).
@@ -139,7 +101,8 @@ pub(crate) struct Ode113Stepper<'a> {
 }
 
 impl<'a> Ode113Stepper<'a> {
-    fn new(
+    /// The stepper of one run (`n` = `sys.dim()`).
+    pub(crate) fn new(
         sys: &'a mut dyn OdeSystem,
         opts: &OdeOptions,
         t0: f64,

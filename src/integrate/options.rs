@@ -307,7 +307,7 @@ impl ImplicitOptions {
     /// ([`IntegratorError::NotApplicable`] names the first that does not);
     /// for the index-3 methods `newton_tol > 0`, `max_newton ≥ 1`,
     /// `min_step > 0`, for the generalized-α family also ρ∞ in the
-    /// method's range ([`AlphaParameters::for_method`]) and, with a fixed
+    /// method's range (`AlphaParameters::for_method`) and, with a fixed
     /// step, `min_step` not above it.
     pub fn validate(&self, method: Method, fixed_step: Option<f64>) -> Result<(), IntegratorError> {
         // the fields the method's row of the method table reads (adaptive
@@ -395,11 +395,5 @@ impl ImplicitOptions {
         .zip(Self::FIELDS)
         .find(|(differs, f)| *differs && filter(f))
         .map(|(_, f)| f)
-    }
-
-    /// The first field (in declaration order) whose value differs from
-    /// [`ImplicitOptions::default`].
-    pub fn first_non_default(&self) -> Option<&'static str> {
-        self.first_non_default_where(|_| true)
     }
 }

@@ -1,34 +1,13 @@
 //! Classic four-stage, fourth-order Runge–Kutta method with a fixed step.
 
 use super::common::{self, call_rhs, eval_stages, lincomb, post_step, StepEnds};
-use super::driver::{self, Failure, Stepper};
+use super::driver::{Failure, Stepper};
 use super::hermite::cubic;
-use super::{Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem, Report, Stats};
+use super::{OdeOptions, OdeSystem, Stats};
 
 const RK4_C: [f64; 4] = [0.0, 0.5, 0.5, 1.0];
 const RK4_A: [&[f64]; 4] = [&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]];
 const RK4_B: [f64; 4] = [1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0];
-
-/// Fixed-step classic RK4.
-///
-/// The step is `fixed_step`; the span is covered by `N = ceil((t_end - t0)/h)`
-/// steps ending at `t0 + i·h` (no accumulated round-off), the last one
-/// shortened to end exactly on `t_end` (a span within a relative `1e-9`
-/// of an integer multiple of `h` uses exactly that many steps).
-///
-/// Dense output is the cubic Hermite interpolant of `y` and `f = y'` at both
-/// ends of the step; `f(t_{i+1}, y_{i+1})` is evaluated after each step and
-/// reused as the first stage of the next one, so a run costs
-/// `rhs_evals = 4·steps + 1` evaluations.
-pub(crate) struct Rk4 {
-    options: OdeOptions,
-}
-
-impl Rk4 {
-    pub fn new(options: OdeOptions) -> Self {
-        Self { options }
-    }
-}
 
 /// Number of fixed steps of size `h` covering `span`.
 fn step_count(span: f64, h: f64) -> usize {
@@ -42,49 +21,20 @@ fn step_count(span: f64, h: f64) -> usize {
     (n.max(1.0)).min(usize::MAX as f64) as usize
 }
 
-impl Integrator for Rk4 {
-    fn method(&self) -> Method {
-        Method::Rk4
-    }
-
-    fn integrate(
-        &mut self,
-        sys: &mut dyn OdeSystem,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let opts = &self.options;
-        let n = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
-        let h = opts
-            .fixed_step
-            .expect("validated by integrator(): rk4 has a fixed_step");
-        let mut st = Rk4Stepper {
-            sys,
-            t0,
-            t_end,
-            h,
-            nsteps: step_count(t_end - t0, h),
-            ends: StepEnds::new(t0, y0),
-            ytmp: vec![0.0; n],
-            k: vec![0.0; 5 * n],
-            stats: Stats::default(),
-        };
-        let (termination, t_reached) =
-            driver::drive(&mut st, output_times, opts.max_steps, t_end, obs);
-        Ok(Report {
-            stats: st.stats,
-            termination,
-            t_reached,
-            warnings: Vec::new(),
-        })
-    }
-}
-
-/// One run of RK4: the system, the step grid and the work arrays.
-struct Rk4Stepper<'a> {
+/// Fixed-step classic RK4.
+///
+/// The step is `fixed_step`; the span is covered by `N = ceil((t_end - t0)/h)`
+/// steps ending at `t0 + i·h` (no accumulated round-off), the last one
+/// shortened to end exactly on `t_end` (a span within a relative `1e-9`
+/// of an integer multiple of `h` uses exactly that many steps).
+///
+/// Dense output is the cubic Hermite interpolant of `y` and `f = y'` at both
+/// ends of the step; `f(t_{i+1}, y_{i+1})` is evaluated after each step and
+/// reused as the first stage of the next one, so a run costs
+/// `rhs_evals = 4·steps + 1` evaluations.
+///
+/// One run: the system, the step grid and the work arrays.
+pub(crate) struct Rk4Stepper<'a> {
     sys: &'a mut dyn OdeSystem,
     t0: f64,
     t_end: f64,
@@ -96,6 +46,33 @@ struct Rk4Stepper<'a> {
     /// k_1..k_4 followed by f(t_new, y_new).
     k: Vec<f64>,
     stats: Stats,
+}
+
+impl<'a> Rk4Stepper<'a> {
+    /// The stepper of one run (`n` = `sys.dim()`; `opts.fixed_step` set).
+    pub(crate) fn new(
+        sys: &'a mut dyn OdeSystem,
+        opts: &OdeOptions,
+        t0: f64,
+        t_end: f64,
+        y0: &[f64],
+        n: usize,
+    ) -> Self {
+        let h = opts
+            .fixed_step
+            .expect("validated by integrator(): rk4 has a fixed_step");
+        Self {
+            sys,
+            t0,
+            t_end,
+            h,
+            nsteps: step_count(t_end - t0, h),
+            ends: StepEnds::new(t0, y0),
+            ytmp: vec![0.0; n],
+            k: vec![0.0; 5 * n],
+            stats: Stats::default(),
+        }
+    }
 }
 
 impl Stepper for Rk4Stepper<'_> {

@@ -40,7 +40,7 @@ impl EmbeddedTableau {
         self.a[self.stages() - 1]
     }
     /// Degree of the continuous extension (number of columns of `BI`).
-    pub fn interp_degree(&self) -> usize {
+    pub(crate) fn interp_degree(&self) -> usize {
         self.bi[0].len()
     }
 }

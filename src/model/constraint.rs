@@ -161,7 +161,7 @@ pub fn check_bodies(element: &str, bodies: &[BodyRef], n_bodies: usize) -> Resul
 }
 
 /// Sorted distinct columns of a pattern.
-pub fn touched_columns(pattern: &[(usize, usize)]) -> Vec<usize> {
+pub(crate) fn touched_columns(pattern: &[(usize, usize)]) -> Vec<usize> {
     let mut cols: Vec<usize> = pattern.iter().map(|&(_, c)| c).collect();
     cols.sort_unstable();
     cols.dedup();

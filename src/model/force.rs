@@ -23,19 +23,11 @@ pub trait ForceElement: Send + Sync + Debug {
     fn jacobian_coordinates(&self) -> Vec<usize> {
         self.coordinates()
     }
-    /// Add `∂g/∂q` to `dq` and `∂g/∂q̇` to `dqd`, both `k × k` row-major over
-    /// [`ForceElement::jacobian_coordinates`] (`[r * k + c] = ∂g_r/∂q_c`).
-    /// Default: central finite differences through [`FdWorkspace`].
-    fn add_jacobians(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        dq: &mut [f64],
-        dqd: &mut [f64],
-        ws: &mut FdWorkspace,
-    ) {
-        ws.jacobians(self, t, q, qd, dq, dqd);
+    /// Add `∂g/∂q` to `out.dq` and `∂g/∂q̇` to `out.dqd` (see
+    /// [`ForceJacobians`]). Default: central finite differences through
+    /// `out.ws`.
+    fn add_jacobians(&self, t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        out.ws.jacobians(self, t, q, qd, out.dq, out.dqd);
     }
     /// Potential energy, for conservative elements (energy checks).
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
@@ -136,6 +128,20 @@ pub fn check_coordinates(
         }),
         None => Ok(()),
     }
+}
+
+/// Where [`ForceElement::add_jacobians`] adds an element's Jacobian blocks:
+/// both `k × k` row-major over [`ForceElement::jacobian_coordinates`]
+/// (`[r * k + c] = ∂g_r/∂q_c`), with the finite-difference scratch space for
+/// elements without analytic Jacobians.
+#[derive(Debug)]
+pub struct ForceJacobians<'a> {
+    /// The `∂g/∂q` block.
+    pub dq: &'a mut [f64],
+    /// The `∂g/∂q̇` block.
+    pub dqd: &'a mut [f64],
+    /// Scratch space of the default finite differences.
+    pub ws: &'a mut FdWorkspace,
 }
 
 /// Scratch space for finite-difference derivatives: the default
@@ -329,7 +335,12 @@ mod tests {
         let k = spring.jacobian_coordinates().len();
         let (mut a_q, mut a_qd) = (vec![0.0; k * k], vec![0.0; k * k]);
         let mut ws = FdWorkspace::default();
-        spring.add_jacobians(0.0, &q, &qd, &mut a_q, &mut a_qd, &mut ws);
+        let out = ForceJacobians {
+            dq: &mut a_q,
+            dqd: &mut a_qd,
+            ws: &mut ws,
+        };
+        spring.add_jacobians(0.0, &q, &qd, out);
         // twice through the workspace: the second call must see fresh q and a clean g
         for q_shift in [0.0, 0.25] {
             let q2: Vec<f64> = q.iter().map(|v| v + q_shift).collect();

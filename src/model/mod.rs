@@ -22,14 +22,14 @@ mod system;
 mod time_function;
 
 pub use body::{Body, BodyRef};
-pub use constraint::{check_bodies, touched_columns, Constraint, JointGeometry};
+pub(crate) use constraint::touched_columns;
+pub use constraint::{check_bodies, Constraint, JointGeometry};
 pub use energy::EnergyWorkspace;
-pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry};
+pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry, ForceJacobians};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
-pub use sensor::{
-    drives, evaluate_sensors, joint_short_name, point_state, Drive, Sensor, SensorKind,
-};
+pub use sensor::{drives, Drive, Sensor, SensorKind};
+pub(crate) use sensor::{evaluate_sensors, joint_short_name, point_state};
 pub use system::{
     ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, System, SystemBuilder,
 };
@@ -44,7 +44,7 @@ pub fn rotate(phi: f64, s: [f64; 2]) -> [f64; 2] {
 
 /// `J v` with `J = [[0, −1], [1, 0]]` (rotation by +90°): `∂(R(φ)s)/∂φ = J R(φ) s`.
 #[inline]
-pub fn perp(v: [f64; 2]) -> [f64; 2] {
+pub(crate) fn perp(v: [f64; 2]) -> [f64; 2] {
     [-v[1], v[0]]
 }
 

@@ -62,7 +62,7 @@ pub struct Sensor {
 }
 
 /// Position and velocity of point `s` of body `b`.
-pub fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
+pub(crate) fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
     match b.offset() {
         None => (s, [0.0; 2]),
         Some(o) => {
@@ -79,7 +79,7 @@ pub fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2],
 
 /// The short name of a joint: the quoted name in its description
 /// ("revolute joint 'B'" → "B"), if any.
-pub fn joint_short_name(c: &dyn Constraint) -> Option<String> {
+pub(crate) fn joint_short_name(c: &dyn Constraint) -> Option<String> {
     let name = c.name();
     match (name.find('\''), name.rfind('\'')) {
         (Some(a), Some(b)) if b > a + 1 => Some(name[a + 1..b].to_string()),
@@ -147,7 +147,7 @@ impl Sensor {
 
 /// Every sensor's values at `(t, q, q̇)` into `out` (cleared first), sensor
 /// after sensor.
-pub fn evaluate_sensors(
+pub(crate) fn evaluate_sensors(
     sensors: &[Sensor],
     sys: &System,
     t: f64,

@@ -1,7 +1,7 @@
 //! The assembled multibody system: numbering and evaluation of Φ, Φ_q, Φ_t,
 //! γ and g.
 
-use super::{Body, Constraint, FdWorkspace, ForceElement, Gravity, ModelError};
+use super::{Body, Constraint, FdWorkspace, ForceElement, ForceJacobians, Gravity, ModelError};
 use std::ops::Range;
 
 mod halves;
@@ -132,7 +132,11 @@ impl SystemBuilder {
     /// Attach Jacobian kernels to the force elements `elements` (indices
     /// returned by [`SystemBuilder::add_force`]); checked and used from
     /// [`SystemBuilder::build`] on.
-    pub fn attach_force_kernels(&mut self, elements: Range<usize>, k: Box<dyn ForceKernels>) {
+    pub(crate) fn attach_force_kernels(
+        &mut self,
+        elements: Range<usize>,
+        k: Box<dyn ForceKernels>,
+    ) {
         self.force_kernels.push((elements, k));
     }
     /// Uniform gravity on every body (added as a [`Gravity`] element at build time).
@@ -272,7 +276,7 @@ impl System {
     /// Append a force element to a built system (after every element it
     /// has, gravity included), validated as [`SystemBuilder::build`] does;
     /// returns its index. Its Jacobian block goes last in
-    /// [`System::force_jacobian_pattern`]; attached kernels keep theirs.
+    /// `System::force_jacobian_pattern`; attached kernels keep theirs.
     /// For forces a scenario file cannot describe, such as a
     /// [`crate::forces::CallbackForce`] added to a loaded scenario's system.
     pub fn add_force(&mut self, f: Box<dyn ForceElement>) -> Result<usize, ModelError> {
@@ -367,7 +371,7 @@ impl System {
     /// `k × k` block over its [`ForceElement::jacobian_coordinates`],
     /// row-major, element after element (elements without Jacobian
     /// coordinates have none).
-    pub fn force_jacobian_pattern(&self) -> &[(usize, usize)] {
+    pub(crate) fn force_jacobian_pattern(&self) -> &[(usize, usize)] {
         &self.force_jac_pattern
     }
 
@@ -375,7 +379,7 @@ impl System {
     /// [`System::force_jacobian_pattern`]: the force kernels' where
     /// attached, each element's otherwise (finite differences through `ws`
     /// for elements without analytic Jacobians).
-    pub fn add_force_jacobians(
+    pub(crate) fn add_force_jacobians(
         &self,
         t: f64,
         q: &[f64],
@@ -389,7 +393,12 @@ impl System {
                 Segment::Joint(e) => {
                     let r = self.force_jac_offset[e]..self.force_jac_offset[e + 1];
                     if !r.is_empty() {
-                        self.forces[e].add_jacobians(t, q, qd, &mut dq[r.clone()], &mut dqd[r], ws);
+                        let out = ForceJacobians {
+                            dq: &mut dq[r.clone()],
+                            dqd: &mut dqd[r],
+                            ws: &mut *ws,
+                        };
+                        self.forces[e].add_jacobians(t, q, qd, out);
                     }
                 }
                 Segment::Kernels(i) => {

@@ -92,7 +92,7 @@ pub(super) fn build(
 ) -> Result<Initial, ScenarioError> {
     let err = |key: String, message: String| error(file, key, message);
     let body_index = |key: String, name: &str| body_index(names, file, key, name);
-    let (t0, linear_solver) = (run.t0, run.index1.linear_solver);
+    let (t0, linear_solver) = (run.t0, run.formulation.linear_solver);
     let coord = |key: String, spec: &str| -> Result<usize, ScenarioError> {
         let (b, c) = spec.rsplit_once('.').ok_or_else(|| {
             err(

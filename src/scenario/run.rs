@@ -271,7 +271,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         t0,
         t_end,
         output_dt: dt,
-        index1: Index1Options {
+        formulation: Index1Options {
             formulation,
             baumgarte,
             linear_solver,

@@ -69,7 +69,7 @@ pub(super) struct Explicit<'s> {
 impl<'s> Explicit<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         Ok(Self {
-            f: ExplicitForm::new(sys, cfg.index1)?,
+            f: ExplicitForm::new(sys, cfg.formulation)?,
             integ: integrator(cfg.method, cfg.ode.clone())?,
         })
     }
@@ -90,17 +90,20 @@ impl MethodRun for Explicit<'_> {
     fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
         let stats = self.f.stats();
         let work = Work {
-            formulation: format!("{:?}", cfg.index1.formulation).to_lowercase(),
+            formulation: format!("{:?}", cfg.formulation.formulation).to_lowercase(),
             linear_solver: self.f.solver_name().to_string(),
-            baumgarte: (cfg.index1.baumgarte.alpha, cfg.index1.baumgarte.beta),
+            baumgarte: (
+                cfg.formulation.baumgarte.alpha,
+                cfg.formulation.baumgarte.beta,
+            ),
             factorizations: stats.solver.factorizations,
             regularized_pivots: stats.solver.regularized_pivots,
             indefinite_pivots: stats.solver.indefinite_pivots,
             first_regularized_t: stats.first_regularized_t,
         };
         let mut extra = serde_json::Map::new();
-        if cfg.index1.formulation == crate::formulation::Formulation::Penalty {
-            let p = cfg.index1.penalty;
+        if cfg.formulation.formulation == crate::formulation::Formulation::Penalty {
+            let p = cfg.formulation.penalty;
             for (k, v) in [
                 ("penalty", p.alpha),
                 ("penalty_xi", p.xi),
@@ -109,7 +112,7 @@ impl MethodRun for Explicit<'_> {
                 extra.insert(k.into(), v.into());
             }
         }
-        if cfg.index1.projection.enabled {
+        if cfg.formulation.projection.enabled {
             extra.insert("projections".into(), stats.projections.into());
             let it = stats.projection_iterations;
             extra.insert("projection_iterations".into(), it.into());
@@ -196,7 +199,7 @@ impl<'s> AugmentedRun<'s> {
             GenAlpha::for_augmented_lagrangian(cfg.method, cfg.implicit.clone(), cfg.ode.clone())?;
         let h = cfg.ode.fixed_step.unwrap_or(f64::NAN);
         let s0 = integ.params().beta * h * h;
-        let f = Augmented::new(sys, cfg.augmented, cfg.index1.linear_solver, s0)?;
+        let f = Augmented::new(sys, cfg.augmented, cfg.formulation.linear_solver, s0)?;
         let penalty = f.alpha();
         Ok(Self { f, integ, penalty })
     }
@@ -365,7 +368,7 @@ impl<'s, S> Index3Run<'s, S> {
         newton: NewtonSolverKind,
         scheme: S,
     ) -> Result<Self, SimulationError> {
-        let f = Index3::with_newton_solver(sys, cfg.index1.linear_solver, newton)?;
+        let f = Index3::with_newton_solver(sys, cfg.formulation.linear_solver, newton)?;
         Ok(Self { f, scheme })
     }
 }

@@ -41,15 +41,18 @@ pub struct RunConfig {
     pub t_end: f64,
     /// Spacing of output times (t0, t0 + dt, …, t_end).
     pub output_dt: f64,
-    /// Formulation, Baumgarte parameters, linear solver.
-    pub index1: Index1Options,
+    /// How the constraints enter the equations of motion (scenario key
+    /// `formulation`: saddle point, λ eliminated, penalty, partitioned,
+    /// augmented Lagrangian), with the Baumgarte, projection, penalty and
+    /// partitioning parameters and the linear solver of every method.
+    pub formulation: Index1Options,
     /// Options of the index-3 methods (which fields apply to which method:
     /// [`crate::integrate::METHODS`]): ρ∞, adaptivity, Newton, projection. Their step,
     /// tolerances, `max_step`, `initial_step` and `max_steps` come from
-    /// `ode`, their linear solver from `index1.linear_solver`. Must stay
+    /// `ode`, their linear solver from `formulation.linear_solver`. Must stay
     /// at its default for the explicit methods ([`ImplicitOptions::validate`]).
     pub implicit: ImplicitOptions,
-    /// Parameters of `index1.formulation =`
+    /// Parameters of `formulation.formulation =`
     /// [`Formulation::AugmentedLagrangian`] (implicit methods only).
     pub augmented: AugmentedParams,
     /// Guards against silent nonsense: warnings and the "diverged" stop.
@@ -147,7 +150,7 @@ impl Default for RunConfig {
             t0: 0.0,
             t_end: 1.0,
             output_dt: 0.01,
-            index1: Index1Options::default(),
+            formulation: Index1Options::default(),
             implicit: ImplicitOptions::default(),
             augmented: AugmentedParams::default(),
             guards: Guards::default(),
@@ -429,17 +432,19 @@ pub fn simulate_into(
         .map_err(SimulationError::Environment)?;
     // the method's family (its row of the method table) picks the run;
     // the augmented Lagrangian and coordinate partitioning are formulations
-    let mut method: Box<dyn MethodRun + '_> = match (cfg.method.family(), cfg.index1.formulation) {
-        (_, Formulation::AugmentedLagrangian) => Box::new(AugmentedRun::new(sys, cfg)?),
-        (Family::GeneralizedAlpha, _) => Box::new(GenAlphaRun::new(sys, cfg)?),
-        (Family::Bdf, _) => Box::new(BdfRun::new(sys, cfg)?),
-        (Family::Radau, _) => Box::new(RadauRun::new(sys, cfg)?),
-        (Family::RungeKutta | Family::Adams, Formulation::Partitioned) => {
-            let f = Partitioned::new(sys, cfg.index1.partition, cfg.index1, cfg.t0, q0)?;
-            Box::new(Partition { f })
-        }
-        (Family::RungeKutta | Family::Adams, _) => Box::new(Explicit::new(sys, cfg)?),
-    };
+    let mut method: Box<dyn MethodRun + '_> =
+        match (cfg.method.family(), cfg.formulation.formulation) {
+            (_, Formulation::AugmentedLagrangian) => Box::new(AugmentedRun::new(sys, cfg)?),
+            (Family::GeneralizedAlpha, _) => Box::new(GenAlphaRun::new(sys, cfg)?),
+            (Family::Bdf, _) => Box::new(BdfRun::new(sys, cfg)?),
+            (Family::Radau, _) => Box::new(RadauRun::new(sys, cfg)?),
+            (Family::RungeKutta | Family::Adams, Formulation::Partitioned) => {
+                let f =
+                    Partitioned::new(sys, cfg.formulation.partition, cfg.formulation, cfg.t0, q0)?;
+                Box::new(Partition { f })
+            }
+            (Family::RungeKutta | Family::Adams, _) => Box::new(Explicit::new(sys, cfg)?),
+        };
     let (mut q0, mut qd0) = (q0.to_vec(), qd0.to_vec());
     let moved = method.consistent_start(cfg, &mut q0, &mut qd0)?;
     let mut watch = Watch::new(sys, cfg, &q0, monitors, sink);

@@ -32,8 +32,8 @@ pub(super) fn stability_check(
     // Baumgarte's terms, eq. (10), make the constraint violation a mode of
     // its own: Φ̈ + 2αΦ̇ + β²Φ = 0 decays at rates α ± √(α² − β²) (or
     // oscillates at β), stiff for the explicit methods when α or β is large
-    let f = cfg.index1.formulation;
-    let bg = cfg.index1.baumgarte;
+    let f = cfg.formulation.formulation;
+    let bg = cfg.formulation.baumgarte;
     let baumgarte_rate =
         if sys.n_constraints() > 0 && matches!(f, Formulation::Saddle | Formulation::Eliminated) {
             let (a, b) = (bg.alpha.abs(), bg.beta.abs());

@@ -184,11 +184,11 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             // eq. (5) with the run's Baumgarte terms (none for the
             // index-3 and penalty runs), without projection
             let mut opts = Index1Options {
-                linear_solver: cfg.index1.linear_solver,
+                linear_solver: cfg.formulation.linear_solver,
                 ..Index1Options::default()
             };
-            if !cfg.method.is_index3() && cfg.index1.formulation != Formulation::Penalty {
-                opts.baumgarte = cfg.index1.baumgarte;
+            if !cfg.method.is_index3() && cfg.formulation.formulation != Formulation::Penalty {
+                opts.baumgarte = cfg.formulation.baumgarte;
             }
             Index1::new(sys, opts).ok()
         } else {
@@ -207,7 +207,8 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
             keeps_branch: if cfg.method.is_generalized_alpha() {
                 cfg.implicit.project
             } else {
-                cfg.index1.projection.enabled || cfg.index1.formulation == Formulation::Partitioned
+                cfg.formulation.projection.enabled
+                    || cfg.formulation.formulation == Formulation::Partitioned
             },
             advice: drift_advice(cfg),
             phi_fail_why,
@@ -474,12 +475,12 @@ pub const SIZE_FRACTION: f64 = 0.25;
 /// What to change when a run drifts off its constraints, naming only keys
 /// the run's method and formulation accept (docs/scenarios.md).
 pub(super) fn drift_advice(cfg: &RunConfig) -> String {
-    let f = cfg.index1.formulation;
-    if cfg.method.is_implicit() && f == Formulation::AugmentedLagrangian {
+    let f = cfg.formulation.formulation;
+    if cfg.method.is_generalized_alpha() && f == Formulation::AugmentedLagrangian {
         "reduce integrator.step or raise stabilization.penalty".into()
-    } else if cfg.method.is_implicit() && !cfg.implicit.project {
+    } else if cfg.method.is_generalized_alpha() && !cfg.implicit.project {
         "set integrator.project = true, or reduce integrator.newton_tol or the step".into()
-    } else if cfg.method.is_implicit() {
+    } else if cfg.method.is_generalized_alpha() {
         "reduce integrator.newton_tol or the step (integrator.project is already on)".into()
     } else if cfg.method.is_index3() {
         "tighten integrator.rtol and integrator.atol".into()
@@ -487,7 +488,7 @@ pub(super) fn drift_advice(cfg: &RunConfig) -> String {
         "tighten the tolerances or raise stabilization.penalty".into()
     } else if f == Formulation::Partitioned {
         "tighten the tolerances or lower stabilization.partition_condition".into()
-    } else if cfg.index1.projection.enabled {
+    } else if cfg.formulation.projection.enabled {
         "tighten the tolerances (stabilization.projection is already on), or use an \
          index-3 method"
             .into()

@@ -196,7 +196,7 @@ fn run_projected(
     {
         let mut cfg = sc.run.clone();
         cfg.method = method;
-        cfg.index1 = index1;
+        cfg.formulation = index1;
         if let Some(h) = step {
             cfg.ode.fixed_step = Some(h);
         } else {
@@ -204,7 +204,7 @@ fn run_projected(
             cfg.ode.atol = Tolerance::Scalar(rtol * 1e-2);
         }
         let (t0, s0) = run(sc, &cfg);
-        cfg.index1.projection.enabled = true;
+        cfg.formulation.projection.enabled = true;
         let (t1, s1) = run(sc, &cfg);
         let (e0, e1) = (max_diff(&t0, tr), max_diff(&t1, tr));
         eprintln!(
@@ -257,8 +257,8 @@ fn penalty_violation_falls_like_one_over_alpha() {
     let mut err = Vec::new();
     for &alpha in &alphas {
         let mut cfg = reference.clone();
-        cfg.index1.formulation = Formulation::Penalty;
-        cfg.index1.penalty = PenaltyParams {
+        cfg.formulation.formulation = Formulation::Penalty;
+        cfg.formulation.penalty = PenaltyParams {
             alpha,
             ..Default::default()
         };
@@ -369,16 +369,16 @@ fn penalty_and_projection_from_scenario_keys() {
         "stabilization.penalty=1e6",
         "stabilization.penalty_omega=20",
     ]);
-    assert_eq!(sc.run.index1.formulation, Formulation::Penalty);
-    assert_eq!(sc.run.index1.penalty.alpha, 1e6);
-    assert_eq!(sc.run.index1.penalty.omega, 20.0);
-    assert_eq!(sc.run.index1.penalty.xi, 1.0);
+    assert_eq!(sc.run.formulation.formulation, Formulation::Penalty);
+    assert_eq!(sc.run.formulation.penalty.alpha, 1e6);
+    assert_eq!(sc.run.formulation.penalty.omega, 20.0);
+    assert_eq!(sc.run.formulation.penalty.xi, 1.0);
     let (_, s) = run(&sc, &sc.run);
     assert_eq!(s.formulation, "penalty");
     assert_eq!(s.extra["penalty"], 1e6);
     assert_eq!(s.extra["penalty_omega"], 20.0);
     let sc = fourbar(&["stabilization.projection=true"]);
-    assert!(sc.run.index1.projection.enabled);
+    assert!(sc.run.formulation.projection.enabled);
     let (_, s) = run(&sc, &sc.run);
     assert!(s.final_constraint_norm < 1e-10, "{s:?}");
     assert_eq!(s.extra["projections"], s.steps);
@@ -517,7 +517,7 @@ fn parallelogram_chain_keeps_its_branch_with_projection() {
         cfg.ode.rtol = rtol;
         cfg.ode.atol = Tolerance::Scalar(rtol * 1e-2);
         let unprojected = cfg.clone();
-        cfg.index1.projection.enabled = true;
+        cfg.formulation.projection.enabled = true;
         let (traj, status, t_reached) = chain_run(&p, &cfg);
         let (worst, first) = chain_error(&p, &traj, 1e-3);
         eprintln!(
@@ -557,7 +557,7 @@ fn parallelogram_chain_keeps_its_branch_with_projection() {
     };
     cfg.ode.rtol = 1e-10;
     cfg.ode.atol = Tolerance::Scalar(1e-12);
-    cfg.index1.projection.enabled = true;
+    cfg.formulation.projection.enabled = true;
     let (traj, status, t_reached) = chain_run(&p, &cfg);
     let (worst, first) = chain_error(&p, &traj, 1e-3);
     eprintln!(
@@ -584,7 +584,7 @@ fn redundant_parallelogram_chain_follows_the_reference() {
         output_dt: 0.005,
         ..Default::default()
     };
-    cfg.index1.projection.enabled = true;
+    cfg.formulation.projection.enabled = true;
     for rtol in [1e-5, 1e-6] {
         cfg.ode.rtol = rtol;
         cfg.ode.atol = Tolerance::Scalar(rtol * 1e-2);

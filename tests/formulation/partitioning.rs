@@ -26,7 +26,7 @@ fn tight(method: Method, rtol: f64, formulation: Formulation, t_end: f64) -> Run
     };
     cfg.ode.rtol = rtol;
     cfg.ode.atol = Tolerance::Scalar(rtol * 1e-2);
-    cfg.index1.formulation = formulation;
+    cfg.formulation.formulation = formulation;
     cfg
 }
 
@@ -55,7 +55,7 @@ fn partitioned_fourbar_matches_tight_ode45_and_rechooses() {
     );
     // complete pivoting keeps κ₁ ≤ ~35 here; a bound below that forces
     // re-choices over each revolution
-    cfg.index1.partition.max_condition = 20.0;
+    cfg.formulation.partition.max_condition = 20.0;
     let (traj, s) = run(&sc, &cfg);
     let d = max_diff(&traj, &reference);
     let turns = (traj.q.last().unwrap()[2] - sc.q0[2]) / std::f64::consts::TAU;
@@ -92,10 +92,10 @@ fn partitioned_parallelogram_chain_keeps_its_branch() {
     let mut cfg = tight(Method::Ode45, 1e-10, Formulation::Partitioned, t_end);
     cfg.output_dt = 0.005;
     if let Ok(k) = std::env::var("PK") {
-        cfg.index1.linear_solver = k.parse().unwrap();
+        cfg.formulation.linear_solver = k.parse().unwrap();
     }
     if let Ok(k) = std::env::var("PC") {
-        cfg.index1.partition.max_condition = k.parse().unwrap();
+        cfg.formulation.partition.max_condition = k.parse().unwrap();
     }
     let (traj, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
     let reference = p.reference(&traj.t, 1e-4);
@@ -172,7 +172,7 @@ fn partitioned_slider_crank_follows_closed_form_kinematics() {
         &tight(Method::Ode45, 1e-12, Formulation::Saddle, 1.0),
     );
     assert_eq!(rs.status, "completed");
-    cfg.index1.formulation = Formulation::Partitioned;
+    cfg.formulation.formulation = Formulation::Partitioned;
     let (traj, s) = run(&free, &cfg);
     let d = max_diff(&traj, &reference);
     let turns = (traj.q.last().unwrap()[2] - free.q0[2]) / std::f64::consts::TAU;
@@ -208,7 +208,7 @@ fn partitioned_rk4_is_fourth_order() {
         };
         c.ode.fixed_step = Some(h);
         c.ode.rtol = 1e-3;
-        c.index1.formulation = Formulation::Partitioned;
+        c.formulation.formulation = Formulation::Partitioned;
         let (traj, s) = run(&sc, &c);
         assert_eq!(s.status, "completed", "{:?}", s.message);
         errors.push(max_diff(&traj, &reference));
@@ -281,8 +281,8 @@ fn direct_correction_and_step_rule_from_scenario_keys() {
         "stabilization.correction=\"direct\"",
         "time.end=0.5",
     ]);
-    assert_eq!(sc.run.index1.projection.correction, Correction::Direct);
-    assert!(sc.run.index1.projection.enabled);
+    assert_eq!(sc.run.formulation.projection.correction, Correction::Direct);
+    assert!(sc.run.formulation.projection.enabled);
     let (traj, s) = run(&sc, &sc.run);
     eprintln!(
         "direct: {} steps, max‖Φ‖ {:.2e} (initial {:.2e}), final {:.2e}",
@@ -305,7 +305,7 @@ fn direct_correction_and_step_rule_from_scenario_keys() {
         "time.end=0.05",
         "output.dt=0.05",
     ]);
-    assert_eq!(sc.run.index1.baumgarte, Baumgarte::from_step(1e-3));
+    assert_eq!(sc.run.formulation.baumgarte, Baumgarte::from_step(1e-3));
     let (traj, s) = run(&sc, &sc.run);
     assert_eq!((s.alpha, s.beta), (1000.0, 1000.0));
     let (first, last) = (
@@ -376,12 +376,12 @@ fn direct_correction_and_step_rule_from_scenario_keys() {
     }
     // max_step gives h for the adaptive methods
     let sc = fourbar(&["stabilization.rule=\"step\"", "integrator.max_step=0.01"]);
-    assert_eq!(sc.run.index1.baumgarte, Baumgarte::from_step(0.01));
+    assert_eq!(sc.run.formulation.baumgarte, Baumgarte::from_step(0.01));
     let sc = fourbar(&[
         "formulation=\"partitioned\"",
         "stabilization.partition_condition=50.0",
     ]);
-    assert_eq!(sc.run.index1.partition.max_condition, 50.0);
+    assert_eq!(sc.run.formulation.partition.max_condition, 50.0);
 }
 
 #[test]

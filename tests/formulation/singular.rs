@@ -84,7 +84,7 @@ fn projected_chain_crossing_is_reported_as_kept() {
     };
     cfg.ode.rtol = 1e-8;
     cfg.ode.atol = Tolerance::Scalar(1e-10);
-    cfg.index1.projection.enabled = true;
+    cfg.formulation.projection.enabled = true;
     let (_, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
     assert!(
         has(&s, &["lost rank", "keeps it on its branch"]),
@@ -113,7 +113,7 @@ fn two_loops_crossing_together_are_reported() {
     };
     cfg.ode.rtol = 1e-8;
     cfg.ode.atol = Tolerance::Scalar(1e-10);
-    cfg.index1.projection.enabled = true;
+    cfg.formulation.projection.enabled = true;
     let (_, s) = simulate(&sys, &q0, &v0, &cfg, &mut []).unwrap();
     let times: Vec<f64> = (0..=20_000).map(|k| k as f64 * 1e-4).collect();
     let th = p.reference(&times, 1e-5);

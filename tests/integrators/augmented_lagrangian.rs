@@ -25,7 +25,7 @@ fn alm(method: Method, rho_inf: f64, h: f64, t_end: f64, dt: f64) -> RunConfig {
         output_dt: dt,
         ..Default::default()
     };
-    cfg.index1.formulation = Formulation::AugmentedLagrangian;
+    cfg.formulation.formulation = Formulation::AugmentedLagrangian;
     cfg.implicit.rho_inf = rho_inf;
     cfg.implicit.newton_tol = 1e-8;
     cfg.implicit.max_newton = 20;
@@ -551,7 +551,7 @@ fn start_that_cannot_be_made_consistent_is_a_clear_error() {
     // Lagrangian and for the plain index-3 methods (generalized-α, bdf):
     // an error of the initial state, not a run that fails.
     let mut plain = alm(Method::GenAlpha, 0.8, 1e-3, 0.1, 0.01);
-    plain.index1.formulation = Formulation::default();
+    plain.formulation.formulation = Formulation::default();
     let bdf = RunConfig {
         method: Method::Bdf,
         t_end: 0.1,

@@ -22,7 +22,7 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
         t0: 0.0,
         t_end: 2e-9,
         output_dt: 1e-9,
-        index1: Default::default(),
+        formulation: Default::default(),
         ..Default::default()
     };
     let run = |threads: usize| {

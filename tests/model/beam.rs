@@ -40,7 +40,16 @@ fn force_jacobian(sys: &System, q: &[f64], qd: &[f64]) -> Mat<f64> {
         let cols = f.jacobian_coordinates();
         let k = cols.len();
         let (mut dq, mut dqd) = (vec![0.0; k * k], vec![0.0; k * k]);
-        f.add_jacobians(0.0, q, qd, &mut dq, &mut dqd, &mut ws);
+        f.add_jacobians(
+            0.0,
+            q,
+            qd,
+            mbsolve::forces::ForceJacobians {
+                dq: &mut dq,
+                dqd: &mut dqd,
+                ws: &mut ws,
+            },
+        );
         for (r, &cr) in cols.iter().enumerate() {
             for (c, &cc) in cols.iter().enumerate() {
                 j[(cr, cc)] += dq[r * k + c];

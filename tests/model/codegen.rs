@@ -442,7 +442,16 @@ fn force_kernels_match_runtime_elements() {
         kernels::torsional_chain_force_jacobians(&q, &qd, &fp_springs, &mut dq, &mut dqd);
         for (i, s) in springs.iter().enumerate() {
             let (mut a, mut b) = (vec![0.0; 4], vec![0.0; 4]);
-            s.add_jacobians(0.0, &q, &qd, &mut a, &mut b, &mut ws);
+            s.add_jacobians(
+                0.0,
+                &q,
+                &qd,
+                mbsolve::forces::ForceJacobians {
+                    dq: &mut a,
+                    dqd: &mut b,
+                    ws: &mut ws,
+                },
+            );
             rel_close("spring ∂g/∂q", &a, &dq[4 * i..4 * i + 4], 1e-13);
             rel_close("spring ∂g/∂q̇", &b, &dqd[4 * i..4 * i + 4], 1e-13);
         }
@@ -450,7 +459,16 @@ fn force_kernels_match_runtime_elements() {
         kernels::drag_bodies_force_jacobians(&q, &qd, &fp_drag, &mut dq, &mut dqd);
         for (i, d) in drags.iter().enumerate() {
             let (mut a, mut b) = (vec![0.0; 9], vec![0.0; 9]);
-            d.add_jacobians(0.0, &q, &qd, &mut a, &mut b, &mut ws);
+            d.add_jacobians(
+                0.0,
+                &q,
+                &qd,
+                mbsolve::forces::ForceJacobians {
+                    dq: &mut a,
+                    dqd: &mut b,
+                    ws: &mut ws,
+                },
+            );
             rel_close("drag ∂g/∂q", &a, &dq[9 * i..9 * i + 9], 1e-12);
             rel_close("drag ∂g/∂q̇", &b, &dqd[9 * i..9 * i + 9], 1e-12);
         }
@@ -568,7 +586,16 @@ fn contact_kernels_match_runtime_elements() {
         kernels::contact_bodies_force_jacobians(&q, &qd, &fp, &mut dq, &mut dqd);
         for (i, e) in elems.iter().enumerate() {
             let (mut a, mut b) = (vec![0.0; 9], vec![0.0; 9]);
-            e.add_jacobians(0.0, &q, &qd, &mut a, &mut b, &mut ws);
+            e.add_jacobians(
+                0.0,
+                &q,
+                &qd,
+                mbsolve::forces::ForceJacobians {
+                    dq: &mut a,
+                    dqd: &mut b,
+                    ws: &mut ws,
+                },
+            );
             if a.iter().any(|&x| x != 0.0) {
                 touching += 1;
             }

@@ -22,7 +22,16 @@ fn check_jacobians(e: &dyn ForceElement, t: f64) {
     let k = jc.len();
     let (mut dq, mut dqd) = (vec![0.0; k * k], vec![0.0; k * k]);
     let mut ws = FdWorkspace::default();
-    e.add_jacobians(t, &Q, &QD, &mut dq, &mut dqd, &mut ws);
+    e.add_jacobians(
+        t,
+        &Q,
+        &QD,
+        mbsolve::forces::ForceJacobians {
+            dq: &mut dq,
+            dqd: &mut dqd,
+            ws: &mut ws,
+        },
+    );
     let h = 1e-6;
     for (c, &gc) in jc.iter().enumerate() {
         for (vel, jac) in [(false, &dq), (true, &dqd)] {
@@ -181,11 +190,29 @@ fn evaluation_does_not_allocate() {
     let (mut dq, mut dqd) = (vec![0.0; k * k], vec![0.0; k * k]);
     let mut ws = FdWorkspace::default();
     load.add_forces(0.0, &Q, &QD, &mut g);
-    load.add_jacobians(0.0, &Q, &QD, &mut dq, &mut dqd, &mut ws);
+    load.add_jacobians(
+        0.0,
+        &Q,
+        &QD,
+        mbsolve::forces::ForceJacobians {
+            dq: &mut dq,
+            dqd: &mut dqd,
+            ws: &mut ws,
+        },
+    );
     let before = allocations();
     for _ in 0..10 {
         load.add_forces(0.0, &Q, &QD, &mut g);
-        load.add_jacobians(0.0, &Q, &QD, &mut dq, &mut dqd, &mut ws);
+        load.add_jacobians(
+            0.0,
+            &Q,
+            &QD,
+            mbsolve::forces::ForceJacobians {
+                dq: &mut dq,
+                dqd: &mut dqd,
+                ws: &mut ws,
+            },
+        );
     }
     assert_eq!(allocations() - before, 0);
 }

@@ -30,7 +30,16 @@ fn check_jacobians(e: &dyn ForceElement, t: f64, q: &[f64], qd: &[f64], tol: f64
     let cols = e.jacobian_coordinates();
     let k = cols.len();
     let (mut dq, mut dqd) = (vec![0.0; k * k], vec![0.0; k * k]);
-    e.add_jacobians(t, q, qd, &mut dq, &mut dqd, &mut FdWorkspace::default());
+    e.add_jacobians(
+        t,
+        q,
+        qd,
+        mbsolve::forces::ForceJacobians {
+            dq: &mut dq,
+            dqd: &mut dqd,
+            ws: &mut FdWorkspace::default(),
+        },
+    );
     for velocity in [false, true] {
         for (ci, &c) in cols.iter().enumerate() {
             let h = 1e-6;

@@ -23,7 +23,7 @@ fn config(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfi
         t0: 0.0,
         t_end,
         output_dt: dt,
-        index1: Index1Options::default(),
+        formulation: Index1Options::default(),
         ..Default::default()
     }
 }
@@ -76,7 +76,7 @@ fn conservative_pendulum_keeps_its_energy() {
     let mut drifts = Vec::new();
     for rtol in [1e-6, 1e-9] {
         let mut cfg = config(Method::Ode45, rtol, rtol * 1e-2, 2.0, 0.01);
-        cfg.index1.baumgarte = Baumgarte {
+        cfg.formulation.baumgarte = Baumgarte {
             alpha: 0.0,
             beta: 0.0,
         };

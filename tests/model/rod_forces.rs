@@ -32,7 +32,16 @@ fn jacobians<E: ForceElement>(e: &E, q: &[f64], qd: &[f64]) -> [(Vec<f64>, Vec<f
     let k = e.jacobian_coordinates().len();
     let mut ws = FdWorkspace::default();
     let (mut aq, mut aqd) = (vec![0.0; k * k], vec![0.0; k * k]);
-    e.add_jacobians(0.0, q, qd, &mut aq, &mut aqd, &mut ws);
+    e.add_jacobians(
+        0.0,
+        q,
+        qd,
+        mbsolve::forces::ForceJacobians {
+            dq: &mut aq,
+            dqd: &mut aqd,
+            ws: &mut ws,
+        },
+    );
     let (mut fq, mut fqd) = (vec![0.0; k * k], vec![0.0; k * k]);
     ws.jacobians(e, 0.0, q, qd, &mut fq, &mut fqd);
     [(aq, fq), (aqd, fqd)]
@@ -561,7 +570,16 @@ fn contact_static_hertz_equilibrium() {
             }
             let mut ws = FdWorkspace::default();
             let (mut dq, mut dqd) = (vec![0.0; 9], vec![0.0; 9]);
-            c.add_jacobians(0.0, &q, &zero, &mut dq, &mut dqd, &mut ws);
+            c.add_jacobians(
+                0.0,
+                &q,
+                &zero,
+                mbsolve::forces::ForceJacobians {
+                    dq: &mut dq,
+                    dqd: &mut dqd,
+                    ws: &mut ws,
+                },
+            );
             let j = [[dq[0], dq[2]], [dq[6], dq[8] + e * phi.sin() * f]];
             let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
             x -= (j[1][1] * r[0] - j[0][1] * r[1]) / det;

@@ -108,11 +108,14 @@ fn a_beta_the_rule_would_replace_is_an_error() {
         "stabilization.rule=\"sqrt_2alpha\"",
     ])
     .unwrap();
-    assert_eq!(sc.run.index1.baumgarte.beta, 10f64.sqrt());
+    assert_eq!(sc.run.formulation.baumgarte.beta, 10f64.sqrt());
     // an explicit pair stays as given
     let sc = fourbar(&["stabilization.alpha=5", "stabilization.beta=3"]).unwrap();
     assert_eq!(
-        (sc.run.index1.baumgarte.alpha, sc.run.index1.baumgarte.beta),
+        (
+            sc.run.formulation.baumgarte.alpha,
+            sc.run.formulation.baumgarte.beta
+        ),
         (5.0, 3.0)
     );
 }

@@ -180,8 +180,8 @@ fn report(sc: &Scenario, s: &Size) -> String {
         format!(
             "{} (formulation {:?}, linear solver {:?})",
             sc.run.method.name(),
-            sc.run.index1.formulation,
-            sc.run.index1.linear_solver
+            sc.run.formulation.formulation,
+            sc.run.formulation.linear_solver
         ),
     );
     line(

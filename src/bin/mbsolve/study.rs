@@ -75,7 +75,7 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "Baumgarte α = β = 10, eq. (5) (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.baumgarte = Baumgarte {
+                c.formulation.baumgarte = Baumgarte {
                     alpha: 10.0,
                     beta: 10.0,
                 };
@@ -86,8 +86,8 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "Baumgarte α = β = 10, λ eliminated, eq. (9) (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.formulation = Formulation::Eliminated;
-                c.index1.baumgarte = Baumgarte {
+                c.formulation.formulation = Formulation::Eliminated;
+                c.formulation.baumgarte = Baumgarte {
                     alpha: 10.0,
                     beta: 10.0,
                 };
@@ -98,7 +98,7 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "mass-orthogonal projection of q, q̇ (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.projection.enabled = true;
+                c.formulation.projection.enabled = true;
             },
         },
         StudyMethod {
@@ -106,8 +106,8 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "direct violation correction, one M-weighted step (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.projection.enabled = true;
-                c.index1.projection.correction = Correction::Direct;
+                c.formulation.projection.enabled = true;
+                c.formulation.projection.correction = Correction::Direct;
             },
         },
         StudyMethod {
@@ -116,7 +116,7 @@ pub fn methods() -> Vec<StudyMethod> {
             apply: |c, _| {
                 explicit(c);
                 c.ode.max_step = Some(1e-3);
-                c.index1.baumgarte = Baumgarte::from_step(1e-3);
+                c.formulation.baumgarte = Baumgarte::from_step(1e-3);
             },
         },
         StudyMethod {
@@ -124,7 +124,7 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "coordinate partitioning, Wehage & Haug (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.formulation = Formulation::Partitioned;
+                c.formulation.formulation = Formulation::Partitioned;
             },
         },
         StudyMethod {
@@ -132,7 +132,7 @@ pub fn methods() -> Vec<StudyMethod> {
             label: "penalty, α = 1e7, ξ = 1, ω = 10 (ode45)",
             apply: |c, _| {
                 explicit(c);
-                c.index1.formulation = Formulation::Penalty;
+                c.formulation.formulation = Formulation::Penalty;
             },
         },
         StudyMethod {
@@ -143,7 +143,7 @@ pub fn methods() -> Vec<StudyMethod> {
                 c.method = Method::Newmark;
                 c.implicit.rho_inf = 1.0;
                 c.implicit.max_newton = ALM_MAX_NEWTON;
-                c.index1.formulation = Formulation::AugmentedLagrangian;
+                c.formulation.formulation = Formulation::AugmentedLagrangian;
             },
         },
         StudyMethod {
@@ -152,7 +152,7 @@ pub fn methods() -> Vec<StudyMethod> {
             apply: |c, h| {
                 implicit(c, h);
                 c.implicit.max_newton = ALM_MAX_NEWTON;
-                c.index1.formulation = Formulation::AugmentedLagrangian;
+                c.formulation.formulation = Formulation::AugmentedLagrangian;
             },
         },
         StudyMethod {
@@ -314,7 +314,7 @@ fn reference_run(system: &System, q0: &[f64], qd0: &[f64], base: &RunConfig) -> 
     c.method = Method::Ode45;
     c.ode.rtol = 1e-12;
     c.ode.atol = Tolerance::Scalar(1e-14);
-    c.index1.projection.enabled = true;
+    c.formulation.projection.enabled = true;
     let mut r = Record::default();
     match simulate_into(system, q0, qd0, &c, &mut [], &mut r) {
         Ok(_) => Reference::Trajectory(r.q),

@@ -260,7 +260,7 @@ impl GenAlpha {
     /// `adaptive`, `project`, `reuse`, `filter_error`,
     /// `check_constraints`, `lu`, `extrapolate` do not apply
     /// ([`IntegratorError::NotApplicable`]).
-    pub fn for_augmented_lagrangian(
+    pub(crate) fn for_augmented_lagrangian(
         method: Method,
         opts: ImplicitOptions,
         ode: OdeOptions,

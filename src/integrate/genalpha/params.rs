@@ -62,7 +62,7 @@ impl AlphaParameters {
 
     /// Parameters of an implicit `method` for `rho_inf`, validated
     /// (ρ∞ ∈ [0, 1]; HHT needs ρ∞ ∈ [½, 1]).
-    pub fn for_method(method: Method, rho_inf: f64) -> Result<Self, IntegratorError> {
+    pub(crate) fn for_method(method: Method, rho_inf: f64) -> Result<Self, IntegratorError> {
         let bad = |reason: &str| IntegratorError::InvalidOption {
             option: "rho_inf",
             value: rho_inf.to_string(),
@@ -92,7 +92,7 @@ impl AlphaParameters {
     /// Error constant `C = β − γ/2 + 1/12` of the position local
     /// truncation error `C h³ q⃛` (module docs; `β − 1/6` for γ = ½,
     /// Zienkiewicz & Xie 1991).
-    pub fn error_constant(&self) -> f64 {
+    pub(crate) fn error_constant(&self) -> f64 {
         self.beta - 0.5 * self.gamma + 1.0 / 12.0
     }
 }

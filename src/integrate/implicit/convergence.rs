@@ -66,7 +66,7 @@ pub enum Remainder {
     /// multiplier update); a contraction above `slow` asks the scheme to
     /// act ([`Assessment::Slow`]: renew the matrix, raise the penalty);
     /// divergence counts only from the third correction on and after the
-    /// scheme renewed something ([`Convergence::renewed_by_scheme`]).
+    /// scheme renewed something (`Convergence::renewed_by_scheme`).
     Correction {
         /// Contraction above which the scheme is asked to act.
         slow: f64,
@@ -94,7 +94,7 @@ pub struct ConvergenceOptions {
     pub reset_rate_on_renewal: bool,
 }
 
-/// What the test says after one correction ([`Convergence::assess`]).
+/// What the test says after one correction (`Convergence::assess`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Assessment {
     /// The remaining error is within the tolerance, or the iteration
@@ -168,7 +168,7 @@ impl Convergence {
 
     /// A new attempt of [`Remainder::Ode15s`] on a matrix whose rate was
     /// measured before (`None` for a fresh matrix).
-    pub fn with_rate(opts: ConvergenceOptions, rate: Option<f64>) -> Self {
+    pub(crate) fn with_rate(opts: ConvergenceOptions, rate: Option<f64>) -> Self {
         Self {
             rate,
             ..Self::new(opts, 1.0)
@@ -183,18 +183,18 @@ impl Convergence {
 
     /// The scheme renewed the matrix (or the problem) within the attempt
     /// ([`Remainder::Correction`]).
-    pub fn renewed_by_scheme(&mut self) {
+    pub(crate) fn renewed_by_scheme(&mut self) {
         self.renewed = true;
     }
 
     /// Whether the matrix was renewed within the attempt.
-    pub fn renewed(&self) -> bool {
+    pub(crate) fn renewed(&self) -> bool {
         self.renewed
     }
 
     /// The next correction starts a new rate measurement (no θ), after the
     /// scheme changed the problem (the augmented Lagrangian's penalty).
-    pub fn restart(&mut self) {
+    pub(crate) fn restart(&mut self) {
         self.prev = f64::NAN;
     }
 
@@ -223,7 +223,7 @@ impl Convergence {
 
     /// η to keep for the next attempt after convergence: that of a
     /// contracting last correction, else none.
-    pub fn rate_to_keep(&self) -> Option<f64> {
+    pub(crate) fn rate_to_keep(&self) -> Option<f64> {
         (self.theta < 1.0).then_some(self.eta)
     }
 
@@ -232,7 +232,12 @@ impl Convergence {
     /// `max(|q|, 1)` where stagnation asks for it; `accept`: the scheme
     /// accepts this correction by its own rule (generalized-α's quadratic
     /// model on a fresh matrix, BDF's rounding floor).
-    pub fn assess(&mut self, dnorm: f64, drel: impl FnOnce() -> f64, accept: bool) -> Assessment {
+    pub(crate) fn assess(
+        &mut self,
+        dnorm: f64,
+        drel: impl FnOnce() -> f64,
+        accept: bool,
+    ) -> Assessment {
         self.slow = false;
         if accept {
             self.theta = f64::NAN;

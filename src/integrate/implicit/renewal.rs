@@ -53,7 +53,7 @@ impl Renewal {
 
     /// At the predictor of a new attempt with step parameter `p`: whether
     /// to factorise now.
-    pub fn at_predictor(&mut self, p: f64) -> bool {
+    pub(crate) fn at_predictor(&mut self, p: f64) -> bool {
         self.fresh = false;
         self.made = false;
         let moved = self
@@ -64,7 +64,7 @@ impl Renewal {
 
     /// Before correction `round` (from 0) on the current matrix: whether to
     /// factorise at the iterate first ([`RenewalOptions::every_correction`]).
-    pub fn before_correction(&self, round: usize) -> bool {
+    pub(crate) fn before_correction(&self, round: usize) -> bool {
         round > 0 && self.opts.every_correction
     }
 
@@ -83,7 +83,7 @@ impl Renewal {
     }
 
     /// Renew at the next predictor.
-    pub fn renew(&mut self) {
+    pub(crate) fn renew(&mut self) {
         self.stale = true;
     }
 
@@ -95,7 +95,7 @@ impl Renewal {
     /// Whether the current attempt has made, or tried to make, its own
     /// factorisation: a failure without one is worth a retry on a fresh
     /// matrix (`attempt_or_cut`).
-    pub fn made_own(&self) -> bool {
+    pub(crate) fn made_own(&self) -> bool {
         self.made
     }
 

@@ -83,7 +83,7 @@ impl ImplicitStats {
     }
 
     /// An accepted step of size `h` \[s\].
-    pub fn accept(&mut self, h: f64) {
+    pub(crate) fn accept(&mut self, h: f64) {
         self.steps += 1;
         self.min_step_taken = self.min_step_taken.min(h);
         self.max_step_taken = self.max_step_taken.max(h);

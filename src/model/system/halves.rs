@@ -65,13 +65,13 @@ impl ResidualHalves {
         self.split
     }
     /// The constraint rows in consecutive runs, in order, each with its
-    /// side (true: the high half): [`System::residual_half`] takes its
+    /// side (true: the high half): `System::residual_half` takes its
     /// side's runs of Φ in this order.
     pub fn row_runs(&self) -> impl Iterator<Item = (bool, Range<usize>)> + '_ {
         self.runs.iter().map(|(h, _, r)| (*h, r.clone()))
     }
     /// Coordinates of the high half that the low half also loads: their
-    /// entries come from [`System::residual_boundary`].
+    /// entries come from `System::residual_boundary`.
     pub fn boundary(&self) -> &[usize] {
         &self.boundary
     }
@@ -245,7 +245,7 @@ impl System {
     /// for the joints' Φ (at least their rows). Returns false as
     /// [`System::residual_half`] does.
     #[allow(clippy::too_many_arguments)]
-    pub fn residual_boundary(
+    pub(crate) fn residual_boundary(
         &self,
         h: &ResidualHalves,
         t: f64,
@@ -295,7 +295,7 @@ impl System {
 
     /// Shared work of the constraint kernels before the halves at `q`
     /// ([`crate::model::ConstraintKernels::prepare`]).
-    pub fn prepare_residual_halves(&self, q: &[f64], t: f64) {
+    pub(crate) fn prepare_residual_halves(&self, q: &[f64], t: f64) {
         self.kernels[0].kernels.prepare(q, t);
     }
 
@@ -307,7 +307,7 @@ impl System {
     /// forces to `g`. Returns false when the constraint kernels cannot
     /// evaluate a range of joints (`g`, `tmp`, `phi` then unusable).
     #[allow(clippy::too_many_arguments)]
-    pub fn residual_half(
+    pub(crate) fn residual_half(
         &self,
         h: &ResidualHalves,
         high: bool,

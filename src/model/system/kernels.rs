@@ -171,7 +171,7 @@ impl System {
     /// default from now on). Errors when the range is out of bounds,
     /// overlaps kernels attached before, or the kernels' Jacobian
     /// coordinates differ from the elements'.
-    pub fn attach_force_kernels(
+    pub(crate) fn attach_force_kernels(
         &mut self,
         elements: Range<usize>,
         k: Box<dyn ForceKernels>,
@@ -201,7 +201,7 @@ impl System {
     }
 
     /// Remove every attached kernel (back to the generic evaluation).
-    pub fn detach_kernels(&mut self) {
+    pub(crate) fn detach_kernels(&mut self) {
         self.kernels.clear();
         self.force_kernels.clear();
         self.use_kernels = false;
