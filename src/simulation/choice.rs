@@ -133,7 +133,7 @@ pub fn choose(
         run.implicit.validate(run.method, run.ode.fixed_step)?;
     } else {
         run.method = Method::Ode45;
-        run.index1.projection.enabled = sys.n_constraints() > 0;
+        run.formulation.projection.enabled = sys.n_constraints() > 0;
     }
     run.ode.validate(run.method, run.implicit.adaptive)?;
     let reason = format!("{} chosen: {reason}", run.method.name());
