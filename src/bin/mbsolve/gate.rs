@@ -402,8 +402,8 @@ pub const SPLIT_SOLVE_ROUNDS: usize = 21;
 /// two solvers' separate minima would compare the quietest moment of one
 /// with the quietest of the other: on a shared machine the two matrices
 /// (3 MB each, beyond a core's L2) meet different cache contention from
-/// other processes at different moments, and such minima differ by up to
-/// 30 % between processes of one binary (docs/scaling.md).
+/// other processes at different moments, and the ratio of such minima
+/// spread 0.91–1.24 within one binary (docs/scaling.md).
 pub fn split_chain_solve_over_one_sided() -> Check {
     use mbsolve::formulation::Index3;
     use mbsolve::linalg::{ChainLdlt, SaddlePointSolver};
