@@ -77,6 +77,7 @@ fn main() {
         "halves_split": get("halves_split"),
         "halves_taken_back": get("halves_taken_back"),
         "halves_solo": get("halves_solo"),
+        "threads_rule": get("threads_rule"),
     });
     println!("{line}");
 }

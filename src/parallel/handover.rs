@@ -153,6 +153,10 @@ pub struct Handover {
     caller: Thread,
     helper_parked: AtomicBool,
     caller_parked: AtomicBool,
+    /// Set by a take-back of a half the helper had not started although
+    /// it was not parked (awake, so not on a core: preempted); cleared by
+    /// [`Handover::take_preempted`].
+    preempted: AtomicBool,
 }
 
 // SAFETY: `job` and `panic` are touched only by the side that owns the
@@ -177,6 +181,7 @@ impl Handover {
             caller: current(),
             helper_parked: AtomicBool::new(false),
             caller_parked: AtomicBool::new(false),
+            preempted: AtomicBool::new(false),
         }
     }
 
@@ -252,13 +257,27 @@ impl Handover {
     /// Takes the posted half back unless the helper has started it; a
     /// helper that is awake (not parked) gets [`GRACE`] to start it first.
     fn take_back(&self) -> bool {
-        if !self.helper_parked.load(Ordering::SeqCst) {
+        let awake = !self.helper_parked.load(Ordering::SeqCst);
+        if awake {
             let mut spin = Spin::new(GRACE);
             while self.state.load(Ordering::Acquire) == POSTED && spin.spin() {}
         }
-        self.state
+        let taken = self
+            .state
             .compare_exchange(POSTED, IDLE, Ordering::SeqCst, Ordering::SeqCst)
-            .is_ok()
+            .is_ok();
+        if taken && awake {
+            self.preempted.store(true, Ordering::Relaxed);
+        }
+        taken
+    }
+
+    /// Whether a half was taken back from an awake helper (one that was
+    /// not on a core: the machine is busy) since the last call; clears it.
+    /// A take-back from a parked helper (woken too late after a long
+    /// serial stretch) does not count.
+    pub fn take_preempted(&self) -> bool {
+        self.preempted.swap(false, Ordering::Relaxed)
     }
 
     /// The caller's wait for a running half: spin, then park until DONE.

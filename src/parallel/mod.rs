@@ -43,7 +43,8 @@ pub enum Threads {
     /// continues on one thread for a while and then tries again; and
     /// while short probe windows with and without the second thread find
     /// it faster (`team`'s A/B rule: wall time of a few dozen passes each
-    /// way, re-probed every 8–32 windows).
+    /// way, re-probed every 8–128 windows, sooner when the machine's load
+    /// changes).
     #[default]
     #[serde(rename = "auto")]
     Auto,

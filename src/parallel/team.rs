@@ -29,7 +29,12 @@
 //! hits both alike), measures the wall time of each, and runs the next
 //! [`EXPLOIT_MIN`] … [`EXPLOIT_MAX`] windows the faster way (the team
 //! only when it took at most [`TEAM_MARGIN`] of the time alone), then
-//! probes again. A *pass* is one call of [`concurrent`] on the caller:
+//! probes again — at once when [`DOUBT_WINDOWS`] windows in a row gave
+//! evidence against the way it runs (with the helper: a half taken back
+//! from a helper that was awake, so preempted; alone: a core free by
+//! `/proc/loadavg`). Long stretches keep the probes' cost small on a
+//! machine whose load does not change; the evidence brings the probe
+//! forward when it does. A *pass* is one call of [`concurrent`] on the caller:
 //! every pass that has a two-thread and a one-thread form asks it once
 //! whatever the answer (a Newton iteration's residual and solve), so the
 //! count of passes is the same whichever way the team runs and measures
@@ -67,8 +72,16 @@ pub const PROBE_PASSES: u32 = 24;
 /// first time, and after a probe that changed its mind).
 pub const EXPLOIT_MIN: u32 = 8;
 /// The most windows between two probes (each probe that confirms the last
-/// decision doubles the stretch up to this).
-pub const EXPLOIT_MAX: u32 = 32;
+/// decision doubles the stretch up to this), unless the machine gives
+/// evidence against the decision ([`DOUBT_WINDOWS`]).
+pub const EXPLOIT_MAX: u32 = 128;
+/// Windows in a row with evidence against the decision being run after
+/// which an `Auto` team ends the stretch and probes at once: running with
+/// the helper, a half taken back from a helper that was awake but had not
+/// started it (not on a core: the machine is busy); running alone, fewer
+/// runnable tasks on the machine than cores (`/proc/loadavg`: a core is
+/// free). The probe still decides.
+pub const DOUBT_WINDOWS: u32 = 2;
 /// An `Auto` team runs with its helper only when its probe windows took at
 /// most this fraction of the wall time of the windows alone (a tie goes
 /// to one thread).
@@ -103,6 +116,10 @@ struct Adapt {
     /// Wall time of the last probe's windows with the helper over that
     /// of its windows alone.
     last_ratio: Option<f64>,
+    /// Windows in a row of the current stretch with evidence against it.
+    doubts: u32,
+    /// Stretches ended early by [`DOUBT_WINDOWS`] such windows.
+    cut: u32,
 }
 
 impl Adapt {
@@ -118,7 +135,35 @@ impl Adapt {
             last: None,
             decided: [0; 2],
             last_ratio: None,
+            doubts: 0,
+            cut: 0,
         }
+    }
+
+    /// Whether the pass just counted by [`Self::pass`] was the last of a
+    /// window of an exploit stretch (where [`Self::evidence`] is asked).
+    fn exploit_window_ended(&self) -> bool {
+        self.phase == PROBE_ORDER.len() && self.left % self.window == 0 && self.left > 0
+    }
+
+    /// Evidence (or none) against the decision being run, from the window
+    /// that just ended ([`DOUBT_WINDOWS`]); after enough windows in a row
+    /// the stretch ends with this pass and the next pass starts a probe.
+    /// Returns whether the helper should be woken now (the probe's first
+    /// window runs with it).
+    fn evidence(&mut self, against: bool) -> bool {
+        if !against {
+            self.doubts = 0;
+            return false;
+        }
+        self.doubts += 1;
+        if self.doubts < DOUBT_WINDOWS || self.phase != PROBE_ORDER.len() {
+            return false;
+        }
+        self.doubts = 0;
+        self.cut += 1;
+        self.left = 0;
+        self.solo && !PROBE_ORDER[0]
     }
 
     /// Counts one pass at `now`; returns whether it runs alone and whether
@@ -150,6 +195,7 @@ impl Adapt {
                 EXPLOIT_MIN
             };
             self.last = Some(solo);
+            self.doubts = 0;
             self.decided[usize::from(solo)] += 1;
             self.solo = solo;
             self.left = self.exploit * self.window;
@@ -359,6 +405,8 @@ struct Team {
     /// Whether the A/B rule runs the current window alone.
     ab_solo: AtomicBool,
     passes: AtomicUsize,
+    /// Cores of the machine (for the free-core evidence of the A/B rule).
+    cores: usize,
 }
 
 impl Team {
@@ -381,6 +429,7 @@ impl Team {
             }),
             ab_solo: AtomicBool::new(false),
             passes: AtomicUsize::new(0),
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
         }
     }
 
@@ -391,10 +440,21 @@ impl Team {
         let Some(a) = &self.adapt else {
             return false;
         };
-        let (solo, wake) = a
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .pass(std::time::Instant::now());
+        let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
+        let (solo, mut wake) = a.pass(std::time::Instant::now());
+        if a.left % a.window == 0 {
+            // a window ended with this pass: the evidence it gave
+            let preempted = self.h.take_preempted();
+            if a.exploit_window_ended() {
+                let against = if solo {
+                    free_core(self.cores)
+                } else {
+                    preempted
+                };
+                wake |= a.evidence(against);
+            }
+        }
+        drop(a);
         self.ab_solo.store(solo, Ordering::Relaxed);
         if wake {
             self.h.wake_helper();
@@ -471,6 +531,23 @@ impl Team {
             rule,
         }
     }
+}
+
+/// Whether the machine has a core free now: fewer runnable tasks than
+/// `cores` (the fourth field of `/proc/loadavg`, `running/total`, counts
+/// the caller itself). `false` where unreadable.
+fn free_core(cores: usize) -> bool {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| runnable_tasks(&s))
+        .is_some_and(|r| r < cores)
+}
+
+/// The runnable tasks of a `/proc/loadavg` line (`0.52 0.58 0.59 3/412
+/// 12345`: the fourth field's numerator), `None` when malformed.
+fn runnable_tasks(loadavg: &str) -> Option<usize> {
+    let (r, _) = loadavg.split_whitespace().nth(3)?.split_once('/')?;
+    r.parse().ok()
 }
 
 /// Runs `f` (a whole integration run) with a two-thread team as the

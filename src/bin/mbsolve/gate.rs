@@ -13,8 +13,9 @@
 //!   Newton assembly against the generic per-joint, per-element one
 //!   (fails below [`IMPLICIT_GENERATED_MIN`]; [`implicit_generated_over_generic`]).
 //! * the two-sided chain LDLᵀ over the one-sided one on one thread: factor
-//!   and solve of the stiff chain's Newton matrix at N = 10 000 (fails
-//!   above [`SPLIT_SOLVE_MAX`]; [`split_chain_solve_over_one_sided`]).
+//!   and solve of the stiff chain's Newton matrix at N = 10 000, the
+//!   median of paired rounds (fails above [`SPLIT_SOLVE_MAX`];
+//!   [`split_chain_solve_over_one_sided`]).
 //! * Newton iterations per step of generalized-α and BDF on the stiff chain
 //!   (N = 100, 0.02 s; fails above [`NEWTON_PER_STEP_MAX`]; a deterministic
 //!   count, [`newton_iterations_per_step`]).
@@ -40,7 +41,8 @@
 //!   [`hot_paths_against_yardstick`](hot_paths::hot_paths_against_yardstick)). A hot path done twice fails it.
 //!
 //! Timings of the ratio checks are the minimum over interleaved
-//! repetitions of the thread's CPU time (robust to a shared machine: the
+//! repetitions (the chain check: the median of paired rounds) of the
+//! thread's CPU time (robust to a shared machine: the
 //! time other processes hold the core is not counted) on a single thread
 //! (so the ratio measures algorithmic scaling, not the concurrency that
 //! only large N switch on), except the oversubscribed check (wall time).
@@ -381,15 +383,27 @@ pub fn implicit_generated_over_generic() -> Check {
     }
 }
 
-/// Bound of [`split_chain_solve_over_one_sided`].
+/// Bound of [`split_chain_solve_over_one_sided`]: the two-sided order does
+/// the same rows' arithmetic as the one-sided one plus a separator of a few
+/// rows (a ratio of ≈ 1.0), so 1.2 is a 20 % slowdown of the split path.
 pub const SPLIT_SOLVE_MAX: f64 = 1.2;
+
+/// Rounds of [`split_chain_solve_over_one_sided`]: each times a batch of
+/// each solver back to back; the median of the rounds' ratios counts.
+pub const SPLIT_SOLVE_ROUNDS: usize = 21;
 
 /// Factor + solve of the stiff chain's Newton matrix (N = 10 000) by the
 /// two-sided envelope LDLᵀ `Index3` uses (`ChainLdlt`, its halves
 /// concurrent with more threads) over the one-sided one, on the gate's one
 /// thread: the split must cost (almost) nothing where it cannot run in
-/// parallel. Thread CPU time ([`per_call`]), minimum over interleaved
-/// batches.
+/// parallel. Thread CPU time ([`per_call`]) of a batch of each, back to
+/// back (which goes first alternates); the median over
+/// [`SPLIT_SOLVE_ROUNDS`] rounds of the per-round ratio. The ratio of the
+/// two solvers' separate minima would compare the quietest moment of one
+/// with the quietest of the other: on a shared machine the two matrices
+/// (3 MB each, beyond a core's L2) meet different cache contention from
+/// other processes at different moments, and the ratio of such minima
+/// spread 0.91–1.24 within one binary (docs/scaling.md).
 pub fn split_chain_solve_over_one_sided() -> Check {
     use mbsolve::formulation::Index3;
     use mbsolve::linalg::{ChainLdlt, SaddlePointSolver};
@@ -410,17 +424,23 @@ pub fn split_chain_solve_over_one_sided() -> Check {
         s
     });
     let mut best = [f64::MAX; 2];
-    for _ in 0..15 {
-        for (s, t) in solvers.iter_mut().zip(&mut best) {
-            let per = per_call(4, &mut || {
+    let mut ratios = Vec::with_capacity(SPLIT_SOLVE_ROUNDS);
+    for round in 0..SPLIT_SOLVE_ROUNDS {
+        let mut this = [0.0; 2];
+        let order = if round % 2 == 0 { [0, 1] } else { [1, 0] };
+        for i in order {
+            let s = &mut solvers[i];
+            this[i] = per_call(4, &mut || {
                 s.factorize(k).expect("factorises");
                 x.copy_from_slice(&b);
                 s.solve_in_place(k, &mut x).expect("solves");
             });
-            *t = t.min(per);
+            best[i] = best[i].min(this[i]);
         }
+        ratios.push(this[0] / this[1]);
     }
-    let r = best[0] / best[1];
+    ratios.sort_by(f64::total_cmp);
+    let r = ratios[ratios.len() / 2];
     Check {
         name: "chain Newton factor + solve N = 10 000, two-sided over one-sided, 1 thread".into(),
         ratio: r,
@@ -428,7 +448,10 @@ pub fn split_chain_solve_over_one_sided() -> Check {
         at_most: true,
         passed: r <= SPLIT_SOLVE_MAX,
         detail: format!(
-            "split {:.0} µs vs one-sided {:.0} µs",
+            "median of {SPLIT_SOLVE_ROUNDS} paired rounds (range {:.2}–{:.2}); \
+             best split {:.0} µs vs best one-sided {:.0} µs",
+            ratios[0],
+            ratios[ratios.len() - 1],
             best[0] * 1e6,
             best[1] * 1e6
         ),

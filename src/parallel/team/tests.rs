@@ -377,3 +377,94 @@ fn a_panic_in_either_half_reaches_the_caller_after_both_ended() {
         })
     });
 }
+
+/// Drives `a` one pass at a time as `Team::pass` does, with the
+/// evidence `against(alone)` given at the end of every exploit window;
+/// returns (alone, wake) per pass.
+fn drive_with_evidence(
+    a: &mut Adapt,
+    passes: usize,
+    cost: impl Fn(bool) -> u64,
+    mut against: impl FnMut(bool) -> bool,
+) -> Vec<(bool, bool)> {
+    let t0 = Instant::now();
+    let mut t = Duration::ZERO;
+    (0..passes)
+        .map(|_| {
+            let (solo, mut wake) = a.pass(t0 + t);
+            if a.exploit_window_ended() {
+                wake |= a.evidence(against(solo));
+            }
+            t += Duration::from_micros(cost(solo));
+            (solo, wake)
+        })
+        .collect()
+}
+
+/// A stretch runs EXPLOIT_MIN, then twice as many windows per confirming
+/// probe up to EXPLOIT_MAX; evidence against the way it runs in
+/// DOUBT_WINDOWS windows in a row (not one, nor two apart) ends it and
+/// the probe follows at once (the helper woken for it when the stretch
+/// ran alone); the probe still decides.
+#[test]
+fn evidence_against_a_stretch_brings_the_probe_forward() {
+    let w = 2usize;
+    let probe = [false, false, true, true, true, true, false, false];
+    let fast_team = |alone: bool| if alone { 200 } else { 100 };
+    // no evidence: stretches of 8, 16, 32, 64, 128, 128 windows
+    let mut a = Adapt::new(w as u32);
+    let mut passes = 0;
+    for k in [8u32, 16, 32, 64, 128, 128] {
+        let r = drive_with_evidence(&mut a, 8 + k as usize * w, fast_team, |_| false);
+        passes += r.len();
+        assert_eq!(r[..8].iter().map(|x| x.0).collect::<Vec<_>>(), probe);
+        assert!(r[8..].iter().all(|x| !x.0), "stretch of {k} windows");
+        assert_eq!(a.exploit, k);
+    }
+    assert_eq!(a.exploit, EXPLOIT_MAX);
+    assert_eq!((a.decided, a.cut, passes), ([6, 0], 0, 6 * 8 + 376 * w));
+    // a preempted helper in one window, then in two windows apart: no cut
+    let mut n = 0;
+    let r = drive_with_evidence(&mut a, 8 + 10 * w, fast_team, |_| {
+        n += 1;
+        n == 2 || n == 5 || n == 7
+    });
+    assert!(r[8..].iter().all(|x| !x.0));
+    assert_eq!(a.cut, 0);
+    // in two windows in a row: the stretch ends after the second, and
+    // the next pass starts a probe (team, alone, alone, team)
+    let mut a = Adapt::new(w as u32);
+    drive_with_evidence(&mut a, 8, fast_team, |_| false);
+    let seen = std::cell::Cell::new(0);
+    let r = drive_with_evidence(&mut a, 3 * w + 9, fast_team, |alone| {
+        assert!(!alone, "evidence is asked in the team's stretch only here");
+        seen.set(seen.get() + 1);
+        seen.get() >= 2
+    });
+    assert_eq!(a.cut, 1);
+    let modes: Vec<bool> = r.iter().map(|x| x.0).collect();
+    assert!(modes[..3 * w].iter().all(|&s| !s));
+    assert_eq!(modes[3 * w..3 * w + 8], probe);
+    // the probe still decides: the team is faster, so it stays
+    assert_eq!(a.decided, [2, 0]);
+    // alone (a busy machine) with a core found free twice in a row: the
+    // stretch ends and the helper is woken on its last pass
+    let mut b = Adapt::new(w as u32);
+    let slow_team = |alone: bool| if alone { 100 } else { 300 };
+    drive_with_evidence(&mut b, 8, slow_team, |_| false);
+    let r = drive_with_evidence(&mut b, 2 * w + 1, slow_team, |alone| alone);
+    assert_eq!(b.decided, [0, 1]);
+    assert_eq!(b.cut, 1);
+    assert!(r[..2 * w].iter().all(|x| x.0));
+    assert!(r[2 * w - 1].1, "helper woken on the stretch's last pass");
+    assert!(!r[2 * w].0, "the probe's first window runs with the helper");
+}
+
+/// The runnable-task count of `/proc/loadavg` lines.
+#[test]
+fn runnable_tasks_of_loadavg() {
+    assert_eq!(runnable_tasks("0.52 0.58 0.59 3/412 12345\n"), Some(3));
+    assert_eq!(runnable_tasks("15.50 14.02 8.58 17/206 5672"), Some(17));
+    assert_eq!(runnable_tasks("0.1 0.2 0.3"), None);
+    assert_eq!(runnable_tasks("0.1 0.2 0.3 x/4 5"), None);
+}
