@@ -557,30 +557,18 @@ fn drive_acceleration_input_matches_the_cart_pendulum_closed_form() {
     let cc = [[d, 0.0, 1.0, 0.0], [0.0, d, 0.0, 1.0]];
     let check = |ss: &StateSpace, a: &[[f64; 4]; 4], b: &[f64; 4], cc: &[[f64; 4]; 2], tol: f64| {
         let scale = a.iter().flatten().fold(1.0_f64, |s, v| s.max(v.abs()));
-        for r in 0..4 {
-            for j in 0..4 {
-                assert!(
-                    (ss.a[(r, j)] - a[r][j]).abs() <= tol * scale,
-                    "A[{r},{j}] = {} vs {}",
-                    ss.a[(r, j)],
-                    a[r][j]
-                );
+        for (r, (row, &br)) in a.iter().zip(b).enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let got = ss.a[(r, j)];
+                assert!((got - v).abs() <= tol * scale, "A[{r},{j}] = {got} vs {v}");
             }
-            assert!(
-                (ss.b[(r, 0)] - b[r]).abs() <= tol,
-                "B[{r}] = {} vs {}",
-                ss.b[(r, 0)],
-                b[r]
-            );
+            let got = ss.b[(r, 0)];
+            assert!((got - br).abs() <= tol, "B[{r}] = {got} vs {br}");
         }
-        for r in 0..2 {
-            for j in 0..4 {
-                assert!(
-                    (ss.c[(r, j)] - cc[r][j]).abs() <= tol,
-                    "C[{r},{j}] = {} vs {}",
-                    ss.c[(r, j)],
-                    cc[r][j]
-                );
+        for (r, row) in cc.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let got = ss.c[(r, j)];
+                assert!((got - v).abs() <= tol, "C[{r},{j}] = {got} vs {v}");
             }
         }
     };
