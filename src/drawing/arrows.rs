@@ -22,7 +22,7 @@
 use super::{add, mul, norm, perp, sub, world, Ink, Mark, P};
 use crate::forces::{Wall, WallContact};
 use crate::formulation::{Index1, Index1Options};
-use crate::model::{BodyRef, ForceGeometry, JointGeometry, ReactionMap, System};
+use crate::model::{BodyRef, ForceGeometry, ReactionMap, System};
 use serde::Serialize;
 
 /// What an arrow shows.
@@ -185,23 +185,13 @@ impl<'a> ForceArrows<'a> {
             }
             for (k, c) in sys.constraints().iter().enumerate() {
                 let Some(b) = self.map.body(k) else { continue };
-                let on = |body: BodyRef, s: P| (body == BodyRef::Body(b)).then_some(s);
-                let point = match c.geometry() {
-                    JointGeometry::Revolute {
-                        body_i,
-                        s_i,
-                        body_j,
-                        s_j,
-                    }
-                    | JointGeometry::Translational {
-                        body_i,
-                        s_i,
-                        body_j,
-                        s_j,
-                        ..
-                    } => on(body_j, s_j).or(on(body_i, s_i)),
-                    JointGeometry::Other => None,
-                };
+                // the joint's point on that body (the second side first)
+                let point = c
+                    .geometry()
+                    .attachment_points()
+                    .into_iter()
+                    .rev()
+                    .find_map(|(body, s)| (body == BodyRef::Body(b)).then_some(s));
                 out.push(Arrow {
                     kind: ArrowKind::Reaction,
                     name: crate::model::joint_short_name(c.as_ref()).unwrap_or_else(|| c.name()),
