@@ -27,6 +27,7 @@
     const INK = {
       body: "#0072B2", ground: "#444444", hatch: "#888888",
       spring: "#D55E00", damper: "#009E73", contact: "#CC79A7",
+      reaction: "#E69F00",
     };
     const WIDTH = { hatch: 1 };
     const BODY_FILL = "rgba(86,180,233,0.5)", GROUND_FILL = "#bbbbbb";
@@ -195,6 +196,46 @@
       return { k: k, ox: 0.5 * w - k * 0.5 * (B[0] + B[2]), oy: 0.5 * h + k * 0.5 * (B[1] + B[3]) };
     }
     let V = fit();
+
+    // ---- force arrows (src/drawing/arrows.rs): per row [x, y, fx, fy] ----
+    const A = data.arrows || null;
+    const forcesBox = document.getElementById("forces");
+    if (A) {
+      document.getElementById("forces-label").hidden = false;
+      forcesBox.addEventListener("change", () => draw());
+    }
+    function arrowPath(from, d, head) {
+      const l = norm(d);
+      if (!(l > 0 && isFinite(l))) return [];
+      const e = mul(d, 1 / l), tip = add(from, d), h = Math.min(head, 0.4 * l);
+      const back = sub(tip, mul(e, h)), side = mul(perp(e), 0.5 * h);
+      return [[from, tip], [add(back, side), tip, sub(back, side)]];
+    }
+    function drawArrows(px) {
+      const stroke = (pts, colour) => {
+        ctx.beginPath();
+        pts.forEach((p, i) => { const [x, y] = px(p); if (i === 0) ctx.moveTo(x, y); else ctx.lineTo(x, y); });
+        ctx.strokeStyle = colour; ctx.lineWidth = 2; ctx.stroke();
+      };
+      A.rows[row].forEach((a, j) => {
+        const d = [a[2] * A.metres_per_newton, a[3] * A.metres_per_newton];
+        for (const pts of arrowPath([a[0], a[1]], d, A.head)) stroke(pts, INK[A.kinds[j]]);
+      });
+      // the key, bottom right: the key force's arrow and its value
+      const len = A.key_force * A.metres_per_newton * V.k;
+      const y = canvas.height - 12, x1 = canvas.width - 12;
+      const h = Math.min(A.head * V.k, 0.4 * len);
+      const idPx = (p) => p;
+      for (const pts of arrowPath([x1 - len, y], [len, 0], h)) {
+        ctx.beginPath();
+        pts.forEach((p, i) => { const [x, yy] = idPx(p); if (i === 0) ctx.moveTo(x, yy); else ctx.lineTo(x, yy); });
+        ctx.strokeStyle = "black"; ctx.lineWidth = 2; ctx.stroke();
+      }
+      ctx.fillStyle = "black";
+      ctx.textAlign = "right";
+      ctx.fillText(A.label, x1 - len - 6, y - 7);
+      ctx.textAlign = "left";
+    }
     let row = 0, playing = false, simTime = T[0], lastFrame = null;
 
     function draw() {
@@ -245,6 +286,7 @@
       ctx.moveTo(x0, y0 - 4); ctx.lineTo(x0, y0); ctx.lineTo(x1, y0); ctx.lineTo(x1, y0 - 4);
       ctx.strokeStyle = "black"; ctx.lineWidth = 2; ctx.stroke();
       ctx.fillText(barLabel(bar), x1 + 6, y0 - 12);
+      if (A && forcesBox.checked) drawArrows(px);
       timeEl.textContent = label;
       slider.value = String(row);
       drawPlots();

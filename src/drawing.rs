@@ -14,7 +14,9 @@
 //! dashpot; half-plane contacts as their circle and the hatched wall; a
 //! rod channel's walls. Sizes not given by the model (bar widths, spring
 //! widths) are fractions of the model's size at its initial state.
+//! Force arrows (contacts, reactions) with their key: [`arrows`].
 
+pub mod arrows;
 mod build;
 
 use crate::model::{BodyRef, ForceGeometry, JointGeometry, System};
@@ -196,7 +198,7 @@ pub enum Part {
 
 /// How a mark is inked; each renderer maps these to the same colours
 /// (Okabe–Ito: bodies blue, springs vermilion, dampers green, contacts
-/// purple, ground grey).
+/// purple, reactions orange, ground grey).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Ink {
@@ -210,8 +212,10 @@ pub enum Ink {
     Spring,
     /// Dampers.
     Damper,
-    /// Contact circles.
+    /// Contact circles and contact force arrows.
     Contact,
+    /// Joint reaction arrows.
+    Reaction,
 }
 
 /// A resolved, world-space mark.

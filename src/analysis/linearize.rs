@@ -43,6 +43,27 @@
 //! (rows of `V`) and otherwise the central difference through the chart;
 //! `D = 0` (no output reads the force inputs directly).
 //!
+//! # Drive inputs
+//!
+//! A drive `Φ_r = ±q_k − f(t)` ([`Input::Drive`]) is perturbed as
+//! `f(t) + σ(t)`, and the input is its acceleration `u = σ̈` (a motion
+//! command a control engineer integrates twice: a cart's or a road's
+//! acceleration). The offset `σ` and rate `σ̇` become states after the
+//! mechanism's, `x = (z, ż, σ, σ̇)`, with `dσ/dt = σ̇`, `dσ̇/dt = u`. The chart
+//! solves `Φ(q, t) = σ e_r` and `Φ_q q̇ + Φ_t = σ̇ e_r`; its tangent along
+//! `σ` is `W`, `Φ̃ W = [e_r; 0]` (the mechanism follows the drive with
+//! `z` held). At an equilibrium at rest, `δq = V δz + W δσ` and
+//!
+//! ```text
+//! M̂ δz̈ + Ĉ δż + K̂ δz = −VᵀKW δσ − VᵀCW δσ̇ − VᵀMW u
+//! ```
+//!
+//! (the tangent path); elsewhere the `σ, σ̇` columns of `A` are central
+//! differences through the chart like the others. `B`'s column of `u` is
+//! exact on both paths: the rows `I` of `[M Φ_qᵀ; Φ_q 0]⁻¹ [0; e_r]`
+//! (`Φ_q q̈ = γ + σ̈ e_r`). Coordinate and velocity outputs read `W` in
+//! the `σ` and `σ̇` columns.
+//!
 //! Away from an equilibrium the result depends on the chosen independent
 //! coordinates (a state-dependent change of chart adds `z̈`-terms); at an
 //! equilibrium the eigenvalues of `A` do not.
@@ -57,27 +78,60 @@ use crate::model::{Sensor, System};
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
-/// A model input: a generalized force on one coordinate (a force along
-/// global x or y at a body's centre of mass \[N\], or a torque on it
-/// \[N m\]), added to `g`.
+/// A model input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Input {
-    /// Generalized force on coordinate `k` (global index).
+    /// Generalized force on coordinate `k` (global index): a force along
+    /// global x or y at a body's centre of mass \[N\], or a torque on it
+    /// \[N m\], added to `g`.
     Force {
         /// The coordinate.
         coordinate: usize,
     },
+    /// The acceleration of a drive's prescribed motion `f(t)` \[m/s² or
+    /// rad/s²\]: the drive follows `f(t) + σ(t)` with `σ̈ = u`; its offset
+    /// `σ` and rate `σ̇` join the state (module docs, "Drive inputs").
+    Drive {
+        /// The drive's joint (index into [`System::constraints`]).
+        joint: usize,
+    },
+}
+
+/// The motion units of a drive whose generalized force is in `force_unit`
+/// (`"N"`: a translation; `"N m"`: an angle): offset, rate, acceleration.
+fn drive_units(force_unit: &str) -> [&'static str; 3] {
+    if force_unit == "N" {
+        ["m", "m/s", "m/s^2"]
+    } else {
+        ["rad", "rad/s", "rad/s^2"]
+    }
+}
+
+/// A joint's name as the scenario gives it (its description when unnamed).
+fn joint_label(sys: &System, joint: usize) -> String {
+    let c = &sys.constraints()[joint];
+    crate::model::joint_short_name(c.as_ref()).unwrap_or_else(|| c.name())
 }
 
 impl Input {
-    /// Name `BODY.fx`, `BODY.fy` or `BODY.mz` and unit.
+    /// Name (`BODY.fx`, `BODY.fy`, `BODY.mz`, `DRIVE.acc`) and unit.
     pub fn name(&self, sys: &System) -> (String, &'static str) {
-        let Input::Force { coordinate: k } = *self;
-        let body = &sys.bodies()[k / 3].name;
-        match k % 3 {
-            0 => (format!("{body}.fx"), "N"),
-            1 => (format!("{body}.fy"), "N"),
-            _ => (format!("{body}.mz"), "N m"),
+        match *self {
+            Input::Force { coordinate: k } => {
+                let body = &sys.bodies()[k / 3].name;
+                match k % 3 {
+                    0 => (format!("{body}.fx"), "N"),
+                    1 => (format!("{body}.fy"), "N"),
+                    _ => (format!("{body}.mz"), "N m"),
+                }
+            }
+            Input::Drive { joint } => {
+                let unit = sys.constraints()[joint].drive_unit().unwrap_or("N m");
+                (
+                    format!("{}.acc", joint_label(sys, joint)),
+                    drive_units(unit)[2],
+                )
+            }
         }
     }
 }
@@ -227,17 +281,19 @@ pub struct StateSpace {
     pub independent: Vec<usize>,
     /// Method used ([`Method::Tangent`] or [`Method::FiniteDifferences`]).
     pub method: Method,
-    /// State names: `z` then `ż` (`BODY.x` …, `BODY.vx` …).
+    /// State names: `z` then `ż` (`BODY.x` …, `BODY.vx` …), then the
+    /// offsets and rates of the driven inputs (`DRIVE.offset` …,
+    /// `DRIVE.rate` …), in input order.
     pub states: Vec<(String, &'static str)>,
     /// Input names and units.
     pub inputs: Vec<(String, &'static str)>,
     /// Output names and units.
     pub outputs: Vec<(String, &'static str)>,
-    /// `A` (2f × 2f).
+    /// `A` (s × s, s = 2f + 2 × drive inputs).
     pub a: Mat<f64>,
-    /// `B` (2f × inputs).
+    /// `B` (s × inputs).
     pub b: Mat<f64>,
-    /// `C` (outputs × 2f).
+    /// `C` (outputs × s).
     pub c: Mat<f64>,
     /// `D` (outputs × inputs), zero.
     pub d: Mat<f64>,
@@ -262,6 +318,8 @@ struct Chart<'a> {
     x_lock: Vec<f64>,
     x_dyn: Vec<f64>,
     newton_tol: f64,
+    /// Rows of Φ of the driven inputs, whose targets are shifted by σ.
+    drive_rows: Vec<usize>,
 }
 
 impl<'a> Chart<'a> {
@@ -270,6 +328,7 @@ impl<'a> Chart<'a> {
         t: f64,
         independent: Vec<usize>,
         newton_tol: f64,
+        drive_rows: Vec<usize>,
     ) -> Result<Self, LinearizeError> {
         let (n, m, f) = (sys.n_coords(), sys.n_constraints(), independent.len());
         let mut pattern = sys.jacobian_pattern().to_vec();
@@ -304,6 +363,7 @@ impl<'a> Chart<'a> {
             x_lock: vec![0.0; n + m + f],
             x_dyn: vec![0.0; n + m],
             newton_tol,
+            drive_rows,
         })
     }
 
@@ -353,8 +413,14 @@ impl<'a> Chart<'a> {
         Ok(cols)
     }
 
-    /// Positions with `q_I = z` on `Φ(q, t) = 0`, Newton from `guess`.
-    fn positions(&mut self, guess: &[f64], z: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+    /// Positions with `q_I = z` on `Φ(q, t) = σ e_r` (the drive rows
+    /// shifted by `sigma`), Newton from `guess`.
+    fn positions(
+        &mut self,
+        guess: &[f64],
+        z: &[f64],
+        sigma: &[f64],
+    ) -> Result<Vec<f64>, LinearizeError> {
         let m = self.sys.n_constraints();
         let f = self.independent.len();
         let mut q = guess.to_vec();
@@ -365,6 +431,9 @@ impl<'a> Chart<'a> {
         let zero = vec![0.0; f];
         for it in 0..=30 {
             self.sys.phi(&q, self.t, &mut phi);
+            for (&r, &s) in self.drive_rows.iter().zip(sigma) {
+                phi[r] -= s;
+            }
             let res = phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
             if res <= self.newton_tol {
                 return Ok(q);
@@ -388,12 +457,20 @@ impl<'a> Chart<'a> {
         unreachable!()
     }
 
-    /// Velocities at `q` with `q̇_I = zd`: `Φ̃ q̇ = [−Φ_t; ż]`.
-    fn velocities(&mut self, q: &[f64], zd: &[f64]) -> Result<Vec<f64>, LinearizeError> {
+    /// Velocities at `q` with `q̇_I = zd`: `Φ̃ q̇ = [−Φ_t + σ̇ e_r; ż]`.
+    fn velocities(
+        &mut self,
+        q: &[f64],
+        zd: &[f64],
+        sigma_rate: &[f64],
+    ) -> Result<Vec<f64>, LinearizeError> {
         let mut phi_t = vec![0.0; self.sys.n_constraints()];
         self.sys.phi_t(q, self.t, &mut phi_t);
         for v in &mut phi_t {
             *v = -*v;
+        }
+        for (&r, &s) in self.drive_rows.iter().zip(sigma_rate) {
+            phi_t[r] += s;
         }
         self.factor_lock(q)?;
         self.solve_lock(&phi_t, zd)
@@ -457,16 +534,14 @@ pub fn independent_coordinates(sys: &System, q: &[f64], t: f64) -> Vec<usize> {
     super::inverse::partition_at(sys, q, t).independent
 }
 
-/// Dense `f × f` `VᵀXV` of an `n × n` sparse `X` and basis columns `v`.
-fn project(x: &super::Triplets, v: &[Vec<f64>]) -> Mat<f64> {
-    let f = v.len();
-    let n = x.rows;
-    let mut xv = vec![0.0; n];
-    let mut out = Mat::<f64>::zeros(f, f);
-    for j in 0..f {
-        x.mul_vec(&v[j], &mut xv);
-        for i in 0..f {
-            out[(i, j)] = v[i].iter().zip(&xv).map(|(a, b)| a * b).sum();
+/// Dense `VᵀXW` of an `n × n` sparse `X` and columns `v`, `w`.
+fn project(x: &super::Triplets, v: &[Vec<f64>], w: &[Vec<f64>]) -> Mat<f64> {
+    let mut xw = vec![0.0; x.rows];
+    let mut out = Mat::<f64>::zeros(v.len(), w.len());
+    for (j, wj) in w.iter().enumerate() {
+        x.mul_vec(wj, &mut xw);
+        for (i, vi) in v.iter().enumerate() {
+            out[(i, j)] = vi.iter().zip(&xw).map(|(a, b)| a * b).sum();
         }
     }
     out
@@ -500,12 +575,40 @@ pub fn linearize(
             "state entry {i} is not finite"
         )));
     }
+    let mut drive_rows = Vec::new();
+    let mut drive_inputs = Vec::new();
+    let all_drives = crate::model::drives(sys);
     for inp in inputs {
-        let Input::Force { coordinate } = *inp;
-        if coordinate >= n {
-            return Err(LinearizeError::Invalid(format!(
-                "input coordinate {coordinate} out of range (n = {n})"
-            )));
+        match *inp {
+            Input::Force { coordinate } => {
+                if coordinate >= n {
+                    return Err(LinearizeError::Invalid(format!(
+                        "input coordinate {coordinate} out of range (n = {n})"
+                    )));
+                }
+            }
+            Input::Drive { joint } => {
+                let Some(d) = all_drives.iter().find(|d| d.joint == joint) else {
+                    return Err(LinearizeError::Invalid(
+                        if joint < sys.constraints().len() {
+                            format!(
+                                "input joint '{}' is not a drive (drive_coordinate or drive_angle)",
+                                joint_label(sys, joint)
+                            )
+                        } else {
+                            format!("input joint {joint} out of range")
+                        },
+                    ));
+                };
+                if drive_rows.contains(&d.row) {
+                    return Err(LinearizeError::Invalid(format!(
+                        "drive '{}' is an input twice",
+                        joint_label(sys, joint)
+                    )));
+                }
+                drive_rows.push(d.row);
+                drive_inputs.push(*d);
+            }
         }
     }
     for out in outputs {
@@ -536,12 +639,35 @@ pub fn linearize(
         None => independent_coordinates(sys, q, t),
     };
     let f = independent.len();
-    let mut chart = Chart::new(sys, t, independent.clone(), opts.newton_tol)?;
+    let nd = drive_rows.len();
+    // state layout: z (f), ż (f), σ (nd), σ̇ (nd)
+    let ns = 2 * f + 2 * nd;
+    let mut chart = Chart::new(
+        sys,
+        t,
+        independent.clone(),
+        opts.newton_tol,
+        drive_rows.clone(),
+    )?;
     let z0: Vec<f64> = independent.iter().map(|&k| q[k]).collect();
     let zd0: Vec<f64> = independent.iter().map(|&k| qd[k]).collect();
-    let q0 = chart.positions(q, &z0)?;
-    let qd0 = chart.velocities(&q0, &zd0)?;
+    let no_shift = vec![0.0; nd];
+    let q0 = chart.positions(q, &z0, &no_shift)?;
+    let qd0 = chart.velocities(&q0, &zd0, &no_shift)?;
     let v = chart.basis(&q0)?;
+    // the chart's tangent along each drive offset: Φ̃ W = [e_r; 0]
+    let w = {
+        chart.factor_lock(&q0)?;
+        let mut e = vec![0.0; sys.n_constraints()];
+        let zero = vec![0.0; f];
+        let mut cols = Vec::with_capacity(nd);
+        for &r in &drive_rows {
+            e.fill(0.0);
+            e[r] = 1.0;
+            cols.push(chart.solve_lock(&e, &zero)?);
+        }
+        cols
+    };
     // a basis that misses the null space: inadmissible independent set
     {
         let mut r = vec![0.0; sys.n_constraints()];
@@ -595,69 +721,108 @@ pub fn linearize(
         }
         m => m,
     };
-    // B's second block: rows I of [M Φ_qᵀ; Φ_q 0]⁻¹ [E; 0] (exact)
+    // B: rows I of [M Φ_qᵀ; Φ_q 0]⁻¹ [E; 0] for forces and
+    // [M Φ_qᵀ; Φ_q 0]⁻¹ [0; e_r] for drive accelerations (exact), and
+    // σ̈ = u for the latter
     let nu = inputs.len();
-    let mut b = Mat::<f64>::zeros(2 * f, nu);
+    let mut b = Mat::<f64>::zeros(ns, nu);
     chart.factor_dyn(&q0)?;
     let zero_m = vec![0.0; sys.n_constraints()];
+    let zero_n = vec![0.0; n];
+    let mut slot = 0;
     for (k, inp) in inputs.iter().enumerate() {
-        let Input::Force { coordinate } = *inp;
-        let mut e = vec![0.0; n];
-        e[coordinate] = 1.0;
-        let x = chart.solve_dyn(&e, &zero_m)?;
+        let x = match *inp {
+            Input::Force { coordinate } => {
+                let mut e = vec![0.0; n];
+                e[coordinate] = 1.0;
+                chart.solve_dyn(&e, &zero_m)?
+            }
+            Input::Drive { .. } => {
+                let mut e = vec![0.0; sys.n_constraints()];
+                e[drive_rows[slot]] = 1.0;
+                b[(2 * f + nd + slot, k)] = 1.0;
+                slot += 1;
+                chart.solve_dyn(&zero_n, &e)?
+            }
+        };
         for (i, &c) in independent.iter().enumerate() {
             b[(f + i, k)] = x[c];
         }
     }
-    let mut a = Mat::<f64>::zeros(2 * f, 2 * f);
+    let mut a = Mat::<f64>::zeros(ns, ns);
     for i in 0..f {
         a[(i, f + i)] = 1.0;
     }
+    for i in 0..nd {
+        a[(2 * f + i, 2 * f + nd + i)] = 1.0;
+    }
     let mut reduced = None;
-    let x0: Vec<f64> = z0.iter().chain(&zd0).copied().collect();
+    let x0: Vec<f64> = z0
+        .iter()
+        .chain(&zd0)
+        .copied()
+        .chain(std::iter::repeat_n(0.0, 2 * nd))
+        .collect();
     let step = |j: usize| opts.fd_step * (1.0 + x0[j].abs());
+    // the chart at a state x = (z, ż, σ, σ̇): positions and velocities
+    let at_state = |x: &[f64], chart: &mut Chart| -> Result<(Vec<f64>, Vec<f64>), LinearizeError> {
+        let qx = chart.positions(&q0, &x[..f], &x[2 * f..2 * f + nd])?;
+        let qdx = chart.velocities(&qx, &x[f..2 * f], &x[2 * f + nd..])?;
+        Ok((qx, qdx))
+    };
     match method {
         Method::Tangent => {
             let mut tan = Tangent::new(sys);
             tan.evaluate(t, &q0, &qd0, &lambda0)?;
-            let mh = project(&tan.mass(), &v);
-            let ch = project(&tan.damping(), &v);
-            let kh = project(&tan.stiffness(), &v);
-            let lu = mh.partial_piv_lu();
-            let mk = lu.solve(&kh);
-            let mc = lu.solve(&ch);
-            for i in 0..f {
-                for j in 0..f {
-                    a[(f + i, j)] = -mk[(i, j)];
-                    a[(f + i, f + j)] = -mc[(i, j)];
+            let (mass, damping, stiffness) = (tan.mass(), tan.damping(), tan.stiffness());
+            let mh = project(&mass, &v, &v);
+            let ch = project(&damping, &v, &v);
+            let kh = project(&stiffness, &v, &v);
+            if f > 0 {
+                let lu = mh.partial_piv_lu();
+                let mk = lu.solve(&kh);
+                let mc = lu.solve(&ch);
+                // the drive offsets and rates: −M̂⁻¹VᵀKW, −M̂⁻¹VᵀCW
+                let mkw = lu.solve(&project(&stiffness, &v, &w));
+                let mcw = lu.solve(&project(&damping, &v, &w));
+                for i in 0..f {
+                    for j in 0..f {
+                        a[(f + i, j)] = -mk[(i, j)];
+                        a[(f + i, f + j)] = -mc[(i, j)];
+                    }
+                    for j in 0..nd {
+                        a[(f + i, 2 * f + j)] = -mkw[(i, j)];
+                        a[(f + i, 2 * f + nd + j)] = -mcw[(i, j)];
+                    }
                 }
             }
             reduced = Some([mh, ch, kh]);
         }
         _ => {
-            // central differences of (z, ż) ↦ z̈ through the chart
+            // central differences of x ↦ z̈ through the chart
             let zdd = |x: &[f64], chart: &mut Chart| -> Result<Vec<f64>, LinearizeError> {
-                let qx = chart.positions(&q0, &x[..f])?;
-                let qdx = chart.velocities(&qx, &x[f..])?;
+                let (qx, qdx) = at_state(x, chart)?;
                 let (qdd, _) = chart.accelerations(&qx, &qdx)?;
                 Ok(independent.iter().map(|&c| qdd[c]).collect())
             };
-            for j in 0..2 * f {
-                let h = step(j);
-                let mut xp = x0.clone();
-                xp[j] += h;
-                let up = zdd(&xp, &mut chart)?;
-                xp[j] = x0[j] - h;
-                let dn = zdd(&xp, &mut chart)?;
-                for i in 0..f {
-                    a[(f + i, j)] = (up[i] - dn[i]) / (2.0 * h);
+            if f > 0 {
+                for j in 0..ns {
+                    let h = step(j);
+                    let mut xp = x0.clone();
+                    xp[j] += h;
+                    let up = zdd(&xp, &mut chart)?;
+                    xp[j] = x0[j] - h;
+                    let dn = zdd(&xp, &mut chart)?;
+                    for i in 0..f {
+                        a[(f + i, j)] = (up[i] - dn[i]) / (2.0 * h);
+                    }
                 }
             }
         }
     }
     // C
     let ny = outputs.len();
-    let mut c = Mat::<f64>::zeros(ny, 2 * f);
+    let mut c = Mat::<f64>::zeros(ny, ns);
     let mut exact = vec![false; ny];
     if method == Method::Tangent {
         for (r, out) in outputs.iter().enumerate() {
@@ -666,11 +831,17 @@ pub fn linearize(
                     for j in 0..f {
                         c[(r, j)] = v[j][k];
                     }
+                    for j in 0..nd {
+                        c[(r, 2 * f + j)] = w[j][k];
+                    }
                     exact[r] = true;
                 }
                 Output::Velocity(k) => {
                     for j in 0..f {
                         c[(r, f + j)] = v[j][k];
+                    }
+                    for j in 0..nd {
+                        c[(r, 2 * f + nd + j)] = w[j][k];
                     }
                     exact[r] = true;
                 }
@@ -680,8 +851,7 @@ pub fn linearize(
     }
     if exact.iter().any(|e| !e) {
         let read = |x: &[f64], chart: &mut Chart| -> Result<Vec<f64>, LinearizeError> {
-            let qx = chart.positions(&q0, &x[..f])?;
-            let qdx = chart.velocities(&qx, &x[f..])?;
+            let (qx, qdx) = at_state(x, chart)?;
             let mut all = Vec::new();
             let mut y = Vec::with_capacity(ny);
             for out in outputs {
@@ -697,7 +867,7 @@ pub fn linearize(
             }
             Ok(y)
         };
-        for j in 0..2 * f {
+        for j in 0..ns {
             let h = step(j);
             let mut xp = x0.clone();
             xp[j] += h;
@@ -726,6 +896,14 @@ pub fn linearize(
             .iter()
             .map(|&k| Output::Velocity(k).name(sys, sensors)),
     );
+    for (slot, suffix) in [(0, "offset"), (1, "rate")] {
+        for d in &drive_inputs {
+            states.push((
+                format!("{}.{suffix}", joint_label(sys, d.joint)),
+                drive_units(d.unit)[slot],
+            ));
+        }
+    }
     Ok(StateSpace {
         t,
         q: q0,

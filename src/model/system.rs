@@ -81,6 +81,8 @@ pub struct System {
     force_kernels: Vec<ForceKernelBlock>,
     /// The plan for force Jacobians: every element once, in order.
     force_plan: Vec<Segment>,
+    /// The names messages give the force elements ([`System::force_label`]).
+    force_names: Vec<Option<String>>,
 }
 
 /// Collects bodies, joints and force elements, then validates them into a [`System`].
@@ -240,6 +242,7 @@ impl SystemBuilder {
             mass_diag,
             kernels: Vec::new(),
             use_kernels: false,
+            force_names: Vec::new(),
         };
         for (joints, k) in self.kernels {
             sys.attach_kernels(joints, k)?;
@@ -297,6 +300,24 @@ impl System {
     /// Force elements in the order added (builder gravity last).
     pub fn forces(&self) -> &[Box<dyn ForceElement>] {
         &self.forces
+    }
+    /// Name force element `i` in messages (a scenario gives each element
+    /// its `[[force]]`'s key and name, e.g. `force[0] 'spring'`).
+    pub fn set_force_name(&mut self, i: usize, name: impl Into<String>) {
+        if self.force_names.len() <= i {
+            self.force_names.resize(i + 1, None);
+        }
+        self.force_names[i] = Some(name.into());
+    }
+    /// How messages name force element `i`: its name
+    /// ([`System::set_force_name`]) and what it is, `force[0] 'spring'
+    /// (point spring-damper …)`, or `force element #i (…)` when unnamed.
+    pub fn force_label(&self, i: usize) -> String {
+        let what = self.forces.get(i).map_or_else(String::new, |f| f.name());
+        match self.force_names.get(i).and_then(|n| n.as_deref()) {
+            Some(n) => format!("{n} ({what})"),
+            None => format!("force element #{i} ({what})"),
+        }
     }
     /// Number of coordinates n = 3 · bodies.
     pub fn n_coords(&self) -> usize {

@@ -388,6 +388,11 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
     let mut system = builder
         .build()
         .map_err(|e| err("model".into(), e.to_string()))?;
+    for (k, (name, range)) in forces.iter().enumerate() {
+        for i in range.clone() {
+            system.set_force_name(i, format!("force[{k}] '{name}'"));
+        }
+    }
     let evaluation = match raw.constraints.evaluation.as_deref() {
         None | Some("auto") => Evaluation::Auto,
         Some("generic") => Evaluation::Generic,

@@ -208,8 +208,9 @@ fn growth_check(
     Ok(())
 }
 
-/// "; mostly from force element #i (its name), whose generalized force at
-/// t0 has norm |g|" for the element a rate comes from, or "".
+/// "; mostly from LABEL, whose generalized force at t0 has norm |g|" for
+/// the element a rate comes from ([`System::force_label`]: its scenario
+/// name), or "".
 fn element_note(sys: &System, t: f64, q: &[f64], qd: &[f64], i: Option<usize>) -> String {
     let Some(e) = i.and_then(|i| sys.forces().get(i).map(|e| (i, e))) else {
         return String::new();
@@ -220,9 +221,5 @@ fn element_note(sys: &System, t: f64, q: &[f64], qd: &[f64], i: Option<usize>) -
         f if f > 0.0 => format!(", whose generalized force at t0 has norm {f:.3e}"),
         _ => String::new(),
     };
-    format!(
-        "; mostly from force element #{} ({}){force}",
-        e.0,
-        e.1.name()
-    )
+    format!("; mostly from {}{force}", sys.force_label(e.0))
 }

@@ -8,10 +8,10 @@ use faer::Mat;
 use mbsolve::analysis::linearize::{
     linearize, Input, LinearizeOptions, Method, Output, StateSpace,
 };
-use mbsolve::constraints::Revolute;
-use mbsolve::forces::RotationalSpringDamper;
+use mbsolve::constraints::{DriveCoordinate, Revolute};
+use mbsolve::forces::{PointSpringDamper, RotationalSpringDamper};
 use mbsolve::integrate::{Method as IntegrationMethod, Tolerance};
-use mbsolve::model::{Body, BodyRef, System, SystemBuilder};
+use mbsolve::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, RunConfig};
 use std::path::Path;
@@ -455,5 +455,271 @@ fn cli_writes_the_model_and_names_bad_arguments() {
             "{args:?}: {err}"
         );
         assert!(err.contains("pendulum.toml"), "{err}");
+    }
+}
+
+/// A pendulum (m, I about its centre) hanging at its local (0, d) from a
+/// cart whose x follows the drive `cart_x` (`f(t)`; y and φ held by
+/// drives), with a horizontal spring-damper (k, c, free length `span`)
+/// from the ground point (−span, −d) to the bob's centre. Coordinates:
+/// cart 0..3, bob 3..6.
+fn cart_pendulum(m: f64, i: f64, d: f64, k: f64, c: f64, motion: TimeFunction) -> System {
+    let span = 1.0;
+    let mut b = SystemBuilder::new();
+    b.add_body(Body::new("cart", 2.0, 0.1, [0.0, 0.0, 0.0]));
+    b.add_body(Body::new("bob", m, i, [0.0, -d, 0.0]));
+    b.add_constraint(DriveCoordinate::new("cart_x", 0, 0, motion));
+    b.add_constraint(DriveCoordinate::new(
+        "cart_y",
+        0,
+        1,
+        TimeFunction::Constant(0.0),
+    ));
+    b.add_constraint(DriveCoordinate::new(
+        "cart_phi",
+        0,
+        2,
+        TimeFunction::Constant(0.0),
+    ));
+    b.add_constraint(Revolute::new(
+        "pivot",
+        BodyRef::Body(0),
+        [0.0, 0.0],
+        BodyRef::Body(1),
+        [0.0, d],
+    ));
+    b.add_force(PointSpringDamper::linear(
+        BodyRef::Ground,
+        [-span, -d],
+        BodyRef::Body(1),
+        [0.0, 0.0],
+        span,
+        k,
+        c,
+    ));
+    b.gravity([0.0, -G]);
+    b.build().unwrap()
+}
+
+/// The cart pendulum's consistent state (by hand): cart at (s, 0), bob
+/// centre at (s + d sin θ, −d cos θ).
+fn cart_state(d: f64, s: f64, sd: f64, th: f64, om: f64) -> (Vec<f64>, Vec<f64>) {
+    let (sn, cs) = th.sin_cos();
+    (
+        vec![s, 0.0, 0.0, s + d * sn, -d * cs, th],
+        vec![sd, 0.0, 0.0, sd + d * cs * om, d * sn * om, om],
+    )
+}
+
+#[test]
+fn drive_acceleration_input_matches_the_cart_pendulum_closed_form() {
+    // Lagrange with x_b = s + d sin θ, y_b = −d cos θ and the cart's
+    // acceleration s̈ = u: I_O θ̈ = −m g d sin θ − m d cos θ s̈ − F d cos θ,
+    // F = k (x_b − x_b⁰) + c ẋ_b the spring-damper's pull (horizontal to
+    // first order at the free length)
+    let (m, i, d) = (1.5, 0.02, 0.4);
+    let io = i + m * d * d;
+    let cart = [Input::Drive { joint: 0 }];
+    let outputs = [Output::Coordinate(3), Output::Velocity(3)];
+    let opts = LinearizeOptions {
+        independent: Some(vec![5]),
+        ..Default::default()
+    };
+    // hanging at rest, spring-damper on: the exact tangent path
+    let (k, c) = (40.0, 3.0);
+    let sys = cart_pendulum(m, i, d, k, c, TimeFunction::Constant(0.0));
+    let (q, qd) = cart_state(d, 0.0, 0.0, 0.0, 0.0);
+    let ss = linearize(&sys, &[], 0.0, &q, &qd, &cart, &outputs, &opts).unwrap();
+    assert_eq!(ss.method, Method::Tangent);
+    let names: Vec<_> = ss.states.iter().map(|s| (s.0.as_str(), s.1)).collect();
+    assert_eq!(
+        names,
+        [
+            ("bob.phi", "rad"),
+            ("bob.omega", "rad/s"),
+            ("cart_x.offset", "m"),
+            ("cart_x.rate", "m/s")
+        ]
+    );
+    assert_eq!(ss.inputs[0], ("cart_x.acc".to_string(), "m/s^2"));
+    let a = [
+        [0.0, 1.0, 0.0, 0.0],
+        [
+            -(m * G * d + k * d * d) / io,
+            -c * d * d / io,
+            -k * d / io,
+            -c * d / io,
+        ],
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 4],
+    ];
+    let b = [0.0, -m * d / io, 0.0, 1.0];
+    let cc = [[d, 0.0, 1.0, 0.0], [0.0, d, 0.0, 1.0]];
+    let check = |ss: &StateSpace, a: &[[f64; 4]; 4], b: &[f64; 4], cc: &[[f64; 4]; 2], tol: f64| {
+        let scale = a.iter().flatten().fold(1.0_f64, |s, v| s.max(v.abs()));
+        for (r, (row, &br)) in a.iter().zip(b).enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let got = ss.a[(r, j)];
+                assert!((got - v).abs() <= tol * scale, "A[{r},{j}] = {got} vs {v}");
+            }
+            let got = ss.b[(r, 0)];
+            assert!((got - br).abs() <= tol, "B[{r}] = {got} vs {br}");
+        }
+        for (r, row) in cc.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let got = ss.c[(r, j)];
+                assert!((got - v).abs() <= tol, "C[{r},{j}] = {got} vs {v}");
+            }
+        }
+    };
+    check(&ss, &a, &b, &cc, 1e-12);
+    // the same point by central differences through the chart
+    let fd = linearize(
+        &sys,
+        &[],
+        0.0,
+        &q,
+        &qd,
+        &cart,
+        &outputs,
+        &LinearizeOptions {
+            method: Method::FiniteDifferences,
+            ..opts.clone()
+        },
+    )
+    .unwrap();
+    check(&fd, &a, &b, &cc, 1e-6);
+    // swinging on a cart that moves and accelerates (f = v₀ t + a₀ t²/2,
+    // no spring): θ̈ = −(m g d sin θ + m d cos θ a₀)/I_O, differences path
+    let (v0, a0, th, om) = (0.7, 1.9, 0.6, -1.1);
+    let sys = cart_pendulum(
+        m,
+        i,
+        d,
+        0.0,
+        0.0,
+        TimeFunction::Polynomial(vec![0.0, v0, 0.5 * a0]),
+    );
+    let (q, qd) = cart_state(d, 0.0, v0, th, om);
+    let ss = linearize(&sys, &[], 0.0, &q, &qd, &cart, &outputs, &opts).unwrap();
+    assert_eq!(ss.method, Method::FiniteDifferences);
+    let (sn, cs) = th.sin_cos();
+    let a = [
+        [0.0, 1.0, 0.0, 0.0],
+        [(-m * G * d * cs + m * d * sn * a0) / io, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0; 4],
+    ];
+    let b = [0.0, -m * d * cs / io, 0.0, 1.0];
+    let cc = [[d * cs, 0.0, 1.0, 0.0], [-d * sn * om, d * cs, 0.0, 1.0]];
+    check(&ss, &a, &b, &cc, 1e-6);
+    // a joint that is not a drive, and a drive named twice, are refused
+    let err = |inputs: &[Input]| {
+        linearize(&sys, &[], 0.0, &q, &qd, inputs, &[], &opts)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(
+        err(&[Input::Drive { joint: 3 }]).contains("'pivot' is not a drive"),
+        "{}",
+        err(&[Input::Drive { joint: 3 }])
+    );
+    assert!(err(&[cart[0], cart[0]]).contains("'cart_x' is an input twice"));
+}
+
+/// The cart pendulum's (θ, θ̇) at τ when its drive follows `f + δ p`
+/// (`p` = 1, t or t²/2: an offset, a rate or an acceleration step), from
+/// the consistent start of `f + δ p` at t = 0.
+#[allow(clippy::too_many_arguments)]
+fn cart_run(
+    m: f64,
+    i: f64,
+    d: f64,
+    k: f64,
+    c: f64,
+    f: [f64; 3],
+    start: (f64, f64),
+    delta: f64,
+    which: usize,
+    tau: f64,
+) -> [f64; 2] {
+    let mut coeffs = f.to_vec();
+    coeffs[which] += if which == 2 { 0.5 * delta } else { delta };
+    let sys = cart_pendulum(m, i, d, k, c, TimeFunction::Polynomial(coeffs.clone()));
+    let (q, qd) = cart_state(d, coeffs[0], coeffs[1], start.0, start.1);
+    let (traj, summary) = simulate(&sys, &q, &qd, &run_config(tau), &mut []).unwrap();
+    assert_eq!(summary.status, "completed");
+    let (q, qd) = (traj.q.last().unwrap(), traj.qd.last().unwrap());
+    [q[5], qd[5]]
+}
+
+#[test]
+fn drive_inputs_predict_nonlinear_runs_with_perturbed_drives() {
+    let (m, i, d) = (1.5, 0.02, 0.4);
+    let cart = [Input::Drive { joint: 0 }];
+    let opts = LinearizeOptions {
+        independent: Some(vec![5]),
+        ..Default::default()
+    };
+    // at rest, with the spring-damper: runs over τ = 0.3 s with the drive
+    // perturbed by ±δ in offset, rate and acceleration against
+    // exp(A τ) e_σ, exp(A τ) e_σ̇ and ∫₀^τ exp(A s) B ds
+    let (k, c) = (40.0, 3.0);
+    let sys = cart_pendulum(m, i, d, k, c, TimeFunction::Constant(0.0));
+    let (q, qd) = cart_state(d, 0.0, 0.0, 0.0, 0.0);
+    let ss = linearize(&sys, &[], 0.0, &q, &qd, &cart, &[], &opts).unwrap();
+    assert_eq!(ss.method, Method::Tangent);
+    let tau = 0.3;
+    let delta = 1e-4;
+    // [A B; 0 0] carries the step input as a fifth state
+    let mut aug = Mat::<f64>::zeros(5, 5);
+    for r in 0..4 {
+        for j in 0..4 {
+            aug[(r, j)] = ss.a[(r, j)];
+        }
+        aug[(r, 4)] = ss.b[(r, 0)];
+    }
+    for (which, x0) in [
+        (0, [0.0, 0.0, 1.0, 0.0, 0.0]),
+        (1, [0.0, 0.0, 0.0, 1.0, 0.0]),
+        (2, [0.0, 0.0, 0.0, 0.0, 1.0]),
+    ] {
+        let run = |s: f64| cart_run(m, i, d, k, c, [0.0; 3], (0.0, 0.0), s * delta, which, tau);
+        let (p, n) = (run(1.0), run(-1.0));
+        let nonlinear = [(p[0] - n[0]) / (2.0 * delta), (p[1] - n[1]) / (2.0 * delta)];
+        let linear = expm_times(&aug, tau, &x0);
+        let size = nonlinear[0].abs().max(nonlinear[1].abs());
+        let err = (nonlinear[0] - linear[0])
+            .abs()
+            .max((nonlinear[1] - linear[1]).abs());
+        eprintln!(
+            "drive input {which}: nonlinear {nonlinear:?}, linear [{:.9e}, {:.9e}], error {err:.2e} of {size:.2e}",
+            linear[0], linear[1]
+        );
+        assert!(size > 0.01, "the perturbation moves the pendulum: {size}");
+        assert!(err < 1e-6 * size, "{err:.3e} of {size:.3e}");
+    }
+    // swinging on a moving, accelerating cart (differences path): the θ̇
+    // row of A and B from runs over τ and 2τ, Richardson-extrapolated
+    let (v0, a0, th, om) = (0.7, 1.9, 0.6, -1.1);
+    let f = [0.0, v0, 0.5 * a0];
+    let sys = cart_pendulum(m, i, d, 0.0, 0.0, TimeFunction::Polynomial(f.to_vec()));
+    let (q, qd) = cart_state(d, 0.0, v0, th, om);
+    let ss = linearize(&sys, &[], 0.0, &q, &qd, &cart, &[], &opts).unwrap();
+    assert_eq!(ss.method, Method::FiniteDifferences);
+    let delta = 1e-3;
+    for (which, model) in [(0, ss.a[(1, 2)]), (1, ss.a[(1, 3)]), (2, ss.b[(1, 0)])] {
+        let slope = |tau: f64| {
+            let run = |s: f64| cart_run(m, i, d, 0.0, 0.0, f, (th, om), s * delta, which, tau);
+            let (p, n) = (run(1.0), run(-1.0));
+            (p[1] - n[1]) / (2.0 * delta) / tau
+        };
+        let tau = 1e-4;
+        let measured = 2.0 * slope(tau) - slope(2.0 * tau);
+        eprintln!("moving cart, drive input {which}: model {model:.6e}, runs {measured:.6e}");
+        assert!(
+            (measured - model).abs() < 2e-5 * model.abs().max(1.0),
+            "{which}: model {model} vs runs {measured}"
+        );
     }
 }

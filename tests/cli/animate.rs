@@ -376,3 +376,164 @@ fn video_needs_ffmpeg_or_says_so() {
         );
     }
 }
+
+/// A ball (2 kg, r = 0.2 m) resting on the floor through a Hertz contact
+/// (k = 1e5 N/m^1.5) at its equilibrium penetration δ = (m g/k)^(2/3), and
+/// a bob (1 kg) hanging at rest from a pin whose name needs escaping.
+fn resting_toml() -> String {
+    let delta = (2.0 * 9.81 / 1e5_f64).powf(2.0 / 3.0);
+    format!(
+        r#"name = "arrows"
+gravity = [0.0, -9.81]
+[[body]]
+name = "ball"
+mass = 2.0
+inertia = 0.04
+y = {y:e}
+shape = {{ circle = 0.2 }}
+[[body]]
+name = "bob"
+mass = 1.0
+inertia = 0.01
+x = 1.0
+y = 0.7
+[[joint]]
+type = "revolute"
+name = "p<i>n&\"1'"
+body_i = "ground"
+point_i = [1.0, 1.0]
+body_j = "bob"
+point_j = [0.0, 0.3]
+[[force]]
+type = "contact"
+name = "floor"
+body = "ball"
+radius = 0.2
+wall_point = [0.0, 0.0]
+wall_normal_deg = 90.0
+stiffness = 1e5
+damping = 0.5
+friction = 0.3
+[time]
+end = 0.1
+[output]
+dt = 0.05
+quantities = ["velocities"]
+"#,
+        y = 0.2 - delta
+    )
+}
+
+/// The first `points="…"` of an SVG element, as pixel pairs.
+fn first_points(el: &str) -> Vec<(f64, f64)> {
+    let p = el
+        .split("points=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap();
+    p.split(' ')
+        .map(|xy| {
+            let (x, y) = xy.split_once(',').unwrap();
+            (x.parse().unwrap(), y.parse().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn force_arrows_show_the_weights_against_their_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("arrows.toml");
+    std::fs::write(&scen, resting_toml()).unwrap();
+    let scen = scen.to_str().unwrap();
+    let csv = run(dir.path(), scen, &[]);
+    let svg = dir.path().join("a.svg");
+    let o = mbsolve(&[
+        "animate",
+        scen,
+        &csv,
+        "--forces",
+        "contacts,reactions",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    // shaft and head per arrow: the contact first, then the reaction
+    let arrows: Vec<&str> = text
+        .lines()
+        .filter(|l| l.contains(r#"class="force""#))
+        .collect();
+    assert_eq!(arrows.len(), 4, "{text}");
+    // the key: 10 N (the round force below the largest, 19.62 N)
+    let key = text
+        .lines()
+        .skip_while(|l| !l.contains("force-key"))
+        .take(2)
+        .collect::<String>();
+    assert!(key.contains(">10 N</text>"), "{key}");
+    let d = key.split("d=\"M").nth(1).unwrap();
+    let nums: Vec<f64> = d
+        .split(['L', ',', ' ', 'M', '"'])
+        .filter_map(|s| s.trim().parse().ok())
+        .take(4)
+        .collect();
+    let key_px = (nums[2] - nums[0]).hypot(nums[3] - nums[1]);
+    // the floor pushes the ball up with m g = 19.62 N, the pin holds the
+    // bob with 9.81 N: shafts upward, their lengths to the key's as the
+    // forces to 10 N (pixels to two decimals)
+    for (shaft, force) in [(arrows[0], 19.62), (arrows[2], 9.81)] {
+        let p = first_points(shaft);
+        let (dx, dy) = (p[1].0 - p[0].0, p[1].1 - p[0].1);
+        assert!(dx.abs() < 0.02 && dy < 0.0, "{shaft}");
+        let ratio = dy.abs() / key_px;
+        assert!(
+            (ratio - force / 10.0).abs() < 2e-3,
+            "{ratio} vs {}",
+            force / 10.0
+        );
+    }
+    // names reach the SVG escaped
+    assert!(
+        arrows[2].contains("<title>p&lt;i&gt;n&amp;&quot;1&#39;</title>"),
+        "{}",
+        arrows[2]
+    );
+    assert!(
+        arrows[0].contains("<title>force[0] &#39;floor&#39;"),
+        "{}",
+        arrows[0]
+    );
+    assert!(!text.contains("p<i>"));
+    // a still PNG with the arrows
+    let png = dir.path().join("a.png");
+    let o = mbsolve(&[
+        "animate",
+        scen,
+        &csv,
+        "--forces",
+        "all",
+        "--at",
+        "0",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    // the viewer carries the arrows, names as JSON text with `<` escaped
+    let o = mbsolve(&["view", dir.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let page = std::fs::read_to_string(dir.path().join("arrows.view.html")).unwrap();
+    assert!(page.contains(r#""arrows":{"#), "no arrows in the page");
+    assert!(
+        page.contains(r#"p\u003ci>n&\"1'"#),
+        "the pin's name as JSON"
+    );
+    assert!(!page.contains("p<i>"), "raw markup in the page");
+    assert!(page.contains(r#"id="forces""#), "the toggle");
+    // a bad kind is named
+    let o = mbsolve(&["animate", scen, &csv, "--forces", "torques"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--forces: 'torques'"), "{}", stderr(&o));
+}

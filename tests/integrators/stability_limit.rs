@@ -361,7 +361,10 @@ fn statically_unstable_start_warns_and_refuses_beyond_the_step_cap() {
         let err = start(1e18).unwrap_err().to_string();
         println!("{method}: {err}");
         assert!(err.contains("statically unstable"), "{err}");
-        assert!(err.contains("force element #0"), "{err}");
+        assert!(
+            err.contains("force[0] 'push' (point spring-damper"),
+            "{err}"
+        );
         assert!(err.contains("γ = 5.477e8"), "{err}");
         // k = 1e12: γ ≈ 5.5e5 1/s, 5.5e5 steps: a warning
         let warnings = start(1e12).unwrap();
@@ -397,9 +400,11 @@ fn loads_out_of_scale_are_named_before_the_run() {
         .iter()
         .find(|w| w.contains("the loads at t0 accelerate body"))
         .unwrap_or_else(|| panic!("{warnings:?}"));
-    // the brace is force[0] of the file, element #18 after the rods' 18
-    // torsional springs; its force k (L0 − L) = 200 · (1e6 − 0.707) N
-    assert!(w.contains("point spring-damper"), "{w}");
+    // the brace is force[0] of the file (element #18 after the rods' 18
+    // torsional springs), named as the file names it; its force
+    // k (L0 − L) = 200 · (1e6 − 0.707) N
+    assert!(w.contains("force[0] 'brace' (point spring-damper"), "{w}");
+    assert!(!w.contains("#18"), "{w}");
     assert!(w.contains("norm 2.829e8"), "{w}");
     // the shipped free length: nothing
     let warnings = start("0.7071067811865476").unwrap();

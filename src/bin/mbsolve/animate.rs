@@ -5,8 +5,11 @@
 //!
 //! What is drawn is the library's drawing model ([`mbsolve::drawing`]):
 //! bodies as their shapes, joints, guides, springs, dampers, contacts and
-//! walls, with a time stamp and a scale bar. Positions come from the run's
-//! CSV, read by column name through [`coordinate_columns`].
+//! walls, with a time stamp and a scale bar; with `--forces`, arrows of
+//! the contact forces and joint reactions ([`mbsolve::drawing::arrows`])
+//! and their key. Positions come from the run's CSV, read by column name
+//! through [`coordinate_columns`]; velocities (for the forces) from its
+//! `vx1, vy1, omega1, …` columns, or zero when the run did not write them.
 //!
 //! Time is honest: each frame shows the output row at its wall-clock time
 //! `(t − t₀)/speed`; rows are skipped so that no frame lasts less than the
@@ -16,6 +19,7 @@
 
 use crate::figure::extension;
 use crate::plot::Table;
+use mbsolve::drawing::arrows::{self, Arrow, ArrowKey, ArrowSet, ForceArrows};
 use mbsolve::drawing::{self, BodyShape, Drawing, Ink, Mark};
 use mbsolve::model::System;
 use mbsolve::scenario;
@@ -41,6 +45,8 @@ pub struct AnimateArgs {
     pub every: usize,
     /// PNG still: the output time nearest to this (default: the last).
     pub at: Option<f64>,
+    /// Force arrows drawn (default: none).
+    pub forces: ArrowSet,
 }
 
 /// A drawing and the motion it shows.
@@ -55,6 +61,136 @@ pub struct Scene {
     pub size: (u32, u32),
     /// Text and reference pose drawn on every frame ([`Annotation`]).
     pub note: Annotation,
+    /// Force arrows per output time and their key; `None`: none drawn.
+    pub arrows: Option<SceneArrows>,
+}
+
+/// The force arrows of a scene ([`add_arrows`]).
+#[derive(Debug, Clone)]
+pub struct SceneArrows {
+    /// Per output time, the arrows that act at some time (the same ones,
+    /// in the same order, at every time).
+    pub rows: Vec<Vec<Arrow>>,
+    /// Scale and key.
+    pub key: ArrowKey,
+    /// Arrow head length \[m\].
+    pub head: f64,
+}
+
+impl SceneArrows {
+    /// The marks of the arrows of output row `f`.
+    pub fn marks(&self, f: usize) -> Vec<Mark> {
+        arrows::marks(&self.rows[f], &self.key, self.head)
+    }
+}
+
+/// Compute the arrows of `set` for every row of the scene from the table
+/// (positions, and velocities when it has them), scale them so that the
+/// largest is a quarter of the model's size, and grow the drawn box to
+/// hold them when `grow` says so. Arrows that are zero at every output
+/// time are left out. Returns a note when the velocities are missing.
+pub fn add_arrows(
+    scene: &mut Scene,
+    sc: &scenario::Scenario,
+    table: &Table,
+    set: ArrowSet,
+    grow: bool,
+) -> Result<Option<String>, String> {
+    if set == ArrowSet::default() {
+        return Ok(None);
+    }
+    let sys = &sc.system;
+    let nb = sys.bodies().len();
+    let rod_contacts: Vec<_> = sc
+        .rods
+        .iter()
+        .flat_map(|(_, r)| r.contacts.iter().cloned())
+        .collect();
+    let mut fa = ForceArrows::new(sys, set, &rod_contacts)?;
+    let column = |n: &str| {
+        table
+            .names
+            .iter()
+            .position(|c| c == n)
+            .map(|k| &table.columns[k])
+    };
+    let vel: Option<Vec<[&Vec<f64>; 3]>> = (1..=nb)
+        .map(|i| {
+            Some([
+                column(&format!("vx{i}"))?,
+                column(&format!("vy{i}"))?,
+                column(&format!("omega{i}"))?,
+            ])
+        })
+        .collect();
+    let mut rows = Vec::with_capacity(scene.t.len());
+    let zero = vec![0.0; 3 * nb];
+    for (r, q) in scene.poses.iter().enumerate() {
+        let qd: Vec<f64> = match &vel {
+            Some(v) => v.iter().flat_map(|c| [c[0][r], c[1][r], c[2][r]]).collect(),
+            None => zero.clone(),
+        };
+        let qd = if qd.iter().all(|v| v.is_finite()) {
+            qd
+        } else {
+            zero.clone()
+        };
+        rows.push(
+            fa.at(scene.t[r], q, &qd)
+                .map_err(|e| format!("force arrows at t = {}: {e}", scene.t[r]))?,
+        );
+    }
+    // keep the arrows that act at some time
+    let n = rows.first().map_or(0, Vec::len);
+    let acts: Vec<bool> = (0..n)
+        .map(|j| rows.iter().any(|a| a[j].force != [0.0, 0.0]))
+        .collect();
+    for a in &mut rows {
+        let mut j = 0;
+        a.retain(|_| {
+            j += 1;
+            acts[j - 1]
+        });
+    }
+    let max = rows
+        .iter()
+        .map(|a| arrows::max_force(a))
+        .fold(0.0, f64::max);
+    let Some(key) = ArrowKey::new(max, 0.25 * scene.drawing.scale) else {
+        return Ok(Some(
+            "force arrows: no contact force or reaction acts at any output time".into(),
+        ));
+    };
+    let b = &mut scene.drawing.bounds;
+    for a in rows.iter().flatten().filter(|_| grow) {
+        for p in [
+            a.at,
+            [
+                a.at[0] + key.metres_per_newton * a.force[0],
+                a.at[1] + key.metres_per_newton * a.force[1],
+            ],
+        ] {
+            if p.iter().all(|v| v.is_finite()) {
+                b[0] = b[0].min(p[0]);
+                b[1] = b[1].min(p[1]);
+                b[2] = b[2].max(p[0]);
+                b[3] = b[3].max(p[1]);
+            }
+        }
+    }
+    if grow {
+        scene.size = canvas(scene.drawing.bounds);
+    }
+    scene.arrows = Some(SceneArrows {
+        rows,
+        key,
+        head: 0.03 * scene.drawing.scale,
+    });
+    Ok(vel.is_none().then(|| {
+        "force arrows: the CSV has no velocity columns (output.quantities = [\"velocities\"]): \
+         forces computed at zero velocity"
+            .to_string()
+    }))
 }
 
 /// What a frame shows besides the motion (default: nothing).
@@ -105,6 +241,11 @@ pub fn animate_annotated(a: &AnimateArgs, note: Annotation) -> Result<PathBuf, S
     let sc = scenario::load(&a.scenario, &a.set).map_err(|e| e.to_string())?;
     let table = Table::read(&a.csv)?;
     let mut scene = scene(&sc, &table, &a.csv)?;
+    if let Some(n) = add_arrows(&mut scene, &sc, &table, a.forces, true)
+        .map_err(|e| format!("{}: {e}", a.csv.display()))?
+    {
+        println!("{n}");
+    }
     if let Some(g) = &note.ghost {
         if g.len() != scene.poses[0].len() || g.iter().any(|v| !v.is_finite()) {
             return Err(format!(
@@ -185,6 +326,7 @@ pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene
         poses,
         size,
         note: Annotation::default(),
+        arrows: None,
     })
 }
 
@@ -280,6 +422,7 @@ fn ink_rgb(ink: Ink) -> RGBColor {
         Ink::Spring => RGBColor(0xD5, 0x5E, 0x00),
         Ink::Damper => RGBColor(0x00, 0x9E, 0x73),
         Ink::Contact => RGBColor(0xCC, 0x79, 0xA7),
+        Ink::Reaction => RGBColor(0xE6, 0x9F, 0x00),
     }
 }
 
@@ -318,6 +461,9 @@ fn draw_frame<DB: DrawingBackend>(
         draw_marks(root, &s.drawing.marks(g), &px, k, true)?;
     }
     draw_marks(root, &s.drawing.marks(&s.poses[f]), &px, k, false)?;
+    if let Some(a) = &s.arrows {
+        draw_marks(root, &a.marks(f), &px, k, false)?;
+    }
     let font = ("sans-serif", 14.0).into_font();
     root.draw(&Text::new(
         format!("t = {:.3} s", s.t[f]),
@@ -334,8 +480,42 @@ fn draw_frame<DB: DrawingBackend>(
         vec![(x0, y0 - 4), (x0, y0), (x1, y0), (x1, y0 - 4)],
         BLACK.stroke_width(2),
     ))?;
-    root.draw(&Text::new(label, (x1 + 6, y0 - 12), font))?;
+    root.draw(&Text::new(label, (x1 + 6, y0 - 12), font.clone()))?;
+    if let Some(a) = &s.arrows {
+        // the key, bottom right: an arrow of the key force and its value
+        let (from, to, label) = key_geometry(a, k, size);
+        let head = key_head(a, k);
+        let p = |x: [f64; 2]| (x[0].round() as i32, x[1].round() as i32);
+        root.draw(&PathElement::new(
+            vec![p(from), p(to)],
+            BLACK.stroke_width(2),
+        ))?;
+        root.draw(&PathElement::new(
+            vec![
+                p([to[0] - head, to[1] - 0.5 * head]),
+                p(to),
+                p([to[0] - head, to[1] + 0.5 * head]),
+            ],
+            BLACK.stroke_width(2),
+        ))?;
+        let w = 7 * label.chars().count() as i32;
+        root.draw(&Text::new(label, (p(from).0 - w - 6, p(from).1 - 8), font))?;
+    }
     Ok(())
+}
+
+/// The key's arrow in pixels (from, to, pointing right, 12 px above the
+/// bottom, ending 12 px from the right edge) and its label.
+pub fn key_geometry(a: &SceneArrows, k: f64, size: (u32, u32)) -> ([f64; 2], [f64; 2], String) {
+    let len = a.key.key_length() * k;
+    let y = size.1 as f64 - 12.0;
+    let x1 = size.0 as f64 - 12.0;
+    ([x1 - len, y], [x1, y], a.key.label())
+}
+
+/// The key's head length in pixels (the arrows' own, at most 40 % of it).
+fn key_head(a: &SceneArrows, k: f64) -> f64 {
+    (a.head * k).min(0.4 * a.key.key_length() * k)
 }
 
 /// Draw marks through the pixel map `px` (`k` pixels per metre); `faded`:
@@ -690,6 +870,46 @@ fn svg_mark(o: &mut String, m: &Mark, px: &dyn Fn([f64; 2]) -> (f64, f64), k: f6
     }
 }
 
+/// The force arrows of an animated SVG: per arrow a shaft and a head
+/// polyline whose points are animated over `rows` (a zero force: all
+/// points at its point of application), titled with its escaped name.
+fn svg_arrows(
+    o: &mut String,
+    a: &SceneArrows,
+    rows: &[usize],
+    px: &dyn Fn([f64; 2]) -> (f64, f64),
+    key_times: &str,
+    dur: f64,
+) {
+    let Some(first) = a.rows.first() else { return };
+    for (j, arrow) in first.iter().enumerate() {
+        let ink = ink_hex(arrow.kind.ink());
+        let name = crate::view::escape_html(&arrow.name);
+        for part in 0..2 {
+            let values: Vec<String> = rows
+                .iter()
+                .map(|&r| {
+                    let x = &a.rows[r][j];
+                    let d = [
+                        x.force[0] * a.key.metres_per_newton,
+                        x.force[1] * a.key.metres_per_newton,
+                    ];
+                    match arrows::arrow_marks(x.at, d, a.head, arrow.kind.ink()).get(part) {
+                        Some(Mark::Line { points, .. }) => svg_points(points, px),
+                        _ => svg_points(&vec![x.at; part + 2], px),
+                    }
+                })
+                .collect();
+            let _ = writeln!(
+                o,
+                r#"<polyline class="force" points="{}" fill="none" stroke="{ink}" stroke-width="2"><title>{name}</title><animate attributeName="points" values="{}" keyTimes="{key_times}" dur="{dur}s" repeatCount="indefinite"/></polyline>"#,
+                values[0],
+                values.join(";")
+            );
+        }
+    }
+}
+
 /// The animated SVG: static ground; per body a group of its parts whose
 /// translation and rotation are animated (SMIL `animateTransform`);
 /// springs and dampers as paths whose points are animated; key times at
@@ -824,6 +1044,29 @@ fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), Str
             pts(points),
             ink_hex(*ink),
             values.join(";")
+        );
+    }
+    if let Some(a) = &s.arrows {
+        svg_arrows(&mut o, a, &rows, &world_px, &key_times, dur);
+        let (from, to, label) = key_geometry(a, k, size);
+        let h = key_head(a, k);
+        let _ = writeln!(
+            o,
+            r#"<g class="force-key"><path d="M{:.2},{:.2} L{:.2},{:.2} M{:.2},{:.2} L{:.2},{:.2} L{:.2},{:.2}" fill="none" stroke="black" stroke-width="2"/>
+<text x="{:.2}" y="{:.2}" font-family="sans-serif" font-size="13" text-anchor="end">{}</text></g>"#,
+            from[0],
+            from[1],
+            to[0],
+            to[1],
+            to[0] - h,
+            to[1] - 0.5 * h,
+            to[0],
+            to[1],
+            to[0] - h,
+            to[1] + 0.5 * h,
+            from[0] - 6.0,
+            from[1] + 4.0,
+            crate::view::escape_html(&label)
         );
     }
     let _ = writeln!(o, "</svg>");

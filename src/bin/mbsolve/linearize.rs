@@ -32,7 +32,10 @@ pub struct LinearizeArgs {
     #[arg(long, default_value = "initial")]
     pub at: String,
     /// Inputs, comma-separated: generalized forces `BODY.fx`, `BODY.fy`
-    /// (N, along global x, y at the centre of mass) and `BODY.mz` (N m).
+    /// (N, along global x, y at the centre of mass) and `BODY.mz` (N m);
+    /// a drive's joint name `DRIVE` (or `DRIVE.acc`): the acceleration of
+    /// its prescribed motion (m/s² or rad/s²), whose offset and rate join
+    /// the states as `DRIVE.offset`, `DRIVE.rate`.
     #[arg(long, value_delimiter = ',')]
     pub inputs: Vec<String>,
     /// Outputs, comma-separated: coordinates `BODY.x|y|phi`, velocities
@@ -249,7 +252,21 @@ fn parse_coordinate(sys: &System, s: &str) -> Result<(usize, bool), String> {
 }
 
 fn parse_input(sys: &System, s: &str) -> Result<Input, String> {
-    let (b, q) = body_and_quantity(sys, s, "BODY.fx, BODY.fy or BODY.mz")?;
+    let joint_name = s.strip_suffix(".acc").unwrap_or(s);
+    let joint = sys
+        .constraints()
+        .iter()
+        .position(|c| mbsolve::model::joint_short_name(c.as_ref()).as_deref() == Some(joint_name));
+    if let Some(joint) = joint {
+        return if sys.constraints()[joint].drive_unit().is_some() {
+            Ok(Input::Drive { joint })
+        } else {
+            Err(format!(
+                "'{s}': joint '{joint_name}' is not a drive (drive_coordinate or drive_angle)"
+            ))
+        };
+    }
+    let (b, q) = body_and_quantity(sys, s, "BODY.fx, BODY.fy, BODY.mz or a drive's name")?;
     let k = match q {
         "fx" => 0,
         "fy" => 1,

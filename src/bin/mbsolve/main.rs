@@ -219,6 +219,10 @@ enum Command {
         /// PNG still: the output time nearest to T [default: the last].
         #[arg(long, value_name = "T")]
         at: Option<f64>,
+        /// Force arrows with a key: `contacts`, `reactions` or both
+        /// (comma-separated; `all`) [default: none].
+        #[arg(long, value_name = "KINDS")]
+        forces: Option<String>,
     },
     /// Write an interactive viewer of a run: one self-contained HTML file
     /// (no network) with the mechanism (play, time slider, speed, zoom,
@@ -408,19 +412,25 @@ fn command(cli: Cli) -> ExitCode {
             speed,
             every,
             at,
-        } => animate::animate(&animate::AnimateArgs {
-            at,
-            out: out.unwrap_or_else(|| csv.with_extension("svg")),
-            scenario,
-            set,
-            csv,
-            speed,
-            every,
-        })
-        .map(|p| {
-            say!("wrote {}", p.display());
-            ExitCode::SUCCESS
-        }),
+            forces,
+        } => mbsolve::drawing::arrows::ArrowSet::parse(forces.as_deref().unwrap_or(""))
+            .map_err(|e| format!("--forces: {e}"))
+            .and_then(|forces| {
+                animate::animate(&animate::AnimateArgs {
+                    at,
+                    forces,
+                    out: out.unwrap_or_else(|| csv.with_extension("svg")),
+                    scenario,
+                    set,
+                    csv,
+                    speed,
+                    every,
+                })
+            })
+            .map(|p| {
+                say!("wrote {}", p.display());
+                ExitCode::SUCCESS
+            }),
         Command::Plot {
             csv,
             x,

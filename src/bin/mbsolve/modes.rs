@@ -307,6 +307,7 @@ fn animation(
                 speed: period / 2.0,
                 every: 1,
                 at,
+                forces: Default::default(),
             },
             note.clone(),
         )?;

@@ -10,6 +10,9 @@
 //! the size `animate` uses, so a still PNG of `animate` and the page's
 //! frame agree (tests/cli/view.rs compares them in headless Chromium).
 //! `view.html#t=0.5` opens paused at the output time nearest 0.5 s.
+//! A "forces" toggle draws the contact forces and joint reactions as
+//! arrows with their key ([`mbsolve::drawing::arrows`], as `animate
+//! --forces` draws them; the page's box stays the motion's).
 //! Everything from user files reaches the page as JSON text or escaped
 //! HTML and is shown through `textContent`, never as markup.
 
@@ -122,7 +125,16 @@ pub fn view(a: &ViewArgs) -> Result<PathBuf, String> {
     }
     let sc = scenario::load(&scenario_path, &overrides).map_err(|e| e.to_string())?;
     let table = Table::read(&csv)?;
-    let scene = animate::scene(&sc, &table, &csv)?;
+    let mut scene = animate::scene(&sc, &table, &csv)?;
+    let all = mbsolve::drawing::arrows::ArrowSet {
+        contacts: true,
+        reactions: true,
+    };
+    match animate::add_arrows(&mut scene, &sc, &table, all, false) {
+        Ok(Some(note)) => eprintln!("{note}"),
+        Ok(None) => {}
+        Err(e) => eprintln!("{}: no force arrows in the viewer: {e}", csv.display()),
+    }
     let units = read_units(&dir.join(format!("{stem}.columns.json")));
     let out = a
         .out
@@ -238,6 +250,15 @@ fn page(
         "t": rows.iter().map(|&r| s.t[r]).collect::<Vec<_>>(),
         "q": rows.iter().map(|&r| &s.poses[r]).collect::<Vec<_>>(),
         "stride": stride,
+        "arrows": s.arrows.as_ref().map(|a| json!({
+            "names": a.rows[0].iter().map(|x| x.name.as_str()).collect::<Vec<_>>(),
+            "kinds": a.rows[0].iter().map(|x| x.kind).collect::<Vec<_>>(),
+            "rows": rows.iter().map(|&r| a.rows[r].iter().map(|x| [x.at[0], x.at[1], x.force[0], x.force[1]].map(finite)).collect::<Vec<_>>()).collect::<Vec<_>>(),
+            "metres_per_newton": a.key.metres_per_newton,
+            "key_force": a.key.key_force,
+            "label": a.key.label(),
+            "head": a.head,
+        })),
         "columns": columns,
         "plot": default_plot,
     });
