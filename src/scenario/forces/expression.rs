@@ -102,17 +102,18 @@ impl ForceType for Expression {
             })
             .chain(f.force.clone())
             .collect();
-        // the bodies read: named in the texts as `B.<coordinate>`, and the term's own
+        // the bodies read: named in the texts as `B.<coordinate>`, and the
+        // term's own; a body under two names (aliases) is read by both
         let mut read: Vec<(&str, usize)> = Vec::new();
         let mut note = |n: &str| {
             if let Some((s, &i)) = names.get_key_value(n) {
-                if !read.iter().any(|r| r.1 == i) {
+                if !read.iter().any(|r| r.0 == s) {
                     read.push((s.as_str(), i));
                 }
             }
         };
         for t in &texts {
-            for tok in t.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == '.')) {
+            for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
                 if let Some((b, _)) = tok.rsplit_once('.') {
                     note(b);
                 }
