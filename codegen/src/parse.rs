@@ -163,7 +163,11 @@ impl Tok {
 /// The length of a leading `[digits]` of `b` (an index inside a name), or
 /// `None`.
 fn index_len(b: &[u8]) -> Option<usize> {
-    let digits = b.get(1..)?.iter().take_while(|c| c.is_ascii_digit()).count();
+    let digits = b
+        .get(1..)?
+        .iter()
+        .take_while(|c| c.is_ascii_digit())
+        .count();
     (b[0] == b'[' && digits > 0 && b.get(1 + digits) == Some(&b']')).then_some(digits + 2)
 }
 

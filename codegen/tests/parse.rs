@@ -173,7 +173,11 @@ fn names_may_hold_an_index_of_digits() {
     for (text, pos, ch) in [("a[] + 1", 1, '['), ("a[x]", 1, '['), ("a[2", 1, '[')] {
         let mut c = Ctx::new();
         let e = parse(&mut c, text, |_, c| Some(c.zero())).unwrap_err();
-        assert_eq!((e.pos, e.kind), (pos, ParseErrorKind::UnexpectedChar(ch)), "{text}");
+        assert_eq!(
+            (e.pos, e.kind),
+            (pos, ParseErrorKind::UnexpectedChar(ch)),
+            "{text}"
+        );
     }
 }
 

@@ -358,20 +358,18 @@ impl Reducer {
             // variables in the context's order: (column, its variable)
             let mut bound: Vec<(usize, mbsolve_codegen::Id)> = Vec::new();
             let mut unknown = None;
-            let e = parse(&mut ctx, q, |n, ctx| {
-                match super::find_column(names, n) {
-                    Some(k) => match bound.iter().find(|b| b.0 == k) {
-                        Some(b) => Some(b.1),
-                        None => {
-                            let v = ctx.var(n);
-                            bound.push((k, v));
-                            Some(v)
-                        }
-                    },
+            let e = parse(&mut ctx, q, |n, ctx| match super::find_column(names, n) {
+                Some(k) => match bound.iter().find(|b| b.0 == k) {
+                    Some(b) => Some(b.1),
                     None => {
-                        unknown = Some(n.to_string());
-                        None
+                        let v = ctx.var(n);
+                        bound.push((k, v));
+                        Some(v)
                     }
+                },
+                None => {
+                    unknown = Some(n.to_string());
+                    None
                 }
             });
             let field = if is_name(q) { "column" } else { "expression" };

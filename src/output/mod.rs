@@ -133,9 +133,8 @@ pub fn body_labels(sys: &System) -> Vec<String> {
                 return Some(n.to_string());
             }
             let (word, k) = n.rsplit_once(' ')?;
-            let numbered = is_column_name(word)
-                && !k.is_empty()
-                && k.bytes().all(|c| c.is_ascii_digit());
+            let numbered =
+                is_column_name(word) && !k.is_empty() && k.bytes().all(|c| c.is_ascii_digit());
             numbered.then(|| format!("{word}[{k}]"))
         })
         .collect();
@@ -162,7 +161,11 @@ pub fn body_labels(sys: &System) -> Vec<String> {
 /// `_`, `.` and indices `[k]`; not `t`.
 pub fn is_column_name(n: &str) -> bool {
     let b = n.as_bytes();
-    if n == "t" || !b.first().is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_') {
+    if n == "t"
+        || !b
+            .first()
+            .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
+    {
         return false;
     }
     let mut i = 0;

@@ -641,7 +641,9 @@ fn named_indices(doc: &toml::Table, key: &str) -> Result<String, String> {
     let mut out = Vec::with_capacity(segments.len());
     for seg in segments {
         let Some((name, rest)) = seg.split_once('[') else {
-            table = table.and_then(|t| t.get(seg)).and_then(toml::Value::as_table);
+            table = table
+                .and_then(|t| t.get(seg))
+                .and_then(toml::Value::as_table);
             out.push(seg.to_string());
             continue;
         };
@@ -649,7 +651,11 @@ fn named_indices(doc: &toml::Table, key: &str) -> Result<String, String> {
         let array = table
             .and_then(|t| t.get(name))
             .and_then(toml::Value::as_array);
-        let named = |v: &toml::Value| v.get("name").and_then(toml::Value::as_str).map(str::to_string);
+        let named = |v: &toml::Value| {
+            v.get("name")
+                .and_then(toml::Value::as_str)
+                .map(str::to_string)
+        };
         let index = if inner.is_empty() || inner.chars().all(|c| c.is_ascii_digit()) {
             // positional (checked by key_parts)
             inner.parse::<usize>().ok()

@@ -138,7 +138,11 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
             time_average(t, &sq, 0.5, 1.0).sqrt(),
             "rms(bob.phi)",
         );
-        close(cell("final(bob.phi)"), *phi.last().unwrap(), "final(bob.phi)");
+        close(
+            cell("final(bob.phi)"),
+            *phi.last().unwrap(),
+            "final(bob.phi)",
+        );
         let swing = t
             .iter()
             .zip(phi)

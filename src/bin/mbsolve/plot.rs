@@ -227,7 +227,9 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
     let table = Table::read(&a.csv)?;
     let units = Units::beside(&a.csv)?;
     let x = table.column(&a.csv, &a.x)?.to_vec();
-    let x_name = table.resolve_y(&a.csv, std::slice::from_ref(&a.x))?.remove(0);
+    let x_name = table
+        .resolve_y(&a.csv, std::slice::from_ref(&a.x))?
+        .remove(0);
     let ys = table.resolve_y(&a.csv, &a.y)?;
     let series = ys
         .iter()
