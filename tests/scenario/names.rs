@@ -132,6 +132,13 @@ fn columns_carry_the_names_of_bodies_and_chain_links_with_units() {
             "{old}"
         );
     }
+    // the shipped falling rod's segments by the names expressions use
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/falling_rod.toml");
+    let rod = mbsolve::scenario::load(std::path::Path::new(path), &[]).unwrap();
+    let rc = columns(&rod.system, &rod.run.outputs, &rod.sensors);
+    assert_eq!(rc[1].name, "rod.segment[1].x");
+    let n = rod.system.bodies().len();
+    assert_eq!(rc[3 * n].name, format!("rod.segment[{n}].phi"));
     // no fifth body, no such coordinate
     for bad in ["x5", "x0", "theta1", "block.theta"] {
         assert_eq!(find_column(&names, bad), None, "{bad}");
