@@ -10,7 +10,7 @@
 //! power   := atom ('^' unary)?                   right-associative: 2^3^2 = 2^9
 //! atom    := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
 //! number  := digits ['.' digits] [('e' | 'E') ['+' | '-'] digits]
-//! name    := (letter | '_') (letter | digit | '_' | '.')*
+//! name    := (letter | '_') (letter | digit | '_' | '.' | '[' digits ']')*
 //! ```
 //!
 //! As in mathematics, `-x^2 = -(x^2)`. The exponent of `^` must reduce to
@@ -160,6 +160,17 @@ impl Tok {
     }
 }
 
+/// The length of a leading `[digits]` of `b` (an index inside a name), or
+/// `None`.
+fn index_len(b: &[u8]) -> Option<usize> {
+    let digits = b
+        .get(1..)?
+        .iter()
+        .take_while(|c| c.is_ascii_digit())
+        .count();
+    (b[0] == b'[' && digits > 0 && b.get(1 + digits) == Some(&b']')).then_some(digits + 2)
+}
+
 fn tokenize(s: &str) -> Result<Vec<(Tok, usize)>, ParseError> {
     let b = s.as_bytes();
     let mut out = Vec::new();
@@ -199,8 +210,15 @@ fn tokenize(s: &str) -> Result<Vec<(Tok, usize)>, ParseError> {
             out.push((Tok::Num(v), start));
         } else if c.is_ascii_alphabetic() || c == b'_' {
             let start = i;
-            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.') {
-                i += 1;
+            while i < b.len() {
+                if b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.' {
+                    i += 1;
+                } else if let Some(n) = index_len(&b[i..]) {
+                    // `[k]` inside a name: a numbered body (`arm.link[2].phi`)
+                    i += n;
+                } else {
+                    break;
+                }
             }
             out.push((Tok::Name(s[start..i].into()), start));
         } else if b"+-*/^(),".contains(&c) {

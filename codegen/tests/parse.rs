@@ -157,6 +157,31 @@ fn resolver_may_return_expressions() {
 /// Symbolic derivatives of parsed expressions agree with central differences,
 /// away from the kinks of abs, min and max (and on each side of them).
 #[test]
+fn names_may_hold_an_index_of_digits() {
+    // a numbered body of a chain or rod: `arm.link[2].phi`
+    let mut seen = Vec::new();
+    let mut c = Ctx::new();
+    let x = c.var("x");
+    let e = parse(&mut c, "arm.link[2].phi + 2*rod.segment[10].y", |n, _| {
+        seen.push(n.to_string());
+        Some(x)
+    })
+    .unwrap();
+    assert_eq!(seen, ["arm.link[2].phi", "rod.segment[10].y"]);
+    assert_eq!(c.eval(&[e], &[1.5])[0], 4.5);
+    // a bracket that is not `[digits]` is still an error at its position
+    for (text, pos, ch) in [("a[] + 1", 1, '['), ("a[x]", 1, '['), ("a[2", 1, '[')] {
+        let mut c = Ctx::new();
+        let e = parse(&mut c, text, |_, c| Some(c.zero())).unwrap_err();
+        assert_eq!(
+            (e.pos, e.kind),
+            (pos, ParseErrorKind::UnexpectedChar(ch)),
+            "{text}"
+        );
+    }
+}
+
+#[test]
 fn derivatives_match_finite_differences() {
     let texts = [
         "x*y^3 - z/x + sin(x*z)",

@@ -70,7 +70,7 @@ def main():
     for i in range(n):
         law(0.1, q, q)
     own = (time.perf_counter() - t) / n
-    dphi = float(np.max(np.abs(r0["phi1"] - r1["phi1"])))
+    dphi = float(np.max(np.abs(r0["bob.phi"] - r1["bob.phi"])))
     print(f"pendulum, ode45 rtol 1e-10, {a.end} s: {n} calls "
           f"({r1.summary['rhs_evals']} right-hand sides), median of {a.repeats}")
     print(f"  expression force: {expr_wall:.4f} s; PythonForce: {py_wall:.4f} s; "

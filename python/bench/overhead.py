@@ -66,7 +66,7 @@ def main():
                 [f"rod.segments={a.rod_segments}", f"time.end={a.rod_end}",
                  "integrator.method=genalpha", "integrator.step=1e-4"], a.repeats)
     t = time.perf_counter()
-    x = r["x1"]
+    x = r["rod.segment[1].x"]
     t_view = time.perf_counter() - t
     assert np.shares_memory(x, r.data)
     import pandas  # noqa: F401  (imports are not the conversion's cost)

@@ -34,7 +34,7 @@ Example::
     print(sc.check()["dof"])            # 1
     r = sc.run()
     print(r.status, r.summary["max_constraint_norm"])
-    df = r.to_pandas()                   # columns t, x1, y1, phi1, ...
+    df = r.to_pandas()                   # columns t, crank.x, crank.y, crank.phi, ...
 """
 
 from __future__ import annotations
@@ -219,8 +219,15 @@ class Scenario:
         return (Scenario, (self._text, self._file, self._stem, self._overrides, self._forces))
 
     def __repr__(self) -> str:
-        extra = f", overrides={self._overrides!r}" if self._overrides else ""
-        return f"Scenario({self._name!r}, file={self._file!r}{extra})"
+        # also for an object whose construction raised (a traceback or a
+        # debugger showing it): its slots may be unset
+        name = getattr(self, "_name", None)
+        file = getattr(self, "_file", None)
+        if name is None:
+            return f"Scenario(<invalid: construction failed>, file={file!r})"
+        overrides = getattr(self, "_overrides", None)
+        extra = f", overrides={overrides!r}" if overrides else ""
+        return f"Scenario({name!r}, file={file!r}{extra})"
 
 
 def _check_forces(forces: Iterable[Any]) -> Tuple[PythonForce, ...]:
@@ -262,7 +269,7 @@ class Result:
     """A run's output: the columns of ``mbsolve run``'s table (same names,
     same units, same values) and its summary.
 
-    ``result["x1"]`` is a column as a read-only NumPy float64 array, a view
+    ``result["crank.x"]`` is a column as a read-only NumPy float64 array, a view
     of one block held by the Rust side (no copy); ``result.data`` is that
     block, shape (columns, rows)."""
 
@@ -273,7 +280,8 @@ class Result:
         self._table = table
         #: The whole table, shape (len(columns), rows), read-only float64.
         self.data: np.ndarray = np.asarray(table)
-        #: Column names, in table order (``t``, ``x1``, ``y1``, ``phi1``, ...).
+        #: Column names, in table order (``t``, ``crank.x``, ``crank.y``,
+        #: ``crank.phi``, ...; bodies by name and coordinate).
         self.columns: List[str] = list(columns)
         #: Unit of each column (SI; ``""`` for none), as in ``columns.json``.
         self.units: Dict[str, str] = dict(zip(columns, units))
@@ -308,13 +316,23 @@ class Result:
         return self.data.shape[1]
 
     def __contains__(self, name: object) -> bool:
-        return name in self._index
+        return isinstance(name, str) and self._column(name) is not None
+
+    def _column(self, name: str) -> Optional[int]:
+        """Index of column ``name``: its name, or a positional name of
+        earlier versions (``x1``, ``phi3``) read as that body's column."""
+        k = self._index.get(name)
+        if k is None:
+            k = _mbsolve.find_column(self.columns, name)
+        return k
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """Column ``name`` (a view, no copy)."""
-        try:
-            return self.data[self._index[name]]
-        except KeyError:
+        """Column ``name`` (a view, no copy); ``crank.phi``, or the
+        positional name of earlier versions ``phi1``."""
+        k = self._column(name)
+        if k is not None:
+            return self.data[k]
+        else:
             raise KeyError(
                 f"no column {name!r}; the columns are {', '.join(self.columns[:12])}"
                 + (", ..." if len(self.columns) > 12 else "")
@@ -349,22 +367,45 @@ class Result:
         return pa.Table.from_arrays(arrays, schema=schema)
 
     def reduce(self, kind: str, column: str, window: Optional[Tuple[Optional[float],
-               Optional[float]]] = None) -> float:
-        """A named reduction of a column over the output rows with ``t`` in
+               Optional[float]]] = None, threshold: Optional[float] = None,
+               direction: Optional[str] = None) -> float:
+        """A reduction of a column (or an expression of columns, e.g.
+        ``"rod.y - crank.y"``) over the output rows with ``t`` in
         ``window = (t_from, t_to)`` [s] (default all rows; ``None`` for an
-        open end): ``"final"``, ``"initial"``, ``"max"``, ``"min"``,
-        ``"absmax"``, ``"mean"`` or ``"rms"`` (over the rows of the uniform
-        output grid). Computed in Rust on the result's block (no copy)."""
-        if column not in self._index:
-            self[column]  # raises the KeyError listing the columns
+        open end), computed by the library's metrics (``mbsolve sweep
+        --metric``, ``[[metric]]``; Rust, on the result's block, no copy):
+        ``"final"``, ``"min"``, ``"max"``, ``"mean"`` and ``"rms"`` (time
+        averages by the trapezoidal rule), ``"crossing"`` (first time the
+        value crosses ``threshold``, ``direction`` up, down or either; NaN
+        if never), ``"absmax"`` (``max`` of ``abs(column)``) and
+        ``"initial"`` (the first row's value in the window)."""
+        k = self._column(column)
+        name = self.columns[k] if k is not None else column  # else an expression
         lo, hi = window if window is not None else (None, None)
-        return self._table.reduce(self._index[column], kind, self._index["t"],
-                                  None if lo is None else float(lo),
-                                  None if hi is None else float(hi))
+        lo = None if lo is None else float(lo)
+        hi = None if hi is None else float(hi)
+        if kind == "initial":
+            # not a reduction: the first row of the window
+            t = self.t
+            rows = np.nonzero((t >= (-np.inf if lo is None else lo))
+                              & (t <= (np.inf if hi is None else hi)))[0]
+            if len(rows) == 0:
+                raise ValueError(f"initial: no output row in the window [{lo}, {hi}]")
+            return float(self[column][rows[0]])
+        if kind == "absmax":
+            kind, name = "max", f"abs({name})"
+        try:
+            return self._table.reduce(name, kind, lo, hi, threshold, direction)
+        except ValueError as e:
+            if k is None and f"no column '{column}'" in str(e):
+                self[column]  # raises the KeyError listing the columns
+            raise
 
     def label(self, name: str) -> str:
         """Axis label of column ``name``: the name and its unit in
-        brackets (``"phi1 [rad]"``; no brackets for unitless columns)."""
+        brackets (``"crank.phi [rad]"``; no brackets for unitless columns)."""
+        k = self._column(name)
+        name = self.columns[k] if k is not None else name
         unit = self.units.get(name, "")
         return f"{name} [{unit}]" if unit else name
 
@@ -383,6 +424,8 @@ class Result:
             raise ImportError("Result.plot needs matplotlib (pip install matplotlib)") from e
         if not columns:
             columns, logy = ("constraint_norm",), True
+        # by their names (a positional name of earlier versions, x1, too)
+        columns = tuple(self.columns[self._column(c)] if c in self else c for c in columns)
         xs = self[x]
         if ax is None:
             _, ax = plt.subplots()

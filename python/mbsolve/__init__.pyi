@@ -83,8 +83,10 @@ class Result:
         """A ``pandas.DataFrame`` (units in ``attrs``)."""
     def to_arrow(self) -> Any:
         """A ``pyarrow.Table`` (units in the field metadata)."""
-    def reduce(self, kind: str, column: str, window: Window = None) -> float:
-        """final, initial, max, min, absmax, mean or rms of a column over a window."""
+    def reduce(self, kind: str, column: str, window: Window = None,
+               threshold: Optional[float] = None, direction: Optional[str] = None) -> float:
+        """final, min, max, mean, rms (time averages), crossing, absmax or
+        initial of a column or an expression of columns over a window."""
     def label(self, name: str) -> str:
         """``"name [unit]"``."""
     def plot(self, *columns: str, x: str = "t", ax: Any = None, logy: bool = False,

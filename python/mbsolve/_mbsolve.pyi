@@ -23,10 +23,16 @@ class Table:
     def __array_interface__(self) -> dict: ...
     @property
     def shape(self) -> Tuple[int, int]: ...
-    def reduce(self, column: int, kind: str, time: int = 0, t_from: Optional[float] = None,
-               t_to: Optional[float] = None) -> float:
-        """final, initial, max, min, absmax, mean or rms of a column over
-        the rows with t_from <= t <= t_to."""
+    def reduce(self, quantity: str, kind: str, t_from: Optional[float] = None,
+               t_to: Optional[float] = None, threshold: Optional[float] = None,
+               direction: Optional[str] = None) -> float:
+        """A column or an expression of columns reduced by the library's
+        metrics (final, min, max, mean, rms, crossing) over the rows with
+        t_from <= t <= t_to."""
+
+def find_column(names: List[str], name: str) -> Optional[int]:
+    """Index of column ``name`` among ``names``, or of the column its
+    positional name of earlier versions (``x1``, ``phi3``) stands for."""
 
 def validate(text: str, file: str, stem: str, overrides: List[str]) -> str:
     """Parse and validate; returns the scenario's name."""

@@ -19,12 +19,15 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 #: A metric: a Python function of the :class:`mbsolve.Result`, a named
-#: reduction as text (``"rms(phi2, 1.0, 2.0)"``, ``"final(x1)"``) or a
-#: tuple ``("rms", "phi2", (1.0, 2.0))``, or a key of the run's summary
+#: reduction as text (``"rms(coupler.phi, 1.0, 2.0)"``, ``"final(crank.x)"``)
+#: or a tuple ``("rms", "coupler.phi", (1.0, 2.0))``, or a key of the run's summary
 #: (``"max_constraint_norm"``, ``"wall_s"``).
 Metric = Union[str, Tuple[Any, ...], Callable[[Any], Any]]
 
 REDUCTIONS = ("final", "initial", "max", "min", "absmax", "mean", "rms")
+"""The named reductions: the library's metrics (``mbsolve.output.metrics``:
+final, max, min, mean and rms as time averages), ``absmax`` = max of abs,
+and ``initial`` (the window's first row)."""
 
 _CALL = re.compile(r"^\s*(\w+)\s*\(\s*([^,()]+?)\s*(?:,\s*([^,()]*?)\s*,\s*([^,()]*?)\s*)?\)\s*$")
 
@@ -77,11 +80,11 @@ def evaluate(result: Any, name: str, metric: Metric) -> Any:
         try:
             return result.reduce(kind, column, window)
         except ValueError as e:
-            if "no output rows" in str(e):
+            if "no output row" in str(e):
                 return math.nan
             raise
     if metric not in result.summary:
-        raise KeyError(f"metric {name!r}: not a reduction such as 'max(x1)' nor a summary key "
+        raise KeyError(f"metric {name!r}: not a reduction such as 'max(crank.x)' nor a summary key "
                        f"(summary keys: {', '.join(sorted(result.summary))})")
     return result.summary[metric]
 
@@ -150,10 +153,10 @@ def sweep(scenario: Any, params: Union[Mapping[str, Sequence[Any]], Sequence[Map
     metric.
 
     ``metrics``: ``{name: metric}`` or a list; a metric is a function of the
-    :class:`mbsolve.Result`, a named reduction ``"final(x1)"``,
-    ``"max(constraint_norm)"``, ``"rms(phi2, 1.0, 2.0)"`` (over
+    :class:`mbsolve.Result`, a named reduction ``"final(crank.x)"``,
+    ``"max(constraint_norm)"``, ``"rms(coupler.phi, 1.0, 2.0)"`` (over
     ``1.0 <= t <= 2.0``; kinds: final, initial, max, min, absmax, mean,
-    rms), a tuple ``("rms", "phi2", (1.0, 2.0))``, or a summary key such as
+    rms), a tuple ``("rms", "coupler.phi", (1.0, 2.0))``, or a summary key such as
     ``"max_constraint_norm"``.
 
     ``workers``: local threads (default: the CPU count). ``client``: a

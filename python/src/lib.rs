@@ -165,6 +165,8 @@ struct Table {
     data: Vec<f64>,
     ncols: usize,
     nrows: usize,
+    /// The column names, in order.
+    names: Vec<String>,
 }
 
 #[pymethods]
@@ -187,60 +189,55 @@ impl Table {
         (self.ncols, self.nrows)
     }
 
-    /// A named reduction of column `column` over the rows whose time
-    /// (column `time`) lies in `[t_from, t_to]` (open ends: `None`):
-    /// `final` (the last row's value), `initial`, `max`, `min`, `absmax`,
-    /// `mean` and `rms` (over the rows: the output grid is uniform). A
-    /// window without rows, an unknown reduction or column raise
+    /// `quantity` — a column name (or a positional name of earlier
+    /// versions such as `phi1`) or an expression of column names — reduced
+    /// by the library's metrics (`mbsolve::output::metrics`: `final`, `min`,
+    /// `max`, `mean` and `rms` as time averages by the trapezoidal rule,
+    /// `crossing` with `threshold` and `direction`) over the rows with
+    /// `t_from <= t <= t_to` (open ends: `None`, the run's first and last
+    /// row). A window without rows, an unknown reduction or column raise
     /// `ValueError`.
-    #[pyo3(signature = (column, kind, time = 0, t_from = None, t_to = None))]
+    #[pyo3(signature = (quantity, kind, t_from = None, t_to = None, threshold = None, direction = None))]
     fn reduce(
         &self,
-        column: usize,
+        quantity: &str,
         kind: &str,
-        time: usize,
         t_from: Option<f64>,
         t_to: Option<f64>,
+        threshold: Option<f64>,
+        direction: Option<&str>,
     ) -> PyResult<f64> {
-        if column >= self.ncols || time >= self.ncols {
-            return Err(PyValueError::new_err(format!(
-                "column {} of a table of {} columns",
-                column.max(time),
-                self.ncols
-            )));
-        }
+        use mbsolve::output::metrics::{check_window, evaluate, Metric, Reduction};
+        let bad = |e: mbsolve::output::metrics::MetricError| PyValueError::new_err(e.to_string());
+        let names: Vec<&str> = self.names.iter().map(String::as_str).collect();
         let col = |k: usize| &self.data[k * self.nrows..(k + 1) * self.nrows];
-        let (lo, hi) = (
-            t_from.unwrap_or(f64::NEG_INFINITY),
-            t_to.unwrap_or(f64::INFINITY),
-        );
-        let vals: Vec<f64> = col(time)
+        let t = names
             .iter()
-            .zip(col(column))
-            .filter(|(t, _)| **t >= lo && **t <= hi)
-            .map(|(_, v)| *v)
-            .collect();
-        let (Some(&first), Some(&last)) = (vals.first(), vals.last()) else {
-            return Err(PyValueError::new_err(format!(
-                "{kind}: no output rows with {lo} <= t <= {hi} (the run has {} rows)",
-                self.nrows
-            )));
+            .position(|n| *n == "t")
+            .map(col)
+            .ok_or_else(|| PyValueError::new_err("the table has no column 't'"))?;
+        let (Some(&first), Some(&last)) = (t.first(), t.last()) else {
+            return Err(PyValueError::new_err("the run has no output rows"));
         };
-        let n = vals.len() as f64;
-        Ok(match kind {
-            "final" => last,
-            "initial" => first,
-            "max" => vals.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-            "min" => vals.iter().copied().fold(f64::INFINITY, f64::min),
-            "absmax" => vals.iter().fold(0.0, |m: f64, v| m.max(v.abs())),
-            "mean" => vals.iter().sum::<f64>() / n,
-            "rms" => (vals.iter().map(|v| v * v).sum::<f64>() / n).sqrt(),
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown reduction '{other}' (final, initial, max, min, absmax, mean, rms)"
-                )))
+        let window = match (t_from, t_to) {
+            (None, None) => None,
+            (a, b) => {
+                let w = [a.unwrap_or(first), b.unwrap_or(last)];
+                Some(if w[0] == w[1] {
+                    w
+                } else {
+                    check_window(w).map_err(bad)?
+                })
             }
-        })
+        };
+        let metric = Metric {
+            name: format!("{kind}({quantity})"),
+            quantity: quantity.to_string(),
+            reduction: Reduction::new(kind, threshold, direction).map_err(bad)?,
+            window,
+        };
+        let columns: Vec<&[f64]> = (0..self.ncols).map(col).collect();
+        evaluate(&metric, &names, &columns).map_err(bad)
     }
 }
 
@@ -631,9 +628,24 @@ fn run_scenario(
             data[k * nrows + i] = *v;
         }
     }
-    let names = cols.iter().map(|c| c.name.clone()).collect();
+    let names: Vec<String> = cols.iter().map(|c| c.name.clone()).collect();
     let units = cols.iter().map(|c| c.unit.to_string()).collect();
-    Ok((Table { data, ncols, nrows }, names, units, json, raised))
+    let table = Table {
+        data,
+        ncols,
+        nrows,
+        names: names.clone(),
+    };
+    Ok((table, names, units, json, raised))
+}
+
+/// The index of the column `name` among `names` (a run's columns): the
+/// name, or a positional name of earlier versions (`x1`, `phi3`) read as
+/// that body's column (`mbsolve::output::find_column`); `None` if neither.
+#[pyfunction]
+fn find_column(names: Vec<String>, name: &str) -> Option<usize> {
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    mbsolve::output::find_column(&names, name)
 }
 
 /// The scenario shipped with the tool: `fourbar` or `falling_rod`.
@@ -667,6 +679,7 @@ fn _mbsolve(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_json, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_scenario, m)?)?;
+    m.add_function(wrap_pyfunction!(find_column, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
     Ok(())
 }

@@ -58,9 +58,9 @@ def test_python_force_equals_expression_force(method, jacobian):
     # Jacobian agree to rounding; finite-difference Jacobians change the
     # Newton iterates within the Newton tolerance
     tol = 1e-12 if method in ("ode45", "radau5") else 1e-8
-    for c in ("x1", "y1", "phi1"):
+    for c in ("bob.x", "bob.y", "bob.phi"):
         assert np.max(np.abs(ref[c] - r[c])) < tol, (c, np.max(np.abs(ref[c] - r[c])))
-    assert np.max(np.abs(ref["phi1"])) > 0.5  # it swings: the comparison means something
+    assert np.max(np.abs(ref["bob.phi"])) > 0.5  # it swings: the comparison means something
     # called at every evaluation of the forces: at least once per RHS
     assert len(calls) >= r.summary["rhs_evals"] > 0
 
@@ -143,7 +143,7 @@ def test_step_hook_keeps_controller_state():
         r = m.run()
         assert r.status == "completed"
         assert pi.steps == r.summary["steps"]  # once per accepted step
-        results[ki] = r["phi1"][-1] - target
+        results[ki] = r["bob.phi"][-1] - target
     assert abs(results[0.0]) > 0.1
     assert abs(results[40.0]) < 2e-3
 

@@ -61,14 +61,16 @@ def test_plot_labels_with_units():
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")
     r = mbsolve.load(FOURBAR, time__end=0.2).run()
-    ax = r.plot("phi1")
-    assert ax.get_xlabel() == "t [s]" and ax.get_ylabel() == "phi1 [rad]"
+    ax = r.plot("crank.phi")
+    assert ax.get_xlabel() == "t [s]" and ax.get_ylabel() == "crank.phi [rad]"
     line = ax.get_lines()[0]
-    assert (line.get_xdata() == r.t).all() and (line.get_ydata() == r["phi1"]).all()
-    ax = r.plot("x1", "y1")
+    assert (line.get_xdata() == r.t).all() and (line.get_ydata() == r["crank.phi"]).all()
+    ax = r.plot("crank.x", "crank.y")
     assert ax.get_ylabel() == "[m]" and len(ax.get_legend().get_texts()) == 2
-    ax = r.plot("x1", "phi1")
-    assert ax.get_ylabel() == "x1 [m], phi1 [rad]"
+    # positional names of earlier versions plot the named columns
+    ax = r.plot("x1", "phi3")
+    assert ax.get_ylabel() == "crank.x [m], rocker.phi [rad]"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["crank.x", "rocker.phi"]
     ax = r.plot()
     assert ax.get_ylabel() == "constraint_norm [m]" and ax.get_yscale() == "log"
     with pytest.raises(KeyError):

@@ -95,3 +95,24 @@ def test_ctrl_c_ends_the_run_as_interrupted_keeping_rows():
     assert "KeyboardInterrupt" in r.message
     assert len(r) == r.summary["output_rows"] > 0
     assert np.all(np.diff(r.t) > 0)
+
+
+def test_repr_of_a_scenario_whose_construction_failed():
+    """A traceback or debugger shows the half-built object: its repr says
+    so instead of raising AttributeError."""
+    seen = []
+
+    class Keep(mbsolve.Scenario):
+        __slots__ = ()
+
+        def __init__(self, *args, **kwargs):
+            seen.append(self)
+            super().__init__(*args, **kwargs)
+
+    with pytest.raises(mbsolve.ScenarioError):
+        Keep("[time\nend = ", file="bad.toml")
+    assert repr(seen[0]) == "Scenario(<invalid: construction failed>, file='bad.toml')"
+    # never started: no slot set at all
+    assert "construction failed" in repr(mbsolve.Scenario.__new__(mbsolve.Scenario))
+    good = mbsolve.load(FOURBAR, time__end=0.1)
+    assert repr(good).startswith("Scenario('fourbar'")

@@ -55,12 +55,13 @@ def test_fourbar_equals_cli_csv_to_the_last_digit(cli, tmp_path):
 
 def test_columns_are_views_of_one_block():
     r = mbsolve.load(SCENARIOS / "fourbar.toml", time__end=0.1).run()
-    x1 = r["x1"]
+    x1 = r["crank.x"]
     assert isinstance(x1, np.ndarray) and x1.dtype == np.float64
     assert not x1.flags.writeable
     # a view into the table held by Rust: no copy per column or value
     assert np.shares_memory(x1, r.data)
     assert x1.base is not None
+    assert r.columns[:4] == ["t", "crank.x", "crank.y", "crank.phi"]
     assert r.data.shape == (len(r.columns), len(r))
     assert r.t[0] == 0.0 and abs(r.t[-1] - 0.1) < 1e-12
 
@@ -71,13 +72,13 @@ def test_pandas_and_arrow_carry_names_units_and_values():
     r = mbsolve.load(SCENARIOS / "fourbar.toml", time__end=0.1).run()
     df = r.to_pandas()
     assert list(df.columns) == r.columns
-    assert np.array_equal(df["phi2"].to_numpy(), r["phi2"])
-    assert df.attrs["units"]["x1"] == "m" and df.attrs["units"]["phi1"] == "rad"
+    assert np.array_equal(df["coupler.phi"].to_numpy(), r["coupler.phi"])
+    assert df.attrs["units"]["crank.x"] == "m" and df.attrs["units"]["crank.phi"] == "rad"
     tab = r.to_arrow()
     assert tab.schema.names == r.columns
     assert tab.schema.field("t").metadata == {b"unit": b"s"}
     assert tab.schema.field("constraint_norm").metadata[b"unit"] == b"m"
-    assert np.array_equal(tab.column("y3").to_numpy(), r["y3"])
+    assert np.array_equal(tab.column("rocker.y").to_numpy(), r["rocker.y"])
     assert json.loads(tab.schema.metadata[b"summary"])["status"] == "completed"
     assert isinstance(tab, pa.Table)
 

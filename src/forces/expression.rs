@@ -69,7 +69,8 @@ pub struct LinePoint {
 pub struct ExpressionLoadBuilder {
     name: String,
     ctx: Ctx,
-    names: Vec<String>,
+    /// Every name a body is read by, with its local index (into `bodies`).
+    names: Vec<(String, usize)>,
     bodies: Vec<usize>,
     t: Id,
     q: Vec<Id>,
@@ -80,11 +81,14 @@ pub struct ExpressionLoadBuilder {
 impl ExpressionLoadBuilder {
     /// A load named `name` that may read the bodies `bodies` (name, body
     /// index); its Jacobian footprint is their coordinates.
-    /// Bodies are ordered by index (so the footprint is sorted); give each
-    /// body once.
+    /// Bodies are ordered by index (so the footprint is sorted); a body
+    /// given under several names (aliases such as `arm.last` and
+    /// `arm.link[3]`) is one body, readable by each of them.
     pub fn new(name: &str, bodies: &[(&str, usize)]) -> Self {
-        let mut bodies = bodies.to_vec();
-        bodies.sort_by_key(|b| b.1);
+        let mut aliases = bodies.to_vec();
+        aliases.sort_by_key(|b| b.1);
+        let mut bodies = aliases.clone();
+        bodies.dedup_by_key(|b| b.1);
         let mut ctx = Ctx::new();
         let t = ctx.var("t");
         ctx.set_time(t);
@@ -104,7 +108,13 @@ impl ExpressionLoadBuilder {
             name: name.into(),
             g: vec![zero; q.len()],
             ctx,
-            names: bodies.iter().map(|b| b.0.to_string()).collect(),
+            names: aliases
+                .iter()
+                .map(|a| {
+                    let k = bodies.iter().position(|b| b.1 == a.1).unwrap_or_default();
+                    (a.0.to_string(), k)
+                })
+                .collect(),
             bodies: bodies.iter().map(|b| b.1).collect(),
             t,
             q,
@@ -115,7 +125,8 @@ impl ExpressionLoadBuilder {
     fn local(&self, body: &str) -> Result<usize, ExpressionError> {
         self.names
             .iter()
-            .position(|n| n == body)
+            .find(|n| n.0 == body)
+            .map(|n| n.1)
             .ok_or(ExpressionError::UnknownBody {
                 load: self.name.clone(),
                 body: body.into(),
@@ -139,7 +150,7 @@ impl ExpressionLoadBuilder {
                 return Some(id);
             }
             let (b, c) = n.rsplit_once('.')?;
-            let k = names.iter().position(|m| m == b)?;
+            let k = names.iter().find(|m| m.0 == b)?.1;
             match c {
                 "x" => Some(q[3 * k]),
                 "y" => Some(q[3 * k + 1]),

@@ -83,7 +83,9 @@ pub const REDUCTIONS: [&str; 6] = ["final", "min", "max", "mean", "rms", "crossi
 pub struct Metric {
     /// Column name in the sweep table, e.g. `rms_acc`.
     pub name: String,
-    /// A column name (`phi1`) or an expression of columns (`y2 - y1`).
+    /// A column name (`crank.phi`) or an expression of columns
+    /// (`rod.y - crank.y`); positional names of earlier versions (`phi1`)
+    /// are read as the body's named column ([`super::find_column`]).
     pub quantity: String,
     /// The reduction.
     pub reduction: Reduction,
@@ -264,11 +266,10 @@ impl Metric {
     }
 }
 
-/// A metric name: a letter or `_`, then letters, digits, `_`, `.`.
+/// A metric or column name: a letter or `_`, then letters, digits, `_`,
+/// `.` and indices `[k]` ([`super::is_column_name`]).
 fn is_name(s: &str) -> bool {
-    let mut c = s.chars();
-    c.next().is_some_and(|c| c.is_alphabetic() || c == '_')
-        && c.all(|c| c.is_alphanumeric() || c == '_' || c == '.')
+    s == "t" || super::is_column_name(s)
 }
 
 /// Split at the commas outside brackets; `None` when brackets are unbalanced.
@@ -350,27 +351,25 @@ impl Reducer {
                 if names.len() > 40 { ", …" } else { "" }
             )
         };
-        let source = if let Some(k) = names.iter().position(|n| *n == q) {
+        let source = if let Some(k) = super::find_column(names, q) {
             Source::Column(k)
         } else {
             let mut ctx = Ctx::new();
             // variables in the context's order: (column, its variable)
             let mut bound: Vec<(usize, mbsolve_codegen::Id)> = Vec::new();
             let mut unknown = None;
-            let e = parse(&mut ctx, q, |n, ctx| {
-                match names.iter().position(|c| *c == n) {
-                    Some(k) => match bound.iter().find(|b| b.0 == k) {
-                        Some(b) => Some(b.1),
-                        None => {
-                            let v = ctx.var(n);
-                            bound.push((k, v));
-                            Some(v)
-                        }
-                    },
+            let e = parse(&mut ctx, q, |n, ctx| match super::find_column(names, n) {
+                Some(k) => match bound.iter().find(|b| b.0 == k) {
+                    Some(b) => Some(b.1),
                     None => {
-                        unknown = Some(n.to_string());
-                        None
+                        let v = ctx.var(n);
+                        bound.push((k, v));
+                        Some(v)
                     }
+                },
+                None => {
+                    unknown = Some(n.to_string());
+                    None
                 }
             });
             let field = if is_name(q) { "column" } else { "expression" };

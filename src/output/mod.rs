@@ -39,37 +39,34 @@ impl Column {
     }
 }
 
-/// The columns of a run's table: `t`, `x1,y1,phi1,…` (bodies 1-based),
-/// `constraint_norm`, then what `o` selects: velocities `vx1,vy1,omega1,…`,
-/// accelerations `ax1,ay1,alpha1,…`, per joint `J.fx,J.fy,J.mz` (reaction
+/// The columns of a run's table: `t`, per body `B.x,B.y,B.phi`
+/// ([`body_labels`]: `crank.x`, `rod.segment[5].y`), `constraint_norm`,
+/// then what `o` selects: velocities `B.vx,B.vy,B.omega`, accelerations
+/// `B.ax,B.ay,B.alpha`, per joint `J.fx,J.fy,J.mz` (reaction
 /// on its body, global frame, moment about the centre of mass) and
 /// `J.fx_local,J.fy_local` (in that body's frame) and the joint's
 /// multipliers `J.lambda1,…`, per drive `J.drive`
 /// (its generalized force −λ, [`Drive::force`]), the energies
 /// ([`ENERGY_COLUMNS`]); then per sensor `S.QUANTITY`
-/// ([`Sensor::quantities`]).
+/// ([`Sensor::quantities`]). The positional names of earlier versions
+/// (`x1`, `phi3`, `vx2`, …) are still found by [`find_column`].
 pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Column> {
-    let nb = sys.bodies().len();
+    let labels = body_labels(sys);
     let mut c = vec![Column::new("t", "s")];
-    for k in 0..sys.n_coords() {
-        c.push(Column::new(
-            System::coordinate_name(k),
-            if k % 3 == 2 { "rad" } else { "m" },
-        ));
-    }
-    c.push(Column::new("constraint_norm", "m"));
     let per_body = |c: &mut Vec<Column>, names: [&str; 3], units: [&'static str; 3]| {
-        for i in 1..=nb {
+        for b in &labels {
             for (n, u) in names.iter().zip(units) {
-                c.push(Column::new(format!("{n}{i}"), u));
+                c.push(Column::new(format!("{b}.{n}"), u));
             }
         }
     };
+    per_body(&mut c, POSITION, ["m", "m", "rad"]);
+    c.push(Column::new("constraint_norm", "m"));
     if o.velocities {
-        per_body(&mut c, ["vx", "vy", "omega"], ["m/s", "m/s", "rad/s"]);
+        per_body(&mut c, VELOCITY, ["m/s", "m/s", "rad/s"]);
     }
     if o.accelerations {
-        per_body(&mut c, ["ax", "ay", "alpha"], ["m/s^2", "m/s^2", "rad/s^2"]);
+        per_body(&mut c, ACCELERATION, ["m/s^2", "m/s^2", "rad/s^2"]);
     }
     if o.reactions {
         let map = sys.reaction_map();
@@ -112,6 +109,102 @@ pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Co
         }
     }
     c
+}
+
+/// The coordinate names of a body's position columns `B.x`, `B.y`, `B.phi`.
+pub const POSITION: [&str; 3] = ["x", "y", "phi"];
+/// The names of a body's velocity columns `B.vx`, `B.vy`, `B.omega`.
+pub const VELOCITY: [&str; 3] = ["vx", "vy", "omega"];
+/// The names of a body's acceleration columns `B.ax`, `B.ay`, `B.alpha`.
+pub const ACCELERATION: [&str; 3] = ["ax", "ay", "alpha"];
+
+/// The name of every body in column names, in body order: its name when it
+/// is a name of the expression grammar (a letter or `_`, then letters,
+/// digits, `_`, `.` and `[k]`: `crank`, `arm.link[2]`, `rod.segment[5]`);
+/// a builder's numbered name `"segment 5"` as `segment[5]`; any other name,
+/// or one two bodies share, as `body<i>` (1-based).
+pub fn body_labels(sys: &System) -> Vec<String> {
+    let mut labels: Vec<Option<String>> = sys
+        .bodies()
+        .iter()
+        .map(|b| {
+            let n = b.name.as_str();
+            if is_column_name(n) {
+                return Some(n.to_string());
+            }
+            let (word, k) = n.rsplit_once(' ')?;
+            let numbered =
+                is_column_name(word) && !k.is_empty() && k.bytes().all(|c| c.is_ascii_digit());
+            numbered.then(|| format!("{word}[{k}]"))
+        })
+        .collect();
+    let mut seen = std::collections::HashMap::new();
+    for (i, l) in labels.iter().enumerate() {
+        if let Some(l) = l {
+            seen.entry(l.clone()).or_insert_with(Vec::new).push(i);
+        }
+    }
+    for v in seen.values().filter(|v| v.len() > 1) {
+        for &i in v {
+            labels[i] = None;
+        }
+    }
+    labels
+        .into_iter()
+        .enumerate()
+        .map(|(i, l)| l.unwrap_or_else(|| format!("body{}", i + 1)))
+        .collect()
+}
+
+/// Whether `n` is a name of the expression grammar (so a column `n.x` can
+/// be read by a metric expression): a letter or `_`, then letters, digits,
+/// `_`, `.` and indices `[k]`; not `t`.
+pub fn is_column_name(n: &str) -> bool {
+    let b = n.as_bytes();
+    if n == "t"
+        || !b
+            .first()
+            .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
+    {
+        return false;
+    }
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            c if c.is_ascii_alphanumeric() || c == b'_' || c == b'.' => i += 1,
+            b'[' => {
+                let d = b[i + 1..].iter().take_while(|c| c.is_ascii_digit()).count();
+                if d == 0 || b.get(i + 1 + d) != Some(&b']') {
+                    return false;
+                }
+                i += d + 2;
+            }
+            _ => return false,
+        }
+    }
+    !n.ends_with('.')
+}
+
+/// The column of `names` (a table's header) called `name`: the name
+/// itself, or a positional name of earlier versions — `x<i>`, `y<i>`,
+/// `phi<i>`, `vx<i>`, `vy<i>`, `omega<i>`, `ax<i>`, `ay<i>`, `alpha<i>`
+/// of body `i` (1-based) — read as that body's named column (`x2` →
+/// `rod.x` when the second body is `rod`: its `.x` column is the table's
+/// `1 + 3(i − 1)`th after `t`).
+pub fn find_column(names: &[&str], name: &str) -> Option<usize> {
+    if let Some(k) = names.iter().position(|n| *n == name) {
+        return Some(k);
+    }
+    let digits = name.bytes().rev().take_while(u8::is_ascii_digit).count();
+    let (coord, i) = name.split_at(name.len() - digits);
+    let i: usize = i.parse().ok().filter(|&i| i >= 1)?;
+    let known = POSITION.iter().chain(&VELOCITY).chain(&ACCELERATION);
+    if !known.clone().any(|c| *c == coord) || names.first() != Some(&"t") {
+        return None;
+    }
+    let body = names.get(1 + 3 * (i - 1))?.strip_suffix(".x")?;
+    let full = format!("{body}.{coord}");
+    names.iter().position(|n| *n == full)
 }
 
 /// The energy columns \[J\], in row order: `kinetic_energy` T,

@@ -320,6 +320,11 @@ pub(super) fn add(
             add_named_rod(builder, &p, &name, r.position)
         }
         .map_err(|e| builder_error(file, &key, e, &rename))?;
+        // the bodies carry their scenario names (output columns
+        // `rod.segment[k].x`), the library's rod included
+        for (k, &b) in info.bodies.iter().enumerate() {
+            builder.bodies_mut()[b].name = format!("{name}.segment[{}]", k + 1);
+        }
         register(
             names,
             &mut taken,

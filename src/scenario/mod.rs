@@ -521,6 +521,7 @@ fn unset(doc: &mut toml::Table, key: &str) -> Result<String, String> {
     if key.contains('=') {
         return Err("--unset takes a KEY, not KEY=VALUE".into());
     }
+    let key = &named_indices(doc, key)?;
     let parts = key_parts(key)?;
     let missing = || format!("'{}' is not set", escape(key));
     let mut table = doc;
@@ -625,6 +626,86 @@ fn non_finite(doc: &toml::Table, path: &str) -> Result<(), (String, String)> {
     })
 }
 
+/// `key` with every element addressed by name (`force[shock].damping`:
+/// the `[[force]]` whose `name = "shock"`) written with its 0-based index
+/// (`force[1].damping`); an unknown name lists the names there are.
+fn named_indices(doc: &toml::Table, key: &str) -> Result<String, String> {
+    // the segments, split at the dots outside brackets
+    let mut segments = Vec::new();
+    let (mut depth, mut start) = (0usize, 0);
+    for (i, c) in key.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth = depth.saturating_sub(1),
+            '.' if depth == 0 => {
+                segments.push(&key[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    segments.push(&key[start..]);
+    let mut table = Some(doc);
+    let mut out = Vec::with_capacity(segments.len());
+    for seg in segments {
+        let Some((name, rest)) = seg.split_once('[') else {
+            table = table
+                .and_then(|t| t.get(seg))
+                .and_then(toml::Value::as_table);
+            out.push(seg.to_string());
+            continue;
+        };
+        let inner = rest.strip_suffix(']').unwrap_or(rest);
+        let array = table
+            .and_then(|t| t.get(name))
+            .and_then(toml::Value::as_array);
+        let named = |v: &toml::Value| {
+            v.get("name")
+                .and_then(toml::Value::as_str)
+                .map(str::to_string)
+        };
+        let index = if inner.is_empty() || inner.chars().all(|c| c.is_ascii_digit()) {
+            // positional (checked by key_parts)
+            inner.parse::<usize>().ok()
+        } else {
+            let wanted = inner.trim_matches('"');
+            let Some(a) = array else {
+                return Err(format!(
+                    "key '{}': there are no [[{}]] elements to find '{}' among",
+                    escape(key),
+                    escape(name),
+                    escape(wanted)
+                ));
+            };
+            let k = a
+                .iter()
+                .position(|v| named(v).as_deref() == Some(wanted))
+                .ok_or_else(|| {
+                    let names: Vec<String> = a
+                        .iter()
+                        .enumerate()
+                        .map(|(k, v)| named(v).unwrap_or_else(|| format!("[{k}] unnamed")))
+                        .collect();
+                    format!(
+                        "key '{}': no [[{}]] named '{}' (names: {})",
+                        escape(key),
+                        escape(name),
+                        escape(wanted),
+                        escape(&names.join(", "))
+                    )
+                })?;
+            out.push(format!("{name}[{k}]"));
+            table = a[k].as_table();
+            continue;
+        };
+        out.push(seg.to_string());
+        table = index
+            .and_then(|k| array.and_then(|a| a.get(k)))
+            .and_then(toml::Value::as_table);
+    }
+    Ok(out.join("."))
+}
+
 /// The segments of a dotted key (`rod[1].segments`): each a bare TOML
 /// key with an optional 0-based array index; errors say what is wrong.
 fn key_parts(key: &str) -> Result<Vec<(&str, Option<usize>)>, String> {
@@ -693,6 +774,7 @@ fn apply_override(doc: &mut toml::Table, spec: &str) -> Result<String, String> {
     if key.is_empty() {
         return Err("empty key: expected KEY=VALUE".into());
     }
+    let key = &named_indices(doc, key)?;
     let parts = key_parts(key)?;
     let parsed: toml::Value = format!("v = {value}")
         .parse::<toml::Table>()

@@ -46,7 +46,7 @@ pub(super) fn body_ref(
 /// Why `name` names no body: a component part out of range
 /// (`rod1.segment[0]`), a component that does not exist (`rodX.first`), or
 /// no such body; lists what there is.
-fn unknown_body(names: &HashMap<String, usize>, name: &str) -> String {
+pub(super) fn unknown_body(names: &HashMap<String, usize>, name: &str) -> String {
     let bodies = list(names);
     if let Some((comp, part)) = name.split_once('.') {
         if !names.contains_key(&format!("{comp}.first")) {

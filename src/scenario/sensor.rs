@@ -237,7 +237,27 @@ pub(super) fn build(
                 SensorKind::Element { element }
             }
         };
-        out.push(Sensor { name, kind });
+        let sensor = Sensor { name, kind };
+        // its columns `S.QUANTITY` must not be a body's columns `B.x`, …
+        let labels = crate::output::body_labels(system);
+        if let Some(q) = sensor.quantities(system).iter().find(|(q, _)| {
+            labels.contains(&sensor.name)
+                && crate::output::POSITION
+                    .iter()
+                    .chain(&crate::output::VELOCITY)
+                    .chain(&crate::output::ACCELERATION)
+                    .any(|c| c == q)
+        }) {
+            return Err(err(
+                "name",
+                format!(
+                    "'{}' is also a body's name: the sensor's column {}.{} would be the body's \
+                     (give the sensor another name)",
+                    sensor.name, sensor.name, q.0
+                ),
+            ));
+        }
+        out.push(sensor);
     }
     Ok(out)
 }

@@ -163,9 +163,9 @@ fn cli_writes_run_columns_and_refuses_a_free_mechanism() {
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     for c in [
         "t",
-        "x3",
-        "phi2",
-        "alpha2",
+        "slider.x",
+        "rod.phi",
+        "rod.alpha",
         "O.fx",
         "slide.fy",
         "drive.drive",
@@ -181,7 +181,7 @@ fn cli_writes_run_columns_and_refuses_a_free_mechanism() {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
         let (xb, _, tau) = closed_form(v[0], 0.1, 0.3, 10.0, m, b[1].inertia, 9.81);
         assert!((v[col("drive.drive")] - tau).abs() < 1e-9, "t = {}", v[0]);
-        assert!((v[col("x3")] - xb).abs() < 1e-11);
+        assert!((v[col("slider.x")] - xb).abs() < 1e-11);
         rows += 1;
     }
     assert_eq!(rows, sc.run.output_times().len());

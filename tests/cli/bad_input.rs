@@ -389,7 +389,11 @@ fn bad_keys_and_values_on_the_command_line_and_in_toml() {
             "time.e\u{1}nd=1",
             &["--set", "\\u{1}", "not allowed in a key"],
         ),
-        ("body[x].mass=1", &["--set", "body[x]", "array index"]),
+        (
+            "body[x].mass=1",
+            &["--set", "no [[body]] named 'x'", "crank, coupler, rocker"],
+        ),
+        ("body[].mass=1", &["--set", "body[]", "array index"]),
         (
             "body[9].mass=1",
             &["--set", "body[9] does not exist", "3 elements"],

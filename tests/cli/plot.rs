@@ -73,8 +73,9 @@ fn plot_writes_svg_and_png_with_the_requested_series() {
         "--x",
         "t",
         "--y",
-        "x1,y1",
+        "crank.x,crank.y",
         "--y",
+        // a positional name of earlier versions: the third body's angle
         "phi3",
         "--out",
         svg.to_str().unwrap(),
@@ -87,14 +88,14 @@ fn plot_writes_svg_and_png_with_the_requested_series() {
         "{}",
         &text[..120]
     );
-    for name in ["x1", "y1", "phi3"] {
+    for name in ["crank.x", "crank.y", "rocker.phi"] {
         assert!(
             text.contains(&format!("\n{name}\n")),
             "legend entry {name} missing"
         );
     }
     assert!(
-        !text.contains("\nx2\n"),
+        !text.contains("\ncoupler.x\n"),
         "a column that was not asked for is drawn"
     );
     // 3 curves (solid, dashed, dotted; lengths in the SVG's tenths of a
@@ -119,7 +120,7 @@ fn plot_writes_svg_and_png_with_the_requested_series() {
         }
     }
     assert!(
-        text.contains("\nx1, y1 [m]; phi3 [rad]\n"),
+        text.contains("\ncrank.x, crank.y [m]; rocker.phi [rad]\n"),
         "ordinate label"
     );
     assert!(text.contains("\nt [s]\n"), "abscissa label");
@@ -184,11 +185,14 @@ fn plot_writes_svg_and_png_with_the_requested_series() {
 fn plot_errors_name_the_missing_column_and_list_the_others() {
     let dir = tempfile::tempdir().unwrap();
     let csv = fourbar_run(dir.path(), "0.1");
-    let o = mbsolve(&["plot", &csv, "--y", "x1,nonsense"]);
+    let o = mbsolve(&["plot", &csv, "--y", "crank.x,nonsense"]);
     assert_eq!(o.status.code(), Some(2));
     let e = stderr(&o);
     assert!(e.contains("no column 'nonsense'"), "{e}");
-    assert!(e.contains("the columns are: t, x1, y1, phi1"), "{e}");
+    assert!(
+        e.contains("the columns are: t, crank.x, crank.y, crank.phi, coupler.x"),
+        "{e}"
+    );
     let o = mbsolve(&["plot", &csv, "--y", "x1", "--out", "fig.pdf"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(

@@ -45,7 +45,8 @@ fn run_writes_csv_and_summary() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "t,x1,y1,phi1,x2,y2,phi2,x3,y3,phi3,constraint_norm"
+        "t,crank.x,crank.y,crank.phi,coupler.x,coupler.y,coupler.phi,rocker.x,rocker.y,\
+         rocker.phi,constraint_norm"
     );
     let rows: Vec<Vec<f64>> = lines
         .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())

@@ -120,7 +120,7 @@ point_j = [0.4, 0.0]
     let (a, d) = (0.2, 0.4);
     let mut worst = [0.0f64; 4];
     for r in 1..t.rows.len() - 1 {
-        let (th, w) = (t.get(r, "phi1"), t.get(r, "omega1"));
+        let (th, w) = (t.get(r, "crank.phi"), t.get(r, "crank.omega"));
         // B = a (cos θ, sin θ) from the ground pivot A = 0
         worst[0] = worst[0]
             .max((t.get(r, "B.x") - a * th.cos()).abs())
@@ -130,7 +130,7 @@ point_j = [0.4, 0.0]
             .max((t.get(r, "B.vx") - fd(&t, r, "B.x")).abs())
             .max((t.get(r, "B.vy") - fd(&t, r, "B.y")).abs());
         // the joint's relative angle and rate
-        let rel = t.get(r, "phi3") - t.get(r, "phi2");
+        let rel = t.get(r, "rocker.phi") - t.get(r, "coupler.phi");
         worst[2] = worst[2]
             .max((t.get(r, "C.angle") - rel).abs())
             .max((t.get(r, "C.rate") - fd(&t, r, "C.angle")).abs());
@@ -240,7 +240,7 @@ force = "floor"
     for r in 0..t.rows.len() {
         let g = |n: &str| t.get(r, n);
         // spring: length and rate from the bob's state, F = P + k (L − L0) + c L̇
-        let (x, y, vx, vy) = (g("x1"), g("y1"), g("vx1"), g("vy1"));
+        let (x, y, vx, vy) = (g("bob.x"), g("bob.y"), g("bob.vx"), g("bob.vy"));
         let len = x.hypot(y);
         let rate = (x * vx + y * vy) / len;
         let f = 2.0 + 60.0 * (len - 0.5) + 0.8 * rate;
@@ -250,16 +250,16 @@ force = "floor"
             .max((g("s.rate") - rate).abs())
             .max((g("s.force") - f).abs() / 10.0);
         // rotational spring: T = −k (φ − φ0) − c φ̇ on the bar
-        let (p, w) = (g("phi2"), g("omega2"));
+        let (p, w) = (g("bar.phi"), g("bar.omega"));
         worst[1] = worst[1]
             .max((g("r.deflection") - (p - 0.1)).abs())
             .max((g("r.rate") - w).abs())
             .max((g("r.torque") + 5.0 * (p - 0.1) + 0.3 * w).abs());
         // contact: δ = R − y, F_n = k δ^{3/2} (1 + χ δ̇) with δ̇ = −v_y
-        let delta = 0.1 - g("y3");
+        let delta = 0.1 - g("ball.y");
         let fn_ = if delta > 0.0 {
             contact_rows += 1;
-            (1e5 * delta.powf(1.5) * (1.0 - 0.5 * g("vy3"))).max(0.0)
+            (1e5 * delta.powf(1.5) * (1.0 - 0.5 * g("ball.vy"))).max(0.0)
         } else {
             0.0
         };
@@ -362,8 +362,8 @@ quantities = ["energy"]
             }
         }
         worst = worst
-            .max((t.get(r, "phi1") - y[0]).abs())
-            .max((t.get(r, "phi2") - y[1]).abs());
+            .max((t.get(r, "upper.phi") - y[0]).abs())
+            .max((t.get(r, "lower.phi") - y[1]).abs());
     }
     assert!(
         worst < 1e-6,
@@ -375,7 +375,7 @@ quantities = ["energy"]
     let mut drift = 0.0f64;
     for r in 0..=last {
         drift = drift.max((t.get(r, "total_energy") - e0).abs());
-        let (p1, p2) = (t.get(r, "phi1"), t.get(r, "phi2"));
+        let (p1, p2) = (t.get(r, "upper.phi"), t.get(r, "lower.phi"));
         let v = 9.81 * (0.5 * p1.sin() + p1.sin() + 0.5 * p2.sin());
         assert!((t.get(r, "potential_gravity") - v).abs() < 1e-6);
         assert_eq!(t.get(r, "potential_elastic"), 0.0);

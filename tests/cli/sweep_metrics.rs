@@ -93,8 +93,9 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
         "--param",
         "l=0.5,1",
         "--metric",
-        "final(phi1)",
+        "final(bob.phi)",
         "--metric",
+        // a positional name of earlier versions in an expression: bob.phi
         "swing=max(abs(phi1 + 1), 0.2, 0.8)",
         "--keep",
         "runs",
@@ -119,7 +120,7 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
         assert!(out.join(format!("pendulum_sweep{k}.columns.json")).exists());
         assert!(out.join(format!("pendulum_sweep{k}.summary.json")).exists());
         let c = columns(&kept);
-        let (t, y, phi) = (&c["t"], &c["y1"], &c["phi1"]);
+        let (t, y, phi) = (&c["t"], &c["bob.y"], &c["bob.phi"]);
         let min_y = y.iter().cloned().fold(f64::INFINITY, f64::min);
         close(cell("lowest_y"), min_y, "lowest_y");
         // the bob falls from y = 0: it must have swung down
@@ -133,11 +134,15 @@ fn metrics_equal_the_reductions_of_the_kept_runs() {
         close(cell("first_below"), cross, "first_below");
         let sq: Vec<f64> = phi.iter().map(|p| p * p).collect();
         close(
-            cell("rms(phi1)"),
+            cell("rms(bob.phi)"),
             time_average(t, &sq, 0.5, 1.0).sqrt(),
-            "rms(phi1)",
+            "rms(bob.phi)",
         );
-        close(cell("final(phi1)"), *phi.last().unwrap(), "final(phi1)");
+        close(
+            cell("final(bob.phi)"),
+            *phi.last().unwrap(),
+            "final(bob.phi)",
+        );
         let swing = t
             .iter()
             .zip(phi)
@@ -158,7 +163,7 @@ fn bad_metrics_are_named() {
     let base = example();
     let cases = [
         (
-            "column = \"y1\"",
+            "column = \"bob.y\"",
             "column = \"chassis_y\"",
             "metric[0].column",
             "chassis_y",
@@ -188,8 +193,8 @@ fn bad_metrics_are_named() {
             "needs a threshold",
         ),
         (
-            "expression = \"y1 + l/4\"",
-            "expression = \"y1 + q/4\"",
+            "expression = \"bob.y + l/4\"",
+            "expression = \"bob.y + q/4\"",
             "metric[1].expression",
             "'q'",
         ),

@@ -55,7 +55,7 @@ fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 }
 
 /// Body-frame point `s` of body `b` (0-based) in row `r` (columns
-/// `t, x1, y1, phi1, …`): `r_b + A(φ_b) s`.
+/// `t, B.x, B.y, B.phi, …`): `r_b + A(φ_b) s`.
 fn point(r: &[f64], b: usize, s: [f64; 2]) -> [f64; 2] {
     let (x, y, phi) = (r[1 + 3 * b], r[2 + 3 * b], r[3 + 3 * b]);
     let (sn, c) = phi.sin_cos();
@@ -63,7 +63,7 @@ fn point(r: &[f64], b: usize, s: [f64; 2]) -> [f64; 2] {
 }
 
 /// The shipped two-rod assembly at N = 100 per rod (set by `--set` on the
-/// `[[rod]]` elements) runs through generalized-α and completes; from the
+/// `[[rod]]` elements, one by name, one by index) runs through generalized-α and completes; from the
 /// CLI's own CSV: the pivot stays at the origin and the pin joins rod1's
 /// last end to rod2's first end (‖Φ‖-level), the assembly really moved, and
 /// the energy balance of the undamped system holds to 1e-3 of the largest
@@ -76,7 +76,7 @@ fn two_rods_at_100_segments_each_run_through_generalized_alpha() {
         "run",
         &shipped("two_rods.toml"),
         "--set",
-        "rod[0].segments=100",
+        "rod[rod1].segments=100",
         "--set",
         "rod[1].segments=100",
         "--out",
@@ -88,7 +88,10 @@ fn two_rods_at_100_segments_each_run_through_generalized_alpha() {
     assert!(summary.contains("\"status\": \"completed\""), "{summary}");
     assert!(summary.contains("\"method\": \"genalpha\""), "{summary}");
     let (head, rows) = read_csv(&dir.path().join("two_rods.csv"));
-    assert_eq!(head[1 + 3 * 199], "x200", "200 bodies");
+    // 200 bodies, named by rod and segment (1-based from the first end)
+    assert_eq!(head[1], "rod1.segment[1].x");
+    assert_eq!(head[1 + 3 * 99 + 2], "rod1.segment[100].phi");
+    assert_eq!(head[1 + 3 * 199], "rod2.segment[100].x");
     assert_eq!(rows.len(), 101);
     let half = 0.5 * 0.5 / 100.0; // l_s / 2
     let col = |n: &str| head.iter().position(|h| h == n).unwrap();

@@ -7,6 +7,7 @@ mod common;
 mod components;
 mod forces;
 mod keys;
+mod names;
 mod overrides;
 mod parameters;
 mod templates;

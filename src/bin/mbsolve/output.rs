@@ -26,13 +26,47 @@ impl OutputError {
     }
 }
 
-/// The sidecar `<stem>.columns.json`: every column with its unit.
+/// The sidecar `<stem>.columns.json`: every column with its unit, and a
+/// body's coordinate columns (`crank.x`, …) with their positional name of
+/// earlier versions as `"alias"` (`x1`, …; still accepted by `plot` and the
+/// metrics).
 pub fn columns_json(columns: &[Column]) -> String {
+    let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
     let cols: Vec<serde_json::Value> = columns
         .iter()
-        .map(|c| serde_json::json!({"name": c.name, "unit": c.unit}))
+        .zip(positional_aliases(&names))
+        .map(|(c, alias)| match alias {
+            Some(a) => serde_json::json!({"name": c.name, "unit": c.unit, "alias": a}),
+            None => serde_json::json!({"name": c.name, "unit": c.unit}),
+        })
         .collect();
     serde_json::to_string_pretty(&cols).unwrap_or_default() + "\n"
+}
+
+/// The positional name of earlier versions (`x1`, `omega2`, …) of each
+/// column of a run's table that has one: the bodies are the `.x` columns
+/// every third after `t` up to `constraint_norm`.
+fn positional_aliases(names: &[&str]) -> Vec<Option<String>> {
+    let mut out = vec![None; names.len()];
+    let Some(end) = names.iter().position(|n| *n == "constraint_norm") else {
+        return out;
+    };
+    if names.first() != Some(&"t") || end % 3 != 1 {
+        return out;
+    }
+    use mbsolve::output::{ACCELERATION, POSITION, VELOCITY};
+    for i in 0..(end - 1) / 3 {
+        let Some(body) = names[1 + 3 * i].strip_suffix(".x") else {
+            continue;
+        };
+        for c in POSITION.iter().chain(&VELOCITY).chain(&ACCELERATION) {
+            let full = format!("{body}.{c}");
+            if let Some(k) = names.iter().position(|n| *n == full) {
+                out[k] = Some(format!("{c}{}", i + 1));
+            }
+        }
+    }
+    out
 }
 
 /// Write named columns as CSV, one row per index of the longest column;

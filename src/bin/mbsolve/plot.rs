@@ -37,11 +37,17 @@ impl Table {
         Ok(Table { names, columns })
     }
 
-    /// The column named `name`, or an error listing the available ones.
+    /// The index of the column named `name`: its name, or a positional
+    /// name of earlier versions (`x1`, `phi3`; [`mbsolve::output::find_column`]).
+    fn find(&self, name: &str) -> Option<usize> {
+        let names: Vec<&str> = self.names.iter().map(String::as_str).collect();
+        mbsolve::output::find_column(&names, name)
+    }
+
+    /// The column named `name` (or its positional name of earlier
+    /// versions), or an error listing the available ones.
     pub fn column(&self, path: &Path, name: &str) -> Result<&[f64], String> {
-        self.names
-            .iter()
-            .position(|n| n == name)
+        self.find(name)
             .map(|k| self.columns[k].as_slice())
             .ok_or_else(|| {
                 format!(
@@ -54,7 +60,8 @@ impl Table {
 
     /// Resolve `--y` arguments: each is a column name, or a comma-separated
     /// list of column names (a name that itself contains a comma is taken
-    /// whole when it matches).
+    /// whole when it matches); a positional name of earlier versions (`x1`)
+    /// is resolved to the column's name (`crank.x`).
     pub fn resolve_y(&self, path: &Path, ys: &[String]) -> Result<Vec<String>, String> {
         let mut out = Vec::new();
         for y in ys {
@@ -63,7 +70,8 @@ impl Table {
             } else {
                 for part in y.split(',').map(str::trim).filter(|p| !p.is_empty()) {
                     self.column(path, part)?;
-                    out.push(part.to_string());
+                    let k = self.find(part).expect("checked by column");
+                    out.push(self.names[k].clone());
                 }
             }
         }
@@ -128,7 +136,7 @@ impl Units {
     }
 
     /// An ordinate label for `names`: the names grouped by unit, each group
-    /// followed by its unit (`x1, y1 [m]; phi1 [rad]`).
+    /// followed by its unit (`crank.x, crank.y [m]; crank.phi [rad]`).
     pub fn y_label(&self, names: &[String]) -> String {
         let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
         for n in names {
@@ -219,6 +227,9 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
     let table = Table::read(&a.csv)?;
     let units = Units::beside(&a.csv)?;
     let x = table.column(&a.csv, &a.x)?.to_vec();
+    let x_name = table
+        .resolve_y(&a.csv, std::slice::from_ref(&a.x))?
+        .remove(0);
     let ys = table.resolve_y(&a.csv, &a.y)?;
     let series = ys
         .iter()
@@ -239,7 +250,7 @@ pub fn plot(a: &PlotArgs) -> Result<PathBuf, String> {
     });
     Figure {
         title,
-        x_label: units.label(&a.x),
+        x_label: units.label(&x_name),
         y_label,
         series,
         log_y: a.log_y,

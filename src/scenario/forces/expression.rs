@@ -6,7 +6,7 @@
 use super::{Context, ForceType};
 use crate::forces::{ExpressionError, ExpressionLoadBuilder, LinePoint};
 use crate::model::BodyRef;
-use crate::scenario::model::{body_index, body_point, body_ref, RawLoad, RawPoint};
+use crate::scenario::model::{body_index, body_point, body_ref, unknown_body, RawLoad, RawPoint};
 use crate::scenario::{list, ScenarioError};
 use serde::Deserialize;
 
@@ -102,17 +102,18 @@ impl ForceType for Expression {
             })
             .chain(f.force.clone())
             .collect();
-        // the bodies read: named in the texts as `B.<coordinate>`, and the term's own
+        // the bodies read: named in the texts as `B.<coordinate>`, and the
+        // term's own; a body under two names (aliases) is read by both
         let mut read: Vec<(&str, usize)> = Vec::new();
         let mut note = |n: &str| {
             if let Some((s, &i)) = names.get_key_value(n) {
-                if !read.iter().any(|r| r.1 == i) {
+                if !read.iter().any(|r| r.0 == s) {
                     read.push((s.as_str(), i));
                 }
             }
         };
         for t in &texts {
-            for tok in t.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == '.')) {
+            for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
                 if let Some((b, _)) = tok.rsplit_once('.') {
                     note(b);
                 }
@@ -145,7 +146,19 @@ impl ForceType for Expression {
                     Some((cut, _)) => format!("\"{}…\" ({} bytes)", &text[..cut], text.len()),
                     None => format!("\"{text}\""),
                 };
-                err(&field, format!("{shown}: {source}"))
+                // an unknown `B.c`: say whether the body or the coordinate
+                let why = match &source.kind {
+                    mbsolve_codegen::ParseErrorKind::UnknownName(n) => match n.rsplit_once('.') {
+                        Some((b, _)) if names.contains_key(b) => format!(
+                            " (a body's variables are {b}.x, {b}.y, {b}.phi, {b}.vx, {b}.vy, \
+                             {b}.omega)"
+                        ),
+                        Some((b, _)) => format!(" ({})", unknown_body(names, b)),
+                        None => String::new(),
+                    },
+                    _ => String::new(),
+                };
+                err(&field, format!("{shown}: {source}{why}"))
             }
             ExpressionError::UnknownBody { body, .. } => {
                 err("body", format!("no body named '{body}' ({})", list(names)))
