@@ -698,8 +698,8 @@ impl Ctx {
                 let x = self.subst_memo(a, memo);
                 self.powi(x, n)
             }
-            Sqrt(a) | Sin(a) | Cos(a) | Abs(a) | Sign(a) | Tanh(a) | Max0(a) | Step(a)
-            | Exp(a) | Ln(a) => {
+            Sqrt(a) | Sin(a) | Cos(a) | Abs(a) | Sign(a) | Tanh(a) | Max0(a) | Step(a) | Exp(a)
+            | Ln(a) => {
                 let x = self.subst_memo(a, memo);
                 match self.node(e) {
                     Exp(_) => self.exp(x),

@@ -451,9 +451,7 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
             let e = self.expr()?;
             let v = self.ctx.as_const(e).ok_or(ParseError {
                 pos: at,
-                kind: ParseErrorKind::BadArgument(
-                    "the entries of a list must be constants".into(),
-                ),
+                kind: ParseErrorKind::BadArgument("the entries of a list must be constants".into()),
             })?;
             items.push(v);
             if self.eat(']') {
@@ -494,12 +492,22 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
         if name == "table" {
             let x = match args[0] {
                 Arg::Expr(x, _) => x,
-                Arg::List(_, p) => return Err(bad(p, "the first argument is the abscissa, an expression".into())),
+                Arg::List(_, p) => {
+                    return Err(bad(
+                        p,
+                        "the first argument is the abscissa, an expression".into(),
+                    ))
+                }
             };
             let (xs, ys) = match (&args[1], &args[2]) {
-                (Arg::List(xs, px), Arg::List(ys, py)) => ((xs.as_slice(), *px), (ys.as_slice(), *py)),
+                (Arg::List(xs, px), Arg::List(ys, py)) => {
+                    ((xs.as_slice(), *px), (ys.as_slice(), *py))
+                }
                 (Arg::Expr(_, p), _) | (_, Arg::Expr(_, p)) => {
-                    return Err(bad(*p, "the abscissae and values are lists [a, b, …]".into()))
+                    return Err(bad(
+                        *p,
+                        "the abscissae and values are lists [a, b, …]".into(),
+                    ))
                 }
             };
             return table(self.ctx, x, xs, ys).map_err(|(p, m)| bad(p, m));
@@ -508,7 +516,9 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
         for a in args {
             match *a {
                 Arg::Expr(id, _) => ids.push(id),
-                Arg::List(_, p) => return Err(bad(p, "a list is an argument of table only".into())),
+                Arg::List(_, p) => {
+                    return Err(bad(p, "a list is an argument of table only".into()))
+                }
             }
         }
         let c = &mut *self.ctx;
@@ -595,7 +605,10 @@ fn table(
     (ys, py): (&[f64], usize),
 ) -> Result<Id, (usize, String)> {
     if xs.len() < 2 {
-        return Err((px, format!("a table needs at least 2 points, got {}", xs.len())));
+        return Err((
+            px,
+            format!("a table needs at least 2 points, got {}", xs.len()),
+        ));
     }
     if ys.len() != xs.len() {
         return Err((
@@ -632,7 +645,13 @@ fn table(
     while terms.len() > 1 {
         terms = terms
             .chunks(2)
-            .map(|p| if p.len() == 2 { c.add(p[0], p[1]) } else { p[0] })
+            .map(|p| {
+                if p.len() == 2 {
+                    c.add(p[0], p[1])
+                } else {
+                    p[0]
+                }
+            })
             .collect();
     }
     Ok(terms[0])

@@ -378,11 +378,18 @@ fn new_functions_match_closed_forms() {
     for k in -10..=50 {
         let x = k as f64 * 0.1;
         let got = eval(text, [x, 0.0, 0.0]);
-        assert!((got - closed(x)).abs() <= 1e-14, "table at {x}: {got} vs {}", closed(x));
+        assert!(
+            (got - closed(x)).abs() <= 1e-14,
+            "table at {x}: {got} vs {}",
+            closed(x)
+        );
     }
     for (&x, &y) in xs.iter().zip(&ys) {
         let got = eval(text, [x, 0.0, 0.0]);
-        assert!((got - y).abs() <= 4.0 * f64::EPSILON * 3.0, "node {x}: {got} vs {y}");
+        assert!(
+            (got - y).abs() <= 4.0 * f64::EPSILON * 3.0,
+            "node {x}: {got} vs {y}"
+        );
     }
     for k in 0..=20 {
         let x = -1.0 + 0.15 * k as f64;
@@ -392,7 +399,10 @@ fn new_functions_match_closed_forms() {
         assert!((got - want).abs() <= 1e-15, "smoothstep at {x}");
         let got = eval("exp(-x) * log(2 + x) + atan2(x, -1)", [x, 0.0, 0.0]);
         let want = (-x).exp() * (2.0 + x).ln() + x.atan2(-1.0);
-        assert!((got - want).abs() <= 1e-15 * want.abs().max(1.0), "exp/log at {x}");
+        assert!(
+            (got - want).abs() <= 1e-15 * want.abs().max(1.0),
+            "exp/log at {x}"
+        );
     }
     // Outside the domains: IEEE values, documented (never a parse error).
     assert!(eval("log(x)", [-1.0, 0.0, 0.0]).is_nan());

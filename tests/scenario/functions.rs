@@ -1,0 +1,190 @@
+//! Functions of time and space in scenarios: drive motions written as
+//! expressions of t or as tabulated splines (against their closed forms),
+//! and the documented examples.
+
+use mbsolve::constraints::{spline_motion, Spline};
+use mbsolve::scenario;
+use mbsolve::simulation::{simulate, simulate_into, Sample, Sink};
+
+fn parse(text: &str) -> scenario::Scenario {
+    scenario::parse(text, "f.toml", "f", &[]).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn err(text: &str) -> String {
+    scenario::parse(text, "f.toml", "f", &[])
+        .map(|_| ())
+        .expect_err("an error")
+        .to_string()
+}
+
+/// Rows of (t, q, q̇, q̈, λ).
+#[derive(Default)]
+struct Rows(Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>)>);
+
+impl Sink for Rows {
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.0.push((
+            s.t,
+            s.q.to_vec(),
+            s.qd.to_vec(),
+            s.qdd.expect("accelerations").to_vec(),
+            s.lambda.expect("multipliers").to_vec(),
+        ));
+        Ok(())
+    }
+}
+
+/// A free body of mass 2 kg whose x is driven (no gravity, no other load):
+/// x = f(t), ẋ = f'(t), ẍ = f''(t), and the drive's force is m f''(t).
+fn slider(motion: &str) -> String {
+    format!(
+        "gravity = [0.0, 0.0]\n\
+         [[body]]\nname = \"s\"\nmass = 2.0\ninertia = 0.1\nx = 0.0\n\
+         [[joint]]\ntype = \"drive_coordinate\"\nname = \"d\"\nbody = \"s\"\ncoordinate = \"x\"\n\
+         motion = {motion}\n\
+         [integrator]\nmethod = \"ode45\"\nrtol = 1e-10\natol = 1e-12\n[stabilization]\nprojection = true\n\
+         [time]\nend = 1.0\n[output]\ndt = 0.05\nquantities = [\"accelerations\", \"drives\"]\n"
+    )
+}
+
+fn run(text: &str) -> Rows {
+    let sc = parse(text);
+    let mut rows = Rows::default();
+    let s = simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut rows).unwrap();
+    assert_eq!(s.status, "completed", "{s:?}");
+    assert!(rows.0.len() > 10);
+    rows
+}
+
+/// An expression-driven motion against its closed form: positions,
+/// velocities, accelerations and the drive's reaction.
+#[test]
+fn expression_motion_against_its_closed_form() {
+    let rows = run(&slider("\"0.1*sin(6*t) + 0.05*t^2\""));
+    for (t, q, qd, qdd, lambda) in &rows.0 {
+        let x = 0.1 * (6.0 * t).sin() + 0.05 * t * t;
+        let v = 0.6 * (6.0 * t).cos() + 0.1 * t;
+        let a = -3.6 * (6.0 * t).sin() + 0.1;
+        assert!((q[0] - x).abs() < 1e-9, "x at {t}: {} vs {x}", q[0]);
+        assert!((qd[0] - v).abs() < 1e-8, "vx at {t}: {} vs {v}", qd[0]);
+        assert!((qdd[0] - a).abs() < 1e-8, "ax at {t}: {} vs {a}", qdd[0]);
+        // the drive's generalized force −λ is what accelerates the mass
+        assert!(
+            (-lambda[0] - 2.0 * a).abs() < 1e-8,
+            "drive at {t}: {} vs {}",
+            -lambda[0],
+            2.0 * a
+        );
+    }
+}
+
+/// The same motion as the harmonic table `{ amplitude, omega }` runs the
+/// same (to rounding), and with parameters inside the expression exactly as
+/// with their values written out.
+#[test]
+fn expression_motion_equals_the_harmonic_form_and_takes_parameters() {
+    let e = run(&slider("\"0.1*sin(6*t)\""));
+    let h = run(&slider("{ amplitude = 0.1, omega = 6.0 }"));
+    let p = run(&format!(
+        "{}[parameters]\nA = 0.1\nw = \"2*3\"\n",
+        slider("\"A*sin(w*t)\"")
+    ));
+    assert_eq!(e.0.len(), h.0.len());
+    for ((a, b), c) in e.0.iter().zip(&h.0).zip(&p.0) {
+        assert_eq!(a.0, b.0);
+        assert!((a.1[0] - b.1[0]).abs() < 1e-14 && (a.2[0] - b.2[0]).abs() < 1e-13);
+        assert_eq!((&a.1, &a.2), (&c.1, &c.2), "parameters change nothing");
+    }
+}
+
+/// A tabulated motion is followed: the driven coordinate equals the natural
+/// cubic spline (computed independently by the library function) with its
+/// velocity and acceleration.
+#[test]
+fn spline_motion_is_followed() {
+    let ts = [0.0, 0.2, 0.5, 0.6, 1.0];
+    let ys = [0.0, 0.1, -0.05, 0.0, 0.2];
+    let rows = run(&slider(
+        "{ t = [0.0, 0.2, 0.5, 0.6, 1.0], value = [0.0, 0.1, -0.05, 0.0, 0.2], spline = \"cubic\" }",
+    ));
+    let f = spline_motion(&ts, &ys, Spline::Cubic).unwrap();
+    for (t, q, qd, qdd, _) in &rows.0 {
+        let [x, v, a] = f.eval(*t);
+        assert!(
+            (q[0] - x).abs() < 1e-9 && (qd[0] - v).abs() < 1e-8 && (qdd[0] - a).abs() < 1e-7,
+            "at {t}"
+        );
+    }
+    // through the points
+    for (t, q, ..) in &rows.0 {
+        if let Some(k) = ts.iter().position(|x| (x - t).abs() < 1e-12) {
+            assert!((q[0] - ys[k]).abs() < 1e-9);
+        }
+    }
+}
+
+/// Bad motions are errors naming the key.
+#[test]
+fn bad_motions_name_the_key() {
+    let e = err(&slider("\"s.x + t\""));
+    assert!(
+        e.contains("joint[0].motion") && e.contains("unknown name 's.x'"),
+        "{e}"
+    );
+    let e = err(&slider("{ t = [0.0, 1.0, 1.0], value = [0.0, 1.0, 2.0] }"));
+    assert!(
+        e.contains("joint[0].motion") && e.contains("increase strictly"),
+        "{e}"
+    );
+    let e = err(&slider(
+        "{ t = [0.0, 1.0], value = [0.0, 1.0], spline = \"quintic\" }",
+    ));
+    assert!(
+        e.contains("joint[0].motion.spline") && e.contains("quintic"),
+        "{e}"
+    );
+    let e = err(&slider("{ t = [0.0, 1.0], values = [0.0, 1.0] }"));
+    assert!(e.contains("joint[0].motion.values"), "{e}");
+    let e = err(&slider("{ t = [0.0, 1.0] }"));
+    assert!(
+        e.contains("joint[0].motion.value") && e.contains("missing"),
+        "{e}"
+    );
+    let e = err(&slider("{ amplitude = 1.0 }"));
+    assert!(e.contains("joint[0].motion") && e.contains("omega"), "{e}");
+}
+
+/// A log of a negative number in an expression force stops the run at once
+/// with the non-finite force named, never a NaN trajectory.
+#[test]
+fn a_domain_error_stops_the_run_with_a_message() {
+    let text = "gravity = [0.0, -9.81]\n\
+         [[body]]\nname = \"b\"\nmass = 1.0\ninertia = 0.1\n\
+         [[force]]\ntype = \"expression\"\nbody = \"b\"\nfx = \"log(b.y + 0.01)\"\nfy = \"0\"\n\
+         [time]\nend = 1.0\n";
+    let sc = parse(text);
+    let (traj, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    assert_eq!(s.status, "failed");
+    let m = s.message.clone().unwrap_or_default();
+    assert!(m.contains("the forces g is not finite"), "{m}");
+    assert!(traj.q.iter().flatten().all(|v| v.is_finite()));
+    // it fails when b.y + 0.01 first goes below 0: y = −g t²/2, t ≈ 0.045
+    let t_end = *traj.t.last().unwrap_or(&0.0);
+    assert!(t_end < 0.06, "{t_end}");
+}
+
+/// The functions example of docs/scenarios.md parses and runs.
+#[test]
+fn the_documented_example_runs() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
+    let block = doc
+        .split("```toml\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .find(|b| b.starts_with("# functions example"))
+        .expect("the example");
+    let sc = parse(block);
+    let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
+    assert_eq!(s.status, "completed");
+}
