@@ -1,9 +1,10 @@
-//! `type = "contact"`: a body point or circle against a straight wall
-//! ([`HalfPlaneContact`]).
+//! `type = "contact"`: a body point or circle against a straight wall,
+//! fixed or moving ([`HalfPlaneContact`]).
 
 use super::{Context, ForceType};
 use crate::forces::HalfPlaneContact;
 use crate::model::BodyRef;
+use crate::scenario::joints::function_of_time;
 use crate::scenario::model::RawPoint;
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
@@ -32,6 +33,9 @@ pub(in crate::scenario) struct Contact {
     friction: Option<f64>,
     /// Slip velocity v_s [m/s], default 1e-3.
     slip_velocity: Option<f64>,
+    /// Displacement `[d_x(t), d_y(t)]` [m] of the wall from `wall_point`,
+    /// two functions of time; default none (a fixed wall).
+    wall_motion: Option<Vec<toml::Value>>,
 }
 
 impl ForceType for Contact {
@@ -78,6 +82,25 @@ impl ForceType for Contact {
             self.friction.unwrap_or(0.0),
             self.slip_velocity.unwrap_or(1e-3),
         );
+        let c = match self.wall_motion {
+            None => c,
+            Some(m) => {
+                let [dx, dy]: [toml::Value; 2] = m.try_into().map_err(|m: Vec<_>| {
+                    cx.err(
+                        "wall_motion",
+                        format!(
+                            "expected two functions of t [d_x, d_y], got {} entries",
+                            m.len()
+                        ),
+                    )
+                })?;
+                let f = |v, i: usize| {
+                    function_of_time(v, &format!("wall_motion[{i}]"))
+                        .map_err(|(k, m)| cx.err(&k, m))
+                };
+                c.with_wall_motion(f(dx, 0)?, f(dy, 1)?)
+            }
+        };
         cx.checked(&c, &[("normal", "wall_normal")])?;
         cx.builder.add_force(c);
         Ok(())
