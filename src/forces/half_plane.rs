@@ -54,6 +54,9 @@ pub struct HalfPlaneContact {
     /// Displacement `(d_x(t), d_y(t))` \[m\] of the wall from `wall_point`,
     /// global; `None`: a fixed wall.
     pub wall_motion: Option<[TimeFunction; 2]>,
+    /// Velocity of the (fixed-position) wall surface: the local tangent
+    /// line of a moving road profile ([`super::RoadContact`]).
+    pub(crate) surface_velocity: [f64; 2],
 }
 
 /// One evaluation in contact (δ > 0).
@@ -101,6 +104,7 @@ impl HalfPlaneContact {
             friction,
             slip_velocity,
             wall_motion: None,
+            surface_velocity: [0.0, 0.0],
         }
     }
 
@@ -114,7 +118,7 @@ impl HalfPlaneContact {
     /// The wall point `a(t)` and its velocity `ȧ(t)`.
     fn wall(&self, t: f64) -> ([f64; 2], [f64; 2]) {
         match &self.wall_motion {
-            None => (self.wall_point, [0.0, 0.0]),
+            None => (self.wall_point, self.surface_velocity),
             Some([fx, fy]) => {
                 let ([x, vx, _], [y, vy, _]) = (fx.eval(t), fy.eval(t));
                 ([self.wall_point[0] + x, self.wall_point[1] + y], [vx, vy])

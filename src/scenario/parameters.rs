@@ -62,8 +62,8 @@ const TEXT_KEYS: &[&str] = &[
 const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression"];
 
 /// Keys that hold expressions of t wherever they occur (a drive's
-/// `motion`, a contact's `wall_motion`): parameters are substituted inside them.
-const FUNCTION_KEYS: &[&str] = &["motion", "wall_motion"];
+/// `motion`, a contact's `wall_motion` and `road`): parameters are substituted inside them.
+const FUNCTION_KEYS: &[&str] = &["motion", "wall_motion", "road"];
 
 /// Top-level keys and tables of a scenario: no parameter may be named
 /// like one (`--param NAME=…` addresses a parameter by its bare name).

@@ -2,7 +2,7 @@
 //! fixed or moving ([`HalfPlaneContact`]).
 
 use super::{Context, ForceType};
-use crate::forces::HalfPlaneContact;
+use crate::forces::{HalfPlaneContact, RoadContact};
 use crate::model::BodyRef;
 use crate::scenario::joints::function_of_time;
 use crate::scenario::model::RawPoint;
@@ -36,12 +36,46 @@ pub(in crate::scenario) struct Contact {
     /// Displacement `[d_x(t), d_y(t)]` [m] of the wall from `wall_point`,
     /// two functions of time; default none (a fixed wall).
     wall_motion: Option<Vec<toml::Value>>,
+    /// Or a road profile `y = h(x, t)` [m]: an expression of x and t
+    /// instead of the wall keys.
+    road: Option<String>,
 }
 
 impl ForceType for Contact {
     const TYPE: &'static str = "contact";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;
+        if let Some(road) = &self.road {
+            for (k, given) in [
+                ("wall_point", self.wall_point.is_some()),
+                ("wall_normal", self.wall_normal.is_some()),
+                ("wall_normal_deg", self.wall_normal_deg.is_some()),
+                ("wall_motion", self.wall_motion.is_some()),
+            ] {
+                if given {
+                    return Err(cx.err(k, "a contact takes either a road or a wall, not both"));
+                }
+            }
+            let c = RoadContact::new(
+                body,
+                cx.point("point", self.point, BodyRef::Body(body))?,
+                self.radius.unwrap_or(0.0),
+                road,
+                self.stiffness,
+                self.damping.unwrap_or(0.0),
+                self.friction.unwrap_or(0.0),
+                self.slip_velocity.unwrap_or(1e-3),
+            )
+            .map_err(|e| {
+                cx.err(
+                    "road",
+                    format!("\"{road}\" (an expression of x and t): {e}"),
+                )
+            })?;
+            cx.checked(&c, &[])?;
+            cx.builder.add_force(c);
+            return Ok(());
+        }
         let normal = match (self.wall_normal, self.wall_normal_deg) {
             (Some(_), Some(_)) => {
                 return Err(cx.err(
@@ -67,7 +101,7 @@ impl ForceType for Contact {
                 return Err(cx.err(
                     "wall_normal",
                     "missing: a contact needs wall_normal or wall_normal_deg \
-                     (the outward normal of the wall)",
+                     (the outward normal of the wall), or a road",
                 ))
             }
         };
