@@ -17,9 +17,12 @@ fn err(text: &str) -> String {
         .to_string()
 }
 
-/// Rows of (t, q, q̇, q̈, λ).
+/// One output row: (t, q, q̇, q̈, λ).
+type Row = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The rows of a run.
 #[derive(Default)]
-struct Rows(Vec<(f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>)>);
+struct Rows(Vec<Row>);
 
 impl Sink for Rows {
     fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
@@ -309,7 +312,7 @@ fn a_road_profile_equals_the_equivalent_wall() {
         assert!(diff <= tol, "{road}: max |Δq| = {diff:e}");
         assert!(a.q.iter().any(|q| q[1] < 0.15), "{road}: touched");
     }
-    let e = err(concat!("[[body]]\nname = \"d\"\nmass = 1.0\ninertia = 0.1\n[[force]]\ntype = \"contact\"\nbody = \"d\"\nstiffness = 1.0\nroad = \"y + x\"\n[time]\nend = 1.0\n"));
+    let e = err("[[body]]\nname = \"d\"\nmass = 1.0\ninertia = 0.1\n[[force]]\ntype = \"contact\"\nbody = \"d\"\nstiffness = 1.0\nroad = \"y + x\"\n[time]\nend = 1.0\n");
     assert!(
         e.contains("force[0].road") && e.contains("unknown name 'y'"),
         "{e}"
