@@ -429,8 +429,11 @@ fn foreign_keys(doc: &mut toml::Table, set_keys: &[(&str, String)], file: &str) 
         return Vec::new();
     };
     let trapezoidal = name.trim().eq_ignore_ascii_case("trapezoidal");
+    let auto = name.trim().eq_ignore_ascii_case(run::AUTO);
     let method: Method = if trapezoidal {
         Method::Newmark
+    } else if auto {
+        Method::Ode45 // its step-control keys are auto's
     } else {
         match name.parse() {
             Ok(m) => m,
@@ -459,9 +462,14 @@ fn foreign_keys(doc: &mut toml::Table, set_keys: &[(&str, String)], file: &str) 
             }
         }
     }
-    if method.is_index3() {
+    if method.is_index3() || auto {
         if let Some(st) = doc.get("stabilization").and_then(toml::Value::as_table) {
-            for k in ["alpha", "beta"] {
+            let keys: Vec<&str> = if auto {
+                st.keys().map(String::as_str).collect()
+            } else {
+                vec!["alpha", "beta"]
+            };
+            for k in keys {
                 let key = format!("stabilization.{k}");
                 if st.contains_key(k) && !by_override(&key) {
                     drop.push(key);
@@ -472,9 +480,9 @@ fn foreign_keys(doc: &mut toml::Table, set_keys: &[(&str, String)], file: &str) 
     if let Some(f) = doc.get("formulation").and_then(toml::Value::as_str) {
         let alpha = method.family() == Family::GeneralizedAlpha;
         let fits = match f {
-            "augmented_lagrangian" => alpha,
+            "augmented_lagrangian" => alpha && !auto,
             "saddle" => true,
-            _ => !method.is_index3(),
+            _ => !method.is_index3() && !auto,
         };
         if !fits && !by_override("formulation") {
             drop.push("formulation".into());

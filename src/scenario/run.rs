@@ -14,7 +14,7 @@ use crate::integrate::{
 use crate::linalg::SolverKind;
 use crate::output::Format;
 use crate::parallel::Threads;
-use crate::simulation::{OutputQuantities, RunConfig};
+use crate::simulation::{MethodChoice, OutputQuantities, RunConfig};
 use serde::Deserialize;
 
 #[derive(Debug, Default, Deserialize)]
@@ -120,13 +120,27 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
             ),
         ));
     }
+    // "auto": chosen at t0 (crate::simulation::choice); ode45 stands in
+    // for the option checks, which take its step-control keys
+    let auto = raw
+        .integrator
+        .method
+        .as_deref()
+        .is_some_and(|m| m.trim().eq_ignore_ascii_case(AUTO));
     let method: Method = match (&raw.integrator.method, alias) {
+        _ if auto => Method::Ode45,
         (_, Some((row, _))) => row.method,
         (Some(m), None) => m.parse().map_err(|e: crate::integrate::IntegratorError| {
-            err("integrator.method".into(), e.to_string())
+            err(
+                "integrator.method".into(),
+                format!("{e}, or \"{AUTO}\" (chosen at t0)"),
+            )
         })?,
         (None, None) => Method::Ode23,
     };
+    if auto {
+        auto_keys(raw).map_err(|(key, why)| err(key, why))?;
+    }
     let ri = &raw.integrator;
     let mut ode = OdeOptions::default();
     if let Some(r) = ri.rtol {
@@ -248,6 +262,11 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         .map_err(|e| integrator_error(&err, e))?;
     let run = RunConfig {
         method,
+        choice: if auto {
+            MethodChoice::Auto
+        } else {
+            MethodChoice::Given
+        },
         ode,
         t0,
         t_end,
@@ -269,6 +288,52 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     };
 
     Ok(run)
+}
+
+/// The `integrator.method` value that lets the run choose
+/// ([`crate::simulation::choice`]).
+pub(super) const AUTO: &str = "auto";
+
+/// The keys `integrator.method = "auto"` takes: the step control of
+/// both methods it may choose (`rtol`, `atol`, `max_step`,
+/// `initial_step`) and `threads`; no stabilization, projection or
+/// formulation (it sets those for the method it chooses).
+fn auto_keys(raw: &RawScenario) -> Result<(), (String, String)> {
+    let why = |what: &str| {
+        format!(
+            "{what}: integrator.method = \"{AUTO}\" chooses ode45 (with projection) or radau5 \
+             and takes only rtol, atol, max_step and initial_step; name the method to set this"
+        )
+    };
+    for (key, present) in integrator_keys(&raw.integrator) {
+        if present && key != "method" && !STEP_CONTROL_KEYS.contains(&key) {
+            return Err((format!("integrator.{key}"), why("does not apply")));
+        }
+    }
+    let st = &raw.stabilization;
+    for (key, present) in [
+        ("alpha", st.alpha.is_some()),
+        ("beta", st.beta.is_some()),
+        ("rule", st.rule.is_some()),
+        ("projection", st.projection.is_some()),
+        ("correction", st.correction.is_some()),
+        ("partition_condition", st.partition_condition.is_some()),
+        ("penalty", st.penalty.is_some()),
+        ("penalty_xi", st.penalty_xi.is_some()),
+        ("penalty_omega", st.penalty_omega.is_some()),
+    ] {
+        if present {
+            return Err((format!("stabilization.{key}"), why("does not apply")));
+        }
+    }
+    if raw
+        .formulation
+        .as_deref()
+        .is_some_and(|f| f.trim() != "saddle")
+    {
+        return Err(("formulation".into(), why("does not apply")));
+    }
+    Ok(())
 }
 
 /// `output.quantities`: each of "velocities", "accelerations", "reactions",

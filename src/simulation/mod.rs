@@ -15,9 +15,11 @@ use serde::Serialize;
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+pub mod choice;
 mod methods;
 mod stiffness;
 mod watch;
+pub use choice::MethodChoice;
 use methods::{AugmentedRun, BdfRun, Explicit, GenAlphaRun, MethodRun, Partition, RadauRun, Span};
 use stiffness::stability_check;
 pub use stiffness::LOAD_CROSSINGS;
@@ -27,8 +29,10 @@ pub use watch::{IMPLICIT_ENERGY_GAIN, SIZE_FRACTION, STALL_FACTOR, STALL_SLACK};
 /// What to integrate and how.
 #[derive(Debug, Clone)]
 pub struct RunConfig {
-    /// Integration method.
+    /// Integration method (ignored when `choice` is [`MethodChoice::Auto`]).
     pub method: Method,
+    /// Whether `method` is used as given or chosen at t0 ([`choice`]).
+    pub choice: MethodChoice,
     /// Integrator options (tolerances, steps).
     pub ode: OdeOptions,
     /// Start time.
@@ -138,6 +142,7 @@ impl Default for RunConfig {
     fn default() -> Self {
         Self {
             method: Method::Ode23,
+            choice: MethodChoice::Given,
             ode: OdeOptions::default(),
             t0: 0.0,
             t_end: 1.0,
@@ -411,6 +416,12 @@ pub fn simulate_into(
             "component {k} of (q0, q̇0) is not finite"
         )));
     }
+    // `integrator.method = "auto"`: the method from the rates at t0
+    let chosen = match cfg.choice {
+        MethodChoice::Given => None,
+        MethodChoice::Auto => Some(choice::choose(sys, cfg, q0, qd0)?),
+    };
+    let cfg = chosen.as_ref().map_or(cfg, |(run, _)| run);
     cfg.implicit.validate(cfg.method, cfg.ode.fixed_step)?;
     let threads = cfg
         .threads
@@ -464,6 +475,10 @@ pub fn simulate_into(
         serde_json::to_value(team.rule).unwrap_or_default(),
     );
     extra.insert("threads_reason".into(), team.rule.reason().into());
+    if let Some((run, reason)) = &chosen {
+        extra.insert("method_choice".into(), run.method.name().into());
+        extra.insert("method_choice_reason".into(), reason.clone().into());
+    }
     Ok(finish(sys, cfg, watch, &report, wall_s, work, extra))
 }
 

@@ -630,6 +630,9 @@ fn run(
         },
         extra("threads_reason").as_str().unwrap_or("")
     );
+    if let Some(reason) = extra("method_choice_reason").as_str() {
+        report!("method: {reason}");
+    }
     if let Some(c) = &contacts {
         match c.first_contact() {
             Some(t) => report!(
