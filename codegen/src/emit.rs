@@ -261,6 +261,16 @@ impl<'c> Block<'c> {
             Sign(a) => self.method(a, "signum()"),
             Tanh(a) => self.method(a, "tanh()"),
             Max0(a) => self.method(a, "max(0.0)"),
+            Exp(a) => self.method(a, "exp()"),
+            Ln(a) => self.method(a, "ln()"),
+            Atan2(a, b) => {
+                let (y, _) = self.inline(b, 0);
+                self.method(a, &format!("atan2({y})"))
+            }
+            Pow(a, b) => {
+                let (y, _) = self.inline(b, 0);
+                self.method(a, &format!("powf({y})"))
+            }
             Step(a) => {
                 let (x, _) = self.inline(a, ADD);
                 format!("if {x} > 0.0 {{ 1.0 }} else {{ 0.0 }}")

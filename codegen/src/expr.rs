@@ -65,6 +65,15 @@ pub enum Node {
     /// `b` where `a > 0`, else 0 — a guard: the other branch is never used,
     /// even when it is not finite there (e.g. `√δ` terms for `δ ≤ 0`).
     Select(Id, Id),
+    /// `eᵃ`.
+    Exp(Id),
+    /// Natural logarithm `ln a` (NaN for `a < 0`, −∞ at 0: IEEE `ln`).
+    Ln(Id),
+    /// `atan2(a, b)`: the angle of the point `(b, a)` in `(−π, π]` (IEEE `atan2`).
+    Atan2(Id, Id),
+    /// `aᵇ` with a real exponent (IEEE `powf`: NaN for `a < 0` and a
+    /// non-integer `b`).
+    Pow(Id, Id),
 }
 
 impl Node {
@@ -73,7 +82,13 @@ impl Node {
         use Node::*;
         match *self {
             Const(_) | Var(_) => ([None, None], 0),
-            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) | Select(a, b) => ([Some(a), Some(b)], 2),
+            Add(a, b)
+            | Sub(a, b)
+            | Mul(a, b)
+            | Div(a, b)
+            | Select(a, b)
+            | Atan2(a, b)
+            | Pow(a, b) => ([Some(a), Some(b)], 2),
             Neg(a)
             | Powi(a, _)
             | Sqrt(a)
@@ -83,7 +98,9 @@ impl Node {
             | Sign(a)
             | Tanh(a)
             | Max0(a)
-            | Step(a) => ([Some(a), None], 1),
+            | Step(a)
+            | Exp(a)
+            | Ln(a) => ([Some(a), None], 1),
         }
     }
     /// Iterator over the children.
@@ -444,6 +461,46 @@ impl Ctx {
         self.intern(Node::Select(a, b))
     }
 
+    /// `eᵃ`.
+    pub fn exp(&mut self, a: Id) -> Id {
+        if let Some(x) = self.as_const(a) {
+            return self.constant(x.exp());
+        }
+        self.intern(Node::Exp(a))
+    }
+    /// Natural logarithm `ln a`.
+    pub fn ln(&mut self, a: Id) -> Id {
+        if let Some(x) = self.as_const(a) {
+            return self.constant(x.ln());
+        }
+        self.intern(Node::Ln(a))
+    }
+    /// `atan2(a, b)`: the angle of the point `(b, a)`.
+    pub fn atan2(&mut self, a: Id, b: Id) -> Id {
+        if let (Some(y), Some(x)) = (self.as_const(a), self.as_const(b)) {
+            return self.constant(y.atan2(x));
+        }
+        self.intern(Node::Atan2(a, b))
+    }
+    /// `aᵇ` with a real exponent. A constant exponent that is an integer of
+    /// magnitude at most 64 gives [`Ctx::powi`], `0.5` gives [`Ctx::sqrt`]
+    /// (both exact for every base, negative ones included); any other
+    /// exponent the `powf` node (NaN for a negative base).
+    pub fn pow(&mut self, a: Id, b: Id) -> Id {
+        if let Some(e) = self.as_const(b) {
+            if e == 0.5 {
+                return self.sqrt(a);
+            }
+            if e.fract() == 0.0 && e.abs() <= 64.0 {
+                return self.powi(a, e as i32);
+            }
+            if let Some(x) = self.as_const(a) {
+                return self.constant(x.powf(e));
+            }
+        }
+        self.intern(Node::Pow(a, b))
+    }
+
     /// Sum of `terms` (left to right).
     pub fn sum(&mut self, terms: &[Id]) -> Id {
         let mut acc = self.zero();
@@ -561,6 +618,41 @@ impl Ctx {
                 let db = self.diff_memo(b, v, memo);
                 self.select(a, db)
             }
+            Exp(a) => {
+                let da = self.diff_memo(a, v, memo);
+                let ea = self.exp(a);
+                self.mul(ea, da)
+            }
+            Ln(a) => {
+                let da = self.diff_memo(a, v, memo);
+                self.div(da, a)
+            }
+            Atan2(a, b) => {
+                // d atan2(a, b) = (b da − a db) / (a² + b²)
+                let (da, db) = (self.diff_memo(a, v, memo), self.diff_memo(b, v, memo));
+                let (l, r) = (self.mul(b, da), self.mul(a, db));
+                let num = self.sub(l, r);
+                let (a2, b2) = (self.powi(a, 2), self.powi(b, 2));
+                let den = self.add(a2, b2);
+                self.div(num, den)
+            }
+            Pow(a, b) => {
+                // d aᵇ = b a^(b−1) da + aᵇ ln(a) db
+                let (da, db) = (self.diff_memo(a, v, memo), self.diff_memo(b, v, memo));
+                let one = self.one();
+                let bm1 = self.sub(b, one);
+                let p = self.pow(a, bm1);
+                let bp = self.mul(b, p);
+                let l = self.mul(bp, da);
+                let r = if self.is_const(db, 0.0) {
+                    db
+                } else {
+                    let la = self.ln(a);
+                    let pl = self.mul(e, la);
+                    self.mul(pl, db)
+                };
+                self.add(l, r)
+            }
             Sign(_) | Step(_) => self.zero(),
         };
         memo.insert(e, d);
@@ -580,13 +672,21 @@ impl Ctx {
         use Node::*;
         let r = match self.node(e) {
             Const(_) | Var(_) => e,
-            Add(a, b) | Sub(a, b) | Mul(a, b) | Div(a, b) | Select(a, b) => {
+            Add(a, b)
+            | Sub(a, b)
+            | Mul(a, b)
+            | Div(a, b)
+            | Select(a, b)
+            | Atan2(a, b)
+            | Pow(a, b) => {
                 let (x, y) = (self.subst_memo(a, memo), self.subst_memo(b, memo));
                 match self.node(e) {
                     Add(..) => self.add(x, y),
                     Sub(..) => self.sub(x, y),
                     Mul(..) => self.mul(x, y),
                     Div(..) => self.div(x, y),
+                    Atan2(..) => self.atan2(x, y),
+                    Pow(..) => self.pow(x, y),
                     _ => self.select(x, y),
                 }
             }
@@ -598,9 +698,12 @@ impl Ctx {
                 let x = self.subst_memo(a, memo);
                 self.powi(x, n)
             }
-            Sqrt(a) | Sin(a) | Cos(a) | Abs(a) | Sign(a) | Tanh(a) | Max0(a) | Step(a) => {
+            Sqrt(a) | Sin(a) | Cos(a) | Abs(a) | Sign(a) | Tanh(a) | Max0(a) | Step(a) | Exp(a)
+            | Ln(a) => {
                 let x = self.subst_memo(a, memo);
                 match self.node(e) {
+                    Exp(_) => self.exp(x),
+                    Ln(_) => self.ln(x),
                     Sqrt(_) => self.sqrt(x),
                     Sin(_) => self.sin(x),
                     Cos(_) => self.cos(x),
@@ -715,5 +818,9 @@ pub(crate) fn eval_op(n: Node, mut g: impl FnMut(Id) -> f64) -> f64 {
                 0.0
             }
         }
+        Exp(a) => g(a).exp(),
+        Ln(a) => g(a).ln(),
+        Atan2(a, b) => g(a).atan2(g(b)),
+        Pow(a, b) => g(a).powf(g(b)),
     }
 }

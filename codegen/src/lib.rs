@@ -4,7 +4,8 @@
 //! run at build time (mbsolve's `build.rs`, or a downstream crate's).
 //!
 //! * [`expr`]: expressions over variables and constants (`+ − × ÷`, integer
-//!   powers, `sqrt`, `sin`, `cos`, `abs`, `tanh`, `max(·, 0)`) in a
+//!   and real powers, `sqrt`, `sin`, `cos`, `abs`, `tanh`, `exp`, `ln`,
+//!   `atan2`, `max(·, 0)`) in a
 //!   hash-consed DAG with exact simplification, symbolic differentiation and
 //!   an interpreter;
 //! * [`emit`]: straight-line, allocation-free Rust with common

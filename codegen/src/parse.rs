@@ -8,23 +8,40 @@
 //! term    := unary  (('*' | '/') unary)*         left-associative
 //! unary   := '-' unary | '+' unary | power
 //! power   := atom ('^' unary)?                   right-associative: 2^3^2 = 2^9
-//! atom    := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
+//! atom    := number | name | name '(' arg (',' arg)* ')' | '(' expr ')'
+//! arg     := expr | '[' expr (',' expr)* ']'     a list: constants only
 //! number  := digits ['.' digits] [('e' | 'E') ['+' | '-'] digits]
 //! name    := (letter | '_') (letter | digit | '_' | '.' | '[' digits ']')*
 //! ```
 //!
-//! As in mathematics, `-x^2 = -(x^2)`. The exponent of `^` must reduce to
-//! an integer constant (`x^2`, `x^-1`, `x^(1+1)`) or to `0.5` (`√x`).
+//! As in mathematics, `-x^2 = -(x^2)`. `a^b` is [`Ctx::pow`]: an integer
+//! constant exponent of magnitude ≤ 64 is an integer power and `0.5` a
+//! square root (defined for every base), any other exponent a real power
+//! (`powf`: NaN for a negative base).
 //!
-//! Functions: `sin cos tan sqrt abs tanh sign min max` (`min`, `max` with two
-//! arguments). `tan x` is built as `sin x / cos x`, `min(a, b)` as
-//! `a − max(a − b, 0)` and `max(a, b)` as `a + max(b − a, 0)`, so they
+//! Functions: `sin cos tan sqrt abs tanh sign exp log` (one argument;
+//! `log` is the natural logarithm), `min max atan2 pow` (two),
+//! `clamp(x, lo, hi)`, `smoothstep(x, x0, x1)` and `table(x, [x…], [y…])`
+//! (three). `tan x` is built as `sin x / cos x`, `min(a, b)` as
+//! `a − max(a − b, 0)` and `max(a, b)` as `a + max(b − a, 0)`,
+//! `clamp(x, lo, hi)` as `max(min(x, hi), lo)`, so they
 //! differentiate through the engine's rules: the non-smooth functions get
 //! their piecewise derivatives — `d|a| = sign(a)·da` (so `0` at `a = 0`
 //! only where `sign` is taken as Rust's `signum`, i.e. `±1` at `±0`),
 //! `d max(a, b)` takes the derivative of `b` where `b > a` and of `a`
 //! otherwise, `d min(a, b)` that of `b` where `a > b` and of `a` otherwise;
-//! `sign` has derivative 0.
+//! `sign` has derivative 0. `smoothstep(x, x0, x1)` is the cubic
+//! `3u² − 2u³` of `u = clamp((x − x0)/(x1 − x0), 0, 1)`: 0 at `x0`, 1 at
+//! `x1`, continuous first derivative. `table(x, [x₀, …], [y₀, …])`
+//! interpolates linearly between the points (at least two, strictly
+//! increasing abscissae) and is constant beyond the ends; its derivative
+//! is the slope of the segment (the left one at a node). `atan2(y, x)` is
+//! the angle of the point `(x, y)` in `(−π, π]`.
+//!
+//! Outside their domains `log` (of a negative number: NaN; of 0: −∞), `pow`
+//! (negative base, non-integer exponent: NaN) and `sqrt` give IEEE values;
+//! callers check their results (mbsolve stops a run at the first
+//! non-finite force with the time and the component).
 //!
 //! Bounded depth: brackets, signs, exponents and function calls nest at
 //! most [`MAX_NESTING`] deep in the text, and the parsed expression is at
@@ -78,8 +95,10 @@ pub enum ParseErrorKind {
         /// Arguments given.
         found: usize,
     },
-    /// An exponent that is not an integer constant or 0.5.
-    BadExponent,
+    /// A function argument outside what the function accepts (e.g. a
+    /// table whose abscissae do not increase); the message names the
+    /// function.
+    BadArgument(String),
     /// Brackets, signs, exponents or calls nested deeper than
     /// [`MAX_NESTING`].
     TooNested,
@@ -122,10 +141,7 @@ impl fmt::Display for ParseError {
                 f,
                 "function '{name}' takes {expected} argument(s), got {found}"
             ),
-            BadExponent => write!(
-                f,
-                "exponent must be an integer constant or 0.5 (use sqrt or repeated products otherwise)"
-            ),
+            BadArgument(m) => write!(f, "{m}"),
             TooNested => write!(
                 f,
                 "brackets, signs, exponents and calls nest deeper than the limit of {MAX_NESTING}"
@@ -221,7 +237,7 @@ fn tokenize(s: &str) -> Result<Vec<(Tok, usize)>, ParseError> {
                 }
             }
             out.push((Tok::Name(s[start..i].into()), start));
-        } else if b"+-*/^(),".contains(&c) {
+        } else if b"+-*/^(),[]".contains(&c) {
             out.push((Tok::Op(c as char), i));
             i += 1;
         } else {
@@ -399,20 +415,8 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
         if !self.eat('^') {
             return Ok(base);
         }
-        let pos = self.pos();
         let e = self.unary()?;
-        let bad = ParseError {
-            pos,
-            kind: ParseErrorKind::BadExponent,
-        };
-        let v = self.ctx.as_const(e).ok_or(bad.clone())?;
-        if v == 0.5 {
-            Ok(self.ctx.sqrt(base))
-        } else if v.fract() == 0.0 && v.abs() <= 64.0 {
-            Ok(self.ctx.powi(base, v as i32))
-        } else {
-            Err(bad)
-        }
+        Ok(self.ctx.pow(base, e))
     }
 
     fn atom(&mut self) -> Result<Id, ParseError> {
@@ -433,9 +437,9 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
             Tok::Name(name) => {
                 self.at += 1;
                 if self.eat('(') {
-                    let mut args = vec![self.expr()?];
+                    let mut args = vec![self.argument()?];
                     while self.eat(',') {
-                        args.push(self.expr()?);
+                        args.push(self.argument()?);
                     }
                     if !self.eat(')') {
                         return Err(self.unexpected("',' or ')'"));
@@ -452,10 +456,36 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
         }
     }
 
-    fn call(&mut self, name: &str, args: &[Id], pos: usize) -> Result<Id, ParseError> {
+    /// One argument of a call: an expression or a bracketed list of
+    /// constant expressions (the nodes of `table`).
+    fn argument(&mut self) -> Result<Arg, ParseError> {
+        let pos = self.pos();
+        if !self.eat('[') {
+            return Ok(Arg::Expr(self.expr()?, pos));
+        }
+        let mut items = Vec::new();
+        loop {
+            let at = self.pos();
+            let e = self.expr()?;
+            let v = self.ctx.as_const(e).ok_or(ParseError {
+                pos: at,
+                kind: ParseErrorKind::BadArgument("the entries of a list must be constants".into()),
+            })?;
+            items.push(v);
+            if self.eat(']') {
+                return Ok(Arg::List(items, pos));
+            }
+            if !self.eat(',') {
+                return Err(self.unexpected("',' or ']'"));
+            }
+        }
+    }
+
+    fn call(&mut self, name: &str, args: &[Arg], pos: usize) -> Result<Id, ParseError> {
         let arity = match name {
-            "sin" | "cos" | "tan" | "sqrt" | "abs" | "tanh" | "sign" => 1,
-            "min" | "max" => 2,
+            "sin" | "cos" | "tan" | "sqrt" | "abs" | "tanh" | "sign" | "exp" | "log" => 1,
+            "min" | "max" | "atan2" | "pow" => 2,
+            "smoothstep" | "clamp" | "table" => 3,
             _ => {
                 return Err(ParseError {
                     pos,
@@ -473,8 +503,44 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
                 },
             });
         }
+        let bad = |pos: usize, msg: String| ParseError {
+            pos,
+            kind: ParseErrorKind::BadArgument(format!("{name}: {msg}")),
+        };
+        if name == "table" {
+            let x = match args[0] {
+                Arg::Expr(x, _) => x,
+                Arg::List(_, p) => {
+                    return Err(bad(
+                        p,
+                        "the first argument is the abscissa, an expression".into(),
+                    ))
+                }
+            };
+            let (xs, ys) = match (&args[1], &args[2]) {
+                (Arg::List(xs, px), Arg::List(ys, py)) => {
+                    ((xs.as_slice(), *px), (ys.as_slice(), *py))
+                }
+                (Arg::Expr(_, p), _) | (_, Arg::Expr(_, p)) => {
+                    return Err(bad(
+                        *p,
+                        "the abscissae and values are lists [a, b, …]".into(),
+                    ))
+                }
+            };
+            return table(self.ctx, x, xs, ys).map_err(|(p, m)| bad(p, m));
+        }
+        let mut ids = Vec::with_capacity(args.len());
+        for a in args {
+            match *a {
+                Arg::Expr(id, _) => ids.push(id),
+                Arg::List(_, p) => {
+                    return Err(bad(p, "a list is an argument of table only".into()))
+                }
+            }
+        }
         let c = &mut *self.ctx;
-        let a = args[0];
+        let a = ids[0];
         Ok(match name {
             "sin" => c.sin(a),
             "cos" => c.cos(a),
@@ -486,18 +552,127 @@ impl<R: FnMut(&str, &mut Ctx) -> Option<Id>> Parser<'_, R> {
             "abs" => c.abs(a),
             "tanh" => c.tanh(a),
             "sign" => c.sign(a),
-            "min" => {
-                let d = c.sub(a, args[1]);
-                let m = c.max0(d);
-                c.sub(a, m)
+            "exp" => c.exp(a),
+            "log" => c.ln(a),
+            "atan2" => c.atan2(a, ids[1]),
+            "pow" => c.pow(a, ids[1]),
+            "min" => min(c, a, ids[1]),
+            "max" => max(c, a, ids[1]),
+            "clamp" => {
+                let m = min(c, a, ids[2]);
+                max(c, m, ids[1])
             }
             _ => {
-                let d = c.sub(args[1], a);
-                let m = c.max0(d);
-                c.add(a, m)
+                // smoothstep(x, x0, x1): u = clamp((x − x0)/(x1 − x0), 0, 1),
+                // u²(3 − 2u)
+                let (x0, x1) = (ids[1], ids[2]);
+                if c.as_const(x0).is_some() && c.as_const(x0) == c.as_const(x1) {
+                    let p = match args[2] {
+                        Arg::Expr(_, p) | Arg::List(_, p) => p,
+                    };
+                    return Err(bad(p, "the edges x0 and x1 must differ".into()));
+                }
+                let num = c.sub(a, x0);
+                let den = c.sub(x1, x0);
+                let u = c.div(num, den);
+                let one = c.one();
+                let over = c.sub(u, one);
+                let over = c.max0(over);
+                let u = c.sub(u, over);
+                let u = c.max0(u);
+                let (two, three) = (c.constant(2.0), c.constant(3.0));
+                let tu = c.mul(two, u);
+                let f = c.sub(three, tu);
+                let u2 = c.powi(u, 2);
+                c.mul(u2, f)
             }
         })
     }
+}
+
+/// One argument of a call: an expression or a list of constants, with the
+/// byte offset where it starts.
+enum Arg {
+    Expr(Id, usize),
+    List(Vec<f64>, usize),
+}
+
+/// `min(a, b)` as `a − max(a − b, 0)`.
+fn min(c: &mut Ctx, a: Id, b: Id) -> Id {
+    let d = c.sub(a, b);
+    let m = c.max0(d);
+    c.sub(a, m)
+}
+
+/// `max(a, b)` as `a + max(b − a, 0)`.
+fn max(c: &mut Ctx, a: Id, b: Id) -> Id {
+    let d = c.sub(b, a);
+    let m = c.max0(d);
+    c.add(a, m)
+}
+
+/// Piecewise-linear interpolation of the points `(xs[i], ys[i])` at `x`,
+/// constant beyond the ends: `y₀ + Σᵢ sᵢ (max(x − xᵢ, 0) − max(x − xᵢ₊₁, 0))`
+/// with the segment slopes `sᵢ`, summed as a balanced tree. Its derivative
+/// through the engine is the slope of the segment (the left one at a node).
+/// Errors: `(byte offset, message)`.
+fn table(
+    c: &mut Ctx,
+    x: Id,
+    (xs, px): (&[f64], usize),
+    (ys, py): (&[f64], usize),
+) -> Result<Id, (usize, String)> {
+    if xs.len() < 2 {
+        return Err((
+            px,
+            format!("a table needs at least 2 points, got {}", xs.len()),
+        ));
+    }
+    if ys.len() != xs.len() {
+        return Err((
+            py,
+            format!("{} values for {} abscissae", ys.len(), xs.len()),
+        ));
+    }
+    if let Some(v) = xs.iter().chain(ys).find(|v| !v.is_finite()) {
+        return Err((px, format!("the entry {v} is not finite")));
+    }
+    if let Some(w) = xs.windows(2).find(|w| w[0] >= w[1]) {
+        return Err((
+            px,
+            format!(
+                "the abscissae must increase strictly ({} is followed by {})",
+                w[0], w[1]
+            ),
+        ));
+    }
+    let ramps: Vec<Id> = xs
+        .iter()
+        .map(|&xi| {
+            let k = c.constant(xi);
+            let d = c.sub(x, k);
+            c.max0(d)
+        })
+        .collect();
+    let mut terms = vec![c.constant(ys[0])];
+    for i in 0..xs.len() - 1 {
+        let s = c.constant((ys[i + 1] - ys[i]) / (xs[i + 1] - xs[i]));
+        let seg = c.sub(ramps[i], ramps[i + 1]);
+        terms.push(c.mul(s, seg));
+    }
+    while terms.len() > 1 {
+        terms = terms
+            .chunks(2)
+            .map(|p| {
+                if p.len() == 2 {
+                    c.add(p[0], p[1])
+                } else {
+                    p[0]
+                }
+            })
+            .collect();
+    }
+    Ok(terms[0])
 }
 
 /// Parse `text` into `ctx`; names are resolved by `resolve(name, ctx)`.

@@ -66,6 +66,10 @@ impl Tape {
                 Tanh(a) => Tanh(remap(a)),
                 Max0(a) => Max0(remap(a)),
                 Step(a) => Step(remap(a)),
+                Exp(a) => Exp(remap(a)),
+                Ln(a) => Ln(remap(a)),
+                Atan2(a, b) => Atan2(remap(a), remap(b)),
+                Pow(a, b) => Pow(remap(a), remap(b)),
             };
             ops.push((s as u32, n));
         }

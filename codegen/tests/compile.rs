@@ -86,7 +86,22 @@ fn emitted_code_compiles_and_matches_the_interpreter() {
     let vars: Vec<Id> = (0..nv).map(|k| c.var(format!("x{k}"))).collect();
     let x: Vec<f64> = (0..nv).map(|_| r.uniform(-1.2, 1.2)).collect();
     let mut outs = Vec::new();
-    while outs.len() < 40 {
+    // the functions random trees do not draw (real powers, exp, log, atan2,
+    // smooth steps and tables), with a derivative each
+    for text in [
+        "exp(x0*x1) + log(2 + x2^2)",
+        "atan2(x0, x1 - 2) * pow(1 + x3^2, 1.5 + 0.1*x2)",
+        "smoothstep(x0, -1, 1) + table(x1, [-2, 0, 2], [1, -1, 3])",
+    ] {
+        let e = mbsolve_codegen::parse(&mut c, text, |n, _| {
+            let k: usize = n.strip_prefix('x')?.parse().ok()?;
+            vars.get(k).copied()
+        })
+        .unwrap();
+        outs.push(e);
+        outs.push(c.diff(e, vars[0]));
+    }
+    while outs.len() < 46 {
         let t = random_tree(&mut r, 6, nv, false);
         if t.all_finite(&x) {
             let e = t.build(&mut c, &vars);

@@ -51,6 +51,9 @@ fn precedence_and_associativity() {
         ("x ^ (1 + 1)", 4.0),
         ("4 ^ 0.5", 2.0),
         ("z ^ 0.5", 5f64.sqrt()),
+        ("z ^ 1.5", 5f64.powf(1.5)),
+        ("x ^ y", 8.0),
+        ("2 ^ 0.25", 2f64.powf(0.25)),
     ];
     for &(t, want) in cases {
         let got = eval(t, xyz);
@@ -81,6 +84,25 @@ fn functions() {
             "2*sin(x)^2 + cos(x*y)",
             2.0 * x.sin().powi(2) + (x * y).cos(),
         ),
+        ("exp(y)", y.exp()),
+        ("log(x)", x.ln()),
+        ("atan2(y, x)", y.atan2(x)),
+        ("atan2(x, y)", x.atan2(y)),
+        ("pow(x, 2.5)", x.powf(2.5)),
+        ("pow(y, 3)", y * y * y),
+        ("pow(y, -2)", 1.0 / (y * y)),
+        ("clamp(x, 0, 0.5)", 0.5),
+        ("clamp(y, -1, 1)", -1.0),
+        ("clamp(x, 0, 1)", x),
+        ("smoothstep(x, 0, 1)", x * x * (3.0 - 2.0 * x)),
+        ("smoothstep(x, 1, 0)", 1.0 - x * x * (3.0 - 2.0 * x)),
+        ("smoothstep(y, 0, 1)", 0.0),
+        ("smoothstep(x, -2, 0.5)", 1.0),
+        // piecewise linear: x = 0.7 in the segment [0.5, 1] from 2 to 4
+        ("table(x, [0, 0.5, 1], [1, 2, 4])", 2.0 + 0.2 / 0.5 * 2.0),
+        ("table(y, [0, 0.5, 1], [1, 2, 4])", 1.0),
+        ("table(x + 1, [0, 0.5, 1], [1, 2, 4])", 4.0),
+        ("table(x, [-1, 1], [3, -3])", -3.0 * x),
     ];
     for &(t, want) in cases {
         let got = eval(t, [x, y, 0.0]);
@@ -115,11 +137,32 @@ fn errors_carry_position_and_message() {
     assert_eq!(pos, 4);
     assert!(matches!(kind, ParseErrorKind::Unexpected { .. }));
 
-    let (pos, kind, _) = err("x ^ 1.5");
-    assert_eq!((pos, kind), (4, ParseErrorKind::BadExponent));
-
-    let (pos, kind, _) = err("x ^ x");
-    assert_eq!((pos, kind), (4, ParseErrorKind::BadExponent));
+    let (pos, kind, msg) = err("table(x, [0, 1, 1], [0, 1, 2])");
+    assert_eq!(pos, 9);
+    assert!(matches!(kind, ParseErrorKind::BadArgument(_)), "{msg}");
+    assert_eq!(
+        msg,
+        "table: the abscissae must increase strictly (1 is followed by 1) at 9"
+    );
+    let (pos, _, msg) = err("table(x, [0, 1], [0, 1, 2])");
+    assert_eq!(pos, 17);
+    assert!(msg.contains("3 values for 2 abscissae"), "{msg}");
+    let (_, _, msg) = err("table(x, [0], [0])");
+    assert!(msg.contains("at least 2 points"), "{msg}");
+    let (pos, _, msg) = err("table(x, [0, x], [0, 1])");
+    assert_eq!(pos, 13);
+    assert!(msg.contains("constants"), "{msg}");
+    let (_, _, msg) = err("table(x, 1, [0, 1])");
+    assert!(msg.contains("lists"), "{msg}");
+    let (_, _, msg) = err("sin([1, 2])");
+    assert!(msg.contains("argument of table only"), "{msg}");
+    let (_, _, msg) = err("smoothstep(x, 1, 1)");
+    assert!(msg.contains("must differ"), "{msg}");
+    let (_, _, msg) = err("table(x, [0, 1e999], [0, 1])");
+    assert!(msg.contains("not finite"), "{msg}");
+    let (pos, kind, _) = err("table(x, [0, 1, [0, 1])");
+    assert_eq!(pos, 16);
+    assert!(matches!(kind, ParseErrorKind::Unexpected { .. }));
 
     let (pos, kind, _) = err("max(x)");
     assert_eq!(pos, 0);
@@ -190,6 +233,11 @@ fn derivatives_match_finite_differences() {
         "abs(x - y) * z",
         "min(x, y*z) + max(x^2, z)",
         "-x^2 / (1 + y^2)",
+        "exp(x*y) + log(z^2 + x)",
+        "atan2(y, x) * atan2(z, y - 2)",
+        "pow(x^2 + 1, y) + pow(z^2, 0.75) + (x^2 + 2)^1.5",
+        "smoothstep(x*y, -0.5, 0.9) + clamp(z, -0.5, 0.5)",
+        "table(x + y, [-2, 0.1, 0.5, 1.2, 3], [0, 1, -1, 2, 2]) * z",
     ];
     let points = [[0.3, 0.8, 1.7], [1.1, -0.4, 0.6], [0.45, 1.3, -0.9]];
     for t in texts {
@@ -332,4 +380,80 @@ fn long_flat_sums_and_products_are_shallow_and_exact() {
 #[test]
 fn short_sums_round_left_to_right() {
     assert_eq!(eval("x + 1 + 1", [1e16, 0.0, 0.0]), 1e16);
+}
+
+/// The new functions against their closed forms over a grid, and the table
+/// through every node and beyond both ends.
+#[test]
+fn new_functions_match_closed_forms() {
+    let xs = [0.0, 0.3, 1.0, 2.5, 4.0];
+    let ys = [1.0, -2.0, 0.5, 0.5, 3.0];
+    let text = "table(x, [0, 0.3, 1, 2.5, 4], [1, -2, 0.5, 0.5, 3])";
+    let closed = |x: f64| {
+        if x <= xs[0] {
+            return ys[0];
+        }
+        for i in 0..4 {
+            if x <= xs[i + 1] {
+                return ys[i] + (ys[i + 1] - ys[i]) * (x - xs[i]) / (xs[i + 1] - xs[i]);
+            }
+        }
+        ys[4]
+    };
+    for k in -10..=50 {
+        let x = k as f64 * 0.1;
+        let got = eval(text, [x, 0.0, 0.0]);
+        assert!(
+            (got - closed(x)).abs() <= 1e-14,
+            "table at {x}: {got} vs {}",
+            closed(x)
+        );
+    }
+    for (&x, &y) in xs.iter().zip(&ys) {
+        let got = eval(text, [x, 0.0, 0.0]);
+        assert!(
+            (got - y).abs() <= 4.0 * f64::EPSILON * 3.0,
+            "node {x}: {got} vs {y}"
+        );
+    }
+    for k in 0..=20 {
+        let x = -1.0 + 0.15 * k as f64;
+        let u = ((x - 0.2) / 1.5f64).clamp(0.0, 1.0);
+        let want = u * u * (3.0 - 2.0 * u);
+        let got = eval("smoothstep(x, 0.2, 1.7)", [x, 0.0, 0.0]);
+        assert!((got - want).abs() <= 1e-15, "smoothstep at {x}");
+        let got = eval("exp(-x) * log(2 + x) + atan2(x, -1)", [x, 0.0, 0.0]);
+        let want = (-x).exp() * (2.0 + x).ln() + x.atan2(-1.0);
+        assert!(
+            (got - want).abs() <= 1e-15 * want.abs().max(1.0),
+            "exp/log at {x}"
+        );
+    }
+    // Outside the domains: IEEE values, documented (never a parse error).
+    assert!(eval("log(x)", [-1.0, 0.0, 0.0]).is_nan());
+    assert_eq!(eval("log(x)", [0.0, 0.0, 0.0]), f64::NEG_INFINITY);
+    assert!(eval("x ^ 1.5", [-1.0, 0.0, 0.0]).is_nan());
+    // integer and 0.5 exponents are exact for negative bases
+    assert_eq!(eval("x ^ 3", [-2.0, 0.0, 0.0]), -8.0);
+    assert_eq!(eval("pow(x, 2)", [-2.0, 0.0, 0.0]), 4.0);
+}
+
+/// smoothstep has a continuous first derivative: 0 at both edges, 1.5/(x1 −
+/// x0) in the middle; the table's derivative is the segment slope.
+#[test]
+fn smooth_step_and_table_derivatives() {
+    let (mut c, v) = ctx3();
+    let r = |n: &str, _: &mut Ctx| (n == "x").then_some(v[0]);
+    let s = parse(&mut c, "smoothstep(x, 1, 3)", r).unwrap();
+    let tb = parse(&mut c, "table(x, [0, 1, 3], [0, 2, 1])", r).unwrap();
+    let d = [c.diff(s, v[0]), c.diff(tb, v[0])];
+    let at = |c: &Ctx, x: f64| c.eval(&d, &[x, 0.0, 0.0]);
+    assert_eq!(at(&c, 1.0)[0], 0.0);
+    assert_eq!(at(&c, 3.0)[0], 0.0);
+    assert_eq!(at(&c, 2.0)[0], 0.75);
+    assert_eq!(at(&c, 0.5)[1], 2.0);
+    assert_eq!(at(&c, 2.0)[1], -0.5);
+    assert_eq!(at(&c, 1.0)[1], 2.0);
+    assert_eq!(at(&c, 4.0)[1], 0.0);
+    assert_eq!(at(&c, -1.0)[1], 0.0);
 }

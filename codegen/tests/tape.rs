@@ -45,7 +45,9 @@ fn law() -> (Ctx, Vec<Id>) {
     let names = ["x", "y", "phi", "vx", "omega"];
     let e = parse(
         &mut c,
-        "-1e3*(sqrt(x^2 + y^2) - 0.5) - 20*vx*abs(vx) + 3*sin(phi)*tanh(omega/0.1) + max(x, y)^2",
+        "-1e3*(sqrt(x^2 + y^2) - 0.5) - 20*vx*abs(vx) + 3*sin(phi)*tanh(omega/0.1) + max(x, y)^2 \
+         + exp(-x^2)*log(2 + y^2) + atan2(y, vx) + pow(1 + phi^2, 1.5 + 0.1*omega) \
+         + smoothstep(x, -1, 1) + table(y, [-1, 0, 2], [0, 1, -1])",
         |n, _| names.iter().position(|&m| m == n).map(|k| v[k]),
     )
     .unwrap();

@@ -11,7 +11,7 @@ mod driving;
 mod revolute;
 mod translational;
 
-pub use driving::{DriveCoordinate, DriveRelativeAngle};
+pub use driving::{expression_motion, spline_motion, DriveCoordinate, DriveRelativeAngle, Spline};
 pub use revolute::Revolute;
 pub use translational::Translational;
 

@@ -4,7 +4,7 @@
 
 use super::contact::{friction_tanh, HuntCrossley};
 use super::{check_coordinates, Check, ForceElement, ForceJacobians};
-use crate::model::ModelError;
+use crate::model::{ModelError, TimeFunction};
 
 /// Penalty contact of a circle of radius `R ≥ 0` (a point for `R = 0`),
 /// centred at the body-fixed point `s` of `body`, with the wall
@@ -24,7 +24,13 @@ use crate::model::ModelError;
 /// `[F_x, F_y, c × F]`. Jacobians are analytic (chain rule through δ, δ̇,
 /// v_t and c). Potential energy: the elastic part `(2/5) k_h δ^{5/2}`; the
 /// damping and the friction only dissipate.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// A moving wall ([`HalfPlaneContact::with_wall_motion`]) translates with
+/// its point `a(t) = a₀ + (d_x(t), d_y(t))`, normal fixed: `δ = R − n·(p − a(t))`,
+/// `δ̇ = −n·(ṗ − ȧ)`, slip `v_t = t·(v_c − ȧ)` — the contact in the wall's
+/// own frame. Its force then works on the body, so it has no potential
+/// energy (it counts as a non-conservative element).
+#[derive(Debug, Clone)]
 pub struct HalfPlaneContact {
     /// Body index.
     pub body: usize,
@@ -45,6 +51,12 @@ pub struct HalfPlaneContact {
     pub friction: f64,
     /// Regularisation velocity v_s > 0 of the friction law \[m/s\].
     pub slip_velocity: f64,
+    /// Displacement `(d_x(t), d_y(t))` \[m\] of the wall from `wall_point`,
+    /// global; `None`: a fixed wall.
+    pub wall_motion: Option<[TimeFunction; 2]>,
+    /// Velocity of the (fixed-position) wall surface: the local tangent
+    /// line of a moving road profile ([`super::RoadContact`]).
+    pub(crate) surface_velocity: [f64; 2],
 }
 
 /// One evaluation in contact (δ > 0).
@@ -91,6 +103,26 @@ impl HalfPlaneContact {
             damping,
             friction,
             slip_velocity,
+            wall_motion: None,
+            surface_velocity: [0.0, 0.0],
+        }
+    }
+
+    /// The same contact with a wall that translates by `(d_x(t), d_y(t))`
+    /// \[m\] from `wall_point` (see the type's documentation).
+    pub fn with_wall_motion(mut self, dx: TimeFunction, dy: TimeFunction) -> Self {
+        self.wall_motion = Some([dx, dy]);
+        self
+    }
+
+    /// The wall point `a(t)` and its velocity `ȧ(t)`.
+    fn wall(&self, t: f64) -> ([f64; 2], [f64; 2]) {
+        match &self.wall_motion {
+            None => (self.wall_point, self.surface_velocity),
+            Some([fx, fy]) => {
+                let ([x, vx, _], [y, vy, _]) = (fx.eval(t), fy.eval(t));
+                ([self.wall_point[0] + x, self.wall_point[1] + y], [vx, vy])
+            }
         }
     }
 
@@ -106,8 +138,16 @@ impl HalfPlaneContact {
         [-self.normal[1], self.normal[0]]
     }
 
-    /// Penetration `δ` \[m\] (negative: the gap).
+    /// Penetration `δ` \[m\] (negative: the gap) with the wall where it is
+    /// at t = 0 ([`HalfPlaneContact::penetration_at`] for a moving wall at
+    /// another time).
     pub fn penetration(&self, q: &[f64]) -> f64 {
+        self.penetration_at(0.0, q)
+    }
+
+    /// Penetration `δ` \[m\] at time `t` \[s\] (negative: the gap).
+    pub fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
+        let a = self.wall(t).0;
         let o = 3 * self.body;
         let (sn, cs) = q[o + 2].sin_cos();
         let s = self.point;
@@ -116,12 +156,13 @@ impl HalfPlaneContact {
             q[o + 1] + sn * s[0] + cs * s[1],
         ];
         let n = self.normal;
-        self.radius - (n[0] * (p[0] - self.wall_point[0]) + n[1] * (p[1] - self.wall_point[1]))
+        self.radius - (n[0] * (p[0] - a[0]) + n[1] * (p[1] - a[1]))
     }
 
     /// The state in contact, `None` without penetration.
-    fn eval(&self, q: &[f64], qd: &[f64]) -> Option<Eval> {
-        let delta = self.penetration(q);
+    fn eval(&self, time: f64, q: &[f64], qd: &[f64]) -> Option<Eval> {
+        let delta = self.penetration_at(time, q);
+        let ad = self.wall(time).1;
         if delta.is_nan() || delta <= 0.0 {
             return None;
         }
@@ -132,9 +173,9 @@ impl HalfPlaneContact {
         let (n, t) = (self.normal, self.tangent());
         let c = [u[0] - self.radius * n[0], u[1] - self.radius * n[1]];
         let w = qd[o + 2];
-        // ṗ = ṙ + ω J u; v_c = ṙ + ω J c
-        let pd = [qd[o] - w * u[1], qd[o + 1] + w * u[0]];
-        let vc = [qd[o] - w * c[1], qd[o + 1] + w * c[0]];
+        // ṗ = ṙ + ω J u; v_c = ṙ + ω J c; both relative to the wall
+        let pd = [qd[o] - w * u[1] - ad[0], qd[o + 1] + w * u[0] - ad[1]];
+        let vc = [qd[o] - w * c[1] - ad[0], qd[o + 1] + w * c[0] - ad[1]];
         let delta_dot = -(n[0] * pd[0] + n[1] * pd[1]);
         let vt = t[0] * vc[0] + t[1] * vc[1];
         let fn_ = self.law().force(delta, delta_dot);
@@ -152,8 +193,15 @@ impl HalfPlaneContact {
 
     /// `(F_n, F_t, δ)`: normal force, friction force along `t = J n` \[N\]
     /// and penetration \[m\]; zeros without contact.
+    /// The wall at t = 0 for a moving wall
+    /// ([`HalfPlaneContact::contact_forces_at`] for another time).
     pub fn contact_forces(&self, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
-        self.eval(q, qd).map_or((0.0, 0.0, 0.0), |e| {
+        self.contact_forces_at(0.0, q, qd)
+    }
+
+    /// [`HalfPlaneContact::contact_forces`] at time `t` \[s\].
+    pub fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
+        self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {
             (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
         })
     }
@@ -161,6 +209,9 @@ impl HalfPlaneContact {
 
 impl ForceElement for HalfPlaneContact {
     fn geometry(&self) -> crate::model::ForceGeometry {
+        if self.wall_motion.is_some() {
+            return crate::model::ForceGeometry::Other;
+        }
         crate::model::ForceGeometry::Wall {
             body: self.body,
             point: self.point,
@@ -182,8 +233,10 @@ impl ForceElement for HalfPlaneContact {
         vec![o, o + 1, o + 2]
     }
 
-    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        let Some(e) = self.eval(q, qd) else { return };
+    fn add_forces(&self, time: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        let Some(e) = self.eval(time, q, qd) else {
+            return;
+        };
         if e.fn_ <= 0.0 {
             return;
         }
@@ -196,9 +249,11 @@ impl ForceElement for HalfPlaneContact {
         g[o + 2] += e.c[0] * f[1] - e.c[1] * f[0];
     }
 
-    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+    fn add_jacobians(&self, time: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
         let ForceJacobians { dq, dqd, .. } = out;
-        let Some(e) = self.eval(q, qd) else { return };
+        let Some(e) = self.eval(time, q, qd) else {
+            return;
+        };
         if e.fn_ <= 0.0 {
             return; // clamped: force and derivatives vanish
         }
@@ -251,14 +306,17 @@ impl ForceElement for HalfPlaneContact {
 
     /// [`HalfPlaneContact::contact_forces`]: `F_n`, `F_t`, and the
     /// penetration `δ` (negative: the gap, also out of contact).
-    fn read(&self, _t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
-        let (fn_, ft, _) = self.contact_forces(q, qd);
+    fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
+        let (fn_, ft, _) = self.contact_forces_at(t, q, qd);
         out[0] = fn_;
         out[1] = ft;
-        out[2] = self.penetration(q);
+        out[2] = self.penetration_at(t, q);
     }
 
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        if self.wall_motion.is_some() {
+            return None;
+        }
         let delta = self.penetration(q);
         Some(if delta > 0.0 {
             self.law().energy(delta)
@@ -272,6 +330,15 @@ impl ForceElement for HalfPlaneContact {
         let check = Check { element: &name };
         check.finite_point("point", self.point)?;
         check.finite_point("wall_point", self.wall_point)?;
+        if let Some(m) = &self.wall_motion {
+            if !m.iter().all(TimeFunction::is_finite) {
+                return Err(check.fail(
+                    "wall_motion",
+                    format!("{m:?}"),
+                    "must have finite parameters",
+                ));
+            }
+        }
         let len = self.normal[0].hypot(self.normal[1]);
         if !(len.is_finite() && (len - 1.0).abs() < 1e-12) {
             return Err(check.fail(

@@ -29,7 +29,8 @@ pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry, For
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
 pub use sensor::{drives, Drive, Sensor, SensorKind};
-pub(crate) use sensor::{evaluate_sensors, joint_short_name, point_state};
+pub use sensor::joint_short_name;
+pub(crate) use sensor::{evaluate_sensors, point_state};
 pub use system::{
     ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, System, SystemBuilder,
 };

@@ -79,7 +79,7 @@ pub(crate) fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f
 
 /// The short name of a joint: the quoted name in its description
 /// ("revolute joint 'B'" → "B"), if any.
-pub(crate) fn joint_short_name(c: &dyn Constraint) -> Option<String> {
+pub fn joint_short_name(c: &dyn Constraint) -> Option<String> {
     let name = c.name();
     match (name.find('\''), name.rfind('\'')) {
         (Some(a), Some(b)) if b > a + 1 => Some(name[a + 1..b].to_string()),

@@ -5,8 +5,11 @@
 use super::element::{check_name, keys_of, read, tag, RawTagged};
 use super::model::{body_index, body_point, body_ref, RawFunction, RawPoint};
 use super::{error, ScenarioError};
-use crate::constraints::{DriveCoordinate, DriveRelativeAngle, Revolute, Translational};
-use crate::model::{BodyRef, SystemBuilder};
+use crate::constraints::{
+    expression_motion, spline_motion, DriveCoordinate, DriveRelativeAngle, Revolute, Spline,
+    Translational,
+};
+use crate::model::{BodyRef, SystemBuilder, TimeFunction};
 use serde::de::DeserializeOwned;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -40,6 +43,10 @@ impl Context<'_> {
     fn point(&self, fld: &str, p: RawPoint, b: BodyRef) -> Result<[f64; 2], ScenarioError> {
         body_point(Some(p), b, self.ends, self.file, self.key(fld))
     }
+    /// The `motion` of a drive ([`function_of_time`]).
+    fn motion(&self, v: toml::Value) -> Result<TimeFunction, ScenarioError> {
+        function_of_time(v, "motion").map_err(|(k, m)| self.err(&k, m))
+    }
     /// `body_i` and `body_j`, which must differ.
     fn two_bodies(&self, body_i: &str, body_j: &str) -> Result<(BodyRef, BodyRef), ScenarioError> {
         let bi = self.body_ref("body_i", body_i)?;
@@ -52,6 +59,85 @@ impl Context<'_> {
         }
         Ok((bi, bj))
     }
+}
+
+/// A function of time at key `fld` (a drive's `motion`, a wall's
+/// `wall_motion` entry): a number, a polynomial or harmonic table
+/// ([`RawFunction`]), an expression of t, or a table of points
+/// `{ t = [...], value = [...], spline = "cubic" | "linear" }`. Errors:
+/// (key, message).
+pub(in crate::scenario) fn function_of_time(
+    v: toml::Value,
+    fld: &str,
+) -> Result<TimeFunction, (String, String)> {
+    let err = |k: &str, m: &dyn std::fmt::Display| (k.to_string(), m.to_string());
+    if let toml::Value::String(text) = &v {
+        return expression_motion(text)
+            .map_err(|e| err(fld, &format!("\"{text}\" (an expression of t): {e}")));
+    }
+    let is_table = v
+        .as_table()
+        .is_some_and(|t| ["t", "value", "spline"].iter().any(|k| t.contains_key(*k)));
+    if !is_table {
+        return RawFunction::try_from(v)
+            .map(|f| f.to_function())
+            .map_err(|m| {
+                err(
+                    fld,
+                    &format!(
+                        "{m}; or an expression of t (\"0.1*sin(6*t)\") or points \
+                         {{ t = [...], value = [...], spline = \"cubic\" }}"
+                    ),
+                )
+            });
+    }
+    let t = v.as_table().expect("a table");
+    for k in t.keys() {
+        if !["t", "value", "spline"].contains(&k.as_str()) {
+            return Err(err(
+                &format!("{fld}.{k}"),
+                &"not a key of a tabulated motion (it takes t, value, spline)",
+            ));
+        }
+    }
+    let numbers = |k: &str| -> Result<Vec<f64>, (String, String)> {
+        let a = t
+            .get(k)
+            .ok_or_else(|| {
+                err(
+                    &format!("{fld}.{k}"),
+                    &"missing: a tabulated motion needs t and value",
+                )
+            })?
+            .as_array()
+            .ok_or_else(|| err(&format!("{fld}.{k}"), &"expected an array of numbers"))?;
+        a.iter()
+            .enumerate()
+            .map(|(i, x)| match x {
+                toml::Value::Float(f) => Ok(*f),
+                toml::Value::Integer(n) => Ok(*n as f64),
+                x => Err(err(
+                    &format!("{fld}.{k}[{i}]"),
+                    &format!("{x} is not a number"),
+                )),
+            })
+            .collect()
+    };
+    let (ts, ys) = (numbers("t")?, numbers("value")?);
+    let kind = match t.get("spline").map(|s| s.as_str()) {
+        None | Some(Some("cubic")) => Spline::Cubic,
+        Some(Some("linear")) => Spline::Linear,
+        Some(s) => {
+            return Err(err(
+                &format!("{fld}.spline"),
+                &format!(
+                    "{} is not one of \"cubic\", \"linear\"",
+                    s.map_or_else(|| t["spline"].to_string(), |s| format!("\"{s}\""))
+                ),
+            ))
+        }
+    };
+    spline_motion(&ts, &ys, kind).map_err(|m| err(fld, &m))
 }
 
 /// One `[[joint]]` type: its struct (the keys besides `type` and `name`)
@@ -200,7 +286,7 @@ struct DriveCoordinateJoint {
     /// `"x"`, `"y"` or `"phi"`.
     coordinate: String,
     /// The coordinate's motion [m or rad], a function of t.
-    motion: RawFunction,
+    motion: toml::Value,
 }
 
 impl JointType for DriveCoordinateJoint {
@@ -213,7 +299,7 @@ impl JointType for DriveCoordinateJoint {
             "phi" => 2,
             o => return Err(cx.err("coordinate", format!("'{o}' is not one of x, y, phi"))),
         };
-        let f = self.motion.to_function();
+        let f = cx.motion(self.motion)?;
         let name = std::mem::take(&mut cx.name);
         cx.builder
             .add_constraint(DriveCoordinate::new(name, b, c, f));
@@ -230,7 +316,7 @@ struct DriveAngleJoint {
     /// Another body or `"ground"`.
     body_j: String,
     /// The relative angle [rad], a function of t.
-    motion: RawFunction,
+    motion: toml::Value,
 }
 
 impl JointType for DriveAngleJoint {
@@ -238,7 +324,7 @@ impl JointType for DriveAngleJoint {
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let bi = cx.body_ref("body_i", &self.body_i)?;
         let bj = cx.body_ref("body_j", &self.body_j)?;
-        let f = self.motion.to_function();
+        let f = cx.motion(self.motion)?;
         let name = std::mem::take(&mut cx.name);
         cx.builder
             .add_constraint(DriveRelativeAngle::new(name, bi, bj, f));

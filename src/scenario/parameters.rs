@@ -61,6 +61,10 @@ const TEXT_KEYS: &[&str] = &[
 /// substituted inside them.
 const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression"];
 
+/// Keys that hold expressions of t wherever they occur (a drive's
+/// `motion`, a contact's `wall_motion` and `road`): parameters are substituted inside them.
+const FUNCTION_KEYS: &[&str] = &["motion", "wall_motion", "road"];
+
 /// Top-level keys and tables of a scenario: no parameter may be named
 /// like one (`--param NAME=…` addresses a parameter by its bare name).
 const RESERVED: &[&str] = &[
@@ -412,7 +416,7 @@ pub(super) fn walk(
             }
         }
         toml::Value::String(s) => {
-            if expression && EXPRESSION_KEYS.contains(&key) {
+            if (expression && EXPRESSION_KEYS.contains(&key)) || FUNCTION_KEYS.contains(&key) {
                 if let Some(n) = substitute(s, values) {
                     done.texts.insert(path.to_string(), s.clone());
                     *s = n;

@@ -6,6 +6,7 @@ mod common;
 
 mod components;
 mod forces;
+mod functions;
 mod keys;
 mod names;
 mod overrides;
