@@ -28,8 +28,8 @@ pub use energy::EnergyWorkspace;
 pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry, ForceJacobians};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
-pub use sensor::{drives, Drive, Sensor, SensorKind};
 pub use sensor::joint_short_name;
+pub use sensor::{drives, Drive, Sensor, SensorKind};
 pub(crate) use sensor::{evaluate_sensors, point_state};
 pub use system::{
     ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, System, SystemBuilder,
