@@ -123,11 +123,9 @@ pub(super) fn yardstick(
 
 /// Bounds of [`hot_paths_against_yardstick`]: each hot path's time over
 /// the yardstick's may be at most this many times its clean ratio
-/// ([`HOT_PATH_CLEAN`]). A path done twice costs at least 1.5× (2× its
-/// repeated part; the sparse factor + solve done twice, its scaling and
-/// scatter once: 1.6×), while a clean run's median stays within about
-/// 1.1× of the clean ratio (thread CPU time; docs/scaling.md): 1.3 sits at
-/// the geometric middle of the two.
+/// ([`HOT_PATH_CLEAN`]): between a clean run's spread of the median and
+/// the cost of a path done twice (2× its repeated part), at their
+/// geometric middle (the figures: docs/scaling.md, "The gate's hot paths").
 pub const HOT_PATH_MARGIN: f64 = 1.3;
 
 /// Repetitions of each hot-path measurement; the median of the per-round
