@@ -6,7 +6,7 @@
 use std::ops::ControlFlow;
 use std::sync::Arc;
 
-use super::driver::Failure;
+use super::driver::{Failure, Stepper};
 use super::{IntegratorError, Observer, OdeOptions, OdeSystem, Stats, Tolerance};
 pub(crate) use crate::numeric::first_non_finite;
 
@@ -301,22 +301,21 @@ impl<'a> OutputCursor<'a> {
         ControlFlow::Continue(())
     }
 
-    /// Delivers every requested time in `(t, t_new]` after an accepted step
-    /// ending at `(t_new, y_new)`: a time within `snap` of `t_new` — or,
-    /// when `at_end`, any remaining one — gets `y_new` (generalized-α's grid
-    /// steps land on the output times only up to rounding), earlier ones
-    /// get `interp(t_out, buf)` (the continuous extension).
-    #[allow(clippy::too_many_arguments)]
+    /// Delivers every requested time in `(t, t_new]` after `st`'s accepted
+    /// step ending at `t_new`: a time within [`Stepper::output_snap`] of
+    /// `t_new` — or, when `at_end`, any remaining one — gets the step end's
+    /// state (generalized-α's grid steps land on the output times only up
+    /// to rounding), earlier ones the continuous extension
+    /// ([`Stepper::interpolate`], then [`Stepper::settle`]) through `buf`.
     pub(crate) fn deliver_step_snapped(
         &mut self,
         t_new: f64,
-        snap: f64,
         at_end: bool,
-        y_new: &[f64],
+        st: &mut dyn Stepper,
         buf: &mut [f64],
-        mut interp: impl FnMut(f64, &mut [f64]),
         obs: &mut dyn Observer,
     ) -> ControlFlow<(f64, String)> {
+        let snap = st.output_snap();
         while let Some(&tk) = self.times.get(self.next) {
             let exact = (tk - t_new).abs() <= snap || at_end && tk >= t_new;
             if tk > t_new && !exact {
@@ -324,9 +323,10 @@ impl<'a> OutputCursor<'a> {
             }
             self.next += 1;
             let flow = if exact {
-                obs.output(tk, y_new)
+                obs.output(tk, st.state().1)
             } else {
-                interp(tk, buf);
+                st.interpolate(tk, buf);
+                st.settle(tk, buf);
                 obs.output(tk, buf)
             };
             if let ControlFlow::Break(r) = flow {

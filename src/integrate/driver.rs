@@ -30,6 +30,14 @@ pub trait Stepper {
     /// The method's continuous extension inside the last accepted step, at
     /// `t` in `(t_prev, t_new)`, into `out`.
     fn interpolate(&self, t: f64, out: &mut [f64]);
+    /// Bring the interpolated output row `out` at `t` (from
+    /// [`Stepper::interpolate`]) onto the constraint manifold where the
+    /// method can (the implicit schemes: a projection that leaves their
+    /// steps unchanged); a failure leaves the row and a warning. Default:
+    /// the row as interpolated.
+    fn settle(&mut self, t: f64, out: &mut [f64]) {
+        let _ = (t, out);
+    }
     /// A requested output time within this distance of the step end is
     /// taken as the step end (the fixed grid of generalized-α lands on the
     /// output times up to rounding); 0 for the explicit methods.
@@ -217,7 +225,7 @@ fn drive_loop(
                 return (Termination::Failed { t, reason }, t);
             }
         };
-        let (t_new, y_new) = st.state();
+        let t_new = st.state().0;
         if t_new <= t {
             let reason = Failure::StepTooSmall {
                 t,
@@ -227,21 +235,16 @@ fn drive_loop(
             };
             return (Termination::Failed { t, reason }, t);
         }
-        let snap = st.output_snap();
-        let st_ref: &dyn Stepper = st;
-        let flow = outputs.deliver_step_snapped(
-            t_new,
-            snap,
-            done,
-            y_new,
-            &mut buf,
-            |tk, out| st_ref.interpolate(tk, out),
-            obs,
-        );
+        let flow = outputs.deliver_step_snapped(t_new, done, &mut *st, &mut buf, obs);
+        let w = st.warnings();
+        for msg in w.iter().skip(warned) {
+            obs.warning(msg);
+        }
+        warned = warned.max(w.len());
         if let ControlFlow::Break((t, reason)) = flow {
             return (Termination::Stopped { t, reason }, t_new);
         }
-        if let ControlFlow::Break(reason) = obs.step(t_new, y_new) {
+        if let ControlFlow::Break(reason) = obs.step(t_new, st.state().1) {
             return (Termination::Stopped { t: t_new, reason }, t_new);
         }
         if let ControlFlow::Break(reason) = obs.progress(t_new, &st.stats()) {

@@ -94,8 +94,8 @@ mod newton;
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, validate_run, Attempted, CutRules, Cuts, ImplicitStats,
-    ImplicitStepper, Renewal, RenewalOptions, Shrink, StepTry, Warn,
+    attempt_or_cut, run as run_implicit, settle_output, validate_run, Attempted, CutRules, Cuts,
+    ImplicitStats, ImplicitStepper, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
     IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
@@ -746,6 +746,11 @@ impl Stepper for BdfRun<'_> {
 
     fn warnings(&self) -> &[String] {
         &self.warnings
+    }
+
+    /// Interpolated rows projected onto the constraints.
+    fn settle(&mut self, t: f64, out: &mut [f64]) {
+        settle_output(self.sys, t, out, &mut self.warnings);
     }
 }
 

@@ -184,8 +184,8 @@ pub use step::SAFETY;
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, validate_run, Attempted, CutRules, Cuts, ImplicitStats,
-    ImplicitStepper, Renewal, RenewalOptions, SecondOrderDae, Shrink, StepTry, Warn,
+    attempt_or_cut, run as run_implicit, settle_output, validate_run, Attempted, CutRules, Cuts,
+    ImplicitStats, ImplicitStepper, Renewal, RenewalOptions, SecondOrderDae, Shrink, StepTry, Warn,
 };
 use super::Tolerance;
 use super::{
@@ -692,6 +692,11 @@ impl Stepper for Run<'_, '_> {
     /// The grid lands on output times only up to rounding: 1e-9 h.
     fn output_snap(&self) -> f64 {
         1e-9 * self.h_last
+    }
+
+    /// Interpolated rows projected onto the constraints.
+    fn settle(&mut self, t: f64, out: &mut [f64]) {
+        settle_output(self.sys, t, out, &mut self.warnings);
     }
 
     fn warnings(&self) -> &[String] {

@@ -7,6 +7,7 @@
 //! run skeleton on `drive`.
 
 mod convergence;
+mod dense;
 mod failure;
 mod problem;
 mod renewal;
@@ -17,6 +18,7 @@ pub use convergence::{
     Assessment, Convergence, ConvergenceOptions, Next, Remainder, NOISE_REL, ROUNDING_ULPS,
     STAGNATION, THETA_REFACTOR,
 };
+pub(crate) use dense::settle_output;
 pub(crate) use failure::{attempt_or_cut, Attempted, CutRules, Cuts, Shrink, StepTry, Warn};
 pub use problem::{MultiplierUpdate, SecondOrderDae};
 pub use renewal::{Renewal, RenewalOptions};

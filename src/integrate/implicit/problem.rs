@@ -67,6 +67,15 @@ pub trait SecondOrderDae {
     fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), SystemError>;
     /// Project `(q, q̇)` onto `Φ = 0`, `Φ_q q̇ + Φ_t = 0`.
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError>;
+    /// Project the positions `q` of an interpolated output row at `t` onto
+    /// `Φ(q, t) = 0` without touching the Newton matrix or its
+    /// factorisation, so the steps that follow are the same bits;
+    /// `Ok(false)` (the default) when this system cannot, and the row is
+    /// left as interpolated.
+    fn project_output(&mut self, t: f64, q: &mut [f64]) -> Result<bool, SystemError> {
+        let _ = (t, q);
+        Ok(false)
+    }
     /// The augmented Lagrangian's multiplier iteration, if this system is
     /// one ([`MultiplierUpdate`]); `None` (the default): the multipliers
     /// are unknowns of the Newton system.

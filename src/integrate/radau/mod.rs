@@ -117,9 +117,9 @@ pub use tableau::RadauTableau;
 
 use super::driver::{Failure, Stepper};
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, validate_run, Assessment, Attempted, Convergence,
-    ConvergenceOptions, CutRules, Cuts, ImplicitStats, ImplicitStepper, Next, Remainder, Renewal,
-    RenewalOptions, Shrink, StepTry, Warn,
+    attempt_or_cut, run as run_implicit, settle_output, validate_run, Assessment, Attempted,
+    Convergence, ConvergenceOptions, CutRules, Cuts, ImplicitStats, ImplicitStepper, Next,
+    Remainder, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
     common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
@@ -648,6 +648,11 @@ impl Stepper for Run<'_, '_> {
 
     fn output_snap(&self) -> f64 {
         1e-9 * self.h_last
+    }
+
+    /// Interpolated rows projected onto the constraints.
+    fn settle(&mut self, t: f64, out: &mut [f64]) {
+        settle_output(self.sys, t, out, &mut self.warnings);
     }
 
     fn warnings(&self) -> &[String] {
