@@ -119,6 +119,9 @@ pub struct Index3<'a> {
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
+    /// Whether `psolver` holds a factorisation (of the mass saddle matrix
+    /// at some recent `q`), which the output projection may reuse.
+    mass_factored: bool,
 }
 
 /// Buffers of [`Index3`]'s residual in halves: the high half's g and
@@ -238,6 +241,7 @@ impl<'a> Index3<'a> {
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
+            mass_factored: false,
         })
     }
 
@@ -474,7 +478,9 @@ impl<'a> Index3<'a> {
         all_finite(t, &[("the constraint Jacobian Φ_q", &self.jac)])?;
         self.kp.set_a_diagonal(self.sys.mass_diagonal());
         self.kp.set_jacobian(&self.jac);
+        self.mass_factored = false;
         self.psolver.factorize(&self.kp).map_err(linear_at(t))?;
+        self.mass_factored = true;
         Ok(())
     }
 
@@ -634,38 +640,68 @@ impl SecondOrderDae for Index3<'_> {
         Index3::project(self, t, q, qd).map_err(SystemError::new)
     }
     /// The position step of [`Index3::project`] until
-    /// `‖Φ‖∞ ≤ 64 ε max(1, ‖q‖∞)`, at most `OUTPUT_PROJECTION_ITERATIONS`
-    /// times, with `[M, Φ_qᵀ; Φ_q, 0]` factorised once at the interpolated
-    /// `q` (a simplified Newton: each step multiplies the violation by
-    /// `O(‖Δq‖)`). The velocities are left as given (their constraint
-    /// violation is the method's, as at its steps). The projection has its
-    /// own factorisation, never the Newton matrix's.
+    /// `‖Φ‖∞ ≤ 64 ε max(1, ‖q‖∞)`: a simplified Newton with the mass
+    /// saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` last factorised (at a nearby
+    /// output row or the start), refactorised at the interpolated `q` when
+    /// the violation does not fall fourfold per correction or after
+    /// `OUTPUT_PROJECTION_ITERATIONS` corrections. The velocities are left
+    /// as given (their constraint violation is the method's, as at its
+    /// steps). The projection has its own factorisation, never the Newton
+    /// matrix's.
     fn project_output(&mut self, t: f64, q: &mut [f64]) -> Result<bool, SystemError> {
         let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let err = SystemError::new;
         let tol = 64.0 * f64::EPSILON * norm(q).max(1.0);
         self.sys.phi(q, t, &mut self.phi);
-        if norm(&self.phi) <= tol {
+        all_finite(t, &[("the constraints Φ", &self.phi)]).map_err(err)?;
+        let first = norm(&self.phi);
+        if first <= tol {
             return Ok(true);
         }
-        self.factor_mass(t, q).map_err(SystemError::new)?;
-        for _ in 0..OUTPUT_PROJECTION_ITERATIONS {
-            all_finite(t, &[("the constraints Φ", &self.phi)]).map_err(SystemError::new)?;
-            mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, q)
-                .map_err(|e| SystemError::new(linear_at(t)(e)))?;
-            self.sys.phi(q, t, &mut self.phi);
-            if norm(&self.phi) <= tol {
-                break;
-            }
+        let interpolated = q.to_vec();
+        let mut fresh = !self.mass_factored;
+        if fresh {
+            self.factor_mass(t, q).map_err(err)?;
         }
-        Ok(true)
+        let (mut res, mut it) = (first, 0);
+        loop {
+            mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, q)
+                .map_err(|e| err(linear_at(t)(e)))?;
+            self.sys.phi(q, t, &mut self.phi);
+            let now = norm(&self.phi);
+            it += 1;
+            if now <= tol {
+                return Ok(true);
+            }
+            if now.is_finite() && now <= 0.25 * res && it < OUTPUT_PROJECTION_ITERATIONS {
+                res = now;
+                continue;
+            }
+            if fresh {
+                if now <= first {
+                    // the fresh matrix's corrections stall at rounding:
+                    // the row stays where they got it
+                    return Ok(true);
+                }
+                q.copy_from_slice(&interpolated);
+                return Err(err(FormulationError::Invalid(format!(
+                    "the projection of an output row at t = {t:e} diverged (‖Φ‖∞ {first:.3e} → \
+                     {now:.3e})"
+                ))));
+            }
+            q.copy_from_slice(&interpolated);
+            self.factor_mass(t, q).map_err(err)?;
+            self.sys.phi(q, t, &mut self.phi);
+            (fresh, res, it) = (true, first, 0);
+        }
     }
 }
 
-/// Most position corrections of one interpolated output row
-/// ([`SecondOrderDae::project_output`]): each multiplies the violation by
-/// `O(ε)` for an interpolation error ε, so rounding is reached in two or
-/// three.
-const OUTPUT_PROJECTION_ITERATIONS: usize = 4;
+/// Most position corrections of one interpolated output row with one
+/// factorisation ([`SecondOrderDae::project_output`]): with the matrix at
+/// the row each multiplies the violation by `O(ε)` for an interpolation
+/// error ε, so rounding is reached in two or three.
+const OUTPUT_PROJECTION_ITERATIONS: usize = 6;
 
 /// The dynamic rows `base ..` of the index-3 residual into `r`:
 /// `r_i = s (M_k q̈_k + (Φ_qᵀλ)_k − g_k)`, `k = base + i`; whether every
