@@ -59,7 +59,7 @@ pub struct RhsStats {
 pub struct Index1<'a> {
     sys: &'a System,
     opts: Index1Options,
-    b: RhsBuffers,
+    pub(super) b: RhsBuffers,
 }
 
 /// What an explicit formulation ([`Index1`], [`super::Penalty`]) keeps

@@ -145,16 +145,6 @@ impl<'a> Penalty<'a> {
         &self.b.lambda
     }
 
-    /// Counters so far.
-    pub fn stats(&self) -> RhsStats {
-        self.b.stats()
-    }
-
-    /// Name of the linear solver in use.
-    pub fn solver_name(&self) -> &'static str {
-        self.b.solver.name()
-    }
-
     /// Accelerations from `(M + αΦ_qᵀΦ_q) q̈ = g + αΦ_qᵀ(γ − 2ξωΦ̇ − ω²Φ)`.
     pub fn accelerations(
         &mut self,
@@ -242,20 +232,22 @@ impl<'a> ExplicitForm<'a> {
         })
     }
 
+    /// The buffers of the formulation in use.
+    fn buffers(&self) -> &RhsBuffers {
+        match self {
+            Self::Index1(f) => &f.b,
+            Self::Penalty(f) => &f.b,
+        }
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> RhsStats {
-        match self {
-            Self::Index1(f) => f.stats(),
-            Self::Penalty(f) => f.stats(),
-        }
+        self.buffers().stats()
     }
 
     /// Name of the linear solver in use.
     pub fn solver_name(&self) -> &'static str {
-        match self {
-            Self::Index1(f) => f.solver_name(),
-            Self::Penalty(f) => f.solver_name(),
-        }
+        self.buffers().solver.name()
     }
 
     /// Multipliers of the last evaluation (`M q̈ + Φ_qᵀλ = g`).
