@@ -601,9 +601,6 @@ pub fn constrained_inertia(
 /// Elimination order: faer's AMD of the pattern, each multiplier row
 /// (index ≥ n) postponed until every coordinate of its row is eliminated.
 fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec<usize>, String> {
-    use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::sparse::linalg::amd;
-    use faer::sparse::SymbolicSparseColMatRef;
     // symmetric pattern, both triangles, sorted and unique
     let mut adj: Vec<Vec<usize>> = vec![Vec::new(); dim];
     for &(r, c, _) in ent {
@@ -622,20 +619,7 @@ fn saddle_order(dim: usize, n: usize, ent: &[(usize, usize, f64)]) -> Result<Vec
         col_ptr[c + 1] = col_ptr[c] + adj[c].len();
     }
     let row_idx: Vec<usize> = adj.concat();
-    let mut fwd = vec![0usize; dim];
-    let mut inv = vec![0usize; dim];
-    if dim > 0 {
-        let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
-        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(dim, row_idx.len()));
-        amd::order(
-            &mut fwd,
-            &mut inv,
-            pattern,
-            amd::Control::default(),
-            MemStack::new(&mut mem),
-        )
-        .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
-    }
+    let fwd = crate::linalg::amd_permutation(dim, &col_ptr, &row_idx)?;
     let order = crate::linalg::postpone_multipliers(&fwd, n, |c| &adj[c]);
     if order.len() != dim {
         return Err("the elimination order is not a permutation".into());

@@ -59,17 +59,73 @@ pub struct RhsStats {
 pub struct Index1<'a> {
     sys: &'a System,
     opts: Index1Options,
-    solver: Box<dyn SaddlePointSolver>,
-    k: SaddleMatrix,
-    jac: Vec<f64>,
-    g: Vec<f64>,
-    gamma: Vec<f64>,
-    phi: Vec<f64>,
-    phi_t: Vec<f64>,
-    phid: Vec<f64>,
-    x: Vec<f64>,
-    lambda: Vec<f64>,
-    stats: RhsStats,
+    pub(super) b: RhsBuffers,
+}
+
+/// What an explicit formulation ([`Index1`], [`super::Penalty`]) keeps
+/// between evaluations: its solver and matrix, the model's terms at the
+/// last state (`Φ_q` values, `g`, `γ` or `γ̄`, `Φ`, `Φ_t`, `Φ_q q̇`), the
+/// solve's work vector, the multipliers and the counters.
+pub(super) struct RhsBuffers {
+    pub(super) solver: Box<dyn SaddlePointSolver>,
+    pub(super) k: SaddleMatrix,
+    pub(super) jac: Vec<f64>,
+    pub(super) g: Vec<f64>,
+    pub(super) gamma: Vec<f64>,
+    pub(super) phi: Vec<f64>,
+    pub(super) phi_t: Vec<f64>,
+    pub(super) phid: Vec<f64>,
+    pub(super) x: Vec<f64>,
+    pub(super) lambda: Vec<f64>,
+    pub(super) stats: RhsStats,
+}
+
+impl RhsBuffers {
+    /// Zeroed buffers for `sys` with `solver` (analysed) on `k` and a work
+    /// vector of length `x_len`.
+    pub(super) fn new(
+        sys: &System,
+        solver: Box<dyn SaddlePointSolver>,
+        k: SaddleMatrix,
+        x_len: usize,
+    ) -> Self {
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        Self {
+            solver,
+            k,
+            jac: vec![0.0; sys.jacobian_pattern().len()],
+            g: vec![0.0; n],
+            gamma: vec![0.0; m],
+            phi: vec![0.0; m],
+            phi_t: vec![0.0; m],
+            phid: vec![0.0; m],
+            x: vec![0.0; x_len],
+            lambda: vec![0.0; m],
+            stats: RhsStats::default(),
+        }
+    }
+
+    /// Counters so far, with the solver's.
+    pub(super) fn stats(&self) -> RhsStats {
+        let mut s = self.stats;
+        s.solver = self.solver.stats();
+        s
+    }
+}
+
+/// `ẏ = (q̇, q̈)` of `y = (q, q̇)` (`n` coordinates) with `q̈` from
+/// `accelerations(q, q̇, q̈)`: the first-order form of an explicit
+/// formulation.
+pub(super) fn first_order_rhs(
+    n: usize,
+    y: &[f64],
+    dydt: &mut [f64],
+    accelerations: impl FnOnce(&[f64], &[f64], &mut [f64]) -> Result<(), FormulationError>,
+) -> Result<(), SystemError> {
+    let (q, qd) = y.split_at(n);
+    let (dq, dqd) = dydt.split_at_mut(n);
+    dq.copy_from_slice(qd);
+    accelerations(q, qd, dqd).map_err(SystemError::new)
 }
 
 impl<'a> Index1<'a> {
@@ -108,17 +164,7 @@ impl<'a> Index1<'a> {
         Ok(Self {
             sys,
             opts,
-            solver,
-            k,
-            jac: vec![0.0; sys.jacobian_pattern().len()],
-            g: vec![0.0; n],
-            gamma: vec![0.0; m],
-            phi: vec![0.0; m],
-            phi_t: vec![0.0; m],
-            phid: vec![0.0; m],
-            x: vec![0.0; n + m],
-            lambda: vec![0.0; m],
-            stats: RhsStats::default(),
+            b: RhsBuffers::new(sys, solver, k, n + m),
         })
     }
 
@@ -134,19 +180,17 @@ impl<'a> Index1<'a> {
 
     /// Multipliers λ of the last evaluation (`M q̈ + Φ_qᵀ λ = g`).
     pub fn lambda(&self) -> &[f64] {
-        &self.lambda
+        &self.b.lambda
     }
 
     /// Counters so far.
     pub fn stats(&self) -> RhsStats {
-        let mut s = self.stats;
-        s.solver = self.solver.stats();
-        s
+        self.b.stats()
     }
 
     /// Name of the linear solver in use.
     pub fn solver_name(&self) -> &'static str {
-        self.solver.name()
+        self.b.solver.name()
     }
 
     /// Accelerations `q̈(q, q̇, t)`; λ is kept (see [`Index1::lambda`]).
@@ -159,19 +203,19 @@ impl<'a> Index1<'a> {
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
         let n = sys.n_coords();
-        self.stats.evaluations += 1;
+        self.b.stats.evaluations += 1;
         check_state(t, q, qd)?;
         // Forces and constraint terms are independent: evaluate them
         // concurrently for large systems. Each task is sequential inside, so
         // the result is bit-identical whatever the number of threads.
         let b = self.opts.baumgarte;
         let (g, jac, gamma, phi, phi_t, phid) = (
-            &mut self.g,
-            &mut self.jac,
-            &mut self.gamma,
-            &mut self.phi,
-            &mut self.phi_t,
-            &mut self.phid,
+            &mut self.b.g,
+            &mut self.b.jac,
+            &mut self.b.gamma,
+            &mut self.b.phi,
+            &mut self.b.phi_t,
+            &mut self.b.phid,
         );
         let constraint_terms = || {
             // Φ comes for free with generated kernels (one fused pass).
@@ -192,36 +236,37 @@ impl<'a> Index1<'a> {
         all_finite(
             t,
             &[
-                ("the forces g", &self.g),
-                ("the constraint Jacobian Φ_q", &self.jac),
-                ("γ (the right-hand side of Φ_q q̈ = γ)", &self.gamma),
+                ("the forces g", &self.b.g),
+                ("the constraint Jacobian Φ_q", &self.b.jac),
+                ("γ (the right-hand side of Φ_q q̈ = γ)", &self.b.gamma),
             ],
         )?;
-        self.k.set_a_diagonal(sys.mass_diagonal());
-        self.k.set_jacobian(&self.jac);
+        self.b.k.set_a_diagonal(sys.mass_diagonal());
+        self.b.k.set_jacobian(&self.b.jac);
         let lin = linear_at(t);
-        let info = self.solver.factorize(&self.k).map_err(lin)?;
-        if info.regularized_pivots > 0 && self.stats.first_regularized_t.is_none() {
-            self.stats.first_regularized_t = Some(t);
+        let info = self.b.solver.factorize(&self.b.k).map_err(lin)?;
+        if info.regularized_pivots > 0 && self.b.stats.first_regularized_t.is_none() {
+            self.b.stats.first_regularized_t = Some(t);
         }
-        self.x[..n].copy_from_slice(&self.g);
-        self.x[n..].copy_from_slice(&self.gamma);
-        self.solver
-            .solve_in_place(&self.k, &mut self.x)
+        self.b.x[..n].copy_from_slice(&self.b.g);
+        self.b.x[n..].copy_from_slice(&self.b.gamma);
+        self.b
+            .solver
+            .solve_in_place(&self.b.k, &mut self.b.x)
             .map_err(lin)?;
-        qdd.copy_from_slice(&self.x[..n]);
-        self.lambda.copy_from_slice(&self.x[n..]);
+        qdd.copy_from_slice(&self.b.x[..n]);
+        self.b.lambda.copy_from_slice(&self.b.x[n..]);
         Ok(())
     }
 }
 
 impl Index1<'_> {
-    /// Factorise `[M Φ_qᵀ; Φ_q 0]` at `q` (Φ_q left in `self.jac`).
+    /// Factorise `[M Φ_qᵀ; Φ_q 0]` at `q` (Φ_q left in `self.b.jac`).
     fn factor_at(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
-        self.sys.jacobian_values(q, t, &mut self.jac);
-        self.k.set_a_diagonal(self.sys.mass_diagonal());
-        self.k.set_jacobian(&self.jac);
-        self.solver.factorize(&self.k).map_err(linear_at(t))?;
+        self.sys.jacobian_values(q, t, &mut self.b.jac);
+        self.b.k.set_a_diagonal(self.sys.mass_diagonal());
+        self.b.k.set_jacobian(&self.b.jac);
+        self.b.solver.factorize(&self.b.k).map_err(linear_at(t))?;
         Ok(())
     }
 
@@ -246,8 +291,8 @@ impl Index1<'_> {
         let lin = linear_at(t);
         let mut iterations = 0;
         loop {
-            self.sys.phi(q, t, &mut self.phi);
-            let residual = self.phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+            self.sys.phi(q, t, &mut self.b.phi);
+            let residual = self.b.phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
             let direct = p.correction == Correction::Direct;
             if (residual <= p.tol && !direct) || residual == 0.0 || (direct && iterations == 1) {
                 break;
@@ -262,20 +307,32 @@ impl Index1<'_> {
                 });
             }
             self.factor_at(t, q)?;
-            mass_orthogonal_step(&mut *self.solver, &self.k, &self.phi, &mut self.x, q)
-                .map_err(lin)?;
+            mass_orthogonal_step(
+                &mut *self.b.solver,
+                &self.b.k,
+                &self.b.phi,
+                &mut self.b.x,
+                q,
+            )
+            .map_err(lin)?;
             iterations += 1;
         }
         self.factor_at(t, q)?;
-        self.sys.jacobian_mul(&self.jac, qd, &mut self.phid);
-        self.sys.phi_t(q, t, &mut self.phi_t);
-        for (a, b) in self.phid.iter_mut().zip(&self.phi_t) {
+        self.sys.jacobian_mul(&self.b.jac, qd, &mut self.b.phid);
+        self.sys.phi_t(q, t, &mut self.b.phi_t);
+        for (a, b) in self.b.phid.iter_mut().zip(&self.b.phi_t) {
             *a += b;
         }
-        mass_orthogonal_step(&mut *self.solver, &self.k, &self.phid, &mut self.x, qd)
-            .map_err(lin)?;
-        self.stats.projections += 1;
-        self.stats.projection_iterations += iterations;
+        mass_orthogonal_step(
+            &mut *self.b.solver,
+            &self.b.k,
+            &self.b.phid,
+            &mut self.b.x,
+            qd,
+        )
+        .map_err(lin)?;
+        self.b.stats.projections += 1;
+        self.b.stats.projection_iterations += iterations;
         Ok(iterations)
     }
 }
@@ -285,11 +342,9 @@ impl OdeSystem for Index1<'_> {
         2 * self.sys.n_coords()
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
-        let n = self.sys.n_coords();
-        let (q, qd) = y.split_at(n);
-        let (dq, dqd) = dydt.split_at_mut(n);
-        dq.copy_from_slice(qd);
-        self.accelerations(t, q, qd, dqd).map_err(SystemError::new)
+        first_order_rhs(self.sys.n_coords(), y, dydt, |q, qd, qdd| {
+            self.accelerations(t, q, qd, qdd)
+        })
     }
     /// With [`Projection::enabled`]: [`Index1::project`] the step's end state.
     fn post_step(&mut self, t: f64, y: &mut [f64]) -> Result<bool, SystemError> {

@@ -21,14 +21,13 @@
 //! with `α_B = ξω`, `β_B = ω`.
 
 use super::dynamic_blocks::PenaltyBlock;
+use super::index1::{first_order_rhs, RhsBuffers};
 use super::{
     check_state, feedback, linear_at, Formulation, FormulationError, Index1, Index1Options,
     RhsStats,
 };
 use crate::integrate::{OdeSystem, SystemError};
-use crate::linalg::{
-    solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions,
-};
+use crate::linalg::{solver_for, APattern, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::System;
 use serde::Serialize;
 
@@ -88,19 +87,9 @@ impl PenaltyParams {
 pub struct Penalty<'a> {
     sys: &'a System,
     p: PenaltyParams,
-    solver: Box<dyn SaddlePointSolver>,
-    k: SaddleMatrix,
     /// The `α Φ_qᵀΦ_q` block (the mass is the diagonal).
     block: PenaltyBlock,
-    jac: Vec<f64>,
-    g: Vec<f64>,
-    gamma: Vec<f64>,
-    phi: Vec<f64>,
-    phi_t: Vec<f64>,
-    phid: Vec<f64>,
-    x: Vec<f64>,
-    lambda: Vec<f64>,
-    stats: RhsStats,
+    b: RhsBuffers,
 }
 
 impl<'a> Penalty<'a> {
@@ -132,28 +121,16 @@ impl<'a> Penalty<'a> {
             return not_applicable("linear_solver", "schur".into());
         }
         let n = sys.n_coords();
-        let jp = sys.jacobian_pattern();
         let mut a = APattern::new();
         let block = PenaltyBlock::register(sys, &mut a);
         let mut solver = solver_for(opts.linear_solver, n, SolverOptions::default());
         let k = SaddleMatrix::with_storage(n, 0, &a, &[], solver.storage());
         solver.analyze(&k).map_err(linear_at(f64::NAN))?;
-        let m = sys.n_constraints();
         Ok(Self {
             sys,
             p,
-            solver,
-            k,
             block,
-            jac: vec![0.0; jp.len()],
-            g: vec![0.0; n],
-            gamma: vec![0.0; m],
-            phi: vec![0.0; m],
-            phi_t: vec![0.0; m],
-            phid: vec![0.0; m],
-            x: vec![0.0; n],
-            lambda: vec![0.0; m],
-            stats: RhsStats::default(),
+            b: RhsBuffers::new(sys, solver, k, n),
         })
     }
 
@@ -165,19 +142,7 @@ impl<'a> Penalty<'a> {
     /// The penalty forces' multipliers of the last evaluation,
     /// `λ = α (Φ̈ + 2ξωΦ̇ + ω²Φ)` (sign of `M q̈ + Φ_qᵀλ = g`).
     pub fn lambda(&self) -> &[f64] {
-        &self.lambda
-    }
-
-    /// Counters so far.
-    pub fn stats(&self) -> RhsStats {
-        let mut s = self.stats;
-        s.solver = self.solver.stats();
-        s
-    }
-
-    /// Name of the linear solver in use.
-    pub fn solver_name(&self) -> &'static str {
-        self.solver.name()
+        &self.b.lambda
     }
 
     /// Accelerations from `(M + αΦ_qᵀΦ_q) q̈ = g + αΦ_qᵀ(γ − 2ξωΦ̇ − ω²Φ)`.
@@ -189,47 +154,48 @@ impl<'a> Penalty<'a> {
         qdd: &mut [f64],
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
-        self.stats.evaluations += 1;
+        self.b.stats.evaluations += 1;
         check_state(t, q, qd)?;
         let PenaltyParams { alpha, xi, omega } = self.p;
-        sys.forces_into(t, q, qd, &mut self.g);
+        sys.forces_into(t, q, qd, &mut self.b.g);
         sys.constraint_terms(
             q,
             qd,
             t,
-            Some(&mut self.phi),
-            &mut self.jac,
-            &mut self.gamma,
+            Some(&mut self.b.phi),
+            &mut self.b.jac,
+            &mut self.b.gamma,
         );
-        sys.phi_t(q, t, &mut self.phi_t);
-        sys.jacobian_mul(&self.jac, qd, &mut self.phid);
+        sys.phi_t(q, t, &mut self.b.phi_t);
+        sys.jacobian_mul(&self.b.jac, qd, &mut self.b.phid);
         // γ̄ = γ − 2ξωΦ̇ − ω²Φ (kept in `gamma`)
         feedback(
-            &mut self.gamma,
-            &self.phid,
-            &self.phi_t,
-            &self.phi,
+            &mut self.b.gamma,
+            &self.b.phid,
+            &self.b.phi_t,
+            &self.b.phi,
             2.0 * xi * omega,
             omega * omega,
         );
-        self.k.set_zero();
+        self.b.k.set_zero();
         for (i, &m) in sys.mass_diagonal().iter().enumerate() {
-            self.k.add_diagonal(i, m);
+            self.b.k.add_diagonal(i, m);
         }
-        self.block.add(&mut self.k, alpha, &self.jac);
+        self.block.add(&mut self.b.k, alpha, &self.b.jac);
         let lin = linear_at(t);
-        self.solver.factorize(&self.k).map_err(lin)?;
-        sys.jacobian_tmul(&self.jac, &self.gamma, &mut self.x);
-        for (x, g) in self.x.iter_mut().zip(&self.g) {
+        self.b.solver.factorize(&self.b.k).map_err(lin)?;
+        sys.jacobian_tmul(&self.b.jac, &self.b.gamma, &mut self.b.x);
+        for (x, g) in self.b.x.iter_mut().zip(&self.b.g) {
             *x = g + alpha * *x;
         }
-        self.solver
-            .solve_in_place(&self.k, &mut self.x)
+        self.b
+            .solver
+            .solve_in_place(&self.b.k, &mut self.b.x)
             .map_err(lin)?;
-        qdd.copy_from_slice(&self.x);
+        qdd.copy_from_slice(&self.b.x);
         // λ = α (Φ_q q̈ − γ̄)
-        sys.jacobian_mul(&self.jac, qdd, &mut self.lambda);
-        for (l, gb) in self.lambda.iter_mut().zip(&self.gamma) {
+        sys.jacobian_mul(&self.b.jac, qdd, &mut self.b.lambda);
+        for (l, gb) in self.b.lambda.iter_mut().zip(&self.b.gamma) {
             *l = alpha * (*l - gb);
         }
         Ok(())
@@ -241,11 +207,9 @@ impl OdeSystem for Penalty<'_> {
         2 * self.sys.n_coords()
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
-        let n = self.sys.n_coords();
-        let (q, qd) = y.split_at(n);
-        let (dq, dqd) = dydt.split_at_mut(n);
-        dq.copy_from_slice(qd);
-        self.accelerations(t, q, qd, dqd).map_err(SystemError::new)
+        first_order_rhs(self.sys.n_coords(), y, dydt, |q, qd, qdd| {
+            self.accelerations(t, q, qd, qdd)
+        })
     }
 }
 
@@ -268,20 +232,22 @@ impl<'a> ExplicitForm<'a> {
         })
     }
 
+    /// The buffers of the formulation in use.
+    fn buffers(&self) -> &RhsBuffers {
+        match self {
+            Self::Index1(f) => &f.b,
+            Self::Penalty(f) => &f.b,
+        }
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> RhsStats {
-        match self {
-            Self::Index1(f) => f.stats(),
-            Self::Penalty(f) => f.stats(),
-        }
+        self.buffers().stats()
     }
 
     /// Name of the linear solver in use.
     pub fn solver_name(&self) -> &'static str {
-        match self {
-            Self::Index1(f) => f.solver_name(),
-            Self::Penalty(f) => f.solver_name(),
-        }
+        self.buffers().solver.name()
     }
 
     /// Multipliers of the last evaluation (`M q̈ + Φ_qᵀλ = g`).

@@ -65,6 +65,29 @@ pub(crate) fn call_rhs(
     Ok(())
 }
 
+/// The end `y_new` of a step from `t` to `t_new`: checked finite (else
+/// [`Failure::NonFinite`] of the step) and `f(t_new, y_new)` evaluated
+/// into `f_new` ([`call_rhs`]).
+pub(crate) fn step_end(
+    sys: &mut dyn OdeSystem,
+    t: f64,
+    t_new: f64,
+    y_new: &[f64],
+    f_new: &mut [f64],
+    stats: &mut Stats,
+) -> Result<(), Failure> {
+    if let Some((index, value)) = first_non_finite(y_new) {
+        return Err(Failure::NonFinite {
+            what: "step",
+            t: t_new,
+            step_from: Some(t),
+            index,
+            value,
+        });
+    }
+    call_rhs(sys, t_new, y_new, f_new, stats, Some(t))
+}
+
 /// Evaluates the explicit stages `first..=last` of a Runge–Kutta step:
 /// `k_i = f(t + c_i·h, y + h·Σ_{j<i} a[i][j]·k_j)`, using `ytmp` as the stage
 /// input buffer. `k` holds all stages contiguously (`k_0` must be filled in).

@@ -163,22 +163,13 @@ impl Stepper for EmbeddedStepper<'_> {
             let tnew = if done { self.t_end } else { t + h };
             h = tnew - t; // purify h
             lincomb(&mut self.ends.ynew, &self.ends.y, h, tab.b(), k);
-            if let Some((index, value)) = common::first_non_finite(&self.ends.ynew) {
-                return Err(Failure::NonFinite {
-                    what: "step",
-                    t: tnew,
-                    step_from: Some(t),
-                    index,
-                    value,
-                });
-            }
-            call_rhs(
+            common::step_end(
                 self.sys,
+                t,
                 tnew,
                 &self.ends.ynew,
                 &mut k[(s - 1) * n..],
                 &mut self.stats,
-                Some(t),
             )?;
 
             weighted_sum(&mut self.ytmp, 1.0, tab.e, k);

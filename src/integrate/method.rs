@@ -306,7 +306,7 @@ pub const METHODS: [MethodInfo; 9] = [
 impl MethodInfo {
     /// When `key` (an `[integrator]` key) applies to this method; `None`:
     /// never.
-    pub fn key_use(&self, key: &str) -> Option<KeyUse> {
+    pub(crate) fn key_use(&self, key: &str) -> Option<KeyUse> {
         self.keys.iter().find(|k| k.0 == key).map(|k| k.1)
     }
 
@@ -412,7 +412,7 @@ impl FromStr for Method {
 }
 
 /// The methods whose row has `key`, as "a, b and c" (for messages).
-pub fn methods_taking(key: &str) -> String {
+pub(crate) fn methods_taking(key: &str) -> String {
     let names: Vec<&str> = METHODS
         .iter()
         .filter(|m| m.key_use(key).is_some())

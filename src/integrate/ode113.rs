@@ -367,22 +367,13 @@ impl Stepper for Ode113Stepper<'_> {
         for l in 0..n {
             self.y[l] = self.p[l] + gk1 * self.phikp1[l];
         }
-        if let Some((index, value)) = common::first_non_finite(&self.y) {
-            return Err(Failure::NonFinite {
-                what: "step",
-                t: tnew,
-                step_from: Some(tlast),
-                index,
-                value,
-            });
-        }
-        call_rhs(
+        common::step_end(
             self.sys,
+            tlast,
             tnew,
             &self.y,
             &mut self.yp,
             &mut self.stats,
-            Some(tlast),
         )?;
         // Update the differences.
         for l in 0..n {

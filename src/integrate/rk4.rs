@@ -115,22 +115,13 @@ impl Stepper for Rk4Stepper<'_> {
             &mut self.stats,
         )?;
         lincomb(&mut self.ends.ynew, &self.ends.y, hs, &RK4_B, &k[..4 * n]);
-        if let Some((index, value)) = common::first_non_finite(&self.ends.ynew) {
-            return Err(Failure::NonFinite {
-                what: "step",
-                t: tnew,
-                step_from: Some(t),
-                index,
-                value,
-            });
-        }
-        call_rhs(
+        common::step_end(
             self.sys,
+            t,
             tnew,
             &self.ends.ynew,
             &mut k[4 * n..],
             &mut self.stats,
-            Some(t),
         )?;
         self.stats.steps += 1;
         // A projected end state gets its own f, so the Hermite cubic joins

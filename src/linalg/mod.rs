@@ -47,7 +47,7 @@ pub use lu::SparseLu;
 pub use pattern::CscPattern;
 pub use saddle::{APattern, SaddleMatrix, Storage, Symmetry};
 pub use schur::SchurComplement;
-pub(crate) use sparse::postpone_multipliers;
+pub(crate) use sparse::{amd_permutation, postpone_multipliers};
 pub use sparse::{
     chain_order, Ordering, SparseLdlt, DEFAULT_DELTA, DEFAULT_EPSILON, REFINE_THRESHOLD,
 };

@@ -340,7 +340,7 @@ impl SaddleMatrix {
     }
 
     /// Check that every value is finite.
-    pub fn check_finite(&self) -> Result<(), LinalgError> {
+    pub(crate) fn check_finite(&self) -> Result<(), LinalgError> {
         for col in 0..self.dim() {
             for s in self.pattern.col_ptr[col]..self.pattern.col_ptr[col + 1] {
                 if !self.values[s].is_finite() {

@@ -300,18 +300,19 @@ impl SparseLdlt {
     }
 }
 
-/// AMD of the pattern of `K`, then multipliers postponed until all the
-/// coordinates of their Jacobian row are eliminated.
-fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
-    let dim = k.dim();
-    let n = k.n();
-    let nnz = k.nnz();
+/// faer's AMD order (forward permutation) of the symmetric `dim × dim`
+/// pattern `(col_ptr, row_idx)` (both triangles, sorted rows); the error
+/// names the failure.
+pub(crate) fn amd_permutation(
+    dim: usize,
+    col_ptr: &[usize],
+    row_idx: &[usize],
+) -> Result<Vec<usize>, String> {
     let mut fwd = vec![0usize; dim];
     let mut inv = vec![0usize; dim];
     if dim > 0 {
-        let pattern =
-            SymbolicSparseColMatRef::new_checked(dim, dim, k.col_ptr(), None, k.row_idx());
-        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(dim, nnz));
+        let pattern = SymbolicSparseColMatRef::new_checked(dim, dim, col_ptr, None, row_idx);
+        let mut mem = MemBuffer::new(amd::order_scratch::<usize>(dim, row_idx.len()));
         amd::order(
             &mut fwd,
             &mut inv,
@@ -319,9 +320,17 @@ fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
             amd::Control::default(),
             MemStack::new(&mut mem),
         )
-        .map_err(|e| LinalgError::Singular(format!("AMD ordering failed: {e:?}")))?;
+        .map_err(|e| format!("AMD ordering failed: {e:?}"))?;
     }
+    Ok(fwd)
+}
+
+/// AMD of the pattern of `K`, then multipliers postponed until all the
+/// coordinates of their Jacobian row are eliminated.
+fn amd_order(k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
+    let (dim, n) = (k.dim(), k.n());
     let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
+    let fwd = amd_permutation(dim, col_ptr, row_idx).map_err(LinalgError::Singular)?;
     let order = postpone_multipliers(&fwd, n, |c| &row_idx[col_ptr[c]..col_ptr[c + 1]]);
     debug_assert_eq!(order.len(), dim);
     Ok(order)
