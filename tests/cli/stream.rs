@@ -615,7 +615,7 @@ fn a_table_larger_than_the_space_is_refused_before_the_run() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     // 5e7 + 1 rows; the limit: 100000 blocks of 512 bytes
     assert!(e.contains("(50000001 rows × "), "{e}");
-    assert!(e.contains("file-size limit of 0.051 GB"), "{e}");
+    assert!(e.contains("file-size limit of 51.200 MB"), "{e}");
     assert!(!out.join("fourbar.summary.json").exists());
     // without the limit, against the free space: the falling rod of 10⁴
     // segments (10⁴ rows of 3·10⁴ columns or more) at 1e-6 s: 0.5 TB at least

@@ -100,6 +100,19 @@ pub fn time_text(t: f64) -> String {
     }
 }
 
+/// A size in bytes for a message: kB, MB or GB (10³, 10⁶, 10⁹ bytes) with
+/// three decimals, the unit chosen so the number is at least 1 (kB below).
+fn bytes_text(b: f64) -> String {
+    let (div, unit) = if b >= 1e9 {
+        (1e9, "GB")
+    } else if b >= 1e6 {
+        (1e6, "MB")
+    } else {
+        (1e3, "kB")
+    };
+    format!("{:.3} {unit}", b / div)
+}
+
 /// Free bytes for an unprivileged writer on the file system holding
 /// `dir` (or its nearest existing ancestor), and the process's file-size
 /// limit (`RLIMIT_FSIZE`, `None` when unlimited); `None` where unknown.
@@ -149,7 +162,7 @@ pub fn check_space(
     format: Format,
 ) -> Result<Option<String>, String> {
     let bytes = rows * columns as f64 * format.bytes_per_value();
-    let gb = |b: f64| format!("{:.3} GB", b / 1e9);
+    let gb = bytes_text;
     let size = format!(
         "the table will take at least {} ({rows:.0} rows × {columns} columns × {} bytes, \
          {} format)",
