@@ -307,6 +307,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    stream::ignore_file_size_signal();
     // The whole command runs on a thread of one rayon pool (`RAYON_NUM_THREADS`
     // threads, or one per core): the concurrent halves of the chain solve and
     // of the assembly (N ≥ 2000) then join inside the pool, instead of each

@@ -35,6 +35,19 @@ pub fn install_interrupt_handler() {
     });
 }
 
+/// Ignore SIGXFSZ, so that a write beyond the file-size limit (`ulimit -f`)
+/// fails with "File too large" and the run ends as `"failed"` with its
+/// summary written, instead of the signal killing the process and leaving
+/// a `"running"` summary and the lock.
+pub fn ignore_file_size_signal() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN, before any thread
+    // that writes files is started
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
 /// The files of the run in progress, for the second signal's handler;
 /// `None` before they are claimed and once the final summary is written.
 static CLAIMED: std::sync::Mutex<Option<Claimed>> = std::sync::Mutex::new(None);
