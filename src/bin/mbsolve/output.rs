@@ -55,13 +55,19 @@ fn positional_aliases(names: &[&str]) -> Vec<Option<String>> {
         return out;
     }
     use mbsolve::output::{ACCELERATION, POSITION, VELOCITY};
+    // each name's first column, looked up once per body and quantity
+    // (a linear search made this quadratic: 10⁴ segments, 10⁹ compares)
+    let mut first = std::collections::HashMap::with_capacity(names.len());
+    for (k, n) in names.iter().enumerate() {
+        first.entry(*n).or_insert(k);
+    }
     for i in 0..(end - 1) / 3 {
         let Some(body) = names[1 + 3 * i].strip_suffix(".x") else {
             continue;
         };
         for c in POSITION.iter().chain(&VELOCITY).chain(&ACCELERATION) {
             let full = format!("{body}.{c}");
-            if let Some(k) = names.iter().position(|n| *n == full) {
+            if let Some(&k) = first.get(full.as_str()) {
                 out[k] = Some(format!("{c}{}", i + 1));
             }
         }
