@@ -764,3 +764,57 @@ fn mode_animations_draw_force_arrows_from_named_columns() {
             > 1000
     );
 }
+
+/// A joint named with a comma and double quotes: the run's CSV header
+/// quotes its columns per RFC 4180, so an RFC 4180 reader (the `csv`
+/// crate) reads every row at the header's width with the names whole;
+/// `plot` and `animate --forces` find its columns by those names.
+#[test]
+fn names_with_commas_and_quotes_stay_one_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("hanging.toml");
+    let name = r#"pin, "main""#;
+    let toml = hanging_toml().replace("name = \"pin\"", &format!("name = {}", toml_string(name)));
+    std::fs::write(&scen, toml).unwrap();
+    let scen = scen.to_str().unwrap();
+    let csv = run(dir.path(), scen, &[]);
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    let fy = format!("{name}.fy");
+    let k = h.iter().position(|c| *c == fy).expect("the column, whole");
+    for rec in r.records() {
+        let rec = rec.expect("rows as wide as the header");
+        assert_eq!(rec.len(), h.len());
+        assert!((rec[k].parse::<f64>().unwrap() - 9.81).abs() < 1e-9);
+    }
+    let o = mbsolve(&[
+        "plot",
+        &csv,
+        "--y",
+        &fy,
+        "--out",
+        dir.path().join("fy.svg").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let svg = dir.path().join("a.svg");
+    let o = mbsolve(&[
+        "animate",
+        scen,
+        &csv,
+        "--forces",
+        "reactions",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("joint reactions from the run's columns"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// `s` as a TOML basic string.
+fn toml_string(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
