@@ -232,10 +232,14 @@ fn body_columns<'t>(
     b: usize,
     names: [&str; 3],
 ) -> Option<[&'t [f64]; 3]> {
+    // the positional name only where the table has it as its own header
+    // (not read through another model's names: x1 of a four-bar's table
+    // is its crank, not this model's first body)
     let col = |n: &str| {
+        let old = format!("{n}{}", b + 1);
         table
             .find(&format!("{}.{n}", labels[b]))
-            .or_else(|| table.find(&format!("{n}{}", b + 1)))
+            .or_else(|| table.names.iter().position(|h| *h == old))
             .map(|k| table.columns[k].as_slice())
     };
     Some([col(names[0])?, col(names[1])?, col(names[2])?])
