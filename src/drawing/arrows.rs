@@ -133,7 +133,25 @@ impl<'a> ForceArrows<'a> {
 
     /// The arrows at `(t, q, q̇)`, in the fixed order (module docs).
     pub fn at(&mut self, t: f64, q: &[f64], qd: &[f64]) -> Result<Vec<Arrow>, String> {
+        self.at_with_reactions(t, q, qd, None)
+    }
+
+    /// [`ForceArrows::at`], with the joint reactions given where a run
+    /// wrote them: `reactions` holds `(fx, fy, mz)` per constraint on its
+    /// [`ReactionMap::body`], global frame, as
+    /// [`System::joint_reactions`] lays them out (the run's `J.fx`, `J.fy`,
+    /// `J.mz` columns, from its own multipliers — with its Baumgarte terms,
+    /// if any). `None`, or a slice of another length: computed from the
+    /// state (module docs).
+    pub fn at_with_reactions(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        reactions: Option<&[f64]>,
+    ) -> Result<Vec<Arrow>, String> {
         let sys = self.sys;
+        let given = reactions.filter(|r| r.len() == self.reactions.len());
         let mut out = Vec::new();
         if self.set.contacts {
             let mut g = vec![0.0; sys.n_coords()];
@@ -177,7 +195,9 @@ impl<'a> ForceArrows<'a> {
             }
         }
         if self.set.reactions {
-            if let Some(f) = self.index1.as_mut() {
+            if let Some(r) = given {
+                self.reactions.copy_from_slice(r);
+            } else if let Some(f) = self.index1.as_mut() {
                 f.accelerations(t, q, qd, &mut self.qdd)
                     .map_err(|e| e.to_string())?;
                 sys.jacobian_values(q, t, &mut self.jac);

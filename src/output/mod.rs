@@ -458,7 +458,8 @@ impl<W: Write> CsvTable<W> {
     /// Write the header line of `columns` to `w`.
     pub fn new(w: W, columns: &[Column]) -> Result<Self, TableError> {
         let mut w = std::io::BufWriter::with_capacity(1 << 16, w);
-        let names: Vec<&str> = columns.iter().map(|c| c.name.as_str()).collect();
+        let names: Vec<std::borrow::Cow<'_, str>> =
+            columns.iter().map(|c| csv_field(&c.name)).collect();
         writeln!(w, "{}", names.join(","))?;
         Ok(Self {
             w: Some(w),
@@ -503,6 +504,18 @@ impl<W: Write> TableWriter for CsvTable<W> {
 
     fn finish(&mut self) -> Result<(), TableError> {
         self.flush()
+    }
+}
+
+/// A CSV field as RFC 4180 writes it: as is, or — when it holds a comma,
+/// a double quote, CR or LF (a joint or sensor named `a,b` or `say "hi"`)
+/// — in double quotes with each double quote doubled. Any RFC 4180 reader
+/// (the `csv` crate, pandas, `mbsolve plot`) reads the name back whole.
+pub fn csv_field(name: &str) -> std::borrow::Cow<'_, str> {
+    if name.contains([',', '"', '\r', '\n']) {
+        format!("\"{}\"", name.replace('"', "\"\"")).into()
+    } else {
+        name.into()
     }
 }
 
@@ -668,6 +681,31 @@ mod tests {
             text,
             "t,x1\n0.000000000000e0,1.500000000000e0\n2.500000000000e-1,NaN\n"
         );
+    }
+
+    /// Names holding commas, double quotes and line breaks are quoted per
+    /// RFC 4180 and read back whole, with the row's width, by the `csv`
+    /// crate's reader (an independent RFC 4180 implementation).
+    #[test]
+    fn csv_header_quotes_names_per_rfc_4180() {
+        let names = ["t", "a,b.fx", "say \"hi\".fy", "two\nlines.mz", "plain.x"];
+        let columns: Vec<Column> = names.iter().map(|n| Column::new(*n, "")).collect();
+        let mut t = CsvTable::new(Vec::new(), &columns).unwrap();
+        t.write_row(&[0.0, 1.0, 2.0, 3.0, 4.0]).unwrap();
+        t.finish().unwrap();
+        let text = String::from_utf8(t.into_inner().unwrap()).unwrap();
+        assert!(
+            text.starts_with("t,\"a,b.fx\",\"say \"\"hi\"\".fy\",\"two\nlines.mz\",plain.x\n"),
+            "{text}"
+        );
+        let mut r = csv::Reader::from_reader(text.as_bytes());
+        let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+        assert_eq!(header, names);
+        let rows: Vec<csv::StringRecord> = r.records().map(Result::unwrap).collect();
+        assert_eq!(rows.len(), 1);
+        assert_eq!(rows[0].len(), names.len());
+        assert_eq!(rows[0][4].parse::<f64>().unwrap(), 4.0);
+        assert_eq!(csv_field("plain"), "plain");
     }
 
     /// `push_sci12` writes the standard formatter's text, on random bit

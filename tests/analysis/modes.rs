@@ -603,7 +603,8 @@ fn quarter_car_mode_animations_show_body_bounce_and_wheel_hop() {
             .records()
             .map(|x| x.unwrap().iter().map(|v| v.parse().unwrap()).collect())
             .collect();
-        let (yw, yc) = (col("y2"), col("y3"));
+        // the run table's named columns (body 2 is the wheel, 3 the chassis)
+        let (yw, yc) = (col("wheel.y"), col("chassis.y"));
         let ratio = (rows[12][yw] - rows[0][yw]) / (rows[12][yc] - rows[0][yc]);
         let want = (ks - w2[k] * ms) / ks;
         println!("mode {}: wheel/chassis {ratio} vs {want}", k + 1);
@@ -612,7 +613,7 @@ fn quarter_car_mode_animations_show_body_bounce_and_wheel_hop() {
             "{ratio} vs {want}"
         );
         // x and φ held by the drives: no sideways or rotating motion drawn
-        for name in ["x2", "phi2", "x3", "phi3"] {
+        for name in ["wheel.x", "wheel.phi", "chassis.x", "chassis.phi"] {
             assert!(rows
                 .iter()
                 .all(|row| (row[col(name)] - rows[0][col(name)]).abs() < 1e-12));

@@ -537,3 +537,284 @@ fn force_arrows_show_the_weights_against_their_key() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--forces: 'torques'"), "{}", stderr(&o));
 }
+
+/// The bob of [`resting_toml`] alone, hanging at rest from a pin named
+/// plainly, with the run writing velocities and reactions.
+fn hanging_toml() -> String {
+    r#"name = "hanging"
+gravity = [0.0, -9.81]
+[[body]]
+name = "bob"
+mass = 1.0
+inertia = 0.01
+x = 1.0
+y = 0.7
+[[joint]]
+type = "revolute"
+name = "pin"
+body_i = "ground"
+point_i = [1.0, 1.0]
+body_j = "bob"
+point_j = [0.0, 0.3]
+[time]
+end = 0.1
+[output]
+dt = 0.05
+quantities = ["velocities", "reactions"]
+"#
+    .into()
+}
+
+/// The first force arrow's shaft of an SVG (frame 0) against its key:
+/// (dx, dy) in pixels and the key's length in pixels and label.
+fn first_arrow_and_key(svg: &str) -> ((f64, f64), f64, String) {
+    let shaft = svg
+        .lines()
+        .find(|l| l.contains(r#"class="force""#))
+        .unwrap_or_else(|| panic!("no arrow in {svg}"));
+    let p = first_points(shaft);
+    let key = svg
+        .lines()
+        .skip_while(|l| !l.contains("force-key"))
+        .take(2)
+        .collect::<String>();
+    let d = key.split("d=\"M").nth(1).unwrap();
+    let nums: Vec<f64> = d
+        .split(['L', ',', ' ', 'M', '"'])
+        .filter_map(|s| s.trim().parse().ok())
+        .take(4)
+        .collect();
+    let label = key
+        .split("\">")
+        .last()
+        .unwrap()
+        .split('<')
+        .next()
+        .unwrap()
+        .to_string();
+    (
+        (p[1].0 - p[0].0, p[1].1 - p[0].1),
+        (nums[2] - nums[0]).hypot(nums[3] - nums[1]),
+        label,
+    )
+}
+
+/// Reaction arrows are drawn from the run's `J.fx, J.fy` columns where it
+/// wrote them: the hanging bob's pin column holds m g = 9.81 N (the
+/// analytic reaction at rest), drawn against a 5 N key; the same table
+/// with that column halved (as a run with other multipliers would have
+/// written it) draws 4.905 N against a 2 N key — the columns, not a
+/// recomputation from the positions, set the arrow. Without the columns
+/// the arrow is computed from the state, and says so.
+#[test]
+fn reaction_arrows_come_from_the_runs_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("hanging.toml");
+    std::fs::write(&scen, hanging_toml()).unwrap();
+    let scen = scen.to_str().unwrap();
+    let csv = run(dir.path(), scen, &[]);
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let h = r.headers().unwrap().clone();
+    let rows: Vec<Vec<String>> = r
+        .records()
+        .map(|x| x.unwrap().iter().map(String::from).collect())
+        .collect();
+    let fy = h.iter().position(|c| c == "pin.fy").expect("pin.fy column");
+    for row in &rows {
+        let v: f64 = row[fy].parse().unwrap();
+        assert!((v - 9.81).abs() < 1e-9, "pin.fy = {v}");
+    }
+    let draw = |table: &str, name: &str| {
+        let svg = dir.path().join(name);
+        let o = mbsolve(&[
+            "animate",
+            scen,
+            table,
+            "--forces",
+            "reactions",
+            "--out",
+            svg.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (
+            first_arrow_and_key(&std::fs::read_to_string(&svg).unwrap()),
+            stdout(&o),
+        )
+    };
+    let (((dx, dy), key_px, label), said) = draw(&csv, "run.svg");
+    assert!(
+        said.contains("joint reactions from the run's columns"),
+        "{said}"
+    );
+    assert_eq!(label, "5 N");
+    assert!(dx.abs() < 0.02 && dy < 0.0);
+    assert!(
+        (dy.abs() / key_px - 9.81 / 5.0).abs() < 2e-3,
+        "{dy} {key_px}"
+    );
+    // the same table, the pin's fy halved
+    let halved = dir.path().join("halved.csv");
+    let mut w = csv::Writer::from_path(&halved).unwrap();
+    w.write_record(&h).unwrap();
+    for row in &rows {
+        let mut row = row.clone();
+        row[fy] = format!("{:e}", 0.5 * row[fy].parse::<f64>().unwrap());
+        w.write_record(&row).unwrap();
+    }
+    w.flush().unwrap();
+    let (((dx, dy), key_px, label), _) = draw(halved.to_str().unwrap(), "halved.svg");
+    assert_eq!(label, "2 N");
+    assert!(dx.abs() < 0.02 && dy < 0.0);
+    assert!(
+        (dy.abs() / key_px - 4.905 / 2.0).abs() < 2e-3,
+        "{dy} {key_px}"
+    );
+    // without reaction columns: computed (m g again), and said so
+    let plain = dir.path().join("plain");
+    std::fs::create_dir(&plain).unwrap();
+    let csv = run(&plain, scen, &["output.quantities=[\"velocities\"]"]);
+    let (((_, dy), key_px, label), said) = draw(&csv, "plain.svg");
+    assert!(said.contains("computed from the state"), "{said}");
+    assert_eq!(label, "5 N");
+    assert!(
+        (dy.abs() / key_px - 9.81 / 5.0).abs() < 2e-3,
+        "{dy} {key_px}"
+    );
+}
+
+/// `modes --animate --forces`: the mode's table is in a run's named
+/// columns (`bob.x`, …, `bob.vx`, …) with the velocities the time
+/// derivative of the positions (central differences to O(Δt²)), and its
+/// animation carries the same force arrows as `animate --forces`: at the
+/// first frame (the equilibrium, swinging at Ω) the pin holds the bob with
+/// m g + m L Ω² (L = 0.3 m from pin to centre of mass), upward.
+#[test]
+fn mode_animations_draw_force_arrows_from_named_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("hanging.toml");
+    std::fs::write(&scen, hanging_toml()).unwrap();
+    let out = dir.path().join("m");
+    let o = mbsolve(&[
+        "modes",
+        scen.to_str().unwrap(),
+        "--count",
+        "1",
+        "--animate",
+        "1",
+        "--forces",
+        "reactions",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut r = csv::Reader::from_path(out.join("hanging.mode1.csv")).unwrap();
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        h,
+        [
+            "t",
+            "bob.x",
+            "bob.y",
+            "bob.phi",
+            "bob.vx",
+            "bob.vy",
+            "bob.omega"
+        ]
+    );
+    let rows: Vec<Vec<f64>> = r
+        .records()
+        .map(|x| x.unwrap().iter().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 49);
+    let dt = rows[1][0] - rows[0][0];
+    let omega_max = rows.iter().map(|r| r[6].abs()).fold(0.0, f64::max);
+    // drawn visibly: the largest rotation 0.3 rad or a tenth of the model
+    let phi_max = rows.iter().map(|r| r[3].abs()).fold(0.0, f64::max);
+    assert!(phi_max > 0.05, "the mode swings by {phi_max} rad");
+    for k in 1..rows.len() - 1 {
+        for c in 1..4 {
+            let fd = (rows[k + 1][c] - rows[k - 1][c]) / (2.0 * dt);
+            // the central difference of a sine: v sin(ω Δt)/(ω Δt),
+            // 1 − 2.9e-3 at 48 frames a period
+            let scale = if c == 3 { omega_max } else { 0.3 * omega_max };
+            assert!(
+                (fd - rows[k][c + 3]).abs() < 3.5e-3 * scale,
+                "row {k} col {}: {fd} vs {}",
+                h[c],
+                rows[k][c + 3]
+            );
+        }
+    }
+    let svg = std::fs::read_to_string(out.join("hanging.mode1.svg")).unwrap();
+    assert!(svg.contains("<title>pin</title>"), "the pin's arrow");
+    let ((dx, dy), key_px, label) = first_arrow_and_key(&svg);
+    let key: f64 = label.trim_end_matches(" N").parse().unwrap();
+    let big_omega = rows[0][6];
+    let want = 1.0 * 9.81 + 1.0 * 0.3 * big_omega * big_omega;
+    assert!(dx.abs() < 0.02 && dy < 0.0, "{dx} {dy}");
+    assert!(
+        (dy.abs() / key_px - want / key).abs() < 2e-3 * want / key,
+        "{} vs {want} N",
+        dy.abs() / key_px * key
+    );
+    assert!(
+        std::fs::metadata(out.join("hanging.mode1.png"))
+            .unwrap()
+            .len()
+            > 1000
+    );
+}
+
+/// A joint named with a comma and double quotes: the run's CSV header
+/// quotes its columns per RFC 4180, so an RFC 4180 reader (the `csv`
+/// crate) reads every row at the header's width with the names whole;
+/// `plot` and `animate --forces` find its columns by those names.
+#[test]
+fn names_with_commas_and_quotes_stay_one_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = dir.path().join("hanging.toml");
+    let name = r#"pin, "main""#;
+    let toml = hanging_toml().replace("name = \"pin\"", &format!("name = {}", toml_string(name)));
+    std::fs::write(&scen, toml).unwrap();
+    let scen = scen.to_str().unwrap();
+    let csv = run(dir.path(), scen, &[]);
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    let fy = format!("{name}.fy");
+    let k = h.iter().position(|c| *c == fy).expect("the column, whole");
+    for rec in r.records() {
+        let rec = rec.expect("rows as wide as the header");
+        assert_eq!(rec.len(), h.len());
+        assert!((rec[k].parse::<f64>().unwrap() - 9.81).abs() < 1e-9);
+    }
+    let o = mbsolve(&[
+        "plot",
+        &csv,
+        "--y",
+        &fy,
+        "--out",
+        dir.path().join("fy.svg").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let svg = dir.path().join("a.svg");
+    let o = mbsolve(&[
+        "animate",
+        scen,
+        &csv,
+        "--forces",
+        "reactions",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("joint reactions from the run's columns"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// `s` as a TOML basic string.
+fn toml_string(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}

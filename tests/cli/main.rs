@@ -8,6 +8,7 @@ mod animate;
 mod arrow;
 mod bad_input;
 mod check;
+mod failure_messages;
 mod figures;
 mod fuzz_corpus;
 mod outputs;

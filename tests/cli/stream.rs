@@ -460,35 +460,65 @@ fn a_fixed_step_run_that_crawls_fails_and_keeps_its_rows() {
     assert_eq!(csv.lines().count() as u64, rows + 1, "header + the rows");
 }
 
-/// Two SIGINTs in a row: whichever path ends the process (the run's own
-/// interrupted end, or the second signal's immediate exit), the summary
-/// says "interrupted", never "running". Before, the second signal exited
-/// at once and left the "running" summary.
+/// Two SIGINTs in a row, back to back and a few milliseconds apart (the
+/// second landing while the run steps on or while its files are being
+/// finished): whichever path ends the process (the run's own interrupted
+/// end, or the second signal's immediate exit), the summary says
+/// "interrupted", never "running"; it says the table is unfinished only
+/// when the `.part` file is there, and complete only when the table is;
+/// no lock and no temporary file stay behind.
 #[test]
 fn a_second_sigint_leaves_an_interrupted_summary() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path();
-    let mut child = spawn_long(out);
-    wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
-    // both signals from one process, back to back
-    let ok = Command::new("sh")
-        .args(["-c", &format!("kill -INT {0}; kill -INT {0}", child.id())])
-        .status()
-        .unwrap();
-    assert!(ok.success());
-    let st = child.wait().unwrap();
-    assert_eq!(st.code(), Some(130), "{st:?}");
-    let s = summary(out);
-    assert_eq!(s["status"], "interrupted", "{s}");
+    for gap in ["", "sleep 0.003;", "sleep 0.02;"] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let mut child = spawn_long(out);
+        wait_for_rows(&mut child, &out.join("fourbar.csv.part"));
+        // both signals from one process
+        let ok = Command::new("sh")
+            .args([
+                "-c",
+                &format!("kill -INT {0}; {gap} kill -INT {0}", child.id()),
+            ])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let st = child.wait().unwrap();
+        assert_eq!(st.code(), Some(130), "{gap}: {st:?}");
+        let s = summary(out);
+        assert_eq!(s["status"], "interrupted", "{gap}: {s}");
+        let msg = s["message"].as_str().unwrap();
+        let part = out.join("fourbar.csv.part");
+        let table = out.join("fourbar.csv");
+        if msg.contains("the table was not finished") {
+            assert!(part.exists(), "{gap}: {msg}");
+            assert!(msg.contains(&part.display().to_string()), "{msg}");
+        } else if msg.contains("is complete up to where the first signal stopped") {
+            assert!(!part.exists() && table.exists(), "{gap}: {msg}");
+            assert!(complete_rows(&table).len() > 100);
+        } else {
+            // the run's own end: the full summary
+            assert!(msg.contains("interrupted by a signal"), "{gap}: {msg}");
+            let rows = complete_rows(&table);
+            assert_eq!(s["output_rows"].as_u64().unwrap() as usize, rows.len());
+        }
+        let left: Vec<String> = std::fs::read_dir(out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".tmp") || n.ends_with(".lock"))
+            .collect();
+        assert!(left.is_empty(), "{gap}: left behind {left:?}");
+    }
 }
 
-/// A table that cannot be written (the file-size limit: `ulimit -f`, with
-/// SIGXFSZ ignored so that the write fails with EFBIG) ends the run as
-/// "failed" with the error in its summary, not "running".
+/// A table that cannot be written (the file-size limit: `ulimit -f`) ends
+/// the run as "failed" with the error in its summary, not "running", and
+/// leaves no lock — whether the shell ignores SIGXFSZ or, as by default,
+/// the signal would kill the process (the binary ignores it, so the write
+/// fails with EFBIG).
 #[test]
 fn a_file_too_large_error_ends_with_a_failed_summary() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path();
     // a limit between the table's size estimated before the run (a lower
     // bound: 17 bytes a CSV value) and its true size, which the run
     // reaches only while writing: measured by the same run unlimited
@@ -512,27 +542,37 @@ fn a_file_too_large_error_ends_with_a_failed_summary() {
     let estimate = 20001 * cols * 17;
     let blocks = (estimate + csv.len()) / 2 / 512;
     assert!(blocks * 512 > estimate + 512 && blocks * 512 + 512 < csv.len());
-    let o = Command::new("sh")
-        .args([
-            "-c",
-            &format!(
-                "trap '' XFSZ; ulimit -f {blocks}; exec {} run {} {args} --out {}",
-                env!("CARGO_BIN_EXE_mbsolve"),
-                fourbar(),
-                out.display()
-            ),
-        ])
-        .output()
-        .unwrap();
-    let e = String::from_utf8_lossy(&o.stderr);
-    // an output error: exit 2, as any file the run cannot write
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    let s = summary(out);
-    assert_eq!(s["status"], "failed", "{s}");
-    assert!(
-        s["message"].as_str().unwrap().contains("File too large"),
-        "{s}"
-    );
+    for trap in ["trap '' XFSZ; ", ""] {
+        let out = dir
+            .path()
+            .join(if trap.is_empty() { "default" } else { "trap" });
+        let o = Command::new("sh")
+            .args([
+                "-c",
+                &format!(
+                    "{trap}ulimit -f {blocks}; exec {} run {} {args} --out {}",
+                    env!("CARGO_BIN_EXE_mbsolve"),
+                    fourbar(),
+                    out.display()
+                ),
+            ])
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        // an output error: exit 2, as any file the run cannot write
+        assert_eq!(o.status.code(), Some(2), "{trap}: {e}");
+        let s = summary(&out);
+        assert_eq!(s["status"], "failed", "{trap}: {s}");
+        assert!(
+            s["message"].as_str().unwrap().contains("File too large"),
+            "{s}"
+        );
+        assert!(!out.join("fourbar.lock").exists(), "{trap}");
+        assert!(
+            out.join("fourbar.csv.part").exists(),
+            "{trap}: the rows written"
+        );
+    }
 }
 
 /// Two runs into one `--out`: the second refuses up front, naming the
@@ -586,7 +626,7 @@ fn a_table_larger_than_the_space_is_refused_before_the_run() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     // 5e7 + 1 rows; the limit: 100000 blocks of 512 bytes
     assert!(e.contains("(50000001 rows × "), "{e}");
-    assert!(e.contains("file-size limit of 0.051 GB"), "{e}");
+    assert!(e.contains("file-size limit of 51.200 MB"), "{e}");
     assert!(!out.join("fourbar.summary.json").exists());
     // without the limit, against the free space: the falling rod of 10⁴
     // segments (10⁴ rows of 3·10⁴ columns or more) at 1e-6 s: 0.5 TB at least

@@ -242,6 +242,10 @@ fn sigterm_on_a_sweep_keeps_finished_runs_and_the_table() {
     let all = [seen, rest].concat().join("\n");
     assert_eq!(status.code(), Some(130), "{all}");
     assert!(all.contains("sweep interrupted by a signal"), "{all}");
+    // a run not started is said so once, not as an error
+    for twice in ["not run: not run", "error: not run"] {
+        assert!(!all.contains(twice), "'{twice}' in:\n{all}");
+    }
     let table = std::fs::read_to_string(dir.path().join("fourbar_sweep.csv")).unwrap();
     let rows: Vec<&str> = table.lines().skip(1).collect();
     assert_eq!(rows.len(), 400, "every run has its row");

@@ -8,8 +8,11 @@
 //! walls, with a time stamp and a scale bar; with `--forces`, arrows of
 //! the contact forces and joint reactions ([`mbsolve::drawing::arrows`])
 //! and their key. Positions come from the run's CSV, read by column name
-//! through [`coordinate_columns`]; velocities (for the forces) from its
-//! `vx1, vy1, omega1, …` columns, or zero when the run did not write them.
+//! (`B.x, B.y, B.phi`, or the positional `x1, y1, phi1` of earlier
+//! versions); velocities (for the forces) from its `B.vx, B.vy, B.omega`
+//! columns, or zero when the run did not write them; joint reactions from
+//! its `J.fx, J.fy, J.mz` columns where it wrote them, else computed from
+//! the state.
 //!
 //! Time is honest: each frame shows the output row at its wall-clock time
 //! `(t − t₀)/speed`; rows are skipped so that no frame lasts less than the
@@ -22,6 +25,7 @@ use crate::plot::Table;
 use mbsolve::drawing::arrows::{self, Arrow, ArrowKey, ArrowSet, ForceArrows};
 use mbsolve::drawing::{self, BodyShape, Drawing, Ink, Mark};
 use mbsolve::model::System;
+use mbsolve::output::{POSITION, VELOCITY};
 use mbsolve::scenario;
 use plotters::prelude::*;
 use rayon::prelude::*;
@@ -107,24 +111,19 @@ pub fn add_arrows(
         .flat_map(|(_, r)| r.contacts.iter().cloned())
         .collect();
     let mut fa = ForceArrows::new(sys, set, &rod_contacts)?;
-    let column = |n: &str| {
-        table
-            .names
-            .iter()
-            .position(|c| c == n)
-            .map(|k| &table.columns[k])
-    };
-    let vel: Option<Vec<[&Vec<f64>; 3]>> = (1..=nb)
-        .map(|i| {
-            Some([
-                column(&format!("vx{i}"))?,
-                column(&format!("vy{i}"))?,
-                column(&format!("omega{i}"))?,
-            ])
-        })
+    let labels = mbsolve::output::body_labels(sys);
+    let vel: Option<Vec<[&[f64]; 3]>> = (0..nb)
+        .map(|b| body_columns(table, &labels, b, VELOCITY))
         .collect();
+    let given = if set.reactions {
+        reaction_columns(table, sys)
+    } else {
+        None
+    };
     let mut rows = Vec::with_capacity(scene.t.len());
     let zero = vec![0.0; 3 * nb];
+    let mut r_row = vec![0.0; 3 * sys.constraints().len()];
+    let mut from_columns = 0;
     for (r, q) in scene.poses.iter().enumerate() {
         let qd: Vec<f64> = match &vel {
             Some(v) => v.iter().flat_map(|c| [c[0][r], c[1][r], c[2][r]]).collect(),
@@ -135,8 +134,17 @@ pub fn add_arrows(
         } else {
             zero.clone()
         };
+        // the run's reactions where it wrote them (finite) for this row
+        let reactions = given.as_ref().and_then(|cols| {
+            for (k, c) in cols.iter().enumerate() {
+                let v = c.map_or([0.0; 3], |c| [c[0][r], c[1][r], c[2][r]]);
+                r_row[3 * k..3 * k + 3].copy_from_slice(&v);
+            }
+            r_row.iter().all(|v| v.is_finite()).then_some(&r_row[..])
+        });
+        from_columns += usize::from(reactions.is_some());
         rows.push(
-            fa.at(scene.t[r], q, &qd)
+            fa.at_with_reactions(scene.t[r], q, &qd, reactions)
                 .map_err(|e| format!("force arrows at t = {}: {e}", scene.t[r]))?,
         );
     }
@@ -186,11 +194,86 @@ pub fn add_arrows(
         key,
         head: 0.03 * scene.drawing.scale,
     });
-    Ok(vel.is_none().then(|| {
-        "force arrows: the CSV has no velocity columns (output.quantities = [\"velocities\"]): \
-         forces computed at zero velocity"
-            .to_string()
-    }))
+    let mut notes = Vec::new();
+    if vel.is_none() {
+        notes.push(
+            "force arrows: the CSV has no velocity columns (output.quantities = \
+             [\"velocities\"]): forces computed at zero velocity"
+                .to_string(),
+        );
+    }
+    if set.reactions && sys.n_constraints() > 0 {
+        let n = scene.t.len();
+        notes.push(if from_columns == n {
+            "force arrows: joint reactions from the run's columns (J.fx, J.fy)".to_string()
+        } else if from_columns > 0 {
+            format!(
+                "force arrows: joint reactions from the run's columns at {from_columns} of {n} \
+                 output times, computed from the state (eq. (5) without Baumgarte terms) at \
+                 the others (values not finite)"
+            )
+        } else {
+            "force arrows: joint reactions computed from the state (eq. (5) without \
+             Baumgarte terms): the run wrote no reaction columns (output.quantities = \
+             [\"reactions\"])"
+                .to_string()
+        });
+    }
+    Ok((!notes.is_empty()).then(|| notes.join("\n")))
+}
+
+/// The columns of body `b`'s three quantities `names` (e.g.
+/// [`mbsolve::output::POSITION`]): the named `B.x, B.y, B.phi` (`labels`:
+/// [`mbsolve::output::body_labels`]), or in a table of earlier versions the
+/// positional `x1, y1, phi1`; `None` when one is missing.
+fn body_columns<'t>(
+    table: &'t Table,
+    labels: &[String],
+    b: usize,
+    names: [&str; 3],
+) -> Option<[&'t [f64]; 3]> {
+    // the positional name only where the table has it as its own header
+    // (not read through another model's names: x1 of a four-bar's table
+    // is its crank, not this model's first body)
+    let col = |n: &str| {
+        let old = format!("{n}{}", b + 1);
+        table
+            .find(&format!("{}.{n}", labels[b]))
+            .or_else(|| table.names.iter().position(|h| *h == old))
+            .map(|k| table.columns[k].as_slice())
+    };
+    Some([col(names[0])?, col(names[1])?, col(names[2])?])
+}
+
+/// Per constraint, the run's reaction columns `J.fx, J.fy, J.mz` on its
+/// body ([`mbsolve::output::columns`]; `None` for a constraint that acts
+/// on no body); joints sharing a label are matched to that label's
+/// columns in order. `None` unless every joint on a body has them.
+fn reaction_columns<'t>(table: &'t Table, sys: &System) -> Option<Vec<Option<[&'t [f64]; 3]>>> {
+    let map = sys.reaction_map();
+    let mut seen = std::collections::HashMap::<String, usize>::new();
+    (0..sys.constraints().len())
+        .map(|k| {
+            let label = mbsolve::output::joint_label(sys, k);
+            let nth = seen.entry(label.clone()).or_insert(0);
+            let n = *nth;
+            *nth += 1;
+            if map.body(k).is_none() {
+                return Some(None);
+            }
+            let col = |c: &str| {
+                let name = format!("{label}.{c}");
+                table
+                    .names
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, h)| **h == name)
+                    .nth(n)
+                    .map(|(i, _)| table.columns[i].as_slice())
+            };
+            Some(Some([col("fx")?, col("fy")?, col("mz")?]))
+        })
+        .collect()
 }
 
 /// What a frame shows besides the motion (default: nothing).
@@ -201,12 +284,19 @@ pub struct Annotation {
     /// A pose (x, y, φ per body) drawn faded under the motion, e.g. the
     /// equilibrium a mode oscillates about; `None`: none.
     pub ghost: Option<Vec<f64>>,
+    /// The table was made here (a mode's motion), not written by a run:
+    /// no notes on which columns the run wrote.
+    pub synthetic: bool,
 }
 
-/// The CSV columns of body `b`'s coordinates (x, y, φ): the one place that
-/// knows the trajectory CSV's column names.
-pub fn coordinate_columns(b: usize) -> [String; 3] {
-    [0, 1, 2].map(|k| System::coordinate_name(3 * b + k))
+/// The named position columns of every body (`B.x, B.y, B.phi`, as a
+/// run writes them: [`mbsolve::output::columns`]), for tables made here
+/// (the mode animations).
+pub fn coordinate_columns(sys: &System) -> Vec<[String; 3]> {
+    mbsolve::output::body_labels(sys)
+        .iter()
+        .map(|b| POSITION.map(|c| format!("{b}.{c}")))
+        .collect()
 }
 
 /// Shortest frame the GIF format plays as written \[s\] (browsers slow
@@ -243,6 +333,7 @@ pub fn animate_annotated(a: &AnimateArgs, note: Annotation) -> Result<PathBuf, S
     let mut scene = scene(&sc, &table, &a.csv)?;
     if let Some(n) = add_arrows(&mut scene, &sc, &table, a.forces, true)
         .map_err(|e| format!("{}: {e}", a.csv.display()))?
+        .filter(|_| !note.synthetic)
     {
         println!("{n}");
     }
@@ -287,14 +378,17 @@ pub fn scene(sc: &scenario::Scenario, table: &Table, csv: &Path) -> Result<Scene
     }
     let mut d = Drawing::new(sys, &sc.q0, &shapes, &walls);
     let t = table.column(csv, "t")?.to_vec();
+    let labels = mbsolve::output::body_labels(sys);
     let cols: Vec<[&[f64]; 3]> = (0..nb)
         .map(|b| {
-            let [x, y, p] = coordinate_columns(b);
-            Ok([
-                table.column(csv, &x)?,
-                table.column(csv, &y)?,
-                table.column(csv, &p)?,
-            ])
+            body_columns(table, &labels, b, POSITION).ok_or_else(|| {
+                // the error names the missing named column
+                POSITION
+                    .iter()
+                    .map(|c| table.column(csv, &format!("{}.{c}", labels[b])))
+                    .find_map(Result::err)
+                    .unwrap_or_default()
+            })
         })
         .collect::<Result<_, String>>()?;
     let mut poses = Vec::with_capacity(t.len());

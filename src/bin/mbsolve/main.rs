@@ -293,6 +293,11 @@ enum Command {
         /// largest deflection each).
         #[arg(long, default_value_t = 6)]
         animate: usize,
+        /// Force arrows on the mode animations, as for `animate --forces`:
+        /// `contacts`, `reactions` or both (comma-separated; `all`)
+        /// [default: none].
+        #[arg(long, value_name = "KINDS")]
+        forces: Option<String>,
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -307,6 +312,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    stream::ignore_file_size_signal();
     // The whole command runs on a thread of one rayon pool (`RAYON_NUM_THREADS`
     // threads, or one per core): the concurrent halves of the chain solve and
     // of the assembly (N ≥ 2000) then join inside the pool, instead of each
@@ -389,15 +395,21 @@ fn command(cli: Cli) -> ExitCode {
             count,
             at,
             animate,
+            forces,
             out,
-        } => modes::command(&modes::ModesArgs {
-            scenario: &scenario,
-            set: &set,
-            count,
-            at,
-            out: &out,
-            animate,
-        }),
+        } => mbsolve::drawing::arrows::ArrowSet::parse(forces.as_deref().unwrap_or(""))
+            .map_err(|e| format!("--forces: {e}"))
+            .and_then(|forces| {
+                modes::command(&modes::ModesArgs {
+                    scenario: &scenario,
+                    set: &set,
+                    count,
+                    at,
+                    out: &out,
+                    animate,
+                    forces,
+                })
+            }),
         Command::Study { which: _, out } => study_constraints(&out),
         Command::Check {
             scenario,

@@ -6,7 +6,8 @@
 //! an animation of each mode drawn with the model's drawing
 //! (`DIR/<stem>.mode<k>.svg` and `.gif`, one period in 2 s; `.png` the
 //! largest deflection; from the synthetic run table `<stem>.mode<k>.csv`
-//! of `q₀ + a sin(ωt) x`).
+//! of `q₀ + a sin(ωt) x` and its rate, in a run's named columns `B.x`,
+//! `B.vx`, …), with `--forces` the force arrows of `animate --forces`.
 
 use crate::animate::{self, coordinate_columns};
 use crate::figure::{Figure, Series};
@@ -70,6 +71,8 @@ pub struct ModesArgs<'a> {
     pub out: &'a Path,
     /// Animations of the first this many modes.
     pub animate: usize,
+    /// Force arrows drawn on the animations (`--forces`; default: none).
+    pub forces: mbsolve::drawing::arrows::ArrowSet,
 }
 
 /// The command.
@@ -117,7 +120,7 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     .map_err(|e| format!("{}: {e}", path.display()))?;
     std::fs::create_dir_all(a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let stem = stem(path);
-    let names: Vec<String> = (0..sys.n_coords()).map(System::coordinate_name).collect();
+    let names: Vec<String> = coordinate_columns(sys).into_iter().flatten().collect();
     let list: Vec<_> = modes
         .modes
         .iter()
@@ -175,7 +178,7 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     say!("wrote {}", json_path.display());
     shapes_figure(&modes, sys, a.out, &stem)?;
     for k in 0..a.animate.min(modes.modes.len()) {
-        for p in animation(a, &q, &modes, k, &stem)? {
+        for p in animation(a, sys, &q, &modes, k, &stem)? {
             say!("wrote {}", p.display());
         }
     }
@@ -237,6 +240,7 @@ fn shapes_figure(modes: &Modes, sys: &System, out: &Path, stem: &str) -> Result<
 /// an animated SVG, a GIF and a PNG of the largest deflection.
 fn animation(
     a: &ModesArgs,
+    sys: &System,
     q0: &[f64],
     modes: &Modes,
     k: usize,
@@ -254,7 +258,10 @@ fn animation(
             hi[c] = hi[c].max(q0[3 * b + c]);
         }
     }
-    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-3);
+    // the model's size counts its joints' points too (one body hanging
+    // from a ground pin has no extent of reference points)
+    let size = mbsolve::drawing::Drawing::new(sys, q0, &vec![None; nb], &[]).scale;
+    let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(size).max(1e-3);
     let (mut dmax, mut rmax) = (0.0f64, 0.0f64);
     for b in 0..nb {
         dmax = dmax.max(md.shape[3 * b].hypot(md.shape[3 * b + 1]));
@@ -267,23 +274,39 @@ fn animation(
         1.0
     };
     let frames = 48;
-    let mut text = String::from("t");
-    for b in 0..nb {
-        for c in coordinate_columns(b) {
-            text += ",";
-            text += &c;
-        }
-    }
-    text += "\n";
+    // the run table's names: positions B.x, B.y, B.phi, then velocities
+    // B.vx, B.vy, B.omega (the time derivative a ω cos(ωt) x, which the
+    // force arrows' dampers and friction read)
+    let labels = mbsolve::output::body_labels(sys);
+    let mut header = vec!["t".to_string()];
+    header.extend(coordinate_columns(sys).into_iter().flatten());
+    header.extend(
+        labels
+            .iter()
+            .flat_map(|b| mbsolve::output::VELOCITY.map(|c| format!("{b}.{c}"))),
+    );
+    let mut w = csv::Writer::from_writer(Vec::new());
+    let werr = |e: csv::Error| e.to_string();
+    w.write_record(&header).map_err(werr)?;
+    let omega = 2.0 * std::f64::consts::PI / period;
     for f in 0..=frames {
         let t = period * f as f64 / frames as f64;
-        let s = (2.0 * std::f64::consts::PI * f as f64 / frames as f64).sin();
-        text += &format!("{t:e}");
-        for (q, x) in q0.iter().zip(&md.shape) {
-            text += &format!(",{:e}", q + amp * s * x);
-        }
-        text += "\n";
+        let (s, c) = (2.0 * std::f64::consts::PI * f as f64 / frames as f64).sin_cos();
+        let mut row = vec![format!("{t:e}")];
+        row.extend(
+            q0.iter()
+                .zip(&md.shape)
+                .map(|(q, x)| format!("{:e}", q + amp * s * x)),
+        );
+        row.extend(
+            md.shape
+                .iter()
+                .map(|x| format!("{:e}", amp * omega * c * x)),
+        );
+        w.write_record(&row).map_err(werr)?;
     }
+    let text =
+        String::from_utf8(w.into_inner().map_err(|e| e.to_string())?).map_err(|e| e.to_string())?;
     let csv = a.out.join(format!("{stem}.mode{}.csv", k + 1));
     write_atomic(&csv, &text).map_err(|e| e.to_string())?;
     let note = animate::Annotation {
@@ -293,6 +316,7 @@ fn animation(
             md.frequency_hz
         ),
         ghost: Some(q0.to_vec()),
+        synthetic: true,
     };
     let mut written = Vec::new();
     // the animated SVG and the GIF play one period in 2 s; the PNG is the
@@ -307,7 +331,7 @@ fn animation(
                 speed: period / 2.0,
                 every: 1,
                 at,
-                forces: Default::default(),
+                forces: a.forces,
             },
             note.clone(),
         )?;

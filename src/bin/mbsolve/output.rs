@@ -55,13 +55,19 @@ fn positional_aliases(names: &[&str]) -> Vec<Option<String>> {
         return out;
     }
     use mbsolve::output::{ACCELERATION, POSITION, VELOCITY};
+    // each name's first column, looked up once per body and quantity
+    // (a linear search made this quadratic: 10⁴ segments, 10⁹ compares)
+    let mut first = std::collections::HashMap::with_capacity(names.len());
+    for (k, n) in names.iter().enumerate() {
+        first.entry(*n).or_insert(k);
+    }
     for i in 0..(end - 1) / 3 {
         let Some(body) = names[1 + 3 * i].strip_suffix(".x") else {
             continue;
         };
         for c in POSITION.iter().chain(&VELOCITY).chain(&ACCELERATION) {
             let full = format!("{body}.{c}");
-            if let Some(k) = names.iter().position(|n| *n == full) {
+            if let Some(&k) = first.get(full.as_str()) {
                 out[k] = Some(format!("{c}{}", i + 1));
             }
         }
@@ -129,8 +135,12 @@ pub fn write_atomic(path: &Path, text: &str) -> Result<(), OutputError> {
     let mut f = create_fresh(&tmp)?;
     f.write_all(text.as_bytes())
         .and_then(|_| f.sync_all())
-        .map_err(|e| OutputError::new(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| OutputError::new(path, e))
+        .map_err(|e| OutputError::new(&tmp, e))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| OutputError::new(path, e)))
+        .inspect_err(|_| {
+            // a full disk or a file-size limit leaves no temporary file
+            let _ = std::fs::remove_file(&tmp);
+        })
 }
 
 /// `path` with `suffix` appended to its file name.
@@ -138,4 +148,32 @@ pub fn sibling(path: &Path, suffix: &str) -> PathBuf {
     let mut s = path.as_os_str().to_owned();
     s.push(suffix);
     PathBuf::from(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A write that cannot complete (here the rename: the target is a
+    /// non-empty directory; on a full disk the write itself) is an error
+    /// naming the file and leaves no temporary file beside it.
+    #[test]
+    fn a_failed_atomic_write_leaves_no_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("run.summary.json");
+        std::fs::create_dir(&target).unwrap();
+        std::fs::write(target.join("inside"), "x").unwrap();
+        let e = write_atomic(&target, "{}\n").unwrap_err().to_string();
+        assert!(e.contains("run.summary.json"), "{e}");
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["run.summary.json"], "left behind: {names:?}");
+        // and a good write leaves only its file
+        let good = dir.path().join("good.json");
+        write_atomic(&good, "{}\n").unwrap();
+        assert_eq!(std::fs::read_to_string(&good).unwrap(), "{}\n");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
 }

@@ -39,7 +39,7 @@ impl Table {
 
     /// The index of the column named `name`: its name, or a positional
     /// name of earlier versions (`x1`, `phi3`; [`mbsolve::output::find_column`]).
-    fn find(&self, name: &str) -> Option<usize> {
+    pub fn find(&self, name: &str) -> Option<usize> {
         let names: Vec<&str> = self.names.iter().map(String::as_str).collect();
         mbsolve::output::find_column(&names, name)
     }

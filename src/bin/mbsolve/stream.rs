@@ -24,26 +24,74 @@ use std::time::{Duration, Instant};
 pub static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// Install the SIGINT/SIGTERM handler (once). A second signal while the
-/// first is being handled exits at once with 130.
+/// first is being handled exits at once with 130, leaving a summary that
+/// says which of the run's files are whole ([`second_signal`]).
 pub fn install_interrupt_handler() {
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, Ordering::SeqCst) {
-            // the summary must not stay "running": say what happened
-            if let Some(p) = SUMMARY.lock().ok().and_then(|g| g.clone()) {
-                let _ = std::fs::write(&p, SECOND_SIGNAL_SUMMARY);
-            }
+            second_signal();
             std::process::exit(130);
         }
     });
 }
 
-/// The summary of the run in progress, for the second signal's handler.
-static SUMMARY: std::sync::Mutex<Option<PathBuf>> = std::sync::Mutex::new(None);
+/// Ignore SIGXFSZ, so that a write beyond the file-size limit (`ulimit -f`)
+/// fails with "File too large" and the run ends as `"failed"` with its
+/// summary written, instead of the signal killing the process and leaving
+/// a `"running"` summary and the lock.
+pub fn ignore_file_size_signal() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_IGN, before any thread
+    // that writes files is started
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
 
-/// The summary a second signal leaves (written in place, no temporary file).
-const SECOND_SIGNAL_SUMMARY: &str = "{\n  \"status\": \"interrupted\",\n  \"message\": \"a second \
-    signal ended the process at once: the table was not finished; its rows up to the last \
-    flush are in the .part file\"\n}\n";
+/// The files of the run in progress, for the second signal's handler;
+/// `None` before they are claimed and once the final summary is written.
+static CLAIMED: std::sync::Mutex<Option<Claimed>> = std::sync::Mutex::new(None);
+
+/// What a run has claimed in its output directory.
+struct Claimed {
+    /// `DIR/<stem>.summary.json`.
+    summary: PathBuf,
+    /// The finished table, `DIR/<stem>.csv` or `.arrow`.
+    table: PathBuf,
+    /// The table being written, `DIR/<stem>.csv.part` or `.arrow.part`.
+    part: PathBuf,
+    /// `DIR/<stem>.lock`.
+    lock: PathBuf,
+}
+
+/// A second signal: the summary must not stay "running" nor claim what is
+/// not so. It is written in place (no temporary file) with status
+/// `"interrupted"` and says whether the table was finished (renamed from
+/// its `.part`) or not; this process's temporary summary and its lock are
+/// removed.
+fn second_signal() {
+    let Some(c) = CLAIMED.lock().ok().and_then(|mut g| g.take()) else {
+        return;
+    };
+    let _ = std::fs::remove_file(sibling(&c.summary, &format!(".{}.tmp", std::process::id())));
+    let message = if c.part.exists() || !c.table.exists() {
+        format!(
+            "a second signal ended the process at once: the table was not finished; its rows \
+             up to the last flush are in {}",
+            c.part.display()
+        )
+    } else {
+        format!(
+            "a second signal ended the process at once while the run's files were finished: \
+             the table {} is complete up to where the first signal stopped the run; the rest \
+             of this summary was lost",
+            c.table.display()
+        )
+    };
+    let text = serde_json::json!({"status": "interrupted", "message": message});
+    let _ = std::fs::write(&c.summary, format!("{text:#}\n"));
+    let _ = std::fs::remove_file(&c.lock);
+}
 
 /// Write `summary`; where the atomic write fails (disk full, file too
 /// large), overwrite the existing summary in place with its status and
@@ -63,6 +111,19 @@ pub fn time_text(t: f64) -> String {
     } else {
         format!("{t:e}")
     }
+}
+
+/// A size in bytes for a message: kB, MB or GB (10³, 10⁶, 10⁹ bytes) with
+/// three decimals, the unit chosen so the number is at least 1 (kB below).
+fn bytes_text(b: f64) -> String {
+    let (div, unit) = if b >= 1e9 {
+        (1e9, "GB")
+    } else if b >= 1e6 {
+        (1e6, "MB")
+    } else {
+        (1e3, "kB")
+    };
+    format!("{:.3} {unit}", b / div)
 }
 
 /// Free bytes for an unprivileged writer on the file system holding
@@ -114,7 +175,7 @@ pub fn check_space(
     format: Format,
 ) -> Result<Option<String>, String> {
     let bytes = rows * columns as f64 * format.bytes_per_value();
-    let gb = |b: f64| format!("{:.3} GB", b / 1e9);
+    let gb = bytes_text;
     let size = format!(
         "the table will take at least {} ({rows:.0} rows × {columns} columns × {} bytes, \
          {} format)",
@@ -384,8 +445,13 @@ impl<'s> RunFiles<'s> {
         let part = sibling(&csv, ".part");
         let text = serde_json::to_string_pretty(running).map_err(|e| OutputError::new(&json, e))?;
         write_atomic(&json, &(text + "\n"))?;
-        if let Ok(mut g) = SUMMARY.lock() {
-            *g = Some(json.clone());
+        if let Ok(mut g) = CLAIMED.lock() {
+            *g = Some(Claimed {
+                summary: json.clone(),
+                table: csv.clone(),
+                part: part.clone(),
+                lock: lock.path.clone(),
+            });
         }
         for f in Format::NAMES {
             remove_stale(&out.join(format!("{stem}.{f}")))?;
@@ -436,7 +502,7 @@ impl<'s> RunFiles<'s> {
                 }),
             None => Ok(()),
         };
-        match table {
+        let written = match table {
             Ok(()) => write_final_summary(&self.json, summary),
             Err(e) => {
                 // the table could not be finished: the run failed, and its
@@ -450,7 +516,17 @@ impl<'s> RunFiles<'s> {
                 let _ = write_final_summary(&self.json, &s);
                 Err(e)
             }
-        }
+        };
+        release_claim();
+        written
+    }
+}
+
+/// The final summary is written: a second signal from here on leaves the
+/// files alone.
+fn release_claim() {
+    if let Ok(mut g) = CLAIMED.lock() {
+        *g = None;
     }
 }
 
@@ -461,7 +537,9 @@ impl RunFiles<'_> {
         remove_stale(&self.part)?;
         let s = serde_json::json!({"status": "failed", "message": message, "output_rows": 0});
         let text = serde_json::to_string_pretty(&s).map_err(|e| OutputError::new(&self.json, e))?;
-        write_atomic(&self.json, &(text + "\n"))
+        let written = write_atomic(&self.json, &(text + "\n"));
+        release_claim();
+        written
     }
 }
 

@@ -481,6 +481,7 @@ pub fn run(
             let outcome = match &result {
                 Ok(s) if s.warnings.is_empty() => s.status.clone(),
                 Ok(s) => format!("{}, {} warnings: {}", s.status, s.warnings.len(), s.warnings[0]),
+                Err(e) if e == NOT_RUN => e.clone(),
                 Err(e) => format!("error: {e}"),
             };
             eprintln!(
@@ -718,7 +719,11 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
                 let status = if e == NOT_RUN { "not run" } else { "error" };
                 row.push(status.into());
                 messages.push(e.clone());
-                say!("{}: {status}: {e}", r.point.join(" "));
+                if e == NOT_RUN {
+                    say!("{}: {e}", r.point.join(" "));
+                } else {
+                    say!("{}: {status}: {e}", r.point.join(" "));
+                }
             }
         }
         row.resize(first.len() - 1, String::new());
