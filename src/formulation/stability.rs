@@ -121,12 +121,19 @@ pub fn fastest_modes(
             (0, 0.0),
             |a, b| if b.1 > a.1 || b.1.is_nan() { b } else { a },
         );
+    // each element adds to its footprint only (`ForceElement::coordinates`),
+    // so reading and clearing that footprint keeps the loop linear in the
+    // number of elements (a clear of all of `g` per element is quadratic)
     let mut g = vec![0.0; n];
     let mut loudest = (None, 0.0);
     for (e, f) in sys.forces().iter().enumerate() {
-        g.fill(0.0);
+        let footprint = f.coordinates();
         f.add_forces(t, q, qd, &mut g);
-        let a: f64 = g.iter().zip(mass).map(|(v, mi)| v * v / mi).sum::<f64>();
+        let mut a = 0.0;
+        for &i in &footprint {
+            a += g[i] * g[i] / mass[i];
+            g[i] = 0.0;
+        }
         if a > loudest.1 || (a.is_nan() && loudest.0.is_none()) {
             loudest = (Some(e), a);
         }
