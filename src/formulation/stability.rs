@@ -7,7 +7,8 @@
 //! damping rates `C x = σ M x` on that space. Their largest values come
 //! from power iteration on `x ← P M⁻¹ K x` (and `C`), where the
 //! M-orthogonal projection `P` onto `Φ_q x = 0` is the saddle-point solve
-//! `[M Φ_qᵀ; Φ_q 0] [x; μ] = [K v; 0]` — factorised once. The Rayleigh
+//! `[M Φ_qᵀ; Φ_q 0] [x; μ] = [K v; 0]` — factorised once
+//! ([`crate::linalg::SolverKind::Chain`]). The Rayleigh
 //! quotients never exceed the true maxima, so a limit derived from them is
 //! never stricter than the truth.
 //!
@@ -103,7 +104,10 @@ pub fn fastest_modes(
     sys.jacobian_values(q, t, &mut jac);
     k.set_a_diagonal(sys.mass_diagonal());
     k.set_jacobian(&jac);
-    let mut solver = solver_for(SolverKind::Sparse, n + m, SolverOptions::default());
+    // the envelope LDLᵀ for chain patterns, faer's sparse LDLᵀ otherwise
+    // (`ChainLdlt`): the two agree to rounding, and the envelope's solves
+    // stay linear in the chain's length where faer's fall out of the cache
+    let mut solver = solver_for(SolverKind::Chain, n + m, SolverOptions::default());
     let lin = linear_at(t);
     solver.analyze(&k).map_err(lin)?;
     solver.factorize(&k).map_err(lin)?;
