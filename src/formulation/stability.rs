@@ -7,7 +7,8 @@
 //! damping rates `C x = σ M x` on that space. Their largest values come
 //! from power iteration on `x ← P M⁻¹ K x` (and `C`), where the
 //! M-orthogonal projection `P` onto `Φ_q x = 0` is the saddle-point solve
-//! `[M Φ_qᵀ; Φ_q 0] [x; μ] = [K v; 0]` — factorised once. The Rayleigh
+//! `[M Φ_qᵀ; Φ_q 0] [x; μ] = [K v; 0]` — factorised once
+//! ([`crate::linalg::SolverKind::Chain`]). The Rayleigh
 //! quotients never exceed the true maxima, so a limit derived from them is
 //! never stricter than the truth.
 //!
@@ -103,7 +104,10 @@ pub fn fastest_modes(
     sys.jacobian_values(q, t, &mut jac);
     k.set_a_diagonal(sys.mass_diagonal());
     k.set_jacobian(&jac);
-    let mut solver = solver_for(SolverKind::Sparse, n + m, SolverOptions::default());
+    // the envelope LDLᵀ for chain patterns, faer's sparse LDLᵀ otherwise
+    // (`ChainLdlt`): the two agree to rounding, and the envelope's solves
+    // stay linear in the chain's length where faer's fall out of the cache
+    let mut solver = solver_for(SolverKind::Chain, n + m, SolverOptions::default());
     let lin = linear_at(t);
     solver.analyze(&k).map_err(lin)?;
     solver.factorize(&k).map_err(lin)?;
@@ -121,12 +125,19 @@ pub fn fastest_modes(
             (0, 0.0),
             |a, b| if b.1 > a.1 || b.1.is_nan() { b } else { a },
         );
+    // each element adds to its footprint only (`ForceElement::coordinates`),
+    // so reading and clearing that footprint keeps the loop linear in the
+    // number of elements (a clear of all of `g` per element is quadratic)
     let mut g = vec![0.0; n];
     let mut loudest = (None, 0.0);
     for (e, f) in sys.forces().iter().enumerate() {
-        g.fill(0.0);
+        let footprint = f.coordinates();
         f.add_forces(t, q, qd, &mut g);
-        let a: f64 = g.iter().zip(mass).map(|(v, mi)| v * v / mi).sum::<f64>();
+        let mut a = 0.0;
+        for &i in &footprint {
+            a += g[i] * g[i] / mass[i];
+            g[i] = 0.0;
+        }
         if a > loudest.1 || (a.is_nan() && loudest.0.is_none()) {
             loudest = (Some(e), a);
         }

@@ -29,7 +29,7 @@
 //! where the real embedding `[K_r −K_i; K_i K_r]` of size `2 dim` through
 //! a sparse LU cost ≈ 50 × (measured in `docs/radau.md`).
 
-use super::chain::{Envelope, Scatter, PARALLEL_MIN_DIM};
+use super::chain::{Envelope, Fill, Scatter, PARALLEL_MIN_DIM};
 use super::sparse::{coordinate_scale, multiplier_scale};
 use super::{LinalgError, SaddleMatrix, Storage, DEFAULT_EPSILON};
 use crate::parallel::join_if;
@@ -114,7 +114,7 @@ pub struct ComplexChainLdlt {
     /// Where each value of `K` goes, by part (`T`, `B`, `S`): its slot,
     /// its position in `env` (`L` rows, then the pivots from `ptr[dim]`),
     /// its permuted row and column.
-    fill: [Vec<(u32, u32, u32, u32)>; 3],
+    fill: [Vec<Fill>; 3],
     dslot: Vec<usize>,
     phi_ptr: Vec<usize>,
     phi_ent: Vec<(usize, usize)>,
@@ -171,7 +171,7 @@ impl Part<'_> {
     #[allow(clippy::too_many_arguments)]
     fn load(
         &self,
-        fill: &[(u32, u32, u32, u32)],
+        fill: &[Fill],
         profile: usize,
         base: usize,
         ps_base: usize,
@@ -182,7 +182,13 @@ impl Part<'_> {
         lower.fill(C::ZERO);
         diag.fill(C::ZERO);
         let (p0, nl) = (self.ptr[base], lower.len());
-        for &(slot, pos, row, col) in fill {
+        for &Fill {
+            slot,
+            pos,
+            row,
+            col,
+        } in fill
+        {
             let v = self.value(slot as usize);
             if !(v.re.is_finite() && v.im.is_finite()) {
                 return Err(LinalgError::NonFinite {
@@ -285,31 +291,27 @@ impl ComplexChainLdlt {
             first,
             fa,
             ptr,
-            fill,
+            mut fill,
             dslot,
             phi_ptr,
             phi_ent,
             ..
         } = Envelope::analyze(k, split)?;
         let profile = ptr[dim];
-        // positions in each part's storage → positions in `env`
+        // positions in each part's storage → positions in `env`, in place
+        // (no second copy of the slot map)
         let parts = [0..s0, s0..sb, sb..dim];
-        let mut global: [Vec<(u32, u32, u32, u32)>; 3] = Default::default();
-        for (p, part) in fill.iter().enumerate() {
-            let r = &parts[p];
+        for (part, r) in fill.iter_mut().zip(&parts) {
             let (p0, nl) = (ptr[r.start], ptr[r.end] - ptr[r.start]);
-            global[p] = part
-                .iter()
-                .map(|f| {
-                    let pos = f.pos as usize;
-                    let g = if pos < nl {
-                        p0 + pos
-                    } else {
-                        profile + r.start + (pos - nl)
-                    };
-                    (f.slot, g as u32, f.row, f.col)
-                })
-                .collect();
+            for f in part.iter_mut() {
+                let pos = f.pos as usize;
+                let g = if pos < nl {
+                    p0 + pos
+                } else {
+                    profile + r.start + (pos - nl)
+                };
+                f.pos = g as u32;
+            }
         }
         Some(Self {
             dim,
@@ -321,7 +323,7 @@ impl ComplexChainLdlt {
             first,
             fa,
             ptr,
-            fill: global,
+            fill,
             dslot,
             phi_ptr,
             phi_ent,

@@ -22,17 +22,51 @@ fn row_groups(k: &SaddleMatrix) -> Option<Vec<(usize, usize)>> {
     (!group.iter().any(|g| g.0 == usize::MAX)).then_some(group)
 }
 
+/// Items `0..keys.len()` bucketed by key (`None`: left out) in
+/// compressed storage: bucket `b` is `idx[start[b]..start[b + 1]]`, each
+/// in increasing item order (a stable counting sort: one allocation
+/// instead of a `Vec` per bucket).
+fn buckets(n_buckets: usize, keys: impl Iterator<Item = Option<usize>> + Clone) -> Buckets {
+    let mut start = vec![0usize; n_buckets + 1];
+    for b in keys.clone().flatten() {
+        start[b + 1] += 1;
+    }
+    for b in 0..n_buckets {
+        start[b + 1] += start[b];
+    }
+    let mut next = start[..n_buckets].to_vec();
+    let mut idx = vec![0usize; start[n_buckets]];
+    for (item, key) in keys.enumerate() {
+        if let Some(b) = key {
+            idx[next[b]] = item;
+            next[b] += 1;
+        }
+    }
+    Buckets { start, idx }
+}
+
+/// The result of [`buckets`].
+struct Buckets {
+    start: Vec<usize>,
+    idx: Vec<usize>,
+}
+
+impl Buckets {
+    /// Items of bucket `b`, in increasing order.
+    fn of(&self, b: usize) -> &[usize] {
+        &self.idx[self.start[b]..self.start[b + 1]]
+    }
+}
+
 /// The one-sided body-by-body order: group after group, each group's
 /// coordinates, then the multiplier rows whose highest body it is.
 fn plain_order(n: usize, groups: &[(usize, usize)]) -> Vec<usize> {
-    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n / 3];
-    for (r, &(_, hi)) in groups.iter().enumerate() {
-        rows_of[hi].push(n + r);
-    }
+    let ng = n / 3;
+    let rows_of = buckets(ng, groups.iter().map(|&(_, hi)| Some(hi)));
     let mut perm = Vec::with_capacity(n + groups.len());
-    for (g, rows) in rows_of.iter().enumerate() {
+    for g in 0..ng {
         perm.extend(3 * g..3 * g + 3);
-        perm.extend_from_slice(rows);
+        perm.extend(rows_of.of(g).iter().map(|&r| n + r));
     }
     perm
 }
@@ -45,30 +79,32 @@ fn plain_order(n: usize, groups: &[(usize, usize)]) -> Vec<usize> {
 fn split_order(n: usize, groups: &[(usize, usize)]) -> (Vec<usize>, usize, usize) {
     let ng = n / 3;
     let gm = ng / 2;
-    let (mut t_rows, mut b_rows) = (vec![Vec::new(); ng], vec![Vec::new(); ng]);
-    let mut s_rows = Vec::new();
-    for (r, &(lo, hi)) in groups.iter().enumerate() {
-        if hi < gm {
-            t_rows[hi].push(n + r);
-        } else if lo > gm {
-            b_rows[lo].push(n + r);
-        } else {
-            s_rows.push(n + r);
-        }
-    }
+    // a row's bucket: its highest body in T, its lowest in B, `ng` for S
+    let rows = buckets(
+        ng + 1,
+        groups.iter().map(|&(lo, hi)| {
+            Some(if hi < gm {
+                hi
+            } else if lo > gm {
+                lo
+            } else {
+                ng
+            })
+        }),
+    );
     let mut perm = Vec::with_capacity(n + groups.len());
-    for (g, rows) in t_rows.iter().enumerate().take(gm) {
+    for g in 0..gm {
         perm.extend(3 * g..3 * g + 3);
-        perm.extend_from_slice(rows);
+        perm.extend(rows.of(g).iter().map(|&r| n + r));
     }
     let s0 = perm.len();
     for g in (gm + 1..ng).rev() {
         perm.extend(3 * g..3 * g + 3);
-        perm.extend_from_slice(&b_rows[g]);
+        perm.extend(rows.of(g).iter().map(|&r| n + r));
     }
     let sb = perm.len();
     perm.extend(3 * gm..3 * gm + 3);
-    perm.extend_from_slice(&s_rows);
+    perm.extend(rows.of(ng).iter().map(|&r| n + r));
     (perm, s0, sb)
 }
 
@@ -142,7 +178,14 @@ impl Envelope {
         // ptr[part start], then the part's pivots
         let parts = [0..s0, s0..sb, sb..dim];
         let part_of = |i: usize| usize::from(i >= s0) + usize::from(i >= sb);
-        let mut fill: [Vec<Fill>; 3] = Default::default();
+        // each part's storage sized exactly (counted first: no growth slack)
+        let mut count = [0usize; 3];
+        for c in 0..dim {
+            for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
+                count[part_of(inv[r].max(inv[c]))] += 1;
+            }
+        }
+        let mut fill: [Vec<Fill>; 3] = count.map(Vec::with_capacity);
         for c in 0..dim {
             for s in col_ptr[c]..col_ptr[c + 1] {
                 let (a, b) = (inv[row_idx[s]], inv[c]);
@@ -169,19 +212,17 @@ impl Envelope {
         }
         let diag_slots = k.diag_slots();
         let dslot: Vec<usize> = perm.iter().map(|&j| diag_slots[j]).collect();
-        let mut phi_rows: Vec<Vec<(usize, usize)>> = vec![Vec::new(); dim];
+        // the Φ_q entries (slots `col_ptr[0]..col_ptr[n]`, multiplier rows)
+        // by permuted row, in slot order within a row
+        let rows_of_slot = |s: usize| (row_idx[s] >= n).then(|| inv[row_idx[s]]);
+        let by_row = buckets(dim, (0..col_ptr[n]).map(rows_of_slot));
+        let mut col_of_slot = vec![0usize; col_ptr[n]];
         for c in 0..n {
-            for s in col_ptr[c]..col_ptr[c + 1] {
-                if row_idx[s] >= n {
-                    phi_rows[inv[row_idx[s]]].push((s, inv[c]));
-                }
-            }
+            col_of_slot[col_ptr[c]..col_ptr[c + 1]].fill(inv[c]);
         }
-        let mut phi_ptr = vec![0usize; dim + 1];
-        for (i, r) in phi_rows.iter().enumerate() {
-            phi_ptr[i + 1] = phi_ptr[i] + r.len();
-        }
-        let phi_ent = phi_rows.concat();
+        let phi_ptr = by_row.start;
+        let phi_ent: Vec<(usize, usize)> =
+            by_row.idx.iter().map(|&s| (s, col_of_slot[s])).collect();
         let positive = perm.iter().map(|&i| i < n).collect();
         Some(Self {
             dim,
