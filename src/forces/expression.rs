@@ -12,6 +12,8 @@ use super::{ForceElement, ForceJacobians};
 use mbsolve_codegen::{parse, Ctx, Id, ParseError, Tape};
 use std::sync::Mutex;
 
+mod joint;
+
 /// Why an expression load cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum ExpressionError {

@@ -150,6 +150,10 @@ impl SystemBuilder {
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
     }
+    /// Joints added so far, in row order.
+    pub fn constraints(&self) -> &[Box<dyn Constraint>] {
+        &self.constraints
+    }
     /// Force elements added so far (the index the next one gets).
     pub fn n_forces(&self) -> usize {
         self.forces.len()

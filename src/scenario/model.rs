@@ -369,14 +369,37 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         &mut names,
         file,
     )?;
+    let mut joints = Vec::with_capacity(raw.joint.len());
     for (k, j) in raw.joint.iter().enumerate() {
         super::joints::add_joint(j, &mut builder, k, &names, &components.ends, file)?;
+        let last = builder.constraints().last().expect("a joint was added");
+        joints.push(super::forces::NamedJoint {
+            name: j
+                .name()
+                .map_or_else(|| format!("joint{}", k + 1), str::to_string),
+            kind: j
+                .0
+                .get("type")
+                .and_then(toml::Value::as_str)
+                .unwrap_or_default()
+                .into(),
+            geometry: last.geometry(),
+        });
     }
     let gravity = raw.gravity;
     let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
         let start = builder.n_forces();
-        super::forces::add_force(f, &mut builder, k, gravity, &names, &components.ends, file)?;
+        super::forces::add_force(
+            f,
+            &mut builder,
+            k,
+            gravity,
+            &names,
+            &components.ends,
+            &joints,
+            file,
+        )?;
         let name = f
             .name()
             .map_or_else(|| format!("force{}", k + 1), str::to_string);

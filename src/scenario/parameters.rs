@@ -393,7 +393,8 @@ fn evaluate_all(raw: &toml::Table) -> Result<HashMap<String, f64>, (String, Stri
 }
 
 /// Substitute parameters in `v` at `path` (last key segment `key`);
-/// `expression` is set inside a `type = "expression"` element.
+/// `expression` is set inside a `type = "expression"`, `"joint_torque"` or
+/// `"joint_force"` element.
 pub(super) fn walk(
     v: &mut toml::Value,
     path: &str,
@@ -404,8 +405,10 @@ pub(super) fn walk(
 ) {
     match v {
         toml::Value::Table(t) => {
-            let expr = t.get("type").and_then(toml::Value::as_str) == Some("expression")
-                || path.starts_with("metric[");
+            let expr = matches!(
+                t.get("type").and_then(toml::Value::as_str),
+                Some("expression" | "joint_torque" | "joint_force")
+            ) || path.starts_with("metric[");
             for (k, x) in t.iter_mut() {
                 walk(x, &format!("{path}.{k}"), k, expr, values, done);
             }

@@ -7,6 +7,7 @@ mod common;
 mod components;
 mod forces;
 mod functions;
+mod joint_loads;
 mod keys;
 mod names;
 mod overrides;

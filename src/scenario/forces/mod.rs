@@ -16,9 +16,12 @@ mod applied;
 mod contact;
 mod expression;
 mod fluid;
+mod joint;
 mod rotational;
 mod spring;
 mod torque;
+
+pub(super) use joint::NamedJoint;
 
 /// One `[[force]]` type: its struct (the keys it takes besides `type` and
 /// `name`, `deny_unknown_fields`) and how it adds its elements.
@@ -62,6 +65,8 @@ pub(super) const TYPES: &[ForceDecl] = &[
     decl::<contact::Contact>(),
     decl::<fluid::Fluid>(),
     decl::<expression::Expression>(),
+    decl::<joint::JointTorque>(),
+    decl::<joint::JointForce>(),
 ];
 
 /// What a force type builds with: the builder, where its table is, and
@@ -81,6 +86,8 @@ pub(super) struct Context<'a> {
     pub(super) ends: &'a HashMap<usize, f64>,
     /// The scenario file, for errors.
     pub(super) file: &'a str,
+    /// The `[[joint]]`s by name (for joint loads).
+    pub(super) joints: &'a [NamedJoint],
 }
 
 /// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
@@ -91,6 +98,7 @@ pub(super) fn add_force(
     gravity: Option<[f64; 2]>,
     names: &HashMap<String, usize>,
     ends: &HashMap<usize, f64>,
+    joints: &[NamedJoint],
     file: &str,
 ) -> Result<(), ScenarioError> {
     let kind = super::element::tag(
@@ -112,6 +120,7 @@ pub(super) fn add_force(
         names,
         ends,
         file,
+        joints,
     };
     (decl.add)(raw, &mut cx)
 }
