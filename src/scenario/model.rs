@@ -395,9 +395,11 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             &mut builder,
             k,
             gravity,
-            &names,
-            &components.ends,
-            &joints,
+            super::forces::Known {
+                names: &names,
+                ends: &components.ends,
+                joints: &joints,
+            },
             file,
         )?;
         let name = f

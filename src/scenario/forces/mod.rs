@@ -90,17 +90,32 @@ pub(super) struct Context<'a> {
     pub(super) joints: &'a [NamedJoint],
 }
 
+/// What the model knows when its forces are added: the names of bodies
+/// and joints, and the rods' and chains' half lengths.
+#[derive(Clone, Copy)]
+pub(super) struct Known<'a> {
+    /// Body index by name.
+    pub(super) names: &'a HashMap<String, usize>,
+    /// The half length of every rod segment and chain link by body index.
+    pub(super) ends: &'a HashMap<usize, f64>,
+    /// The `[[joint]]`s.
+    pub(super) joints: &'a [NamedJoint],
+}
+
 /// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
 pub(super) fn add_force(
     raw: &RawTagged,
     builder: &mut SystemBuilder,
     k: usize,
     gravity: Option<[f64; 2]>,
-    names: &HashMap<String, usize>,
-    ends: &HashMap<usize, f64>,
-    joints: &[NamedJoint],
+    known: Known<'_>,
     file: &str,
 ) -> Result<(), ScenarioError> {
+    let Known {
+        names,
+        ends,
+        joints,
+    } = known;
     let kind = super::element::tag(
         raw,
         &format!("force[{k}]"),
