@@ -194,8 +194,8 @@ impl RawTable {
     }
 }
 
-/// A load value: a function of time ([`RawFunction`]) or an expression
-/// string (only for `type = "expression"`).
+/// A load of `type = "expression"`: an expression string (a function of
+/// time, [`RawFunction`], is read to say so in the error).
 #[derive(Debug)]
 pub(super) enum RawLoad {
     Function(RawFunction),

@@ -59,7 +59,7 @@ const TEXT_KEYS: &[&str] = &[
 /// Keys of a `type = "expression"` force that hold expressions of t and
 /// coordinates, and the `expression` of a `[[metric]]`: parameters are
 /// substituted inside them.
-const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression"];
+const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression", "actuator"];
 
 /// Keys that hold expressions of t wherever they occur (a drive's
 /// `motion`, a contact's `wall_motion` and `road`): parameters are substituted inside them.
@@ -393,8 +393,9 @@ fn evaluate_all(raw: &toml::Table) -> Result<HashMap<String, f64>, (String, Stri
 }
 
 /// Substitute parameters in `v` at `path` (last key segment `key`);
-/// `expression` is set inside a `type = "expression"`, `"joint_torque"` or
-/// `"joint_force"` element.
+/// `expression` is set inside a force element whose loads may be expressions
+/// (`expression`, `joint_torque`, `joint_force`, and the functions of t of
+/// `torque`, `force` and `spring`).
 pub(super) fn walk(
     v: &mut toml::Value,
     path: &str,
@@ -407,7 +408,7 @@ pub(super) fn walk(
         toml::Value::Table(t) => {
             let expr = matches!(
                 t.get("type").and_then(toml::Value::as_str),
-                Some("expression" | "joint_torque" | "joint_force")
+                Some("expression" | "joint_torque" | "joint_force" | "torque" | "force" | "spring")
             ) || path.starts_with("metric[");
             for (k, x) in t.iter_mut() {
                 walk(x, &format!("{path}.{k}"), k, expr, values, done);

@@ -5,7 +5,7 @@
 //! [`TYPES`].
 
 use super::element::{keys_of, read, RawTagged};
-use super::model::{body_index, body_point, body_ref, RawLoad, RawPoint, RawTable};
+use super::model::{body_index, body_point, body_ref, RawPoint, RawTable};
 use super::{error, ScenarioError};
 use crate::forces::{ForceElement, Law};
 use crate::model::{BodyRef, ModelError, SystemBuilder, TimeFunction};
@@ -233,24 +233,28 @@ impl Context<'_> {
         Ok(law.1)
     }
 
-    /// The function of time at `fld` of a `kind` force element (an
-    /// expression string is an error: it needs `type = "expression"`).
+    /// The function of time at `fld` of a `kind` force element: every
+    /// form a drive's `motion` takes ([`super::joints::function_of_time`]:
+    /// a number, a polynomial or harmonic table, an expression of t, a
+    /// table of points); an expression that reads coordinates is an error
+    /// pointing to `type = "expression"`.
     pub(super) fn function(
         &self,
         kind: &str,
         fld: &str,
-        l: &RawLoad,
+        v: toml::Value,
     ) -> Result<TimeFunction, ScenarioError> {
-        match l {
-            RawLoad::Function(f) => Ok(f.to_function()),
-            RawLoad::Text(s) => Err(self.err(
-                fld,
-                format!(
-                    "\"{s}\": expressions need type = \"expression\"; a {kind} takes a number, \
-                     {{ polynomial = [...] }} or {{ amplitude, omega, phase, offset }}"
+        let text = v.as_str().map(str::to_string);
+        super::joints::function_of_time(v, fld).map_err(|(k, m)| {
+            let hint = match text {
+                Some(_) => format!(
+                    "; a {kind} takes a function of t only: loads that read coordinates \
+                     need type = \"expression\""
                 ),
-            )),
-        }
+                None => String::new(),
+            };
+            error(self.file, self.key(&k), format!("{m}{hint}"))
+        })
     }
 
     /// Validates a library element, naming the scenario key of a field
