@@ -36,6 +36,7 @@ mod model;
 mod parameters;
 mod run;
 mod sensor;
+mod state;
 mod templates;
 
 use components::{RawChain, RawRods};
@@ -141,6 +142,8 @@ struct RawScenario {
     sensor: Vec<RawTagged>,
     #[serde(default)]
     metric: Vec<metric::RawMetric>,
+    #[serde(default)]
+    state: Vec<state::RawState>,
 }
 
 /// A `KEY=VALUE` override of a scenario key and the command-line flag it

@@ -198,7 +198,7 @@ impl RawTable {
 /// time, [`RawFunction`], is read to say so in the error).
 #[derive(Debug)]
 pub(super) enum RawLoad {
-    Function(RawFunction),
+    Function,
     Text(String),
 }
 
@@ -208,7 +208,7 @@ impl<'de> Deserialize<'de> for RawLoad {
         match v {
             toml::Value::String(s) => Ok(RawLoad::Text(s)),
             v => RawFunction::try_from(v)
-                .map(RawLoad::Function)
+                .map(|_| RawLoad::Function)
                 .map_err(serde::de::Error::custom),
         }
     }
@@ -369,6 +369,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         &mut names,
         file,
     )?;
+    let states = super::state::add(&raw.state, &mut builder, &names, file)?;
     let mut joints = Vec::with_capacity(raw.joint.len());
     for (k, j) in raw.joint.iter().enumerate() {
         super::joints::add_joint(j, &mut builder, k, &names, &components.ends, file)?;
@@ -399,6 +400,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
                 names: &names,
                 ends: &components.ends,
                 joints: &joints,
+                states: &states,
             },
             file,
         )?;
@@ -407,6 +409,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             .map_or_else(|| format!("force{}", k + 1), str::to_string);
         forces.push((name, start..builder.n_forces()));
     }
+    super::state::add_rates(&raw.state, &states, &mut builder, &names, file)?;
     if let Some(g) = raw.gravity {
         builder.gravity(g);
     }

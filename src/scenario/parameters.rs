@@ -59,7 +59,15 @@ const TEXT_KEYS: &[&str] = &[
 /// Keys of a `type = "expression"` force that hold expressions of t and
 /// coordinates, and the `expression` of a `[[metric]]`: parameters are
 /// substituted inside them.
-const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression", "actuator"];
+const EXPRESSION_KEYS: &[&str] = &[
+    "torque",
+    "fx",
+    "fy",
+    "force",
+    "expression",
+    "actuator",
+    "derivative",
+];
 
 /// Keys that hold expressions of t wherever they occur (a drive's
 /// `motion`, a contact's `wall_motion` and `road`): parameters are substituted inside them.
@@ -90,6 +98,7 @@ const RESERVED: &[&str] = &[
     "include",
     "repeat",
     "metric",
+    "state",
 ];
 
 /// What the pass did: the original text of each replaced value by key path
@@ -409,7 +418,8 @@ pub(super) fn walk(
             let expr = matches!(
                 t.get("type").and_then(toml::Value::as_str),
                 Some("expression" | "joint_torque" | "joint_force" | "torque" | "force" | "spring")
-            ) || path.starts_with("metric[");
+            ) || path.starts_with("metric[")
+                || path.starts_with("state[");
             for (k, x) in t.iter_mut() {
                 walk(x, &format!("{path}.{k}"), k, expr, values, done);
             }

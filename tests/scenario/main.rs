@@ -12,4 +12,5 @@ mod keys;
 mod names;
 mod overrides;
 mod parameters;
+mod states;
 mod templates;

@@ -46,7 +46,7 @@ impl ForceType for Expression {
         let err = |fld: &str, message: String| cx.err(fld, message);
         let text = |fld: &str, l: &Option<RawLoad>| match l {
             Some(RawLoad::Text(s)) => Ok(s.clone()),
-            Some(RawLoad::Function(_)) => Err(err(
+            Some(RawLoad::Function) => Err(err(
                 fld,
                 "an expression element takes an expression string, e.g. \"-2*A.omega\"".into(),
             )),
@@ -127,7 +127,8 @@ impl ForceType for Expression {
             }
         }
         let map = |e| expression_error(cx, e);
-        let b = ExpressionLoadBuilder::new(&cx.name, &read);
+        let states = expression_names(names, cx.states, &texts).1;
+        let b = ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states);
         let b = if f.torque.is_some() {
             b.torque(
                 f.body.as_deref().unwrap_or_default(),
@@ -190,6 +191,26 @@ pub(super) fn bodies_named<'a>(
         }
     }
     read
+}
+
+/// The bodies and the controller states (name, coordinate) that `texts`
+/// read.
+pub(in crate::scenario) fn expression_names<'a>(
+    names: &'a HashMap<String, usize>,
+    states: &'a [(String, usize)],
+    texts: &[String],
+) -> (Vec<(&'a str, usize)>, Vec<(&'a str, usize)>) {
+    let mut read = Vec::new();
+    for t in texts {
+        for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
+            if let Some(s) = states.iter().find(|s| s.0 == tok) {
+                if !read.iter().any(|r: &(&str, usize)| r.1 == s.1) {
+                    read.push((s.0.as_str(), s.1));
+                }
+            }
+        }
+    }
+    (bodies_named(names, texts), read)
 }
 
 /// An [`ExpressionError`] as an error at the force's key.

@@ -103,7 +103,8 @@ fn builder(cx: &Context, text: &str, sides: &[&Option<String>]) -> ExpressionLoa
             }
         }
     }
-    ExpressionLoadBuilder::new(&cx.name, &read)
+    let states = super::expression::expression_names(cx.names, cx.states, &[text.to_string()]).1;
+    ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states)
 }
 
 impl ForceType for JointTorque {

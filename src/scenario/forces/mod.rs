@@ -21,6 +21,7 @@ mod rotational;
 mod spring;
 mod torque;
 
+pub(super) use expression::expression_names;
 pub(super) use joint::NamedJoint;
 
 /// One `[[force]]` type: its struct (the keys it takes besides `type` and
@@ -88,6 +89,8 @@ pub(super) struct Context<'a> {
     pub(super) file: &'a str,
     /// The `[[joint]]`s by name (for joint loads).
     pub(super) joints: &'a [NamedJoint],
+    /// The `[[state]]`s: (name, coordinate).
+    pub(super) states: &'a [(String, usize)],
 }
 
 /// What the model knows when its forces are added: the names of bodies
@@ -100,6 +103,8 @@ pub(super) struct Known<'a> {
     pub(super) ends: &'a HashMap<usize, f64>,
     /// The `[[joint]]`s.
     pub(super) joints: &'a [NamedJoint],
+    /// The `[[state]]`s: (name, coordinate).
+    pub(super) states: &'a [(String, usize)],
 }
 
 /// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
@@ -115,6 +120,7 @@ pub(super) fn add_force(
         names,
         ends,
         joints,
+        states,
     } = known;
     let kind = super::element::tag(
         raw,
@@ -136,6 +142,7 @@ pub(super) fn add_force(
         ends,
         file,
         joints,
+        states,
     };
     (decl.add)(raw, &mut cx)
 }
