@@ -185,3 +185,39 @@ fn the_documented_state_example_runs() {
     assert!(last[ie] > 0.0);
     col(&names, "filtered");
 }
+
+/// The shipped user models in the new form run: the PID arm reaches its
+/// three joint targets (its integral states carry gravity), the shaker's
+/// payload rides its spring on the table.
+#[test]
+fn the_shipped_pid_arm_and_shaker_run() {
+    let read = |f: &str| {
+        std::fs::read_to_string(format!("{}/scenarios/{f}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    };
+    let (names, rows) = run(&read("pid_arm.toml"));
+    let last = rows.last().unwrap();
+    let phi = |k: usize| last[col(&names, &format!("link{k}.phi"))];
+    for (got, want) in [
+        (phi(1), 0.6),
+        (phi(2) - phi(1), -0.4),
+        (phi(3) - phi(2), 0.3),
+    ] {
+        assert!(
+            (got - want).abs() < 5e-3,
+            "joint angle {got} vs target {want}"
+        );
+    }
+    assert!(last[col(&names, "e1")] > 0.0);
+    let (names, rows) = run(&read("shaker.toml"));
+    let (table, payload) = (col(&names, "table.y"), col(&names, "payload.y"));
+    let stroke = rows
+        .iter()
+        .map(|r| r[table])
+        .fold(f64::NEG_INFINITY, f64::max)
+        - rows.iter().map(|r| r[table]).fold(f64::INFINITY, f64::min);
+    assert!(
+        (stroke - 0.1).abs() < 1e-3,
+        "table stroke {stroke} (2 r = 0.1)"
+    );
+    assert!(rows.iter().all(|r| (r[payload] - r[table]).abs() < 0.05));
+}
