@@ -193,13 +193,16 @@ pub(super) fn bodies_named<'a>(
     read
 }
 
+/// Names with their body index or state coordinate.
+pub(in crate::scenario) type Named<'a> = Vec<(&'a str, usize)>;
+
 /// The bodies and the controller states (name, coordinate) that `texts`
 /// read.
 pub(in crate::scenario) fn expression_names<'a>(
     names: &'a HashMap<String, usize>,
     states: &'a [(String, usize)],
     texts: &[String],
-) -> (Vec<(&'a str, usize)>, Vec<(&'a str, usize)>) {
+) -> (Named<'a>, Named<'a>) {
     let mut read = Vec::new();
     for t in texts {
         for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
