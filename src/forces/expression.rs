@@ -12,6 +12,8 @@ use super::{ForceElement, ForceJacobians};
 use mbsolve_codegen::{parse, Ctx, Id, ParseError, Tape};
 use std::sync::Mutex;
 
+mod joint;
+
 /// Why an expression load cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum ExpressionError {
@@ -76,6 +78,9 @@ pub struct ExpressionLoadBuilder {
     q: Vec<Id>,
     qd: Vec<Id>,
     g: Vec<Id>,
+    /// Controller states read: (name, coordinate w, variable z = ẇ,
+    /// generalized force on w = ż).
+    states: Vec<(String, usize, Id, Id)>,
 }
 
 impl ExpressionLoadBuilder {
@@ -119,7 +124,37 @@ impl ExpressionLoadBuilder {
             t,
             q,
             qd,
+            states: Vec::new(),
         }
+    }
+
+    /// Let the expressions read the controller states `states` (name,
+    /// coordinate w of [`crate::model::SystemBuilder::add_state`]) by
+    /// name: the variable is z = ẇ; they join the Jacobian footprint.
+    pub fn with_states(mut self, states: &[(&str, usize)]) -> Self {
+        for &(n, w) in states {
+            if !self.states.iter().any(|s| s.1 == w) {
+                let z = self.ctx.var(n);
+                let zero = self.ctx.zero();
+                self.states.push((n.to_string(), w, z, zero));
+            }
+        }
+        self
+    }
+
+    /// The derivative ż \[unit of z per s\] of the controller state `state`
+    /// (given to [`ExpressionLoadBuilder::with_states`]): the generalized
+    /// force on its coordinate w.
+    pub fn state_rate(mut self, state: &str, rate: &str) -> Result<Self, ExpressionError> {
+        let Some(k) = self.states.iter().position(|s| s.0 == state) else {
+            return Err(ExpressionError::UnknownBody {
+                load: self.name.clone(),
+                body: state.into(),
+            });
+        };
+        let f = self.parse("derivative", rate, &[])?;
+        self.states[k].3 = self.ctx.add(self.states[k].3, f);
+        Ok(self)
     }
 
     fn local(&self, body: &str) -> Result<usize, ExpressionError> {
@@ -142,12 +177,16 @@ impl ExpressionLoadBuilder {
         extra: &[(&str, Id)],
     ) -> Result<Id, ExpressionError> {
         let (names, q, qd, t) = (&self.names, &self.q, &self.qd, self.t);
+        let states = &self.states;
         parse(&mut self.ctx, text, |n, _| {
             if n == "t" {
                 return Some(t);
             }
             if let Some(&(_, id)) = extra.iter().find(|e| e.0 == n) {
                 return Some(id);
+            }
+            if let Some(s) = states.iter().find(|s| s.0 == n) {
+                return Some(s.2);
             }
             let (b, c) = n.rsplit_once('.')?;
             let k = names.iter().find(|m| m.0 == b)?.1;
@@ -287,25 +326,56 @@ impl ExpressionLoadBuilder {
 
     /// Differentiate and compile.
     pub fn build(mut self) -> ExpressionLoad {
-        let n = self.q.len();
-        let mut outs = self.g.clone();
-        for v in self.q.clone().into_iter().chain(self.qd.clone()) {
-            let d = self.ctx.diff_many(&self.g, v);
+        // coordinates: the bodies' (x, y, φ each), then the states' w
+        let g: Vec<Id> = self
+            .g
+            .iter()
+            .copied()
+            .chain(self.states.iter().map(|s| s.3))
+            .collect();
+        let n = g.len();
+        let mut outs = g.clone();
+        // ∂g/∂q: the bodies' positions (nothing reads a state's w)
+        for v in self.q.clone() {
+            let d = self.ctx.diff_many(&g, v);
+            outs.extend(d);
+        }
+        let zero = self.ctx.zero();
+        outs.extend(std::iter::repeat_n(zero, n * self.states.len()));
+        // ∂g/∂q̇: the bodies' velocities, then the states z = ẇ
+        let zs: Vec<Id> = self.states.iter().map(|s| s.2).collect();
+        for v in self.qd.clone().into_iter().chain(zs) {
+            let d = self.ctx.diff_many(&g, v);
             outs.extend(d);
         }
         // outs = g (n), then column blocks ∂g/∂v for v in q, then q̇.
         let tape = Tape::new(&self.ctx, &outs);
-        let coords = self
+        let coords: Vec<usize> = self
             .bodies
             .iter()
             .flat_map(|&b| [3 * b, 3 * b + 1, 3 * b + 2])
+            .chain(self.states.iter().map(|s| s.1))
             .collect();
+        // where each variable of the tape comes from
+        let nb = self.q.len();
+        let mut fill = Vec::with_capacity(2 * nb + self.states.len());
+        let number = |id: Id| self.ctx.var_number(id).expect("a variable");
+        for (i, &c) in coords[..nb].iter().enumerate() {
+            fill.push((number(self.q[i]), false, c));
+            fill.push((number(self.qd[i]), true, c));
+        }
+        for s in &self.states {
+            fill.push((number(s.2), true, s.1));
+        }
+        let n_vars = self.ctx.n_vars();
         ExpressionLoad {
             name: self.name,
             coords,
+            time_var: number(self.t),
+            fill,
             scratch: Mutex::new(Scratch {
                 tape,
-                vars: vec![0.0; 1 + 2 * n],
+                vars: vec![0.0; n_vars],
                 out: vec![0.0; n + 2 * n * n],
             }),
         }
@@ -324,8 +394,14 @@ struct Scratch {
 #[derive(Debug)]
 pub struct ExpressionLoad {
     name: String,
-    /// Global coordinates of the named bodies (local order x, y, φ per body).
+    /// Global coordinates of the named bodies (local order x, y, φ per
+    /// body), then of the states read.
     coords: Vec<usize>,
+    /// The tape's variable number of t.
+    time_var: usize,
+    /// Every other variable of the tape: (its number, from q̇ rather than
+    /// q, the coordinate).
+    fill: Vec<(usize, bool, usize)>,
     scratch: Mutex<Scratch>,
 }
 
@@ -333,12 +409,10 @@ impl ExpressionLoad {
     /// Evaluate the tape at (t, q, q̇); returns the locked scratch.
     fn run(&self, t: f64, q: &[f64], qd: &[f64]) -> std::sync::MutexGuard<'_, Scratch> {
         let mut s = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let n = self.coords.len();
         let Scratch { tape, vars, out } = &mut *s;
-        vars[0] = t;
-        for (i, &c) in self.coords.iter().enumerate() {
-            vars[1 + i] = q[c];
-            vars[1 + n + i] = qd[c];
+        vars[self.time_var] = t;
+        for &(k, velocity, c) in &self.fill {
+            vars[k] = if velocity { qd[c] } else { q[c] };
         }
         tape.eval(vars, out);
         s

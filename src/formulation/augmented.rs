@@ -88,7 +88,7 @@ impl AugmentedParams {
     pub fn penalty(&self, sys: &System, s: f64) -> f64 {
         self.alpha.unwrap_or_else(|| {
             let m = sys.mass_diagonal();
-            let (sum, count) = m
+            let (sum, count) = m[..sys.n_body_coords()]
                 .chunks(3)
                 .flat_map(|b| b[..2].iter())
                 .fold((0.0, 0usize), |(a, c), v| (a + v, c + 1));

@@ -337,9 +337,10 @@ pub(crate) fn consistent_initial_state_locked(
             .max((rate - l.rate).abs());
         at += k;
     }
-    let body_moves = q_given
+    let nb = sys.n_body_coords();
+    let body_moves = q_given[..nb]
         .chunks(3)
-        .zip(q.chunks(3))
+        .zip(q[..nb].chunks(3))
         .map(|(a, b)| [(b[0] - a[0]).hypot(b[1] - a[1]), (b[2] - a[2]).abs()])
         .collect();
     Ok(ConsistentState {

@@ -117,7 +117,7 @@ pub fn fastest_modes(
     let mut rhs = vec![0.0; n + m];
     sys.forces_into(t, q, qd, &mut rhs[..n]);
     solver.solve_in_place(&k, &mut rhs).map_err(lin)?;
-    let (accel_body, accel) = rhs[..n]
+    let (accel_body, accel) = rhs[..sys.n_body_coords()]
         .chunks(3)
         .map(|b| b[0].hypot(b[1]))
         .enumerate()

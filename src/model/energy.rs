@@ -56,7 +56,7 @@ impl System {
         qd: &[f64],
         ws: &mut EnergyWorkspace,
     ) -> f64 {
-        let n = self.n_coords();
+        let (n, nb) = (self.n_coords(), self.n_body_coords());
         if ws.g.len() != n {
             ws.g = vec![0.0; n];
         }
@@ -75,7 +75,10 @@ impl System {
             let cols = &ws.cols[e];
             f.add_forces(t, q, qd, &mut ws.g);
             for &c in cols {
-                p += qd[c] * ws.g[c];
+                // the states' "forces" are their derivatives, not power
+                if c < nb {
+                    p += qd[c] * ws.g[c];
+                }
                 ws.g[c] = 0.0;
             }
             if ws.has_potential[e] {

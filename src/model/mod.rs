@@ -32,7 +32,7 @@ pub use sensor::joint_short_name;
 pub use sensor::{drives, Drive, Sensor, SensorKind};
 pub(crate) use sensor::{evaluate_sensors, point_state};
 pub use system::{
-    ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, System, SystemBuilder,
+    ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, State, System, SystemBuilder,
 };
 pub use time_function::TimeFunction;
 

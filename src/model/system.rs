@@ -83,6 +83,21 @@ pub struct System {
     force_plan: Vec<Segment>,
     /// The names messages give the force elements ([`System::force_label`]).
     force_names: Vec<Option<String>>,
+    /// Controller states ([`SystemBuilder::add_state`]), after the bodies'
+    /// coordinates.
+    states: Vec<State>,
+}
+
+/// A controller state z (first order, `ż = f`), held as the velocity of an
+/// extra coordinate w of unit mass (`ẅ = f`): every second-order method
+/// integrates it with the mechanism; it has no gravity, no constraints and
+/// no kinetic energy. The generalized force on w is the derivative f.
+#[derive(Debug, Clone)]
+pub struct State {
+    /// Its name (expressions read z by it; its output column).
+    pub name: String,
+    /// z(t0).
+    pub initial: f64,
 }
 
 /// Collects bodies, joints and force elements, then validates them into a [`System`].
@@ -94,9 +109,26 @@ pub struct SystemBuilder {
     gravity: Option<[f64; 2]>,
     kernels: Vec<(Range<usize>, Box<dyn ConstraintKernels>)>,
     force_kernels: Vec<(Range<usize>, Box<dyn ForceKernels>)>,
+    /// States, with the number of bodies when each was added.
+    states: Vec<(State, usize)>,
 }
 
 impl SystemBuilder {
+    /// Add a controller state ([`State`]) after every body (add the bodies
+    /// first); returns its coordinate w, `3 · bodies + k` for the k-th
+    /// state: z is `q̇[w]`, and a force element's generalized force on `w`
+    /// is `ż`.
+    pub fn add_state(&mut self, name: impl Into<String>, initial: f64) -> usize {
+        let w = 3 * self.bodies.len() + self.states.len();
+        self.states.push((
+            State {
+                name: name.into(),
+                initial,
+            },
+            self.bodies.len(),
+        ));
+        w
+    }
     /// An empty system.
     pub fn new() -> Self {
         Self::default()
@@ -150,6 +182,10 @@ impl SystemBuilder {
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
     }
+    /// Joints added so far, in row order.
+    pub fn constraints(&self) -> &[Box<dyn Constraint>] {
+        &self.constraints
+    }
     /// Force elements added so far (the index the next one gets).
     pub fn n_forces(&self) -> usize {
         self.forces.len()
@@ -186,7 +222,17 @@ impl SystemBuilder {
             self.forces.push(Box::new(Gravity { g, bodies }));
         }
         let nb = self.bodies.len();
-        let n = 3 * nb;
+        for (s, n_bodies) in &self.states {
+            if *n_bodies != nb || !s.initial.is_finite() {
+                return Err(ModelError::InvalidParameter {
+                    element: format!("state '{}'", s.name),
+                    field: "initial".into(),
+                    value: s.initial.to_string(),
+                    why: "must be finite, and states are added after every body".into(),
+                });
+            }
+        }
+        let n = 3 * nb + self.states.len();
         let mut row_offset = vec![0];
         let mut jac_offset = vec![0];
         let mut jac_pattern = Vec::new();
@@ -224,6 +270,7 @@ impl SystemBuilder {
             .bodies
             .iter()
             .flat_map(|b| [b.mass, b.mass, b.inertia])
+            .chain(self.states.iter().map(|_| 1.0))
             .collect();
         let mut sys = System {
             plan: (0..self.constraints.len()).map(Segment::Joint).collect(),
@@ -243,6 +290,7 @@ impl SystemBuilder {
             kernels: Vec::new(),
             use_kernels: false,
             force_names: Vec::new(),
+            states: self.states.into_iter().map(|s| s.0).collect(),
         };
         for (joints, k) in self.kernels {
             sys.attach_kernels(joints, k)?;
@@ -319,9 +367,17 @@ impl System {
             None => format!("force element #{i} ({what})"),
         }
     }
-    /// Number of coordinates n = 3 · bodies.
+    /// Number of coordinates n = 3 · bodies + states.
     pub fn n_coords(&self) -> usize {
         self.mass_diag.len()
+    }
+    /// Number of the bodies' coordinates, 3 · bodies (the states' come after).
+    pub fn n_body_coords(&self) -> usize {
+        3 * self.bodies.len()
+    }
+    /// The controller states, in coordinate order after the bodies'.
+    pub fn states(&self) -> &[State] {
+        &self.states
     }
     /// Number of constraint equations m.
     pub fn n_constraints(&self) -> usize {
@@ -341,8 +397,10 @@ impl System {
     }
     /// Initial positions and velocities as given on the bodies.
     pub fn initial_state(&self) -> (Vec<f64>, Vec<f64>) {
-        let q = self.bodies.iter().flat_map(|b| b.q0).collect();
-        let v = self.bodies.iter().flat_map(|b| b.v0).collect();
+        let q = self.bodies.iter().flat_map(|b| b.q0);
+        let q = q.chain(self.states.iter().map(|_| 0.0)).collect();
+        let v = self.bodies.iter().flat_map(|b| b.v0);
+        let v = v.chain(self.states.iter().map(|s| s.initial)).collect();
         (q, v)
     }
     /// Name of coordinate `k`, 1-based as in outputs: `x1`, `y1`, `phi1`, …
@@ -632,10 +690,9 @@ impl System {
             out[c] += v * y[r];
         }
     }
-    /// Kinetic energy ½ q̇ᵀ M q̇.
+    /// Kinetic energy ½ q̇ᵀ M q̇ of the bodies (the states have none).
     pub fn kinetic_energy(&self, qd: &[f64]) -> f64 {
-        0.5 * self
-            .mass_diag
+        0.5 * self.mass_diag[..self.n_body_coords()]
             .iter()
             .zip(qd)
             .map(|(m, v)| m * v * v)

@@ -61,6 +61,9 @@ pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Co
         }
     };
     per_body(&mut c, POSITION, ["m", "m", "rad"]);
+    for s in sys.states() {
+        c.push(Column::new(&s.name, ""));
+    }
     c.push(Column::new("constraint_norm", "m"));
     if o.velocities {
         per_body(&mut c, VELOCITY, ["m/s", "m/s", "rad/s"]);
@@ -264,15 +267,18 @@ impl<'s> RowBuilder<'s> {
         let (o, row) = (&self.o, &mut self.row);
         row.clear();
         row.push(s.t);
-        row.extend_from_slice(s.q);
+        // the bodies' coordinates, then each state z = q̇[w]
+        let nb = self.sys.n_body_coords();
+        row.extend_from_slice(&s.q[..nb]);
+        row.extend_from_slice(&s.qd[nb..]);
         row.push(s.constraint_norm);
         if o.velocities {
-            row.extend_from_slice(s.qd);
+            row.extend_from_slice(&s.qd[..nb]);
         }
         if o.accelerations {
             match s.qdd {
-                Some(a) => row.extend_from_slice(a),
-                None => row.extend(std::iter::repeat_n(f64::NAN, s.q.len())),
+                Some(a) => row.extend_from_slice(&a[..nb]),
+                None => row.extend(std::iter::repeat_n(f64::NAN, nb)),
             }
         }
         if o.reactions {

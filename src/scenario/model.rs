@@ -194,11 +194,11 @@ impl RawTable {
     }
 }
 
-/// A load value: a function of time ([`RawFunction`]) or an expression
-/// string (only for `type = "expression"`).
+/// A load of `type = "expression"`: an expression string (a function of
+/// time, [`RawFunction`], is read to say so in the error).
 #[derive(Debug)]
 pub(super) enum RawLoad {
-    Function(RawFunction),
+    Function,
     Text(String),
 }
 
@@ -208,7 +208,7 @@ impl<'de> Deserialize<'de> for RawLoad {
         match v {
             toml::Value::String(s) => Ok(RawLoad::Text(s)),
             v => RawFunction::try_from(v)
-                .map(RawLoad::Function)
+                .map(|_| RawLoad::Function)
                 .map_err(serde::de::Error::custom),
         }
     }
@@ -369,19 +369,47 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         &mut names,
         file,
     )?;
+    let states = super::state::add(&raw.state, &mut builder, &names, file)?;
+    let mut joints = Vec::with_capacity(raw.joint.len());
     for (k, j) in raw.joint.iter().enumerate() {
         super::joints::add_joint(j, &mut builder, k, &names, &components.ends, file)?;
+        let last = builder.constraints().last().expect("a joint was added");
+        joints.push(super::forces::NamedJoint {
+            name: j
+                .name()
+                .map_or_else(|| format!("joint{}", k + 1), str::to_string),
+            kind: j
+                .0
+                .get("type")
+                .and_then(toml::Value::as_str)
+                .unwrap_or_default()
+                .into(),
+            geometry: last.geometry(),
+        });
     }
     let gravity = raw.gravity;
     let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
         let start = builder.n_forces();
-        super::forces::add_force(f, &mut builder, k, gravity, &names, &components.ends, file)?;
+        super::forces::add_force(
+            f,
+            &mut builder,
+            k,
+            gravity,
+            super::forces::Known {
+                names: &names,
+                ends: &components.ends,
+                joints: &joints,
+                states: &states,
+            },
+            file,
+        )?;
         let name = f
             .name()
             .map_or_else(|| format!("force{}", k + 1), str::to_string);
         forces.push((name, start..builder.n_forces()));
     }
+    super::state::add_rates(&raw.state, &states, &mut builder, &names, file)?;
     if let Some(g) = raw.gravity {
         builder.gravity(g);
     }

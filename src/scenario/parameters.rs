@@ -59,7 +59,15 @@ const TEXT_KEYS: &[&str] = &[
 /// Keys of a `type = "expression"` force that hold expressions of t and
 /// coordinates, and the `expression` of a `[[metric]]`: parameters are
 /// substituted inside them.
-const EXPRESSION_KEYS: &[&str] = &["torque", "fx", "fy", "force", "expression"];
+const EXPRESSION_KEYS: &[&str] = &[
+    "torque",
+    "fx",
+    "fy",
+    "force",
+    "expression",
+    "actuator",
+    "derivative",
+];
 
 /// Keys that hold expressions of t wherever they occur (a drive's
 /// `motion`, a contact's `wall_motion` and `road`): parameters are substituted inside them.
@@ -90,6 +98,7 @@ const RESERVED: &[&str] = &[
     "include",
     "repeat",
     "metric",
+    "state",
 ];
 
 /// What the pass did: the original text of each replaced value by key path
@@ -393,7 +402,9 @@ fn evaluate_all(raw: &toml::Table) -> Result<HashMap<String, f64>, (String, Stri
 }
 
 /// Substitute parameters in `v` at `path` (last key segment `key`);
-/// `expression` is set inside a `type = "expression"` element.
+/// `expression` is set inside a force element whose loads may be expressions
+/// (`expression`, `joint_torque`, `joint_force`, and the functions of t of
+/// `torque`, `force` and `spring`).
 pub(super) fn walk(
     v: &mut toml::Value,
     path: &str,
@@ -404,8 +415,11 @@ pub(super) fn walk(
 ) {
     match v {
         toml::Value::Table(t) => {
-            let expr = t.get("type").and_then(toml::Value::as_str) == Some("expression")
-                || path.starts_with("metric[");
+            let expr = matches!(
+                t.get("type").and_then(toml::Value::as_str),
+                Some("expression" | "joint_torque" | "joint_force" | "torque" | "force" | "spring")
+            ) || path.starts_with("metric[")
+                || path.starts_with("state[");
             for (k, x) in t.iter_mut() {
                 walk(x, &format!("{path}.{k}"), k, expr, values, done);
             }

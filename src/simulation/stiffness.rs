@@ -149,7 +149,8 @@ fn growth_check(
     let cap = cfg.ode.max_steps as f64;
     // the loads' time scale: from rest, a body at the largest acceleration
     // crosses the mechanism's size in τ = √(2 L / a)
-    let (lo, hi) = q0.chunks(3).fold(
+    let qb = &q0[..sys.n_body_coords()];
+    let (lo, hi) = qb.chunks(3).fold(
         ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
         |(lo, hi), b| {
             (
@@ -158,7 +159,7 @@ fn growth_check(
             )
         },
     );
-    let largest = q0
+    let largest = qb
         .chunks(3)
         .flat_map(|b| b[..2].iter())
         .fold(1e-3, |a: f64, v| a.max(v.abs()));

@@ -133,7 +133,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
         let m = sys.n_constraints();
         let g = &cfg.guards;
         // length scale: the largest position coordinate of q0 (x, y of each body)
-        let l = q0
+        let l = q0[..sys.n_body_coords()]
             .chunks(3)
             .flat_map(|b| b[..2].iter())
             .fold(1e-3, |a: f64, v| a.max(v.abs()));
@@ -147,7 +147,7 @@ impl<'s, 'm, 'd, 'k> Watch<'s, 'm, 'd, 'k> {
         // the mechanism's size: the diagonal of the box around the bodies'
         // reference points at t0, at least `l`
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for b in q0.chunks(3) {
+        for b in q0[..sys.n_body_coords()].chunks(3) {
             for k in 0..2 {
                 lo[k] = lo[k].min(b[k]);
                 hi[k] = hi[k].max(b[k]);
@@ -396,7 +396,10 @@ impl Watch<'_, '_, '_, '_> {
     /// The velocity-level guard at an output: ‖Φ̇‖ = ‖Φ_q q̇ + Φ_t‖ beyond
     /// `100 (rtol V + atol)`, V the largest body speed seen so far.
     fn guard_velocity(&mut self, t: f64, qd: &[f64], vn: f64) {
-        let v = qd.chunks(3).map(|b| b[0].hypot(b[1])).fold(0.0, f64::max);
+        let v = qd[..self.sys.n_body_coords()]
+            .chunks(3)
+            .map(|b| b[0].hypot(b[1]))
+            .fold(0.0, f64::max);
         if v.is_finite() {
             self.speed = self.speed.max(v);
         }
@@ -424,7 +427,7 @@ impl Watch<'_, '_, '_, '_> {
                 self.phi_warn, self.advice
             ));
         }
-        let pos = q
+        let pos = q[..self.sys.n_body_coords()]
             .chunks(3)
             .flat_map(|b| b[..2].iter())
             .fold(0.0, |a: f64, v| a.max(v.abs()));

@@ -388,7 +388,7 @@ fn examples_of_the_scenario_reference_build() {
             n += 1;
         }
     }
-    assert_eq!(n, 8, "examples found");
+    assert_eq!(n, 10, "examples found");
     let complete = blocks
         .iter()
         .find(|b| b.starts_with("name = \"spring_pendulum\""))

@@ -318,3 +318,81 @@ fn a_road_profile_equals_the_equivalent_wall() {
         "{e}"
     );
 }
+
+/// The loads of `torque`, `force` and `spring` take the motions' forms: a
+/// torque `"0.5*sin(3*t)"` on a free body gives `φ = (0.5/I)(t/3 −
+/// sin(3t)/9)`; a force tabulated linearly `fx = 2 t` up to t = 1, then 2,
+/// gives `x = t³/(3m)` up to 1 and the parabola after; a spring actuator
+/// as an expression equals the same polynomial table.
+#[test]
+fn loads_take_expressions_and_tables_of_t() {
+    /// (t, q) at the output times (these models have no multipliers).
+    #[derive(Default)]
+    struct Positions(Vec<(f64, Vec<f64>)>);
+    impl Sink for Positions {
+        fn output(
+            &mut self,
+            s: &Sample<'_>,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            self.0.push((s.t, s.q.to_vec()));
+            Ok(())
+        }
+    }
+    let run = |text: &str| {
+        let sc = parse(text);
+        let mut rows = Positions::default();
+        let s = simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut rows).unwrap();
+        assert_eq!(s.status, "completed", "{s:?}");
+        assert!(rows.0.len() > 10);
+        rows
+    };
+    let text = "gravity = [0.0, 0.0]\n\
+         [[body]]\nname = \"w\"\nmass = 1.0\ninertia = 0.25\n\
+         [[body]]\nname = \"p\"\nmass = 2.0\ninertia = 0.1\nx = 1.0\n\
+         [[force]]\ntype = \"torque\"\nbody = \"w\"\ntorque = \"0.5*sin(3*t)\"\n\
+         [[force]]\ntype = \"force\"\nbody = \"p\"\nfy = 0.0\n\
+         fx = { t = [0.0, 1.0, 2.0], value = [0.0, 2.0, 2.0], spline = \"linear\" }\n\
+         [integrator]\nmethod = \"ode45\"\nrtol = 1e-11\natol = 1e-13\n[time]\nend = 2.0\n\
+         [output]\ndt = 0.05\n";
+    let rows = run(text);
+    for (t, q) in &rows.0 {
+        let phi = 0.5 / 0.25 * (t / 3.0 - (3.0 * t).sin() / 9.0);
+        assert!((q[2] - phi).abs() < 1e-8, "t = {t}: φ {} vs {phi}", q[2]);
+        let x = if *t <= 1.0 {
+            t.powi(3) / 6.0
+        } else {
+            1.0 / 6.0 + 0.5 * (t - 1.0) + 0.5 * (t - 1.0).powi(2)
+        };
+        assert!(
+            (q[3] - 1.0 - x).abs() < 1e-7,
+            "t = {t}: x {} vs {x}",
+            q[3] - 1.0
+        );
+    }
+    // a spring actuator: the expression equals the polynomial table
+    let spring = |actuator: &str| {
+        format!(
+            "gravity = [0.0, 0.0]\n[[body]]\nname = \"m\"\nmass = 1.0\ninertia = 0.1\nx = 1.0\n\
+             [[force]]\ntype = \"spring\"\nbody_i = \"ground\"\nbody_j = \"m\"\nfree_length = 1.0\n\
+             stiffness = 10.0\nactuator = {actuator}\n\
+             [integrator]\nmethod = \"rk4\"\nstep = 1e-3\n[time]\nend = 1.0\n\
+             [output]\ndt = 0.05\n"
+        )
+    };
+    let (a, b) = (
+        run(&spring("\"1 + 2*t - t^2\"")),
+        run(&spring("{ polynomial = [1.0, 2.0, -1.0] }")),
+    );
+    for (r, s) in a.0.iter().zip(&b.0) {
+        assert!((r.1[0] - s.1[0]).abs() < 1e-13, "{} vs {}", r.1[0], s.1[0]);
+    }
+    assert!((a.0.last().unwrap().1[0] - 1.0).abs() > 1e-3);
+    // an expression reading coordinates is refused with a pointer
+    let e = err(&text.replace("0.5*sin(3*t)", "-w.phi"));
+    assert!(
+        e.contains("f.toml")
+            && e.contains("force[0].torque")
+            && e.contains("type = \"expression\""),
+        "{e}"
+    );
+}

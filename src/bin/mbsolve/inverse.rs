@@ -27,6 +27,7 @@ fn inverse(
     out: &Path,
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
+    sc.refuse_states("inverse")?;
     let sys = &sc.system;
     let stem = path
         .file_stem()

@@ -59,6 +59,7 @@ pub struct LinearizeArgs {
 pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
     let file = a.scenario.display().to_string();
     let sc = scenario::load(&a.scenario, &a.set).map_err(|e| e.to_string())?;
+    sc.refuse_states("linearize")?;
     let sys = &sc.system;
     let inputs = a
         .inputs

@@ -90,6 +90,7 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         }
         At::Initial | At::Time(_) => {
             let sc = scenario::load(path, a.set).map_err(|e| e.to_string())?;
+            sc.refuse_states("modes")?;
             let (t, q, qd) = match a.at {
                 At::Time(t) => crate::linearize::state_at_time(&sc, t)
                     .map_err(|e| format!("{}: --at t={t}: {e}", path.display()))?,

@@ -21,6 +21,7 @@ pub const NEUTRAL_HZ: f64 = 1e-3;
 /// initial state, at the run's t₀); errors as text.
 pub fn equilibrium_of(path: &Path, set: &[String]) -> Result<(Scenario, Equilibrium), String> {
     let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
+    sc.refuse_states("static")?;
     let opts = StaticOptions {
         t0: sc.run.t0,
         ..Default::default()

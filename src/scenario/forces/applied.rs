@@ -3,7 +3,7 @@
 use super::{Context, ForceType};
 use crate::forces::AppliedForce;
 use crate::model::BodyRef;
-use crate::scenario::model::{RawLoad, RawPoint};
+use crate::scenario::model::RawPoint;
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
 
@@ -15,10 +15,10 @@ pub(in crate::scenario) struct Force {
     body: String,
     /// Point of application, body frame [m]; default the origin.
     point: Option<RawPoint>,
-    /// Global x component [N], a function of t.
-    fx: RawLoad,
+    /// Global x component [N], a function of t (as a drive's `motion`).
+    fx: toml::Value,
     /// Global y component [N], a function of t.
-    fy: RawLoad,
+    fy: toml::Value,
 }
 
 impl ForceType for Force {
@@ -26,8 +26,8 @@ impl ForceType for Force {
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;
         let point = cx.point("point", self.point, BodyRef::Body(body))?;
-        let fx = cx.function(Self::TYPE, "fx", &self.fx)?;
-        let fy = cx.function(Self::TYPE, "fy", &self.fy)?;
+        let fx = cx.function(Self::TYPE, "fx", self.fx)?;
+        let fy = cx.function(Self::TYPE, "fy", self.fy)?;
         cx.builder.add_force(AppliedForce {
             name: cx.name.clone(),
             body,

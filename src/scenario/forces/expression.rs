@@ -9,6 +9,7 @@ use crate::model::BodyRef;
 use crate::scenario::model::{body_index, body_point, body_ref, unknown_body, RawLoad, RawPoint};
 use crate::scenario::{list, ScenarioError};
 use serde::Deserialize;
+use std::collections::HashMap;
 
 /// `[[force]]` of `type = "expression"`: the keys of one of its terms.
 #[derive(Debug, Deserialize)]
@@ -45,7 +46,7 @@ impl ForceType for Expression {
         let err = |fld: &str, message: String| cx.err(fld, message);
         let text = |fld: &str, l: &Option<RawLoad>| match l {
             Some(RawLoad::Text(s)) => Ok(s.clone()),
-            Some(RawLoad::Function(_)) => Err(err(
+            Some(RawLoad::Function) => Err(err(
                 fld,
                 "an expression element takes an expression string, e.g. \"-2*A.omega\"".into(),
             )),
@@ -102,9 +103,7 @@ impl ForceType for Expression {
             })
             .chain(f.force.clone())
             .collect();
-        // the bodies read: named in the texts as `B.<coordinate>`, and the
-        // term's own; a body under two names (aliases) is read by both
-        let mut read: Vec<(&str, usize)> = Vec::new();
+        let mut read = bodies_named(names, &texts);
         let mut note = |n: &str| {
             if let Some((s, &i)) = names.get_key_value(n) {
                 if !read.iter().any(|r| r.0 == s) {
@@ -112,13 +111,6 @@ impl ForceType for Expression {
                 }
             }
         };
-        for t in &texts {
-            for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
-                if let Some((b, _)) = tok.rsplit_once('.') {
-                    note(b);
-                }
-            }
-        }
         for (fld, b) in [
             ("body", &f.body),
             ("body_i", &f.body_i),
@@ -134,40 +126,9 @@ impl ForceType for Expression {
                 note(b);
             }
         }
-        let map = |e: ExpressionError| match e {
-            ExpressionError::Parse {
-                field,
-                text,
-                source,
-                ..
-            } => {
-                // A long text is shown by its start and length.
-                let shown = match text.char_indices().nth(60) {
-                    Some((cut, _)) => format!("\"{}…\" ({} bytes)", &text[..cut], text.len()),
-                    None => format!("\"{text}\""),
-                };
-                // an unknown `B.c`: say whether the body or the coordinate
-                let why = match &source.kind {
-                    mbsolve_codegen::ParseErrorKind::UnknownName(n) => match n.rsplit_once('.') {
-                        Some((b, _)) if names.contains_key(b) => format!(
-                            " (a body's variables are {b}.x, {b}.y, {b}.phi, {b}.vx, {b}.vy, \
-                             {b}.omega)"
-                        ),
-                        Some((b, _)) => format!(" ({})", unknown_body(names, b)),
-                        None => String::new(),
-                    },
-                    _ => String::new(),
-                };
-                err(&field, format!("{shown}: {source}{why}"))
-            }
-            ExpressionError::UnknownBody { body, .. } => {
-                err("body", format!("no body named '{body}' ({})", list(names)))
-            }
-            ExpressionError::BadPoint { point, .. } => {
-                err("point", format!("{point:?} is not finite"))
-            }
-        };
-        let b = ExpressionLoadBuilder::new(&cx.name, &read);
+        let map = |e| expression_error(cx, e);
+        let states = expression_names(names, cx.states, &texts).1;
+        let b = ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states);
         let b = if f.torque.is_some() {
             b.torque(
                 f.body.as_deref().unwrap_or_default(),
@@ -208,5 +169,86 @@ impl ForceType for Expression {
         let load = b.build();
         cx.builder.add_force(load);
         Ok(())
+    }
+}
+
+/// The bodies an expression reads: those named in `texts` as
+/// `B.<coordinate>` (a body under two names, aliases, is read by both).
+pub(super) fn bodies_named<'a>(
+    names: &'a HashMap<String, usize>,
+    texts: &[String],
+) -> Vec<(&'a str, usize)> {
+    let mut read: Vec<(&str, usize)> = Vec::new();
+    for t in texts {
+        for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
+            if let Some((b, _)) = tok.rsplit_once('.') {
+                if let Some((s, &i)) = names.get_key_value(b) {
+                    if !read.iter().any(|r| r.0 == s) {
+                        read.push((s.as_str(), i));
+                    }
+                }
+            }
+        }
+    }
+    read
+}
+
+/// Names with their body index or state coordinate.
+pub(in crate::scenario) type Named<'a> = Vec<(&'a str, usize)>;
+
+/// The bodies and the controller states (name, coordinate) that `texts`
+/// read.
+pub(in crate::scenario) fn expression_names<'a>(
+    names: &'a HashMap<String, usize>,
+    states: &'a [(String, usize)],
+    texts: &[String],
+) -> (Named<'a>, Named<'a>) {
+    let mut read = Vec::new();
+    for t in texts {
+        for tok in t.split(|c: char| !(c.is_alphanumeric() || "_.[]".contains(c))) {
+            if let Some(s) = states.iter().find(|s| s.0 == tok) {
+                if !read.iter().any(|r: &(&str, usize)| r.1 == s.1) {
+                    read.push((s.0.as_str(), s.1));
+                }
+            }
+        }
+    }
+    (bodies_named(names, texts), read)
+}
+
+/// An [`ExpressionError`] as an error at the force's key.
+pub(super) fn expression_error(cx: &Context, e: ExpressionError) -> ScenarioError {
+    let names = cx.names;
+    let err = |fld: &str, message: String| cx.err(fld, message);
+    match e {
+        ExpressionError::Parse {
+            field,
+            text,
+            source,
+            ..
+        } => {
+            // A long text is shown by its start and length.
+            let shown = match text.char_indices().nth(60) {
+                Some((cut, _)) => format!("\"{}…\" ({} bytes)", &text[..cut], text.len()),
+                None => format!("\"{text}\""),
+            };
+            // an unknown `B.c`: say whether the body or the coordinate
+            let why = match &source.kind {
+                mbsolve_codegen::ParseErrorKind::UnknownName(n) => match n.rsplit_once('.') {
+                    Some((b, _)) if names.contains_key(b) => format!(
+                        " (a body's variables are {b}.x, {b}.y, {b}.phi, {b}.vx, {b}.vy, \
+                             {b}.omega)"
+                    ),
+                    Some((b, _)) => format!(" ({})", unknown_body(names, b)),
+                    None => String::new(),
+                },
+                _ => String::new(),
+            };
+            err(&field, format!("{shown}: {source}{why}"))
+        }
+        ExpressionError::UnknownBody { body, .. } => {
+            err("body", format!("no body named '{body}' ({})", list(names)))
+        }
+        ExpressionError::BadPoint { point, .. } => err("point", format!("{point:?} is not finite")),
     }
 }

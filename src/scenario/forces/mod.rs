@@ -5,7 +5,7 @@
 //! [`TYPES`].
 
 use super::element::{keys_of, read, RawTagged};
-use super::model::{body_index, body_point, body_ref, RawLoad, RawPoint, RawTable};
+use super::model::{body_index, body_point, body_ref, RawPoint, RawTable};
 use super::{error, ScenarioError};
 use crate::forces::{ForceElement, Law};
 use crate::model::{BodyRef, ModelError, SystemBuilder, TimeFunction};
@@ -16,9 +16,13 @@ mod applied;
 mod contact;
 mod expression;
 mod fluid;
+mod joint;
 mod rotational;
 mod spring;
 mod torque;
+
+pub(super) use expression::expression_names;
+pub(super) use joint::NamedJoint;
 
 /// One `[[force]]` type: its struct (the keys it takes besides `type` and
 /// `name`, `deny_unknown_fields`) and how it adds its elements.
@@ -62,6 +66,8 @@ pub(super) const TYPES: &[ForceDecl] = &[
     decl::<contact::Contact>(),
     decl::<fluid::Fluid>(),
     decl::<expression::Expression>(),
+    decl::<joint::JointTorque>(),
+    decl::<joint::JointForce>(),
 ];
 
 /// What a force type builds with: the builder, where its table is, and
@@ -81,6 +87,24 @@ pub(super) struct Context<'a> {
     pub(super) ends: &'a HashMap<usize, f64>,
     /// The scenario file, for errors.
     pub(super) file: &'a str,
+    /// The `[[joint]]`s by name (for joint loads).
+    pub(super) joints: &'a [NamedJoint],
+    /// The `[[state]]`s: (name, coordinate).
+    pub(super) states: &'a [(String, usize)],
+}
+
+/// What the model knows when its forces are added: the names of bodies
+/// and joints, and the rods' and chains' half lengths.
+#[derive(Clone, Copy)]
+pub(super) struct Known<'a> {
+    /// Body index by name.
+    pub(super) names: &'a HashMap<String, usize>,
+    /// The half length of every rod segment and chain link by body index.
+    pub(super) ends: &'a HashMap<usize, f64>,
+    /// The `[[joint]]`s.
+    pub(super) joints: &'a [NamedJoint],
+    /// The `[[state]]`s: (name, coordinate).
+    pub(super) states: &'a [(String, usize)],
 }
 
 /// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
@@ -89,10 +113,15 @@ pub(super) fn add_force(
     builder: &mut SystemBuilder,
     k: usize,
     gravity: Option<[f64; 2]>,
-    names: &HashMap<String, usize>,
-    ends: &HashMap<usize, f64>,
+    known: Known<'_>,
     file: &str,
 ) -> Result<(), ScenarioError> {
+    let Known {
+        names,
+        ends,
+        joints,
+        states,
+    } = known;
     let kind = super::element::tag(
         raw,
         &format!("force[{k}]"),
@@ -112,6 +141,8 @@ pub(super) fn add_force(
         names,
         ends,
         file,
+        joints,
+        states,
     };
     (decl.add)(raw, &mut cx)
 }
@@ -209,24 +240,28 @@ impl Context<'_> {
         Ok(law.1)
     }
 
-    /// The function of time at `fld` of a `kind` force element (an
-    /// expression string is an error: it needs `type = "expression"`).
+    /// The function of time at `fld` of a `kind` force element: every
+    /// form a drive's `motion` takes ([`super::joints::function_of_time`]:
+    /// a number, a polynomial or harmonic table, an expression of t, a
+    /// table of points); an expression that reads coordinates is an error
+    /// pointing to `type = "expression"`.
     pub(super) fn function(
         &self,
         kind: &str,
         fld: &str,
-        l: &RawLoad,
+        v: toml::Value,
     ) -> Result<TimeFunction, ScenarioError> {
-        match l {
-            RawLoad::Function(f) => Ok(f.to_function()),
-            RawLoad::Text(s) => Err(self.err(
-                fld,
-                format!(
-                    "\"{s}\": expressions need type = \"expression\"; a {kind} takes a number, \
-                     {{ polynomial = [...] }} or {{ amplitude, omega, phase, offset }}"
+        let text = v.as_str().map(str::to_string);
+        super::joints::function_of_time(v, fld).map_err(|(k, m)| {
+            let hint = match text {
+                Some(_) => format!(
+                    "; a {kind} takes a function of t only: loads that read coordinates \
+                     need type = \"expression\""
                 ),
-            )),
-        }
+                None => String::new(),
+            };
+            error(self.file, self.key(&k), format!("{m}{hint}"))
+        })
     }
 
     /// Validates a library element, naming the scenario key of a field

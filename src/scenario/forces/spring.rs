@@ -3,7 +3,7 @@
 
 use super::{Context, ForceType};
 use crate::forces::PointSpringDamper;
-use crate::scenario::model::{RawFunction, RawPoint, RawTable};
+use crate::scenario::model::{RawPoint, RawTable};
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
 
@@ -31,14 +31,18 @@ pub(in crate::scenario) struct Spring {
     force_velocity: Option<RawTable>,
     /// Constant tension [N], default 0.
     preload: Option<f64>,
-    /// Actuator tension [N], a function of t.
-    actuator: Option<RawFunction>,
+    /// Actuator tension [N], a function of t (as a drive's `motion`).
+    actuator: Option<toml::Value>,
 }
 
 impl ForceType for Spring {
     const TYPE: &'static str = "spring";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let (body_i, body_j) = cx.two_bodies("a spring", &self.body_i, &self.body_j)?;
+        let actuator = match self.actuator {
+            Some(v) => Some(cx.function(Self::TYPE, "actuator", v)?),
+            None => None,
+        };
         let s = PointSpringDamper {
             body_i,
             point_i: cx.point("point_i", self.point_i, body_i)?,
@@ -54,7 +58,7 @@ impl ForceType for Spring {
                 ("force_velocity", &self.force_velocity),
             )?,
             preload: cx.finite("preload", self.preload.unwrap_or(0.0))?,
-            actuator: self.actuator.as_ref().map(RawFunction::to_function),
+            actuator,
         };
         cx.checked(&s, &[])?;
         cx.builder.add_force(s);

@@ -2,7 +2,6 @@
 
 use super::{Context, ForceType};
 use crate::forces::AppliedTorque;
-use crate::scenario::model::RawLoad;
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
 
@@ -12,15 +11,16 @@ use serde::Deserialize;
 pub(in crate::scenario) struct Torque {
     /// A body (not the ground).
     body: String,
-    /// Counter-clockwise torque [N m], a function of t.
-    torque: RawLoad,
+    /// Counter-clockwise torque [N m], a function of t (as a drive's
+    /// `motion`).
+    torque: toml::Value,
 }
 
 impl ForceType for Torque {
     const TYPE: &'static str = "torque";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;
-        let torque = cx.function(Self::TYPE, "torque", &self.torque)?;
+        let torque = cx.function(Self::TYPE, "torque", self.torque)?;
         cx.builder.add_force(AppliedTorque {
             name: cx.name.clone(),
             body,

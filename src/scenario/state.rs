@@ -1,0 +1,128 @@
+//! `[[state]]`: controller states, first-order `ż = f(t, q, q̇, z)` with
+//! `f` an expression ([`crate::model::State`]: the velocity of an extra
+//! coordinate of unit mass whose generalized force is f, so every
+//! integrator handles them). Every expression of the scenario reads a
+//! state by its name.
+
+use super::forces::expression_names;
+use super::{error, ScenarioError};
+use crate::forces::ExpressionLoadBuilder;
+use crate::model::SystemBuilder;
+use serde::Deserialize;
+use std::collections::HashMap;
+
+/// One `[[state]]` table.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawState {
+    /// Its name: letters, digits and `_`, starting with a letter or `_`.
+    name: String,
+    /// z(t0), default 0.
+    initial: Option<f64>,
+    /// ż: an expression of t, bodies' coordinates, states and parameters.
+    derivative: String,
+}
+
+/// Adds the states (after every body) and returns (name, coordinate w).
+pub(super) fn add(
+    raw: &[RawState],
+    builder: &mut SystemBuilder,
+    names: &HashMap<String, usize>,
+    file: &str,
+) -> Result<Vec<(String, usize)>, ScenarioError> {
+    let mut out: Vec<(String, usize)> = Vec::with_capacity(raw.len());
+    for (k, s) in raw.iter().enumerate() {
+        let key = |f: &str| format!("state[{k}].{f}");
+        let n = s.name.as_str();
+        let word = n
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !word || n == "t" {
+            return Err(error(
+                file,
+                key("name"),
+                format!(
+                    "'{n}' is not a state name (letters, digits and _, starting with a letter \
+                     or _; not t)"
+                ),
+            ));
+        }
+        if out.iter().any(|o| o.0 == n) {
+            return Err(error(
+                file,
+                key("name"),
+                format!("duplicate state name '{n}'"),
+            ));
+        }
+        if names.contains_key(n) {
+            return Err(error(file, key("name"), format!("'{n}' is a body's name")));
+        }
+        let z0 = s.initial.unwrap_or(0.0);
+        if !z0.is_finite() {
+            return Err(error(file, key("initial"), format!("{z0} is not finite")));
+        }
+        out.push((n.to_string(), builder.add_state(n, z0)));
+    }
+    Ok(out)
+}
+
+/// Adds each state's derivative as the generalized force on its coordinate
+/// (one expression load per state, exact symbolic Jacobians).
+pub(super) fn add_rates(
+    raw: &[RawState],
+    states: &[(String, usize)],
+    builder: &mut SystemBuilder,
+    names: &HashMap<String, usize>,
+    file: &str,
+) -> Result<(), ScenarioError> {
+    for (k, s) in raw.iter().enumerate() {
+        let texts = [s.derivative.clone()];
+        let (read, mut own) = expression_names(names, states, &texts);
+        if !own.iter().any(|o| o.0 == s.name) {
+            own.push((s.name.as_str(), states[k].1));
+        }
+        builder.add_force(
+            ExpressionLoadBuilder::new(&format!("state {}", s.name), &read)
+                .with_states(&own)
+                .state_rate(&s.name, &s.derivative)
+                .map_err(|e| {
+                    error(
+                        file,
+                        format!("state[{k}].derivative"),
+                        match e {
+                            crate::forces::ExpressionError::Parse { source, .. } => format!(
+                                "\"{}\": {source} (variables: t, bodies' B.x, B.y, B.phi, \
+                                 B.vx, B.vy, B.omega, states by name)",
+                                s.derivative
+                            ),
+                            other => other.to_string(),
+                        },
+                    )
+                })?
+                .build(),
+        );
+    }
+    Ok(())
+}
+
+impl super::Scenario {
+    /// An error for `command` (an analysis about the mechanism alone:
+    /// statics, modes, linearisation, inverse dynamics) when the scenario
+    /// has `[[state]]`s, whose coordinates those analyses do not take.
+    pub fn refuse_states(&self, command: &str) -> Result<(), String> {
+        match self.system.states() {
+            [] => Ok(()),
+            s => {
+                Err(format!(
+                "{}: `{command}` does not take [[state]] controller states (this scenario has {}: \
+                 {}); run it with `run`, or remove the states",
+                self.name,
+                s.len(),
+                s.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+            ))
+            }
+        }
+    }
+}

@@ -1,0 +1,223 @@
+//! `[[state]]` controller states: a first-order lag against its closed form
+//! under each method family, a PD arm whose integral term removes the
+//! steady-state error (the integral equal to ∫e dt from the output
+//! columns), and errors naming the file and key.
+
+use mbsolve::output::{columns, RowBuilder};
+use mbsolve::scenario;
+use mbsolve::simulation::{simulate_into, OutputQuantities, Sample, Sink};
+
+fn parse(text: &str) -> scenario::Scenario {
+    scenario::parse(text, "f.toml", "f", &[]).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn err(text: &str) -> String {
+    scenario::parse(text, "f.toml", "f", &[])
+        .map(|_| ())
+        .expect_err("an error")
+        .to_string()
+}
+
+/// The output table's rows, built as `mbsolve run` builds them.
+struct Table<'s> {
+    rows: Vec<Vec<f64>>,
+    builder: RowBuilder<'s>,
+}
+
+impl Sink for Table<'_> {
+    fn output(&mut self, s: &Sample<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        self.rows.push(self.builder.row(s).to_vec());
+        Ok(())
+    }
+}
+
+/// (column names, rows) of a run of `text`.
+fn run(text: &str) -> (Vec<String>, Vec<Vec<f64>>) {
+    let sc = parse(text);
+    let o = OutputQuantities::default();
+    let names = columns(&sc.system, &o, &sc.sensors)
+        .into_iter()
+        .map(|c| c.name)
+        .collect();
+    let mut t = Table {
+        rows: Vec::new(),
+        builder: RowBuilder::new(&sc.system, o, &sc.sensors),
+    };
+    let s = simulate_into(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [], &mut t).unwrap();
+    assert_eq!(s.status, "completed", "{s:?}");
+    (names, t.rows)
+}
+
+fn col(names: &[String], n: &str) -> usize {
+    names
+        .iter()
+        .position(|c| c == n)
+        .unwrap_or_else(|| panic!("no column {n} in {names:?}"))
+}
+
+/// A lag `ż = (u − z)/τ`, u = 1 − 0.5 m.x with a body m at rest at x = 0
+/// (so u = 1): `z = 1 − e^{−t/τ}`, under an explicit method, generalized-α,
+/// radau5 and BDF; the state is the column `lag`, and the body does not
+/// move (the state carries no mass, gravity or energy of the bodies).
+#[test]
+fn a_first_order_lag_follows_its_closed_form_under_every_family() {
+    for (integrator, bound) in [
+        ("method = \"ode45\"\nrtol = 1e-10\natol = 1e-12", 1e-8),
+        (
+            "method = \"genalpha\"\nstep = 1e-3\nnewton_tol = 1e-10",
+            1e-4,
+        ),
+        (
+            "method = \"radau5\"\nadaptive = true\nrtol = 1e-9\natol = 1e-11",
+            1e-6,
+        ),
+        ("method = \"bdf\"\nrtol = 1e-8\natol = 1e-10", 1e-4),
+    ] {
+        let text = format!(
+            "gravity = [0.0, -9.81]\n[parameters]\ntau = 0.2\n\
+             [[body]]\nname = \"m\"\nmass = 1.0\ninertia = 0.1\n\
+             [[joint]]\ntype = \"revolute\"\nbody_i = \"ground\"\npoint_i = [0.0, 0.0]\n\
+             body_j = \"m\"\npoint_j = [0.0, 0.0]\n\
+             [[state]]\nname = \"lag\"\nderivative = \"(1 - 0.5*m.x - lag)/tau\"\n\
+             [integrator]\n{integrator}\n[time]\nend = 1.0\n[output]\ndt = 0.02\n"
+        );
+        let (names, rows) = run(&text);
+        let (k, x) = (col(&names, "lag"), col(&names, "m.x"));
+        assert_eq!(names.len(), 6, "{names:?}");
+        let mut e = 0.0f64;
+        for r in &rows {
+            e = e.max((r[k] - (1.0 - (-r[0] / 0.2).exp())).abs());
+            assert!(r[x].abs() < 1e-8, "the body moved: {}", r[x]);
+        }
+        assert!(e < bound, "{integrator}: max |z − closed form| = {e:e}");
+        assert!(rows.last().unwrap()[k] > 0.99);
+    }
+}
+
+/// A one-link arm under gravity held at 0.5 rad by a `joint_torque`: PD
+/// alone leaves the steady-state error `m g (l/2) cos θ / k_p`; with an
+/// integral state `ie` (`ż = 0.5 − arm.phi`, the error) the error goes to
+/// zero, and `ie` equals ∫e dt from the output columns (trapezoid).
+#[test]
+fn an_integral_state_removes_the_steady_state_error() {
+    let arm = |ki: f64| {
+        format!(
+            "gravity = [0.0, -9.81]\n[parameters]\nkp = 50.0\nkd = 10.0\nki = {ki}\n\
+             [[body]]\nname = \"arm\"\nmass = 1.0\ninertia = 0.0833333333333\nx = 0.5\n\
+             [[joint]]\ntype = \"revolute\"\nname = \"shoulder\"\nbody_i = \"ground\"\n\
+             point_i = [0.0, 0.0]\nbody_j = \"arm\"\npoint_j = [-0.5, 0.0]\n\
+             [[state]]\nname = \"ie\"\nderivative = \"0.5 - arm.phi\"\n\
+             [[force]]\ntype = \"joint_torque\"\njoint = \"shoulder\"\n\
+             torque = \"kp*(0.5 - angle) - kd*rate + ki*ie\"\n\
+             [integrator]\nmethod = \"ode45\"\nrtol = 1e-10\natol = 1e-12\n\
+             [time]\nend = 12.0\n[output]\ndt = 0.005\n"
+        )
+    };
+    let (names, pd) = run(&arm(0.0));
+    let phi = col(&names, "arm.phi");
+    let e_pd = 0.5 - pd.last().unwrap()[phi];
+    let expected = 9.81 * 0.5 * (0.5 - e_pd).cos() / 50.0;
+    assert!(
+        (e_pd - expected).abs() < 1e-4,
+        "PD error {e_pd} vs {expected}"
+    );
+    let (names, pid) = run(&arm(40.0));
+    let (phi, ie) = (col(&names, "arm.phi"), col(&names, "ie"));
+    let e_pid = 0.5 - pid.last().unwrap()[phi];
+    assert!(e_pid.abs() < 1e-3 && e_pd > 0.05, "PID {e_pid}, PD {e_pd}");
+    let mut integral = 0.0;
+    for w in pid.windows(2) {
+        integral += 0.5 * (w[1][0] - w[0][0]) * ((0.5 - w[0][phi]) + (0.5 - w[1][phi]));
+    }
+    let z = pid.last().unwrap()[ie];
+    assert!((z - integral).abs() < 1e-5, "ie {z} vs ∫e dt {integral}");
+    // at rest the integral carries the gravity torque: ki ie = m g (l/2) cos θ
+    assert!((40.0 * z - 9.81 * 0.5 * 0.5f64.cos()).abs() < 0.05, "{z}");
+}
+
+/// Bad input names the file and the key.
+#[test]
+fn state_errors_name_the_file_and_key() {
+    let base = "[[body]]\nname = \"m\"\nmass = 1.0\ninertia = 0.1\n[time]\nend = 0.1\n";
+    let e = err(&format!(
+        "{base}[[state]]\nname = \"z\"\nderivative = \"-zz\"\n"
+    ));
+    assert!(
+        e.contains("f.toml") && e.contains("state[0].derivative") && e.contains("zz"),
+        "{e}"
+    );
+    let e = err(&format!(
+        "{base}[[state]]\nname = \"z\"\nderivative = \"-z\"\n[[state]]\nname = \"z\"\nderivative = \"1\"\n"
+    ));
+    assert!(
+        e.contains("f.toml") && e.contains("state[1].name") && e.contains("duplicate"),
+        "{e}"
+    );
+    let e = err(&format!(
+        "{base}[[state]]\nname = \"m\"\nderivative = \"1\"\n"
+    ));
+    assert!(e.contains("state[0].name") && e.contains("body"), "{e}");
+    // an expression force reading an unknown state
+    let e = err(&format!(
+        "{base}[[force]]\ntype = \"expression\"\nbody = \"m\"\ntorque = \"-2*integ\"\n"
+    ));
+    assert!(
+        e.contains("f.toml") && e.contains("force[0].torque") && e.contains("integ"),
+        "{e}"
+    );
+}
+
+/// The state example of docs/scenarios.md parses and runs, and its arm
+/// comes to the target (PID with a filtered rate).
+#[test]
+fn the_documented_state_example_runs() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
+    let block = doc
+        .split("```toml\n")
+        .find(|b| b.starts_with("# state example"))
+        .and_then(|b| b.split("```").next())
+        .expect("the state example");
+    let (names, rows) = run(block);
+    let (phi, ie) = (col(&names, "arm.phi"), col(&names, "ie"));
+    let last = rows.last().unwrap();
+    assert!((last[phi] - 0.5).abs() < 0.01, "{}", last[phi]);
+    assert!(last[ie] > 0.0);
+    col(&names, "filtered");
+}
+
+/// The shipped user models in the new form run: the PID arm reaches its
+/// three joint targets (its integral states carry gravity), the shaker's
+/// payload rides its spring on the table.
+#[test]
+fn the_shipped_pid_arm_and_shaker_run() {
+    let read = |f: &str| {
+        std::fs::read_to_string(format!("{}/scenarios/{f}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    };
+    let (names, rows) = run(&read("pid_arm.toml"));
+    let last = rows.last().unwrap();
+    let phi = |k: usize| last[col(&names, &format!("link{k}.phi"))];
+    for (got, want) in [
+        (phi(1), 0.6),
+        (phi(2) - phi(1), -0.4),
+        (phi(3) - phi(2), 0.3),
+    ] {
+        assert!(
+            (got - want).abs() < 5e-3,
+            "joint angle {got} vs target {want}"
+        );
+    }
+    assert!(last[col(&names, "e1")] > 0.0);
+    let (names, rows) = run(&read("shaker.toml"));
+    let (table, payload) = (col(&names, "table.y"), col(&names, "payload.y"));
+    let stroke = rows
+        .iter()
+        .map(|r| r[table])
+        .fold(f64::NEG_INFINITY, f64::max)
+        - rows.iter().map(|r| r[table]).fold(f64::INFINITY, f64::min);
+    assert!(
+        (stroke - 0.1).abs() < 1e-3,
+        "table stroke {stroke} (2 r = 0.1)"
+    );
+    assert!(rows.iter().all(|r| (r[payload] - r[table]).abs() < 0.05));
+}
