@@ -272,6 +272,13 @@ pub fn parse_with(
         key,
         message,
     })?;
+    state::refuse_parameter_names(&doc, &substituted.names).map_err(|(key, message)| {
+        ScenarioError {
+            file: attribute(file, &key, &set_keys),
+            key,
+            message,
+        }
+    })?;
     let notes = if set_keys
         .iter()
         .any(|(f, k)| *f != UNSET && k == "integrator.method")

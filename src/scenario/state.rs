@@ -23,6 +23,33 @@ pub(super) struct RawState {
     derivative: String,
 }
 
+/// A state may not share its name with a parameter: the parameter's value
+/// would replace the state in every expression. `Err((key, message))` at
+/// the first `[[state]]` whose name is in `parameters`.
+pub(super) fn refuse_parameter_names(
+    doc: &toml::Table,
+    parameters: &[String],
+) -> Result<(), (String, String)> {
+    let Some(states) = doc.get("state").and_then(toml::Value::as_array) else {
+        return Ok(());
+    };
+    for (k, st) in states.iter().enumerate() {
+        if let Some(n) = st.get("name").and_then(toml::Value::as_str) {
+            if parameters.iter().any(|p| p == n) {
+                return Err((
+                    format!("state[{k}].name"),
+                    format!(
+                        "'{n}' is also the name of a parameter: a state and a parameter \
+                         cannot share a name (the parameter's value would replace the state \
+                         in the expressions)"
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Adds the states (after every body) and returns (name, coordinate w).
 pub(super) fn add(
     raw: &[RawState],

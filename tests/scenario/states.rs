@@ -157,6 +157,14 @@ fn state_errors_name_the_file_and_key() {
         "{base}[[state]]\nname = \"m\"\nderivative = \"1\"\n"
     ));
     assert!(e.contains("state[0].name") && e.contains("body"), "{e}");
+    // a parameter of the state's name would replace it in expressions
+    let e = err(&format!(
+        "{base}[parameters]\nz = 0.5\n[[state]]\nname = \"z\"\nderivative = \"-z\"\n"
+    ));
+    assert!(
+        e.contains("f.toml") && e.contains("state[0].name") && e.contains("parameter"),
+        "{e}"
+    );
     // an expression force reading an unknown state
     let e = err(&format!(
         "{base}[[force]]\ntype = \"expression\"\nbody = \"m\"\ntorque = \"-2*integ\"\n"
