@@ -175,12 +175,39 @@ fn warn(warnings: &mut Vec<String>, rule: Warn, x: &StepTry, reason: &SystemErro
         return;
     }
     let msg = format!(
-        "Newton failed at t = {} with h = {:.3e}: {reason}",
+        "Newton failed at t = {:e} with h = {:.3e}: {reason}",
         x.t_new, x.h
     );
     if warnings.len() < WARNED_FAILURES {
         warnings.push(msg);
     } else if let (Warn::FirstAndLatest, Some(last)) = (rule, warnings.last_mut()) {
         *last = msg;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The warning prints times in scientific notation: a subnormal time
+    /// is a few characters, not a 300-digit decimal.
+    #[test]
+    fn newton_failure_warnings_print_short_times() {
+        let x = StepTry {
+            t: 0.0,
+            t_new: 1.3e-322,
+            h: 1.3e-322,
+            h_ctl: 1.3e-322,
+            h_min: 0.0,
+        };
+        let mut w = Vec::new();
+        warn(&mut w, Warn::First, &x, &SystemError::msg("singular"));
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].starts_with("Newton failed at t = 1.3e-322 with h = "),
+            "{}",
+            w[0]
+        );
+        assert!(w[0].len() < 80, "{}", w[0]);
     }
 }
