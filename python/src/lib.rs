@@ -135,6 +135,7 @@ fn check_json(
             "description": sc.description,
             "bodies": size.bodies,
             "coordinates": size.coordinates,
+            "states": size.states,
             "constraint_equations": size.constraints,
             "rank": size.rank,
             "dof": size.dof,

@@ -140,8 +140,8 @@ def test_from_toml_and_builtin_equal_the_file():
 def test_every_shipped_scenario_checks():
     for p in sorted(SCENARIOS.glob("*.toml")):
         c = mbsolve.load(p).check()
-        assert c["coordinates"] == 3 * c["bodies"], p
-        assert c["dof"] == c["coordinates"] - c["rank"], p
+        assert c["coordinates"] == 3 * c["bodies"] + c["states"], p
+        assert c["dof"] == c["coordinates"] - c["states"] - c["rank"], p
 
 
 def test_help_and_docstrings():

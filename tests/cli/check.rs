@@ -77,6 +77,16 @@ fn check_reports_size_dof_and_redundancy() {
         assert_eq!(field(&out, "degrees of freedom"), dof, "{out}");
         assert_eq!(field(&out, "redundant equations"), redundant, "{out}");
     }
+    // controller states are coordinates but not degrees of freedom: the
+    // three-link arm has 3 of each besides its 9 body coordinates
+    let (code, out, err) = check("scenarios/pid_arm.toml", &[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(field(&out, "coordinates"), 12, "{out}");
+    assert_eq!(field(&out, "degrees of freedom"), 3, "{out}");
+    assert!(
+        out.contains("(9 of the bodies, 3 controller states)"),
+        "{out}"
+    );
     // element counts by kind
     let (_, out, _) = check("scenarios/falling_rod.toml", &["rod.segments=5"]);
     assert!(out.contains("4 revolute joint"), "{out}");

@@ -13,13 +13,15 @@ use std::process::ExitCode;
 pub struct Size {
     /// Bodies.
     pub bodies: usize,
-    /// Coordinates n = 3 · bodies.
+    /// Coordinates n = 3 · bodies + states.
     pub coordinates: usize,
+    /// Controller states (`[[state]]`), one coordinate each.
+    pub states: usize,
     /// Constraint equations m.
     pub constraints: usize,
     /// rank Φ_q at the initial state.
     pub rank: usize,
-    /// Degrees of freedom n − rank Φ_q.
+    /// Mechanical degrees of freedom n − states − rank Φ_q.
     pub dof: usize,
     /// Redundant constraint equations m − rank Φ_q.
     pub redundant: usize,
@@ -50,9 +52,10 @@ pub fn size(sys: &System, q: &[f64], t: f64) -> Result<Size, String> {
     Ok(Size {
         bodies: sys.bodies().len(),
         coordinates: n,
+        states: sys.states().len(),
         constraints: m,
         rank: r,
-        dof: n - r,
+        dof: n - sys.states().len() - r,
         redundant: m - r,
     })
 }
@@ -135,7 +138,19 @@ fn report(sc: &Scenario, s: &Size) -> String {
     let mut line = |k: &str, v: String| out.push_str(&format!("{k:<22}{v}\n"));
     line("scenario", sc.name.clone());
     line("bodies", s.bodies.to_string());
-    line("coordinates", s.coordinates.to_string());
+    line(
+        "coordinates",
+        if s.states > 0 {
+            format!(
+                "{} ({} of the bodies, {} controller states)",
+                s.coordinates,
+                s.coordinates - s.states,
+                s.states
+            )
+        } else {
+            s.coordinates.to_string()
+        },
+    );
     line("constraint equations", s.constraints.to_string());
     line(
         "rank of Phi_q",
@@ -144,7 +159,14 @@ fn report(sc: &Scenario, s: &Size) -> String {
             s.rank
         ),
     );
-    line("degrees of freedom", s.dof.to_string());
+    line(
+        "degrees of freedom",
+        if s.states > 0 {
+            format!("{} (besides the {} controller states)", s.dof, s.states)
+        } else {
+            s.dof.to_string()
+        },
+    );
     line("redundant equations", s.redundant.to_string());
     line(
         "joints",
