@@ -659,14 +659,34 @@ impl SecondOrderDae for Index3<'_> {
             return Ok(true);
         }
         let interpolated = q.to_vec();
+        let out = self.correct_output(t, q, &interpolated, first, tol);
+        if out.is_err() {
+            q.copy_from_slice(&interpolated);
+        }
+        out.map_err(err)
+    }
+}
+
+impl Index3<'_> {
+    /// [`SecondOrderDae::project_output`]'s corrections of `q` (at first
+    /// the `interpolated` row, whose violation is `first > tol`).
+    fn correct_output(
+        &mut self,
+        t: f64,
+        q: &mut [f64],
+        interpolated: &[f64],
+        first: f64,
+        tol: f64,
+    ) -> Result<bool, FormulationError> {
+        let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
         let mut fresh = !self.mass_factored;
         if fresh {
-            self.factor_mass(t, q).map_err(err)?;
+            self.factor_mass(t, q)?;
         }
         let (mut res, mut it) = (first, 0);
         loop {
             mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, q)
-                .map_err(|e| err(linear_at(t)(e)))?;
+                .map_err(linear_at(t))?;
             self.sys.phi(q, t, &mut self.phi);
             let now = norm(&self.phi);
             it += 1;
@@ -683,14 +703,13 @@ impl SecondOrderDae for Index3<'_> {
                     // the row stays where they got it
                     return Ok(true);
                 }
-                q.copy_from_slice(&interpolated);
-                return Err(err(FormulationError::Invalid(format!(
+                return Err(FormulationError::Invalid(format!(
                     "the projection of an output row at t = {t:e} diverged (‖Φ‖∞ {first:.3e} → \
                      {now:.3e})"
-                ))));
+                )));
             }
-            q.copy_from_slice(&interpolated);
-            self.factor_mass(t, q).map_err(err)?;
+            q.copy_from_slice(interpolated);
+            self.factor_mass(t, q)?;
             self.sys.phi(q, t, &mut self.phi);
             (fresh, res, it) = (true, first, 0);
         }

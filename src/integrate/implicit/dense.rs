@@ -18,9 +18,7 @@ pub(crate) fn settle_output(
     warnings: &mut Vec<String>,
 ) {
     let q = &mut out[..sys.n()];
-    let interpolated = q.to_vec();
     if let Err(e) = sys.project_output(t, q) {
-        q.copy_from_slice(&interpolated);
         if !warnings.iter().any(|w| w.starts_with(UNPROJECTED)) {
             warnings.push(format!(
                 "{UNPROJECTED} (first at t = {t:e}: {e}); such rows are the method's \

@@ -70,8 +70,8 @@ pub trait SecondOrderDae {
     /// Project the positions `q` of an interpolated output row at `t` onto
     /// `Φ(q, t) = 0` without touching the Newton matrix or its
     /// factorisation, so the steps that follow are the same bits;
-    /// `Ok(false)` (the default) when this system cannot, and the row is
-    /// left as interpolated.
+    /// `Ok(false)` (the default) when this system cannot. On `Err` and on
+    /// `Ok(false)` the row is left as interpolated.
     fn project_output(&mut self, t: f64, q: &mut [f64]) -> Result<bool, SystemError> {
         let _ = (t, q);
         Ok(false)
