@@ -251,6 +251,13 @@ impl ArrowKey {
         self.key_force * self.metres_per_newton
     }
 
+    /// Whether `force` \[N\] draws an arrow: at least [`VISIBLE`] of the
+    /// key's length. Shorter ones (a drive's reaction of 1e-20 N beside
+    /// forces of newtons) would be zero-length lines.
+    pub fn is_visible(&self, force: P) -> bool {
+        norm(force) * self.metres_per_newton >= VISIBLE * self.key_length()
+    }
+
     /// The key's label in newtons: `100 N`, `0.5 N`; in exponent form
     /// outside 0.01 … 1e6 N (`2e-3 N`).
     pub fn label(&self) -> String {
@@ -288,10 +295,16 @@ pub fn arrow_marks(from: P, d: P, head: f64, ink: Ink) -> Vec<Mark> {
     ]
 }
 
-/// The marks of `arrows` at scale `key` (head length `head` \[m\]).
+/// The shortest arrow drawn, as a fraction of the key's length: below a
+/// tenth of a pixel where the key is 100 px long.
+pub const VISIBLE: f64 = 1e-3;
+
+/// The marks of `arrows` at scale `key` (head length `head` \[m\]);
+/// nothing for a force that is not [`ArrowKey::is_visible`].
 pub fn marks(arrows: &[Arrow], key: &ArrowKey, head: f64) -> Vec<Mark> {
     arrows
         .iter()
+        .filter(|a| key.is_visible(a.force))
         .flat_map(|a| {
             arrow_marks(
                 a.at,
@@ -411,5 +424,22 @@ mod tests {
         let e = ArrowSet::parse("contacts,torques").unwrap_err();
         assert!(e.contains("'torques'"), "{e}");
         assert!(ArrowKey::new(0.0, 1.0).is_none());
+    }
+
+    #[test]
+    fn negligible_forces_draw_no_arrow() {
+        // key 10 N drawn at 0.5 m: 1e-2 N is the shortest arrow drawn
+        let key = ArrowKey::new(10.0, 0.5).unwrap();
+        assert_eq!(key.key_force, 10.0);
+        let arrow = |f: f64| Arrow {
+            name: "J".into(),
+            kind: ArrowKind::Reaction,
+            at: [0.0, 0.0],
+            force: [0.0, f],
+        };
+        assert_eq!(marks(&[arrow(1e-20)], &key, 0.05).len(), 0);
+        assert_eq!(marks(&[arrow(0.9e-2)], &key, 0.05).len(), 0);
+        assert_eq!(marks(&[arrow(1.1e-2)], &key, 0.05).len(), 2);
+        assert_eq!(marks(&[arrow(-5.0), arrow(1e-20)], &key, 0.05).len(), 2);
     }
 }

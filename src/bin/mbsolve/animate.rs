@@ -977,6 +977,9 @@ fn svg_arrows(
 ) {
     let Some(first) = a.rows.first() else { return };
     for (j, arrow) in first.iter().enumerate() {
+        if !rows.iter().any(|&r| a.key.is_visible(a.rows[r][j].force)) {
+            continue; // negligible in every frame: no zero-length lines
+        }
         let ink = ink_hex(arrow.kind.ink());
         let name = crate::view::escape_html(&arrow.name);
         for part in 0..2 {
