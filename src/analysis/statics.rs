@@ -691,7 +691,8 @@ fn independent_rows(phi: Triplets) -> Triplets {
 /// `s = (2π f_neutral)²` \[1/s²\], from the inertia of two sparse LDLᵀ
 /// factorisations. Redundant constraint rows are dropped first (the
 /// tangent space `Φ_q δq = 0` is the same; the geometric stiffness keeps
-/// every row's λ).
+/// every row's λ). A system with controller states is an error: its
+/// stability is the first-order system's (module docs).
 pub fn stability(
     sys: &System,
     t: f64,
@@ -699,6 +700,15 @@ pub fn stability(
     lambda: &[f64],
     f_neutral: f64,
 ) -> Result<Stability, StaticError> {
+    if let Some(st) = sys.states().first() {
+        return Err(FormulationError::Invalid(format!(
+            "stability by the constrained stiffness is about the mechanism alone; this system \
+             has controller states ('{}', …): its stability is the first-order system's, the \
+             eigenvalues of its linearisation (linearize, first_order_modes)",
+            st.name
+        ))
+        .into());
+    }
     let n = sys.n_coords();
     let mut tan = Tangent::new(sys);
     tan.evaluate(t, q, &vec![0.0; n], lambda)?;

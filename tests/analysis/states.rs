@@ -83,6 +83,11 @@ fn pid_pendulum_rests_at_its_target_with_the_integral_carrying_gravity() {
         let qd = eq.velocities();
         assert_eq!(&qd[..3], &[0.0; 3]);
         assert_eq!(qd[3], eq.states[0]);
+        // the mechanism-only stability counts refuse a system with states
+        let e = mbsolve::analysis::stability(&sc.system, 0.0, &eq.q, &eq.lambda, 1e-3)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("first-order") && e.contains("'z'"), "{e}");
     }
 }
 
