@@ -183,6 +183,32 @@ fn pid_pendulum_linearisation_matches_the_closed_form() {
             assert!((cphi - [1.0, 0.0, 0.0][j]).abs() < tol, "C phi {j}: {cphi}");
         }
     }
+    // the velocity of the state's coordinate is the state; its position
+    // is not an output
+    let ss = linearize(
+        sys,
+        &[],
+        0.0,
+        &q,
+        &qd,
+        &[],
+        &[Output::Velocity(3)],
+        &Default::default(),
+    )
+    .unwrap();
+    assert_eq!(ss.outputs[0].0, "z");
+    assert_eq!((ss.c[(0, 0)], ss.c[(0, 1)], ss.c[(0, 2)]), (0.0, 0.0, 1.0));
+    let e = linearize(
+        sys,
+        &[],
+        0.0,
+        &q,
+        &qd,
+        &[],
+        &[Output::Coordinate(3)],
+        &Default::default(),
+    );
+    assert!(e.is_err());
     // the chart's own independent coordinate: same polynomial
     let ss = linearize(sys, &[], 0.0, &q, &qd, &[], &[], &Default::default()).unwrap();
     assert_eq!(ss.method, Method::Tangent);

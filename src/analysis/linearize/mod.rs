@@ -179,6 +179,10 @@ impl Output {
                 coordinate_label(sys, k),
                 if k % 3 == 2 { "rad" } else { "m" },
             ),
+            // a controller state's coordinate: its velocity is the state
+            Output::Velocity(k) if k >= sys.n_body_coords() => {
+                Output::State(k - sys.n_body_coords()).name(sys, sensors)
+            }
             Output::Velocity(k) => {
                 let body = &sys.bodies()[k / 3].name;
                 let (n, u) = [("vx", "m/s"), ("vy", "m/s"), ("omega", "rad/s")][k % 3];
@@ -405,7 +409,9 @@ pub fn linearize(
     let nb = sys.n_body_coords();
     for out in outputs {
         let ok = match *out {
-            Output::Coordinate(k) | Output::Velocity(k) => k < n,
+            // a state's coordinate w is not an output (its velocity is)
+            Output::Coordinate(k) => k < nb,
+            Output::Velocity(k) => k < n,
             Output::State(k) => k < n - nb,
             Output::Sensor { sensor, index } => {
                 sensor < sensors.len() && index < sensors[sensor].quantities(sys).len()
