@@ -19,6 +19,16 @@
 //! square and regular its first block row decouples exactly into
 //! `Φ_q q̈ = γ` and `Φ_qᵀλ = g − M q̈`.
 //!
+//! **Controller states** ([`crate::model::State`], `ż = f(t, q, q̇, z)`,
+//! the velocity of a coordinate w nothing else reads) do not move the
+//! mechanism; they follow the prescribed motion: between output times
+//! `z` is integrated by the classical fourth-order Runge–Kutta method in
+//! [`InverseOptions::state_substeps`] steps, `q(t)`, `q̇(t)` at each stage
+//! time from steps 1–2 (so the error is `O(h⁴)` in the sub-step h). Their
+//! forces then enter `g` in step 4, and a row's `q̇` holds z. They start
+//! from their `initial` values ([`InverseDynamics::set_states`] takes
+//! others). [`freedom`] counts the bodies' coordinates only.
+//!
 //! A mechanism with remaining freedom is refused by [`freedom`]: how many
 //! degrees of freedom remain, a set of independent coordinates (the
 //! non-pivot columns of Φ_q in a sparse elimination, Wehage & Haug 1982)
@@ -47,6 +57,9 @@ pub struct InverseOptions {
     pub tol: f64,
     /// Newton iterations allowed per output time; default 25.
     pub max_iter: usize,
+    /// Runge–Kutta (order 4) steps of the controller states per output
+    /// interval (module docs); default 16.
+    pub state_substeps: usize,
 }
 
 impl Default for InverseOptions {
@@ -54,6 +67,7 @@ impl Default for InverseOptions {
         Self {
             tol: 1e-12,
             max_iter: 25,
+            state_substeps: 16,
         }
     }
 }
@@ -61,11 +75,13 @@ impl Default for InverseOptions {
 /// The freedom a mechanism has at a configuration ([`freedom`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Freedom {
-    /// Degrees of freedom `n − rank Φ_q`.
+    /// Degrees of freedom `n_b − rank Φ_q` (`n_b` the bodies'
+    /// coordinates: controller states are not freedoms of the mechanism).
     pub dof: usize,
     /// Redundant constraint equations `m − rank Φ_q`.
     pub redundant: usize,
-    /// A set of independent coordinates (`dof` of them, global indices).
+    /// A set of independent coordinates of the bodies (`dof` of them,
+    /// global indices).
     pub coordinates: Vec<usize>,
     /// Joints (indices into [`System::constraints`]) whose relative motion
     /// is free: prescribing it would lower `dof` (revolute and
@@ -122,7 +138,13 @@ pub enum InverseError {
 }
 
 /// Name of coordinate `k` as `BODY.x`, `BODY.y` or `BODY.phi`.
+/// A controller state's coordinate w (after the bodies') is
+/// `state NAME`.
 pub fn coordinate_label(sys: &System, k: usize) -> String {
+    if k >= sys.n_body_coords() {
+        let s = &sys.states()[k - sys.n_body_coords()];
+        return format!("state {}", s.name);
+    }
     let body = &sys.bodies()[k / 3].name;
     format!("{body}.{}", ["x", "y", "phi"][k % 3])
 }
@@ -213,10 +235,11 @@ pub fn partition_at(sys: &System, q: &[f64], t: f64) -> Partition {
 /// [`JOINT_TEST_MAX_COORDS`] coordinates).
 pub fn freedom(sys: &System, q: &[f64], t: f64) -> Freedom {
     let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let nb = sys.n_body_coords();
     let part = partition_at(sys, q, t);
     let rank = part.rank;
     let mut joints = Vec::new();
-    if rank < n && n <= JOINT_TEST_MAX_COORDS {
+    if rank < nb && n <= JOINT_TEST_MAX_COORDS {
         let a = dense_jacobian(sys, q, t);
         let rank_of = |mut a: Vec<f64>, rows: usize| full_pivot_order(&mut a, rows, n, RANK_TOL);
         let dense_rank = rank_of(a.clone(), m).rank;
@@ -232,9 +255,9 @@ pub fn freedom(sys: &System, q: &[f64], t: f64) -> Freedom {
         }
     }
     Freedom {
-        dof: n - rank,
+        dof: nb - rank,
         redundant: m - rank,
-        coordinates: part.independent,
+        coordinates: part.independent.into_iter().filter(|&k| k < nb).collect(),
         joints,
     }
 }
@@ -256,6 +279,7 @@ pub struct InverseDynamics<'a> {
     reactions: Vec<f64>,
     last_t: Option<f64>,
     iterations: usize,
+    state_substeps: usize,
 }
 
 impl<'a> InverseDynamics<'a> {
@@ -267,10 +291,14 @@ impl<'a> InverseDynamics<'a> {
         t0: f64,
         opts: InverseOptions,
     ) -> Result<Self, InverseError> {
-        if !(opts.tol.is_finite() && opts.tol > 0.0) || opts.max_iter == 0 {
+        if !(opts.tol.is_finite() && opts.tol > 0.0)
+            || opts.max_iter == 0
+            || opts.state_substeps == 0
+        {
             return Err(InverseError::Invalid(format!(
-                "tolerance must be finite and > 0 and max_iter ≥ 1, got tol = {}, max_iter = {}",
-                opts.tol, opts.max_iter
+                "tolerance must be finite and > 0, max_iter and state_substeps ≥ 1, got tol = {}, \
+                 max_iter = {}, state_substeps = {}",
+                opts.tol, opts.max_iter, opts.state_substeps
             )));
         }
         let n = sys.n_coords();
@@ -284,7 +312,7 @@ impl<'a> InverseDynamics<'a> {
         if f.dof > 0 {
             return Err(InverseError::Underdetermined {
                 dof: f.dof,
-                rank: n - f.dof,
+                rank: sys.n_body_coords() - f.dof,
                 n,
                 coordinates: f
                     .coordinates
@@ -311,20 +339,125 @@ impl<'a> InverseDynamics<'a> {
             },
         )?;
         let m = sys.n_constraints();
+        // the controller states start from their initial values
+        let mut qd = vec![0.0; n];
+        for (v, st) in qd[sys.n_body_coords()..].iter_mut().zip(sys.states()) {
+            *v = st.initial;
+        }
         Ok(Self {
             sys,
             index1,
             map: sys.reaction_map(),
             jac: vec![0.0; sys.jacobian_pattern().len()],
             q: q0.to_vec(),
-            qd: vec![0.0; n],
+            qd,
             qdd: vec![0.0; n],
             phi: vec![0.0; m],
             phid: vec![0.0; m],
             reactions: vec![0.0; 3 * sys.constraints().len()],
             last_t: None,
             iterations: 0,
+            state_substeps: opts.state_substeps,
         })
+    }
+
+    /// Start the controller states from `z` (one value per
+    /// [`System::states`]) instead of their initial values; before the
+    /// first [`InverseDynamics::at`].
+    pub fn set_states(&mut self, z: &[f64]) -> Result<(), InverseError> {
+        let nb = self.sys.n_body_coords();
+        if z.len() != self.qd.len() - nb || z.iter().any(|v| !v.is_finite()) {
+            return Err(InverseError::Invalid(format!(
+                "{} finite controller-state values expected, got {z:?}",
+                self.qd.len() - nb
+            )));
+        }
+        self.qd[nb..].copy_from_slice(z);
+        Ok(())
+    }
+
+    /// Positions and velocities at `ts` (z not touched), by Newton from
+    /// the Taylor step of `(q, q̇, q̈)` at `t`.
+    #[allow(clippy::too_many_arguments)]
+    fn kinematics(
+        &mut self,
+        t: f64,
+        base: (&[f64], &[f64], &[f64]),
+        ts: f64,
+        q: &mut [f64],
+        qd: &mut [f64],
+    ) -> Result<(), InverseError> {
+        let h = ts - t;
+        for i in 0..q.len() {
+            q[i] = base.0[i] + h * base.1[i] + 0.5 * h * h * base.2[i];
+            qd[i] = base.1[i] + h * base.2[i];
+        }
+        match self.index1.project(ts, q, qd) {
+            Ok(k) => {
+                self.iterations += k;
+                Ok(())
+            }
+            Err(FormulationError::Projection {
+                residual,
+                tol,
+                iterations,
+                ..
+            }) => Err(InverseError::Position {
+                t: ts,
+                residual,
+                tol,
+                iterations,
+            }),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// The controller states at `t` from those at the last output time
+    /// (module docs: RK4 along the prescribed motion).
+    fn integrate_states(&mut self, t_prev: f64, t: f64) -> Result<Vec<f64>, InverseError> {
+        let sys = self.sys;
+        let (n, nb) = (sys.n_coords(), sys.n_body_coords());
+        let base = (self.q.clone(), self.qd.clone(), self.qdd.clone());
+        let mut z = self.qd[nb..].to_vec();
+        let steps = self.state_substeps;
+        let h = (t - t_prev) / steps as f64;
+        let (mut q, mut qd, mut g) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // the kinematics at a time (z-independent), then ż at (that, z)
+        let mut kin = |me: &mut Self, ts: f64| -> Result<(Vec<f64>, Vec<f64>), InverseError> {
+            me.kinematics(t_prev, (&base.0, &base.1, &base.2), ts, &mut q, &mut qd)?;
+            Ok((q.clone(), qd.clone()))
+        };
+        let rate = |at: &(Vec<f64>, Vec<f64>), ts: f64, z: &[f64], g: &mut [f64]| -> Vec<f64> {
+            let mut v = at.1.clone();
+            v[nb..].copy_from_slice(z);
+            sys.forces_into(ts, &at.0, &v, g);
+            g[nb..].to_vec()
+        };
+        let mut start = (base.0.clone(), base.1.clone());
+        for i in 0..steps {
+            let ta = t_prev + i as f64 * h;
+            let tb = if i + 1 == steps { t } else { ta + h };
+            let mid = kin(self, ta + 0.5 * h)?;
+            let end = kin(self, tb)?;
+            let k1 = rate(&start, ta, &z, &mut g);
+            let zs: Vec<f64> = z.iter().zip(&k1).map(|(z, k)| z + 0.5 * h * k).collect();
+            let k2 = rate(&mid, ta + 0.5 * h, &zs, &mut g);
+            let zs: Vec<f64> = z.iter().zip(&k2).map(|(z, k)| z + 0.5 * h * k).collect();
+            let k3 = rate(&mid, ta + 0.5 * h, &zs, &mut g);
+            let zs: Vec<f64> = z.iter().zip(&k3).map(|(z, k)| z + h * k).collect();
+            let k4 = rate(&end, tb, &zs, &mut g);
+            for j in 0..z.len() {
+                z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
+            start = end;
+        }
+        if let Some(k) = z.iter().position(|v| !v.is_finite()) {
+            return Err(InverseError::Invalid(format!(
+                "controller state '{}' is not finite at t = {t} s",
+                sys.states()[k].name
+            )));
+        }
+        Ok(z)
     }
 
     /// Newton iterations of the position solves so far.
@@ -338,6 +471,12 @@ impl<'a> InverseDynamics<'a> {
         if !t.is_finite() {
             return Err(InverseError::Invalid(format!("time {t} is not finite")));
         }
+        // the controller states along the motion since the last time
+        let nb = self.sys.n_body_coords();
+        let z = match self.last_t {
+            Some(t_prev) if nb < self.qd.len() => Some(self.integrate_states(t_prev, t)?),
+            _ => None,
+        };
         // warm start: Taylor step from the last solution
         if let Some(t_prev) = self.last_t {
             let h = t - t_prev;
@@ -345,6 +484,9 @@ impl<'a> InverseDynamics<'a> {
                 *q += h * *qd + 0.5 * h * h * qdd;
                 *qd += h * qdd;
             }
+        }
+        if let Some(z) = z {
+            self.qd[nb..].copy_from_slice(&z);
         }
         let sys = self.sys;
         match self.index1.project(t, &mut self.q, &mut self.qd) {

@@ -12,9 +12,9 @@ pub mod partitioning;
 pub mod statics;
 pub mod tangent;
 
-pub use modes::{eigenmodes, Mode, ModeOptions, Modes};
+pub use modes::{eigenmodes, first_order_modes, FirstOrderMode, Mode, ModeOptions, Modes};
 pub use statics::{
-    constrained_inertia, stability, static_equilibrium, Equilibrium, Stability, StaticError,
-    StaticOptions,
+    constrained_inertia, stability, static_equilibrium, static_equilibrium_from, Equilibrium,
+    Stability, StaticError, StaticOptions,
 };
 pub use tangent::{Tangent, Triplets};

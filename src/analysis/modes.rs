@@ -25,6 +25,15 @@
 //! `ζ = −Re s / |s|`; an overdamped one (two real `s₁, s₂`)
 //! `ω_n = √(s₁ s₂)`, `ζ = −(s₁ + s₂) / (2 ω_n)`, `f_d = 0`.
 
+//!
+//! **Controller states** ([`crate::model::State`]: the velocity z of a
+//! coordinate w nothing reads): the undamped and damped modes above are
+//! the mechanism's with the states held fixed (`δz = 0`: w is kept out of
+//! the iteration, its shape entries are 0). The modes of the whole
+//! first-order system, states included, are the eigenvalues of the
+//! linearisation's `A` ([`first_order_modes`] of
+//! [`super::linearize::StateSpace::a`]).
+
 use super::tangent::Tangent;
 use crate::formulation::FormulationError;
 use crate::linalg::{solver_for, SaddlePointSolver, SolverKind, SolverOptions, Storage};
@@ -93,8 +102,10 @@ pub struct Modes {
 /// counterparts at the last evaluated state of `tan` (module docs).
 pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, FormulationError> {
     let (n, m) = (tan.n(), tan.m());
+    // the controller states' coordinates nb.. are held (module docs)
+    let nb = tan.system().n_body_coords();
     let mass = tan.mass_diagonal();
-    let dof = n.saturating_sub(m);
+    let dof = nb.saturating_sub(m);
     let count = opts.count.min(dof);
     if count == 0 {
         return Ok(Modes {
@@ -130,6 +141,12 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     let mut sigma = f64::NAN;
     for &s in &shifts {
         tan.write_saddle(&mut k, [-s, 0.0, 1.0]);
+        // a held state: its row of K (−∂ż/∂q) only feeds its own entry,
+        // which is zeroed after every solve; a unit diagonal keeps the
+        // matrix regular (its column of K is 0: nothing reads w)
+        for w in nb..n {
+            k.add_diagonal(w, 1.0 + s);
+        }
         if solver.factorize(&k).is_ok() && probe(&mut *solver, &k, mass, n, m) {
             sigma = s;
             break;
@@ -157,9 +174,13 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     };
     // start: the operator applied to a deterministic, non-special vector
     let mut v: Vec<f64> = (0..n)
-        .map(|i| 1.0 + 0.5 * ((i as f64) * 0.618_033_988_75).fract())
+        .map(|i| match i < nb {
+            true => 1.0 + 0.5 * ((i as f64) * 0.618_033_988_75).fract(),
+            false => 0.0,
+        })
         .collect();
     apply(&mut *solver, &k, mass, &v.clone(), &mut v, &mut x, n)?;
+    v[nb..].fill(0.0);
     let nv = mdot(&v, &v).sqrt();
     if nv == 0.0 || !nv.is_finite() {
         return Err(FormulationError::Invalid(
@@ -172,6 +193,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         basis.push(v.clone());
         let j = basis.len() - 1;
         apply(&mut *solver, &k, mass, &basis[j], &mut w, &mut x, n)?;
+        w[nb..].fill(0.0);
         let a = mdot(&basis[j], &w);
         alpha.push(a);
         // full reorthogonalisation (twice is enough)
@@ -389,4 +411,75 @@ fn damped_modes(
             }
         })
         .collect())
+}
+
+/// One eigenvalue `s` of a first-order model `ẋ = A x` ([`first_order_modes`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct FirstOrderMode {
+    /// Re s \[1/s\].
+    pub re: f64,
+    /// Im s ≥ 0 \[rad/s\] (a complex pair is listed once).
+    pub im: f64,
+    /// Whether s is complex (an oscillation); a real s is a
+    /// non-oscillatory mode (decay or growth at rate Re s).
+    pub oscillatory: bool,
+    /// Natural frequency `|s| / 2π` \[Hz\].
+    pub frequency_hz: f64,
+    /// Damped frequency `Im s / 2π` \[Hz\] (0 for a real s).
+    pub damped_frequency_hz: f64,
+    /// Damping ratio `−Re s / |s|` of a complex s; `None` for a real one
+    /// (non-oscillatory; see `time_constant_s`).
+    pub damping_ratio: Option<f64>,
+    /// `−1 / Re s` \[s\] of a real s (negative: growth); `None` for a
+    /// complex one or s = 0.
+    pub time_constant_s: Option<f64>,
+    /// The eigenvector `(re, im)` per state, scaled so that its largest
+    /// entry is 1.
+    pub shape: Vec<(f64, f64)>,
+}
+
+/// The eigenvalues and eigenvectors of a dense `A` (faer's real
+/// Schur-based eigen), by increasing `|s|`, each complex pair once
+/// (`Im s > 0`; `|Im s| ≤ 1e-12 |s|` counts as real).
+pub fn first_order_modes(a: &faer::Mat<f64>) -> Result<Vec<FirstOrderMode>, FormulationError> {
+    let n = a.nrows();
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let e = a
+        .eigen()
+        .map_err(|e| FormulationError::Invalid(format!("first-order modes: eigen: {e:?}")))?;
+    let (s, u) = (e.S().column_vector(), e.U());
+    let two_pi = 2.0 * std::f64::consts::PI;
+    let mut out = Vec::new();
+    for c in 0..n {
+        let (re, im) = (s[c].re, s[c].im);
+        let mag = re.hypot(im);
+        let real = im.abs() <= 1e-12 * mag;
+        if !real && im < 0.0 {
+            continue;
+        }
+        let big = (0..n)
+            .map(|r| u[(r, c)])
+            .max_by(|x, y| x.norm().total_cmp(&y.norm()))
+            .unwrap_or(u[(0, c)]);
+        let shape = (0..n)
+            .map(|r| {
+                let v = u[(r, c)] / big;
+                (v.re, if real { 0.0 } else { v.im })
+            })
+            .collect();
+        out.push(FirstOrderMode {
+            re,
+            im: if real { 0.0 } else { im },
+            oscillatory: !real,
+            frequency_hz: mag / two_pi,
+            damped_frequency_hz: if real { 0.0 } else { im / two_pi },
+            damping_ratio: (!real).then(|| -re / mag),
+            time_constant_s: (real && re != 0.0).then(|| -1.0 / re),
+            shape,
+        });
+    }
+    out.sort_by(|x, y| x.re.hypot(x.im).total_cmp(&y.re.hypot(y.im)));
+    Ok(out)
 }

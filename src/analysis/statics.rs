@@ -34,6 +34,23 @@
 //! in which the rows the partitioning keeps carry all of it
 //! ([`Equilibrium::redundant`] lists the rows left out).
 //!
+//! **Controller states** ([`crate::model::State`], `ż = f(t, q, q̇, z)`,
+//! held as the velocity of a coordinate w of unit mass after the bodies'):
+//! the unknowns are the bodies' q, the states' values z and λ; the
+//! equations add `f(t₀, q, 0, z) = 0` (the generalized force on w) to the
+//! balance, which is evaluated at `q̇ = (0, z)`. The coordinate w itself
+//! is not an unknown (nothing reads it; it keeps its start value). The
+//! Newton matrix is `[K̃ Φ_qᵀ; Φ_q 0]`, `K̃` the columns of `K` of the
+//! bodies' coordinates and the columns of `C = −∂g/∂q̇` of the states
+//! (`−∂(g, f)/∂z`), exact from the same symbolic Jacobians. The rates
+//! `f` share the force residual's relative tolerance. A state whose rate
+//! is not zero and does not depend on q or z at the start (`ż = 1`) is an
+//! error naming it; a failed search lists every state's rate where it
+//! stopped. The stability of such an equilibrium is that of the
+//! first-order system (the eigenvalues of its linearisation,
+//! [`super::linearize`]), not [`stability`]'s, which is about the
+//! mechanism alone.
+//!
 //! **Stability** ([`stability`]): the equilibrium is stable when `K` is
 //! positive definite on the tangent space `Φ_q δq = 0`. The signs of the
 //! eigenvalues of the constrained pencil `(K, M)` (ω² of the modes) come
@@ -92,6 +109,11 @@ pub struct Equilibrium {
     pub q: Vec<f64>,
     /// Multipliers (our sign: `Φ_qᵀλ = g` at equilibrium).
     pub lambda: Vec<f64>,
+    /// The controller states' values z at equilibrium, in
+    /// [`System::states`] order (units of each state; empty without
+    /// states). The velocities of the equilibrium are `q̇ = (0, z)`
+    /// ([`Equilibrium::velocities`]).
+    pub states: Vec<f64>,
     /// Load steps taken (accepted and cut).
     pub load_steps: usize,
     /// Newton iterations over all load steps.
@@ -103,6 +125,17 @@ pub struct Equilibrium {
     /// Constraint rows left out as redundant (module docs), ascending;
     /// their λ are 0. Empty when Φ_q has full row rank at the start.
     pub redundant: Vec<usize>,
+}
+
+impl Equilibrium {
+    /// The velocities of the equilibrium: 0 for the bodies' coordinates,
+    /// z for the states' (what a state file's `qd` holds).
+    pub fn velocities(&self) -> Vec<f64> {
+        let nb = self.q.len() - self.states.len();
+        let mut qd = vec![0.0; self.q.len()];
+        qd[nb..].copy_from_slice(&self.states);
+        qd
+    }
 }
 
 /// Counts of the constrained stiffness's eigenvalue signs ([`stability`]).
@@ -164,11 +197,13 @@ struct Work {
     jac: Vec<f64>,
     ct: Vec<f64>,
     phi: Vec<f64>,
-    zero: Vec<f64>,
+    /// Velocities of the evaluation: 0 for bodies, z for states.
+    qd: Vec<f64>,
 }
 
 impl Work {
-    /// `F = g(q, 0) − Φ_qᵀλ − (1 − μ) F₀` into `f`, Φ into `self.phi`;
+    /// `F = g(q, (0, z)) − Φ_qᵀλ − (1 − μ) F₀` into `f` (z: `self.qd`'s
+    /// state entries), Φ into `self.phi`;
     /// returns (‖F‖∞, ‖Φ‖∞, max(‖g‖∞, ‖Φ_qᵀλ‖∞)).
     #[allow(clippy::too_many_arguments)]
     fn residual(
@@ -181,7 +216,7 @@ impl Work {
         f0: &[f64],
         f: &mut [f64],
     ) -> (f64, f64, f64) {
-        sys.forces_into(t, q, &self.zero, &mut self.g);
+        sys.forces_into(t, q, &self.qd, &mut self.g);
         sys.jacobian_values(q, t, &mut self.jac);
         sys.jacobian_tmul(&self.jac, lam, &mut self.ct);
         sys.phi(q, t, &mut self.phi);
@@ -199,13 +234,29 @@ impl Work {
 }
 
 /// The static equilibrium of `sys` from `q0` (module docs): load stepping
-/// and Newton. `q0` need not satisfy the constraints exactly.
+/// and Newton. `q0` need not satisfy the constraints exactly. Controller
+/// states start from their `initial` values
+/// ([`static_equilibrium_from`] takes others).
 pub fn static_equilibrium(
     sys: &System,
     q0: &[f64],
     opts: StaticOptions,
 ) -> Result<Equilibrium, StaticError> {
+    let z0: Vec<f64> = sys.states().iter().map(|s| s.initial).collect();
+    static_equilibrium_from(sys, q0, &z0, opts)
+}
+
+/// [`static_equilibrium`] from positions `q0` and controller-state values
+/// `z0` (one per [`System::states`], in that order; e.g. the velocities of
+/// the states' coordinates in a state file).
+pub fn static_equilibrium_from(
+    sys: &System,
+    q0: &[f64],
+    z0: &[f64],
+    opts: StaticOptions,
+) -> Result<Equilibrium, StaticError> {
     let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let nb = sys.n_body_coords();
     let t = opts.t0;
     if q0.len() != n {
         return Err(FormulationError::Invalid(format!(
@@ -214,16 +265,27 @@ pub fn static_equilibrium(
         ))
         .into());
     }
+    if z0.len() != n - nb {
+        return Err(FormulationError::Invalid(format!(
+            "static equilibrium: {} controller-state values for {} states",
+            z0.len(),
+            n - nb
+        ))
+        .into());
+    }
+    // q̇ of every evaluation: 0 for the bodies, z for the states
+    let mut qd0 = vec![0.0; n];
+    qd0[nb..].copy_from_slice(z0);
     let mut w = Work {
         g: vec![0.0; n],
         jac: vec![0.0; sys.jacobian_pattern().len()],
         ct: vec![0.0; n],
         phi: vec![0.0; m],
-        zero: vec![0.0; n],
+        qd: qd0.clone(),
     };
     let mut tan = Tangent::new(sys);
     // the rows kept in the Newton matrix: all but the redundant ones at q₀
-    let zero = vec![0.0; n];
+    let zero = qd0.clone();
     let redundant = if m > 0 && tan.evaluate(t, q0, &zero, &vec![0.0; m]).is_ok() {
         let phi = tan.constraint_jacobian();
         super::partitioning::partition(phi.rows, phi.cols, &phi.entries, super::inverse::RANK_TOL)
@@ -235,7 +297,17 @@ pub fn static_equilibrium(
         .filter(|r| redundant.binary_search(r).is_err())
         .collect();
     let mk = kept.len();
-    let mut k = tan.saddle_matrix_of_rows(Storage::Full, &kept);
+    let states = StateColumns::new(sys, &kept);
+    let mut k = match &states {
+        Some(s) => s.saddle_matrix(n, mk),
+        None => tan.saddle_matrix_of_rows(Storage::Full, &kept),
+    };
+    // A = c_m M + (K, or K̃ with states: module docs) and Φ_q of the kept rows
+    let write =
+        |tan: &Tangent, k: &mut crate::linalg::SaddleMatrix, c_m: f64, c_k: f64| match &states {
+            Some(s) => s.write(tan, k, c_m, c_k),
+            None => tan.write_saddle_of_rows(k, [c_m, 0.0, c_k], &kept),
+        };
     let mut solver = solver_for(SolverKind::SparseLu, n + mk, SolverOptions::default());
     let lin = |source| FormulationError::Linear { t, source };
     solver.analyze(&k).map_err(lin)?;
@@ -249,7 +321,7 @@ pub fn static_equilibrium(
         // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU (kept rows)
         let mut ok = tan.evaluate(t, q0, &zero, &lam0).is_ok();
         if ok {
-            tan.write_saddle_of_rows(&mut k, [1.0, 0.0, 0.0], &kept);
+            write(&tan, &mut k, 1.0, 0.0);
             let mut rhs = vec![0.0; n + mk];
             let mut gamma = vec![0.0; m];
             sys.forces_into(t, q0, &zero, &mut rhs[..n]);
@@ -279,7 +351,30 @@ pub fn static_equilibrium(
         )
         .into());
     }
+    // a state whose rate is not zero and depends on nothing the iteration
+    // moves (ż = 1) has no equilibrium
+    if let Some(s) = &states {
+        tan.evaluate(t, q0, &qd0, &lam0)?;
+        for (k, st) in sys.states().iter().enumerate() {
+            let rate = f0[nb + k];
+            if rate != 0.0 && !s.row_depends(&tan, nb + k) {
+                return Err(StaticError::NoEquilibrium {
+                    load_factor: 0.0,
+                    residual: rate.abs(),
+                    constraint_residual: w.phi.iter().fold(0.0f64, |a, v| a.max(v.abs())),
+                    iterations: 0,
+                    load_steps: 0,
+                    reason: format!(
+                        "controller state '{}' has ż = {rate:e} at the start and ż depends on \
+                         no coordinate and no state there, so no q, z make it 0",
+                        st.name
+                    ),
+                });
+            }
+        }
+    }
     let (mut q, mut lam) = (q0.to_vec(), lam0);
+    let mut z = z0.to_vec();
     let (mut mu, mut dmu) = (0.0f64, 1.0f64);
     let (mut steps, mut iterations) = (0usize, 0usize);
     let mut f = vec![0.0; n];
@@ -293,7 +388,8 @@ pub fn static_equilibrium(
         }
         steps += 1;
         let target = (mu + dmu).min(1.0);
-        let (mut qt, mut lt) = (q.clone(), lam.clone());
+        let (mut qt, mut lt, mut zt) = (q.clone(), lam.clone(), z.clone());
+        w.qd[nb..].copy_from_slice(&zt);
         let mut f_ref = f_ref0;
         let mut converged = false;
         let mut first = f64::INFINITY;
@@ -332,14 +428,14 @@ pub fn static_equilibrium(
             }
             sizes.push(size);
             iterations += 1;
-            tan.evaluate(t, &qt, &w.zero, &lt)?;
+            tan.evaluate(t, &qt, &w.qd, &lt)?;
             // [K Φ_qᵀ; Φ_q 0] [Δq; Δλ] = [F; −Φ]; where that is singular
             // (a direction without stiffness: a free rotation), K + εM
             // with ε from 1e-12 of the largest K_ii/M_ii up (a modified
             // Newton step, the residual stays exact)
             let mut eps = 0.0;
             let solved = loop {
-                tan.write_saddle_of_rows(&mut k, [eps, 0.0, 1.0], &kept);
+                write(&tan, &mut k, eps, 1.0);
                 if solver.factorize(&k).is_ok() {
                     x[..n].copy_from_slice(&f);
                     for (xi, &r) in x[n..].iter_mut().zip(&kept) {
@@ -367,9 +463,14 @@ pub fn static_equilibrium(
                 break;
             }
             last_dq = x[..n].iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            for (qi, d) in qt.iter_mut().zip(&x[..n]) {
+            // the states' columns are Δz (their coordinates w stay)
+            for (qi, d) in qt[..nb].iter_mut().zip(&x[..nb]) {
                 *qi += d;
             }
+            for (zi, d) in zt.iter_mut().zip(&x[nb..n]) {
+                *zi += d;
+            }
+            w.qd[nb..].copy_from_slice(&zt);
             for (&r, d) in kept.iter().zip(&x[n..]) {
                 lt[r] += d;
             }
@@ -378,6 +479,7 @@ pub fn static_equilibrium(
             mu = target;
             q = qt;
             lam = lt;
+            z = zt;
             dmu = (2.0 * dmu).min(1.0);
         } else {
             dmu *= 0.25;
@@ -390,7 +492,24 @@ pub fn static_equilibrium(
             }
         }
     }
+    w.qd[nb..].copy_from_slice(&z);
     if mu < 1.0 {
+        if !z.is_empty() {
+            // the states' rates where the search stopped
+            let (mut g, zero_f) = (vec![0.0; n], vec![0.0; n]);
+            w.residual(sys, t, &q, &lam, 1.0, &zero_f, &mut g);
+            let rates: Vec<String> = sys
+                .states()
+                .iter()
+                .enumerate()
+                .map(|(k, s)| format!("{} = {:.3e}", s.name, g[nb + k]))
+                .collect();
+            reason = format!(
+                "{reason}; controller-state rates ż at load factor 1 from the last \
+                 equilibrium found: {}",
+                rates.join(", ")
+            );
+        }
         return Err(StaticError::NoEquilibrium {
             load_factor: mu,
             residual: last.0,
@@ -404,12 +523,116 @@ pub fn static_equilibrium(
     Ok(Equilibrium {
         q,
         lambda: lam,
+        states: z,
         load_steps: steps,
         iterations,
         residual,
         constraint_residual,
         redundant,
     })
+}
+
+/// The static Newton matrix of a system with controller states (module
+/// docs): `A = c_m M + c_k K̃`, `K̃` the bodies' columns of `K` and the
+/// states' columns of `C`, in full storage (entries as evaluated), and
+/// `Φ_q` of the kept rows.
+struct StateColumns {
+    /// Positions in `Tangent::stiffness()`'s entries kept (bodies' columns).
+    from_k: Vec<usize>,
+    /// Positions in `Tangent::damping()`'s entries kept (states' columns).
+    from_c: Vec<usize>,
+    /// Each entry's `(row, column)`, `from_k` then `from_c`.
+    entries: Vec<(usize, usize)>,
+    /// The kept rows' pattern and its positions in the system's.
+    rows: (Vec<(usize, usize)>, Vec<usize>),
+}
+
+impl StateColumns {
+    /// `None` without states.
+    fn new(sys: &System, kept: &[usize]) -> Option<Self> {
+        let nb = sys.n_body_coords();
+        if sys.states().is_empty() {
+            return None;
+        }
+        // the order of Tangent::stiffness(): the force-Jacobian pattern,
+        // then each Hessian entry and its mirror
+        let mut k_pos = Vec::new();
+        for &(i, j) in sys.force_jacobian_pattern() {
+            k_pos.push((i, j));
+        }
+        for &(i, j) in sys.hessian_pattern() {
+            k_pos.push((i, j));
+            if i != j {
+                k_pos.push((j, i));
+            }
+        }
+        let mut out = Self {
+            from_k: Vec::new(),
+            from_c: Vec::new(),
+            entries: Vec::new(),
+            rows: (Vec::new(), Vec::new()),
+        };
+        for (e, &(i, j)) in k_pos.iter().enumerate() {
+            if j < nb {
+                out.from_k.push(e);
+                out.entries.push((i, j));
+            }
+        }
+        for (e, &(i, j)) in sys.force_jacobian_pattern().iter().enumerate() {
+            if j >= nb {
+                out.from_c.push(e);
+                out.entries.push((i, j));
+            }
+        }
+        let mut new_row = vec![usize::MAX; sys.n_constraints()];
+        for (k, &r) in kept.iter().enumerate() {
+            new_row[r] = k;
+        }
+        for (e, &(r, c)) in sys.jacobian_pattern().iter().enumerate() {
+            if new_row[r] != usize::MAX {
+                out.rows.0.push((new_row[r], c));
+                out.rows.1.push(e);
+            }
+        }
+        Some(out)
+    }
+
+    fn saddle_matrix(&self, n: usize, mk: usize) -> crate::linalg::SaddleMatrix {
+        let mut a = crate::linalg::APattern::new();
+        a.push_block(&self.entries, crate::linalg::Symmetry::Unsymmetric);
+        crate::linalg::SaddleMatrix::with_storage(n, mk, &a, &self.rows.0, Storage::Full)
+    }
+
+    fn write(&self, tan: &Tangent, k: &mut crate::linalg::SaddleMatrix, c_m: f64, c_k: f64) {
+        k.set_zero();
+        for (i, &mi) in tan.mass_diagonal().iter().enumerate() {
+            k.add_diagonal(i, c_m * mi);
+        }
+        if c_k != 0.0 {
+            let (kt, ct) = (tan.stiffness(), tan.damping());
+            let vals = self
+                .from_k
+                .iter()
+                .map(|&e| kt.entries[e].2)
+                .chain(self.from_c.iter().map(|&e| ct.entries[e].2));
+            for (id, v) in vals.enumerate() {
+                k.add_a(id, c_k * v);
+            }
+        }
+        let jac = tan.jacobian_values();
+        let vals: Vec<f64> = self.rows.1.iter().map(|&e| jac[e]).collect();
+        k.set_jacobian(&vals);
+    }
+
+    /// Does row `r` of `K̃` (the last evaluation) hold a non-zero?
+    fn row_depends(&self, tan: &Tangent, r: usize) -> bool {
+        let (kt, ct) = (tan.stiffness(), tan.damping());
+        self.from_k
+            .iter()
+            .map(|&e| kt.entries[e])
+            .chain(self.from_c.iter().map(|&e| ct.entries[e]))
+            .any(|(i, _, v)| i == r && v != 0.0)
+    }
 }
 
 /// The largest `|K_ii| / M_ii` (or 1 when `K` has no diagonal) of the last
@@ -468,7 +691,8 @@ fn independent_rows(phi: Triplets) -> Triplets {
 /// `s = (2π f_neutral)²` \[1/s²\], from the inertia of two sparse LDLᵀ
 /// factorisations. Redundant constraint rows are dropped first (the
 /// tangent space `Φ_q δq = 0` is the same; the geometric stiffness keeps
-/// every row's λ).
+/// every row's λ). A system with controller states is an error: its
+/// stability is the first-order system's (module docs).
 pub fn stability(
     sys: &System,
     t: f64,
@@ -476,6 +700,15 @@ pub fn stability(
     lambda: &[f64],
     f_neutral: f64,
 ) -> Result<Stability, StaticError> {
+    if let Some(st) = sys.states().first() {
+        return Err(FormulationError::Invalid(format!(
+            "stability by the constrained stiffness is about the mechanism alone; this system \
+             has controller states ('{}', …): its stability is the first-order system's, the \
+             eigenvalues of its linearisation (linearize, first_order_modes)",
+            st.name
+        ))
+        .into());
+    }
     let n = sys.n_coords();
     let mut tan = Tangent::new(sys);
     tan.evaluate(t, q, &vec![0.0; n], lambda)?;

@@ -133,23 +133,3 @@ pub(super) fn add_rates(
     }
     Ok(())
 }
-
-impl super::Scenario {
-    /// An error for `command` (an analysis about the mechanism alone:
-    /// statics, modes, linearisation, inverse dynamics) when the scenario
-    /// has `[[state]]`s, whose coordinates those analyses do not take.
-    pub fn refuse_states(&self, command: &str) -> Result<(), String> {
-        match self.system.states() {
-            [] => Ok(()),
-            s => {
-                Err(format!(
-                "{}: `{command}` does not take [[state]] controller states (this scenario has {}: \
-                 {}); run it with `run`, or remove the states",
-                self.name,
-                s.len(),
-                s.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
-            ))
-            }
-        }
-    }
-}

@@ -8,5 +8,6 @@ mod inverse;
 mod linearize;
 mod modes;
 mod partitioning;
+mod states;
 mod statics;
 mod tangent;

@@ -64,6 +64,21 @@
 //! (`Φ_q q̈ = γ + σ̈ e_r`). Coordinate and velocity outputs read `W` in
 //! the `σ` and `σ̇` columns.
 //!
+//! # Controller states
+//!
+//! A controller state z (`ż = f(t, q, q̇, z)`, [`crate::model::State`]) is
+//! the velocity of a coordinate w that no constraint and no force reads.
+//! w is independent in every chart (it is appended when the caller's list
+//! lacks it), so the model above carries the rows `ẇ = z` and
+//! `ż = f`, and the columns of `w` are zero (nothing depends on it). They
+//! are dropped: the state is `x = (z_b, ż_b, σ, σ̇, z_c)`, `z_b` the
+//! bodies' independent coordinates and `z_c` the controller states, and
+//! `A`'s rows of `z_c` hold `∂f/∂(q, q̇, z)` through the chart (exact on the
+//! tangent path: `−K`'s and `−C`'s rows of w, [`super::Tangent`]), its
+//! columns of `z_c` the forces' dependence on z (`−C`'s columns of w).
+//! "At rest" asks `q̇ = 0` of the bodies only (z need not vanish) and
+//! `ż = 0` with the accelerations. [`Output::State`] reads a state.
+//!
 //! Away from an equilibrium the result depends on the chosen independent
 //! coordinates (a state-dependent change of chart adds `z̈`-terms); at an
 //! equilibrium the eigenvalues of `A` do not.
@@ -144,6 +159,9 @@ pub enum Output {
     Coordinate(usize),
     /// Velocity of coordinate `k` \[m/s or rad/s\].
     Velocity(usize),
+    /// Controller state `k` (index into [`System::states`]) \[its own
+    /// unit\].
+    State(usize),
     /// Reading `index` of sensor `sensor` (its [`Sensor::quantities`]).
     Sensor {
         /// Index into the sensor list.
@@ -161,11 +179,16 @@ impl Output {
                 coordinate_label(sys, k),
                 if k % 3 == 2 { "rad" } else { "m" },
             ),
+            // a controller state's coordinate: its velocity is the state
+            Output::Velocity(k) if k >= sys.n_body_coords() => {
+                Output::State(k - sys.n_body_coords()).name(sys, sensors)
+            }
             Output::Velocity(k) => {
                 let body = &sys.bodies()[k / 3].name;
                 let (n, u) = [("vx", "m/s"), ("vy", "m/s"), ("omega", "rad/s")][k % 3];
                 (format!("{body}.{n}"), u)
             }
+            Output::State(k) => (sys.states()[k].name.clone(), ""),
             Output::Sensor { sensor, index } => {
                 let s = &sensors[sensor];
                 let (q, u) = s.quantities(sys)[index];
@@ -278,19 +301,24 @@ pub struct StateSpace {
     pub lambda: Vec<f64>,
     /// Accelerations q̈ of the state.
     pub qdd: Vec<f64>,
-    /// Independent coordinates (global indices), `f` of them.
+    /// Independent coordinates (global indices), `f` of them (the
+    /// bodies': the controller states' coordinates are not among them).
     pub independent: Vec<usize>,
+    /// Number of controller states, the last entries of the state `x`
+    /// (module docs, "Controller states").
+    pub controller_states: usize,
     /// Method used ([`Method::Tangent`] or [`Method::FiniteDifferences`]).
     pub method: Method,
     /// State names: `z` then `ż` (`BODY.x` …, `BODY.vx` …), then the
     /// offsets and rates of the driven inputs (`DRIVE.offset` …,
-    /// `DRIVE.rate` …), in input order.
+    /// `DRIVE.rate` …), in input order, then the controller states by
+    /// name.
     pub states: Vec<(String, &'static str)>,
     /// Input names and units.
     pub inputs: Vec<(String, &'static str)>,
     /// Output names and units.
     pub outputs: Vec<(String, &'static str)>,
-    /// `A` (s × s, s = 2f + 2 × drive inputs).
+    /// `A` (s × s, s = 2f + 2 × drive inputs + controller states).
     pub a: Mat<f64>,
     /// `B` (s × inputs).
     pub b: Mat<f64>,
@@ -300,7 +328,8 @@ pub struct StateSpace {
     pub d: Mat<f64>,
     /// The null-space basis `V` (n × f), `Φ_q V = 0`, `V_I = 1`.
     pub basis: Mat<f64>,
-    /// `M̂, Ĉ, K̂` (f × f) on the tangent path.
+    /// `M̂, Ĉ, K̂` (f × f) on the tangent path, of the bodies' independent
+    /// coordinates (controller states held fixed).
     pub reduced: Option<[Mat<f64>; 3]>,
 }
 
@@ -346,9 +375,10 @@ pub fn linearize(
     for inp in inputs {
         match *inp {
             Input::Force { coordinate } => {
-                if coordinate >= n {
+                if coordinate >= sys.n_body_coords() {
                     return Err(LinearizeError::Invalid(format!(
-                        "input coordinate {coordinate} out of range (n = {n})"
+                        "input coordinate {coordinate} out of range (the bodies have {})",
+                        sys.n_body_coords()
                     )));
                 }
             }
@@ -376,9 +406,13 @@ pub fn linearize(
             }
         }
     }
+    let nb = sys.n_body_coords();
     for out in outputs {
         let ok = match *out {
-            Output::Coordinate(k) | Output::Velocity(k) => k < n,
+            // a state's coordinate w is not an output (its velocity is)
+            Output::Coordinate(k) => k < nb,
+            Output::Velocity(k) => k < n,
+            Output::State(k) => k < n - nb,
             Output::Sensor { sensor, index } => {
                 sensor < sensors.len() && index < sensors[sensor].quantities(sys).len()
             }
@@ -403,6 +437,23 @@ pub fn linearize(
         }
         None => independent_coordinates(sys, q, t),
     };
+    // the controller states' coordinates w: always independent (no
+    // constraint holds them), dropped from the model at the end
+    let mut independent = independent;
+    for w in nb..n {
+        if !independent.contains(&w) {
+            independent.push(w);
+        }
+    }
+    let outputs_named = outputs;
+    let outputs: Vec<Output> = outputs
+        .iter()
+        .map(|o| match *o {
+            Output::State(k) => Output::Velocity(nb + k),
+            other => other,
+        })
+        .collect();
+    let outputs = &outputs[..];
     let f = independent.len();
     let nd = drive_rows.len();
     // state layout: z (f), ż (f), σ (nd), σ̇ (nd)
@@ -467,8 +518,10 @@ pub fn linearize(
         .zip(sys.mass_diagonal())
         .fold(0.0_f64, |a, (f, m)| a.max((f / m).abs()));
     let acc_tol = opts.rest_tol * load_acc.max(1.0);
+    // the bodies at rest (a controller state's value z is a velocity
+    // that need not vanish; its rate is in q̈)
     let at_rest =
-        inf(&qd0) <= opts.rest_tol && inf(&phi_t) <= opts.rest_tol && inf(&qdd0) <= acc_tol;
+        inf(&qd0[..nb]) <= opts.rest_tol && inf(&phi_t) <= opts.rest_tol && inf(&qdd0) <= acc_tol;
     let method = match opts.method {
         Method::Auto if at_rest => Method::Tangent,
         Method::Auto => Method::FiniteDifferences,
@@ -477,7 +530,7 @@ pub fn linearize(
                 "the tangent linearisation needs a state at rest in equilibrium; here \
                  |qd|inf = {:.2e}, |Phi_t|inf = {:.2e} (tolerance {:.1e}), |qdd|inf = {:.2e} \
                  (tolerance {:.1e})",
-                inf(&qd0),
+                inf(&qd0[..nb]),
                 inf(&phi_t),
                 opts.rest_tol,
                 inf(&qdd0),
@@ -610,7 +663,8 @@ pub fn linearize(
                     }
                     exact[r] = true;
                 }
-                Output::Sensor { .. } => {}
+                // mapped to the velocity of w above
+                Output::State(_) | Output::Sensor { .. } => {}
             }
         }
     }
@@ -623,6 +677,7 @@ pub fn linearize(
                 y.push(match *out {
                     Output::Coordinate(k) => qx[k],
                     Output::Velocity(k) => qdx[k],
+                    Output::State(k) => qdx[nb + k],
                     Output::Sensor { sensor, index } => {
                         all.clear();
                         sensors[sensor].evaluate(sys, t, &qx, &qdx, &mut all);
@@ -654,13 +709,16 @@ pub fn linearize(
     }
     let mut states: Vec<(String, &'static str)> = independent
         .iter()
-        .map(|&k| Output::Coordinate(k).name(sys, sensors))
+        .map(|&k| match k < nb {
+            true => Output::Coordinate(k).name(sys, sensors),
+            // a state's coordinate w: dropped below
+            false => (String::new(), ""),
+        })
         .collect();
-    states.extend(
-        independent
-            .iter()
-            .map(|&k| Output::Velocity(k).name(sys, sensors)),
-    );
+    states.extend(independent.iter().map(|&k| match k < nb {
+        true => Output::Velocity(k).name(sys, sensors),
+        false => (String::new(), ""),
+    }));
     for (slot, suffix) in [(0, "offset"), (1, "rate")] {
         for d in &drive_inputs {
             states.push((
@@ -669,6 +727,37 @@ pub fn linearize(
             ));
         }
     }
+    // drop the controller states' coordinates w (module docs): keep the
+    // bodies' z and ż, the drives' σ, σ̇, then the states' values (ż of w)
+    let body: Vec<usize> = (0..f).filter(|&i| independent[i] < nb).collect();
+    let ctrl: Vec<usize> = (0..f).filter(|&i| independent[i] >= nb).collect();
+    let keep: Vec<usize> = body
+        .iter()
+        .copied()
+        .chain(body.iter().map(|&i| f + i))
+        .chain(2 * f..2 * f + 2 * nd)
+        .chain(ctrl.iter().map(|&i| f + i))
+        .collect();
+    let rows =
+        |m: &Mat<f64>, r: &[usize]| Mat::<f64>::from_fn(r.len(), m.ncols(), |i, j| m[(r[i], j)]);
+    let cols =
+        |m: &Mat<f64>, c: &[usize]| Mat::<f64>::from_fn(m.nrows(), c.len(), |i, j| m[(i, c[j])]);
+    let a = cols(&rows(&a, &keep), &keep);
+    let b = rows(&b, &keep);
+    let c = cols(&c, &keep);
+    let states: Vec<(String, &'static str)> = body
+        .iter()
+        .map(|&i| states[i].clone())
+        .chain(body.iter().map(|&i| states[f + i].clone()))
+        .chain(states[2 * f..2 * f + 2 * nd].iter().cloned())
+        .chain(
+            ctrl.iter()
+                .map(|&i| (sys.states()[independent[i] - nb].name.clone(), "")),
+        )
+        .collect();
+    let basis = cols(&basis, &body);
+    let reduced = reduced.map(|r| r.map(|m| cols(&rows(&m, &body), &body)));
+    let independent: Vec<usize> = body.iter().map(|&i| independent[i]).collect();
     Ok(StateSpace {
         t,
         q: q0,
@@ -676,10 +765,11 @@ pub fn linearize(
         lambda: lambda0,
         qdd: qdd0,
         independent,
+        controller_states: ctrl.len(),
         method,
         states,
         inputs: inputs.iter().map(|i| i.name(sys)).collect(),
-        outputs: outputs.iter().map(|o| o.name(sys, sensors)).collect(),
+        outputs: outputs_named.iter().map(|o| o.name(sys, sensors)).collect(),
         a,
         b,
         c,

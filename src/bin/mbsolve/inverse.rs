@@ -4,7 +4,8 @@
 //! ([`mbsolve::analysis::inverse`]). Writes `DIR/<stem>.inverse.csv` (the
 //! columns of `run`'s table with velocities, accelerations, reactions and
 //! drives: same names), `<stem>.inverse.columns.json` and
-//! `<stem>.inverse.summary.json`.
+//! `<stem>.inverse.summary.json`. Controller states are integrated along
+//! the prescribed motion (their columns hold z).
 
 use crate::output::{columns_json, create_fresh, sibling, write_atomic, OutputError};
 use mbsolve::analysis::inverse::{InverseDynamics, InverseOptions};
@@ -27,7 +28,6 @@ fn inverse(
     out: &Path,
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let sc = scenario::load(path, set).map_err(|e| e.to_string())?;
-    sc.refuse_states("inverse")?;
     let sys = &sc.system;
     let stem = path
         .file_stem()
@@ -36,6 +36,10 @@ fn inverse(
     let times = sc.run.output_times();
     let start = Instant::now();
     let mut inv = InverseDynamics::new(sys, &sc.q0, sc.run.t0, InverseOptions::default())
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    // controller states from the scenario's initial state (integrated
+    // along the prescribed motion)
+    inv.set_states(&sc.qd0[sys.n_body_coords()..])
         .map_err(|e| format!("{}: {e}", path.display()))?;
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let quantities = OutputQuantities {

@@ -10,7 +10,7 @@ use crate::output::write_atomic;
 use mbsolve::analysis::linearize::{
     linearize, Input, LinearizeOptions, Method, Output, StateSpace,
 };
-use mbsolve::analysis::{static_equilibrium, StaticOptions};
+use mbsolve::analysis::{static_equilibrium_from, StaticOptions};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario};
 use mbsolve::simulation::simulate;
@@ -39,7 +39,8 @@ pub struct LinearizeArgs {
     #[arg(long, value_delimiter = ',')]
     pub inputs: Vec<String>,
     /// Outputs, comma-separated: coordinates `BODY.x|y|phi`, velocities
-    /// `BODY.vx|vy|omega`, sensor readings `SENSOR.QUANTITY`.
+    /// `BODY.vx|vy|omega`, sensor readings `SENSOR.QUANTITY`, controller
+    /// states by name.
     #[arg(long, value_delimiter = ',')]
     pub outputs: Vec<String>,
     /// Independent coordinates `BODY.x|y|phi`, comma-separated [default:
@@ -59,7 +60,6 @@ pub struct LinearizeArgs {
 pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
     let file = a.scenario.display().to_string();
     let sc = scenario::load(&a.scenario, &a.set).map_err(|e| e.to_string())?;
-    sc.refuse_states("linearize")?;
     let sys = &sc.system;
     let inputs = a
         .inputs
@@ -170,8 +170,11 @@ fn state(sc: &Scenario, at: &str) -> Result<(f64, Vec<f64>, Vec<f64>), String> {
                 t0: sc.run.t0,
                 ..Default::default()
             };
-            let eq = static_equilibrium(&sc.system, &sc.q0, opts).map_err(|e| e.to_string())?;
-            Ok((sc.run.t0, eq.q, vec![0.0; sc.system.n_coords()]))
+            let z0 = &sc.qd0[sc.system.n_body_coords()..];
+            let eq =
+                static_equilibrium_from(&sc.system, &sc.q0, z0, opts).map_err(|e| e.to_string())?;
+            let qd = eq.velocities();
+            Ok((sc.run.t0, eq.q, qd))
         }
         s => {
             let v = s
@@ -280,6 +283,9 @@ fn parse_input(sys: &System, s: &str) -> Result<Input, String> {
 }
 
 fn parse_output(sc: &Scenario, s: &str) -> Result<Output, String> {
+    if let Some(k) = sc.system.states().iter().position(|x| x.name == s) {
+        return Ok(Output::State(k));
+    }
     if let Some((name, q)) = s.rsplit_once('.') {
         if let Some(i) = sc.sensors.iter().position(|x| x.name == name) {
             let quantities = sc.sensors[i].quantities(&sc.system);
@@ -335,7 +341,7 @@ fn to_json(a: &LinearizeArgs, sc: &Scenario, ss: &StateSpace, eig: &[(f64, f64)]
         "at": a.at,
         "t": ss.t,
         "method": ss.method.name(),
-        "form": "xdot = A x + B u, y = C x + D u; x = (z, zdot), z the independent coordinates",
+        "form": "xdot = A x + B u, y = C x + D u; x = (z, zdot, drive offsets and rates, controller states), z the independent coordinates",
         "independent": ss.states[..ss.independent.len()].iter().map(|s| s.0.clone()).collect::<Vec<_>>(),
         "states": named(&ss.states),
         "inputs": named(&ss.inputs),

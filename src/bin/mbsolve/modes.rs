@@ -13,7 +13,10 @@ use crate::animate::{self, coordinate_columns};
 use crate::figure::{Figure, Series};
 use crate::output::write_atomic;
 use crate::statics::{equilibrium_of, stem};
-use mbsolve::analysis::{eigenmodes, ModeOptions, Modes, Tangent};
+use mbsolve::analysis::linearize::{linearize, LinearizeOptions, Method};
+use mbsolve::analysis::{
+    eigenmodes, first_order_modes, FirstOrderMode, ModeOptions, Modes, Tangent,
+};
 use mbsolve::formulation::Index3;
 use mbsolve::linalg::SolverKind;
 use mbsolve::model::System;
@@ -85,12 +88,11 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     let (sc, q, qd, lambda) = match a.at {
         At::Static => {
             let (sc, eq) = equilibrium_of(path, a.set)?;
-            let n = eq.q.len();
-            (sc, eq.q, vec![0.0; n], eq.lambda)
+            let qd = eq.velocities();
+            (sc, eq.q, qd, eq.lambda)
         }
         At::Initial | At::Time(_) => {
             let sc = scenario::load(path, a.set).map_err(|e| e.to_string())?;
-            sc.refuse_states("modes")?;
             let (t, q, qd) = match a.at {
                 At::Time(t) => crate::linearize::state_at_time(&sc, t)
                     .map_err(|e| format!("{}: --at t={t}: {e}", path.display()))?,
@@ -119,6 +121,12 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         },
     )
     .map_err(|e| format!("{}: {e}", path.display()))?;
+    // with controller states: the first-order modes, states included
+    let first_order = if sys.states().is_empty() {
+        None
+    } else {
+        Some(first_order(&sc, a.at, t0, &q, &qd).map_err(|e| format!("{}: {e}", path.display()))?)
+    };
     std::fs::create_dir_all(a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let stem = stem(path);
     let names: Vec<String> = coordinate_columns(sys).into_iter().flatten().collect();
@@ -134,7 +142,7 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
                 "damped_frequency_hz": md.damped_frequency_hz,
                 "damping_ratio": md.damping_ratio,
                 "residual": md.residual,
-                "shape": md.shape,
+                "shape": md.shape[..names.len()],
             })
         })
         .collect();
@@ -155,6 +163,25 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         "coordinates": names,
         "modes": list,
     });
+    let mut report = report;
+    if let Some((states, fo)) = &first_order {
+        report["undamped"] =
+            json!("the mechanism's modes with the controller states held fixed (δz = 0)");
+        report["first_order_states"] = json!(states);
+        report["first_order_modes"] = json!(fo
+            .iter()
+            .map(|m| json!({
+                "re": m.re,
+                "im": m.im,
+                "oscillatory": m.oscillatory,
+                "frequency_hz": m.frequency_hz,
+                "damped_frequency_hz": m.damped_frequency_hz,
+                "damping_ratio": m.damping_ratio,
+                "time_constant_s": m.time_constant_s,
+                "shape": m.shape,
+            }))
+            .collect::<Vec<_>>());
+    }
     let json_path = a.out.join(format!("{stem}.modes.json"));
     write_atomic(
         &json_path,
@@ -170,6 +197,30 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
             md.damping_ratio
         );
     }
+    if let Some((_, fo)) = &first_order {
+        say!("(undamped modes above: the mechanism with its controller states held fixed)");
+        say!("first-order modes of the system with its controller states (eigenvalues s of A):");
+        for m in fo {
+            if m.oscillatory {
+                say!(
+                    "  s = {:.6e} ± {:.6e} i: {:.6} Hz, damped {:.6} Hz, ζ = {:.4e}",
+                    m.re,
+                    m.im,
+                    m.frequency_hz,
+                    m.damped_frequency_hz,
+                    m.damping_ratio.unwrap_or(f64::NAN)
+                );
+            } else {
+                say!(
+                    "  s = {:.6e}: non-oscillatory (time constant {})",
+                    m.re,
+                    m.time_constant_s
+                        .map(|t| format!("{t:.6e} s"))
+                        .unwrap_or_else(|| "none".into())
+                );
+            }
+        }
+    }
     if !modes.converged {
         eprintln!(
             "warning: not every mode met the tolerance after {} Lanczos steps (see residual)",
@@ -184,6 +235,26 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The first-order modes of a system with controller states at `(t, q,
+/// q̇)`: the eigenvalues of its linearisation's A (exact at the static
+/// equilibrium, central differences elsewhere), with A's state names.
+fn first_order(
+    sc: &scenario::Scenario,
+    at: At,
+    t: f64,
+    q: &[f64],
+    qd: &[f64],
+) -> Result<(Vec<String>, Vec<FirstOrderMode>), String> {
+    let mut opts = LinearizeOptions::default();
+    if at == At::Static {
+        opts.method = Method::Tangent;
+        opts.rest_tol = 1e-6;
+    }
+    let ss = linearize(&sc.system, &[], t, q, qd, &[], &[], &opts).map_err(|e| e.to_string())?;
+    let modes = first_order_modes(&ss.a).map_err(|e| e.to_string())?;
+    Ok((ss.states.into_iter().map(|s| s.0).collect(), modes))
 }
 
 /// Figure of the first (at most 4) shapes: per body, the translation (x
@@ -248,8 +319,7 @@ fn animation(
     stem: &str,
 ) -> Result<Vec<std::path::PathBuf>, String> {
     let md = &modes.modes[k];
-    let n = q0.len();
-    let nb = n / 3;
+    let nb = sys.bodies().len();
     // amplitude: the largest displacement 10 % of the model's extent, the
     // largest rotation at most 0.3 rad
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -297,11 +367,13 @@ fn animation(
         row.extend(
             q0.iter()
                 .zip(&md.shape)
+                .take(sys.n_body_coords())
                 .map(|(q, x)| format!("{:e}", q + amp * s * x)),
         );
         row.extend(
             md.shape
                 .iter()
+                .take(sys.n_body_coords())
                 .map(|x| format!("{:e}", amp * omega * c * x)),
         );
         w.write_record(&row).map_err(werr)?;
@@ -316,7 +388,7 @@ fn animation(
             k + 1,
             md.frequency_hz
         ),
-        ghost: Some(q0.to_vec()),
+        ghost: Some(q0[..sys.n_body_coords()].to_vec()),
         synthetic: true,
     };
     let mut written = Vec::new();
