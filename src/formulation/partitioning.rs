@@ -705,7 +705,7 @@ impl<'a> Partitioned<'a> {
                 .collect();
             let mut seg_ode = ode.clone();
             seg_ode.max_steps = ode.max_steps.saturating_sub(total.steps).max(1);
-            let mut integ: Box<dyn Integrator> = integrator(method, seg_ode)?;
+            let mut integ: Integrator = integrator(method, seg_ode)?;
             let mut watch = FullState {
                 sys,
                 opts: self.opts,
