@@ -1,7 +1,8 @@
 //! Revolute joint: a point of body i coincides with a point of body j.
 
 use super::{
-    angular_velocity, check_bodies, check_finite, point, two_body_pattern, Constraint, JointGeometry,
+    angular_velocity, check_bodies, check_finite, point, two_body_pattern, Constraint,
+    JointGeometry,
 };
 use crate::model::FdWorkspace;
 use crate::model::{perp, BodyRef, ModelError};

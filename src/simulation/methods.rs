@@ -261,11 +261,7 @@ impl MethodRun for AugmentedRun<'_> {
 
 /// The generalized-α scheme of a run in the summary's `extra`: `rho_inf`,
 /// `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`.
-fn scheme_fields(
-    extra: &mut Extra,
-    p: &AlphaParameters,
-    rho_inf: f64,
-) {
+fn scheme_fields(extra: &mut Extra, p: &AlphaParameters, rho_inf: f64) {
     extra.extend(fields([
         ("rho_inf", rho_inf.into()),
         ("alpha_m", p.alpha_m.into()),
@@ -326,9 +322,7 @@ fn index3_work(
 }
 
 /// Summary `extra` fields from `(name, value)` pairs.
-fn fields<const N: usize>(
-    pairs: [(&str, serde_json::Value); N],
-) -> Extra {
+fn fields<const N: usize>(pairs: [(&str, serde_json::Value); N]) -> Extra {
     pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
@@ -344,11 +338,7 @@ pub(super) trait Index3Scheme {
     ) -> Result<Report, IntegratorError>;
     /// The factorisations of the run (all Newton matrices) and the
     /// scheme's summary `extra` fields.
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, Extra);
+    fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra);
 }
 
 /// An index-3 scheme bound to [`Index3`]; the same [`Trajectory`] and
@@ -435,11 +425,7 @@ impl Index3Scheme for GenAlpha {
         let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         GenAlpha::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, Extra) {
+    fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let gs = self.stats();
         let fs = f.stats();
         let opts = self.options();
@@ -487,11 +473,7 @@ impl Index3Scheme for Bdf {
         let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         Bdf::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        _cfg: &RunConfig,
-    ) -> (usize, Extra) {
+    fn work(&self, f: &Index3<'_>, _cfg: &RunConfig) -> (usize, Extra) {
         let bs = self.stats();
         let mut extra = counters(&bs, &IMPLICIT_COUNTERS);
         extra.remove("projections");
@@ -538,11 +520,7 @@ impl Index3Scheme for RadauScheme<'_> {
         self.integ
             .integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        _f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, Extra) {
+    fn work(&self, _f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let rs = self.integ.stats();
         let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
         extra.extend(fields([

@@ -412,8 +412,7 @@ fn command(cli: Cli) -> ExitCode {
                 say!("wrote {}", p.display());
                 ExitCode::SUCCESS
             }),
-        Command::Plot(args) => plot::plot(&args)
-        .map(|p| {
+        Command::Plot(args) => plot::plot(&args).map(|p| {
             say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),
