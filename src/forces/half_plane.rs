@@ -146,7 +146,7 @@ impl HalfPlaneContact {
     }
 
     /// Penetration `δ` \[m\] at time `t` \[s\] (negative: the gap).
-    pub fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
+    pub(crate) fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
         let a = self.wall(t).0;
         let o = 3 * self.body;
         let (sn, cs) = q[o + 2].sin_cos();
@@ -191,16 +191,9 @@ impl HalfPlaneContact {
         })
     }
 
-    /// `(F_n, F_t, δ)`: normal force, friction force along `t = J n` \[N\]
-    /// and penetration \[m\]; zeros without contact.
-    /// The wall at t = 0 for a moving wall
-    /// ([`HalfPlaneContact::contact_forces_at`] for another time).
-    pub fn contact_forces(&self, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
-        self.contact_forces_at(0.0, q, qd)
-    }
 
     /// [`HalfPlaneContact::contact_forces`] at time `t` \[s\].
-    pub fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
+    pub(crate) fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
         self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {
             (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
         })
