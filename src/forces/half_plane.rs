@@ -191,7 +191,6 @@ impl HalfPlaneContact {
         })
     }
 
-
     /// [`HalfPlaneContact::contact_forces`] at time `t` \[s\].
     pub(crate) fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
         self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {

@@ -244,7 +244,6 @@ impl SparseLdlt {
         self.analysis.as_ref().map(|a| a.l_values.len())
     }
 
-
     /// Elimination order (`order[k]` = index eliminated `k`-th) for `k`.
     fn elimination_order(&self, k: &SaddleMatrix) -> Result<Vec<usize>, LinalgError> {
         let dim = k.dim();
