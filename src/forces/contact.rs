@@ -148,7 +148,7 @@ impl WallContact {
     /// Body-fixed position of corner `c` (0..4): 0 = (−w/2, −l_s/2),
     /// 1 = (+w/2, −l_s/2), 2 = (+w/2, +l_s/2), 3 = (−w/2, +l_s/2)
     /// (counter-clockwise from bottom left at φ = 0). Panics for `c >= 4`.
-    pub(crate) fn corner_offset(&self, c: usize) -> [f64; 2] {
+    pub fn corner_offset(&self, c: usize) -> [f64; 2] {
         const SIGNS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
         [
             SIGNS[c][0] * 0.5 * self.width,

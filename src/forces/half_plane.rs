@@ -146,7 +146,7 @@ impl HalfPlaneContact {
     }
 
     /// Penetration `δ` \[m\] at time `t` \[s\] (negative: the gap).
-    pub(crate) fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
+    pub fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
         let a = self.wall(t).0;
         let o = 3 * self.body;
         let (sn, cs) = q[o + 2].sin_cos();
@@ -191,8 +191,9 @@ impl HalfPlaneContact {
         })
     }
 
-    /// [`HalfPlaneContact::contact_forces`] at time `t` \[s\].
-    pub(crate) fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
+    /// `(F_n, F_t, δ)` at time `t` \[s\]: normal force, friction force
+    /// along `t = J n` \[N\] and penetration \[m\]; zeros without contact.
+    pub fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
         self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {
             (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
         })
@@ -296,7 +297,7 @@ impl ForceElement for HalfPlaneContact {
         ]
     }
 
-    /// [`HalfPlaneContact::contact_forces`]: `F_n`, `F_t`, and the
+    /// [`HalfPlaneContact::contact_forces_at`]: `F_n`, `F_t`, and the
     /// penetration `δ` (negative: the gap, also out of contact).
     fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let (fn_, ft, _) = self.contact_forces_at(t, q, qd);
