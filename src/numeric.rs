@@ -26,3 +26,16 @@ pub fn first_non_finite(v: &[f64]) -> Option<(usize, f64)> {
         .find(|(_, x)| !x.is_finite())
         .map(|(i, x)| (i, *x))
 }
+
+/// The maximum norm `‖v‖∞ = maxᵢ |vᵢ|` (0 for an empty `v`; NaN entries
+/// are passed over, as [`f64::max`] does).
+pub(crate) fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0_f64, |a, x| a.max(x.abs()))
+}
+
+/// `‖a − b‖∞` over the common length of `a` and `b` (as [`max_abs`]).
+pub(crate) fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
+}

@@ -33,56 +33,42 @@ impl DriveCoordinate {
     }
 }
 
-impl Constraint for DriveCoordinate {
-    fn name(&self) -> String {
+impl Drive for DriveCoordinate {
+    fn label(&self) -> String {
         format!("coordinate drive '{}'", self.name)
     }
-    fn drive_unit(&self) -> Option<&'static str> {
-        Some(if self.coordinate == 2 { "N m" } else { "N" })
+    fn unit(&self) -> &'static str {
+        if self.coordinate == 2 {
+            "N m"
+        } else {
+            "N"
+        }
     }
-    fn n_eq(&self) -> usize {
-        1
-    }
-    fn bodies(&self) -> Vec<BodyRef> {
+    fn driven_bodies(&self) -> Vec<BodyRef> {
         vec![BodyRef::Body(self.body)]
     }
-    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+    fn pattern(&self) -> Vec<(usize, usize)> {
         vec![(0, self.index())]
     }
-    fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = q[self.index()] - self.f.value(t);
+    fn driven(&self, q: &[f64]) -> f64 {
+        q[self.index()]
     }
-    fn jacobian(&self, _q: &[f64], _t: f64, vals: &mut [f64]) {
+    fn coefficients(&self, vals: &mut [f64]) {
         vals[0] = 1.0;
     }
-    fn phi_t(&self, _q: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = -self.f.eval(t)[1];
+    fn motion(&self) -> &TimeFunction {
+        &self.f
     }
-    fn gamma(&self, _q: &[f64], _qd: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = self.f.eval(t)[2];
-    }
-    fn hessian_pattern(&self) -> Vec<(usize, usize)> {
-        Vec::new()
-    }
-    fn add_hessian(
-        &self,
-        _q: &[f64],
-        _t: f64,
-        _lambda: &[f64],
-        _vals: &mut [f64],
-        _ws: &mut crate::model::FdWorkspace,
-    ) {
-    }
-    fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
+    fn check(&self) -> Result<(), ModelError> {
         if self.coordinate > 2 {
             return Err(ModelError::InvalidParameter {
-                element: self.name(),
+                element: self.label(),
                 field: "coordinate".into(),
                 value: self.coordinate.to_string(),
                 why: "must be 0 (x), 1 (y) or 2 (phi)".into(),
             });
         }
-        check_bodies(&self.name(), &self.bodies(), n_bodies)
+        Ok(())
     }
 }
 
@@ -112,29 +98,26 @@ impl DriveRelativeAngle {
     }
 }
 
-impl Constraint for DriveRelativeAngle {
-    fn name(&self) -> String {
+impl Drive for DriveRelativeAngle {
+    fn label(&self) -> String {
         format!("relative-angle drive '{}'", self.name)
     }
-    fn drive_unit(&self) -> Option<&'static str> {
-        Some("N m")
+    fn unit(&self) -> &'static str {
+        "N m"
     }
-    fn n_eq(&self) -> usize {
-        1
-    }
-    fn bodies(&self) -> Vec<BodyRef> {
+    fn driven_bodies(&self) -> Vec<BodyRef> {
         vec![self.body_i, self.body_j]
     }
-    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+    fn pattern(&self) -> Vec<(usize, usize)> {
         [self.body_i, self.body_j]
             .iter()
             .filter_map(|b| b.offset().map(|o| (0, o + 2)))
             .collect()
     }
-    fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = angle(q, self.body_j) - angle(q, self.body_i) - self.f.value(t);
+    fn driven(&self, q: &[f64]) -> f64 {
+        angle(q, self.body_j) - angle(q, self.body_i)
     }
-    fn jacobian(&self, _q: &[f64], _t: f64, vals: &mut [f64]) {
+    fn coefficients(&self, vals: &mut [f64]) {
         let mut k = 0;
         for (b, v) in [(self.body_i, -1.0), (self.body_j, 1.0)] {
             if b != BodyRef::Ground {
@@ -143,11 +126,63 @@ impl Constraint for DriveRelativeAngle {
             }
         }
     }
+    fn motion(&self) -> &TimeFunction {
+        &self.f
+    }
+}
+
+/// A drive `Φ = a(q) − f(t)` with `a` linear in q (constant
+/// coefficients): Φ_q is constant, `Φ_t = −f′(t)`, `γ = f″(t)` and
+/// `(Φ_qᵀλ)_q = 0`. Each drive supplies `a` and its coefficients; the
+/// rest of [`Constraint`] is the one impl below.
+pub(crate) trait Drive: Send + Sync + std::fmt::Debug {
+    /// Description used in messages ([`Constraint::name`]).
+    fn label(&self) -> String;
+    /// Unit of the drive's generalized force ([`Constraint::drive_unit`]).
+    fn unit(&self) -> &'static str;
+    /// The bodies it connects ([`Constraint::bodies`]).
+    fn driven_bodies(&self) -> Vec<BodyRef>;
+    /// Structural non-zeros of Φ_q ([`Constraint::jacobian_pattern`]).
+    fn pattern(&self) -> Vec<(usize, usize)>;
+    /// `a(q)`, the driven coordinate or combination of coordinates.
+    fn driven(&self, q: &[f64]) -> f64;
+    /// The constant values of Φ_q in pattern order.
+    fn coefficients(&self, vals: &mut [f64]);
+    /// The prescribed motion f(t).
+    fn motion(&self) -> &TimeFunction;
+    /// Checks of the drive's own parameters (before the body references).
+    fn check(&self) -> Result<(), ModelError> {
+        Ok(())
+    }
+}
+
+impl<D: Drive> Constraint for D {
+    fn name(&self) -> String {
+        self.label()
+    }
+    fn drive_unit(&self) -> Option<&'static str> {
+        Some(self.unit())
+    }
+    fn n_eq(&self) -> usize {
+        1
+    }
+    fn bodies(&self) -> Vec<BodyRef> {
+        self.driven_bodies()
+    }
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        self.pattern()
+    }
+    fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        out[0] = self.driven(q) - self.motion().value(t);
+    }
+    fn jacobian(&self, _q: &[f64], _t: f64, vals: &mut [f64]) {
+        self.coefficients(vals);
+    }
     fn phi_t(&self, _q: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = -self.f.eval(t)[1];
+        out[0] = -self.motion().eval(t)[1];
     }
     fn gamma(&self, _q: &[f64], _qd: &[f64], t: f64, out: &mut [f64]) {
-        out[0] = self.f.eval(t)[2];
+        out[0] = self.motion().eval(t)[2];
     }
     fn hessian_pattern(&self) -> Vec<(usize, usize)> {
         Vec::new()
@@ -160,6 +195,10 @@ impl Constraint for DriveRelativeAngle {
         _vals: &mut [f64],
         _ws: &mut crate::model::FdWorkspace,
     ) {
+    }
+    fn validate(&self, n_bodies: usize) -> Result<(), ModelError> {
+        self.check()?;
+        check_bodies(&self.label(), &self.driven_bodies(), n_bodies)
     }
 }
 

@@ -32,6 +32,20 @@ pub(crate) fn point(q: &[f64], body: BodyRef, s: [f64; 2]) -> ([f64; 2], [f64; 2
     }
 }
 
+/// The Φ_q pattern of a joint between two bodies: for each body that is
+/// not the ground (`bodies[0]` first), the entries `(row, o + k)` of
+/// `entries = [(row, k); 4]`, `o` the body's first coordinate.
+pub(crate) fn two_body_pattern(
+    bodies: [BodyRef; 2],
+    entries: [(usize, usize); 4],
+) -> Vec<(usize, usize)> {
+    let mut p = Vec::with_capacity(8);
+    for o in bodies.iter().filter_map(|b| b.offset()) {
+        p.extend(entries.iter().map(|&(row, k)| (row, o + k)));
+    }
+    p
+}
+
 /// Angle of a body (0 for the ground).
 #[inline]
 pub(crate) fn angle(q: &[f64], body: BodyRef) -> f64 {

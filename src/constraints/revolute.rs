@@ -1,6 +1,9 @@
 //! Revolute joint: a point of body i coincides with a point of body j.
 
-use super::{angular_velocity, check_bodies, check_finite, point, Constraint, JointGeometry};
+use super::{
+    angular_velocity, check_bodies, check_finite, point, two_body_pattern, Constraint,
+    JointGeometry,
+};
 use crate::model::FdWorkspace;
 use crate::model::{perp, BodyRef, ModelError};
 
@@ -60,13 +63,7 @@ impl Constraint for Revolute {
         vec![self.body_i, self.body_j]
     }
     fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
-        let mut p = Vec::with_capacity(8);
-        for b in [self.body_i, self.body_j] {
-            if let Some(o) = b.offset() {
-                p.extend_from_slice(&[(0, o), (1, o + 1), (0, o + 2), (1, o + 2)]);
-            }
-        }
-        p
+        two_body_pattern([self.body_i, self.body_j], [(0, 0), (1, 1), (0, 2), (1, 2)])
     }
     fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
         let (pi, _) = point(q, self.body_i, self.s_i);

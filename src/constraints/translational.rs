@@ -1,7 +1,8 @@
 //! Translational (prismatic) joint: body j slides along an axis of body i.
 
 use super::{
-    angle, angular_velocity, check_bodies, check_finite, point, velocity, Constraint, JointGeometry,
+    angle, angular_velocity, check_bodies, check_finite, point, two_body_pattern, velocity,
+    Constraint, JointGeometry,
 };
 use crate::model::{perp, rotate, BodyRef, ModelError};
 
@@ -87,13 +88,7 @@ impl Constraint for Translational {
         vec![self.body_i, self.body_j]
     }
     fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
-        let mut p = Vec::with_capacity(8);
-        for b in [self.body_i, self.body_j] {
-            if let Some(o) = b.offset() {
-                p.extend_from_slice(&[(0, o), (0, o + 1), (0, o + 2), (1, o + 2)]);
-            }
-        }
-        p
+        two_body_pattern([self.body_i, self.body_j], [(0, 0), (0, 1), (0, 2), (1, 2)])
     }
     fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
         let (n, d, _, _) = self.geometry(q);

@@ -191,15 +191,8 @@ impl HalfPlaneContact {
         })
     }
 
-    /// `(F_n, F_t, δ)`: normal force, friction force along `t = J n` \[N\]
-    /// and penetration \[m\]; zeros without contact.
-    /// The wall at t = 0 for a moving wall
-    /// ([`HalfPlaneContact::contact_forces_at`] for another time).
-    pub fn contact_forces(&self, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
-        self.contact_forces_at(0.0, q, qd)
-    }
-
-    /// [`HalfPlaneContact::contact_forces`] at time `t` \[s\].
+    /// `(F_n, F_t, δ)` at time `t` \[s\]: normal force, friction force
+    /// along `t = J n` \[N\] and penetration \[m\]; zeros without contact.
     pub fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
         self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {
             (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
@@ -304,7 +297,7 @@ impl ForceElement for HalfPlaneContact {
         ]
     }
 
-    /// [`HalfPlaneContact::contact_forces`]: `F_n`, `F_t`, and the
+    /// [`HalfPlaneContact::contact_forces_at`]: `F_n`, `F_t`, and the
     /// penetration `δ` (negative: the gap, also out of contact).
     fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let (fn_, ft, _) = self.contact_forces_at(t, q, qd);

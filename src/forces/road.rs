@@ -94,12 +94,6 @@ impl RoadContact {
         c.surface_velocity = [0.0, v[2]];
         c
     }
-
-    /// `(F_n, F_t, δ)` at time `t` \[s\]: normal force, friction force
-    /// \[N\] and penetration \[m\] (zeros without contact).
-    pub fn contact_forces(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
-        self.local(t, q).contact_forces_at(t, q, qd)
-    }
 }
 
 impl ForceElement for RoadContact {

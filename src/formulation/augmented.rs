@@ -315,7 +315,7 @@ impl<'a> Augmented<'a> {
     ) -> Result<StartCorrection, FormulationError> {
         let sys = self.sys;
         check_state(t, q, qd)?;
-        let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let norm = crate::numeric::max_abs;
         let c = self.alpha * self.s0;
         let mut out = StartCorrection::default();
         let m = sys.n_constraints();
@@ -356,10 +356,7 @@ impl<'a> Augmented<'a> {
                     break;
                 }
             }
-            out.moved_q = q
-                .iter()
-                .zip(&q0)
-                .fold(0.0_f64, |a, (x, y)| a.max((x - y).abs()));
+            out.moved_q = crate::numeric::max_abs_diff(q, &q0);
             out.iterations += it;
         }
         // velocities at the (projected) positions: Φ̇ = Φ_q q̇ + Φ_t
@@ -402,10 +399,7 @@ impl<'a> Augmented<'a> {
                     break;
                 }
             }
-            out.moved_qd = qd
-                .iter()
-                .zip(&qd0)
-                .fold(0.0_f64, |a, (x, y)| a.max((x - y).abs()));
+            out.moved_qd = crate::numeric::max_abs_diff(qd, &qd0);
             out.iterations += it;
         }
         self.stats.start_iterations += out.iterations;
@@ -432,7 +426,7 @@ impl<'a> Augmented<'a> {
         all_finite(t, &[("the forces g", &self.g), ("γ", &self.phi_t)])?;
         lam.fill(0.0);
         qdd.fill(0.0);
-        let gmax = self.phi_t.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        let gmax = crate::numeric::max_abs(&self.phi_t);
         let mut prev = f64::INFINITY;
         for _ in 0..100 {
             self.stats.initial_iterations += 1;

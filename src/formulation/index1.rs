@@ -292,7 +292,7 @@ impl Index1<'_> {
         let mut iterations = 0;
         loop {
             self.sys.phi(q, t, &mut self.b.phi);
-            let residual = self.b.phi.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+            let residual = crate::numeric::max_abs(&self.b.phi);
             let direct = p.correction == Correction::Direct;
             if (residual <= p.tol && !direct) || residual == 0.0 || (direct && iterations == 1) {
                 break;

@@ -649,7 +649,7 @@ impl SecondOrderDae for Index3<'_> {
     /// steps). The projection has its own factorisation, never the Newton
     /// matrix's.
     fn project_output(&mut self, t: f64, q: &mut [f64]) -> Result<bool, SystemError> {
-        let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let norm = crate::numeric::max_abs;
         let err = SystemError::new;
         let tol = 64.0 * f64::EPSILON * norm(q).max(1.0);
         self.sys.phi(q, t, &mut self.phi);
@@ -678,7 +678,7 @@ impl Index3<'_> {
         first: f64,
         tol: f64,
     ) -> Result<bool, FormulationError> {
-        let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+        let norm = crate::numeric::max_abs;
         let mut fresh = !self.mass_factored;
         if fresh {
             self.factor_mass(t, q)?;

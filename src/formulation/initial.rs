@@ -414,7 +414,7 @@ pub(super) fn index3_consistent_start(
     q: &mut [f64],
     qd: &mut [f64],
 ) -> Result<StartCorrection, FormulationError> {
-    let norm = |v: &[f64]| v.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+    let norm = crate::numeric::max_abs;
     let m = sys.n_constraints();
     let mut phi = vec![0.0; m];
     let mut phi_t = vec![0.0; m];
@@ -471,12 +471,7 @@ pub(super) fn index3_consistent_start(
         out.iterations += 1;
         (p, _, vrel) = residuals(q, qd)?;
     }
-    let moved = |a: &[f64], b: &[f64]| {
-        a.iter()
-            .zip(b)
-            .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
-    };
-    out.moved_q = moved(q, &q_in);
-    out.moved_qd = moved(qd, &qd_in);
+    out.moved_q = crate::numeric::max_abs_diff(q, &q_in);
+    out.moved_qd = crate::numeric::max_abs_diff(qd, &qd_in);
     Ok(out)
 }

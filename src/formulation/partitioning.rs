@@ -327,26 +327,19 @@ impl Split {
         Ok(())
     }
 
-    /// The full state from the independent part `v`, `v̇`: Newton on
-    /// `Φ_R(u, v, t) = 0` from the base's predictor, then the dependent
-    /// velocities. Returns the Newton iterations.
-    fn expand(
-        &mut self,
-        sys: &System,
-        opts: &PartitionOptions,
-        t: f64,
-        y: &[f64],
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<usize, FormulationError> {
+    /// The base's predictor of the dependent coordinates at `t` into
+    /// `q[dep]`, where [`Split::complete`] starts its Newton iteration.
+    fn predict(&self, t: f64, q: &mut [f64]) {
         let dt = t - self.base_t;
         for &k in &self.dep {
             q[k] = self.base_q[k] + dt * (self.base_qd[k] + 0.5 * dt * self.base_qdd[k]);
         }
-        self.complete(sys, opts, t, y, q, qd)
     }
 
-    /// [`Split::expand`] from the predictor already in `q[dep]`.
+    /// The full state from the independent part `v`, `v̇`: Newton on
+    /// `Φ_R(u, v, t) = 0` from the predictor already in `q[dep]`
+    /// ([`Split::predict`]), then the dependent velocities. Returns the
+    /// Newton iterations.
     fn complete(
         &mut self,
         sys: &System,
@@ -622,7 +615,8 @@ impl<'a> Partitioned<'a> {
         q: &mut [f64],
         qd: &mut [f64],
     ) -> Result<usize, FormulationError> {
-        let it = self.split.expand(self.sys, &self.opts, t, y, q, qd)?;
+        self.split.predict(t, q);
+        let it = self.split.complete(self.sys, &self.opts, t, y, q, qd)?;
         self.stats.newton_iterations += it;
         Ok(it)
     }
@@ -705,7 +699,7 @@ impl<'a> Partitioned<'a> {
                 .collect();
             let mut seg_ode = ode.clone();
             seg_ode.max_steps = ode.max_steps.saturating_sub(total.steps).max(1);
-            let mut integ: Box<dyn Integrator> = integrator(method, seg_ode)?;
+            let mut integ: Integrator = integrator(method, seg_ode)?;
             let mut watch = FullState {
                 sys,
                 opts: self.opts,

@@ -158,7 +158,7 @@ pub(crate) struct StepEnds {
 
 impl StepEnds {
     /// The state `(t0, y0)`, no step taken.
-    pub fn new(t0: f64, y0: &[f64]) -> Self {
+    pub(crate) fn new(t0: f64, y0: &[f64]) -> Self {
         Self {
             t: t0,
             tnew: t0,
@@ -170,7 +170,7 @@ impl StepEnds {
 
     /// Start of a step: an accepted end becomes the start (`true` if there
     /// was one).
-    pub fn advance(&mut self) -> bool {
+    pub(crate) fn advance(&mut self) -> bool {
         if !self.pending {
             return false;
         }
@@ -187,7 +187,7 @@ impl StepEnds {
     }
 
     /// The current state: the accepted end, or the start before any step.
-    pub fn current(&self) -> (f64, &[f64]) {
+    pub(crate) fn current(&self) -> (f64, &[f64]) {
         if self.pending {
             (self.tnew, &self.ynew)
         } else {
@@ -304,7 +304,7 @@ pub(crate) struct OutputCursor<'a> {
 
 impl<'a> OutputCursor<'a> {
     /// A cursor at the first of `times` (validated by [`check_output_times`]).
-    pub fn new(times: &'a [f64]) -> Self {
+    pub(crate) fn new(times: &'a [f64]) -> Self {
         Self { times, next: 0 }
     }
 
@@ -374,7 +374,7 @@ pub(crate) struct MatlabTolerances {
 
 impl MatlabTolerances {
     /// The setup for a run of dimension `n` over `[t0, t_end]`.
-    pub fn new(opts: &OdeOptions, n: usize, t0: f64, t_end: f64) -> Self {
+    pub(crate) fn new(opts: &OdeOptions, n: usize, t0: f64, t_end: f64) -> Self {
         let mut warnings = Vec::new();
         let mut rtol = opts.rtol;
         if rtol < 100.0 * f64::EPSILON {

@@ -327,54 +327,42 @@ pub enum IntegratorError {
     },
 }
 
-/// An ODE integrator configured with a method and options.
-pub trait Integrator {
-    /// The method implemented.
-    fn method(&self) -> Method;
-    /// Integrate from t0 to t_end (t_end > t0 required — only forward integration is supported), starting at y0.
-    /// output_times: strictly increasing, within [t0, t_end]; t0 itself may be included (then output(t0, y0) is called first).
-    /// Midway failure (step size below MATLAB's hmin = 16*eps(t), RHS error, non-finite state, max_steps) does not
-    /// return Err: it returns Ok(Report{termination: Failed{t, reason}, ..}) after having delivered every output up to t.
-    fn integrate(
-        &mut self,
-        sys: &mut dyn OdeSystem,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError>;
-}
-
 /// Creates an integrator for `method`, validating the options with
 /// [`OdeOptions::validate`] (options the method does not use are an error).
 ///
 /// The index-3 methods ([`Method::is_index3`]) return
 /// [`IntegratorError::ImplicitMethod`].
-pub fn integrator(
-    method: Method,
-    options: OdeOptions,
-) -> Result<Box<dyn Integrator>, IntegratorError> {
+pub fn integrator(method: Method, options: OdeOptions) -> Result<Integrator, IntegratorError> {
     if method.is_index3() {
         return Err(IntegratorError::ImplicitMethod(method.name()));
     }
     options.validate(method, false)?;
-    Ok(Box::new(Explicit { method, options }))
+    Ok(Integrator { method, options })
 }
 
-/// The explicit methods as an [`Integrator`]: the inputs checked, the
+/// An explicit ODE integrator (ode23, ode45, ode113, rk4) configured with
+/// its method and options ([`integrator`]): the inputs checked, the
 /// method's [`driver::Stepper`] driven by [`driver::drive`].
-struct Explicit {
+pub struct Integrator {
     method: Method,
     options: OdeOptions,
 }
 
-impl Integrator for Explicit {
-    fn method(&self) -> Method {
+impl Integrator {
+    /// The method implemented.
+    pub fn method(&self) -> Method {
         self.method
     }
 
-    fn integrate(
+    /// Integrate from t0 to t_end (t_end > t0 required — only forward
+    /// integration is supported), starting at y0. `output_times`: strictly
+    /// increasing, within [t0, t_end]; t0 itself may be included (then
+    /// `output(t0, y0)` is called first). A failure midway (step size below
+    /// MATLAB's hmin = 16 eps(t), RHS error, non-finite state, max_steps)
+    /// does not return `Err`: it returns `Ok(Report { termination:
+    /// Failed { t, reason }, .. })` after having delivered every output up
+    /// to t.
+    pub fn integrate(
         &mut self,
         sys: &mut dyn OdeSystem,
         t0: f64,

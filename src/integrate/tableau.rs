@@ -32,11 +32,11 @@ pub(crate) struct EmbeddedTableau {
 
 impl EmbeddedTableau {
     /// Number of stages including the FSAL stage.
-    pub fn stages(&self) -> usize {
+    pub(crate) fn stages(&self) -> usize {
         self.c.len()
     }
     /// Solution weights `b` (last row of `a`).
-    pub fn b(&self) -> &'static [f64] {
+    pub(crate) fn b(&self) -> &'static [f64] {
         self.a[self.stages() - 1]
     }
     /// Degree of the continuous extension (number of columns of `BI`).

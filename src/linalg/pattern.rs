@@ -17,7 +17,10 @@ impl CscPattern {
     /// # Panics
     /// If an index is `≥ dim` (a programming error: patterns come from
     /// validated systems).
-    pub fn from_entries(dim: usize, entries: impl IntoIterator<Item = (usize, usize)>) -> Self {
+    pub(crate) fn from_entries(
+        dim: usize,
+        entries: impl IntoIterator<Item = (usize, usize)>,
+    ) -> Self {
         let mut by_col: Vec<(usize, usize)> = entries
             .into_iter()
             .map(|(r, c)| {

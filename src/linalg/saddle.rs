@@ -258,10 +258,6 @@ impl SaddleMatrix {
     pub fn a_slots(&self) -> &[usize] {
         &self.a_slots
     }
-    /// Slots of the `jac_pattern` entries given at construction, in order.
-    pub fn jac_slots(&self) -> &[usize] {
-        &self.jac_slots
-    }
     /// Number of stored entries.
     pub fn nnz(&self) -> usize {
         self.pattern.row_idx.len()

@@ -177,8 +177,6 @@ pub struct SparseLdlt {
     delta: f64,
     analysis: Option<Analysis>,
     factorized: bool,
-    last_info: FactorInfo,
-    last_residual: f64,
     check_residual: bool,
     bufs: RefineBuffers,
     stats: SolverStats,
@@ -211,8 +209,6 @@ impl SparseLdlt {
             delta: DEFAULT_DELTA,
             analysis: None,
             factorized: false,
-            last_info: FactorInfo::default(),
-            last_residual: 0.0,
             check_residual: true,
             bufs: RefineBuffers::default(),
             stats: SolverStats::default(),
@@ -226,21 +222,6 @@ impl SparseLdlt {
     /// inaccurate solution; non-finite solutions are still rejected.
     pub fn with_residual_check(mut self, on: bool) -> Self {
         self.check_residual = on;
-        self
-    }
-
-    /// Override the regularisation threshold `ε` and value `δ` (scaled
-    /// units, `0 < ε ≤ δ`).
-    ///
-    /// # Panics
-    /// If the parameters are not finite with `0 < ε ≤ δ`.
-    pub fn with_regularization(mut self, epsilon: f64, delta: f64) -> Self {
-        assert!(
-            epsilon.is_finite() && delta.is_finite() && epsilon > 0.0 && epsilon <= delta,
-            "regularisation needs 0 < epsilon <= delta"
-        );
-        self.epsilon = epsilon;
-        self.delta = delta;
         self
     }
 
@@ -261,17 +242,6 @@ impl SparseLdlt {
     /// `analyze`.
     pub fn factor_nnz(&self) -> Option<usize> {
         self.analysis.as_ref().map(|a| a.l_values.len())
-    }
-
-    /// What the last numeric factorisation reported.
-    pub fn last_factor_info(&self) -> FactorInfo {
-        self.last_info
-    }
-
-    /// Relative residual `‖Kx − b‖∞/‖b‖∞` of the last solve (after
-    /// refinement, if one was applied).
-    pub fn last_residual(&self) -> f64 {
-        self.last_residual
     }
 
     /// Elimination order (`order[k]` = index eliminated `k`-th) for `k`.
@@ -555,7 +525,6 @@ impl SaddlePointSolver for SparseLdlt {
             }
         };
         self.factorized = true;
-        self.last_info = info;
         self.stats.factorizations += 1;
         self.stats.regularized_pivots += info.regularized_pivots;
         Ok(info)
@@ -579,10 +548,8 @@ impl SaddlePointSolver for SparseLdlt {
         if self.check_residual {
             let refined = self.bufs.solve_checked(k, rhs, |x| scaled_solve(an, x));
             self.stats.refinements += usize::from(refined);
-            self.last_residual = self.bufs.last_residual;
         } else {
             scaled_solve(an, rhs);
-            self.last_residual = f64::NAN;
         }
         if rhs.iter().any(|v| !v.is_finite()) {
             return Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"));
@@ -650,8 +617,6 @@ pub(super) struct RefineBuffers {
     rhs0: Vec<f64>,
     work: Vec<f64>,
     corr: Vec<f64>,
-    /// Relative residual of the last checked solve (after refinement).
-    pub(super) last_residual: f64,
 }
 
 impl RefineBuffers {
@@ -674,7 +639,7 @@ impl RefineBuffers {
     ) -> bool {
         self.rhs0.copy_from_slice(rhs);
         solve(rhs);
-        let mut res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
+        let res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
         let mut refined = false;
         if (res.is_nan() || res > REFINE_THRESHOLD) && rhs.iter().all(|v| v.is_finite()) {
             // `work` holds K x after `relative_residual`.
@@ -686,9 +651,7 @@ impl RefineBuffers {
                 *x += c;
             }
             refined = true;
-            res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
         }
-        self.last_residual = res;
         refined
     }
 }

@@ -7,6 +7,9 @@
 use super::*;
 use crate::integrate::{AlphaParameters, ImplicitStats};
 
+/// A run's extra summary fields ([`Summary::extra`]).
+type Extra = serde_json::Map<String, serde_json::Value>;
+
 /// The index-3 methods' consistent start ([`Index3::consistent_start`]),
 /// with the warning that says how far it moved the state.
 fn index3_start(
@@ -56,14 +59,14 @@ pub(super) trait MethodRun {
     }
     /// The formulation-specific figures of the run, and extra summary
     /// fields.
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>);
+    fn work(&self, cfg: &RunConfig) -> (Work, Extra);
 }
 
 /// ode23, ode45, rk4 on the index-1 form (eq. (5)) or the penalty form
 /// ([`ExplicitForm`]).
 pub(super) struct Explicit<'s> {
     f: ExplicitForm<'s>,
-    integ: Box<dyn Integrator>,
+    integ: Integrator,
 }
 
 impl<'s> Explicit<'s> {
@@ -87,7 +90,7 @@ impl MethodRun for Explicit<'_> {
         self.integ
             .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, s.times, obs)
     }
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let stats = self.f.stats();
         let work = Work {
             formulation: format!("{:?}", cfg.formulation.formulation).to_lowercase(),
@@ -141,7 +144,7 @@ impl MethodRun for Partition<'_> {
             cfg.method, &cfg.ode, cfg.t0, cfg.t_end, s.q0, s.qd0, s.times, obs,
         )
     }
-    fn work(&self, _cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, _cfg: &RunConfig) -> (Work, Extra) {
         let ps = self.f.stats();
         let work = Work {
             formulation: "partitioned".into(),
@@ -225,7 +228,7 @@ impl MethodRun for AugmentedRun<'_> {
         Ok(c.changed()
             .then(|| c.describe(cfg.t0, "augmented-Lagrangian")))
     }
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let gs = self.integ.stats();
         let fs = self.f.stats();
         let mut extra = counters(
@@ -258,11 +261,7 @@ impl MethodRun for AugmentedRun<'_> {
 
 /// The generalized-α scheme of a run in the summary's `extra`: `rho_inf`,
 /// `alpha_m`, `alpha_f`, `gamma_newmark`, `beta_newmark`.
-fn scheme_fields(
-    extra: &mut serde_json::Map<String, serde_json::Value>,
-    p: &AlphaParameters,
-    rho_inf: f64,
-) {
+fn scheme_fields(extra: &mut Extra, p: &AlphaParameters, rho_inf: f64) {
     extra.extend(fields([
         ("rho_inf", rho_inf.into()),
         ("alpha_m", p.alpha_m.into()),
@@ -284,7 +283,7 @@ const IMPLICIT_COUNTERS: [&str; 6] = [
 
 /// The [`ImplicitStats`] counters named in `keys` as summary `extra`
 /// fields of the same names.
-fn counters(st: &ImplicitStats, keys: &[&str]) -> serde_json::Map<String, serde_json::Value> {
+fn counters(st: &ImplicitStats, keys: &[&str]) -> Extra {
     keys.iter()
         .map(|&k| {
             let v: serde_json::Value = match k {
@@ -323,9 +322,7 @@ fn index3_work(
 }
 
 /// Summary `extra` fields from `(name, value)` pairs.
-fn fields<const N: usize>(
-    pairs: [(&str, serde_json::Value); N],
-) -> serde_json::Map<String, serde_json::Value> {
+fn fields<const N: usize>(pairs: [(&str, serde_json::Value); N]) -> Extra {
     pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
@@ -341,11 +338,7 @@ pub(super) trait Index3Scheme {
     ) -> Result<Report, IntegratorError>;
     /// The factorisations of the run (all Newton matrices) and the
     /// scheme's summary `extra` fields.
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, serde_json::Map<String, serde_json::Value>);
+    fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra);
 }
 
 /// An index-3 scheme bound to [`Index3`]; the same [`Trajectory`] and
@@ -389,7 +382,7 @@ impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
     ) -> Result<Option<String>, SimulationError> {
         index3_start(&mut self.f, cfg, q, qd)
     }
-    fn work(&self, cfg: &RunConfig) -> (Work, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let (factorizations, extra) = self.scheme.work(&self.f, cfg);
         let fs = self.f.stats();
         let work = index3_work(
@@ -432,11 +425,7 @@ impl Index3Scheme for GenAlpha {
         let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         GenAlpha::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let gs = self.stats();
         let fs = f.stats();
         let opts = self.options();
@@ -484,11 +473,7 @@ impl Index3Scheme for Bdf {
         let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
         Bdf::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        f: &Index3<'_>,
-        _cfg: &RunConfig,
-    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, f: &Index3<'_>, _cfg: &RunConfig) -> (usize, Extra) {
         let bs = self.stats();
         let mut extra = counters(&bs, &IMPLICIT_COUNTERS);
         extra.remove("projections");
@@ -535,11 +520,7 @@ impl Index3Scheme for RadauScheme<'_> {
         self.integ
             .integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
     }
-    fn work(
-        &self,
-        _f: &Index3<'_>,
-        cfg: &RunConfig,
-    ) -> (usize, serde_json::Map<String, serde_json::Value>) {
+    fn work(&self, _f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let rs = self.integ.stats();
         let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
         extra.extend(fields([

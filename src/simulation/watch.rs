@@ -544,7 +544,7 @@ pub(super) fn norm2(v: &[f64]) -> f64 {
         return n;
     }
     // the squares overflowed or underflowed: scale by the largest modulus
-    let m = v.iter().fold(0.0, |a: f64, x| a.max(x.abs()));
+    let m = crate::numeric::max_abs(v);
     if m == 0.0 || !m.is_finite() || v.iter().any(|x| x.is_nan()) {
         return if v.iter().any(|x| x.is_nan()) {
             f64::NAN

@@ -11,5 +11,6 @@ pub mod fourbar;
 pub mod parallelogram;
 pub mod process;
 pub mod rod;
+pub mod setup;
 pub mod stiff_chain;
 pub mod trajectory;

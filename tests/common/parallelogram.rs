@@ -42,6 +42,18 @@ pub fn departure(p: &ParallelogramChain, traj: &Trajectory, tol: f64) -> (f64, O
     (worst, first)
 }
 
+/// Largest |E − E₀| \[J\] of the mechanical energy over the trajectory,
+/// E₀ the reference's conserved `½ I θ̇₀² + C sin θ₀`
+/// (`ParallelogramChain::reduced_energy`).
+pub fn energy_drift(p: &ParallelogramChain, sys: &System, traj: &Trajectory) -> f64 {
+    let e0 = p.reduced_energy(p.theta0, p.rate0);
+    traj.q
+        .iter()
+        .zip(&traj.qd)
+        .map(|(q, qd)| (sys.mechanical_energy(q, qd) - e0).abs())
+        .fold(0.0, f64::max)
+}
+
 /// Largest distance \[m\] of the marked point from the reference over the
 /// trajectory, and the largest relative error of the mechanical energy
 /// against the reference's conserved `½ I θ̇₀² + C sin θ₀`.

@@ -3,7 +3,7 @@
 //! singular configurations against its one-degree-of-freedom reference.
 
 use crate::common::fourbar::fourbar;
-use crate::common::parallelogram::{crossings, departure as chain_error};
+use crate::common::parallelogram::{crossings, departure as chain_error, energy_drift};
 use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::{
@@ -147,9 +147,7 @@ fn projection_that_cannot_converge_is_a_typed_error() {
 }
 
 fn run(sc: &Scenario, cfg: &RunConfig) -> (Trajectory, Summary) {
-    let (t, s) = simulate(&sc.system, &sc.q0, &sc.qd0, cfg, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{:?}", s.message);
-    (t, s)
+    crate::common::setup::completed(&sc.system, &sc.q0, &sc.qd0, cfg)
 }
 
 #[test]
@@ -529,12 +527,7 @@ fn parallelogram_chain_keeps_its_branch_with_projection() {
         // the energy (no dissipation) within 1e-4 relative
         let sys = parallelogram_chain(&p).unwrap();
         let e0 = p.reduced_energy(p.theta0, p.rate0);
-        let de = traj
-            .q
-            .iter()
-            .zip(&traj.qd)
-            .map(|(q, qd)| (sys.mechanical_energy(q, qd) - e0).abs())
-            .fold(0.0, f64::max);
+        let de = energy_drift(&p, &sys, &traj);
         eprintln!("  max |E − E0| = {de:.3e} J of {e0:.3} J");
         assert!(de < 1e-4 * e0, "energy drift {de:e} J");
         // Report (not assert) what the unprojected run does.

@@ -3,7 +3,7 @@
 //! step-size Baumgarte rule.
 
 use crate::common::fourbar::fourbar;
-use crate::common::parallelogram::crossings;
+use crate::common::parallelogram::{crossings, energy_drift};
 use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::{
@@ -106,12 +106,7 @@ fn partitioned_parallelogram_chain_keeps_its_branch() {
         worst = worst.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt());
     }
     let e0 = p.reduced_energy(p.theta0, p.rate0);
-    let de = traj
-        .q
-        .iter()
-        .zip(&traj.qd)
-        .map(|(q, qd)| (sys.mechanical_energy(q, qd) - e0).abs())
-        .fold(0.0, f64::max);
+    let de = energy_drift(&p, &sys, &traj);
     eprintln!(
         "parallelogram: {} to t = {}, {n_cross} crossings, {} steps, {} repartitions, max κ₁ \
          {:.2e}, point error {worst:.2e} m, |ΔE| {de:.2e} J of {e0:.3}, warnings {:?}",
@@ -418,12 +413,7 @@ fn partitioned_two_loop_chain_keeps_its_branch_at_study_tolerance() {
         }
     }
     let e0 = p.reduced_energy(p.theta0, p.rate0);
-    let de = traj
-        .q
-        .iter()
-        .zip(&traj.qd)
-        .map(|(q, qd)| (sys.mechanical_energy(q, qd) - e0).abs())
-        .fold(0.0, f64::max);
+    let de = energy_drift(&p, &sys, &traj);
     eprintln!(
         "two loops, rtol 1e-6: {} at t = {}, {n_cross} crossings, {} steps, {} re-choices, max \
          κ₁ {:.2e}, point error {worst:.2e} m (at t = {t_worst}), |ΔE| {de:.2e} J of {e0:.3}",

@@ -2,25 +2,16 @@
 //! the regularised sparse LDLᵀ solves them without NaNs and the summary
 //! counts the regularised pivots.
 
+use crate::common::fourbar::DOUBLED_B;
 use crate::common::parallelogram::branch_errors;
+use crate::common::setup::parse;
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
 
 fn with_extra(text: &str, overrides: &[&str]) -> scenario::Scenario {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(text, "test.toml", "test", &o).unwrap()
+    parse(text, overrides).unwrap()
 }
-
-const DOUBLED_B: &str = r#"
-[[joint]]
-type = "revolute"
-name = "B2"
-body_i = "crank"
-point_i = [0.1, 0.0]
-body_j = "coupler"
-point_j = [-0.2, 0.0]
-"#;
 
 #[test]
 fn four_bar_with_a_doubled_joint_runs_like_the_plain_one() {

@@ -3,17 +3,17 @@
 //! generalized-α — through singular configurations, with redundant
 //! constraints, and converging to ode45 with order 2.
 
+use crate::common::fourbar::DOUBLED_B;
 use crate::common::parallelogram::{branch_errors, crossings};
 use crate::common::trajectory::max_diff;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::formulation::Formulation;
 use mbsolve::integrate::Method;
-use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
+use mbsolve::scenario::{Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
 
 fn parse(text: &str, overrides: &[&str]) -> Result<Scenario, String> {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(text, "test.toml", "test", &o).map_err(|e| e.to_string())
+    crate::common::setup::parse(text, overrides).map_err(|e| e.to_string())
 }
 
 /// The run settings of the augmented Lagrangian: trapezoidal (newmark,
@@ -140,20 +140,8 @@ fn genalpha_small_step_passes_singular_positions() {
     }
 }
 
-const DOUBLED_B: &str = r#"
-[[joint]]
-type = "revolute"
-name = "B2"
-body_i = "crank"
-point_i = [0.1, 0.0]
-body_j = "coupler"
-point_j = [-0.2, 0.0]
-"#;
-
 fn run(sc: &Scenario) -> (Trajectory, Summary) {
-    let (t, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{:?}", s.message);
-    (t, s)
+    crate::common::setup::completed(&sc.system, &sc.q0, &sc.qd0, &sc.run)
 }
 
 fn reference(text: &str) -> Trajectory {

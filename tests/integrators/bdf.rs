@@ -1,46 +1,15 @@
 //! The variable-order BDF (`integrator.method = "bdf"`, index-3 form):
 //! accuracy against independent references, the stiff chain, drift.
 
+use crate::common::setup::{adaptive, completed as run};
+use crate::common::trajectory::max_diff;
 use mbsolve::builders::{n_link_pendulum, RodParams};
 use mbsolve::constraints::Revolute;
 use mbsolve::forces::TorsionalSpringDamper;
 use mbsolve::integrate::{ImplicitOptions, Method, OdeOptions, Tolerance};
 use mbsolve::model::{Body, BodyRef, Gravity, System, SystemBuilder};
 use mbsolve::scenario::{self, FOURBAR_TOML};
-use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
-
-fn adaptive(method: Method, rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfig {
-    RunConfig {
-        method,
-        ode: OdeOptions {
-            rtol,
-            atol: Tolerance::Scalar(atol),
-            ..Default::default()
-        },
-        t_end,
-        output_dt: dt,
-        ..Default::default()
-    }
-}
-
-fn run(sys: &System, q0: &[f64], qd0: &[f64], cfg: &RunConfig) -> (Trajectory, Summary) {
-    let (traj, s) = simulate(sys, q0, qd0, cfg, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{:?}", s.message);
-    (traj, s)
-}
-
-/// max over output times and coordinates of |a − b| (positions).
-fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-    assert_eq!(a.t.len(), b.t.len());
-    let mut e: f64 = 0.0;
-    for k in 0..a.t.len() {
-        assert!((a.t[k] - b.t[k]).abs() < 1e-12);
-        for (x, y) in a.q[k].iter().zip(&b.q[k]) {
-            e = e.max((x - y).abs());
-        }
-    }
-    e
-}
+use mbsolve::simulation::RunConfig;
 
 /// The stiff chain of `../shared/peers/`: `n` segments of problem B's rod hanging
 /// from a ground pivot, a torsional spring–damper (k = E w⁴/(12 l_s),

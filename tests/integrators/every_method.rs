@@ -12,8 +12,7 @@ use mbsolve::simulation::{simulate, Trajectory};
 const SLIDER_TOML: &str = include_str!("../../scenarios/slider_crank.toml");
 
 fn parse(text: &str, overrides: &[&str]) -> Scenario {
-    let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-    scenario::parse(text, "test.toml", "test", &o).unwrap()
+    crate::common::setup::parse(text, overrides).unwrap()
 }
 
 fn run(text: &str, overrides: &[&str]) -> Trajectory {

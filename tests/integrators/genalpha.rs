@@ -26,17 +26,7 @@ fn implicit(method: Method, h: f64, t_end: f64, dt: f64, opts: ImplicitOptions) 
 }
 
 fn ode45(rtol: f64, atol: f64, t_end: f64, dt: f64) -> RunConfig {
-    RunConfig {
-        method: Method::Ode45,
-        ode: OdeOptions {
-            rtol,
-            atol: Tolerance::Scalar(atol),
-            ..Default::default()
-        },
-        t_end,
-        output_dt: dt,
-        ..Default::default()
-    }
+    crate::common::setup::adaptive(Method::Ode45, rtol, atol, t_end, dt)
 }
 
 /// max over output times and the given coordinates of |a − b|.
@@ -53,9 +43,7 @@ fn max_diff(a: &Trajectory, b: &Trajectory, coords: &[usize]) -> f64 {
 }
 
 fn run(sys: &System, q0: &[f64], qd0: &[f64], cfg: &RunConfig) -> Trajectory {
-    let (traj, s) = simulate(sys, q0, qd0, cfg, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{:?}", s.message);
-    traj
+    crate::common::setup::completed(sys, q0, qd0, cfg).0
 }
 
 /// Errors for h, h/2, h/4, … against a reference, and their ratios.

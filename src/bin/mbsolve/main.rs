@@ -163,38 +163,7 @@ enum Command {
     },
     /// Plot columns of a CSV written by mbsolve (a run, a study, the data
     /// beside a figure) as SVG or PNG.
-    Plot {
-        /// The CSV file (first row: column names).
-        csv: PathBuf,
-        /// Abscissa column.
-        #[arg(long, default_value = "t")]
-        x: String,
-        /// Ordinate column(s): repeat the flag or separate names by commas.
-        #[arg(long, value_name = "COLUMN[,COLUMN...]", required = true)]
-        y: Vec<String>,
-        /// Logarithmic ordinate (|y| plotted; zeros are gaps).
-        #[arg(long)]
-        log_y: bool,
-        /// With --log-y: the smallest |y| drawn (smaller values are gaps,
-        /// stated under the legend) [default: the smallest nonzero |y|].
-        #[arg(long, value_name = "VALUE")]
-        log_floor: Option<f64>,
-        /// A horizontal reference line, e.g. a wall (repeatable).
-        #[arg(long, value_name = "LABEL=VALUE")]
-        hline: Vec<String>,
-        /// Text under the legend.
-        #[arg(long)]
-        note: Option<String>,
-        /// Output file, .svg or .png [default: the CSV's path with .svg].
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Title [default: the CSV's file name].
-        #[arg(long)]
-        title: Option<String>,
-        /// Ordinate label [default: the columns' names and units].
-        #[arg(long)]
-        y_label: Option<String>,
-    },
+    Plot(plot::PlotArgs),
     /// Animate a run: the mechanism's motion from the scenario's geometry and
     /// the run's CSV, as an animated SVG (SMIL), a GIF, an APNG or (with
     /// ffmpeg on the PATH) an MP4/WebM.
@@ -443,30 +412,7 @@ fn command(cli: Cli) -> ExitCode {
                 say!("wrote {}", p.display());
                 ExitCode::SUCCESS
             }),
-        Command::Plot {
-            csv,
-            x,
-            y,
-            log_y,
-            log_floor,
-            hline,
-            note,
-            out,
-            title,
-            y_label,
-        } => plot::plot(&plot::PlotArgs {
-            csv,
-            x,
-            y,
-            log_y,
-            log_floor,
-            hline,
-            note,
-            out,
-            title,
-            y_label,
-        })
-        .map(|p| {
+        Command::Plot(args) => plot::plot(&args).map(|p| {
             say!("wrote {}", p.display());
             ExitCode::SUCCESS
         }),

@@ -163,30 +163,38 @@ fn with_unit(name: &str, unit: &str) -> String {
     }
 }
 
-/// What `mbsolve plot` was asked for.
+/// What `mbsolve plot` was asked for (the command's arguments).
+#[derive(clap::Args)]
 pub struct PlotArgs {
-    /// The CSV file.
+    /// The CSV file (first row: column names).
     pub csv: PathBuf,
     /// Abscissa column.
+    #[arg(long, default_value = "t")]
     pub x: String,
-    /// Ordinate columns (see [`Table::resolve_y`]).
+    /// Ordinate column(s): repeat the flag or separate names by commas.
+    #[arg(long, value_name = "COLUMN[,COLUMN...]", required = true)]
     pub y: Vec<String>,
-    /// Logarithmic ordinate.
+    /// Logarithmic ordinate (|y| plotted; zeros are gaps).
+    #[arg(long)]
     pub log_y: bool,
-    /// Log axes: smallest |y| drawn (smaller values are gaps); default the
-    /// smallest nonzero |y|.
+    /// With --log-y: the smallest |y| drawn (smaller values are gaps,
+    /// stated under the legend) [default: the smallest nonzero |y|].
+    #[arg(long, value_name = "VALUE")]
     pub log_floor: Option<f64>,
-    /// Horizontal reference lines, `LABEL=VALUE` (value in the ordinate's
-    /// unit).
+    /// A horizontal reference line, e.g. a wall (repeatable).
+    #[arg(long, value_name = "LABEL=VALUE")]
     pub hline: Vec<String>,
     /// Text under the legend.
+    #[arg(long)]
     pub note: Option<String>,
-    /// Output file (.svg or .png); default: the CSV's path with `.svg`.
+    /// Output file, .svg or .png [default: the CSV's path with .svg].
+    #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Title; default: the CSV's file name.
+    /// Title [default: the CSV's file name].
+    #[arg(long)]
     pub title: Option<String>,
-    /// Ordinate label; default: the columns' names with their units from
-    /// the `columns.json` beside the CSV.
+    /// Ordinate label [default: the columns' names and units].
+    #[arg(long)]
     pub y_label: Option<String>,
 }
 

@@ -129,20 +129,20 @@ pub const MAX_NEWTON: usize = 4;
 /// below `κ·rtol` (ode15s: 0.5; with 0.5 and 0.05 the four-bar of
 /// tests/integrators/bdf.rs lost its convergence in rtol, 2.4e-4 off at rtol 1e-9
 /// against 2.7e-5 with 0.1 and 0.02).
-pub const NEWTON_KAPPA: f64 = 0.1;
+pub(crate) const NEWTON_KAPPA: f64 = 0.1;
 /// κ for a step's first correction, judged with the contraction rate
 /// measured on the same matrix before (ode15s: 0.05).
-pub const NEWTON_KAPPA_FIRST: f64 = 0.02;
+pub(crate) const NEWTON_KAPPA_FIRST: f64 = 0.02;
 /// A correction below `NEWTON_FLOOR·rtol` in the error test's norm ends
 /// Newton (ode15s's `minnrm` is 100 ulps; this also stops the rounding
 /// noise of the chain's angles, ~1e-14 rad at N = 10 000).
-pub const NEWTON_FLOOR: f64 = 1e-4;
+pub(crate) const NEWTON_FLOOR: f64 = 1e-4;
 /// Contraction assumed for the first correction of a step: at least this
 /// (a tiny θ measured at the rounding floor must not accept a large first
 /// correction).
-pub const THETA_FIRST: f64 = 0.3;
+pub(crate) const THETA_FIRST: f64 = 0.3;
 /// A contraction θ above this fails the attempt (ode15s: 0.9).
-pub const DIVERGE_ABOVE: f64 = 0.9;
+pub(crate) const DIVERGE_ABOVE: f64 = 0.9;
 
 /// The BDF integrator (module docs).
 #[derive(Debug, Clone)]

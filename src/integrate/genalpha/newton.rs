@@ -327,8 +327,8 @@ impl Run<'_, '_> {
             }
             if done && self.opts.check_constraints {
                 self.sys.constraints(t1, &self.new.q, &mut self.phi);
-                let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
-                let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+                let phi = crate::numeric::max_abs(&self.phi);
+                let scale = crate::numeric::max_abs(&self.new.q).max(1.0);
                 done = phi <= tol_q + ROUNDING_ULPS * f64::EPSILON * scale;
             }
             match conv.next(dnorm, done) {
@@ -391,17 +391,12 @@ impl Run<'_, '_> {
             return Ok(false);
         }
         self.sys.constraints(t1, &self.new.q, &mut self.phi);
-        let phi = self.phi.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
-        let scale = self.new.q.iter().fold(1.0_f64, |a, x| a.max(x.abs()));
+        let phi = crate::numeric::max_abs(&self.phi);
+        let scale = crate::numeric::max_abs(&self.new.q).max(1.0);
         if phi.is_nan() || phi > ROUNDING_ULPS * f64::EPSILON * scale {
             return Ok(false);
         }
-        self.stats.residual_evaluations += 1;
-        let new = &self.new;
-        self.sys
-            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
-        self.r[n..].fill(0.0);
-        self.sys.solve(t1, &mut self.r)?;
+        self.solve_dynamic_rows(t1, s)?;
         self.stats.newton_iterations += 1;
         let [gp, bp, ap, tol_q] = c;
         let floor = ROUNDING_ULPS * f64::EPSILON;
@@ -426,16 +421,22 @@ impl Run<'_, '_> {
         // (near-)null space of Φ_qᵀ, which the next predictor's geometric
         // stiffness (Φ_qᵀλ)_q would take
         new.lam.fill(0.0);
-        self.stats.residual_evaluations += 1;
-        let new = &self.new;
-        self.sys
-            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
-        self.r[n..].fill(0.0);
-        self.sys.solve(t1, &mut self.r)?;
+        self.solve_dynamic_rows(t1, s)?;
         for (l, d) in self.new.lam.iter_mut().zip(&self.r[n..]) {
             *l = -d / s;
         }
         Ok(true)
+    }
+
+    /// The solve of the residual's dynamic rows alone (its constraint rows
+    /// zeroed) at the current iterate into `r` ([`Self::at_constraint_noise`]).
+    fn solve_dynamic_rows(&mut self, t1: f64, s: f64) -> Result<(), SystemError> {
+        self.stats.residual_evaluations += 1;
+        let new = &self.new;
+        self.sys
+            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+        self.r[self.n..].fill(0.0);
+        self.sys.solve(t1, &mut self.r)
     }
 }
 
