@@ -229,3 +229,113 @@ fn the_shipped_pid_arm_and_shaker_run() {
     );
     assert!(rows.iter().all(|r| (r[payload] - r[table]).abs() < 0.05));
 }
+
+/// `scenarios/pid_arm.toml` written out: every link, joint, PID torque and
+/// integral state as its own table (no `[[repeat]]`), the same
+/// `[parameters]` and settings.
+fn pid_arm_written_out() -> String {
+    let mut s = String::from(
+        "name = \"pid_arm\"\ngravity = [0.0, -9.81]\n\
+         [parameters]\nkp = 200.0\nkd = 20.0\nki = 150.0\nr1 = 0.6\nr2 = -0.4\nr3 = 0.3\n",
+    );
+    for i in 1..=3 {
+        s += &format!(
+            "[[body]]\nname = \"link{i}\"\nmass = 1.0\ninertia = 0.0208333333333\nx = {}\n",
+            0.5 * i as f64 - 0.25
+        );
+    }
+    s += "[[joint]]\ntype = \"revolute\"\nname = \"joint1\"\nbody_i = \"ground\"\n\
+          point_i = [0.0, 0.0]\nbody_j = \"link1\"\npoint_j = [-0.25, 0.0]\n";
+    for i in 2..=3 {
+        s += &format!(
+            "[[joint]]\ntype = \"revolute\"\nname = \"joint{i}\"\nbody_i = \"link{}\"\n\
+             point_i = [0.25, 0.0]\nbody_j = \"link{i}\"\npoint_j = [-0.25, 0.0]\n",
+            i - 1
+        );
+    }
+    for i in 1..=3 {
+        s += &format!(
+            "[[force]]\ntype = \"joint_torque\"\nname = \"pid{i}\"\njoint = \"joint{i}\"\n\
+             torque = \"kp*(r{i} - angle) - kd*rate + ki*e{i}\"\n"
+        );
+    }
+    s += "[[state]]\nname = \"e1\"\nunit = \"rad s\"\nderivative = \"r1 - link1.phi\"\n";
+    for i in 2..=3 {
+        s += &format!(
+            "[[state]]\nname = \"e{i}\"\nunit = \"rad s\"\n\
+             derivative = \"r{i} - (link{i}.phi - link{}.phi)\"\n",
+            i - 1
+        );
+    }
+    s + "[integrator]\nmethod = \"ode45\"\nrtol = 1e-6\n[time]\nend = 6.0\n[output]\ndt = 0.01\n"
+}
+
+/// A `[[repeat]]` holds `[[state]]`s: the shipped PID arm (its elbow and
+/// wrist integrals copied by a repeat, `e{i}`) is the arm written out
+/// state by state, bit for bit — the same states, units and generalized
+/// forces at an arbitrary point, and the same run.
+#[test]
+fn a_repeated_pid_per_joint_is_the_written_out_one_bit_for_bit() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/pid_arm.toml");
+    let set = ["time.end=0.5".to_string()];
+    let a = scenario::load(std::path::Path::new(path), &set).unwrap();
+    let b = scenario::parse(&pid_arm_written_out(), "long.toml", "long", &set).unwrap();
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(
+        text.contains("state = [{ name = \"e{i}\""),
+        "the file repeats its states"
+    );
+    let names = |s: &scenario::Scenario| {
+        s.system
+            .states()
+            .iter()
+            .map(|z| (z.name.clone(), z.unit.clone()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(names(&a).len(), 3);
+    assert_eq!(names(&a), names(&b));
+    assert_eq!((&a.q0, &a.qd0), (&b.q0, &b.qd0));
+    let n = a.system.n_coords();
+    assert_eq!(n, 12);
+    let q: Vec<f64> = (0..n).map(|k| 0.3 * (k as f64 + 1.0).sin()).collect();
+    let v: Vec<f64> = (0..n).map(|k| 0.7 * (k as f64 + 2.0).cos()).collect();
+    let (mut ga, mut gb) = (vec![0.0; n], vec![0.0; n]);
+    a.system.forces_into(0.2, &q, &v, &mut ga);
+    b.system.forces_into(0.2, &q, &v, &mut gb);
+    assert_eq!(ga, gb);
+    assert!(
+        ga[9..].iter().all(|g| *g != 0.0),
+        "the states' rates {ga:?}"
+    );
+    let (ta, sa) =
+        mbsolve::simulation::simulate(&a.system, &a.q0, &a.qd0, &a.run, &mut []).unwrap();
+    let (tb, sb) =
+        mbsolve::simulation::simulate(&b.system, &b.q0, &b.qd0, &b.run, &mut []).unwrap();
+    assert_eq!(sa.status, "completed");
+    assert_eq!(sa.steps, sb.steps);
+    assert_eq!((&ta.t, &ta.q, &ta.qd), (&tb.t, &tb.q, &tb.qd));
+}
+
+/// A state's `unit` is its column's unit (default "1", dimensionless); a
+/// bad unit names the file and key.
+#[test]
+fn a_state_column_carries_its_unit() {
+    let base = "[[body]]\nname = \"m\"\nmass = 1.0\ninertia = 0.1\n[time]\nend = 0.1\n";
+    let sc = parse(&format!(
+        "{base}[[state]]\nname = \"ie\"\nunit = \"rad s\"\nderivative = \"-m.phi\"\n\
+         [[state]]\nname = \"u\"\nderivative = \"-u\"\n"
+    ));
+    let cols = columns(&sc.system, &OutputQuantities::default(), &sc.sensors);
+    let unit = |n: &str| cols.iter().find(|c| c.name == n).unwrap().unit.clone();
+    assert_eq!((unit("ie"), unit("u")), ("rad s".into(), "1".into()));
+    for bad in ["", "<b>", "a\\u0007"] {
+        let e = err(&format!(
+            "{base}[[state]]\nname = \"z\"\nunit = \"{bad}\"\nderivative = \"-z\"\n"
+        ));
+        assert!(
+            e.contains("f.toml") && e.contains("state[0].unit"),
+            "{bad}: {e}"
+        );
+    }
+}
+
