@@ -445,3 +445,30 @@ fn implicit_methods_converge_on_states_and_match_ode45() {
         }
     }
 }
+
+/// The repeated-states example of docs/scenarios.md runs: three lags
+/// `lag{i}` of time constants 0.1 i s, each its closed form
+/// `1 − e^{−t/τ}`, each in volts.
+#[test]
+fn the_documented_repeated_states_example_runs() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
+    let block = doc
+        .split("```toml\n")
+        .find(|b| b.starts_with("# repeated states example"))
+        .and_then(|b| b.split("```").next())
+        .expect("the repeated states example");
+    let sc = parse(block);
+    let units: Vec<&str> = sc.system.states().iter().map(|s| s.unit.as_str()).collect();
+    assert_eq!(units, ["V"; 3]);
+    let (names, rows) = run(block);
+    for i in 1..=3 {
+        let k = col(&names, &format!("lag{i}"));
+        let tau = 0.1 * i as f64;
+        let e = rows
+            .iter()
+            .map(|r| (r[k] - (1.0 - (-r[0] / tau).exp())).abs())
+            .fold(0.0, f64::max);
+        assert!(e < 1e-6, "lag{i}: {e:e}");
+    }
+}
