@@ -182,6 +182,239 @@ impl StateBorder {
     }
 }
 
+/// The border of the complex Newton matrix of radau5's transformed stages
+/// (`[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]`, `c₁`, `c₂` complex) over a
+/// complex symmetric factorisation of `K₀` (the complex chain LDLᵀ,
+/// `index3_complex.rs`): [`StateBorder`]'s block elimination in complex
+/// arithmetic, vectors as (re, im) halves.
+pub(crate) struct ComplexStateBorder {
+    nb: usize,
+    ns: usize,
+    size: usize,
+    entries: Vec<(usize, usize, usize)>,
+    /// Their values in `K` at the last factorisation.
+    vals: Vec<C>,
+    /// `K_PP⁻¹ K_PS` column by column, real and imaginary parts.
+    z_re: Vec<f64>,
+    z_im: Vec<f64>,
+    lu: Vec<C>,
+    perm: Vec<usize>,
+    rs: Vec<C>,
+    tmp: Vec<C>,
+}
+
+/// A complex number (re, im).
+type C = [f64; 2];
+
+fn cmul(a: C, b: C) -> C {
+    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
+}
+
+fn cdiv(a: C, b: C) -> C {
+    let d = b[0] * b[0] + b[1] * b[1];
+    [
+        (a[0] * b[0] + a[1] * b[1]) / d,
+        (a[1] * b[0] - a[0] * b[1]) / d,
+    ]
+}
+
+fn cabs(a: C) -> f64 {
+    a[0].hypot(a[1])
+}
+
+impl ComplexStateBorder {
+    /// `None` when the system has no states.
+    pub(crate) fn new(sys: &System) -> Option<Self> {
+        let (nb, ns) = (sys.n_body_coords(), sys.states().len());
+        if ns == 0 {
+            return None;
+        }
+        let entries: Vec<(usize, usize, usize)> = sys
+            .force_jacobian_pattern()
+            .iter()
+            .enumerate()
+            .filter(|(_, &(i, j))| i >= nb || j >= nb)
+            .map(|(e, &(i, j))| (e, i, j))
+            .collect();
+        let size = sys.n_coords() + sys.n_constraints();
+        Some(Self {
+            nb,
+            ns,
+            size,
+            vals: vec![[0.0; 2]; entries.len()],
+            entries,
+            z_re: vec![0.0; size * ns],
+            z_im: vec![0.0; size * ns],
+            lu: vec![[0.0; 2]; ns * ns],
+            perm: (0..ns).collect(),
+            rs: vec![[0.0; 2]; ns],
+            tmp: vec![[0.0; 2]; ns],
+        })
+    }
+
+    /// As [`StateBorder::factorize`] with the complex coefficients
+    /// `[c₀, c₁, c₂]` (`c₀` real) and `solve` the complex solve with `K₀`.
+    pub(crate) fn factorize(
+        &mut self,
+        sys: &System,
+        blocks: &DynamicBlocks,
+        [c0, c1, c2]: [C; 3],
+        mut solve: impl FnMut(&mut [f64], &mut [f64]) -> Result<(), LinalgError>,
+    ) -> Result<(), LinalgError> {
+        let (dq, dqd, _) = blocks.values();
+        for (v, &(e, _, _)) in self.vals.iter_mut().zip(&self.entries) {
+            *v = [
+                -(c1[0] * dqd[e] + c2[0] * dq[e]),
+                -(c1[1] * dqd[e] + c2[1] * dq[e]),
+            ];
+        }
+        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        self.z_re.fill(0.0);
+        self.z_im.fill(0.0);
+        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+            if i < nb && j >= nb {
+                self.z_re[(j - nb) * size + i] += v[0];
+                self.z_im[(j - nb) * size + i] += v[1];
+            }
+        }
+        for s in 0..ns {
+            let re = &mut self.z_re[s * size..(s + 1) * size];
+            let im = &mut self.z_im[s * size..(s + 1) * size];
+            if re.iter().chain(im.iter()).any(|&x| x != 0.0) {
+                solve(re, im)?;
+                re[nb..nb + ns].fill(0.0);
+                im[nb..nb + ns].fill(0.0);
+            }
+        }
+        let lu = &mut self.lu;
+        lu.fill([0.0; 2]);
+        let mass = sys.mass_diagonal();
+        for s in 0..ns {
+            lu[s * ns + s] = [c0[0] * mass[nb + s], c0[1] * mass[nb + s]];
+        }
+        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+            if i < nb {
+                continue;
+            }
+            let a = i - nb;
+            if j >= nb {
+                let x = &mut lu[a * ns + (j - nb)];
+                x[0] += v[0];
+                x[1] += v[1];
+            } else {
+                for s in 0..ns {
+                    let z = [self.z_re[s * size + j], self.z_im[s * size + j]];
+                    let p = cmul(v, z);
+                    lu[a * ns + s][0] -= p[0];
+                    lu[a * ns + s][1] -= p[1];
+                }
+            }
+        }
+        clu_factor(lu, &mut self.perm, ns)
+    }
+
+    /// Overwrite `re + i·im` with `K⁻¹ (re + i·im)`, `solve` the complex
+    /// solve with `K₀`.
+    pub(crate) fn solve(
+        &mut self,
+        re: &mut [f64],
+        im: &mut [f64],
+        solve: impl FnOnce(&mut [f64], &mut [f64]) -> Result<(), LinalgError>,
+    ) -> Result<(), LinalgError> {
+        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        for s in 0..ns {
+            self.rs[s] = [re[nb + s], im[nb + s]];
+        }
+        re[nb..nb + ns].fill(0.0);
+        im[nb..nb + ns].fill(0.0);
+        solve(re, im)?;
+        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+            if i >= nb && j < nb {
+                let p = cmul(v, [re[j], im[j]]);
+                self.rs[i - nb][0] -= p[0];
+                self.rs[i - nb][1] -= p[1];
+            }
+        }
+        for (t, &p) in self.tmp.iter_mut().zip(&self.perm) {
+            *t = self.rs[p];
+        }
+        let b = &mut self.tmp;
+        for r in 0..ns {
+            for c in 0..r {
+                let p = cmul(self.lu[r * ns + c], b[c]);
+                b[r] = [b[r][0] - p[0], b[r][1] - p[1]];
+            }
+        }
+        for r in (0..ns).rev() {
+            for c in r + 1..ns {
+                let p = cmul(self.lu[r * ns + c], b[c]);
+                b[r] = [b[r][0] - p[0], b[r][1] - p[1]];
+            }
+            b[r] = cdiv(b[r], self.lu[r * ns + r]);
+        }
+        if let Some(bad) = b.iter().flatten().find(|x| !x.is_finite()) {
+            return Err(LinalgError::Singular(format!(
+                "the controller states' complex Schur complement gave {bad}"
+            )));
+        }
+        for (s, &x) in b.iter().enumerate() {
+            if x == [0.0; 2] {
+                continue;
+            }
+            let (zr, zi) = (
+                &self.z_re[s * size..(s + 1) * size],
+                &self.z_im[s * size..(s + 1) * size],
+            );
+            for r in 0..size {
+                let p = cmul([zr[r], zi[r]], x);
+                re[r] -= p[0];
+                im[r] -= p[1];
+            }
+        }
+        for (s, &x) in b.iter().enumerate() {
+            re[nb + s] = x[0];
+            im[nb + s] = x[1];
+        }
+        Ok(())
+    }
+}
+
+/// [`lu_factor`] in complex arithmetic.
+fn clu_factor(a: &mut [C], perm: &mut [usize], n: usize) -> Result<(), LinalgError> {
+    for (k, p) in perm.iter_mut().enumerate() {
+        *p = k;
+    }
+    let scale = a.iter().fold(0.0f64, |m, &x| m.max(cabs(x)));
+    for k in 0..n {
+        let p = (k..n)
+            .max_by(|&x, &y| cabs(a[x * n + k]).total_cmp(&cabs(a[y * n + k])))
+            .unwrap_or(k);
+        let pivot = a[p * n + k];
+        if !(cabs(pivot) > 1e-14 * scale) {
+            return Err(LinalgError::Singular(format!(
+                "the controller states' complex Schur complement has the pivot of modulus \
+                 {:e} (largest entry {scale:e})",
+                cabs(pivot)
+            )));
+        }
+        if p != k {
+            for c in 0..n {
+                a.swap(p * n + c, k * n + c);
+            }
+            perm.swap(p, k);
+        }
+        for r in k + 1..n {
+            let f = cdiv(a[r * n + k], pivot);
+            a[r * n + k] = f;
+            for c in k + 1..n {
+                let m = cmul(f, a[k * n + c]);
+                a[r * n + c] = [a[r * n + c][0] - m[0], a[r * n + c][1] - m[1]];
+            }
+        }
+    }
+    Ok(())
+}
+
 /// LU with partial pivoting of the row-major `n × n` matrix `a` in place
 /// (`perm[k]`: the original row now at row k).
 fn lu_factor(a: &mut [f64], perm: &mut [usize], n: usize) -> Result<(), LinalgError> {

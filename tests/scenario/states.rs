@@ -472,3 +472,51 @@ fn the_documented_repeated_states_example_runs() {
         assert!(e < 1e-6, "lag{i}: {e:e}");
     }
 }
+
+/// radau5's complex Newton matrix on the PID arm (a chain pattern: the
+/// complex chain LDLᵀ with the states' border) solves as the sparse LU of
+/// its real embedding (exact), at coefficients of radau5's form for three
+/// step sizes.
+#[test]
+fn the_complex_states_border_solves_as_the_lu() {
+    use mbsolve::formulation::{ComplexSolverKind, Index3Complex};
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/pid_arm.toml");
+    let sc = scenario::load(std::path::Path::new(path), &[]).unwrap();
+    let sys = &sc.system;
+    let (n, m) = (sys.n_coords(), sys.n_constraints());
+    let mut chain = Index3Complex::new(sys).unwrap();
+    let mut lu = Index3Complex::with_solver(sys, ComplexSolverKind::SparseLu).unwrap();
+    let q: Vec<f64> = sc
+        .q0
+        .iter()
+        .enumerate()
+        .map(|(k, x)| x + 0.01 * k as f64)
+        .collect();
+    let v: Vec<f64> = (0..n).map(|k| 0.3 * (k as f64).cos()).collect();
+    let lam: Vec<f64> = (0..m).map(|k| 2.0 * (k as f64).sin()).collect();
+    // c = [1, h μ, (h μ)²] as radau5 factorises, μ about its α + iβ
+    let mu = [0.16, 0.18];
+    for h in [0.01, 0.1, 0.5] {
+        let c1 = [h * mu[0], h * mu[1]];
+        let c2 = [c1[0] * c1[0] - c1[1] * c1[1], 2.0 * c1[0] * c1[1]];
+        let c = [[1.0, 0.0], c1, c2];
+        chain.assemble_and_factorize(0.3, &q, &v, &lam, c).unwrap();
+        lu.assemble_and_factorize(0.3, &q, &v, &lam, c).unwrap();
+        assert_eq!(chain.solver_name(), "complex-chain-ldlt");
+        let re: Vec<f64> = (0..n + m).map(|k| ((k * 7 + 3) as f64).sin()).collect();
+        let im: Vec<f64> = (0..n + m).map(|k| ((k * 5 + 1) as f64).cos()).collect();
+        let (mut ar, mut ai, mut br, mut bi) = (re.clone(), im.clone(), re, im);
+        chain.solve_in_place(0.3, &mut ar, &mut ai).unwrap();
+        lu.solve_in_place(0.3, &mut br, &mut bi).unwrap();
+        let scale = br.iter().chain(&bi).fold(0.0f64, |s, x| s.max(x.abs()));
+        let d = ar
+            .iter()
+            .zip(&br)
+            .chain(ai.iter().zip(&bi))
+            .fold(0.0f64, |s, (x, y)| s.max((x - y).abs()));
+        assert!(
+            d < 1e-11 * scale,
+            "h = {h}: |chain + border − LU| = {d:e} of {scale:e}"
+        );
+    }
+}
