@@ -390,7 +390,7 @@ fn clu_factor(a: &mut [C], perm: &mut [usize], n: usize) -> Result<(), LinalgErr
             .max_by(|&x, &y| cabs(a[x * n + k]).total_cmp(&cabs(a[y * n + k])))
             .unwrap_or(k);
         let pivot = a[p * n + k];
-        if !(cabs(pivot) > 1e-14 * scale) {
+        if cabs(pivot).is_nan() || cabs(pivot) <= 1e-14 * scale {
             return Err(LinalgError::Singular(format!(
                 "the controller states' complex Schur complement has the pivot of modulus \
                  {:e} (largest entry {scale:e})",
@@ -427,7 +427,7 @@ fn lu_factor(a: &mut [f64], perm: &mut [usize], n: usize) -> Result<(), LinalgEr
             .max_by(|&x, &y| a[x * n + k].abs().total_cmp(&a[y * n + k].abs()))
             .unwrap_or(k);
         let pivot = a[p * n + k];
-        if !(pivot.abs() > 1e-14 * scale) {
+        if pivot.is_nan() || pivot.abs() <= 1e-14 * scale {
             return Err(LinalgError::Singular(format!(
                 "the controller states' Schur complement has the pivot {pivot:e} (largest \
                  entry {scale:e})"

@@ -387,6 +387,9 @@ fn the_states_border_solves_the_newton_matrix_exactly() {
     }
 }
 
+/// A column of a trajectory: its value at output row `i`.
+type Reader = fn(&Trajectory, usize) -> f64;
+
 /// On the documented PID example (an integral and a filtered rate, both
 /// coupled one way to the arm), radau5, BDF and generalized-α converge
 /// without a Newton failure (before the states' border of the Newton
@@ -424,7 +427,7 @@ fn implicit_methods_converge_on_states_and_match_ode45() {
         assert_eq!(tr.t, reference.t);
         // arm.phi, ie, filtered: q[2], q̇[3], q̇[4]; each error against
         // the column's largest value
-        let cols: [(&str, fn(&Trajectory, usize) -> f64); 3] = [
+        let cols: [(&str, Reader); 3] = [
             ("arm.phi", |t, i| t.q[i][2]),
             ("ie", |t, i| t.qd[i][3]),
             ("filtered", |t, i| t.qd[i][4]),
