@@ -178,8 +178,10 @@ class Scenario:
 
     def check(self) -> Dict[str, Any]:
         """What ``mbsolve check`` reports, as a dict: ``bodies``,
-        ``coordinates``, ``constraint_equations``, ``rank`` (of Φ_q at the
-        initial state), ``dof``, ``redundant``, ``joints`` and ``forces``
+        ``coordinates`` (the bodies' and the controller states'),
+        ``states`` (how many ``[[state]]``), ``constraint_equations``,
+        ``rank`` (of Φ_q at the initial state), ``dof`` (besides the
+        states), ``redundant``, ``joints`` and ``forces``
         (element descriptions), ``sensors``, ``evaluation``, ``method``,
         ``formulation``, ``linear_solver``, ``t0``, ``t_end``, ``output_dt``
         [s] and, when the initial state was assembled, ``initial_assembly``."""

@@ -2,7 +2,8 @@
 
 A :class:`Model` collects the same tables a scenario file has — ``[[body]]``,
 ``[[joint]]`` (revolute, translational, drives), ``[[force]]`` (every type),
-``[rod]``/``[[rod]]``, ``[[chain]]``, ``[[sensor]]``, ``[initial]`` (with
+``[rod]``/``[[rod]]``, ``[[chain]]``, ``[[sensor]]``, ``[[state]]``
+(controller states), ``[parameters]``, ``[initial]`` (with
 ``[[initial.joint]]``), ``[stabilization]``, ``[integrator]``, ``[time]``,
 ``[output]``, ``[constraints]`` — and hands them, as TOML text, to the
 library's scenario reader: the validation and the error messages are the
@@ -166,6 +167,19 @@ class Model:
     def sensor(self, type: str, **keys: Any) -> "Model":
         """A ``[[sensor]]`` of ``type`` with its keys."""
         return self._append("sensor", {"type": type, **keys})
+
+    def state(self, name: str, derivative: str, **keys: Any) -> "Model":
+        """A ``[[state]]`` controller state ``z`` with ``ż = derivative`` (an
+        expression of ``t``, the bodies' ``B.x`` … ``B.omega``, states and
+        parameters), keys ``initial`` (z(t0), default 0) and ``unit`` (its
+        output column's unit, default ``"1"``). Expressions of the model read
+        it by ``name``; a run returns it as the column ``name``."""
+        return self._append("state", {"name": name, "derivative": derivative, **keys})
+
+    def parameters(self, **values: Any) -> "Model":
+        """Entries of ``[parameters]``: numbers or expressions of other
+        parameters, usable in every numeric field and expression."""
+        return self._table("parameters", values)
 
     def initial(self, **keys: Any) -> "Model":
         """Keys of ``[initial]`` (``independent``, ``consistent``,

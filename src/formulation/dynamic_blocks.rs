@@ -27,6 +27,10 @@ pub(crate) struct DynamicBlocks {
     skew_first: Vec<usize>,
     skew_ptr: Vec<usize>,
     skew_ent: Vec<(usize, bool)>,
+    /// Force-Jacobian entries not written in symmetric storage: those
+    /// touching a controller state once [`Self::decouple_states`] was
+    /// called (a `StateBorder` keeps them exactly), else none.
+    skip: Vec<bool>,
 }
 
 impl DynamicBlocks {
@@ -35,12 +39,43 @@ impl DynamicBlocks {
         let force_first = a.push_block(sys.force_jacobian_pattern(), Symmetry::Unsymmetric);
         let hess_first = a.push_block(sys.hessian_pattern(), Symmetry::Symmetric);
         let n_force = sys.force_jacobian_pattern().len();
+        let mut blocks = Self {
+            force_first,
+            hess_first,
+            hess_vals: vec![0.0; sys.hessian_pattern().len()],
+            dq: vec![0.0; n_force],
+            dqd: vec![0.0; n_force],
+            ws: FdWorkspace::default(),
+            skew_first: Vec::new(),
+            skew_ptr: Vec::new(),
+            skew_ent: Vec::new(),
+            skip: vec![false; n_force],
+        };
+        blocks.pairs(sys);
+        blocks
+    }
+
+    /// In symmetric storage, write no force-Jacobian entry that touches a
+    /// controller state (the states' block is then `c_m I` and their
+    /// couplings 0): for a `StateBorder` (`state_border.rs`), which solves
+    /// with those entries exactly.
+    pub(crate) fn decouple_states(&mut self, sys: &System) {
+        let nb = sys.n_body_coords();
+        for (s, &(i, j)) in self.skip.iter_mut().zip(sys.force_jacobian_pattern()) {
+            *s = i >= nb || j >= nb;
+        }
+        self.pairs(sys);
+    }
+
+    /// The off-diagonal pairs of the force-Jacobian pattern, without the
+    /// skipped entries, for the reciprocal part ([`Self::write`]).
+    fn pairs(&mut self, sys: &System) {
         // the off-diagonal pairs in the order of their first entry
         let mut index = std::collections::HashMap::new();
         let mut members: Vec<Vec<(usize, bool)>> = Vec::new();
         let mut skew_first = Vec::new();
         for (e, &(i, j)) in sys.force_jacobian_pattern().iter().enumerate() {
-            if i == j {
+            if i == j || self.skip[e] {
                 continue;
             }
             let p = *index.entry((i.min(j), i.max(j))).or_insert_with(|| {
@@ -54,17 +89,9 @@ impl DynamicBlocks {
         for m in &members {
             skew_ptr.push(skew_ptr.last().copied().unwrap_or(0) + m.len());
         }
-        Self {
-            force_first,
-            hess_first,
-            hess_vals: vec![0.0; sys.hessian_pattern().len()],
-            dq: vec![0.0; n_force],
-            dqd: vec![0.0; n_force],
-            ws: FdWorkspace::default(),
-            skew_first,
-            skew_ptr,
-            skew_ent: members.concat(),
-        }
+        self.skew_first = skew_first;
+        self.skew_ptr = skew_ptr;
+        self.skew_ent = members.concat();
     }
 
     /// The last evaluated blocks ([`Self::evaluate`]): ∂g/∂q and ∂g/∂q̇ in
@@ -169,10 +196,13 @@ impl DynamicBlocks {
             k.add_diagonal(i, c_m * mi);
         }
         if c_c != 0.0 || c_k != 0.0 {
+            let symmetric = k.storage() == Storage::SymmetricLower;
             for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
-                k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
+                if !(symmetric && self.skip[e]) {
+                    k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
+                }
             }
-            if k.storage() == Storage::SymmetricLower {
+            if symmetric {
                 for (p, &first) in self.skew_first.iter().enumerate() {
                     let ents = &self.skew_ent[self.skew_ptr[p]..self.skew_ptr[p + 1]];
                     let dq = reciprocal_correction(ents, &self.dq);

@@ -65,6 +65,7 @@
 //! [`Constraint::hessian_pattern`]: crate::model::Constraint::hessian_pattern
 
 use super::dynamic_blocks::DynamicBlocks;
+use super::state_border::StateBorder;
 use super::{all_finite, linear_at, mass_orthogonal_step, FormulationError};
 use crate::integrate::{SecondOrderDae, SystemError};
 use crate::linalg::{
@@ -122,6 +123,8 @@ pub struct Index3<'a> {
     /// Whether `psolver` holds a factorisation (of the mass saddle matrix
     /// at some recent `q`), which the output projection may reuse.
     mass_factored: bool,
+    /// The controller states' exact border over the symmetric solver.
+    border: Option<StateBorder>,
 }
 
 /// Buffers of [`Index3`]'s residual in halves: the high half's g and
@@ -185,7 +188,7 @@ impl<'a> Index3<'a> {
         let mut a = APattern::new();
         // ∂g/∂q, ∂g/∂q̇ and (Φ_qᵀλ)_q: every force element's and joint's
         // block, evaluated by the system (generated kernels where attached).
-        let blocks = DynamicBlocks::register(sys, &mut a);
+        let mut blocks = DynamicBlocks::register(sys, &mut a);
         // Newton corrections need no residual check: an inaccurate solve
         // only slows the (exact-residual) iteration down.
         // `Auto`: the envelope LDLᵀ when the pattern is a chain, faer's
@@ -202,6 +205,10 @@ impl<'a> Index3<'a> {
         };
         let mut solver = solver_for(kind, n + m, newton_opts);
         let k = SaddleMatrix::with_storage(n, m, &a, sys.jacobian_pattern(), solver.storage());
+        let border = StateBorder::new(sys, solver.storage());
+        if border.is_some() {
+            blocks.decouple_states(sys);
+        }
         let lin = linear_at(f64::NAN);
         solver.analyze(&k).map_err(lin)?;
         let mut psolver = solver_for(linear_solver, n + m, SolverOptions::default());
@@ -242,6 +249,7 @@ impl<'a> Index3<'a> {
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
             mass_factored: false,
+            border,
         })
     }
 
@@ -461,15 +469,22 @@ impl<'a> Index3<'a> {
         )?;
         self.k.set_jacobian(&self.jac);
         self.solver.factorize(&self.k).map_err(linear_at(t))?;
+        if let Some(b) = &mut self.border {
+            let c = [c_m, c_c, c_k];
+            b.factorize(sys, &self.blocks, c, &mut *self.solver, &self.k)
+                .map_err(linear_at(t))?;
+        }
         Ok(())
     }
 
     /// Overwrite `rhs` (length `n + m`) with `K⁻¹ rhs` using the last
     /// factorisation of the Newton matrix.
     pub fn solve_newton(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), FormulationError> {
-        self.solver
-            .solve_in_place(&self.k, rhs)
-            .map_err(linear_at(t))
+        match &mut self.border {
+            Some(b) => b.solve(&mut *self.solver, &self.k, rhs),
+            None => self.solver.solve_in_place(&self.k, rhs),
+        }
+        .map_err(linear_at(t))
     }
 
     /// Factorise the mass saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` at `q`.

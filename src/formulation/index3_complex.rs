@@ -38,6 +38,7 @@
 //! the LU, built then, for the rest of the run.
 
 use super::dynamic_blocks::DynamicBlocks;
+use super::state_border::ComplexStateBorder;
 use super::{all_finite, linear_at, FormulationError};
 use crate::integrate::{ComplexNewton, SystemError};
 use crate::linalg::{
@@ -66,6 +67,8 @@ struct ChainPath {
     jac: Vec<f64>,
     zeros: Vec<f64>,
     ldlt: ComplexChainLdlt,
+    /// The controller states' exact border over `ldlt`.
+    border: Option<ComplexStateBorder>,
 }
 
 impl ChainPath {
@@ -73,11 +76,16 @@ impl ChainPath {
     fn new(sys: &System) -> Option<Self> {
         let (n, m) = (sys.n_coords(), sys.n_constraints());
         let mut a = APattern::new();
-        let blocks = DynamicBlocks::register(sys, &mut a);
+        let mut blocks = DynamicBlocks::register(sys, &mut a);
         let jp = sys.jacobian_pattern();
         let kr = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
         let ldlt = ComplexChainLdlt::analyze(&kr)?;
+        let border = ComplexStateBorder::new(sys);
+        if border.is_some() {
+            blocks.decouple_states(sys);
+        }
         Some(Self {
+            border,
             blocks,
             ki: kr.clone(),
             kr,
@@ -106,7 +114,13 @@ impl ChainPath {
         self.ki.set_jacobian(&self.zeros);
         self.ldlt
             .factorize(&self.kr, &self.ki)
-            .map_err(linear_at(t))
+            .map_err(linear_at(t))?;
+        if let Some(b) = &mut self.border {
+            let ldlt = &mut self.ldlt;
+            b.factorize(sys, &self.blocks, [c0, c1, c2], |re, im| ldlt.solve(re, im))
+                .map_err(linear_at(t))?;
+        }
+        Ok(())
     }
 }
 
@@ -256,7 +270,11 @@ impl<'a> Index3Complex<'a> {
     ) -> Result<(), FormulationError> {
         let lin = linear_at(t);
         match (&mut self.chain, &mut self.lu) {
-            (Some(ch), _) if self.on_chain => ch.ldlt.solve(re, im).map_err(lin),
+            (Some(ch), _) if self.on_chain => match &mut ch.border {
+                Some(b) => b.solve(re, im, |re, im| ch.ldlt.solve(re, im)),
+                None => ch.ldlt.solve(re, im),
+            }
+            .map_err(lin),
             (_, Some(lu)) => lu.solve_in_place(t, self.n, self.m, re, im),
             _ => Err(lin(crate::linalg::LinalgError::NotReady("factorize"))),
         }

@@ -38,6 +38,7 @@ mod partitioning;
 mod penalty;
 mod singularity;
 mod stability;
+mod state_border;
 
 pub use augmented::{Augmented, AugmentedFormStats, AugmentedParams, PENALTY_SCALE};
 pub use index1::{Index1, Index1Options, RhsStats};

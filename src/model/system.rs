@@ -98,6 +98,9 @@ pub struct State {
     pub name: String,
     /// z(t0).
     pub initial: f64,
+    /// Its unit, as the output column states it (`"rad s"`); `"1"`
+    /// (dimensionless) unless given ([`SystemBuilder::add_state_with_unit`]).
+    pub unit: String,
 }
 
 /// Collects bodies, joints and force elements, then validates them into a [`System`].
@@ -119,11 +122,22 @@ impl SystemBuilder {
     /// state: z is `q̇[w]`, and a force element's generalized force on `w`
     /// is `ż`.
     pub fn add_state(&mut self, name: impl Into<String>, initial: f64) -> usize {
+        self.add_state_with_unit(name, initial, "1")
+    }
+    /// [`SystemBuilder::add_state`] with the state's unit (text for the
+    /// output column, e.g. `"rad s"`; no effect on the dynamics).
+    pub fn add_state_with_unit(
+        &mut self,
+        name: impl Into<String>,
+        initial: f64,
+        unit: impl Into<String>,
+    ) -> usize {
         let w = 3 * self.bodies.len() + self.states.len();
         self.states.push((
             State {
                 name: name.into(),
                 initial,
+                unit: unit.into(),
             },
             self.bodies.len(),
         ));

@@ -13,6 +13,7 @@ pub mod metrics;
 #[cfg(feature = "arrow")]
 pub use arrow::{recover as recover_arrow, ArrowTable};
 
+use std::borrow::Cow;
 use std::io::Write;
 
 use crate::model::{
@@ -25,22 +26,24 @@ use crate::simulation::{OutputQuantities, Sample};
 pub struct Column {
     /// Column name.
     pub name: String,
-    /// Unit, e.g. `"m"`, `"rad/s"`, `"N m"`, `""` for none.
-    pub unit: &'static str,
+    /// Unit, e.g. `"m"`, `"rad/s"`, `"N m"`, `""` for none; a controller
+    /// state's is the scenario's text ([`crate::model::State::unit`]).
+    pub unit: Cow<'static, str>,
 }
 
 impl Column {
     /// A column named `name` in `unit`.
-    pub fn new(name: impl Into<String>, unit: &'static str) -> Self {
+    pub fn new(name: impl Into<String>, unit: impl Into<Cow<'static, str>>) -> Self {
         Self {
             name: name.into(),
-            unit,
+            unit: unit.into(),
         }
     }
 }
 
 /// The columns of a run's table: `t`, per body `B.x,B.y,B.phi`
-/// ([`body_labels`]: `crank.x`, `rod.segment[5].y`), `constraint_norm`,
+/// ([`body_labels`]: `crank.x`, `rod.segment[5].y`), each controller state
+/// by its name in its unit ([`crate::model::State`]), `constraint_norm`,
 /// then what `o` selects: velocities `B.vx,B.vy,B.omega`, accelerations
 /// `B.ax,B.ay,B.alpha`, per joint `J.fx,J.fy,J.mz` (reaction
 /// on its body, global frame, moment about the centre of mass) and
@@ -62,7 +65,7 @@ pub fn columns(sys: &System, o: &OutputQuantities, sensors: &[Sensor]) -> Vec<Co
     };
     per_body(&mut c, POSITION, ["m", "m", "rad"]);
     for s in sys.states() {
-        c.push(Column::new(&s.name, ""));
+        c.push(Column::new(&s.name, s.unit.clone()));
     }
     c.push(Column::new("constraint_norm", "m"));
     if o.velocities {

@@ -54,6 +54,7 @@ const TEXT_KEYS: &[&str] = &[
     "column",
     "reduce",
     "direction",
+    "unit",
 ];
 
 /// Keys of a `type = "expression"` force that hold expressions of t and

@@ -21,6 +21,36 @@ pub(super) struct RawState {
     initial: Option<f64>,
     /// ż: an expression of t, bodies' coordinates, states and parameters.
     derivative: String,
+    /// The unit of z for its output column (`"rad s"`), default `"1"`.
+    unit: Option<String>,
+}
+
+/// Most characters of a state's `unit`.
+const MAX_UNIT_CHARS: usize = 32;
+
+/// `Err(message)` unless `u` is a unit text: at most [`MAX_UNIT_CHARS`]
+/// printable characters, none of `< > & " ' \` (it reaches HTML, SVG and
+/// CSV headers' metadata).
+fn check_unit(u: &str) -> Result<(), String> {
+    if u.trim().is_empty() {
+        return Err("an empty unit (leave the key out for \"1\", dimensionless)".into());
+    }
+    if u.chars().count() > MAX_UNIT_CHARS {
+        return Err(format!(
+            "\"{u}\" is longer than {MAX_UNIT_CHARS} characters"
+        ));
+    }
+    if let Some(c) = u
+        .chars()
+        .find(|c| c.is_control() || "<>&\"'\\".contains(*c))
+    {
+        return Err(format!(
+            "{:?} holds {c:?}: a unit is text such as \"rad s\" or \"N m/s\" (no control \
+             characters, < > & \" ' \\)",
+            u
+        ));
+    }
+    Ok(())
 }
 
 /// A state may not share its name with a parameter: the parameter's value
@@ -90,7 +120,9 @@ pub(super) fn add(
         if !z0.is_finite() {
             return Err(error(file, key("initial"), format!("{z0} is not finite")));
         }
-        out.push((n.to_string(), builder.add_state(n, z0)));
+        let unit = s.unit.as_deref().unwrap_or("1");
+        check_unit(unit).map_err(|m| error(file, key("unit"), m))?;
+        out.push((n.to_string(), builder.add_state_with_unit(n, z0, unit)));
     }
     Ok(out)
 }

@@ -5,7 +5,8 @@
 //!
 //! A `[[repeat]]` has `index` (the index's name, default `"i"`), `from`
 //! and `to` (integers or parameter expressions, both included) and arrays
-//! of tables `body`, `joint`, `force`, `sensor`, `chain`, `rod` — written
+//! of tables `body`, `joint`, `force`, `sensor`, `chain`, `rod`, `metric`,
+//! `state` — written
 //! `[[repeat.body]]` etc. For each index value every table of the group is
 //! copied with `{EXPR}` in its strings replaced by the value of EXPR (an
 //! expression of the index and the parameters, `"crank{i+1}"`), and the
@@ -18,7 +19,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// The groups a `[[repeat]]` may hold.
-const GROUPS: &[&str] = &["body", "joint", "force", "sensor", "chain", "rod", "metric"];
+const GROUPS: &[&str] = &[
+    "body", "joint", "force", "sensor", "chain", "rod", "metric", "state",
+];
 
 /// Most copies of all `[[repeat]]`s of a scenario (10⁶, as many as
 /// [`super::limits::MAX_BODIES`]).

@@ -281,3 +281,49 @@ fn animate_rejects_a_csv_of_another_model() {
         stderr(&o)
     );
 }
+
+/// A controller state's unit (`[[state]] unit`) reaches `columns.json` and
+/// the plot's ordinate label beside the bodies' units.
+#[test]
+fn state_units_reach_columns_json_and_the_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = mbsolve(&[
+        "run",
+        "scenarios/pid_arm.toml",
+        "--set",
+        "time.end=0.2",
+        "--out",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cols: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("pid_arm.columns.json")).unwrap(),
+    )
+    .unwrap();
+    let unit = |n: &str| {
+        cols.as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == n)
+            .unwrap_or_else(|| panic!("no column {n}"))["unit"]
+            .clone()
+    };
+    assert_eq!((unit("e1"), unit("e3")), ("rad s".into(), "rad s".into()));
+    let svg = dir.path().join("e.svg");
+    let csv = dir.path().join("pid_arm.csv");
+    let o = mbsolve(&[
+        "plot",
+        csv.to_str().unwrap(),
+        "--y",
+        "e1,e2,link1.phi",
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        text.contains("\ne1, e2 [rad s]; link1.phi [rad]\n"),
+        "ordinate label"
+    );
+}

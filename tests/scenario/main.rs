@@ -9,6 +9,7 @@ mod forces;
 mod functions;
 mod joint_loads;
 mod keys;
+mod long_way;
 mod names;
 mod overrides;
 mod parameters;

@@ -91,7 +91,7 @@ fn columns_carry_the_names_of_bodies_and_chain_links_with_units() {
     let sc = load(&model("-2*arm.link[2].omega"), &[]);
     let cols = columns(&sc.system, &sc.run.outputs, &sc.sensors);
     let names: Vec<&str> = cols.iter().map(|c| c.name.as_str()).collect();
-    let unit = |n: &str| cols.iter().find(|c| c.name == n).unwrap().unit;
+    let unit = |n: &str| cols.iter().find(|c| c.name == n).unwrap().unit.to_string();
     // bodies in order: the [[body]]s, then the chain's links 1-based
     assert_eq!(
         &names[..8],
