@@ -42,6 +42,10 @@ pub enum Method {
     /// equations, fixed step or adaptive ([`super::Radau5`];
     /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
     Radau5,
+    /// Radau IIA of order 9 (five stages, L-stable) on the index-3
+    /// equations, fixed step ([`super::Radau9`]; docs/radau.md). Not an
+    /// [`super::OdeSystem`] integrator.
+    Radau9,
 }
 
 /// The family a method belongs to: what runs it.
@@ -58,7 +62,7 @@ pub enum Family {
     /// The generalized-α family (generalized-α, HHT, Newmark) on the
     /// index-3 equations; also the scheme of the augmented Lagrangian.
     GeneralizedAlpha,
-    /// Radau IIA (order 5) on the index-3 equations.
+    /// Radau IIA (orders 5 and 9) on the index-3 equations.
     Radau,
 }
 
@@ -188,7 +192,7 @@ const EXPLICIT_THREADS: &str = "forces ∥ constraint terms of each RHS";
 const ALPHA_THREADS: &str = "residual halves, Newton updates, split chain LDLᵀ";
 
 /// Every method, one row each, in the order of [`Method::ALL`].
-pub const METHODS: [MethodInfo; 9] = [
+pub const METHODS: [MethodInfo; 10] = [
     MethodInfo {
         method: Method::Ode23,
         name: "ode23",
@@ -301,6 +305,23 @@ pub const METHODS: [MethodInfo; 9] = [
             ("min_step", KeyUse::Always),
         ],
     },
+    MethodInfo {
+        method: Method::Radau9,
+        name: "radau9",
+        aliases: &[],
+        family: Family::Radau,
+        equations: Equations::Index3,
+        stepping: Stepping::Fixed,
+        threads: "residual halves, split real chain LDLᵀ",
+        keys: &[
+            ("step", KeyUse::Always),
+            ("newton_tol", KeyUse::Always),
+            ("max_newton", KeyUse::Always),
+            ("project", KeyUse::Always),
+            ("reuse", KeyUse::Always),
+            ("min_step", KeyUse::Always),
+        ],
+    },
 ];
 
 impl MethodInfo {
@@ -330,7 +351,7 @@ impl MethodInfo {
 
 impl Method {
     /// All methods, in the order of [`METHODS`].
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 10] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
@@ -340,12 +361,13 @@ impl Method {
         Method::Hht,
         Method::Newmark,
         Method::Radau5,
+        Method::Radau9,
     ];
     /// The valid method names, in the order of [`METHODS`].
-    pub const NAMES: [&'static str; 9] = {
-        let mut names = [""; 9];
+    pub const NAMES: [&'static str; 10] = {
+        let mut names = [""; 10];
         let mut i = 0;
-        while i < 9 {
+        while i < 10 {
             names[i] = METHODS[i].name;
             i += 1;
         }
@@ -511,7 +533,7 @@ mod tests {
             .collect();
         assert_eq!(alpha, [GenAlpha, Hht, Newmark]);
         let index3: Vec<Method> = Method::ALL.into_iter().filter(Method::is_index3).collect();
-        assert_eq!(index3, [Bdf, GenAlpha, Hht, Newmark, Radau5]);
+        assert_eq!(index3, [Bdf, GenAlpha, Hht, Newmark, Radau5, Radau9]);
         let adaptive: Vec<Method> = Method::ALL
             .into_iter()
             .filter(Method::is_adaptive)

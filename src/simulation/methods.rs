@@ -492,15 +492,28 @@ impl Index3Scheme for Bdf {
 /// `newton_tol`, `min_step_taken`, `max_step_taken`.
 pub(super) type RadauRun<'s> = Index3Run<'s, RadauScheme<'s>>;
 
-/// [`Radau5`] with the complex Newton matrix of its system.
+/// [`Radau5`] (or radau9) with the complex Newton matrix of its system.
 pub(super) struct RadauScheme<'s> {
-    integ: Radau5,
+    integ: RadauOrder<'s>,
     c: Index3Complex<'s>,
+}
+
+/// The Radau IIA of the run: radau5, or radau9 with the complex matrix of
+/// its second complex pair.
+enum RadauOrder<'s> {
+    Three(Box<Radau5>),
+    Five(Box<(crate::integrate::Radau9, Index3Complex<'s>)>),
 }
 
 impl<'s> RadauRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
-        let integ = Radau5::new(cfg.implicit.clone(), cfg.ode.clone())?;
+        let (imp, ode) = (cfg.implicit.clone(), cfg.ode.clone());
+        let integ = if cfg.method == Method::Radau9 {
+            let r9 = crate::integrate::Radau9::new(imp, ode)?;
+            RadauOrder::Five(Box::new((r9, Index3Complex::new(sys)?)))
+        } else {
+            RadauOrder::Three(Box::new(Radau5::new(imp, ode)?))
+        };
         let scheme = RadauScheme {
             integ,
             c: Index3Complex::new(sys)?,
@@ -517,11 +530,22 @@ impl Index3Scheme for RadauScheme<'_> {
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
         let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
-        self.integ
-            .integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
+        match &mut self.integ {
+            RadauOrder::Three(r5) => {
+                r5.integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
+            }
+            RadauOrder::Five(b) => {
+                let (r9, c2) = &mut **b;
+                let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
+                r9.integrate(f, cplx, t0, t1, s.q0, s.qd0, s.times, obs)
+            }
+        }
     }
     fn work(&self, _f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
-        let rs = self.integ.stats();
+        let rs = match &self.integ {
+            RadauOrder::Three(r5) => r5.stats(),
+            RadauOrder::Five(b) => b.0.stats(),
+        };
         let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
         extra.extend(fields([
             ("real_factorizations", rs.factorizations.into()),

@@ -14,5 +14,6 @@ mod every_method;
 mod explicit;
 mod genalpha;
 mod radau;
+mod radau9;
 mod stability_limit;
 mod stiff_chain;

@@ -408,11 +408,11 @@ fn applicability_messages_name_the_methods_of_the_table() {
             "integrator.rho_inf",
             "applies to the implicit methods genalpha, hht and newmark only, not to ode23",
         ),
-        // keys of the generalized-α family and radau5 on the Adams method
+        // keys of the generalized-α family and Radau IIA on the Adams method
         (
             &["integrator.method=\"ode113\"", "integrator.min_step=1e-9"],
             "integrator.min_step",
-            "applies to the implicit methods genalpha, hht, newmark and radau5 only, not to ode113",
+            "applies to the implicit methods genalpha, hht, newmark, radau5 and radau9 only, not to ode113",
         ),
         // a BDF key on the generalized-α family
         (
@@ -438,7 +438,7 @@ fn applicability_messages_name_the_methods_of_the_table() {
         (
             &["integrator.method=\"bdf\"", "integrator.newton_tol=1e-7"],
             "integrator.newton_tol",
-            "applies to the implicit methods genalpha, hht, newmark and radau5 only, not to bdf",
+            "applies to the implicit methods genalpha, hht, newmark, radau5 and radau9 only, not to bdf",
         ),
         // Baumgarte on an index-3 method: the index-1 methods from the table
         (

@@ -166,6 +166,19 @@ impl Convergence {
         }
     }
 
+    /// A new attempt whose first correction is judged with the rate
+    /// estimate `eta` as given ([`Remainder::Rate`]), where [`Convergence::new`]
+    /// raises it to at least 1: Radau IIA's `η₀ = max(η_prev, ε)^0.8`
+    /// (RADAU5, Hairer & Wanner II, §IV.8), which lets a good predictor on a
+    /// contracting matrix converge in one correction and creeps back
+    /// towards 1 over attempts that measure no rate.
+    pub fn with_first_rate(opts: ConvergenceOptions, eta: f64) -> Self {
+        Self {
+            eta,
+            ..Self::new(opts, 1.0)
+        }
+    }
+
     /// A new attempt of [`Remainder::Ode15s`] on a matrix whose rate was
     /// measured before (`None` for a fresh matrix).
     pub(crate) fn with_rate(opts: ConvergenceOptions, rate: Option<f64>) -> Self {

@@ -47,7 +47,11 @@
 //! [`THETA_REFACTOR`](super::THETA_REFACTOR)); convergence test as generalized-α's, the one
 //! [`Convergence`](super::implicit::Convergence) (Hairer &
 //! Wanner II, eq. (8.10)) on the position-equivalent corrections
-//! `h² ΔA_i` against `h² newton_tol`, floored at [`ROUNDING_ULPS`] of `q`.
+//! `h² ΔA_i` against `h² newton_tol`, floored at [`ROUNDING_ULPS`] of `q`;
+//! the first correction of an attempt is judged with RADAU5's rate
+//! estimate `η₀ = max(η_prev, ε)^0.8` from the last converged attempt
+//! (not raised to 1), so a good predictor on a contracting matrix
+//! converges in one correction.
 //! The predictor extrapolates the previous step's stage polynomials
 //! (`A`, `Λ`) to the new stage times.
 //!
@@ -102,16 +106,22 @@
 //! within `[1, KEEP_STEP]` times the old one keeps it (and the
 //! factorisations; a step within [`ADAPTIVE_REUSE_BAND`] of the factorised
 //! one reuses them). Newton stops, where that is looser than
-//! `newton_tol`, at RADAU5's tolerance: corrections `h² ΔA` below
-//! `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` times the error test's
-//! weights (the tip errors this gives against rtol: docs/radau.md).
+//! `newton_tol`, at RADAU5's tolerance: the stage position corrections
+//! `ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j` (RADAU5 tests the stage increments `ΔZ`)
+//! below `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` times the error
+//! test's weights (the tip errors this gives against rtol: docs/radau.md).
 
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
 mod newton;
+mod radau9;
+mod stages;
 mod tableau;
 
+use newton::{check_newton_options, first_rate, radau_convergence};
+pub use radau9::Radau9;
+pub use stages::RadauStages;
 use tableau::cmul;
 pub use tableau::RadauTableau;
 
@@ -187,20 +197,7 @@ impl Radau5 {
     /// `adaptive`.
     pub fn new(opts: ImplicitOptions, ode: OdeOptions) -> Result<Self, IntegratorError> {
         ode.validate(Method::Radau5, opts.adaptive)?;
-        if !(opts.newton_tol > 0.0 && opts.newton_tol.is_finite()) {
-            return Err(IntegratorError::InvalidOption {
-                option: "newton_tol",
-                value: opts.newton_tol.to_string(),
-                reason: "must be positive and finite".into(),
-            });
-        }
-        if opts.max_newton == 0 {
-            return Err(IntegratorError::InvalidOption {
-                option: "max_newton",
-                value: "0".into(),
-                reason: "must be at least 1".into(),
-            });
-        }
+        check_newton_options(&opts)?;
         Ok(Self {
             opts,
             ode,

@@ -5,6 +5,44 @@
 
 use super::*;
 
+/// `newton_tol` positive and finite, `max_newton` at least 1.
+pub(super) fn check_newton_options(opts: &ImplicitOptions) -> Result<(), IntegratorError> {
+    if !(opts.newton_tol > 0.0 && opts.newton_tol.is_finite()) {
+        return Err(IntegratorError::InvalidOption {
+            option: "newton_tol",
+            value: opts.newton_tol.to_string(),
+            reason: "must be positive and finite".into(),
+        });
+    }
+    if opts.max_newton == 0 {
+        return Err(IntegratorError::InvalidOption {
+            option: "max_newton",
+            value: "0".into(),
+            reason: "must be at least 1".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The rate estimate of an attempt's first correction from the last one
+/// kept, `max(η, ε)^0.8` (RADAU5's `FACCON`).
+pub(super) fn first_rate(eta: f64) -> f64 {
+    eta.max(f64::EPSILON).powf(0.8)
+}
+
+/// The convergence rules of Radau IIA's simplified Newton (radau5 and
+/// radau9): the rate test, a renewal at the iterate when the iteration is
+/// exhausted or diverges.
+pub(super) fn radau_convergence(max_newton: usize) -> ConvergenceOptions {
+    ConvergenceOptions {
+        remainder: Remainder::Rate,
+        max_iterations: max_newton,
+        renew_when_exhausted: true,
+        renew_on_divergence: true,
+        reset_rate_on_renewal: false,
+    }
+}
+
 impl Run<'_, '_> {
     /// Factorise the real and the complex matrix at the step's start.
     pub(super) fn factor(&mut self, h: f64) -> Result<(), SystemError> {
@@ -84,23 +122,18 @@ impl Run<'_, '_> {
         // error test's weights `(rtol'/rtol)(atol + rtol |q|)` (module
         // docs, "Step size")
         let ode = self.ode;
-        let (fr, fa) = if self.opts.adaptive {
+        let adaptive = self.opts.adaptive;
+        let a2w = tab.a2;
+        let (fr, fa) = if adaptive {
             let rt = 0.1 * ode.rtol.powf(2.0 / 3.0);
             let fnewt = (10.0 * f64::EPSILON / rt).max(0.03f64.min(rt.sqrt()));
             (fnewt * rt, fnewt * rt / ode.rtol)
         } else {
             (0.0, 0.0)
         };
-        let mut conv = Convergence::new(
-            ConvergenceOptions {
-                remainder: Remainder::Rate,
-                max_iterations: self.opts.max_newton,
-                renew_when_exhausted: true,
-                renew_on_divergence: true,
-                reset_rate_on_renewal: false,
-            },
-            self.eta,
-        );
+        // the first correction is judged with RADAU5's η₀ = max(η, ε)^0.8
+        let eta0 = first_rate(self.eta);
+        let mut conv = Convergence::with_first_rate(radau_convergence(self.opts.max_newton), eta0);
         let mut its = 0usize;
         loop {
             if self.renewal.before_correction(conv.round()) {
@@ -172,13 +205,20 @@ impl Run<'_, '_> {
                         .abs()
                         .max((h * h * d1).abs())
                         .max((h * h * d2).abs());
-                    let atol = match &ode.atol {
-                        Tolerance::Scalar(a) => *a,
-                        Tolerance::Vector(v) => v[k],
-                    };
-                    let w = tol_q.max(fa * atol + fr * q[k].abs())
-                        + ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
-                    dnorm = dnorm.max(big / w);
+                    let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
+                    let mut ratio = big / (tol_q + floor);
+                    if adaptive {
+                        // RADAU5's test on the stage position corrections
+                        // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
+                        let dq = |r: [f64; 3]| (h * h * (r[0] * d0 + r[1] * d1 + r[2] * d2)).abs();
+                        let big_q = dq(a2w[0]).max(dq(a2w[1])).max(dq(a2w[2]));
+                        let atol = match &ode.atol {
+                            Tolerance::Scalar(a) => *a,
+                            Tolerance::Vector(v) => v[k],
+                        };
+                        ratio = ratio.min(big_q / (fa * atol + fr * q[k].abs() + floor));
+                    }
+                    dnorm = dnorm.max(ratio);
                 }
                 let [l0, l1, l2] = &mut self.l;
                 for k in n..n + m {
@@ -238,8 +278,11 @@ impl Run<'_, '_> {
             }
             match conv.next(dnorm, done) {
                 None => {
-                    if let Some(eta) = conv.rate_to_keep() {
-                        self.eta = eta;
+                    match conv.rate_to_keep() {
+                        Some(eta) => self.eta = eta,
+                        // no rate measured: η₀ creeps back towards 1
+                        None if its == 1 => self.eta = eta0,
+                        None => {}
                     }
                     self.last_its = its;
                     return Ok(());
