@@ -186,10 +186,9 @@ impl DynamicBlocks {
     /// makes the error of the Newton matrix nilpotent on it (two
     /// iterations for a linear problem), where its symmetric part
     /// `½ [0 a; a 0]` has the eigenvalue `−|a|/2`, a negative stiffness the
-    /// true Jacobian does not have. Measured on the falling rod
-    /// (N = 10 000, radau5 h = 4e-4, 0 … 0.3 s): with the symmetric part,
-    /// 962 regularised pivots of an indefinite `A` and Newton corrections
-    /// of 1e109 … 1e156 at contact onsets.
+    /// true Jacobian does not have (on the falling rod's contacts: an
+    /// indefinite `A` and diverging corrections; docs/scaling.md,
+    /// "Measurements behind the defaults").
     pub(crate) fn write(&self, sys: &System, k: &mut SaddleMatrix, [c_m, c_c, c_k]: [f64; 3]) {
         k.set_zero();
         for (i, &mi) in sys.mass_diagonal().iter().enumerate() {

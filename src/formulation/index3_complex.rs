@@ -32,9 +32,8 @@
 //! `(0, Im c₁, Im c₂)` with `Φ_q` = 0, both assembled as
 //! [`super::Index3`]'s (the reciprocal part of the force Jacobians, so
 //! unsymmetric forces make it a modified Newton, as the real stage's) from
-//! one evaluation of the Jacobians. Measured on the stiff
-//! chain at N = 1000 (docs/radau.md): the LU of the embedding took ≈ 64 %
-//! of a radau5 run. A pivot that vanishes (no pivoting here) falls back to
+//! one evaluation of the Jacobians (the LU of the real embedding it
+//! replaces dominated a radau5 run: docs/radau.md). A pivot that vanishes (no pivoting here) falls back to
 //! the LU, built then, for the rest of the run.
 
 use super::dynamic_blocks::DynamicBlocks;

@@ -126,14 +126,10 @@ pub struct ImplicitOptions {
     /// the last two steps when that would have predicted the last step's
     /// `q̈` better than the constant, else kept constant; or always kept
     /// constant (false, as `λ_{n+1}` always is; Arnold & Brüls 2007).
-    /// Measured (h = 1.25e-5, stiff chain, 0.01 … 0.1 s): 1.89 / 1.93
-    /// Newton iterations per step at N = 1000 / 10 000 against 2.22 / 2.25,
-    /// at 1–5 % more CPU time (the matrix is renewed at the predictor more
-    /// often, which pays for the saved corrections); problem C at h = 2.5e-5 over 0.3 s: −12 % /
-    /// −7 % iterations at N = 100 / 1000 but +8 % CPU at N = 1000 (4× the
-    /// factorisations); hence off by default. (Before 747da1b (2026-11-27) true always
-    /// extrapolated: +14 % iterations at N = 100 and twice the iterations
-    /// in free fall, where the constant predictor is exact.)
+    /// Off by default: it saves Newton corrections but renews the matrix
+    /// at the predictor more often, which cost more CPU time than it saved
+    /// on the stiff chain and problem C (docs/scaling.md, "Measurements
+    /// behind the defaults").
     pub extrapolate: bool,
 }
 

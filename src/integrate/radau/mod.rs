@@ -61,22 +61,18 @@
 //! at the last stage's current iterate `(t_n + h, Q₃, V₃, Λ₃)` when the
 //! iteration diverges (θ ≥ 1 above [`STAGNATION`](super::STAGNATION) tolerances): the
 //! diverging correction is undone and Newton goes on with the renewed
-//! matrices instead of halving the step at once. Measured on the stiff
-//! chain from its kinked start (N = 1000, h = 4e-4, `newton_tol` = 1): 19
-//! → 13 failed attempts; at N = 10 000 the run that failed at t = 6e-7
-//! with its step cut to 1e-21 s completes (16 failed attempts). The
-//! matrix frozen at the step's start carries the multipliers' geometric
+//! matrices instead of halving the step at once (fewer failed attempts
+//! from the stiff chain's kinked start; docs/scaling.md, "Measurements
+//! behind the defaults"). The matrix frozen at the step's start carries the multipliers' geometric
 //! stiffness `(Φ_qᵀλ_n)_q` of the kink's spring forces, which the first
 //! step relaxes. The same renewal (without the undo; one renewal per
 //! attempt in all) is taken when `max_newton` corrections did not suffice
-//! but the iteration still contracts (as generalized-α's): on the falling
-//! rod (N = 10 000, h = 4e-4, 1 s) 42 → 38 failed attempts; on the stiff
-//! chain at h = 4e-4, 13 → 9 (N = 1000) and 16 → 11 (N = 10 000). An
+//! but the iteration still contracts (as generalized-α's). An
 //! iteration that stops contracting with position corrections `h² ΔA`
 //! below [`NOISE_REL`](super::NOISE_REL) of `max(|q|, 1)` has reached the noise of the
-//! solve and counts as converged (as generalized-α's):
-//! at N = 10 000 with `newton_tol` = 1e-2 the start otherwise cut the step
-//! to 3e-21 s, every attempt "diverging" at 300 tolerances of 20 ulps.
+//! solve and counts as converged (as generalized-α's), so that a tight
+//! `newton_tol` does not cut the step at the start for iterations that
+//! only "diverge" within the rounding noise.
 //!
 //! # Step size
 //!
@@ -146,10 +142,9 @@ pub const SAME_STEP: f64 = 1e-9;
 
 /// Adaptive mode: the matrices factorised for a step `h_f` serve a step
 /// within this relative distance of it (a simplified Newton on a matrix
-/// of a nearby step, as generalized-α's `REUSE_BAND`). Measured
-/// (N = 1000 stiff chain at rtol 1e-4; rod N = 10 000, rtol 1e-3,
-/// 0 … 0.3 s): factorisations 866 → 684 and 682 → 544, CPU 0.50 → 0.48 s
-/// and 6.57 → 6.11 s, against renewing at every change of the step.
+/// of a nearby step, as generalized-α's `REUSE_BAND`): fewer
+/// factorisations than renewing at every change of the step
+/// (docs/scaling.md, "Measurements behind the defaults").
 pub const ADAPTIVE_REUSE_BAND: f64 = 0.2;
 
 /// Safety factor of the step-size controller (RADAU5's `SAFE`).
