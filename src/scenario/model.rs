@@ -370,14 +370,24 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         file,
     )?;
     let states = super::state::add(&raw.state, &mut builder, &names, file)?;
-    let mut joints = Vec::with_capacity(raw.joint.len());
+    let mut joints: Vec<super::forces::NamedJoint> = Vec::with_capacity(raw.joint.len());
     for (k, j) in raw.joint.iter().enumerate() {
         super::joints::add_joint(j, &mut builder, k, &names, &components.ends, file)?;
+        let name = j
+            .name()
+            .map_or_else(|| format!("joint{}", k + 1), str::to_string);
+        if let Some(first) = joints.iter().position(|o| o.name == name) {
+            return Err(err(
+                format!("joint[{k}].name"),
+                format!(
+                    "duplicate joint name '{name}': joint[{first}] has it (names address \
+                     joints in --set, expressions and output columns)"
+                ),
+            ));
+        }
         let last = builder.constraints().last().expect("a joint was added");
         joints.push(super::forces::NamedJoint {
-            name: j
-                .name()
-                .map_or_else(|| format!("joint{}", k + 1), str::to_string),
+            name,
             kind: j
                 .0
                 .get("type")
@@ -407,6 +417,15 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
         let name = f
             .name()
             .map_or_else(|| format!("force{}", k + 1), str::to_string);
+        if let Some(first) = forces.iter().position(|(o, _)| *o == name) {
+            return Err(err(
+                format!("force[{k}].name"),
+                format!(
+                    "duplicate force name '{name}': force[{first}] has it (names address \
+                     forces in --set and output columns)"
+                ),
+            ));
+        }
         forces.push((name, start..builder.n_forces()));
     }
     super::state::add_rates(&raw.state, &states, &mut builder, &names, file)?;

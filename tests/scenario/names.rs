@@ -221,3 +221,33 @@ fn bad_names_list_the_valid_ones() {
     assert!(e.contains("arm.link[2].theta"), "{e}");
     assert!(e.contains("arm.link[2].omega"), "{e}");
 }
+
+/// Two joints or two forces of one name would make `force[name]` address
+/// only the first and give two output columns one name: an error at the
+/// second, naming the first.
+#[test]
+fn duplicate_joint_and_force_names_are_errors() {
+    let text = model("0").replace("name = \"shock\"", "name = \"motor\"");
+    let e = load_err(&text, &[]);
+    assert!(e.contains("force[1].name"), "{e}");
+    assert!(
+        e.contains("duplicate force name 'motor': force[0] has it"),
+        "{e}"
+    );
+    let joint = |name: &str, y: f64| {
+        format!(
+            "\n[[joint]]\ntype = \"revolute\"\nname = \"{name}\"\nbody_i = \"ground\"\n\
+             point_i = [1.0, {y}]\nbody_j = \"block\"\npoint_j = [0.0, 0.0]\n"
+        )
+    };
+    let two = format!("{}{}{}", model("0"), joint("pin", -0.5), joint("pin", -0.5));
+    let e = load_err(&two, &[]);
+    assert!(e.contains("joint[1].name"), "{e}");
+    assert!(
+        e.contains("duplicate joint name 'pin': joint[0] has it"),
+        "{e}"
+    );
+    // distinct names load
+    let two = format!("{}{}", model("0"), joint("pin", -0.5));
+    load(&two, &[]);
+}
