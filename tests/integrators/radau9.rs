@@ -59,10 +59,9 @@ fn pendulum_error(h: f64, theta0: f64) -> f64 {
 
 /// The positions converge with order 9 (2s − 1 for s = 5 on index-3
 /// problems): on the pendulum released at 70° the observed order from
-/// h = 0.1 s to 0.0625 and to 0.05 s is above 7.5 (measured 8.05 from 0.1
-/// to 0.05; order 5 would give 5). Larger steps are not yet asymptotic
-/// (0.2 → 0.1: 4.5), and at 0.025 the error, 7.5e-14, is at the rounding
-/// floor.
+/// h = 0.1 s to 0.0625 and to 0.05 s is above 7.5 (order 5 would give 5).
+/// Larger steps are not yet asymptotic, and at h = 0.025 s the error is at
+/// the rounding floor (docs/radau.md).
 #[test]
 fn pendulum_positions_converge_with_order_nine() {
     let th0 = 70f64.to_radians();
@@ -84,8 +83,8 @@ fn pendulum_positions_converge_with_order_nine() {
 
 /// The stiff chain at N = 100 against the peers' independent reference
 /// (SciPy Radau at rtol 1e-10): within 2e-7 m at h = 5e-4 with
-/// `newton_tol` = 1e-2 (measured 4.5e-8; 1.3e-6 at `newton_tol` = 1, where
-/// the Newton remainders dominate), and the constraints held
+/// `newton_tol` = 1e-2 (at `newton_tol` = 1 the Newton remainders
+/// dominate the error; docs/radau.md), and the constraints held
 /// (‖Φ‖ < 1e-9).
 #[test]
 fn stiff_chain_n100_against_reference() {

@@ -463,7 +463,7 @@ pub const NEWTON_PER_STEP_MAX: f64 = 2.5;
 
 /// Newton iterations per accepted step of generalized-α (h = 1e-5),
 /// BDF (rtol 1e-6, atol 1e-9) and adaptive radau5 (rtol 1e-4, atol 1e-7;
-/// 2.28 measured) on the stiff chain of the peer comparisons, N = 100
+/// docs/radau.md) on the stiff chain of the peer comparisons, N = 100
 /// released from rest, over 0.02 s (the start transient included);
 /// iteration counts are deterministic, so no repetitions.
 fn newton_iterations_per_step() -> Vec<Check> {
