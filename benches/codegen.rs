@@ -16,7 +16,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use mbsolve::constraints::Revolute;
 use mbsolve::generated::{attach_generated, ChainKernels};
-use mbsolve::model::{Body, BodyRef, Evaluation, System, SystemBuilder};
+use mbsolve::model::{Body, BodyRef, ConstraintKernels, Evaluation, System, SystemBuilder};
 use std::hint::black_box;
 
 fn rod_chain(n: usize) -> System {
@@ -85,6 +85,7 @@ fn bench(c: &mut Criterion) {
                 fused.evaluate(
                     black_box(&q),
                     black_box(&qd),
+                    0.0,
                     &mut phi,
                     &mut vals,
                     &mut gamma,

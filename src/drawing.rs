@@ -307,16 +307,7 @@ fn perp(a: P) -> P {
 /// `r + R(φ) s` for body `b` of the pose `q` (3 coordinates per body);
 /// `s` itself for the ground.
 pub fn world(q: &[f64], body: Option<usize>, s: P) -> P {
-    match body {
-        None => s,
-        Some(i) => {
-            let (sn, cs) = q[3 * i + 2].sin_cos();
-            [
-                q[3 * i] + cs * s[0] - sn * s[1],
-                q[3 * i + 1] + sn * s[0] + cs * s[1],
-            ]
-        }
-    }
+    body.map_or(BodyRef::Ground, BodyRef::Body).point_at(q, s)
 }
 
 fn carrier(b: BodyRef) -> Option<usize> {

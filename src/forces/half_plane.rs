@@ -4,7 +4,7 @@
 
 use super::contact::{friction_tanh, HuntCrossley};
 use super::{check_coordinates, Check, ForceElement, ForceJacobians};
-use crate::model::{ModelError, TimeFunction};
+use crate::model::{BodyRef, ModelError, TimeFunction};
 
 /// Penalty contact of a circle of radius `R ≥ 0` (a point for `R = 0`),
 /// centred at the body-fixed point `s` of `body`, with the wall
@@ -148,13 +148,7 @@ impl HalfPlaneContact {
     /// Penetration `δ` \[m\] at time `t` \[s\] (negative: the gap).
     pub fn penetration_at(&self, t: f64, q: &[f64]) -> f64 {
         let a = self.wall(t).0;
-        let o = 3 * self.body;
-        let (sn, cs) = q[o + 2].sin_cos();
-        let s = self.point;
-        let p = [
-            q[o] + cs * s[0] - sn * s[1],
-            q[o + 1] + sn * s[0] + cs * s[1],
-        ];
+        let p = BodyRef::Body(self.body).point_at(q, self.point);
         let n = self.normal;
         self.radius - (n[0] * (p[0] - a[0]) + n[1] * (p[1] - a[1]))
     }

@@ -105,31 +105,17 @@ impl PointSpringDamper {
         (out, n)
     }
 
-    /// Global position of a point.
-    fn point(b: BodyRef, s: [f64; 2], q: &[f64]) -> [f64; 2] {
-        match b.offset() {
-            None => s,
-            Some(o) => {
-                let (sn, cs) = q[o + 2].sin_cos();
-                [
-                    q[o] + cs * s[0] - sn * s[1],
-                    q[o + 1] + sn * s[0] + cs * s[1],
-                ]
-            }
-        }
-    }
-
     /// Current length `L` of the element.
     pub fn length(&self, q: &[f64]) -> f64 {
-        let pi = Self::point(self.body_i, self.point_i, q);
-        let pj = Self::point(self.body_j, self.point_j, q);
+        let pi = self.body_i.point_at(q, self.point_i);
+        let pj = self.body_j.point_at(q, self.point_j);
         (pj[0] - pi[0]).hypot(pj[1] - pi[1])
     }
 
     /// Length, rate and derivatives; `None` below [`MIN_LENGTH`].
     fn kin(&self, q: &[f64], qd: &[f64]) -> Option<Kin> {
-        let pi = Self::point(self.body_i, self.point_i, q);
-        let pj = Self::point(self.body_j, self.point_j, q);
+        let pi = self.body_i.point_at(q, self.point_i);
+        let pj = self.body_j.point_at(q, self.point_j);
         let d = [pj[0] - pi[0], pj[1] - pi[1]];
         let len = d[0].hypot(d[1]);
         if len.is_nan() || len < MIN_LENGTH {

@@ -41,14 +41,8 @@ use crate::model::System;
 
 /// The border of a system with controller states ([module docs](self)).
 pub(crate) struct StateBorder {
-    /// First state coordinate (3 · bodies) and the number of states.
-    nb: usize,
-    ns: usize,
-    /// Size of the saddle-point system, n + m.
-    size: usize,
-    /// The force-Jacobian entries `(e, row, col)` with a state as row or
-    /// column, and their values in `K` at the last factorisation.
-    entries: Vec<(usize, usize, usize)>,
+    shape: Shape,
+    /// The values of the shape's entries in `K` at the last factorisation.
     vals: Vec<f64>,
     /// `K_PP⁻¹ K_PS`, column by column (`size × ns`, the S rows zero).
     z: Vec<f64>,
@@ -61,15 +55,27 @@ pub(crate) struct StateBorder {
     tmp: Vec<f64>,
 }
 
-impl StateBorder {
-    /// `None` when the system has no states or the storage is not the
-    /// symmetric one (the LU's full storage keeps the couplings exact).
-    pub(crate) fn new(sys: &System, storage: Storage) -> Option<Self> {
+/// Where the states sit in the Newton matrix, shared by the real and the
+/// complex border.
+struct Shape {
+    /// First state coordinate (3 · bodies) and the number of states.
+    nb: usize,
+    ns: usize,
+    /// Size of the saddle-point system, n + m.
+    size: usize,
+    /// The force-Jacobian entries `(e, row, col)` with a state as row or
+    /// column.
+    entries: Vec<(usize, usize, usize)>,
+}
+
+impl Shape {
+    /// `None` when the system has no states.
+    fn of(sys: &System) -> Option<Self> {
         let (nb, ns) = (sys.n_body_coords(), sys.states().len());
-        if ns == 0 || storage != Storage::SymmetricLower {
+        if ns == 0 {
             return None;
         }
-        let entries: Vec<(usize, usize, usize)> = sys
+        let entries = sys
             .force_jacobian_pattern()
             .iter()
             .enumerate()
@@ -81,8 +87,23 @@ impl StateBorder {
             nb,
             ns,
             size,
-            vals: vec![0.0; entries.len()],
             entries,
+        })
+    }
+}
+
+impl StateBorder {
+    /// `None` when the system has no states or the storage is not the
+    /// symmetric one (the LU's full storage keeps the couplings exact).
+    pub(crate) fn new(sys: &System, storage: Storage) -> Option<Self> {
+        if storage != Storage::SymmetricLower {
+            return None;
+        }
+        let shape = Shape::of(sys)?;
+        let (ns, size) = (shape.ns, shape.size);
+        Some(Self {
+            vals: vec![0.0; shape.entries.len()],
+            shape,
             z: vec![0.0; size * ns],
             lu: vec![0.0; ns * ns],
             perm: (0..ns).collect(),
@@ -104,13 +125,13 @@ impl StateBorder {
         k: &SaddleMatrix,
     ) -> Result<(), LinalgError> {
         let (dq, dqd, _) = blocks.values();
-        for (v, &(e, _, _)) in self.vals.iter_mut().zip(&self.entries) {
+        for (v, &(e, _, _)) in self.vals.iter_mut().zip(&self.shape.entries) {
             *v = -(c_c * dqd[e] + c_k * dq[e]);
         }
-        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        let (nb, ns, size) = (self.shape.nb, self.shape.ns, self.shape.size);
         // Z = K_PP⁻¹ K_PS, column by column
         self.z.fill(0.0);
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i < nb && j >= nb {
                 self.z[(j - nb) * size + i] += v;
             }
@@ -129,7 +150,7 @@ impl StateBorder {
         for s in 0..ns {
             lu[s * ns + s] = c_m * mass[nb + s];
         }
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i < nb {
                 continue;
             }
@@ -153,12 +174,12 @@ impl StateBorder {
         k: &SaddleMatrix,
         rhs: &mut [f64],
     ) -> Result<(), LinalgError> {
-        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        let (nb, ns, size) = (self.shape.nb, self.shape.ns, self.shape.size);
         self.rs.copy_from_slice(&rhs[nb..nb + ns]);
         rhs[nb..nb + ns].fill(0.0);
         solver.solve_in_place(k, rhs)?;
         // r_S − K_SP y
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i >= nb && j < nb {
                 self.rs[i - nb] -= v * rhs[j];
             }
@@ -188,11 +209,8 @@ impl StateBorder {
 /// `index3_complex.rs`): [`StateBorder`]'s block elimination in complex
 /// arithmetic, vectors as (re, im) halves.
 pub(crate) struct ComplexStateBorder {
-    nb: usize,
-    ns: usize,
-    size: usize,
-    entries: Vec<(usize, usize, usize)>,
-    /// Their values in `K` at the last factorisation.
+    shape: Shape,
+    /// The shape's entries' values in `K` at the last factorisation.
     vals: Vec<C>,
     /// `K_PP⁻¹ K_PS` column by column, real and imaginary parts.
     z_re: Vec<f64>,
@@ -225,24 +243,11 @@ fn cabs(a: C) -> f64 {
 impl ComplexStateBorder {
     /// `None` when the system has no states.
     pub(crate) fn new(sys: &System) -> Option<Self> {
-        let (nb, ns) = (sys.n_body_coords(), sys.states().len());
-        if ns == 0 {
-            return None;
-        }
-        let entries: Vec<(usize, usize, usize)> = sys
-            .force_jacobian_pattern()
-            .iter()
-            .enumerate()
-            .filter(|(_, &(i, j))| i >= nb || j >= nb)
-            .map(|(e, &(i, j))| (e, i, j))
-            .collect();
-        let size = sys.n_coords() + sys.n_constraints();
+        let shape = Shape::of(sys)?;
+        let (ns, size) = (shape.ns, shape.size);
         Some(Self {
-            nb,
-            ns,
-            size,
-            vals: vec![[0.0; 2]; entries.len()],
-            entries,
+            vals: vec![[0.0; 2]; shape.entries.len()],
+            shape,
             z_re: vec![0.0; size * ns],
             z_im: vec![0.0; size * ns],
             lu: vec![[0.0; 2]; ns * ns],
@@ -262,16 +267,16 @@ impl ComplexStateBorder {
         mut solve: impl FnMut(&mut [f64], &mut [f64]) -> Result<(), LinalgError>,
     ) -> Result<(), LinalgError> {
         let (dq, dqd, _) = blocks.values();
-        for (v, &(e, _, _)) in self.vals.iter_mut().zip(&self.entries) {
+        for (v, &(e, _, _)) in self.vals.iter_mut().zip(&self.shape.entries) {
             *v = [
                 -(c1[0] * dqd[e] + c2[0] * dq[e]),
                 -(c1[1] * dqd[e] + c2[1] * dq[e]),
             ];
         }
-        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        let (nb, ns, size) = (self.shape.nb, self.shape.ns, self.shape.size);
         self.z_re.fill(0.0);
         self.z_im.fill(0.0);
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i < nb && j >= nb {
                 self.z_re[(j - nb) * size + i] += v[0];
                 self.z_im[(j - nb) * size + i] += v[1];
@@ -292,7 +297,7 @@ impl ComplexStateBorder {
         for s in 0..ns {
             lu[s * ns + s] = [c0[0] * mass[nb + s], c0[1] * mass[nb + s]];
         }
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i < nb {
                 continue;
             }
@@ -321,14 +326,14 @@ impl ComplexStateBorder {
         im: &mut [f64],
         solve: impl FnOnce(&mut [f64], &mut [f64]) -> Result<(), LinalgError>,
     ) -> Result<(), LinalgError> {
-        let (nb, ns, size) = (self.nb, self.ns, self.size);
+        let (nb, ns, size) = (self.shape.nb, self.shape.ns, self.shape.size);
         for s in 0..ns {
             self.rs[s] = [re[nb + s], im[nb + s]];
         }
         re[nb..nb + ns].fill(0.0);
         im[nb..nb + ns].fill(0.0);
         solve(re, im)?;
-        for (&(_, i, j), &v) in self.entries.iter().zip(&self.vals) {
+        for (&(_, i, j), &v) in self.shape.entries.iter().zip(&self.vals) {
             if i >= nb && j < nb {
                 let p = cmul(v, [re[j], im[j]]);
                 self.rs[i - nb][0] -= p[0];

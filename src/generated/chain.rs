@@ -240,34 +240,18 @@ impl ChainKernels {
     fn chain_vals(&self) -> std::ops::Range<usize> {
         self.jac0..self.jac0 + 8 * self.n_joints
     }
+}
 
-    /// Φ, Φ_q values and γ in one pass (sines and cosines computed once per
-    /// body instead of once per function and joint side).
-    pub fn evaluate(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        phi: &mut [f64],
-        vals: &mut [f64],
-        gamma: &mut [f64],
-    ) {
-        let (r, v) = (self.chain_rows(), self.chain_vals());
-        kernels::revolute_chain_eval(
-            self.chain_q(q),
-            self.chain_q(qd),
-            &self.params,
-            &mut phi[r.clone()],
-            &mut vals[v],
-            &mut gamma[r],
-        );
-        if let Some(g) = &self.ground {
-            g.eval(q, qd, phi, vals, gamma);
-        }
+impl ConstraintKernels for ChainKernels {
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        self.pattern()
     }
-
-    /// Add (Φ_qᵀλ)_q in the order of the joints' `hessian_pattern`s,
-    /// joint after joint (2 values per chain joint, 1 for the ground joint).
-    pub fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
+    fn has_hessian(&self) -> bool {
+        true
+    }
+    /// (Φ_qᵀλ)_q joint after joint (2 values per chain joint, 1 for the
+    /// ground joint).
+    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
         let nh = 2 * self.n_joints;
         let (chain_at, ground_at) = match &self.ground {
             Some(g) if g.row0 == 0 => (1, 0),
@@ -285,18 +269,6 @@ impl ChainKernels {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }
     }
-}
-
-impl ConstraintKernels for ChainKernels {
-    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
-        self.pattern()
-    }
-    fn has_hessian(&self) -> bool {
-        true
-    }
-    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
-        ChainKernels::add_hessian(self, q, lambda, vals)
-    }
     fn evaluate(
         &self,
         q: &[f64],
@@ -306,7 +278,20 @@ impl ConstraintKernels for ChainKernels {
         vals: &mut [f64],
         gamma: &mut [f64],
     ) {
-        ChainKernels::evaluate(self, q, qd, phi, vals, gamma)
+        // sines and cosines computed once per body instead of once per
+        // function and joint side
+        let (r, v) = (self.chain_rows(), self.chain_vals());
+        kernels::revolute_chain_eval(
+            self.chain_q(q),
+            self.chain_q(qd),
+            &self.params,
+            &mut phi[r.clone()],
+            &mut vals[v],
+            &mut gamma[r],
+        );
+        if let Some(g) = &self.ground {
+            g.eval(q, qd, phi, vals, gamma);
+        }
     }
     fn name(&self) -> &str {
         &self.name

@@ -31,12 +31,23 @@ impl FourBarKernels {
         }
         (sys.jacobian_pattern() == kernels::FOURBAR_JAC_PATTERN).then_some(Self { params })
     }
+}
 
-    /// Φ, Φ_q values and γ in one pass.
-    pub fn evaluate(
+impl ConstraintKernels for FourBarKernels {
+    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
+        kernels::FOURBAR_JAC_PATTERN.to_vec()
+    }
+    fn has_hessian(&self) -> bool {
+        true
+    }
+    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
+        kernels::fourbar_hessian(arr(q), &self.params, &[], arr(lambda), arr_mut(vals));
+    }
+    fn evaluate(
         &self,
         q: &[f64],
         qd: &[f64],
+        _t: f64,
         phi: &mut [f64],
         vals: &mut [f64],
         gamma: &mut [f64],
@@ -50,34 +61,6 @@ impl FourBarKernels {
             arr_mut(vals),
             arr_mut(gamma),
         );
-    }
-
-    /// Add (Φ_qᵀλ)_q in the order of the joints' `hessian_pattern`s.
-    pub fn add_hessian(&self, q: &[f64], lambda: &[f64], vals: &mut [f64]) {
-        kernels::fourbar_hessian(arr(q), &self.params, &[], arr(lambda), arr_mut(vals));
-    }
-}
-
-impl ConstraintKernels for FourBarKernels {
-    fn jacobian_pattern(&self) -> Vec<(usize, usize)> {
-        kernels::FOURBAR_JAC_PATTERN.to_vec()
-    }
-    fn has_hessian(&self) -> bool {
-        true
-    }
-    fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
-        FourBarKernels::add_hessian(self, q, lambda, vals)
-    }
-    fn evaluate(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        _t: f64,
-        phi: &mut [f64],
-        vals: &mut [f64],
-        gamma: &mut [f64],
-    ) {
-        FourBarKernels::evaluate(self, q, qd, phi, vals, gamma)
     }
     fn name(&self) -> &str {
         "generated:fourbar"

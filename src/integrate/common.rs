@@ -35,6 +35,17 @@ pub(crate) fn weighted_sum(out: &mut [f64], h: f64, coeffs: &[f64], k: &[f64]) {
     }
 }
 
+/// What one explicit run starts from, as [`validate_run`] accepted it:
+/// the options, the span `[t0, t_end]`, the initial state `y0` and its
+/// dimension `n` (= `sys.dim()`).
+pub(crate) struct RunSpan<'r> {
+    pub opts: &'r OdeOptions,
+    pub t0: f64,
+    pub t_end: f64,
+    pub y0: &'r [f64],
+    pub n: usize,
+}
+
 /// Evaluates `f(t, y)` into `dydt`, counting the evaluation. Fails if the
 /// system reports an error or returns a non-finite value; `step_from` is
 /// the start of the step being taken, if any (named in the failure).

@@ -28,11 +28,11 @@
 //! plus 1 per step whose end state [`OdeSystem::post_step`] moved.
 
 use super::common::{
-    self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, StepEnds,
+    self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, RunSpan, StepEnds,
 };
 use super::driver::{Failure, StepCut, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
-use super::{OdeOptions, OdeSystem, Stats};
+use super::{OdeSystem, Stats};
 
 /// One run of the embedded pair: the system, MATLAB's step-control state
 /// and the work arrays (allocated once).
@@ -63,13 +63,10 @@ impl<'a> EmbeddedStepper<'a> {
     /// The stepper of one run of the pair `tab` (`n` = `sys.dim()`).
     pub(crate) fn new(
         sys: &'a mut dyn OdeSystem,
-        opts: &OdeOptions,
+        run: &RunSpan<'_>,
         tab: &'static EmbeddedTableau,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        n: usize,
     ) -> Self {
+        let (opts, t0, t_end, y0, n) = (run.opts, run.t0, run.t_end, run.y0, run.n);
         let tol = common::MatlabTolerances::new(opts, n, t0, t_end);
         Self {
             sys,

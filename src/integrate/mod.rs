@@ -373,6 +373,13 @@ impl Integrator {
     ) -> Result<Report, IntegratorError> {
         let opts = &self.options;
         let n = common::validate_run(sys, opts, t0, t_end, y0, output_times)?;
+        let run = common::RunSpan {
+            opts,
+            t0,
+            t_end,
+            y0,
+            n,
+        };
         let mut st: Box<dyn driver::Stepper + '_> = match self.method {
             Method::Ode23 | Method::Ode45 => {
                 let tab = if self.method == Method::Ode23 {
@@ -380,12 +387,10 @@ impl Integrator {
                 } else {
                     &tableau::DP54
                 };
-                Box::new(embedded::EmbeddedStepper::new(
-                    sys, opts, tab, t0, t_end, y0, n,
-                ))
+                Box::new(embedded::EmbeddedStepper::new(sys, &run, tab))
             }
-            Method::Rk4 => Box::new(rk4::Rk4Stepper::new(sys, opts, t0, t_end, y0, n)),
-            Method::Ode113 => Box::new(ode113::Ode113Stepper::new(sys, opts, t0, t_end, y0, n)),
+            Method::Rk4 => Box::new(rk4::Rk4Stepper::new(sys, &run)),
+            Method::Ode113 => Box::new(ode113::Ode113Stepper::new(sys, &run)),
             m => return Err(IntegratorError::ImplicitMethod(m.name())),
         };
         let (termination, t_reached) =

@@ -35,9 +35,9 @@
 
 #![allow(clippy::needless_range_loop)] // 1-based transcription of STEP/INTRP
 
-use super::common::{self, call_rhs, post_step};
+use super::common::{self, call_rhs, post_step, RunSpan};
 use super::driver::{Failure, StepCut, Stepper};
-use super::{OdeOptions, OdeSystem, Stats};
+use super::{OdeSystem, Stats};
 
 /// Highest order of the predictor (the corrector is one higher).
 const MAXK: usize = 12;
@@ -102,14 +102,8 @@ pub(crate) struct Ode113Stepper<'a> {
 
 impl<'a> Ode113Stepper<'a> {
     /// The stepper of one run (`n` = `sys.dim()`).
-    pub(crate) fn new(
-        sys: &'a mut dyn OdeSystem,
-        opts: &OdeOptions,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        n: usize,
-    ) -> Self {
+    pub(crate) fn new(sys: &'a mut dyn OdeSystem, run: &RunSpan<'_>) -> Self {
+        let (opts, t0, t_end, y0, n) = (run.opts, run.t0, run.t_end, run.y0, run.n);
         let tol = common::MatlabTolerances::new(opts, n, t0, t_end);
         let mut g = [0.0; NPHI];
         g[1] = 1.0;

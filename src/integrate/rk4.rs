@@ -1,9 +1,9 @@
 //! Classic four-stage, fourth-order Runge–Kutta method with a fixed step.
 
-use super::common::{self, call_rhs, eval_stages, lincomb, post_step, StepEnds};
+use super::common::{self, call_rhs, eval_stages, lincomb, post_step, RunSpan, StepEnds};
 use super::driver::{Failure, Stepper};
 use super::hermite::cubic;
-use super::{OdeOptions, OdeSystem, Stats};
+use super::{OdeSystem, Stats};
 
 const RK4_C: [f64; 4] = [0.0, 0.5, 0.5, 1.0];
 const RK4_A: [&[f64]; 4] = [&[], &[0.5], &[0.0, 0.5], &[0.0, 0.0, 1.0]];
@@ -50,14 +50,8 @@ pub(crate) struct Rk4Stepper<'a> {
 
 impl<'a> Rk4Stepper<'a> {
     /// The stepper of one run (`n` = `sys.dim()`; `opts.fixed_step` set).
-    pub(crate) fn new(
-        sys: &'a mut dyn OdeSystem,
-        opts: &OdeOptions,
-        t0: f64,
-        t_end: f64,
-        y0: &[f64],
-        n: usize,
-    ) -> Self {
+    pub(crate) fn new(sys: &'a mut dyn OdeSystem, run: &RunSpan<'_>) -> Self {
+        let (opts, t0, t_end, y0, n) = (run.opts, run.t0, run.t_end, run.y0, run.n);
         let h = opts
             .fixed_step
             .expect("validated by integrator(): rk4 has a fixed_step");

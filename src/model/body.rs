@@ -82,4 +82,19 @@ impl BodyRef {
             BodyRef::Body(i) => Some(3 * i),
         }
     }
+
+    /// Global position `r + R(φ) s` \[m\] of the body-fixed point `s` at
+    /// the pose `q` (3 coordinates per body); `s` itself on the ground.
+    pub fn point_at(self, q: &[f64], s: [f64; 2]) -> [f64; 2] {
+        match self.offset() {
+            None => s,
+            Some(o) => {
+                let (sn, cs) = q[o + 2].sin_cos();
+                [
+                    q[o] + cs * s[0] - sn * s[1],
+                    q[o + 1] + sn * s[0] + cs * s[1],
+                ]
+            }
+        }
+    }
 }

@@ -411,18 +411,7 @@ fn branch_flip(system: &System, q_given: &[f64], q: &[f64], locked: &[usize]) ->
             _ => None,
         })
         .collect();
-    let at = |q: &[f64], b: BodyRef, s: [f64; 2]| -> [f64; 2] {
-        match b.offset() {
-            None => s,
-            Some(o) => {
-                let (sn, cs) = q[o + 2].sin_cos();
-                [
-                    q[o] + cs * s[0] - sn * s[1],
-                    q[o + 1] + sn * s[0] + cs * s[1],
-                ]
-            }
-        }
-    };
+    let at = |q: &[f64], b: BodyRef, s: [f64; 2]| b.point_at(q, s);
     // the pin of the first other revolute joint on body b (its point on b)
     let other = |me: usize, b: BodyRef| {
         pins.iter().find_map(|&(k, bi, si, bj, sj)| {

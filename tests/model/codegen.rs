@@ -8,7 +8,9 @@ use mbsolve::builders::n_link_pendulum;
 use mbsolve::constraints::{Revolute, Translational};
 use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
-use mbsolve::model::{Body, BodyRef, Evaluation, JointGeometry, System, SystemBuilder};
+use mbsolve::model::{
+    Body, BodyRef, ConstraintKernels, Evaluation, JointGeometry, System, SystemBuilder,
+};
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
 use mbsolve::simulation::simulate;
@@ -143,13 +145,13 @@ fn rod_chains_match_generic() {
         let lam = r.vec(sys.n_constraints(), -1.0, 1.0);
         let want = generic_hessian(&sys, &q, &lam);
         let mut got = vec![0.0; want.len()];
-        k.add_hessian(&q, &lam, &mut got);
+        k.add_hessian(&q, 0.0, &lam, &mut got);
         rel_close("(Φ_qᵀλ)_q", &want, &got, 1e-13);
         // fused evaluation = the three separate ones
         let qd = r.vec(sys.n_coords(), -1.0, 1.0);
         let (m, nnz) = (sys.n_constraints(), sys.jacobian_pattern().len());
         let (mut a, mut b, mut c) = (vec![0.0; m], vec![0.0; nnz], vec![0.0; m]);
-        k.evaluate(&q, &qd, &mut a, &mut b, &mut c);
+        k.evaluate(&q, &qd, 0.0, &mut a, &mut b, &mut c);
         let (mut a2, mut b2, mut c2) = (vec![0.0; m], vec![0.0; nnz], vec![0.0; m]);
         sys.set_evaluation(Evaluation::Generic).unwrap();
         sys.phi(&q, 0.0, &mut a2);
@@ -183,7 +185,7 @@ fn pendulums_match_generic() {
         let lam = r.vec(sys.n_constraints(), -1.0, 1.0);
         let want = generic_hessian(&sys, &q, &lam);
         let mut got = vec![0.0; want.len()];
-        k.add_hessian(&q, &lam, &mut got);
+        k.add_hessian(&q, 0.0, &lam, &mut got);
         rel_close("(Φ_qᵀλ)_q", &want, &got, 1e-13);
     }
     // Pivot first, ground on side j, attached to the last body.
@@ -216,7 +218,7 @@ fn pendulums_match_generic() {
         let lam = r.vec(sys.n_constraints(), -1.0, 1.0);
         let want = generic_hessian(&sys, &q, &lam);
         let mut got = vec![0.0; want.len()];
-        k.add_hessian(&q, &lam, &mut got);
+        k.add_hessian(&q, 0.0, &lam, &mut got);
         rel_close("(Φ_qᵀλ)_q", &want, &got, 1e-13);
     }
 }
@@ -238,7 +240,7 @@ fn fourbar_matches_generic() {
         let lam = r.vec(8, -1.0, 1.0);
         let want = generic_hessian(&sc.system, &q, &lam);
         let mut got = vec![0.0; want.len()];
-        k.add_hessian(&q, &lam, &mut got);
+        k.add_hessian(&q, 0.0, &lam, &mut got);
         rel_close("(Φ_qᵀλ)_q", &want, &got, 1e-13);
     }
 }
