@@ -7,16 +7,15 @@ use crate::linalg::full_pivot_order;
 use crate::model::System;
 
 /// Largest system whose rank [`SingularityMonitor`] watches at every
-/// accepted step (a dense `r × r` determinant per step, `O(r³)`; cost not
-/// measured separately; 64 coordinates covers the mechanisms of the
-/// constraint-method study; above it
-/// only the regularised pivots of the factorisations tell).
+/// accepted step (a dense `r × r` determinant per step, `O(r³)`; 64
+/// coordinates covers the mechanisms of the constraint-method study;
+/// above it only the regularised pivots of the factorisations tell).
 pub const MONITOR_MAX_COORDS: usize = 64;
 
 /// Rank measure (r-th over first complete pivot of Φ_R) below which a
-/// sign change of the split's determinant is a singular configuration.
-/// Measured: 1e-10 … 1e-4 at the crossings of the parallelogram chain
-/// (ode45 cuts its step to ~1e-7 s there), above 1e-2 along the four-bar.
+/// sign change of the split's determinant is a singular configuration:
+/// between the ratios at true crossings and those along a regular motion
+/// (docs/scaling.md, "Measurements behind the defaults").
 pub const SINGULAR_RATIO: f64 = 1e-3;
 
 /// What [`SingularityMonitor::step`] found.

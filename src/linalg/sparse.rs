@@ -77,18 +77,17 @@ pub const REFINE_THRESHOLD: f64 = 1e-12;
 pub enum Ordering {
     /// faer's approximate minimum degree on the pattern of `K`, followed by
     /// a pass that postpones every multiplier until all coordinates of its
-    /// Jacobian row have been eliminated. Plain AMD happily eliminates a
+    /// Jacobian row have been eliminated. Plain AMD may eliminate a
     /// ground-joint multiplier (degree 2, zero diagonal) first, which turns
-    /// a full-rank matrix into regularised pivots (measured: 1–4 per chain
-    /// or loop); with the postponement every leading block is a saddle
-    /// matrix with full-rank constraint part, so all pivots have the
-    /// expected sign. Costs ~6 % more fill than plain AMD on chains.
+    /// a full-rank matrix into regularised pivots; with the postponement
+    /// every leading block is a saddle matrix with full-rank constraint
+    /// part, so all pivots have the expected sign, for a little more fill
+    /// than plain AMD.
     ///
-    /// The default: fastest of the orders measured on chains (faster
-    /// than [`chain_order`], a tie with [`Ordering::Natural`], which has
-    /// the same fill on a chain numbered along the chain;
-    /// docs/linear_solvers.md) and general purpose (trees, loops, coupled
-    /// `A` blocks, any joint numbering).
+    /// The default: general purpose (trees, loops, coupled `A` blocks, any
+    /// joint numbering) and no slower on chains than [`chain_order`] or
+    /// [`Ordering::Natural`] (docs/linear_solvers.md; the figures in
+    /// docs/scaling.md, "Measurements behind the defaults").
     #[default]
     Amd,
     /// The given order: all coordinates, then all multipliers. Always safe
@@ -113,8 +112,7 @@ pub enum Ordering {
 /// coordinates of body `i`, then the multipliers of the joints whose child
 /// is `i`, then body `i − 1`, … Rows named by no joint (loop closures,
 /// drivers) are eliminated last. For a chain this is the block-tridiagonal
-/// elimination with no fill outside the tridiagonal blocks (its scalar fill
-/// inside them is ~5 % above [`Ordering::Amd`]). A joint's multipliers are
+/// elimination with no fill outside the tridiagonal blocks. A joint's multipliers are
 /// pivoted on before the parent's coordinates, so its rows restricted to
 /// the child body must have full rank (true for revolute and prismatic
 /// joints); otherwise the pivots get regularised.

@@ -14,7 +14,7 @@ use super::{Column, TableError, TableWriter};
 
 /// Values buffered before a record batch is written (8 MB of `f64`): the
 /// memory of the writer, whatever the number of rows.
-pub const BATCH_VALUES: usize = 1 << 20;
+pub(crate) const BATCH_VALUES: usize = 1 << 20;
 
 /// An Arrow IPC file written row by row, read by pyarrow
 /// (`pyarrow.ipc.open_file`, `pyarrow.feather.read_table`), polars, R's

@@ -25,7 +25,7 @@ const GROUPS: &[&str] = &[
 
 /// Most copies of all `[[repeat]]`s of a scenario (10⁶, as many as
 /// [`super::limits::MAX_BODIES`]).
-pub const MAX_COPIES: usize = 1_000_000;
+pub(crate) const MAX_COPIES: usize = 1_000_000;
 
 /// `text` with every `{EXPR}` replaced by the value of EXPR under `values`
 /// (an integer when it is one); errors name the expression.

@@ -63,15 +63,15 @@
 //! estimate enters times `h` (the position error it makes over the step)
 //! in the positions' weights, as index-2 components are scaled by `h`
 //! (Hairer & Wanner II §VII.3; Brenan, Campbell & Petzold §5.4);
-//! unscaled, the step of the pendulum collapsed to `16 eps(t)` (measured).
-//! λ, the index-3 variable, is left out. The velocity term cut the
-//! rejected steps of the stiff chain 10–20× (N = 10, 100) and the
-//! factorisations 3×, at the same accuracy.
+//! unscaled, the step of an index-3 pendulum collapses to `16 eps(t)`.
+//! λ, the index-3 variable, is left out (the velocity term's effect on
+//! the stiff chain: docs/scaling.md, "Measurements behind the defaults").
 //! **First step**: the Euler error `½h²q̈_0` of the positions at a quarter
-//! of rtol in that norm. MATLAB's rule (`‖[q̇; q̈] ./ [q; q̇]‖`) gave 1e-17 s
-//! on the stiff chain (q̈_0 ≈ 1e10 at rest, the velocity weights at their
-//! threshold), where `v = a_0 q + r_q` is rounding noise of q: the tip
-//! error at N = 100 was 1600 rtol at rtol 1e-7 and grew as rtol fell.
+//! of rtol in that norm. MATLAB's rule (`‖[q̇; q̈] ./ [q; q̇]‖`) fails on a
+//! stiff chain at rest (q̈_0 large, the velocity weights at their
+//! threshold): it chooses a first step at which `v = a_0 q + r_q` is
+//! rounding noise of q (docs/scaling.md, "Measurements behind the
+//! defaults").
 //! **Order and step**: after k + 1 steps at order k the orders k − 1, k,
 //! k + 1 (≤ `max_order`) are compared (their estimates computed with the
 //! error test's, one norm pass for all) by the steps they allow,

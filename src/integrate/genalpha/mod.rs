@@ -108,16 +108,15 @@
 //! The tolerance is on accelerations on purpose: a Newton remainder `e`
 //! in `q` perturbs `q̇` by `γ' e ~ e/h` and `a` by `e/(βh²)` at every step,
 //! which sums to a global position error `~ T² e / h²` — a fixed position
-//! tolerance would put a floor under the accuracy as `h → 0` (measured:
-//! 1e-8 m stalled the error of the bending rod at 1e-5 m), while
+//! tolerance would put a floor under the accuracy as `h → 0` (the bending
+//! rod's case: docs/scaling.md, "Measurements behind the defaults"), while
 //! `|β' e| ≤ newton_tol` bounds it by `~ T² newton_tol` for every h.
 //! **Single correction.** On a matrix factorised at the predictor Newton
 //! converges quadratically, `‖Δq₂‖ ≈ C ‖Δq₁‖²`; `C` is measured whenever
 //! such an attempt makes a second correction (at the same step size; again
 //! after `QUAD_REUSE` = 10 uses), and the first correction alone is
 //! accepted when `C ‖Δq₁‖_w² ≤ 1` — the second would only iterate into
-//! the rounding floor (stiff chain: `‖Δq₁‖_w ≈ 1.7e6`, `‖Δq₂‖_w ≈ 0.5–4`);
-//! `≤ 4` where the tolerance unit is the rounding floor itself
+//! the rounding floor; `≤ 4` where the tolerance unit is the rounding floor itself
 //! (`SINGLE_CORRECTION_AT_FLOOR`: a remainder of 80 ulps).
 //! Optionally also `‖Φ(q_{n+1})‖∞` must be below the position-equivalent
 //! tolerance ([`ImplicitOptions::check_constraints`]).

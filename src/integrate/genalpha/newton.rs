@@ -17,12 +17,10 @@ pub const SLOW_ITERATIONS: usize = 4;
 
 /// Corrections a matrix renewed at every predictor must save per step
 /// (against the last step on an older matrix) to be renewed there: about
-/// the cost of a factorisation (measured on the stiff chain, N = 1000:
-/// ≈ 2 corrections). The fresh matrix's count is the smaller of its last
-/// two attempts (single corrections come and go with the quadratic
-/// model): on the stiff chain a fresh matrix takes 1–2 corrections where
-/// an older one takes 3–5; on problem C (N = 100) 2 against 3, and reuse
-/// stays.
+/// the cost of a factorisation, in corrections. The fresh matrix's count
+/// is the smaller of its last two attempts (single corrections come and
+/// go with the quadratic model). The counts behind it: docs/scaling.md,
+/// "Measurements behind the defaults".
 pub(super) const RENEW_SAVING: usize = 2;
 
 /// A single Newton correction is accepted on a matrix factorised at the
