@@ -4,6 +4,7 @@
 //! (assembled by hand, or by the scenario's own initial-state code)
 //! against the linear model's prediction.
 
+use crate::common::linear::{assert_odd_part_is_linear, expm_times};
 use faer::Mat;
 use mbsolve::analysis::linearize::{
     linearize, Input, LinearizeOptions, Method, Output, StateSpace,
@@ -114,33 +115,6 @@ fn pendulum_matches_closed_form_at_rest_and_swinging() {
     let ss = linearize(&sys, &[], 0.0, &q, &qd, &[], &[], &Default::default()).unwrap();
     assert_eq!(ss.independent.len(), 1);
     assert!((ss.a[(1, 0)] + c).abs() < 1e-12 * c, "{}", ss.a[(1, 0)]);
-}
-
-/// `exp(A τ) x` by a Taylor series (small ‖A τ‖ in squaring steps).
-fn expm_times(a: &Mat<f64>, tau: f64, x: &[f64]) -> Vec<f64> {
-    let steps = 64;
-    let h = tau / steps as f64;
-    let n = x.len();
-    let mut y = x.to_vec();
-    for _ in 0..steps {
-        let mut term = y.clone();
-        let mut sum = y.clone();
-        for k in 1..30 {
-            let mut next = vec![0.0; n];
-            for i in 0..n {
-                for j in 0..n {
-                    next[i] += a[(i, j)] * term[j];
-                }
-                next[i] *= h / k as f64;
-            }
-            term = next;
-            for i in 0..n {
-                sum[i] += term[i];
-            }
-        }
-        y = sum;
-    }
-    y
 }
 
 /// Double pendulum of two bars (m, l, I = m l²/12) hanging from the ground,
@@ -275,12 +249,8 @@ fn equilibrium_model_predicts_the_nonlinear_run() {
     let dx = [1.0e-4, -0.6e-4, 0.5e-4, 2.0e-4];
     let plus = double_run(&sys, l, dx, tau);
     let minus = double_run(&sys, l, dx.map(|v| -v), tau);
-    let nonlinear: Vec<f64> = (0..4).map(|i| 0.5 * (plus[i] - minus[i])).collect();
     let linear = expm_times(&ss.a, tau, &dx);
-    let size = nonlinear.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
-    let err = (0..4).fold(0.0_f64, |s, i| s.max((nonlinear[i] - linear[i]).abs()));
-    eprintln!("equilibrium: |exp(A tau) dx - nonlinear| = {err:.3e} of {size:.3e}");
-    assert!(err < 1e-6 * size, "{err:.3e} of {size:.3e}");
+    assert_odd_part_is_linear("equilibrium", &plus, &minus, &linear);
 }
 
 #[test]

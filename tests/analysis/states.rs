@@ -22,6 +22,7 @@
 // matrices are indexed by row and column throughout
 #![allow(clippy::needless_range_loop)]
 
+use crate::common::linear::{assert_odd_part_is_linear, expm_times};
 use mbsolve::analysis::linearize::{linearize, LinearizeOptions, Method, Output};
 use mbsolve::analysis::{static_equilibrium, StaticError, StaticOptions};
 use mbsolve::scenario;
@@ -225,29 +226,6 @@ fn pid_pendulum_linearisation_matches_the_closed_form() {
     }
 }
 
-/// `exp(A τ) x` by a Taylor series in 64 steps.
-fn expm_times(a: &faer::Mat<f64>, tau: f64, x: &[f64]) -> Vec<f64> {
-    let steps = 64;
-    let h = tau / steps as f64;
-    let n = x.len();
-    let mut y = x.to_vec();
-    for _ in 0..steps {
-        let mut term = y.clone();
-        let mut sum = y.clone();
-        for k in 1..30 {
-            let next: Vec<f64> = (0..n)
-                .map(|i| (0..n).map(|j| a[(i, j)] * term[j]).sum::<f64>() * h / k as f64)
-                .collect();
-            term = next;
-            for i in 0..n {
-                sum[i] += term[i];
-            }
-        }
-        y = sum;
-    }
-    y
-}
-
 /// The linear model predicts nonlinear runs from ± a small perturbation
 /// of (θ, ω, z) (their half difference, free of the quadratic terms).
 #[test]
@@ -283,12 +261,8 @@ fn pid_pendulum_linearisation_predicts_the_nonlinear_run() {
     };
     let dx = [1e-4, -2e-4, 0.5e-4];
     let (p, m) = (run(dx), run(dx.map(|v| -v)));
-    let nonlinear: Vec<f64> = (0..3).map(|i| 0.5 * (p[i] - m[i])).collect();
     let linear = expm_times(&ss.a, tau, &dx);
-    let size = nonlinear.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
-    let err = (0..3).fold(0.0_f64, |s, i| s.max((nonlinear[i] - linear[i]).abs()));
-    eprintln!("PID pendulum: |exp(A tau) dx - nonlinear| = {err:.3e} of {size:.3e}");
-    assert!(err < 1e-6 * size, "{err:.3e} of {size:.3e}");
+    assert_odd_part_is_linear("PID pendulum", &p, &m, &linear);
 }
 
 /// The first-order modes of the PID pendulum (eigenvalues of its A) are

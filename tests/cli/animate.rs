@@ -3,24 +3,9 @@
 //! minimum, delays summing to the simulated span over the speed), the SVG's
 //! structure, and bad input.
 
-use crate::common::cli::{mbsolve, stderr, stdout};
+use crate::common::cli::{animate, mbsolve, png_rgb, run_csv as run, stderr, stdout};
 use std::path::Path;
 use std::process::Command;
-
-/// Run a scenario with overrides into `dir`; returns the CSV path.
-fn run(dir: &Path, scenario: &str, set: &[&str]) -> String {
-    let mut args = vec!["run", scenario, "--out", dir.to_str().unwrap(), "-q"];
-    for s in set {
-        args.extend(["--set", s]);
-    }
-    let o = mbsolve(&args);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let stem = Path::new(scenario).file_stem().unwrap().to_str().unwrap();
-    dir.join(format!("{stem}.csv"))
-        .to_str()
-        .unwrap()
-        .to_string()
-}
 
 /// The delays (in 10 ms) of every frame of a GIF, decoded by the `gif` crate.
 fn gif_delays(path: &Path) -> Vec<u16> {
@@ -43,15 +28,7 @@ fn gif_plays_at_the_speed_it_states() {
     let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.001"]);
     let gif = dir.path().join("a.gif");
     for (speed, frames, total_cs) in [("1", 101, 200), ("0.5", 201, 400), ("4", 26, 50)] {
-        let o = mbsolve(&[
-            "animate",
-            "scenarios/fourbar.toml",
-            &csv,
-            "--speed",
-            speed,
-            "--out",
-            gif.to_str().unwrap(),
-        ]);
+        let o = animate("scenarios/fourbar.toml", &csv, &gif, &["--speed", speed]);
         assert!(o.status.success(), "{}", stderr(&o));
         let delays = gif_delays(&gif);
         // frames every 20 ms of wall time (GIF's shortest honest delay)
@@ -74,26 +51,12 @@ fn gif_keeps_every_row_when_rows_are_slow_enough() {
     let dir = tempfile::tempdir().unwrap();
     let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.05"]);
     let gif = dir.path().join("a.gif");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--out",
-        gif.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &gif, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let d = gif_delays(&gif);
     assert_eq!(d.len(), 41, "2 s at 0.05 s: every row");
     assert!(d.iter().all(|&x| x == 5), "{d:?}");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--every",
-        "10",
-        "--out",
-        gif.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &gif, &["--every", "10"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let d = gif_delays(&gif);
     assert_eq!(d, vec![50; 5], "rows 0, 10, 20, 30, 40, half a second each");
@@ -104,13 +67,7 @@ fn svg_animates_bodies_and_springs() {
     let dir = tempfile::tempdir().unwrap();
     let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.05"]);
     let svg = dir.path().join("a.svg");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--out",
-        svg.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &svg, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&svg).unwrap();
     // three bodies, each with an animated translation and rotation
@@ -130,13 +87,7 @@ fn svg_animates_bodies_and_springs() {
     // the quarter car: two springs (zig-zags) and one damper (4 polylines),
     // their points animated
     let csv = run(dir.path(), "scenarios/quarter_car.toml", &["time.end=0.5"]);
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/quarter_car.toml",
-        &csv,
-        "--out",
-        svg.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/quarter_car.toml", &csv, &svg, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&svg).unwrap();
     assert_eq!(text.matches("stroke=\"#D55E00\"").count(), 2, "springs");
@@ -144,34 +95,17 @@ fn svg_animates_bodies_and_springs() {
     assert_eq!(text.matches("<animate attributeName=\"points\"").count(), 6);
 }
 
-/// Pixels of a PNG as RGB rows.
-fn png_rgb(path: &Path) -> (usize, usize, Vec<u8>) {
-    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size()];
-    let info = r.next_frame(&mut buf).unwrap();
-    let ch = info.color_type.samples();
-    let rgb = buf[..info.buffer_size()]
-        .chunks(ch)
-        .flat_map(|p| [p[0], p[1], p[2]])
-        .collect();
-    (info.width as usize, info.height as usize, rgb)
-}
-
 #[test]
 fn quarter_car_still_shows_springs_where_the_run_puts_the_bodies() {
     let dir = tempfile::tempdir().unwrap();
     let csv = run(dir.path(), "scenarios/quarter_car.toml", &["time.end=1"]);
     let png_path = dir.path().join("q.png");
-    let o = mbsolve(&[
-        "animate",
+    let o = animate(
         "scenarios/quarter_car.toml",
         &csv,
-        "--at",
-        "1",
-        "--out",
-        png_path.to_str().unwrap(),
-    ]);
+        &png_path,
+        &["--at", "1"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let (w, h, px) = png_rgb(&png_path);
     let rows_of = |c: [u8; 3]| -> Vec<usize> {
@@ -231,13 +165,7 @@ fn animate_rejects_bad_arguments() {
     let dir = tempfile::tempdir().unwrap();
     let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.1"]);
     let out = dir.path().join("a.avi");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &out, &[]);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("unknown animation format 'avi'"),
@@ -314,15 +242,7 @@ fn apng_plays_at_the_speed_it_states() {
     let dir = tempfile::tempdir().unwrap();
     let csv = run(dir.path(), "scenarios/fourbar.toml", &["output.dt=0.001"]);
     let apng = dir.path().join("a.apng");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--speed",
-        "2",
-        "--out",
-        apng.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &apng, &["--speed", "2"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (announced, delays) = apng_delays(&apng);
     // 2 s at twice real time: a frame every 20 ms of wall time, 51 frames
@@ -449,15 +369,7 @@ fn force_arrows_show_the_weights_against_their_key() {
     let scen = scen.to_str().unwrap();
     let csv = run(dir.path(), scen, &[]);
     let svg = dir.path().join("a.svg");
-    let o = mbsolve(&[
-        "animate",
-        scen,
-        &csv,
-        "--forces",
-        "contacts,reactions",
-        "--out",
-        svg.to_str().unwrap(),
-    ]);
+    let o = animate(scen, &csv, &svg, &["--forces", "contacts,reactions"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&svg).unwrap();
     // shaft and head per arrow: the contact first, then the reaction
@@ -508,17 +420,7 @@ fn force_arrows_show_the_weights_against_their_key() {
     assert!(!text.contains("p<i>"));
     // a still PNG with the arrows
     let png = dir.path().join("a.png");
-    let o = mbsolve(&[
-        "animate",
-        scen,
-        &csv,
-        "--forces",
-        "all",
-        "--at",
-        "0",
-        "--out",
-        png.to_str().unwrap(),
-    ]);
+    let o = animate(scen, &csv, &png, &["--forces", "all", "--at", "0"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(std::fs::metadata(&png).unwrap().len() > 1000);
     // the viewer carries the arrows, names as JSON text with `<` escaped
@@ -626,15 +528,7 @@ fn reaction_arrows_come_from_the_runs_columns() {
     }
     let draw = |table: &str, name: &str| {
         let svg = dir.path().join(name);
-        let o = mbsolve(&[
-            "animate",
-            scen,
-            table,
-            "--forces",
-            "reactions",
-            "--out",
-            svg.to_str().unwrap(),
-        ]);
+        let o = animate(scen, table, &svg, &["--forces", "reactions"]);
         assert!(o.status.success(), "{}", stderr(&o));
         (
             first_arrow_and_key(&std::fs::read_to_string(&svg).unwrap()),
@@ -797,15 +691,7 @@ fn names_with_commas_and_quotes_stay_one_column() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let svg = dir.path().join("a.svg");
-    let o = mbsolve(&[
-        "animate",
-        scen,
-        &csv,
-        "--forces",
-        "reactions",
-        "--out",
-        svg.to_str().unwrap(),
-    ]);
+    let o = animate(scen, &csv, &svg, &["--forces", "reactions"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("joint reactions from the run's columns"),

@@ -1,22 +1,12 @@
 //! `mbsolve plot` and `mbsolve animate`: files with the requested content,
 //! clear errors for bad requests.
 
-use crate::common::cli::{mbsolve, stderr};
+use crate::common::cli::{animate, mbsolve, run_csv, stderr};
 use std::path::Path;
 
 /// Run the four-bar with output every `dt` into `dir`; returns the CSV path.
 fn fourbar_run(dir: &Path, dt: &str) -> String {
-    let out = dir.to_str().unwrap();
-    let o = mbsolve(&[
-        "run",
-        "scenarios/fourbar.toml",
-        "--set",
-        &format!("output.dt={dt}"),
-        "--out",
-        out,
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    dir.join("fourbar.csv").to_str().unwrap().to_string()
+    run_csv(dir, "scenarios/fourbar.toml", &[&format!("output.dt={dt}")])
 }
 
 /// Width and height from a PNG's IHDR chunk.
@@ -213,13 +203,7 @@ fn animate_writes_one_frame_per_output_time() {
     assert_eq!(rows, 41, "2 s at 0.05 s");
 
     let svg = dir.path().join("a.svg");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--out",
-        svg.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &svg, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&svg).unwrap();
     // three bodies, each with an animated translation and rotation
@@ -234,25 +218,11 @@ fn animate_writes_one_frame_per_output_time() {
     assert_eq!(text.matches("r=\"3.5\"").count(), 4);
 
     let gif = dir.path().join("a.gif");
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--out",
-        gif.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &gif, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(gif_frames(&std::fs::read(&gif).unwrap()), rows);
 
-    let o = mbsolve(&[
-        "animate",
-        "scenarios/fourbar.toml",
-        &csv,
-        "--every",
-        "10",
-        "--out",
-        gif.to_str().unwrap(),
-    ]);
+    let o = animate("scenarios/fourbar.toml", &csv, &gif, &["--every", "10"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         gif_frames(&std::fs::read(&gif).unwrap()),

@@ -2,20 +2,9 @@
 //! table of one unsharded sweep; bad sharding and parameter requests are
 //! clear errors.
 
+use crate::common::cli::{mbsolve, stderr};
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// The sweep's arguments with `extra` appended.
 fn sweep(out: &Path, extra: &[&str]) -> Output {

@@ -2,33 +2,14 @@
 //! sweep table against the same reductions computed here from each run's
 //! kept table (`--keep runs`); bad metrics are errors naming the key.
 
+use crate::common::cli::{mbsolve, stderr};
+use crate::common::setup::docs_example;
 use std::collections::HashMap;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn mbsolve(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// The metric example of docs/scenarios.md.
 fn example() -> String {
-    let doc =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scenarios.md"))
-            .unwrap();
-    doc.split("```toml\n")
-        .skip(1)
-        .map(|b| b.split("```").next().unwrap())
-        .find(|b| b.starts_with("# metric example"))
-        .expect("the metric example")
-        .to_string()
+    docs_example("metric example")
 }
 
 /// A CSV table as (header, columns of numbers; empty cells NaN).

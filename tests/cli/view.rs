@@ -6,7 +6,7 @@
 //! JavaScript). Skipped with a message when `chromium` is not installed,
 //! except under `CI=true`, where its absence fails.
 
-use crate::common::cli::{mbsolve, stderr};
+use crate::common::cli::{animate, mbsolve, png_rgb, stderr};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -118,20 +118,6 @@ fn headless(chromium: &Path, extra: &[&str], url: &str) -> Output {
         .expect("chromium runs")
 }
 
-/// RGB pixels of a PNG.
-fn png_rgb(path: &Path) -> (usize, usize, Vec<u8>) {
-    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size()];
-    let info = r.next_frame(&mut buf).unwrap();
-    let ch = info.color_type.samples();
-    let rgb = buf[..info.buffer_size()]
-        .chunks(ch)
-        .flat_map(|p| [p[0], p[1], p[2]])
-        .collect();
-    (info.width as usize, info.height as usize, rgb)
-}
-
 /// The coloured ink (bodies, springs, dampers: channels differing by more
 /// than 40; text and ground are grey) of the top-left `w × h` of an image,
 /// as the fraction of inked pixels in each 8 × 8 block.
@@ -230,15 +216,13 @@ fn browser_draws_the_frame_animate_draws() {
     let browser = png_rgb(&shot);
     let still = |t: &str| {
         let p = out.join(format!("still_{t}.png"));
-        let o = mbsolve(&[
-            "animate",
+        let csv = out.join("quarter_car.csv");
+        let o = animate(
             "scenarios/quarter_car.toml",
-            out.join("quarter_car.csv").to_str().unwrap(),
-            "--at",
-            t,
-            "--out",
-            p.to_str().unwrap(),
-        ]);
+            csv.to_str().unwrap(),
+            &p,
+            &["--at", t],
+        );
         assert!(o.status.success(), "{}", stderr(&o));
         png_rgb(&p)
     };

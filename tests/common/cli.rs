@@ -37,3 +37,41 @@ pub fn scenario(name: &str) -> String {
         .to_string_lossy()
         .into_owned()
 }
+
+/// `mbsolve run SCENARIO --out DIR -q` with `--set` for each of `set`,
+/// asserted to succeed; the path of the CSV it wrote.
+pub fn run_csv(dir: &Path, scenario: &str, set: &[&str]) -> String {
+    let mut args = vec!["run", scenario, "--out", dir.to_str().unwrap(), "-q"];
+    for s in set {
+        args.extend(["--set", s]);
+    }
+    let o = mbsolve(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stem = Path::new(scenario).file_stem().unwrap().to_str().unwrap();
+    dir.join(format!("{stem}.csv"))
+        .to_str()
+        .unwrap()
+        .to_string()
+}
+
+/// `mbsolve animate SCENARIO CSV ARGS… --out OUT`: its status and output.
+pub fn animate(scenario: &str, csv: &str, out: &Path, args: &[&str]) -> Output {
+    let mut all = vec!["animate", scenario, csv];
+    all.extend(args);
+    all.extend(["--out", out.to_str().unwrap()]);
+    mbsolve(&all)
+}
+
+/// Width, height and pixels (RGB rows) of a PNG file.
+pub fn png_rgb(path: &Path) -> (usize, usize, Vec<u8>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).unwrap();
+    let ch = info.color_type.samples();
+    let rgb = buf[..info.buffer_size()]
+        .chunks(ch)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (info.width as usize, info.height as usize, rgb)
+}

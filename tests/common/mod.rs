@@ -8,6 +8,7 @@
 
 pub mod cli;
 pub mod fourbar;
+pub mod linear;
 pub mod parallelogram;
 pub mod process;
 pub mod rod;

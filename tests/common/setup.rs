@@ -34,3 +34,32 @@ pub fn completed(sys: &System, q0: &[f64], qd0: &[f64], cfg: &RunConfig) -> (Tra
     assert_eq!(s.status, "completed", "{:?}", s.message);
     (traj, s)
 }
+
+/// `text` parsed as [`parse`] does, without overrides; a parse error
+/// panics with its message.
+pub fn scenario(text: &str) -> Scenario {
+    parse(text, &[]).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The message of the error `text` gives ([`parse`], `test.toml`);
+/// panics when it parses.
+pub fn parse_error(text: &str) -> String {
+    parse(text, &[])
+        .map(|_| ())
+        .expect_err("an error")
+        .to_string()
+}
+
+/// The ```` ```toml ```` block of docs/scenarios.md that starts with the
+/// comment line `# {title}`.
+pub fn docs_example(title: &str) -> String {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md"))
+        .expect("docs/scenarios.md");
+    let head = format!("# {title}");
+    doc.split("```toml\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .find(|b| b.starts_with(&head))
+        .unwrap_or_else(|| panic!("no example '{head}' in docs/scenarios.md"))
+        .to_string()
+}

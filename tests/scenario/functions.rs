@@ -6,16 +6,7 @@ use mbsolve::constraints::{spline_motion, Spline};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, simulate_into, Sample, Sink};
 
-fn parse(text: &str) -> scenario::Scenario {
-    scenario::parse(text, "f.toml", "f", &[]).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn err(text: &str) -> String {
-    scenario::parse(text, "f.toml", "f", &[])
-        .map(|_| ())
-        .expect_err("an error")
-        .to_string()
-}
+use crate::common::setup::{docs_example, parse_error as err, scenario as parse};
 
 /// One output row: (t, q, q̇, q̈, λ).
 type Row = (f64, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
@@ -179,14 +170,7 @@ fn a_domain_error_stops_the_run_with_a_message() {
 /// The functions example of docs/scenarios.md parses and runs.
 #[test]
 fn the_documented_example_runs() {
-    let doc =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .skip(1)
-        .map(|b| b.split("```").next().unwrap())
-        .find(|b| b.starts_with("# functions example"))
-        .expect("the example");
+    let block = &docs_example("functions example");
     let sc = parse(block);
     let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
     assert_eq!(s.status, "completed");
@@ -390,7 +374,7 @@ fn loads_take_expressions_and_tables_of_t() {
     // an expression reading coordinates is refused with a pointer
     let e = err(&text.replace("0.5*sin(3*t)", "-w.phi"));
     assert!(
-        e.contains("f.toml")
+        e.contains("test.toml")
             && e.contains("force[0].torque")
             && e.contains("type = \"expression\""),
         "{e}"

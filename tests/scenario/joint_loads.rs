@@ -8,16 +8,7 @@ use mbsolve::model::System;
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate_into, Sample, Sink};
 
-fn parse(text: &str) -> scenario::Scenario {
-    scenario::parse(text, "f.toml", "f", &[]).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn err(text: &str) -> String {
-    scenario::parse(text, "f.toml", "f", &[])
-        .map(|_| ())
-        .expect_err("an error")
-        .to_string()
-}
+use crate::common::setup::{parse_error as err, scenario as parse};
 
 /// (t, q) at every output time.
 #[derive(Default)]
@@ -305,7 +296,9 @@ fn joint_load_errors_name_the_file_and_key() {
         "",
     ));
     assert!(
-        e.contains("f.toml") && e.contains("force[0].joint") && e.contains("no joint named 'kne'"),
+        e.contains("test.toml")
+            && e.contains("force[0].joint")
+            && e.contains("no joint named 'kne'"),
         "{e}"
     );
     assert!(e.contains("hip, knee"), "{e}");
@@ -314,7 +307,9 @@ fn joint_load_errors_name_the_file_and_key() {
         "",
     ));
     assert!(
-        e.contains("f.toml") && e.contains("force[0].joint") && e.contains("is a revolute joint"),
+        e.contains("test.toml")
+            && e.contains("force[0].joint")
+            && e.contains("is a revolute joint"),
         "{e}"
     );
     // the variables of the other kind are unknown names at the expression's key
@@ -323,7 +318,7 @@ fn joint_load_errors_name_the_file_and_key() {
         "",
     ));
     assert!(
-        e.contains("f.toml") && e.contains("force[0].torque") && e.contains("slide"),
+        e.contains("test.toml") && e.contains("force[0].torque") && e.contains("slide"),
         "{e}"
     );
     // a number is not an expression string
@@ -331,5 +326,8 @@ fn joint_load_errors_name_the_file_and_key() {
         "[[force]]\ntype = \"joint_torque\"\njoint = \"knee\"\ntorque = 1.0\n",
         "",
     ));
-    assert!(e.contains("f.toml") && e.contains("force[0].torque"), "{e}");
+    assert!(
+        e.contains("test.toml") && e.contains("force[0].torque"),
+        "{e}"
+    );
 }

@@ -2,6 +2,7 @@
 //! and inside force expressions, overridden by `--set parameters.NAME=` or
 //! the bare name, and the errors of unknown, cyclic and misplaced ones.
 
+use crate::common::setup::docs_example;
 use mbsolve::scenario;
 use mbsolve::simulation::simulate;
 use std::path::Path;
@@ -178,14 +179,7 @@ fn bad_parameters_are_named() {
 /// The parameters example of docs/scenarios.md parses and runs.
 #[test]
 fn the_documented_example_runs() {
-    let doc =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .skip(1)
-        .map(|b| b.split("```").next().unwrap())
-        .find(|b| b.starts_with("# parameters example"))
-        .expect("the example");
+    let block = &docs_example("parameters example");
     let sc = scenario::parse(block, "doc.toml", "doc", &[]).unwrap();
     let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
     assert_eq!(s.status, "completed");

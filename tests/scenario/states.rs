@@ -7,16 +7,7 @@ use mbsolve::output::{columns, RowBuilder};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, simulate_into, OutputQuantities, Sample, Sink, Trajectory};
 
-fn parse(text: &str) -> scenario::Scenario {
-    scenario::parse(text, "f.toml", "f", &[]).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn err(text: &str) -> String {
-    scenario::parse(text, "f.toml", "f", &[])
-        .map(|_| ())
-        .expect_err("an error")
-        .to_string()
-}
+use crate::common::setup::{docs_example, parse_error as err, scenario as parse};
 
 /// The output table's rows, built as `mbsolve run` builds them.
 struct Table<'s> {
@@ -143,14 +134,14 @@ fn state_errors_name_the_file_and_key() {
         "{base}[[state]]\nname = \"z\"\nderivative = \"-zz\"\n"
     ));
     assert!(
-        e.contains("f.toml") && e.contains("state[0].derivative") && e.contains("zz"),
+        e.contains("test.toml") && e.contains("state[0].derivative") && e.contains("zz"),
         "{e}"
     );
     let e = err(&format!(
         "{base}[[state]]\nname = \"z\"\nderivative = \"-z\"\n[[state]]\nname = \"z\"\nderivative = \"1\"\n"
     ));
     assert!(
-        e.contains("f.toml") && e.contains("state[1].name") && e.contains("duplicate"),
+        e.contains("test.toml") && e.contains("state[1].name") && e.contains("duplicate"),
         "{e}"
     );
     let e = err(&format!(
@@ -162,7 +153,7 @@ fn state_errors_name_the_file_and_key() {
         "{base}[parameters]\nz = 0.5\n[[state]]\nname = \"z\"\nderivative = \"-z\"\n"
     ));
     assert!(
-        e.contains("f.toml") && e.contains("state[0].name") && e.contains("parameter"),
+        e.contains("test.toml") && e.contains("state[0].name") && e.contains("parameter"),
         "{e}"
     );
     // an expression force reading an unknown state
@@ -170,7 +161,7 @@ fn state_errors_name_the_file_and_key() {
         "{base}[[force]]\ntype = \"expression\"\nbody = \"m\"\ntorque = \"-2*integ\"\n"
     ));
     assert!(
-        e.contains("f.toml") && e.contains("force[0].torque") && e.contains("integ"),
+        e.contains("test.toml") && e.contains("force[0].torque") && e.contains("integ"),
         "{e}"
     );
 }
@@ -179,13 +170,7 @@ fn state_errors_name_the_file_and_key() {
 /// comes to the target (PID with a filtered rate).
 #[test]
 fn the_documented_state_example_runs() {
-    let doc =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .find(|b| b.starts_with("# state example"))
-        .and_then(|b| b.split("```").next())
-        .expect("the state example");
+    let block = &docs_example("state example");
     let (names, rows) = run(block);
     let (phi, ie) = (col(&names, "arm.phi"), col(&names, "ie"));
     let last = rows.last().unwrap();
@@ -333,7 +318,7 @@ fn a_state_column_carries_its_unit() {
             "{base}[[state]]\nname = \"z\"\nunit = \"{bad}\"\nderivative = \"-z\"\n"
         ));
         assert!(
-            e.contains("f.toml") && e.contains("state[0].unit"),
+            e.contains("test.toml") && e.contains("state[0].unit"),
             "{bad}: {e}"
         );
     }
@@ -397,13 +382,7 @@ type Reader = fn(&Trajectory, usize) -> f64;
 /// 100 rtol of each column's largest value at every output row.
 #[test]
 fn implicit_methods_converge_on_states_and_match_ode45() {
-    let doc =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .find(|b| b.starts_with("# state example"))
-        .and_then(|b| b.split("```").next())
-        .expect("the state example");
+    let block = &docs_example("state example");
     let run_with = |set: &[&str]| {
         let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
         let sc = scenario::parse(block, "f.toml", "f", &set).unwrap();
@@ -454,13 +433,7 @@ fn implicit_methods_converge_on_states_and_match_ode45() {
 /// `1 − e^{−t/τ}`, each in volts.
 #[test]
 fn the_documented_repeated_states_example_runs() {
-    let doc =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .find(|b| b.starts_with("# repeated states example"))
-        .and_then(|b| b.split("```").next())
-        .expect("the repeated states example");
+    let block = &docs_example("repeated states example");
     let sc = parse(block);
     let units: Vec<&str> = sc.system.states().iter().map(|s| s.unit.as_str()).collect();
     assert_eq!(units, ["V"; 3]);

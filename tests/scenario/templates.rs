@@ -3,6 +3,7 @@
 //! generated long file) and the builder's; includes merge files and refuse
 //! cycles; errors in a copy name the template and the index.
 
+use crate::common::setup::docs_example;
 use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
 use mbsolve::scenario;
 use mbsolve::simulation::simulate;
@@ -279,13 +280,7 @@ fn includes_merge_and_refuse_cycles() {
 /// The repeat example of docs/scenarios.md parses and runs.
 #[test]
 fn the_documented_example_runs() {
-    let doc = std::fs::read_to_string(root().join("docs/scenarios.md")).unwrap();
-    let block = doc
-        .split("```toml\n")
-        .skip(1)
-        .map(|b| b.split("```").next().unwrap())
-        .find(|b| b.starts_with("# repeat example"))
-        .expect("the example");
+    let block = &docs_example("repeat example");
     let sc = scenario::parse(block, "doc.toml", "doc", &[]).unwrap();
     assert_eq!(sc.system.bodies().len(), 5);
     let (_, s) = simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut []).unwrap();
