@@ -298,6 +298,49 @@ impl Radau5 {
     }
 }
 
+/// The next attempt of a Radau IIA run from `t`: the step `h` (the
+/// current one, cut to reach `target` — the next grid point of a fixed
+/// step, or `t_end` — and stretched to it when within `1e-9 scale`), its
+/// end (exactly `t_end` at the last grid point) and the smallest step
+/// (`min_step`, at least 16 ulps of `t`), below which the run fails.
+fn step_try(
+    t: f64,
+    h: f64,
+    target: f64,
+    scale: f64,
+    t_end: f64,
+    opts: &ImplicitOptions,
+    cuts: &Cuts,
+) -> Result<StepTry, Failure> {
+    let mut h = h.min(target - t);
+    if target - (t + h) <= 1e-9 * scale {
+        h = target - t;
+    }
+    let floor = 16.0 * common::eps(t);
+    let h_min = opts.min_step.map_or(floor, |m| m.max(floor));
+    if h < h_min && t + h < t_end {
+        return Err(Failure::StepTooSmall {
+            t,
+            h,
+            h_min,
+            cause: cuts.cause(),
+        });
+    }
+    let t_new = if (target - t_end).abs() <= 1e-9 * scale && (t + h - target).abs() <= 1e-9 * scale
+    {
+        t_end
+    } else {
+        t + h
+    };
+    Ok(StepTry {
+        t,
+        t_new,
+        h,
+        h_ctl: h,
+        h_min,
+    })
+}
+
 struct Run<'g, 's> {
     tab: &'g RadauTableau,
     opts: &'g ImplicitOptions,
@@ -492,34 +535,10 @@ impl Stepper for Run<'_, '_> {
                 (self.t0 + self.k_grid as f64 * self.h_fixed).min(self.t_end)
             };
             let scale = if adaptive { self.h } else { self.h_fixed };
-            let mut h = self.h.min(target - self.t);
-            if target - (self.t + h) <= 1e-9 * scale {
-                h = target - self.t;
-            }
-            let floor = 16.0 * common::eps(self.t);
-            let h_min = self.opts.min_step.map_or(floor, |m| m.max(floor));
-            if h < h_min && self.t + h < self.t_end {
-                return Err(Failure::StepTooSmall {
-                    t: self.t,
-                    h,
-                    h_min,
-                    cause: self.cuts.cause(),
-                });
-            }
-            let t_new = if (target - self.t_end).abs() <= 1e-9 * scale
-                && (self.t + h - target).abs() <= 1e-9 * scale
-            {
-                self.t_end
-            } else {
-                self.t + h
-            };
-            let x = StepTry {
-                t: self.t,
-                t_new,
-                h,
-                h_ctl: h,
-                h_min,
-            };
+            let x = step_try(
+                self.t, self.h, target, scale, self.t_end, self.opts, &self.cuts,
+            )?;
+            let (h, t_new) = (x.h, x.t_new);
             if let Attempted::Cut(h) = attempt_or_cut(self, x)? {
                 self.h = h;
                 self.rejected = adaptive;

@@ -472,35 +472,16 @@ impl Stepper for StageRun<'_, '_> {
         let n = self.n;
         loop {
             let target = (self.t0 + self.k_grid as f64 * self.h_fixed).min(self.t_end);
-            let scale = self.h_fixed;
-            let mut h = self.h.min(target - self.t);
-            if target - (self.t + h) <= 1e-9 * scale {
-                h = target - self.t;
-            }
-            let floor = 16.0 * common::eps(self.t);
-            let h_min = self.opts.min_step.map_or(floor, |m| m.max(floor));
-            if h < h_min && self.t + h < self.t_end {
-                return Err(Failure::StepTooSmall {
-                    t: self.t,
-                    h,
-                    h_min,
-                    cause: self.cuts.cause(),
-                });
-            }
-            let t_new = if (target - self.t_end).abs() <= 1e-9 * scale
-                && (self.t + h - target).abs() <= 1e-9 * scale
-            {
-                self.t_end
-            } else {
-                self.t + h
-            };
-            let x = StepTry {
-                t: self.t,
-                t_new,
-                h,
-                h_ctl: h,
-                h_min,
-            };
+            let x = step_try(
+                self.t,
+                self.h,
+                target,
+                self.h_fixed,
+                self.t_end,
+                self.opts,
+                &self.cuts,
+            )?;
+            let (h, t_new) = (x.h, x.t_new);
             if let Attempted::Cut(h) = attempt_or_cut(self, x)? {
                 self.h = h;
                 continue;
