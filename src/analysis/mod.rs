@@ -1,7 +1,7 @@
 //! Analyses of a model other than a time integration, about a state:
 //! the tangent matrices ([`tangent`]: `M`, `C`, `K`, `Φ_q` and their sign
 //! convention), the static equilibrium ([`statics`]: load stepping,
-//! Newton), its stability ([`stability`]: by inertia) and the eigenmodes ([`modes`]:
+//! Newton), its stability ([`mod@stability`]: by inertia) and the eigenmodes ([`modes`]:
 //! shift-invert Lanczos, damped modes in the reduced basis), the sparse
 //! choice of independent coordinates ([`partitioning`]).
 

@@ -52,7 +52,7 @@
 //! mechanism alone.
 //!
 //! The stability of an equilibrium (the inertia of the constrained
-//! stiffness) is [`super::stability`]'s.
+//! stiffness) is [`mod@super::stability`]'s.
 
 use super::tangent::Tangent;
 use crate::formulation::FormulationError;
