@@ -3,96 +3,186 @@
 //! static equilibrium and the chain's static equilibrium from its released
 //! state (every segment at 5°).
 //!
-//! `cargo run --release --example analysis_speed [static|modes] [N …]`;
-//! one JSON line per measurement; CPU seconds of the process
-//! (`examples/common`), each the mean over enough repetitions to span at
-//! least 0.5 s of CPU (the clock ticks in 10 ms). Under `valgrind
-//! --tool=callgrind` the instruction counts of one call per N give a
-//! slope that the machine's load cannot disturb.
+//! ```text
+//! RAYON_NUM_THREADS=1 target/release/examples/analysis_speed [static|modes|all] [rounds=R] [N …]
+//! ```
+//!
+//! Every call is timed alone by the calling thread's CPU clock
+//! (`clock_gettime(CLOCK_THREAD_CPUTIME_ID)`, nanoseconds: neither the
+//! 10 ms tick of the process's CPU time nor other processes' time enters).
+//! The sizes are interleaved: each of `R` rounds (default 15) calls each
+//! analysis at every N in turn, `max(1, 10 000 / N)` times, so a busy
+//! spell of the machine hits all sizes alike. One JSON line per analysis
+//! and N gives the minimum and the median over all calls, the minor page
+//! faults per call (`getrusage(RUSAGE_THREAD)`: fresh memory touched), and
+//! a last line the slopes `log(t_last / t_first) / log(N_last / N_first)`
+//! of the minima and of the medians. Under `valgrind --tool=callgrind`
+//! set `MBSOLVE_ONCE=1`: one call per N, whose instruction count is the
+//! measure there.
 
-mod common;
-
-use common::cpu_seconds;
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
 use mbsolve::builders::stiff_chain;
 
-/// Mean CPU seconds of `f` over repetitions spanning at least `min_cpu`
-/// seconds (at most `max_reps`), and the last result.
-fn timed<R>(min_cpu: f64, max_reps: usize, mut f: impl FnMut() -> R) -> (f64, usize, R) {
-    let c0 = cpu_seconds();
-    let mut reps = 0;
-    loop {
+/// CPU time of the calling thread \[s\] (`CLOCK_THREAD_CPUTIME_ID`).
+fn thread_cpu() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
+    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
+}
+
+/// Minor page faults of the calling thread so far (`RUSAGE_THREAD`).
+fn minor_faults() -> i64 {
+    // SAFETY: an all-zero rusage is valid; getrusage fills it
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `ru` is a valid, writable rusage
+    unsafe { libc::getrusage(libc::RUSAGE_THREAD, &mut ru) };
+    ru.ru_minflt
+}
+
+/// Per-call samples of one analysis at one N: CPU seconds, page faults.
+#[derive(Default)]
+struct Samples {
+    cpu: Vec<f64>,
+    faults: Vec<i64>,
+}
+
+impl Samples {
+    /// Times one call of `f`.
+    fn time<R>(&mut self, f: impl FnOnce() -> R) -> R {
+        let (f0, c0) = (minor_faults(), thread_cpu());
         let r = f();
-        reps += 1;
-        let spent = cpu_seconds() - c0;
-        if spent >= min_cpu || reps >= max_reps {
-            return (spent / reps as f64, reps, r);
+        let (c1, f1) = (thread_cpu(), minor_faults());
+        self.cpu.push(c1 - c0);
+        self.faults.push(f1 - f0);
+        r
+    }
+
+    fn min(&self) -> f64 {
+        self.cpu.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
+    fn median(&self) -> f64 {
+        let mut v = self.cpu.clone();
+        v.sort_by(f64::total_cmp);
+        let k = v.len();
+        if k == 0 {
+            f64::NAN
+        } else if k % 2 == 1 {
+            v[k / 2]
+        } else {
+            0.5 * (v[k / 2 - 1] + v[k / 2])
         }
+    }
+
+    fn faults_per_call(&self) -> f64 {
+        self.faults.iter().sum::<i64>() as f64 / self.faults.len().max(1) as f64
     }
 }
 
 fn main() {
     let mut what = "all".to_string();
     let mut ns: Vec<usize> = Vec::new();
+    let mut rounds = 15usize;
     for a in std::env::args().skip(1) {
-        match a.parse() {
-            Ok(n) => ns.push(n),
-            Err(_) => what = a,
+        if let Some(r) = a.strip_prefix("rounds=") {
+            rounds = r.parse().expect("rounds=R with R a count");
+        } else if let Ok(n) = a.parse() {
+            ns.push(n);
+        } else {
+            what = a;
         }
     }
     if ns.is_empty() {
         ns = vec![1000, 10_000];
     }
-    // one call per N under callgrind (MBSOLVE_ONCE set): the instruction
-    // count is the measure there
     let once = std::env::var_os("MBSOLVE_ONCE").is_some();
-    let (min_cpu, max_reps) = if once { (0.0, 1) } else { (0.5, 1000) };
-    let mut rows = Vec::new();
-    for &n in &ns {
-        let (sys, q0, _, _) = stiff_chain(n, 5f64.to_radians()).expect("the stiff chain");
-        let mut t_static = f64::NAN;
-        let mut t_modes = f64::NAN;
-        let (teq, reps, eq) = timed(min_cpu, max_reps, || {
-            static_equilibrium(&sys, &q0, StaticOptions::default()).expect("an equilibrium")
-        });
-        if what != "modes" {
-            t_static = teq;
-            println!(
-                "{{\"case\":\"stiff_chain_static\",\"n\":{n},\"reps\":{reps},\"cpu_s\":{teq:.5},\
-                 \"load_steps\":{},\"newton\":{},\"residual\":{:.3e}}}",
-                eq.load_steps, eq.iterations, eq.residual
-            );
-        }
-        if what != "static" {
-            let mut tan = Tangent::new(&sys);
-            tan.evaluate(0.0, &eq.q, &vec![0.0; eq.q.len()], &eq.lambda)
-                .expect("tangent");
-            let opts = ModeOptions {
-                count: 10,
-                ..Default::default()
-            };
-            let (tm, reps, modes) =
-                timed(min_cpu, max_reps, || eigenmodes(&tan, opts).expect("modes"));
-            t_modes = tm;
-            let f: Vec<f64> = modes.modes.iter().map(|m| m.frequency_hz).collect();
-            println!(
-                "{{\"case\":\"stiff_chain_modes\",\"n\":{n},\"reps\":{reps},\"cpu_s\":{tm:.5},\
-                 \"lanczos_steps\":{},\"converged\":{},\"f1_hz\":{:.6},\"f10_hz\":{:.4}}}",
-                modes.lanczos_steps,
-                modes.converged,
-                f[0],
-                f[f.len() - 1]
-            );
-        }
-        rows.push((n as f64, t_static, t_modes));
+    if once {
+        rounds = 1;
     }
-    if rows.len() >= 2 {
-        let (a, b) = (rows[0], rows[rows.len() - 1]);
-        let slope = |x: f64, y: f64| (y / x).ln() / (b.0 / a.0).ln();
-        println!(
-            "{{\"slope_static\":{:.3},\"slope_modes\":{:.3}}}",
-            slope(a.1, b.1),
-            slope(a.2, b.2)
-        );
+    let (do_static, do_modes) = (what != "modes", what != "static");
+    let opts = ModeOptions {
+        count: 10,
+        ..Default::default()
+    };
+    // the chains, their released states and equilibria (outside the clock)
+    let cases: Vec<_> = ns
+        .iter()
+        .map(|&n| {
+            let (sys, q0, _, _) = stiff_chain(n, 5f64.to_radians()).expect("the stiff chain");
+            let eq = static_equilibrium(&sys, &q0, StaticOptions::default()).expect("equilibrium");
+            (sys, q0, eq)
+        })
+        .collect();
+    let mut st: Vec<Samples> = ns.iter().map(|_| Samples::default()).collect();
+    let mut md: Vec<Samples> = ns.iter().map(|_| Samples::default()).collect();
+    let mut info_static = vec![String::new(); ns.len()];
+    let mut info_modes = vec![String::new(); ns.len()];
+    for _ in 0..rounds {
+        for (k, (sys, q0, eq)) in cases.iter().enumerate() {
+            let reps = if once { 1 } else { (10_000 / ns[k]).max(1) };
+            if do_static {
+                for _ in 0..reps {
+                    let e = st[k].time(|| {
+                        static_equilibrium(sys, q0, StaticOptions::default()).expect("equilibrium")
+                    });
+                    info_static[k] = format!(
+                        "\"load_steps\":{},\"newton\":{},\"residual\":{:.3e}",
+                        e.load_steps, e.iterations, e.residual
+                    );
+                }
+            }
+            if do_modes {
+                let mut tan = Tangent::new(sys);
+                tan.evaluate(0.0, &eq.q, &vec![0.0; eq.q.len()], &eq.lambda)
+                    .expect("tangent");
+                for _ in 0..reps {
+                    let m = md[k].time(|| eigenmodes(&tan, opts).expect("modes"));
+                    info_modes[k] = format!(
+                        "\"lanczos_steps\":{},\"converged\":{},\"f1_hz\":{:.6},\"f10_hz\":{:.4}",
+                        m.lanczos_steps,
+                        m.converged,
+                        m.modes[0].frequency_hz,
+                        m.modes[m.modes.len() - 1].frequency_hz
+                    );
+                }
+            }
+        }
+    }
+    let (a, b) = (0, ns.len() - 1);
+    let slope = |ta: f64, tb: f64| (tb / ta).ln() / (ns[b] as f64 / ns[a] as f64).ln();
+    let mut slopes = Vec::new();
+    for (name, on, s, info) in [
+        ("static", do_static, &st, &info_static),
+        ("modes", do_modes, &md, &info_modes),
+    ] {
+        if !on {
+            continue;
+        }
+        for (k, &n) in ns.iter().enumerate() {
+            println!(
+                "{{\"case\":\"stiff_chain_{name}\",\"n\":{n},\"calls\":{},\"cpu_min_s\":{:.6},\
+                 \"cpu_median_s\":{:.6},\"minor_faults_per_call\":{:.1},{}}}",
+                s[k].cpu.len(),
+                s[k].min(),
+                s[k].median(),
+                s[k].faults_per_call(),
+                info[k]
+            );
+        }
+        if b > a {
+            slopes.push(format!(
+                "\"slope_{name}_min\":{:.3},\"slope_{name}_median\":{:.3}",
+                slope(s[a].min(), s[b].min()),
+                slope(s[a].median(), s[b].median())
+            ));
+        }
+    }
+    if !slopes.is_empty() {
+        println!("{{{}}}", slopes.join(","));
     }
 }

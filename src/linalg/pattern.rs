@@ -21,24 +21,38 @@ impl CscPattern {
         dim: usize,
         entries: impl IntoIterator<Item = (usize, usize)>,
     ) -> Self {
-        let mut by_col: Vec<(usize, usize)> = entries
+        // a counting sort by column (linear in the entries, where a sort of
+        // the (column, row) pairs was n log n), then each column's few rows
+        // sorted and merged in place
+        let entries: Vec<(usize, usize)> = entries
             .into_iter()
-            .map(|(r, c)| {
-                assert!(r < dim && c < dim, "entry ({r}, {c}) outside {dim}×{dim}");
-                (c, r)
-            })
+            .inspect(|&(r, c)| assert!(r < dim && c < dim, "entry ({r}, {c}) outside {dim}×{dim}"))
             .collect();
-        by_col.sort_unstable();
-        by_col.dedup();
         let mut col_ptr = vec![0usize; dim + 1];
-        let mut row_idx = Vec::with_capacity(by_col.len());
-        for &(c, r) in &by_col {
+        for &(_, c) in &entries {
             col_ptr[c + 1] += 1;
-            row_idx.push(r);
         }
         for c in 0..dim {
             col_ptr[c + 1] += col_ptr[c];
         }
+        let mut next = col_ptr.clone();
+        let mut rows = vec![0usize; entries.len()];
+        for &(r, c) in &entries {
+            rows[next[c]] = r;
+            next[c] += 1;
+        }
+        let mut row_idx = Vec::with_capacity(rows.len());
+        for c in 0..dim {
+            let col = &mut rows[col_ptr[c]..col_ptr[c + 1]];
+            col.sort_unstable();
+            col_ptr[c] = row_idx.len();
+            for (k, &r) in col.iter().enumerate() {
+                if k == 0 || r != col[k - 1] {
+                    row_idx.push(r);
+                }
+            }
+        }
+        col_ptr[dim] = row_idx.len();
         Self { col_ptr, row_idx }
     }
 
@@ -74,5 +88,24 @@ mod tests {
             (p.slot(0, 0), p.slot(2, 0), p.slot(0, 2), p.slot(1, 2)),
             (0, 1, 2, 3)
         );
+    }
+
+    #[test]
+    fn matches_a_sorted_set_of_the_entries() {
+        // a deterministic scatter with many duplicates, against the
+        // (column, row) order of a BTreeSet
+        let dim = 97;
+        let entries: Vec<(usize, usize)> = (0..3000usize)
+            .map(|k| ((k * 37 + k / 7) % dim, (k * 53 + k * k) % dim))
+            .collect();
+        let p = CscPattern::from_entries(dim, entries.iter().copied());
+        let set: std::collections::BTreeSet<(usize, usize)> =
+            entries.iter().map(|&(r, c)| (c, r)).collect();
+        let rows: Vec<usize> = set.iter().map(|&(_, r)| r).collect();
+        assert_eq!(p.row_idx, rows);
+        for c in 0..dim {
+            let n_c = set.iter().filter(|e| e.0 == c).count();
+            assert_eq!(p.col_ptr[c + 1] - p.col_ptr[c], n_c, "column {c}");
+        }
     }
 }
