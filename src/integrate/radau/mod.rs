@@ -115,11 +115,12 @@ mod radau9;
 mod stages;
 mod tableau;
 
-use newton::{check_newton_options, first_rate, radau_convergence};
+use newton::check_newton_options;
 pub use radau9::Radau9;
 pub use stages::RadauStages;
-use tableau::cmul;
+use stages::{dot, Tableau};
 pub use tableau::RadauTableau;
+use tableau::{cmul, ClosedForm};
 
 use super::driver::{Failure, Stepper};
 use super::implicit::{
@@ -180,7 +181,7 @@ pub trait ComplexNewton {
 pub struct Radau5 {
     opts: ImplicitOptions,
     ode: OdeOptions,
-    tab: RadauTableau,
+    tab: ClosedForm,
     stats: ImplicitStats,
 }
 
@@ -196,7 +197,7 @@ impl Radau5 {
         Ok(Self {
             opts,
             ode,
-            tab: RadauTableau::new(),
+            tab: ClosedForm::new(),
             stats: ImplicitStats::default(),
         })
     }
@@ -221,81 +222,109 @@ impl Radau5 {
         output_times: &[f64],
         obs: &mut dyn Observer,
     ) -> Result<Report, IntegratorError> {
-        let (n, m) = (sys.n(), sys.m());
-        validate_run(
-            n,
-            t0,
-            t_end,
-            q0,
-            qd0,
-            output_times,
+        let (report, stats) = integrate_stages(
+            &self.tab,
+            &self.opts,
             &self.ode,
-            self.opts.adaptive,
-        )?;
-        let span = t_end - t0;
-        let h_max = self.ode.max_step.unwrap_or(0.1 * span).min(span);
-        // 0: chosen in `start` from the initial accelerations
-        let h = match (self.opts.adaptive, self.ode.fixed_step) {
-            (false, h) => h.unwrap_or(0.0),
-            (true, _) => self.ode.initial_step.map_or(0.0, |h| h.min(h_max)),
-        };
-        let mut run = Run {
-            tab: &self.tab,
-            opts: &self.opts,
             sys,
-            cplx,
-            n,
-            m,
-            t0,
-            t_end,
-            h_fixed: h,
-            h,
-            h_max,
-            rejected: false,
-            accepted: None,
-            last_its: 0,
-            k_grid: 1,
-            t: t0,
-            q: q0.to_vec(),
-            v: qd0.to_vec(),
-            qdd: vec![0.0; n],
-            lam: vec![0.0; m],
-            q_old: q0.to_vec(),
-            v_old: qd0.to_vec(),
-            a: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-            l: [vec![0.0; m], vec![0.0; m], vec![0.0; m]],
-            a_prev: [vec![0.0; n], vec![0.0; n], vec![0.0; n]],
-            l_prev: [vec![0.0; m], vec![0.0; m], vec![0.0; m]],
-            qs: vec![0.0; n],
-            vs: vec![0.0; n],
-            r: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
-            x: [vec![0.0; n + m], vec![0.0; n + m], vec![0.0; n + m]],
-            y: [q0, qd0].concat(),
-            renewal: Renewal::new(RenewalOptions {
-                band: if self.opts.adaptive {
-                    ADAPTIVE_REUSE_BAND
-                } else {
-                    SAME_STEP
-                },
-                across_attempts: self.opts.reuse,
-                every_correction: !self.opts.reuse,
-            }),
-            eta: 1.0,
-            h_last: 0.0,
-            h_prev: None,
-            stats: ImplicitStats::default(),
-            ode: &self.ode,
-            warnings: Vec::new(),
-            cuts: Cuts::new(CutRules {
-                shrink: Shrink::Halve,
-                warn: Warn::First,
-                first_cause: false,
-            }),
-        };
-        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
+            vec![cplx],
+            (t0, t_end),
+            (q0, qd0),
+            output_times,
+            obs,
+        )?;
         self.stats = stats;
         Ok(report)
     }
+}
+
+/// Integrate with the stages of `tab` from `(t0, q0, q̇0)` to `t_end`
+/// (radau5's and radau9's `integrate`); `cplx` holds one complex Newton
+/// matrix per complex pair of 𝔄.
+#[allow(clippy::too_many_arguments)]
+fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
+    tab: &T,
+    opts: &ImplicitOptions,
+    ode: &OdeOptions,
+    sys: &'s mut dyn SecondOrderDae,
+    cplx: Vec<&'s mut dyn ComplexNewton>,
+    (t0, t_end): (f64, f64),
+    (q0, qd0): (&[f64], &[f64]),
+    output_times: &[f64],
+    obs: &mut dyn Observer,
+) -> Result<(Report, ImplicitStats), IntegratorError> {
+    let (n, m) = (sys.n(), sys.m());
+    validate_run(n, t0, t_end, q0, qd0, output_times, ode, opts.adaptive)?;
+    let span = t_end - t0;
+    let h_max = ode.max_step.unwrap_or(0.1 * span).min(span);
+    // 0: chosen in `start` from the initial accelerations
+    let h = match (opts.adaptive, ode.fixed_step) {
+        (false, h) => h.unwrap_or(0.0),
+        (true, _) => ode.initial_step.map_or(0.0, |h| h.min(h_max)),
+    };
+    let vn = || std::array::from_fn(|_| vec![0.0; n]);
+    let vm = || std::array::from_fn(|_| vec![0.0; m]);
+    let vnm = || std::array::from_fn(|_| vec![0.0; n + m]);
+    let mut run = Run {
+        tab,
+        opts,
+        sys,
+        cplx,
+        n,
+        m,
+        t0,
+        t_end,
+        h_fixed: h,
+        h,
+        h_max,
+        rejected: false,
+        accepted: None,
+        last_its: 0,
+        k_grid: 1,
+        t: t0,
+        q: q0.to_vec(),
+        v: qd0.to_vec(),
+        qdd: vec![0.0; n],
+        lam: vec![0.0; m],
+        q_old: q0.to_vec(),
+        v_old: qd0.to_vec(),
+        a: vn(),
+        l: vm(),
+        a_prev: vn(),
+        l_prev: vm(),
+        qs: vec![0.0; n],
+        vs: vec![0.0; n],
+        r: vnm(),
+        x: vnm(),
+        y: [q0, qd0].concat(),
+        renewal: Renewal::new(RenewalOptions {
+            band: if opts.adaptive {
+                ADAPTIVE_REUSE_BAND
+            } else {
+                SAME_STEP
+            },
+            across_attempts: opts.reuse,
+            every_correction: !opts.reuse,
+        }),
+        eta: 1.0,
+        h_last: 0.0,
+        h_prev: None,
+        stats: ImplicitStats::default(),
+        ode,
+        warnings: Vec::new(),
+        cuts: Cuts::new(CutRules {
+            shrink: Shrink::Halve,
+            warn: Warn::First,
+            first_cause: false,
+        }),
+    };
+    Ok(run_implicit(
+        &mut run,
+        output_times,
+        ode.max_steps,
+        t_end,
+        obs,
+    ))
 }
 
 /// The next attempt of a Radau IIA run from `t`: the step `h` (the
@@ -341,12 +370,15 @@ fn step_try(
     })
 }
 
-struct Run<'g, 's> {
-    tab: &'g RadauTableau,
+/// A Radau IIA run of `S` stages with the tableau `T` (radau5: S = 3,
+/// radau9: S = 5).
+struct Run<'g, 's, const S: usize, T: Tableau<S>> {
+    tab: &'g T,
     opts: &'g ImplicitOptions,
     ode: &'g OdeOptions,
     sys: &'s mut dyn SecondOrderDae,
-    cplx: &'s mut dyn ComplexNewton,
+    /// One complex Newton matrix per complex pair μ_p of 𝔄.
+    cplx: Vec<&'s mut dyn ComplexNewton>,
     n: usize,
     m: usize,
     t0: f64,
@@ -372,15 +404,15 @@ struct Run<'g, 's> {
     q_old: Vec<f64>,
     v_old: Vec<f64>,
     /// Stage accelerations and multipliers of the current attempt.
-    a: [Vec<f64>; 3],
-    l: [Vec<f64>; 3],
+    a: [Vec<f64>; S],
+    l: [Vec<f64>; S],
     /// Those of the last accepted step (predictor, dense output).
-    a_prev: [Vec<f64>; 3],
-    l_prev: [Vec<f64>; 3],
+    a_prev: [Vec<f64>; S],
+    l_prev: [Vec<f64>; S],
     qs: Vec<f64>,
     vs: Vec<f64>,
-    r: [Vec<f64>; 3],
-    x: [Vec<f64>; 3],
+    r: [Vec<f64>; S],
+    x: [Vec<f64>; S],
     y: Vec<f64>,
     /// When the Newton matrices are renewed.
     renewal: Renewal,
@@ -393,20 +425,20 @@ struct Run<'g, 's> {
     cuts: Cuts,
 }
 
-impl Run<'_, '_> {
-    /// Stage i's position and velocity into `qs`, `vs`.
+impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
+    /// Stage i's position and velocity into `qs`, `vs`:
+    /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`.
     fn stage_state(&mut self, i: usize, h: f64) {
-        let tab = self.tab;
+        let tab = self.tab.stages();
         let n = self.n;
-        let (ch, a, a2) = (tab.c[i] * h, tab.a[i], tab.a2[i]);
+        let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
         // slices of length n: no bounds checks in the loop, vectorised
-        let (s0, s1, s2) = (&self.a[0][..n], &self.a[1][..n], &self.a[2][..n]);
+        let st: [&[f64]; S] = std::array::from_fn(|j| &self.a[j][..n]);
         let (q, v) = (&self.q[..n], &self.v[..n]);
         let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
         for k in 0..n {
-            let (x0, x1, x2) = (s0[k], s1[k], s2[k]);
-            qs[k] = q[k] + ch * v[k] + h * h * (a2[0] * x0 + a2[1] * x1 + a2[2] * x2);
-            vs[k] = v[k] + h * (a[0] * x0 + a[1] * x1 + a[2] * x2);
+            qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
+            vs[k] = v[k] + h * dot(a, |j| st[j][k]);
         }
     }
 
@@ -447,37 +479,33 @@ impl Run<'_, '_> {
     /// transformation `rtol' = 0.1 rtol^{2/3}` (the estimate is O(h⁴) for
     /// a method of order 5: the global error then follows `rtol`).
     fn error_norm(&mut self, h: f64) -> Result<f64, SystemError> {
-        let (n, tab) = (self.n, self.tab);
+        let n = self.n;
+        let tab = self.tab.stages();
+        let Some(e) = self.tab.error_weights() else {
+            return Err(SystemError::msg("this tableau has no error estimate"));
+        };
         let g = tab.gamma;
-        let s6 = 6f64.sqrt();
-        let e = [
-            -(13.0 + 7.0 * s6) / 3.0,
-            (-13.0 + 7.0 * s6) / 3.0,
-            -1.0 / 3.0,
-        ]
-        .map(|d| g * d);
         // r_q = (γ + Σ e_i c_i) h v + h² Σ_j (Σ_i e_i 𝔄²_ij) A_j,
         // r_v = γ h q̈_n + h Σ_j (Σ_i e_i 𝔄_ij) A_j
-        let ec: f64 = (0..3).map(|i| e[i] * tab.c[i]).sum();
-        let ea2: [f64; 3] = std::array::from_fn(|j| (0..3).map(|i| e[i] * tab.a2[i][j]).sum());
-        let ea: [f64; 3] = std::array::from_fn(|j| (0..3).map(|i| e[i] * tab.a[i][j]).sum());
+        let ec: f64 = (0..S).map(|i| e[i] * tab.c[i]).sum();
+        let ea2: [f64; S] = std::array::from_fn(|j| (0..S).map(|i| e[i] * tab.a2[i][j]).sum());
+        let ea: [f64; S] = std::array::from_fn(|j| (0..S).map(|i| e[i] * tab.a[i][j]).sum());
         let hg = h * g;
         let mass = self.sys.mass_diagonal();
         let x = &mut self.x[0];
         {
-            let (a0, a1, a2) = (&self.a[0][..n], &self.a[1][..n], &self.a[2][..n]);
+            let st: [&[f64]; S] = std::array::from_fn(|j| &self.a[j][..n]);
             let (v, qdd) = (&self.v[..n], &self.qdd[..n]);
             for k in 0..n {
-                let (y0, y1, y2) = (a0[k], a1[k], a2[k]);
-                let rq = (g + ec) * h * v[k] + h * h * (ea2[0] * y0 + ea2[1] * y1 + ea2[2] * y2);
-                let rv = g * h * qdd[k] + h * (ea[0] * y0 + ea[1] * y1 + ea[2] * y2);
+                let rq = (g + ec) * h * v[k] + h * h * dot(&ea2, |j| st[j][k]);
+                let rv = g * h * qdd[k] + h * dot(&ea, |j| st[j][k]);
                 x[k] = mass[k] * (rq + hg * rv);
             }
         }
         x[n..].fill(0.0);
         self.sys.solve(self.t, x)?;
-        // the step's end, Q₃ = q_{n+1}, for the weights
-        self.stage_state(2, h);
+        // the step's end, Q_S = q_{n+1}, for the weights
+        self.stage_state(S - 1, h);
         let x = &self.x[0];
         let norm = common::max_weighted(
             n,
@@ -489,7 +517,7 @@ impl Run<'_, '_> {
     }
 }
 
-impl ImplicitStepper for Run<'_, '_> {
+impl<const S: usize, T: Tableau<S>> ImplicitStepper for Run<'_, '_, S, T> {
     fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
         (&mut self.stats, &mut self.warnings)
     }
@@ -504,7 +532,7 @@ impl ImplicitStepper for Run<'_, '_> {
     }
 }
 
-impl Stepper for Run<'_, '_> {
+impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
     fn start(&mut self) -> Result<(), Failure> {
         self.stats.residual_evaluations += 1;
         self.sys
@@ -588,11 +616,11 @@ impl Stepper for Run<'_, '_> {
             // accept: stiffly accurate, the last stage is the step's end
             self.q_old.copy_from_slice(&self.q);
             self.v_old.copy_from_slice(&self.v);
-            self.stage_state(2, h);
+            self.stage_state(S - 1, h);
             self.q.copy_from_slice(&self.qs);
             self.v.copy_from_slice(&self.vs);
-            self.qdd.copy_from_slice(&self.a[2]);
-            self.lam.copy_from_slice(&self.l[2]);
+            self.qdd.copy_from_slice(&self.a[S - 1]);
+            self.lam.copy_from_slice(&self.l[S - 1]);
             if self.opts.project {
                 self.stats.projections += 1;
                 let (q, v) = (&mut self.q, &mut self.v);
@@ -625,35 +653,30 @@ impl Stepper for Run<'_, '_> {
         (self.t, &self.y)
     }
 
-    /// The collocation polynomials of the last step.
+    /// The collocation polynomials of the last step: `V` of degree S
+    /// with `V̇(t_i) = A_i`, `Q` through `q_n` and the stage positions.
     fn interpolate(&self, t: f64, out: &mut [f64]) {
         let (n, h) = (self.n, self.h_last);
         let th = (t - (self.t - h)) / h;
-        let w1 = self
-            .tab
-            .lag
-            .map(|l| l[0] * th + l[1] * th * th / 2.0 + l[2] * th.powi(3) / 3.0);
-        // Q: the cubic through q_old and the stage positions Q_i at c_i,
+        let w1 = self.tab.basis_integral(th);
+        // Q: the polynomial of degree S through q_old (τ = 0) and the
+        // stage positions Q_i at c_i,
         // Q_i = q_old + c_i h v_old + h² Σ_j (𝔄²)_ij A_j
-        let c = self.tab.c;
-        let nodes = [0.0, c[0], c[1], c[2]];
-        let lag3 = |i: usize| {
-            (0..4)
+        let tab = self.tab.stages();
+        let c = tab.c;
+        let node = |k: usize| if k == 0 { 0.0 } else { c[k - 1] };
+        let li: [f64; S] = std::array::from_fn(|i| {
+            (0..=S)
                 .filter(|&k| k != i + 1)
-                .map(|k| (th - nodes[k]) / (nodes[i + 1] - nodes[k]))
+                .map(|k| (th - node(k)) / (c[i] - node(k)))
                 .product::<f64>()
-        };
-        let li = [lag3(0), lag3(1), lag3(2)];
-        let a2 = self.tab.a2;
-        let w2: [f64; 3] =
-            std::array::from_fn(|j| li[0] * a2[0][j] + li[1] * a2[1][j] + li[2] * a2[2][j]);
-        let a = &self.a_prev;
+        });
+        let a2 = &tab.a2;
+        let w2: [f64; S] = std::array::from_fn(|j| (0..S).map(|i| li[i] * a2[i][j]).sum());
+        let a: [&[f64]; S] = std::array::from_fn(|j| &self.a_prev[j][..n]);
         for k in 0..n {
-            let (x0, x1, x2) = (a[0][k], a[1][k], a[2][k]);
-            out[k] = self.q_old[k]
-                + th * h * self.v_old[k]
-                + h * h * (w2[0] * x0 + w2[1] * x1 + w2[2] * x2);
-            out[n + k] = self.v_old[k] + h * (w1[0] * x0 + w1[1] * x1 + w1[2] * x2);
+            out[k] = self.q_old[k] + th * h * self.v_old[k] + h * h * dot(&w2, |j| a[j][k]);
+            out[n + k] = self.v_old[k] + h * dot(&w1, |j| a[j][k]);
         }
     }
 

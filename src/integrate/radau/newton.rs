@@ -43,35 +43,30 @@ pub(super) fn radau_convergence(max_newton: usize) -> ConvergenceOptions {
     }
 }
 
-impl Run<'_, '_> {
-    /// Factorise the real and the complex matrix at the step's start.
-    pub(super) fn factor(&mut self, h: f64) -> Result<(), SystemError> {
-        self.factor_at(h, false)
-    }
-
-    /// Factorise the real and the complex matrix for the step `h` at its
+impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
+    /// Factorise the real and the complex matrices for the step `h` at its
     /// start (`at_end` false) or at the current iterate of its last stage
-    /// `(Q₃, V₃, Λ₃)` (`at_end`; `qs`, `vs` are overwritten).
+    /// `(Q_S, V_S, Λ_S)` (`at_end`; `qs`, `vs` are overwritten).
     pub(super) fn factor_at(&mut self, h: f64, at_end: bool) -> Result<(), SystemError> {
-        let tab = self.tab;
-        let (g, mu) = (tab.gamma, tab.mu);
-        let hmu = [h * mu[0], h * mu[1]];
-        let h2mu2 = cmul(hmu, hmu);
+        let tab = self.tab.stages();
+        let g = tab.gamma;
         self.renewal.factorising();
         if at_end {
-            self.stage_state(2, h);
+            self.stage_state(S - 1, h);
         }
         let (t, q, v, lam) = if at_end {
-            (self.t + h, &self.qs, &self.vs, &self.l[2])
+            (self.t + h, &self.qs, &self.vs, &self.l[S - 1])
         } else {
             (self.t, &self.q, &self.v, &self.lam)
         };
         self.stats.factorizations += 1;
         self.sys
             .factorize(t, q, v, lam, [1.0, h * g, h * h * g * g])?;
-        self.stats.complex_factorizations += 1;
-        self.cplx
-            .factorize_complex(t, q, v, lam, [[1.0, 0.0], hmu, h2mu2])?;
+        for (c, mu) in self.cplx.iter_mut().zip(&tab.mu) {
+            let hmu = [h * mu[0], h * mu[1]];
+            self.stats.complex_factorizations += 1;
+            c.factorize_complex(t, q, v, lam, [[1.0, 0.0], hmu, cmul(hmu, hmu)])?;
+        }
         self.renewal.factorised(h);
         Ok(())
     }
@@ -79,26 +74,26 @@ impl Run<'_, '_> {
     /// One attempt of the step `h` from `(t, q, v)` into `a`, `l`.
     pub(super) fn attempt(&mut self, h: f64) -> Result<(), SystemError> {
         let (n, m) = (self.n, self.m);
-        let tab = self.tab;
+        let tab = self.tab.stages();
         // predictor: the previous step's stage polynomials extrapolated
         match self.h_prev {
             Some(hp) => {
-                for i in 0..3 {
-                    let w = tab.basis(1.0 + tab.c[i] * h / hp);
+                for i in 0..S {
+                    let w = self.tab.basis(1.0 + tab.c[i] * h / hp);
                     for (out, prev) in [
                         (&mut self.a[i], &self.a_prev),
                         (&mut self.l[i], &self.l_prev),
                     ] {
                         let len = out.len();
-                        let (p0, p1, p2) = (&prev[0][..len], &prev[1][..len], &prev[2][..len]);
+                        let p: [&[f64]; S] = std::array::from_fn(|j| &prev[j][..len]);
                         for k in 0..len {
-                            out[k] = w[0] * p0[k] + w[1] * p1[k] + w[2] * p2[k];
+                            out[k] = dot(&w, |j| p[j][k]);
                         }
                     }
                 }
             }
             None => {
-                for i in 0..3 {
+                for i in 0..S {
                     self.a[i].copy_from_slice(&self.qdd);
                     self.l[i].copy_from_slice(&self.lam);
                 }
@@ -108,14 +103,21 @@ impl Run<'_, '_> {
         // from the factorised one by the rounding of the grid's
         // arithmetic, `target − t`, is the same step: `SAME_STEP`)
         if self.renewal.at_predictor(h) {
-            self.factor(h)?;
+            self.factor_at(h, false)?;
         }
-        let (g, mu) = (tab.gamma, tab.mu);
-        let hmu = [h * mu[0], h * mu[1]];
-        let d = cmul(hmu, hmu); // h²μ²
-        let dd = d[0] * d[0] + d[1] * d[1];
-        let inv_d = [d[0] / dd, -d[1] / dd];
+        // the constraint rows of each transformed system divided by h²μ²
+        let g = tab.gamma;
         let inv_g = 1.0 / (h * h * g * g);
+        let inv_d: Vec<[f64; 2]> = tab
+            .mu
+            .iter()
+            .map(|mu| {
+                let hmu = [h * mu[0], h * mu[1]];
+                let d = cmul(hmu, hmu); // h²μ²
+                let dd = d[0] * d[0] + d[1] * d[1];
+                [d[0] / dd, -d[1] / dd]
+            })
+            .collect();
         let tol_q = self.opts.newton_tol * h * h;
         // adaptive: RADAU5's Newton tolerance where it is looser, the
         // fraction `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` of the
@@ -123,7 +125,7 @@ impl Run<'_, '_> {
         // docs, "Step size")
         let ode = self.ode;
         let adaptive = self.opts.adaptive;
-        let a2w = tab.a2;
+        let a2w = &tab.a2;
         let (fr, fa) = if adaptive {
             let rt = 0.1 * ode.rtol.powf(2.0 / 3.0);
             let fnewt = (10.0 * f64::EPSILON / rt).max(0.03f64.min(rt.sqrt()));
@@ -137,10 +139,10 @@ impl Run<'_, '_> {
         let mut its = 0usize;
         loop {
             if self.renewal.before_correction(conv.round()) {
-                self.factor(h)?;
+                self.factor_at(h, false)?;
             }
-            // residuals of the three stages
-            for i in 0..3 {
+            // residuals of the stages
+            for i in 0..S {
                 self.stage_state(i, h);
                 self.stats.residual_evaluations += 1;
                 let ti = self.t + tab.c[i] * h;
@@ -156,62 +158,61 @@ impl Run<'_, '_> {
             }
             // transformed right-hand sides: x_k = −Σ_i T⁻¹_ki r_i, the
             // constraint rows divided by h²μ_k²
-            let ti = tab.t_inv;
+            let ti = &tab.t_inv;
             {
                 let len = n + m;
-                let (r0, r1, r2) = (&self.r[0][..len], &self.r[1][..len], &self.r[2][..len]);
-                let [x0, x1, x2] = &mut self.x;
-                let (x0, x1, x2) = (&mut x0[..len], &mut x1[..len], &mut x2[..len]);
+                let r: [&[f64]; S] = std::array::from_fn(|i| &self.r[i][..len]);
+                let mut x: [&mut [f64]; S] = self.x.each_mut().map(|x| &mut x[..len]);
                 for k in 0..len {
-                    let (a, b, c) = (r0[k], r1[k], r2[k]);
-                    x0[k] = -(ti[0][0] * a + ti[0][1] * b + ti[0][2] * c);
-                    x1[k] = -(ti[1][0] * a + ti[1][1] * b + ti[1][2] * c);
-                    x2[k] = -(ti[2][0] * a + ti[2][1] * b + ti[2][2] * c);
+                    let rk: [f64; S] = std::array::from_fn(|i| r[i][k]);
+                    for (xj, tj) in x.iter_mut().zip(ti) {
+                        xj[k] = -dot(tj, |i| rk[i]);
+                    }
                 }
-                for k in n..n + m {
-                    x0[k] *= inv_g;
-                    let z = cmul([x1[k], x2[k]], inv_d);
-                    x1[k] = z[0];
-                    x2[k] = z[1];
+                for k in n..len {
+                    x[0][k] *= inv_g;
+                    for (p, d) in inv_d.iter().enumerate() {
+                        let z = cmul([x[1 + 2 * p][k], x[2 + 2 * p][k]], *d);
+                        x[1 + 2 * p][k] = z[0];
+                        x[2 + 2 * p][k] = z[1];
+                    }
                 }
             }
-            self.sys.solve(self.t, &mut self.x[0])?;
             {
-                let [_, x1, x2] = &mut self.x;
-                self.cplx.solve_complex(self.t, x1, x2)?;
+                let (x0, rest) = self.x.split_at_mut(1);
+                self.sys.solve(self.t, &mut x0[0])?;
+                for (c, pair) in self.cplx.iter_mut().zip(rest.chunks_exact_mut(2)) {
+                    let (re, im) = pair.split_at_mut(1);
+                    c.solve_complex(self.t, &mut re[0], &mut im[0])?;
+                }
             }
             self.stats.newton_iterations += 1;
             its += 1;
             // back-transform, update, norm of the position-equivalent corrections
-            let tt = tab.t;
+            let tt = &tab.t;
             let mut dnorm = 0.0_f64;
             {
-                let [x0, x1, x2] = &self.x;
-                let [a0, a1, a2] = &mut self.a;
-                let (a0, a1, a2) = (&mut a0[..n], &mut a1[..n], &mut a2[..n]);
+                let x: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][..n + m]);
+                let av: [&mut [f64]; S] = self.a.each_mut().map(|a| &mut a[..n]);
                 let q = &self.q[..n];
-                let (z0, z1, z2) = (&x0[..n], &x1[..n], &x2[..n]);
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each)
                 for k in 0..n {
-                    let (y0, y1, y2) = (z0[k], z1[k], z2[k]);
-                    let d0 = tt[0][0] * y0 + tt[0][1] * y1 + tt[0][2] * y2;
-                    let d1 = tt[1][0] * y0 + tt[1][1] * y1 + tt[1][2] * y2;
-                    let d2 = tt[2][0] * y0 + tt[2][1] * y1 + tt[2][2] * y2;
-                    a0[k] += d0;
-                    a1[k] += d1;
-                    a2[k] += d2;
-                    let big = (h * h * d0)
-                        .abs()
-                        .max((h * h * d1).abs())
-                        .max((h * h * d2).abs());
+                    let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
+                    let d: [f64; S] = std::array::from_fn(|i| dot(&tt[i], |j| y[j]));
+                    let mut big = (h * h * d[0]).abs();
+                    av[0][k] += d[0];
+                    for i in 1..S {
+                        av[i][k] += d[i];
+                        big = big.max((h * h * d[i]).abs());
+                    }
                     let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
                     let mut ratio = big / (tol_q + floor);
                     if adaptive {
                         // RADAU5's test on the stage position corrections
                         // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
-                        let dq = |r: [f64; 3]| (h * h * (r[0] * d0 + r[1] * d1 + r[2] * d2)).abs();
-                        let big_q = dq(a2w[0]).max(dq(a2w[1])).max(dq(a2w[2]));
+                        let dq = |i: usize| (h * h * dot(&a2w[i], |j| d[j])).abs();
+                        let big_q = (1..S).fold(dq(0), |b, i| b.max(dq(i)));
                         let atol = match &ode.atol {
                             Tolerance::Scalar(a) => *a,
                             Tolerance::Vector(v) => v[k],
@@ -220,12 +221,12 @@ impl Run<'_, '_> {
                     }
                     dnorm = dnorm.max(ratio);
                 }
-                let [l0, l1, l2] = &mut self.l;
-                for k in n..n + m {
-                    let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
-                    l0[k - n] += tt[0][0] * y0 + tt[0][1] * y1 + tt[0][2] * y2;
-                    l1[k - n] += tt[1][0] * y0 + tt[1][1] * y1 + tt[1][2] * y2;
-                    l2[k - n] += tt[2][0] * y0 + tt[2][1] * y1 + tt[2][2] * y2;
+                let mut lv: [&mut [f64]; S] = self.l.each_mut().map(|l| &mut l[..m]);
+                for k in 0..m {
+                    let y: [f64; S] = std::array::from_fn(|j| x[j][n + k]);
+                    for (li, ti) in lv.iter_mut().zip(tt) {
+                        li[k] += dot(ti, |j| y[j]);
+                    }
                 }
             }
             if !dnorm.is_finite() {
@@ -234,12 +235,10 @@ impl Run<'_, '_> {
             // stagnation with corrections at the noise of the solve
             // relative to q (module docs)
             let drel = || {
-                let [x0, x1, x2] = &self.x;
                 let mut drel = 0.0_f64;
                 for k in 0..n {
-                    let (y0, y1, y2) = (x0[k], x1[k], x2[k]);
-                    for row in &tab.t {
-                        let d = row[0] * y0 + row[1] * y1 + row[2] * y2;
+                    for row in tt {
+                        let d = dot(row, |j| self.x[j][k]);
                         drel = drel.max((h * h * d).abs() / self.q[k].abs().max(1.0));
                     }
                 }
@@ -251,16 +250,14 @@ impl Run<'_, '_> {
                 Assessment::RenewAfterUndo => {
                     // undo the diverging correction and renew the
                     // matrices at the last stage's iterate
-                    let tt = tab.t;
-                    let [x0, x1, x2] = &self.x;
-                    for (i, a) in self.a.iter_mut().enumerate() {
-                        for k in 0..n {
-                            a[k] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
-                        }
-                    }
-                    for (i, l) in self.l.iter_mut().enumerate() {
-                        for k in n..n + m {
-                            l[k - n] -= tt[i][0] * x0[k] + tt[i][1] * x1[k] + tt[i][2] * x2[k];
+                    for i in 0..S {
+                        for k in 0..n + m {
+                            let d = dot(&tt[i], |j| self.x[j][k]);
+                            if k < n {
+                                self.a[i][k] -= d;
+                            } else {
+                                self.l[i][k - n] -= d;
+                            }
                         }
                     }
                     self.factor_at(h, true)?;

@@ -331,15 +331,38 @@ impl<const S: usize> RadauStages<S> {
             t_inv,
         }
     }
+}
 
+/// What Radau IIA's stage loop reads of a tableau of `S` stages: its
+/// coefficients and the Lagrange basis `ℓ_j` on the nodes (predictor and
+/// dense output; Hairer & Wanner II, §IV.8).
+pub(super) trait Tableau<const S: usize> {
+    /// The nodes, 𝔄, 𝔄², γ, the μ_p and the transformation `T`.
+    fn stages(&self) -> &RadauStages<S>;
     /// `ℓ_j(τ)` for j = 0 … S − 1.
-    pub(super) fn basis(&self, tau: f64) -> [f64; S] {
+    fn basis(&self, tau: f64) -> [f64; S];
+    /// `∫₀^τ ℓ_j` for j = 0 … S − 1.
+    fn basis_integral(&self, tau: f64) -> [f64; S];
+    /// The weights `e_i` of the embedded error estimate `Σ_i e_i (Y_i −
+    /// y_n)` (Hairer & Wanner II, §IV.8, eq. (8.19)), where the tableau
+    /// has one (none: fixed steps only).
+    fn error_weights(&self) -> Option<[f64; S]> {
+        None
+    }
+}
+
+/// The tableau computed from its definition, the basis by Horner's rule.
+impl<const S: usize> Tableau<S> for RadauStages<S> {
+    fn stages(&self) -> &RadauStages<S> {
+        self
+    }
+
+    fn basis(&self, tau: f64) -> [f64; S] {
         self.lag
             .map(|l| l.iter().rev().fold(0.0, |acc, &x| acc * tau + x))
     }
 
-    /// `∫₀^τ ℓ_j` for j = 0 … S − 1.
-    pub(super) fn basis_integral(&self, tau: f64) -> [f64; S] {
+    fn basis_integral(&self, tau: f64) -> [f64; S] {
         self.lag.map(|l| {
             l.iter()
                 .enumerate()
@@ -348,6 +371,17 @@ impl<const S: usize> RadauStages<S> {
                 * tau
         })
     }
+}
+
+/// `Σ_j w_j x(j)`, summed from j = 0 on (the rounding of the sums
+/// written out term by term).
+#[inline(always)]
+pub(super) fn dot<const S: usize>(w: &[f64; S], x: impl Fn(usize) -> f64) -> f64 {
+    let mut s = w[0] * x(0);
+    for j in 1..S {
+        s += w[j] * x(j);
+    }
+    s
 }
 
 impl<const S: usize> Default for RadauStages<S> {

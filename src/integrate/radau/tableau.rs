@@ -2,6 +2,8 @@
 //! of the collocation polynomials and the eigen-transformation of 𝔄
 //! (Hairer & Wanner II, §IV.8).
 
+use super::stages::{RadauStages, Tableau};
+
 /// The Radau IIA (s = 3) coefficients and the transformation of its
 /// matrix, computed from the nodes.
 #[derive(Debug, Clone)]
@@ -119,10 +121,58 @@ impl RadauTableau {
             t_inv,
         }
     }
+}
 
-    /// `ℓ_j(τ)` for j = 0..3.
-    pub(super) fn basis(&self, tau: f64) -> [f64; 3] {
-        self.lag.map(|l| l[0] + l[1] * tau + l[2] * tau * tau)
+/// radau5's coefficients: [`RadauTableau`]'s closed form, with its
+/// Lagrange basis, the basis' integral and RADAU5's error weights written
+/// out for three stages.
+#[derive(Debug, Clone)]
+pub(super) struct ClosedForm(RadauStages<3>);
+
+impl ClosedForm {
+    /// The closed-form tableau of three stages.
+    pub(super) fn new() -> Self {
+        let t = RadauTableau::new();
+        Self(RadauStages {
+            c: t.c,
+            a: t.a,
+            a2: t.a2,
+            lag: t.lag,
+            gamma: t.gamma,
+            mu: vec![t.mu],
+            t: t.t,
+            t_inv: t.t_inv,
+        })
+    }
+}
+
+impl Tableau<3> for ClosedForm {
+    fn stages(&self) -> &RadauStages<3> {
+        &self.0
+    }
+
+    fn basis(&self, tau: f64) -> [f64; 3] {
+        self.0.lag.map(|l| l[0] + l[1] * tau + l[2] * tau * tau)
+    }
+
+    fn basis_integral(&self, tau: f64) -> [f64; 3] {
+        self.0
+            .lag
+            .map(|l| l[0] * tau + l[1] * tau * tau / 2.0 + l[2] * tau.powi(3) / 3.0)
+    }
+
+    /// `e = γ (−13 − 7√6, −13 + 7√6, −1)/3` (RADAU5's `DD1`–`DD3` times γ).
+    fn error_weights(&self) -> Option<[f64; 3]> {
+        let s6 = 6f64.sqrt();
+        let g = self.0.gamma;
+        Some(
+            [
+                -(13.0 + 7.0 * s6) / 3.0,
+                (-13.0 + 7.0 * s6) / 3.0,
+                -1.0 / 3.0,
+            ]
+            .map(|d| g * d),
+        )
     }
 }
 
