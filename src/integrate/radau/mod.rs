@@ -115,12 +115,12 @@ mod radau9;
 mod stages;
 mod tableau;
 
-use newton::check_newton_options;
 pub use radau9::Radau9;
+use stages::cmul;
 pub use stages::RadauStages;
 use stages::{dot, Tableau};
+use tableau::ClosedForm;
 pub use tableau::RadauTableau;
-use tableau::{cmul, ClosedForm};
 
 use super::driver::{Failure, Stepper};
 use super::implicit::{
@@ -190,10 +190,10 @@ impl Radau5 {
     /// or with [`ImplicitOptions::adaptive`] the tolerances `rtol`, `atol`
     /// (and `max_step`, `initial_step`); of [`ImplicitOptions`] it reads
     /// `newton_tol`, `max_newton`, `reuse`, `project`, `min_step` and
-    /// `adaptive`.
+    /// `adaptive` ([`ImplicitOptions::validate`]).
     pub fn new(opts: ImplicitOptions, ode: OdeOptions) -> Result<Self, IntegratorError> {
         ode.validate(Method::Radau5, opts.adaptive)?;
-        check_newton_options(&opts)?;
+        opts.validate(Method::Radau5, ode.fixed_step)?;
         Ok(Self {
             opts,
             ode,

@@ -5,25 +5,6 @@
 
 use super::*;
 
-/// `newton_tol` positive and finite, `max_newton` at least 1.
-pub(super) fn check_newton_options(opts: &ImplicitOptions) -> Result<(), IntegratorError> {
-    if !(opts.newton_tol > 0.0 && opts.newton_tol.is_finite()) {
-        return Err(IntegratorError::InvalidOption {
-            option: "newton_tol",
-            value: opts.newton_tol.to_string(),
-            reason: "must be positive and finite".into(),
-        });
-    }
-    if opts.max_newton == 0 {
-        return Err(IntegratorError::InvalidOption {
-            option: "max_newton",
-            value: "0".into(),
-            reason: "must be at least 1".into(),
-        });
-    }
-    Ok(())
-}
-
 /// The rate estimate of an attempt's first correction from the last one
 /// kept, `max(η, ε)^0.8` (RADAU5's `FACCON`).
 pub(super) fn first_rate(eta: f64) -> f64 {

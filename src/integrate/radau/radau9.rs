@@ -58,7 +58,7 @@ impl Radau9 {
             });
         }
         ode.validate(Method::Radau9, false)?;
-        check_newton_options(&opts)?;
+        opts.validate(Method::Radau9, ode.fixed_step)?;
         Ok(Self {
             opts,
             ode,

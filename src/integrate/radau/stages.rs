@@ -19,7 +19,8 @@ fn cadd(a: C64, b: C64) -> C64 {
 fn csub(a: C64, b: C64) -> C64 {
     [a[0] - b[0], a[1] - b[1]]
 }
-fn cmul(a: C64, b: C64) -> C64 {
+/// Complex product.
+pub(super) fn cmul(a: C64, b: C64) -> C64 {
     [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
 }
 fn cdiv(a: C64, b: C64) -> C64 {

@@ -2,7 +2,7 @@
 //! of the collocation polynomials and the eigen-transformation of 𝔄
 //! (Hairer & Wanner II, §IV.8).
 
-use super::stages::{RadauStages, Tableau};
+use super::stages::{cmul, RadauStages, Tableau};
 
 /// The Radau IIA (s = 3) coefficients and the transformation of its
 /// matrix, computed from the nodes.
@@ -39,11 +39,6 @@ fn inv3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
         }
     }
     r
-}
-
-/// Complex product.
-pub(super) fn cmul(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
 }
 
 impl RadauTableau {
