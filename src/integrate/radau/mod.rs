@@ -8,6 +8,10 @@
 //! L-stable (its stability function is the (2,3) Padé approximant of eᶻ,
 //! error constant `3!2!/(5!6!) ≈ 1.4e-4`).
 //!
+//! The stage loop (`Run`: state, Newton, error estimate, dense output)
+//! is written for any odd number of stages `S` and a tableau of them
+//! (`stages::Tableau`); it serves [`Radau9`] (S = 5) as well.
+//!
 //! # Stages
 //!
 //! Unknowns: stage accelerations `A_i` and multipliers `Λ_i`, i = 1..3, at

@@ -25,7 +25,8 @@
 //! divided by `h²μ²`; the Jacobians frozen at the step's start and kept
 //! across steps while Newton contracts, the predictor, the convergence
 //! test, the renewals within an attempt, the start ramp and the fixed-step
-//! grid are radau5's (its module docs). Dense output: the collocation
+//! grid are radau5's (its module docs; the same stage loop, with five
+//! stages). Dense output: the collocation
 //! polynomials (`V` of degree 5, `Q` the quintic through `q_n` and the
 //! `Q_i`), the rows projected onto `Φ = 0`
 //! ([`SecondOrderDae::project_output`]).
