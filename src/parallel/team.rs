@@ -32,7 +32,8 @@
 //! probes again — at once when [`DOUBT_WINDOWS`] windows in a row gave
 //! evidence against the way it runs (with the helper: a half taken back
 //! from a helper that was awake, so preempted; alone, when it runs alone
-//! because no core was free: a core free by `/proc/loadavg`). Long
+//! because no core was free or its probe's choice of one thread is not yet
+//! confirmed by a second one: a core free by `/proc/loadavg`). Long
 //! stretches keep the probes' cost small on a machine whose load does not
 //! change; the evidence brings the probe forward when it does.
 //!
@@ -91,8 +92,9 @@ pub const EXPLOIT_MAX: u32 = 128;
 /// which an `Auto` team ends the stretch and probes at once: running with
 /// the helper, a half taken back from a helper that was awake but had not
 /// started it (not on a core: the machine is busy); running alone because
-/// no core was free, fewer runnable tasks on the machine than cores
-/// (`/proc/loadavg`: a core is free now). The probe still decides.
+/// no core was free, or on a first choice of one thread, fewer runnable
+/// tasks on the machine than cores (`/proc/loadavg`: a core is free now).
+/// The probe still decides.
 pub const DOUBT_WINDOWS: u32 = 2;
 /// An `Auto` team runs with its helper only when its probe windows took at
 /// most this fraction of the wall time of the windows alone (a tie goes
@@ -132,9 +134,10 @@ struct Adapt {
     doubts: u32,
     /// Stretches ended early by [`DOUBT_WINDOWS`] such windows.
     cut: u32,
-    /// Whether the current stretch runs alone because no core was free
-    /// (at its probe, or at a probe skipped for it): a core found free
-    /// is then evidence against it.
+    /// Whether a core found free is evidence against the current stretch
+    /// alone: it runs alone because no core was free (at its probe, or at
+    /// a probe skipped for it), or its probe chose one thread after one
+    /// that chose the team or none (not confirmed).
     busy: bool,
     /// Probes not run because no core was free (the first one at the
     /// team's start included).
@@ -234,7 +237,8 @@ impl Adapt {
             let [team, alone] = self.probe;
             let solo = team.as_secs_f64() > TEAM_MARGIN * alone.as_secs_f64();
             self.last_ratio = Some(team.as_secs_f64() / alone.as_secs_f64().max(1e-12));
-            self.exploit = if self.last == Some(solo) {
+            let confirmed = self.last == Some(solo);
+            self.exploit = if confirmed {
                 (2 * self.exploit).min(EXPLOIT_MAX)
             } else {
                 EXPLOIT_MIN
@@ -243,7 +247,9 @@ impl Adapt {
             self.doubts = 0;
             self.decided[usize::from(solo)] += 1;
             self.solo = solo;
-            self.busy = solo && !free();
+            // a free core doubts a first choice of one thread (the probe
+            // may have met a passing load), and one made with no core free
+            self.busy = solo && (!confirmed || !free());
             self.left = self.exploit * self.window;
         } else {
             if self.phase == 0 {

@@ -481,9 +481,10 @@ fn evidence_against_a_stretch_brings_the_probe_forward() {
 /// A team opened with no core free runs alone without probing while
 /// none is (its stretches doubling up to EXPLOIT_MAX, the probes counted
 /// as skipped); a core found free in DOUBT_WINDOWS windows in a row
-/// brings the probe; a probe that chose one thread while a core was free
-/// (the team slower on an idle machine) is not cut short by free cores,
-/// and its stretch ends in a probe.
+/// brings the probe; a choice of one thread made while a core was free
+/// (the team slower on an idle machine) is cut short by free cores only
+/// until a second probe confirms it, and its stretch then ends in a
+/// probe.
 #[test]
 fn no_core_free_skips_the_probes() {
     let w = 3usize;
@@ -510,17 +511,25 @@ fn no_core_free_skips_the_probes() {
     assert_eq!(modes, probe);
     assert_eq!(a.decided, [1, 0]);
     assert!(!r[6 * w].0 && !a.busy);
-    // an idle machine where one thread is faster: chosen with a core
-    // free, so free cores are no evidence; the stretch (EXPLOIT_MIN
-    // windows) ends in a probe
+    // an idle machine where one thread is faster: a first choice of one
+    // thread is doubted by free cores (the stretch cut after two
+    // windows); once a second probe confirms it, free cores are no
+    // evidence, and the stretch (twice EXPLOIT_MIN windows) ends in a
+    // probe
     let mut b = Adapt::new(w as u32, true);
     let team_slow = |alone: bool| if alone { 100 } else { 300 };
     drive_with_evidence(&mut b, 4 * w + 1, team_slow, &yes, |alone| alone);
-    assert!(!b.busy && b.decided == [0, 1]);
-    let r = drive_with_evidence(&mut b, 8 * w, team_slow, &yes, |alone| alone);
-    assert_eq!((b.cut, b.skipped), (0, 0));
-    assert!(r[..8 * w - 1].iter().all(|x| x.0));
-    assert!(!r[8 * w - 1].0, "the next probe's first window");
+    assert!(b.busy && b.decided == [0, 1]);
+    // the rest of the two windows, the probe, the decision
+    drive_with_evidence(&mut b, 2 * w - 1 + 4 * w + 1, team_slow, &yes, |alone| {
+        alone
+    });
+    assert_eq!(b.cut, 1);
+    assert!(!b.busy && b.decided == [0, 2]);
+    let r = drive_with_evidence(&mut b, 16 * w, team_slow, &yes, |alone| alone);
+    assert_eq!((b.cut, b.skipped), (1, 0));
+    assert!(r[..16 * w - 1].iter().all(|x| x.0));
+    assert!(!r[16 * w - 1].0, "the next probe's first window");
 }
 
 /// The runnable-task count of `/proc/loadavg` lines.
