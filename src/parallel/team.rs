@@ -622,12 +622,13 @@ fn core_free(cores: usize) -> bool {
 
 /// Whether the machine has a core free now: fewer runnable tasks than
 /// `cores` (the fourth field of `/proc/loadavg`, `running/total`, counts
-/// the caller itself). `false` where unreadable.
+/// the caller itself). `true` where unreadable (not Linux): the probes
+/// then decide alone, as they would with a core free.
 fn free_core(cores: usize) -> bool {
     std::fs::read_to_string("/proc/loadavg")
         .ok()
         .and_then(|s| runnable_tasks(&s))
-        .is_some_and(|r| r < cores)
+        .is_none_or(|r| r < cores)
 }
 
 /// The runnable tasks of a `/proc/loadavg` line (`0.52 0.58 0.59 3/412
