@@ -64,8 +64,8 @@ echo "raw lines: $OUT" >&2
 python3 - "$OUT" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / solo | same tip |")
-print("|---|---|---|---|---|---|---|---|---|")
+print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / solo | probes skipped | same tip |")
+print("|---|---|---|---|---|---|---|---|---|---|")
 key = lambda r: (r["mode"], r["method"], r["round"])
 groups = {}
 for r in rows:
@@ -76,5 +76,7 @@ for (mode, method, rnd), g in groups.items():
     a, b = g[1], g[2]
     print(f"| {method} | {mode} | {rnd} | {a['load']:.1f} | {a['wall_s']:.2f} ({a['cpu_s']:.2f}) "
           f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× "
-          f"| {b['halves_split']} / {b['halves_solo']} | {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")
+          f"| {b['halves_split']} / {b['halves_solo']} "
+          f"| {(b.get('threads_rule') or {}).get('skipped', '–')} "
+          f"| {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")
 PY

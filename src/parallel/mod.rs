@@ -44,7 +44,8 @@ pub enum Threads {
     /// while short probe windows with and without the second thread find
     /// it faster (`team`'s A/B rule: wall time of a few dozen passes each
     /// way, re-probed every 8–128 windows, sooner when the machine's load
-    /// changes).
+    /// changes). Probes run only while the machine has a core free
+    /// (`/proc/loadavg`); with all cores busy the run uses one thread.
     #[default]
     #[serde(rename = "auto")]
     Auto,

@@ -31,10 +31,23 @@
 //! only when it took at most [`TEAM_MARGIN`] of the time alone), then
 //! probes again — at once when [`DOUBT_WINDOWS`] windows in a row gave
 //! evidence against the way it runs (with the helper: a half taken back
-//! from a helper that was awake, so preempted; alone: a core free by
-//! `/proc/loadavg`). Long stretches keep the probes' cost small on a
-//! machine whose load does not change; the evidence brings the probe
-//! forward when it does. A *pass* is one call of [`concurrent`] on the caller:
+//! from a helper that was awake, so preempted; alone, when it runs alone
+//! because no core was free or its probe's choice of one thread is not yet
+//! confirmed by a second one: a core free by `/proc/loadavg`). Long
+//! stretches keep the probes' cost small on a machine whose load does not
+//! change; the evidence brings the probe forward when it does.
+//!
+//! A probe costs where no core is free: its windows with the helper run
+//! slower than alone (the helper takes its core time from the caller or
+//! is preempted in a half), and on a machine whose cores are all busy the
+//! answer is known. So a probe runs only when `/proc/loadavg` shows fewer
+//! runnable tasks than cores (the caller counted, the helper parked): a
+//! team opened without a free core starts alone, and a stretch alone that
+//! ends without one is followed by another, twice as long (up to
+//! [`EXPLOIT_MAX`]), instead of a probe. On a busy machine the run then
+//! does what one thread does (the helper parked after its first
+//! [`SPIN`]), and a core that becomes free brings a probe within
+//! [`DOUBT_WINDOWS`] windows. A *pass* is one call of [`concurrent`] on the caller:
 //! every pass that has a two-thread and a one-thread form asks it once
 //! whatever the answer (a Newton iteration's residual and solve), so the
 //! count of passes is the same whichever way the team runs and measures
@@ -78,9 +91,10 @@ pub const EXPLOIT_MAX: u32 = 128;
 /// Windows in a row with evidence against the decision being run after
 /// which an `Auto` team ends the stretch and probes at once: running with
 /// the helper, a half taken back from a helper that was awake but had not
-/// started it (not on a core: the machine is busy); running alone, fewer
-/// runnable tasks on the machine than cores (`/proc/loadavg`: a core is
-/// free). The probe still decides.
+/// started it (not on a core: the machine is busy); running alone because
+/// no core was free, or on a first choice of one thread, fewer runnable
+/// tasks on the machine than cores (`/proc/loadavg`: a core is free now).
+/// The probe still decides.
 pub const DOUBT_WINDOWS: u32 = 2;
 /// An `Auto` team runs with its helper only when its probe windows took at
 /// most this fraction of the wall time of the windows alone (a tie goes
@@ -120,13 +134,25 @@ struct Adapt {
     doubts: u32,
     /// Stretches ended early by [`DOUBT_WINDOWS`] such windows.
     cut: u32,
+    /// Whether a core found free is evidence against the current stretch
+    /// alone: it runs alone because no core was free (at its probe, or at
+    /// a probe skipped for it), or its probe chose one thread after one
+    /// that chose the team or none (not confirmed).
+    busy: bool,
+    /// Probes not run because no core was free (the first one at the
+    /// team's start included).
+    skipped: u32,
 }
 
 impl Adapt {
-    fn new(window: u32) -> Self {
-        Self {
-            window: window.max(1),
-            left: window.max(1),
+    /// The rule of a team opened with a core free (`free`: it starts with
+    /// a probe) or without (it starts with a stretch of [`EXPLOIT_MIN`]
+    /// windows alone, the probe skipped).
+    fn new(window: u32, free: bool) -> Self {
+        let window = window.max(1);
+        let mut a = Self {
+            window,
+            left: window,
             phase: 0,
             solo: PROBE_ORDER[0],
             start: None,
@@ -137,7 +163,17 @@ impl Adapt {
             last_ratio: None,
             doubts: 0,
             cut: 0,
+            busy: false,
+            skipped: 0,
+        };
+        if !free {
+            a.phase = PROBE_ORDER.len();
+            a.solo = true;
+            a.left = EXPLOIT_MIN * window;
+            a.busy = true;
+            a.skipped = 1;
         }
+        a
     }
 
     /// Whether the pass just counted by [`Self::pass`] was the last of a
@@ -168,11 +204,23 @@ impl Adapt {
 
     /// Counts one pass at `now`; returns whether it runs alone and whether
     /// the helper should be woken now (the next window runs with it after
-    /// one that ran alone).
-    fn pass(&mut self, now: std::time::Instant) -> (bool, bool) {
+    /// one that ran alone). `free` tells whether a core is free now; it is
+    /// asked only where the answer decides: at the end of a stretch alone
+    /// (no core free: the probe is skipped and another stretch runs
+    /// alone, twice as long up to [`EXPLOIT_MAX`]) and when a probe
+    /// chooses one thread.
+    fn pass(&mut self, now: std::time::Instant, mut free: impl FnMut() -> bool) -> (bool, bool) {
         let start = *self.start.get_or_insert(now);
         if self.left > 0 {
             self.left -= 1;
+            if self.left == 0 && self.phase == PROBE_ORDER.len() && self.solo && !free() {
+                self.skipped += 1;
+                self.busy = true;
+                self.doubts = 0;
+                self.exploit = (2 * self.exploit).min(EXPLOIT_MAX);
+                self.left = self.exploit * self.window;
+                return (true, false);
+            }
             let wake = self.left == 0 && self.solo && !self.next_solo();
             return (self.solo, wake);
         }
@@ -189,7 +237,8 @@ impl Adapt {
             let [team, alone] = self.probe;
             let solo = team.as_secs_f64() > TEAM_MARGIN * alone.as_secs_f64();
             self.last_ratio = Some(team.as_secs_f64() / alone.as_secs_f64().max(1e-12));
-            self.exploit = if self.last == Some(solo) {
+            let confirmed = self.last == Some(solo);
+            self.exploit = if confirmed {
                 (2 * self.exploit).min(EXPLOIT_MAX)
             } else {
                 EXPLOIT_MIN
@@ -198,6 +247,9 @@ impl Adapt {
             self.doubts = 0;
             self.decided[usize::from(solo)] += 1;
             self.solo = solo;
+            // a free core doubts a first choice of one thread (the probe
+            // may have met a passing load), and one made with no core free
+            self.busy = solo && (!confirmed || !free());
             self.left = self.exploit * self.window;
         } else {
             if self.phase == 0 {
@@ -229,6 +281,8 @@ thread_local! {
     static TEST_WINDOW: Cell<Option<u32>> = const { Cell::new(None) };
     /// The passes of the last team closed on this thread.
     static TEST_PASSES: Cell<usize> = const { Cell::new(0) };
+    /// A test's answer to whether a core is free (`None`: `/proc/loadavg`'s).
+    static TEST_FREE: Cell<Option<bool>> = const { Cell::new(None) };
 }
 
 /// What the concurrent passes of one run did ([`super::with_threads`]).
@@ -300,6 +354,9 @@ pub enum Rule {
         alone: u32,
         /// The last probe's time with the helper over its time alone.
         last_ratio: Option<f64>,
+        /// Probes not run because no core was free (`/proc/loadavg`):
+        /// the team ran alone instead.
+        skipped: u32,
     },
 }
 
@@ -333,16 +390,31 @@ impl Rule {
                 team,
                 alone,
                 last_ratio,
-            } => match last_ratio {
-                None => "auto: a two-thread team; the run ended before its first probe".into(),
-                Some(r) => format!(
-                    "auto: a two-thread team whose probes chose two threads {team} time{} \
-                     and one thread {alone} time{}; the last probe took {r:.2}× the time \
-                     alone with the helper (two threads at ≤ {TEAM_MARGIN})",
-                    if team == 1 { "" } else { "s" },
-                    if alone == 1 { "" } else { "s" },
-                ),
-            },
+                skipped,
+            } => {
+                let busy = match skipped {
+                    0 => String::new(),
+                    k => format!(
+                        "; {k} probe{} skipped, no core being free",
+                        if k == 1 { "" } else { "s" }
+                    ),
+                };
+                match last_ratio {
+                    None if skipped > 0 => format!(
+                        "auto: a two-thread team that ran alone: no core was free at its \
+                         {skipped} probe time{}",
+                        if skipped == 1 { "" } else { "s" }
+                    ),
+                    None => "auto: a two-thread team; the run ended before its first probe".into(),
+                    Some(r) => format!(
+                        "auto: a two-thread team whose probes chose two threads {team} time{} \
+                         and one thread {alone} time{}; the last probe took {r:.2}× the time \
+                         alone with the helper (two threads at ≤ {TEAM_MARGIN}){busy}",
+                        if team == 1 { "" } else { "s" },
+                        if alone == 1 { "" } else { "s" },
+                    ),
+                }
+            }
         }
     }
 }
@@ -411,6 +483,9 @@ struct Team {
 
 impl Team {
     fn new(adaptive: bool) -> Self {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        // asked before the helper starts: it would count as a runnable task
+        let free = adaptive && core_free(cores);
         Self {
             h: Handover::new(),
             adaptive,
@@ -425,11 +500,11 @@ impl Team {
                 let window = TEST_WINDOW.with(|w| w.get()).unwrap_or(PROBE_PASSES);
                 #[cfg(not(test))]
                 let window = PROBE_PASSES;
-                std::sync::Mutex::new(Adapt::new(window))
+                std::sync::Mutex::new(Adapt::new(window, free))
             }),
-            ab_solo: AtomicBool::new(false),
+            ab_solo: AtomicBool::new(adaptive && !free),
             passes: AtomicUsize::new(0),
-            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            cores,
         }
     }
 
@@ -441,13 +516,15 @@ impl Team {
             return false;
         };
         let mut a = a.lock().unwrap_or_else(|e| e.into_inner());
-        let (solo, mut wake) = a.pass(std::time::Instant::now());
+        let (solo, mut wake) = a.pass(std::time::Instant::now(), || core_free(self.cores));
         if a.left % a.window == 0 {
             // a window ended with this pass: the evidence it gave
             let preempted = self.h.take_preempted();
             if a.exploit_window_ended() {
+                // alone: a core found free counts only against a stretch
+                // chosen because none was
                 let against = if solo {
-                    free_core(self.cores)
+                    a.busy && core_free(self.cores)
                 } else {
                     preempted
                 };
@@ -518,6 +595,7 @@ impl Team {
                     team,
                     alone,
                     last_ratio: a.last_ratio,
+                    skipped: a.skipped,
                 };
                 (a.decided, rule)
             }
@@ -533,14 +611,24 @@ impl Team {
     }
 }
 
+/// [`free_core`], or in tests the answer a test fixed for this thread.
+fn core_free(cores: usize) -> bool {
+    #[cfg(test)]
+    if let Some(free) = TEST_FREE.with(|f| f.get()) {
+        return free;
+    }
+    free_core(cores)
+}
+
 /// Whether the machine has a core free now: fewer runnable tasks than
 /// `cores` (the fourth field of `/proc/loadavg`, `running/total`, counts
-/// the caller itself). `false` where unreadable.
+/// the caller itself). `true` where unreadable (not Linux): the probes
+/// then decide alone, as they would with a core free.
 fn free_core(cores: usize) -> bool {
     std::fs::read_to_string("/proc/loadavg")
         .ok()
         .and_then(|s| runnable_tasks(&s))
-        .is_some_and(|r| r < cores)
+        .is_none_or(|r| r < cores)
 }
 
 /// The runnable tasks of a `/proc/loadavg` line (`0.52 0.58 0.59 3/412

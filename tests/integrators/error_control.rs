@@ -714,9 +714,8 @@ fn chain_run(method: Method, ndf: bool, rho_inf: Option<f64>, rtol: f64) -> (f64
 #[test]
 fn implicit_methods_reach_their_error_level_in_a_band_of_steps() {
     // (method, ndf, ρ∞, rtol, max error / rtol, steps pinned): radau5's
-    // bound is rtol itself (measured 0.011 / 0.049), the others about
-    // twice or more the error measured (bdf 0.083 / 0.067, ndf 0.045 /
-    // 0.54, generalized-α 1.34 / 1.28, HHT 1.79 / 1.59 rtol: second
+    // bound is rtol itself; the others' bounds are about twice or more
+    // the level each method reaches (generalized-α and HHT are second
     // order, their local estimate does not bound the accumulated error);
     // the pins are the clean build's counts
     let cases = [

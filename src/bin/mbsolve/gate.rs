@@ -524,13 +524,14 @@ fn newton_iterations_per_step() -> Vec<Check> {
     .collect()
 }
 
-/// Bound of [`oversubscribed_two_over_one`]: two threads may take at most
-/// twice the wall time of one on a machine whose cores are all busy. The
-/// target is 0.95, but the ratio of a correct build spreads over about
-/// 0.8–1.07 from run to run on a 2-core machine, so a gate there would fail
-/// at random; the regression this check guards against (a team that spins
-/// on a descheduled partner) gives 0.03–0.2 (docs/scaling.md).
-pub const OVERSUBSCRIBED_MIN: f64 = 0.5;
+/// Bound of [`oversubscribed_two_over_one`]: one thread's wall time over
+/// two threads' on a machine whose cores are all busy. With every core
+/// busy an `auto` team does not probe and runs the one-thread path, so
+/// the ratio is that of the same work measured twice: about 1, the
+/// medians of five interleaved runs keeping the machine's spread inside
+/// this margin (docs/scaling.md). A team that tries its helper there, or
+/// spins on a descheduled partner, falls below it.
+pub const OVERSUBSCRIBED_MIN: f64 = 0.85;
 
 /// Busy processes, one per core, ended (killed and reaped) on drop.
 struct BusyProcesses(Vec<std::process::Child>);
@@ -620,7 +621,7 @@ pub fn oversubscribed_two_over_one() -> Check {
             cfg.implicit.newton_tol = 1.0;
         }
         let mut times: [Vec<f64>; 2] = Default::default();
-        let mut split = 0;
+        let (mut split, mut skipped) = (0, 0);
         for _ in 0..5 {
             for (k, threads) in [Threads::One, Threads::Auto].into_iter().enumerate() {
                 cfg.threads = threads;
@@ -631,6 +632,7 @@ pub fn oversubscribed_two_over_one() -> Check {
                 times[k].push(t.elapsed().as_secs_f64());
                 if k == 1 {
                     split += s.extra["halves_split"].as_u64().unwrap_or(0);
+                    skipped += s.extra["threads_rule"]["skipped"].as_u64().unwrap_or(0);
                 }
             }
         }
@@ -641,7 +643,8 @@ pub fn oversubscribed_two_over_one() -> Check {
         one += median[0];
         two += median[1];
         detail.push(format!(
-            "{}{}: {:.2} s / {:.2} s ({split} halves on the second thread)",
+            "{}{}: {:.2} s / {:.2} s ({split} halves on the second thread, \
+             {skipped} probes skipped for no free core)",
             method.name(),
             if ndf { " (ndf)" } else { "" },
             median[0],

@@ -59,7 +59,11 @@ fn a_half_the_helper_started_runs_there_and_returns_its_result() {
 /// alone, longer after each further miss; a hit resets it.
 #[test]
 fn a_team_whose_helper_misses_backs_off() {
+    // opened with a core free: its A/B rule starts with a window with the
+    // helper, so the joins' backing off alone decides here
+    TEST_FREE.with(|f| f.set(Some(true)));
     let team = Team::new(true);
+    TEST_FREE.with(|f| f.set(None));
     for _ in 0..MISS_LIMIT {
         team.note(Ran::TakenBack);
     }
@@ -92,7 +96,7 @@ fn drive(a: &mut Adapt, passes: usize, cost: impl Fn(bool) -> u64) -> Vec<(bool,
     let mut t = Duration::ZERO;
     (0..passes)
         .map(|_| {
-            let r = a.pass(t0 + t);
+            let r = a.pass(t0 + t, || true);
             t += Duration::from_micros(cost(r.0));
             r
         })
@@ -107,7 +111,7 @@ fn drive(a: &mut Adapt, passes: usize, cost: impl Fn(bool) -> u64) -> Vec<(bool,
 fn the_ab_rule_runs_the_faster_way_and_probes_again() {
     let w = 2usize;
     let probe = [false, false, true, true, true, true, false, false];
-    let mut a = Adapt::new(w as u32);
+    let mut a = Adapt::new(w as u32, true);
     // the team twice as fast
     let r = drive(&mut a, 8 + 8 * w + 8 + 16 * w, |alone| {
         if alone {
@@ -136,7 +140,7 @@ fn the_ab_rule_runs_the_faster_way_and_probes_again() {
     // the helper is woken before the next probe's team window
     assert!(r[8 + 8 * w - 1].1);
     // a tie (within TEAM_MARGIN) goes to one thread
-    let mut b = Adapt::new(1);
+    let mut b = Adapt::new(1, true);
     drive(&mut b, 5, |alone| if alone { 100 } else { 99 });
     assert_eq!(b.decided, [0, 1]);
 }
@@ -173,9 +177,11 @@ fn an_alternating_team_gives_the_bits_of_one_thread() {
             };
             pool(2).install(|| {
                 TEST_WINDOW.with(|w| w.set(Some(1)));
+                TEST_FREE.with(|f| f.set(Some(true)));
                 TEST_PASSES.with(|p| p.set(0));
                 let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
                 TEST_WINDOW.with(|w| w.set(None));
+                TEST_FREE.with(|f| f.set(None));
                 (traj, s, TEST_PASSES.with(|p| p.get()))
             })
         };
@@ -379,21 +385,25 @@ fn a_panic_in_either_half_reaches_the_caller_after_both_ended() {
 }
 
 /// Drives `a` one pass at a time as `Team::pass` does, with the
-/// evidence `against(alone)` given at the end of every exploit window;
-/// returns (alone, wake) per pass.
+/// evidence `against(alone)` at the end of every exploit window (alone:
+/// whether a core is free, counted only for a stretch chosen while none
+/// was) and a core free when `free` says so; returns (alone, wake) per
+/// pass.
 fn drive_with_evidence(
     a: &mut Adapt,
     passes: usize,
     cost: impl Fn(bool) -> u64,
+    free: &std::cell::Cell<bool>,
     mut against: impl FnMut(bool) -> bool,
 ) -> Vec<(bool, bool)> {
     let t0 = Instant::now();
     let mut t = Duration::ZERO;
     (0..passes)
         .map(|_| {
-            let (solo, mut wake) = a.pass(t0 + t);
+            let (solo, mut wake) = a.pass(t0 + t, || free.get());
             if a.exploit_window_ended() {
-                wake |= a.evidence(against(solo));
+                let e = against(solo);
+                wake |= a.evidence(if solo { a.busy && e } else { e });
             }
             t += Duration::from_micros(cost(solo));
             (solo, wake)
@@ -411,11 +421,12 @@ fn evidence_against_a_stretch_brings_the_probe_forward() {
     let w = 2usize;
     let probe = [false, false, true, true, true, true, false, false];
     let fast_team = |alone: bool| if alone { 200 } else { 100 };
+    let yes = std::cell::Cell::new(true);
     // no evidence: stretches of 8, 16, 32, 64, 128, 128 windows
-    let mut a = Adapt::new(w as u32);
+    let mut a = Adapt::new(w as u32, true);
     let mut passes = 0;
     for k in [8u32, 16, 32, 64, 128, 128] {
-        let r = drive_with_evidence(&mut a, 8 + k as usize * w, fast_team, |_| false);
+        let r = drive_with_evidence(&mut a, 8 + k as usize * w, fast_team, &yes, |_| false);
         passes += r.len();
         assert_eq!(r[..8].iter().map(|x| x.0).collect::<Vec<_>>(), probe);
         assert!(r[8..].iter().all(|x| !x.0), "stretch of {k} windows");
@@ -425,7 +436,7 @@ fn evidence_against_a_stretch_brings_the_probe_forward() {
     assert_eq!((a.decided, a.cut, passes), ([6, 0], 0, 6 * 8 + 376 * w));
     // a preempted helper in one window, then in two windows apart: no cut
     let mut n = 0;
-    let r = drive_with_evidence(&mut a, 8 + 10 * w, fast_team, |_| {
+    let r = drive_with_evidence(&mut a, 8 + 10 * w, fast_team, &yes, |_| {
         n += 1;
         n == 2 || n == 5 || n == 7
     });
@@ -433,10 +444,10 @@ fn evidence_against_a_stretch_brings_the_probe_forward() {
     assert_eq!(a.cut, 0);
     // in two windows in a row: the stretch ends after the second, and
     // the next pass starts a probe (team, alone, alone, team)
-    let mut a = Adapt::new(w as u32);
-    drive_with_evidence(&mut a, 8, fast_team, |_| false);
+    let mut a = Adapt::new(w as u32, true);
+    drive_with_evidence(&mut a, 8, fast_team, &yes, |_| false);
     let seen = std::cell::Cell::new(0);
-    let r = drive_with_evidence(&mut a, 3 * w + 9, fast_team, |alone| {
+    let r = drive_with_evidence(&mut a, 3 * w + 9, fast_team, &yes, |alone| {
         assert!(!alone, "evidence is asked in the team's stretch only here");
         seen.set(seen.get() + 1);
         seen.get() >= 2
@@ -447,17 +458,78 @@ fn evidence_against_a_stretch_brings_the_probe_forward() {
     assert_eq!(modes[3 * w..3 * w + 8], probe);
     // the probe still decides: the team is faster, so it stays
     assert_eq!(a.decided, [2, 0]);
-    // alone (a busy machine) with a core found free twice in a row: the
-    // stretch ends and the helper is woken on its last pass
-    let mut b = Adapt::new(w as u32);
+    // alone, chosen while no core was free (a busy machine), with a core
+    // found free twice in a row: the stretch ends and the helper is woken
+    // on its last pass
+    let mut b = Adapt::new(w as u32, true);
     let slow_team = |alone: bool| if alone { 100 } else { 300 };
-    drive_with_evidence(&mut b, 8, slow_team, |_| false);
-    let r = drive_with_evidence(&mut b, 2 * w + 1, slow_team, |alone| alone);
+    let no = std::cell::Cell::new(false);
+    // the probe's windows, then its decision on the stretch's first pass
+    drive_with_evidence(&mut b, 8 + 1, slow_team, &no, |_| false);
     assert_eq!(b.decided, [0, 1]);
+    assert!(b.busy);
+    let r = drive_with_evidence(&mut b, 2 * w, slow_team, &yes, |alone| alone);
     assert_eq!(b.cut, 1);
+    assert!(r[..2 * w - 1].iter().all(|x| x.0));
+    assert!(r[2 * w - 2].1, "helper woken on the stretch's last pass");
+    assert!(
+        !r[2 * w - 1].0,
+        "the probe's first window runs with the helper"
+    );
+}
+
+/// A team opened with no core free runs alone without probing while
+/// none is (its stretches doubling up to EXPLOIT_MAX, the probes counted
+/// as skipped); a core found free in DOUBT_WINDOWS windows in a row
+/// brings the probe; a choice of one thread made while a core was free
+/// (the team slower on an idle machine) is cut short by free cores only
+/// until a second probe confirms it, and its stretch then ends in a
+/// probe.
+#[test]
+fn no_core_free_skips_the_probes() {
+    let w = 3usize;
+    let team_fast = |alone: bool| if alone { 200 } else { 100 };
+    let (no, yes) = (std::cell::Cell::new(false), std::cell::Cell::new(true));
+    let mut a = Adapt::new(w as u32, false);
+    assert!(a.busy && a.skipped == 1);
+    // 8 + 16 + 32 + 64 + 128 + 128 windows, all alone
+    let r = drive_with_evidence(&mut a, 376 * w, team_fast, &no, |_| false);
+    assert!(r.iter().all(|&(alone, wake)| alone && !wake));
+    assert_eq!((a.decided, a.skipped, a.exploit), ([0, 0], 7, EXPLOIT_MAX));
+    assert_eq!(a.last_ratio, None);
+    // a core free from now on: two windows later the probe starts
+    // (team, alone, alone, team) and chooses the faster team
+    let r = drive_with_evidence(&mut a, 2 * w + 4 * w + 1, team_fast, &yes, |alone| alone);
+    assert_eq!(a.cut, 1);
     assert!(r[..2 * w].iter().all(|x| x.0));
-    assert!(r[2 * w - 1].1, "helper woken on the stretch's last pass");
-    assert!(!r[2 * w].0, "the probe's first window runs with the helper");
+    assert!(r[2 * w - 1].1, "helper woken for the probe");
+    let modes: Vec<bool> = r[2 * w..6 * w].iter().map(|x| x.0).collect();
+    let probe: Vec<bool> = [false, true, true, false]
+        .iter()
+        .flat_map(|&m| std::iter::repeat_n(m, w))
+        .collect();
+    assert_eq!(modes, probe);
+    assert_eq!(a.decided, [1, 0]);
+    assert!(!r[6 * w].0 && !a.busy);
+    // an idle machine where one thread is faster: a first choice of one
+    // thread is doubted by free cores (the stretch cut after two
+    // windows); once a second probe confirms it, free cores are no
+    // evidence, and the stretch (twice EXPLOIT_MIN windows) ends in a
+    // probe
+    let mut b = Adapt::new(w as u32, true);
+    let team_slow = |alone: bool| if alone { 100 } else { 300 };
+    drive_with_evidence(&mut b, 4 * w + 1, team_slow, &yes, |alone| alone);
+    assert!(b.busy && b.decided == [0, 1]);
+    // the rest of the two windows, the probe, the decision
+    drive_with_evidence(&mut b, 2 * w - 1 + 4 * w + 1, team_slow, &yes, |alone| {
+        alone
+    });
+    assert_eq!(b.cut, 1);
+    assert!(!b.busy && b.decided == [0, 2]);
+    let r = drive_with_evidence(&mut b, 16 * w, team_slow, &yes, |alone| alone);
+    assert_eq!((b.cut, b.skipped), (1, 0));
+    assert!(r[..16 * w - 1].iter().all(|x| x.0));
+    assert!(!r[16 * w - 1].0, "the next probe's first window");
 }
 
 /// The runnable-task count of `/proc/loadavg` lines.
