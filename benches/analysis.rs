@@ -17,6 +17,10 @@
 //! The falling rod of problem B is not a case here: a free rod under
 //! gravity has no static equilibrium (docs/analyses.md).
 
+#[path = "../examples/common/mod.rs"]
+mod common;
+
+use common::thread_cpu;
 use criterion::{criterion_group, BenchmarkId, Criterion};
 use mbsolve::analysis::{
     eigenmodes, static_equilibrium, Equilibrium, ModeOptions, StaticOptions, Tangent,
@@ -66,20 +70,6 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-
-/// CPU time of the calling thread \[s\] (`CLOCK_THREAD_CPUTIME_ID`,
-/// nanoseconds: other processes' time and the 10 ms tick of the process
-/// clock do not enter).
-fn thread_cpu() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
-    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
-}
 
 /// Appends the thread CPU time of each of `reps` calls of `f` to `out`.
 fn sample(out: &mut Vec<f64>, reps: usize, mut f: impl FnMut()) {

@@ -20,20 +20,11 @@
 //! set `MBSOLVE_ONCE=1`: one call per N, whose instruction count is the
 //! measure there.
 
+mod common;
+
+use common::thread_cpu;
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
 use mbsolve::builders::stiff_chain;
-
-/// CPU time of the calling thread \[s\] (`CLOCK_THREAD_CPUTIME_ID`).
-fn thread_cpu() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
-    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
-}
 
 /// Minor page faults of the calling thread so far (`RUSAGE_THREAD`).
 fn minor_faults() -> i64 {

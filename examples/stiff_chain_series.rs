@@ -9,7 +9,7 @@
 //! `DT`: output interval \[s\]; `REF` and each `SPEC`: radau5 as
 //! `f:H[:TOL]` (fixed step H, `newton_tol` TOL), `a:RTOL[:TOL]` (adaptive,
 //! `atol` = 1e-3·rtol) or ode45 as `e:RTOL`. The reference `f:2.5e-5:1e-4`
-//! agrees with `f:1.25e-5:1e-4` to 2e-9 m at N = 1000. `DUMP_REF=path`
+//! (its agreement with `f:1.25e-5:1e-4`: docs/radau.md). `DUMP_REF=path`
 //! writes the reference's tip x per row as a JSON array (for
 //! `benches/peers/exudyn_tip_series.py`). `MBS_T_END` (s, default 0.1).
 

@@ -2,6 +2,7 @@
 
 /// CPU seconds of this process (user + system, from /proc; 0 elsewhere):
 /// fields 14 and 15 of `/proc/self/stat`, in clock ticks of 10 ms.
+#[allow(dead_code)] // not every example that includes this module reads it
 pub fn cpu_seconds() -> f64 {
     let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
         return 0.0;
@@ -27,4 +28,19 @@ pub fn in_pool<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) ->
         b = b.num_threads(t);
     }
     b.build().expect("a thread pool").install(f)
+}
+
+/// CPU time of the calling thread \[s\] (`CLOCK_THREAD_CPUTIME_ID`,
+/// nanoseconds: other processes' time and the 10 ms tick of the process
+/// clock do not enter).
+#[allow(dead_code)] // not every example that includes this module reads it
+pub fn thread_cpu() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID)");
+    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
 }
