@@ -7,6 +7,8 @@
 use super::{all_finite, FormulationError};
 use crate::linalg::{APattern, SaddleMatrix, Storage, Symmetry};
 use crate::model::{FdWorkspace, System};
+use crate::parallel::{split_pass, PARALLEL_MIN_COORDS};
+use std::sync::OnceLock;
 
 /// Ids of the registered blocks and the buffers of their values.
 pub(crate) struct DynamicBlocks {
@@ -31,6 +33,44 @@ pub(crate) struct DynamicBlocks {
     /// touching a controller state once [`Self::decouple_states`] was
     /// called (a `StateBorder` keeps them exactly), else none.
     skip: Vec<bool>,
+    /// The assembly of [`Self::write_with_jacobian`] in two halves of the
+    /// value array (symmetric storage from [`PARALLEL_MIN_COORDS`]
+    /// coordinates on), made at its first call; `None` where it does not
+    /// apply.
+    plan: OnceLock<Option<HalfPlan>>,
+}
+
+/// The additions of [`DynamicBlocks::write`] and
+/// [`SaddleMatrix::set_jacobian`] into the values of a symmetric matrix,
+/// sorted into the two halves of its value array (`values[..cut]`,
+/// `values[cut..]`, `cut = nnz / 2`: the cut of
+/// [`split_pass`](crate::parallel::split_pass)). Each half lists the
+/// additions to its slots in the order the one-piece assembly makes them
+/// (diagonal, force Jacobians, their reciprocal parts, Hessians, Φ_q), so
+/// every slot receives the same operations in the same order: the same
+/// bits on one thread or two.
+struct HalfPlan {
+    /// Number of values of the matrix it was made for.
+    nnz: usize,
+    /// Dimension of that matrix.
+    dim: usize,
+    halves: [HalfOps; 2],
+}
+
+/// One half's additions: `(source index, slot, weight)` per block
+/// (the slot counted from the half's first value).
+#[derive(Default)]
+struct HalfOps {
+    /// Coordinate `i`: `c_m M_ii`.
+    diag: Vec<(usize, usize)>,
+    /// Force-Jacobian entry `e` (not skipped).
+    force: Vec<(usize, usize, f64)>,
+    /// Coordinate pair `p` of the reciprocal part (through its first entry).
+    skew: Vec<(usize, usize, f64)>,
+    /// Hessian entry `e`.
+    hess: Vec<(usize, usize, f64)>,
+    /// Φ_q entry `e`.
+    jac: Vec<(usize, usize)>,
 }
 
 impl DynamicBlocks {
@@ -50,6 +90,7 @@ impl DynamicBlocks {
             skew_ptr: Vec::new(),
             skew_ent: Vec::new(),
             skip: vec![false; n_force],
+            plan: OnceLock::new(),
         };
         blocks.pairs(sys);
         blocks
@@ -65,6 +106,7 @@ impl DynamicBlocks {
             *s = i >= nb || j >= nb;
         }
         self.pairs(sys);
+        self.plan = OnceLock::new();
     }
 
     /// The off-diagonal pairs of the force-Jacobian pattern, without the
@@ -217,6 +259,151 @@ impl DynamicBlocks {
             for (e, &h) in self.hess_vals.iter().enumerate() {
                 k.add_a(self.hess_first + e, c_k * h);
             }
+        }
+    }
+}
+
+impl DynamicBlocks {
+    /// [`Self::evaluate`], then [`Self::write_with_jacobian`] with `Φ_q`
+    /// from `jac`: [`Self::assemble`] followed by
+    /// [`SaddleMatrix::set_jacobian`], the same values.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn assemble_with_jacobian(
+        &mut self,
+        sys: &System,
+        k: &mut SaddleMatrix,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lam: &[f64],
+        [c_m, c_c, c_k]: [f64; 3],
+        jac: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        self.evaluate(
+            sys,
+            t,
+            q,
+            qd,
+            lam,
+            c_c != 0.0 || c_k != 0.0,
+            c_k != 0.0,
+            jac,
+        )?;
+        self.write_with_jacobian(sys, k, [c_m, c_c, c_k], jac);
+        Ok(())
+    }
+
+    /// [`Self::write`] and then `k.set_jacobian(jac)`: the same bits, in
+    /// two concurrent halves of `k`'s values ([`HalfPlan`],
+    /// [`split_pass`]) for a symmetric matrix of at least
+    /// [`PARALLEL_MIN_COORDS`] coordinates, else in one piece. Every `k`
+    /// given to one `DynamicBlocks` must have the pattern its blocks were
+    /// registered into (a plan made for another number of values is not
+    /// used).
+    pub(crate) fn write_with_jacobian(
+        &self,
+        sys: &System,
+        k: &mut SaddleMatrix,
+        c: [f64; 3],
+        jac: &[f64],
+    ) {
+        let plan = self.plan.get_or_init(|| self.half_plan(sys, k)).as_ref();
+        match plan {
+            Some(p) if p.nnz == k.nnz() && p.dim == k.dim() => {
+                let nnz = k.nnz();
+                let apply = |base: usize, v: &mut [f64]| self.apply(p, base, v, sys, c, jac);
+                split_pass(true, nnz, k.values_mut(), apply, |(), ()| ());
+            }
+            _ => {
+                self.write(sys, k, c);
+                k.set_jacobian(jac);
+            }
+        }
+    }
+
+    /// The additions of [`Self::write_with_jacobian`] sorted into the
+    /// halves of `k`'s values, or `None` (full storage, or fewer than
+    /// [`PARALLEL_MIN_COORDS`] coordinates).
+    fn half_plan(&self, sys: &System, k: &SaddleMatrix) -> Option<HalfPlan> {
+        if k.storage() != Storage::SymmetricLower || k.n() < PARALLEL_MIN_COORDS {
+            return None;
+        }
+        let cut = k.nnz() / 2;
+        let side = |slot: usize| (usize::from(slot >= cut), slot - if slot >= cut { cut } else { 0 });
+        let mut halves: [HalfOps; 2] = Default::default();
+        for i in 0..sys.mass_diagonal().len() {
+            let (h, s) = side(k.diag_slots()[i]);
+            halves[h].diag.push((i, s));
+        }
+        let a = |id: usize| {
+            let (slot, slot_t, w) = k.a_entry(id);
+            debug_assert_eq!(slot_t, usize::MAX, "symmetric storage has one slot");
+            let (h, s) = side(slot);
+            (h, s, w)
+        };
+        for e in 0..self.dq.len() {
+            if !self.skip[e] {
+                let (h, s, w) = a(self.force_first + e);
+                halves[h].force.push((e, s, w));
+            }
+        }
+        for (p, &first) in self.skew_first.iter().enumerate() {
+            let (h, s, w) = a(self.force_first + first);
+            halves[h].skew.push((p, s, w));
+        }
+        for e in 0..self.hess_vals.len() {
+            let (h, s, w) = a(self.hess_first + e);
+            halves[h].hess.push((e, s, w));
+        }
+        for (e, &slot) in k.jac_slots().iter().enumerate() {
+            let (h, s) = side(slot);
+            halves[h].jac.push((e, s));
+        }
+        Some(HalfPlan {
+            nnz: k.nnz(),
+            dim: k.dim(),
+            halves,
+        })
+    }
+
+    /// One half of [`Self::write_with_jacobian`]: `v` = the values from
+    /// index `base` (0: the low half), zeroed, then its additions in the
+    /// one-piece order ([`Self::write`], [`SaddleMatrix::set_jacobian`]).
+    fn apply(
+        &self,
+        p: &HalfPlan,
+        base: usize,
+        v: &mut [f64],
+        sys: &System,
+        [c_m, c_c, c_k]: [f64; 3],
+        jac: &[f64],
+    ) {
+        let ops = &p.halves[usize::from(base > 0)];
+        v.fill(0.0);
+        let mass = sys.mass_diagonal();
+        for &(i, s) in &ops.diag {
+            v[s] += c_m * mass[i];
+        }
+        if c_c != 0.0 || c_k != 0.0 {
+            for &(e, s, w) in &ops.force {
+                v[s] += w * -(c_c * self.dqd[e] + c_k * self.dq[e]);
+            }
+            for &(pair, s, w) in &ops.skew {
+                let ents = &self.skew_ent[self.skew_ptr[pair]..self.skew_ptr[pair + 1]];
+                let dq = reciprocal_correction(ents, &self.dq);
+                let dqd = reciprocal_correction(ents, &self.dqd);
+                if dq != 0.0 || dqd != 0.0 {
+                    v[s] += w * (-2.0 * (c_c * dqd + c_k * dq));
+                }
+            }
+        }
+        if c_k != 0.0 {
+            for &(e, s, w) in &ops.hess {
+                v[s] += w * (c_k * self.hess_vals[e]);
+            }
+        }
+        for &(e, s) in &ops.jac {
+            v[s] += jac[e];
         }
     }
 }

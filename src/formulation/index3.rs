@@ -457,7 +457,8 @@ impl<'a> Index3<'a> {
         let sys = self.sys;
         self.stats.jacobians += 1;
         finite_state(t, q, qd)?;
-        self.blocks.assemble(
+        // the A block and Φ_q, in two halves of the values for large n
+        self.blocks.assemble_with_jacobian(
             sys,
             &mut self.k,
             t,
@@ -467,7 +468,6 @@ impl<'a> Index3<'a> {
             [c_m, c_c, c_k],
             &mut self.jac,
         )?;
-        self.k.set_jacobian(&self.jac);
         self.solver.factorize(&self.k).map_err(linear_at(t))?;
         if let Some(b) = &mut self.border {
             let c = [c_m, c_c, c_k];

@@ -107,10 +107,11 @@ impl ChainPath {
     ) -> Result<(), FormulationError> {
         self.blocks
             .evaluate(sys, t, q, qd, lambda, true, true, &mut self.jac)?;
-        self.blocks.write(sys, &mut self.kr, [c0[0], c1[0], c2[0]]);
-        self.kr.set_jacobian(&self.jac);
-        self.blocks.write(sys, &mut self.ki, [c0[1], c1[1], c2[1]]);
-        self.ki.set_jacobian(&self.zeros);
+        // each in two halves of its values for large n (same pattern)
+        self.blocks
+            .write_with_jacobian(sys, &mut self.kr, [c0[0], c1[0], c2[0]], &self.jac);
+        self.blocks
+            .write_with_jacobian(sys, &mut self.ki, [c0[1], c1[1], c2[1]], &self.zeros);
         self.ldlt
             .factorize(&self.kr, &self.ki)
             .map_err(linear_at(t))?;

@@ -258,6 +258,18 @@ impl SaddleMatrix {
     pub fn a_slots(&self) -> &[usize] {
         &self.a_slots
     }
+    /// Where the registered `A` entry `id` is added ([`Self::add_a`]):
+    /// `(slot, slot_t, weight)`, `slot_t` = `usize::MAX` when there is no
+    /// second slot (always in symmetric storage).
+    pub(crate) fn a_entry(&self, id: usize) -> (usize, usize, f64) {
+        let s = self.a_map[id];
+        (s.slot, s.slot_t, s.weight)
+    }
+    /// Slots of the Φ_q entries, in the order of `jac_pattern`
+    /// ([`Self::set_jacobian`]; in full storage also `jac_slots_t`).
+    pub(crate) fn jac_slots(&self) -> &[usize] {
+        &self.jac_slots
+    }
     /// Number of stored entries.
     pub fn nnz(&self) -> usize {
         self.pattern.row_idx.len()

@@ -1,5 +1,5 @@
 //! Concurrency of one run: the size thresholds from which passes split
-//! into two concurrent halves, `join_if` and `in_halves` that run
+//! into two concurrent halves, `join_if` and `split_pass` (`in_halves`) that run
 //! them, the run's two-thread team (`team`) and the user's switch
 //! ([`Threads`], scenario key `integrator.threads`, environment variable
 //! [`THREADS_ENV`]).
@@ -157,6 +157,79 @@ pub(crate) fn concurrent() -> bool {
     team::concurrent()
 }
 
+/// Data an element-wise pass splits into two halves at an element index
+/// ([`split_pass`]): slices, arrays and tuples of them, all cut at the same
+/// `k` (each component must have at least `k` elements).
+pub(crate) trait Halve: Sized {
+    /// The first `k` elements and the rest (no allocation).
+    fn halve(self, k: usize) -> (Self, Self);
+}
+
+impl<T> Halve for &mut [T] {
+    fn halve(self, k: usize) -> (Self, Self) {
+        self.split_at_mut(k)
+    }
+}
+
+impl<T> Halve for &[T] {
+    fn halve(self, k: usize) -> (Self, Self) {
+        self.split_at(k)
+    }
+}
+
+impl<H: Halve, const N: usize> Halve for [H; N] {
+    fn halve(self, k: usize) -> (Self, Self) {
+        let mut parts = self.map(|h| {
+            let (a, b) = h.halve(k);
+            (Some(a), Some(b))
+        });
+        let lo = std::array::from_fn(|i| parts[i].0.take().expect("each half taken once"));
+        let hi = std::array::from_fn(|i| parts[i].1.take().expect("each half taken once"));
+        (lo, hi)
+    }
+}
+
+macro_rules! halve_tuple {
+    ($($t:ident $v:ident $a:ident $b:ident),+) => {
+        impl<$($t: Halve),+> Halve for ($($t,)+) {
+            fn halve(self, k: usize) -> (Self, Self) {
+                let ($($v,)+) = self;
+                $(let ($a, $b) = $v.halve(k);)+
+                (($($a,)+), ($($b,)+))
+            }
+        }
+    };
+}
+halve_tuple!(A a a0 a1);
+halve_tuple!(A a a0 a1, B b b0 b1);
+halve_tuple!(A a a0 a1, B b b0 b1, C c c0 c1);
+halve_tuple!(A a a0 a1, B b b0 b1, C c c0 c1, D d d0 d1);
+halve_tuple!(A a a0 a1, B b b0 b1, C c c0 c1, D d d0 d1, E e e0 e1);
+
+/// The one helper for element-wise passes over two halves: `f(base, d)`
+/// on the whole data `d` (elements `0 .. len`, `base` = 0), or with
+/// `parallel` on its two halves (cut at `len / 2`, fixed by the length,
+/// never by the thread count; `base` = the half's first element index)
+/// through [`join_if`], the two results merged by `merge(low, high)`. Each
+/// half is sequential inside and writes only its own elements, so with an
+/// order-free merge (max, and, unit) the results do not depend on
+/// `parallel` or on the thread count.
+pub(crate) fn split_pass<D: Halve + Send, T: Send>(
+    parallel: bool,
+    len: usize,
+    d: D,
+    f: impl Fn(usize, D) -> T + Sync,
+    merge: impl FnOnce(T, T) -> T,
+) -> T {
+    if !parallel {
+        return f(0, d);
+    }
+    let k = len / 2;
+    let (lo, hi) = d.halve(k);
+    let (a, b) = join_if(true, || f(0, lo), || f(k, hi));
+    merge(a, b)
+}
+
 /// The coordinate slices an element-wise pass over coordinates
 /// `base .. base + len` writes (`w`) and reads (`r`), all of length `len`:
 /// what [`in_halves`] splits.
@@ -167,33 +240,28 @@ pub(crate) struct Slices<'a, const W: usize, const R: usize> {
     pub r: [&'a [f64]; R],
 }
 
-impl<'a, const W: usize, const R: usize> Slices<'a, W, R> {
-    /// The first `k` coordinates and the rest (no allocation).
-    fn split(self, k: usize) -> (Self, Self) {
-        let mut w = self.w.map(|s| {
-            let (a, b) = s.split_at_mut(k);
-            (Some(a), Some(b))
-        });
-        let r = self.r.map(|s| s.split_at(k));
+impl<const W: usize, const R: usize> Halve for Slices<'_, W, R> {
+    fn halve(self, k: usize) -> (Self, Self) {
+        let (w0, w1) = self.w.halve(k);
+        let (r0, r1) = self.r.halve(k);
         let lo = Slices {
             base: self.base,
-            w: std::array::from_fn(|i| w[i].0.take().expect("each half taken once")),
-            r: std::array::from_fn(|i| r[i].0),
+            w: w0,
+            r: r0,
         };
         let hi = Slices {
             base: self.base + k,
-            w: std::array::from_fn(|i| w[i].1.take().expect("each half taken once")),
-            r: std::array::from_fn(|i| r[i].1),
+            w: w1,
+            r: r1,
         };
         (lo, hi)
     }
 }
 
 /// An element-wise pass `f` over `s` (of `len` coordinates): whole, or
-/// with `parallel` on its two halves (split at `len / 2`, fixed by the
-/// length) through [`join_if`], the two results merged by `merge`. With an
-/// order-free merge (max, and) the results do not depend on `parallel` or
-/// the thread count.
+/// with `parallel` on its two halves ([`split_pass`]), the two results
+/// merged by `merge`. With an order-free merge (max, and) the results do
+/// not depend on `parallel` or the thread count.
 pub(crate) fn in_halves<const W: usize, const R: usize, T: Send>(
     parallel: bool,
     len: usize,
@@ -201,10 +269,5 @@ pub(crate) fn in_halves<const W: usize, const R: usize, T: Send>(
     f: impl Fn(Slices<'_, W, R>) -> T + Sync,
     merge: impl FnOnce(T, T) -> T,
 ) -> T {
-    if !parallel {
-        return f(s);
-    }
-    let (lo, hi) = s.split(len / 2);
-    let (a, b) = join_if(true, || f(lo), || f(hi));
-    merge(a, b)
+    split_pass(parallel, len, s, |_, s| f(s), merge)
 }

@@ -4,6 +4,7 @@
 //! [`Convergence`](super::super::implicit::Convergence) test.
 
 use super::*;
+use crate::parallel::{split_pass, PARALLEL_MIN_COORDS};
 
 /// The rate estimate of an attempt's first correction from the last one
 /// kept, `max(η, ε)^0.8` (RADAU5's `FACCON`).
@@ -57,21 +58,25 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let (n, m) = (self.n, self.m);
         let tab = self.tab.stages();
         // predictor: the previous step's stage polynomials extrapolated
+        // (element-wise: in two halves concurrently for large n)
+        let par = n >= PARALLEL_MIN_COORDS;
         match self.h_prev {
             Some(hp) => {
-                for i in 0..S {
-                    let w = self.tab.basis(1.0 + tab.c[i] * h / hp);
-                    for (out, prev) in [
-                        (&mut self.a[i], &self.a_prev),
-                        (&mut self.l[i], &self.l_prev),
-                    ] {
-                        let len = out.len();
-                        let p: [&[f64]; S] = std::array::from_fn(|j| &prev[j][..len]);
-                        for k in 0..len {
-                            out[k] = dot(&w, |j| p[j][k]);
+                let w: [[f64; S]; S] =
+                    std::array::from_fn(|i| self.tab.basis(1.0 + tab.c[i] * h / hp));
+                let extrapolate = |_: usize, (out, p): ([&mut [f64]; S], [&[f64]; S])| {
+                    for (out, w) in out.into_iter().zip(&w) {
+                        for (k, o) in out.iter_mut().enumerate() {
+                            *o = dot(w, |j| p[j][k]);
                         }
                     }
-                }
+                };
+                let a_prev: [&[f64]; S] = std::array::from_fn(|j| &self.a_prev[j][..n]);
+                let a = self.a.each_mut().map(|a| &mut a[..n]);
+                split_pass(par, n, (a, a_prev), extrapolate, |(), ()| ());
+                let l_prev: [&[f64]; S] = std::array::from_fn(|j| &self.l_prev[j][..m]);
+                let l = self.l.each_mut().map(|l| &mut l[..m]);
+                split_pass(par, m, (l, l_prev), extrapolate, |(), ()| ());
             }
             None => {
                 for i in 0..S {
@@ -143,21 +148,25 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             {
                 let len = n + m;
                 let r: [&[f64]; S] = std::array::from_fn(|i| &self.r[i][..len]);
-                let mut x: [&mut [f64]; S] = self.x.each_mut().map(|x| &mut x[..len]);
-                for k in 0..len {
-                    let rk: [f64; S] = std::array::from_fn(|i| r[i][k]);
-                    for (xj, tj) in x.iter_mut().zip(ti) {
-                        xj[k] = -dot(tj, |i| rk[i]);
+                let x: [&mut [f64]; S] = self.x.each_mut().map(|x| &mut x[..len]);
+                let inv_d = &inv_d;
+                let transform = |base: usize, (mut x, r): ([&mut [f64]; S], [&[f64]; S])| {
+                    for k in 0..r[0].len() {
+                        let rk: [f64; S] = std::array::from_fn(|i| r[i][k]);
+                        for (xj, tj) in x.iter_mut().zip(ti) {
+                            xj[k] = -dot(tj, |i| rk[i]);
+                        }
+                        if base + k >= n {
+                            x[0][k] *= inv_g;
+                            for (p, d) in inv_d.iter().enumerate() {
+                                let z = cmul([x[1 + 2 * p][k], x[2 + 2 * p][k]], *d);
+                                x[1 + 2 * p][k] = z[0];
+                                x[2 + 2 * p][k] = z[1];
+                            }
+                        }
                     }
-                }
-                for k in n..len {
-                    x[0][k] *= inv_g;
-                    for (p, d) in inv_d.iter().enumerate() {
-                        let z = cmul([x[1 + 2 * p][k], x[2 + 2 * p][k]], *d);
-                        x[1 + 2 * p][k] = z[0];
-                        x[2 + 2 * p][k] = z[1];
-                    }
-                }
+                };
+                split_pass(par, len, (x, r), transform, |(), ()| ());
             }
             {
                 let (x0, rest) = self.x.split_at_mut(1);
@@ -171,45 +180,55 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             its += 1;
             // back-transform, update, norm of the position-equivalent corrections
             let tt = &tab.t;
-            let mut dnorm = 0.0_f64;
-            {
-                let x: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][..n + m]);
+            let dnorm = {
+                let x: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][..n]);
                 let av: [&mut [f64]; S] = self.a.each_mut().map(|a| &mut a[..n]);
                 let q = &self.q[..n];
                 // the largest stage correction of each coordinate, then one
-                // division (both monotone: the same max as dividing each)
-                for k in 0..n {
-                    let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
-                    let d: [f64; S] = std::array::from_fn(|i| dot(&tt[i], |j| y[j]));
-                    let mut big = (h * h * d[0]).abs();
-                    av[0][k] += d[0];
-                    for i in 1..S {
-                        av[i][k] += d[i];
-                        big = big.max((h * h * d[i]).abs());
+                // division (both monotone: the same max as dividing each);
+                // in two halves concurrently for large n (max: order-free)
+                let update = |base: usize, (av, x, q): ([&mut [f64]; S], [&[f64]; S], &[f64])| {
+                    let mut dnorm = 0.0_f64;
+                    for k in 0..q.len() {
+                        let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
+                        let d: [f64; S] = std::array::from_fn(|i| dot(&tt[i], |j| y[j]));
+                        let mut big = (h * h * d[0]).abs();
+                        av[0][k] += d[0];
+                        for i in 1..S {
+                            av[i][k] += d[i];
+                            big = big.max((h * h * d[i]).abs());
+                        }
+                        let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
+                        let mut ratio = big / (tol_q + floor);
+                        if adaptive {
+                            // RADAU5's test on the stage position corrections
+                            // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
+                            let dq = |i: usize| (h * h * dot(&a2w[i], |j| d[j])).abs();
+                            let big_q = (1..S).fold(dq(0), |b, i| b.max(dq(i)));
+                            let atol = match &ode.atol {
+                                Tolerance::Scalar(a) => *a,
+                                Tolerance::Vector(v) => v[base + k],
+                            };
+                            ratio = ratio.min(big_q / (fa * atol + fr * q[k].abs() + floor));
+                        }
+                        dnorm = dnorm.max(ratio);
                     }
-                    let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
-                    let mut ratio = big / (tol_q + floor);
-                    if adaptive {
-                        // RADAU5's test on the stage position corrections
-                        // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
-                        let dq = |i: usize| (h * h * dot(&a2w[i], |j| d[j])).abs();
-                        let big_q = (1..S).fold(dq(0), |b, i| b.max(dq(i)));
-                        let atol = match &ode.atol {
-                            Tolerance::Scalar(a) => *a,
-                            Tolerance::Vector(v) => v[k],
-                        };
-                        ratio = ratio.min(big_q / (fa * atol + fr * q[k].abs() + floor));
+                    dnorm
+                };
+                let dnorm = split_pass(par, n, (av, x, q), update, f64::max);
+                let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);
+                let lv: [&mut [f64]; S] = self.l.each_mut().map(|l| &mut l[..m]);
+                let update_l = |_: usize, (mut lv, xl): ([&mut [f64]; S], [&[f64]; S])| {
+                    for k in 0..xl[0].len() {
+                        let y: [f64; S] = std::array::from_fn(|j| xl[j][k]);
+                        for (li, ti) in lv.iter_mut().zip(tt) {
+                            li[k] += dot(ti, |j| y[j]);
+                        }
                     }
-                    dnorm = dnorm.max(ratio);
-                }
-                let mut lv: [&mut [f64]; S] = self.l.each_mut().map(|l| &mut l[..m]);
-                for k in 0..m {
-                    let y: [f64; S] = std::array::from_fn(|j| x[j][n + k]);
-                    for (li, ti) in lv.iter_mut().zip(tt) {
-                        li[k] += dot(ti, |j| y[j]);
-                    }
-                }
-            }
+                };
+                split_pass(par, m, (lv, xl), update_l, |(), ()| ());
+                dnorm
+            };
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
