@@ -329,7 +329,12 @@ impl DynamicBlocks {
             return None;
         }
         let cut = k.nnz() / 2;
-        let side = |slot: usize| (usize::from(slot >= cut), slot - if slot >= cut { cut } else { 0 });
+        let side = |slot: usize| {
+            (
+                usize::from(slot >= cut),
+                slot - if slot >= cut { cut } else { 0 },
+            )
+        };
         let mut halves: [HalfOps; 2] = Default::default();
         for i in 0..sys.mass_diagonal().len() {
             let (h, s) = side(k.diag_slots()[i]);
@@ -472,4 +477,74 @@ fn reciprocal_correction(ents: &[(usize, bool)], vals: &[f64]) -> f64 {
         0.0
     };
     r - 0.5 * (a + b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builders::stiff_chain;
+
+    /// [`DynamicBlocks::write_with_jacobian`] in its two halves (on two
+    /// threads of a pool) writes the bits of [`DynamicBlocks::write`] and
+    /// [`SaddleMatrix::set_jacobian`] in one piece, for each combination of
+    /// blocks, with unsymmetric force Jacobians (every coordinate pair gets
+    /// a reciprocal correction) and over stale values.
+    #[test]
+    fn halves_write_the_one_piece_bits() {
+        let (sys, q0, qd0, _) = stiff_chain(2100, 0.1).unwrap();
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        assert!(n >= PARALLEL_MIN_COORDS);
+        let mut a = APattern::new();
+        let mut blocks = DynamicBlocks::register(&sys, &mut a);
+        let jp = sys.jacobian_pattern();
+        let k0 = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
+        let mut seed = 12345u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let q: Vec<f64> = q0.iter().map(|x| x + 1e-3 * rnd()).collect();
+        let qd: Vec<f64> = qd0.iter().map(|x| x + rnd()).collect();
+        let lam: Vec<f64> = (0..m).map(|_| 1e3 * rnd()).collect();
+        let mut jac = vec![0.0; jp.len()];
+        blocks
+            .evaluate(&sys, 0.0, &q, &qd, &lam, true, true, &mut jac)
+            .unwrap();
+        for v in blocks.dq.iter_mut().chain(blocks.dqd.iter_mut()) {
+            *v += 1e4 * rnd();
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for c in [[1.3, 2e-3, 4e-6], [1.0, 0.0, 0.0], [0.7, 5e-3, 0.0]] {
+            let (mut one, mut two) = (k0.clone(), k0.clone());
+            one.values_mut().fill(f64::NAN);
+            two.values_mut().fill(-7.0);
+            blocks.write(&sys, &mut one, c);
+            one.set_jacobian(&jac);
+            pool.install(|| blocks.write_with_jacobian(&sys, &mut two, c, &jac));
+            let same = one
+                .values()
+                .iter()
+                .zip(two.values())
+                .all(|(x, y)| x.to_bits() == y.to_bits());
+            assert!(same, "coefficients {c:?}");
+            assert!(one.values().iter().all(|v| v.is_finite()));
+        }
+        // the halves were used, each with a share of every block
+        let p = blocks.plan.get().unwrap().as_ref().unwrap();
+        for h in &p.halves {
+            assert!(!h.diag.is_empty() && !h.force.is_empty() && !h.skew.is_empty());
+            assert!(!h.hess.is_empty() && !h.jac.is_empty());
+        }
+        // the reciprocal corrections are not all zero (the test sees them)
+        let corrected = (0..blocks.skew_first.len()).any(|p| {
+            let ents = &blocks.skew_ent[blocks.skew_ptr[p]..blocks.skew_ptr[p + 1]];
+            reciprocal_correction(ents, &blocks.dq) != 0.0
+        });
+        assert!(corrected);
+    }
 }

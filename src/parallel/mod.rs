@@ -271,3 +271,52 @@ pub(crate) fn in_halves<const W: usize, const R: usize, T: Send>(
 ) -> T {
     split_pass(parallel, len, s, |_, s| f(s), merge)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`split_pass`] over a tuple of an array of written slices and a
+    /// read slice, on two threads of a pool: each half sees its own
+    /// elements with its global base index, writes only them, and the
+    /// merged result and every written bit equal the pass in one piece.
+    #[test]
+    fn split_pass_halves_match_one_piece() {
+        let len = 1001;
+        let src: Vec<f64> = (0..len).map(|i| (i as f64 * 0.37).sin()).collect();
+        let pass = |base: usize, (out, x): ([&mut [f64]; 2], &[f64])| {
+            let [a, b] = out;
+            let mut big = 0.0_f64;
+            for k in 0..x.len() {
+                a[k] = x[k] * (base + k) as f64;
+                b[k] = x[k].exp();
+                big = big.max(a[k].abs());
+            }
+            (big, x.len())
+        };
+        let run = |parallel: bool| {
+            let (mut a, mut b) = (vec![0.0; len], vec![0.0; len]);
+            let r = split_pass(
+                parallel,
+                len,
+                ([&mut a[..], &mut b[..]], &src[..]),
+                pass,
+                |(m0, n0), (m1, n1)| (m0.max(m1), n0 + n1),
+            );
+            (r, a, b)
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let (one, two) = (run(false), pool.install(|| run(true)));
+        assert_eq!(one.0 .1, len);
+        assert_eq!(two.0 .1, len);
+        assert_eq!(one.0 .0.to_bits(), two.0 .0.to_bits());
+        for (x, y) in one.1.iter().zip(&two.1).chain(one.2.iter().zip(&two.2)) {
+            assert_eq!(x.to_bits(), y.to_bits());
+        }
+        // the high half used its global indices
+        assert_eq!(two.1[len - 1], src[len - 1] * (len - 1) as f64);
+    }
+}

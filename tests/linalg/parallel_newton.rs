@@ -207,22 +207,48 @@ fn radau5_stiff_chain_is_bit_identical_with_one_and_two_threads() {
     );
 }
 
+/// The same for adaptive radau5 with a tolerance per coordinate (its
+/// Newton test reads `atol` of each coordinate in the halves of the
+/// update pass): bit-identical.
+#[test]
+fn radau5_adaptive_stiff_chain_is_bit_identical_with_one_and_two_threads() {
+    let (sys, _, _, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
+    let atol = (0..sys.n_coords())
+        .map(|i| if i % 3 == 2 { 1e-7 } else { 1e-8 })
+        .collect();
+    bit_identical_runs(
+        Method::Radau5,
+        OdeOptions {
+            rtol: 1e-4,
+            atol: mbsolve::integrate::Tolerance::Vector(atol),
+            ..Default::default()
+        },
+        true,
+    );
+}
+
+fn bit_identical_with_one_and_two_threads(method: Method, ode: OdeOptions) {
+    bit_identical_runs(method, ode, false);
+}
+
 /// Runs the stiff chain of 2000 segments (above both parallel
 /// thresholds) for 4e-5 s with `method` in one- and two-thread pools and
 /// with each thread setting (`auto`, one, two forced — also in a pool of
 /// one) and asserts bit-identical outputs and Newton counts, and that the
-/// summary reports what the setting asks.
-fn bit_identical_with_one_and_two_threads(method: Method, ode: OdeOptions) {
+/// summary reports what the setting asks (`adaptive`: the implicit
+/// method's adaptive step).
+fn bit_identical_runs(method: Method, ode: OdeOptions, adaptive: bool) {
     let (sys, q0, qd0, _) = stiff_chain(2000, 5f64.to_radians()).unwrap();
     let (n, m) = (sys.n_coords(), sys.n_constraints());
     assert!(n >= PARALLEL_MIN_COORDS && n + m >= PARALLEL_MIN_DIM);
-    let cfg = RunConfig {
+    let mut cfg = RunConfig {
         method,
         t_end: 4e-5,
         output_dt: 1e-5,
         ode,
         ..Default::default()
     };
+    cfg.implicit.adaptive = adaptive;
     let run = |threads: usize, setting: Threads| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
