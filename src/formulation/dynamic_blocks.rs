@@ -7,7 +7,7 @@
 use super::{all_finite, FormulationError};
 use crate::linalg::{APattern, SaddleMatrix, Storage, Symmetry};
 use crate::model::{FdWorkspace, System};
-use crate::parallel::{split_pass, PARALLEL_MIN_COORDS};
+use crate::parallel::{join_if, split_pass, PARALLEL_MIN_COORDS};
 use std::sync::OnceLock;
 
 /// Ids of the registered blocks and the buffers of their values.
@@ -21,6 +21,9 @@ pub(crate) struct DynamicBlocks {
     dq: Vec<f64>,
     dqd: Vec<f64>,
     ws: FdWorkspace,
+    /// The workspace of the Hessians (evaluated beside the force
+    /// Jacobians, [`Self::evaluate`]).
+    ws_hess: FdWorkspace,
     /// The reciprocal part of the force Jacobians (symmetric storage,
     /// [`Self::write`]): per coordinate pair `{i, j}` (i ≠ j) of the force
     /// Jacobian pattern, `skew_ent[skew_ptr[p]..skew_ptr[p + 1]]` lists its
@@ -86,6 +89,7 @@ impl DynamicBlocks {
             dq: vec![0.0; n_force],
             dqd: vec![0.0; n_force],
             ws: FdWorkspace::default(),
+            ws_hess: FdWorkspace::default(),
             skew_first: Vec::new(),
             skew_ptr: Vec::new(),
             skew_ent: Vec::new(),
@@ -190,16 +194,28 @@ impl DynamicBlocks {
         hessians: bool,
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        if forces {
-            self.dq.fill(0.0);
-            self.dqd.fill(0.0);
-            sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
-        }
-        if hessians && !self.hess_vals.is_empty() {
-            self.hess_vals.fill(0.0);
-            sys.add_constraint_hessians(q, t, lam, &mut self.hess_vals, &mut self.ws);
-        }
-        sys.jacobian_values(q, t, jac);
+        // the force Jacobians, and the Hessians with Φ_q: concurrently for
+        // large systems (`join_if`; each task sequential inside and
+        // writing its own buffers, so the bits do not depend on threads)
+        let (dq, dqd, ws) = (&mut self.dq, &mut self.dqd, &mut self.ws);
+        let (hess, ws_h) = (&mut self.hess_vals, &mut self.ws_hess);
+        join_if(
+            sys.n_coords() >= PARALLEL_MIN_COORDS,
+            || {
+                if forces {
+                    dq.fill(0.0);
+                    dqd.fill(0.0);
+                    sys.add_force_jacobians(t, q, qd, dq, dqd, ws);
+                }
+            },
+            || {
+                if hessians && !hess.is_empty() {
+                    hess.fill(0.0);
+                    sys.add_constraint_hessians(q, t, lam, hess, ws_h);
+                }
+                sys.jacobian_values(q, t, jac);
+            },
+        );
         all_finite(
             t,
             &[
