@@ -11,7 +11,9 @@
 # Environment: T_RADAU5, T_NDF, T_GENALPHA (simulated seconds; defaults
 # 0.02, 0.02, 0.005), BUSY_MODES ("quiet busy" by default; "busy" or
 # "quiet" for one), OUT (a file for the raw JSON lines; default a
-# temporary file, printed at the end).
+# temporary file, printed at the end), BIN (a `threads_table` binary to
+# run instead of building this tree's: another build's, for a before /
+# after table in one session).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 N=${1:-10000}
@@ -22,8 +24,12 @@ T_GENALPHA=${T_GENALPHA:-0.005}
 BUSY_MODES=${BUSY_MODES:-"quiet busy"}
 OUT=${OUT:-$(mktemp /tmp/threads_table.XXXXXX.jsonl)}
 export CARGO_PROFILE_RELEASE_INCREMENTAL=true
-cargo build --release --example threads_table >&2
-bin=target/release/examples/threads_table
+if [ -n "${BIN:-}" ]; then
+  bin=$BIN
+else
+  cargo build --release --example threads_table >&2
+  bin=target/release/examples/threads_table
+fi
 
 busy_pids=()
 stop_busy() {
