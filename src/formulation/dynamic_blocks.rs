@@ -47,7 +47,7 @@ pub(crate) struct DynamicBlocks {
 /// [`SaddleMatrix::set_jacobian`] into the values of a symmetric matrix,
 /// sorted into the two halves of its value array (`values[..cut]`,
 /// `values[cut..]`, `cut = nnz / 2`: the cut of
-/// [`split_pass`](crate::parallel::split_pass)). Each half lists the
+/// [`split_pass`]). Each half lists the
 /// additions to its slots in the order the one-piece assembly makes them
 /// (diagonal, force Jacobians, their reciprocal parts, Hessians, Φ_q), so
 /// every slot receives the same operations in the same order: the same

@@ -441,17 +441,16 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let st: [&[f64]; S] = std::array::from_fn(|j| &self.a[j][..n]);
         let (q, v) = (&self.q[..n], &self.v[..n]);
         let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
-        let pass = |_: usize, (qs, vs, q, v, st): (&mut [f64], &mut [f64], &[f64], &[f64], [&[f64]; S])| {
-            for k in 0..qs.len() {
-                qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
-                vs[k] = v[k] + h * dot(a, |j| st[j][k]);
-            }
-        };
         crate::parallel::split_pass(
             n >= crate::parallel::PARALLEL_MIN_COORDS,
             n,
             (qs, vs, q, v, st),
-            pass,
+            |_, (qs, vs, q, v, st)| {
+                for k in 0..qs.len() {
+                    qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
+                    vs[k] = v[k] + h * dot(a, |j| st[j][k]);
+                }
+            },
             |(), ()| (),
         );
     }
