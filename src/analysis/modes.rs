@@ -6,10 +6,11 @@
 //! by Lanczos with full M-orthogonal reorthogonalisation on the
 //! shift-inverted operator `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
 //! (Ericsson & Ruhe 1980; the constrained form keeps every iterate in
-//! `Φ_q y = 0`). The saddle matrix is factorised once by the project's
-//! sparse LU ([`crate::linalg::SparseLu`]; exact also where `K` is
-//! indefinite or singular on the coordinates); each Lanczos step is one
-//! solve, so the cost is linear in N for chains. No dense N × N matrix is
+//! `Φ_q y = 0`). The saddle matrix is factorised once by an LU with
+//! partial pivoting ([`crate::linalg::ChainLu`]: in the band of the
+//! body-by-body order for a chain, faer's sparse LU otherwise; exact also
+//! where `K` is indefinite or singular on the coordinates); each Lanczos
+//! step is one solve, so the cost is linear in N for chains. No dense N × N matrix is
 //! formed. Ritz values `θ` of the tridiagonal matrix give
 //! `ω² = σ + 1/θ`; a mode is converged when its residual estimate
 //! `|β_j s_j| ≤ tol |θ|`. `K` is used as evaluated (symmetric for
@@ -36,7 +37,7 @@
 
 use super::tangent::Tangent;
 use crate::formulation::FormulationError;
-use crate::linalg::{solver_for, SaddlePointSolver, SolverKind, SolverOptions, Storage};
+use crate::linalg::{SaddlePointSolver, SolverKind, Storage};
 use serde::Serialize;
 
 /// Options of [`eigenmodes`].
@@ -54,6 +55,11 @@ pub struct ModeOptions {
     /// Largest Lanczos basis (default 0: `max(4 count + 40, 80)`, at most
     /// the degrees of freedom).
     pub max_basis: usize,
+    /// Solver of the shifted matrix: [`SolverKind::ChainLu`] (default: the
+    /// band LU in the body-by-body order, faer's sparse LU for other
+    /// patterns) or [`SolverKind::SparseLu`]; the symmetric solvers are
+    /// rejected (`K` can be unsymmetric, `K − σM` indefinite).
+    pub linear_solver: SolverKind,
 }
 
 impl Default for ModeOptions {
@@ -63,6 +69,7 @@ impl Default for ModeOptions {
             shift: None,
             tol: 1e-10,
             max_basis: 0,
+            linear_solver: SolverKind::ChainLu,
         }
     }
 }
@@ -96,6 +103,8 @@ pub struct Modes {
     pub lanczos_steps: usize,
     /// Whether every returned mode met the tolerance.
     pub converged: bool,
+    /// The shifted matrix's factorisations (solver, count, fallbacks).
+    pub factorizations: super::Factorizations,
 }
 
 /// The `count` undamped modes nearest the shift and their damped
@@ -113,6 +122,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             shift: 0.0,
             lanczos_steps: 0,
             converged: true,
+            factorizations: Default::default(),
         });
     }
     let kt = tan.stiffness();
@@ -128,7 +138,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()))
     };
     let mut k = tan.saddle_matrix(Storage::Full);
-    let mut solver = solver_for(SolverKind::SparseLu, n + m, SolverOptions::default());
+    let mut solver = super::full_storage_solver(opts.linear_solver, n + m, "eigenmodes")?;
     let lin = |source| FormulationError::Linear {
         t: f64::NAN,
         source,
@@ -258,6 +268,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         shift: sigma,
         lanczos_steps: steps,
         converged,
+        factorizations: super::Factorizations::of(&*solver),
     })
 }
 
