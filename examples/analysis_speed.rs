@@ -205,9 +205,9 @@ fn solver_times(ns: &[usize], rounds: usize) {
         c.analyze(&k).expect("analyze");
         c.factorize(&k).expect("factorize");
         println!(
-            "{{\"n\":{n},\"bandwidths\":{:?},\"factor_nonzeros\":{:?},\"band_storage\":{}}}",
+            "{{\"n\":{n},\"bandwidths\":{:?},\"factor_len\":{:?},\"band\":{}}}",
             c.bandwidths(),
-            c.factor_nonzeros(),
+            c.factor_len(),
             c.bandwidths().map_or(0, |(l, u)| dim * (2 * l + u + 1))
         );
         for kind in [SolverKind::ChainLu, SolverKind::SparseLu] {

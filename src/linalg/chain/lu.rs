@@ -60,14 +60,26 @@ struct Band {
     /// Lower and upper bandwidth of the permuted matrix.
     kl: usize,
     ku: usize,
-    /// Leading dimension of the band storage, `2 kl + ku + 1`.
-    ldab: usize,
-    /// Where each slot of `K` goes in `ab`.
-    pos: Vec<u32>,
-    /// Column-major band storage: `Ã_ij` (and after factorisation `U_ij`,
-    /// `i ≤ j`, or `L_ij`, `i > j`) at `ab[j ldab + kl + ku + i − j]` for
-    /// `j − kl − ku ≤ i ≤ j + kl` (the top `kl` rows hold `U`'s fill).
-    ab: Vec<f64>,
+    /// Permuted row `i`'s entries of `K`, `(slot, permuted column)`:
+    /// `row_ent[row_ptr[i]..row_ptr[i + 1]]`.
+    row_ptr: Vec<usize>,
+    row_ent: Vec<(u32, u32)>,
+    /// The window of the elimination (module docs, "Window"): rows
+    /// `j..=j + kl` of the partly eliminated matrix, row `i` at
+    /// `(i mod wr) wc`, column `c` at `c mod wc` (`wr`, `wc` powers of 2).
+    win: Vec<f64>,
+    wr: usize,
+    wc: usize,
+    /// `U` by rows without the diagonal: row `j` holds `u_{j, j+1..}` up
+    /// to its last non-zero, `u_val[u_ptr[j]..u_ptr[j + 1]]`.
+    u_ptr: Vec<usize>,
+    u_val: Vec<f64>,
+    /// `1 / u_jj`.
+    dinv: Vec<f64>,
+    /// `L` by columns without the unit diagonal: column `j` holds
+    /// `l_{j+1.., j}` up to its last non-zero, `l_val[l_ptr[j]..l_ptr[j + 1]]`.
+    l_ptr: Vec<usize>,
+    l_val: Vec<f64>,
     /// Row interchanged with row `j` at step `j`.
     ipiv: Vec<usize>,
     /// Permuted right-hand side.
@@ -95,37 +107,47 @@ impl Band {
         }
         let (col_ptr, row_idx) = (k.col_ptr(), k.row_idx());
         let (mut kl, mut ku) = (0usize, 0usize);
+        let mut row_ptr = vec![0usize; dim + 1];
         for c in 0..dim {
             for &r in &row_idx[col_ptr[c]..col_ptr[c + 1]] {
                 let (i, j) = (inv[r], inv[c]);
                 kl = kl.max(i.saturating_sub(j));
                 ku = ku.max(j.saturating_sub(i));
+                row_ptr[i + 1] += 1;
             }
         }
-        if kl > MAX_BANDWIDTH || ku > MAX_BANDWIDTH {
+        if kl > MAX_BANDWIDTH || ku > MAX_BANDWIDTH || k.nnz() > u32::MAX as usize {
             return None;
         }
-        let ldab = 2 * kl + ku + 1;
-        if dim.checked_mul(ldab)? > u32::MAX as usize {
-            return None;
+        for i in 0..dim {
+            row_ptr[i + 1] += row_ptr[i];
         }
-        let kv = kl + ku;
-        let mut pos = vec![0u32; k.nnz()];
+        let mut next = row_ptr[..dim].to_vec();
+        let mut row_ent = vec![(0u32, 0u32); k.nnz()];
         for c in 0..dim {
             for s in col_ptr[c]..col_ptr[c + 1] {
-                let (i, j) = (inv[row_idx[s]], inv[c]);
-                pos[s] = (j * ldab + kv + i - j) as u32;
+                let i = inv[row_idx[s]];
+                row_ent[next[i]] = (s as u32, inv[c] as u32);
+                next[i] += 1;
             }
         }
+        let (wr, wc) = ((kl + 1).next_power_of_two(), (kl + ku + 1).next_power_of_two());
         Some(Self {
             dim,
             nnz: k.nnz(),
             perm,
             kl,
             ku,
-            ldab,
-            pos,
-            ab: vec![0.0; dim * ldab],
+            row_ptr,
+            row_ent,
+            win: vec![0.0; wr * wc],
+            wr,
+            wc,
+            u_ptr: vec![0; dim + 1],
+            u_val: Vec::new(),
+            dinv: vec![0.0; dim],
+            l_ptr: vec![0; dim + 1],
+            l_val: Vec::new(),
             ipiv: vec![0; dim],
             w: vec![0.0; dim],
         })
@@ -135,26 +157,38 @@ impl Band {
     /// the band; rejected (module docs) at a pivot at the rounding level or
     /// a growth above `growth_limit`.
     fn factorize(&mut self, k: &SaddleMatrix, growth_limit: f64) -> Result<(), Reject> {
-        let (dim, kl, ku, ldab) = (self.dim, self.kl, self.ku, self.ldab);
-        let kv = kl + ku;
-        let ab = &mut self.ab;
-        ab.fill(0.0);
-        let mut amax = 0.0f64;
-        for (&p, &v) in self.pos.iter().zip(k.values()) {
-            ab[p as usize] += v;
-            amax = amax.max(v.abs());
-        }
+        let (dim, kl, kv) = (self.dim, self.kl, self.kl + self.ku);
+        let (rm, cm, wc) = (self.wr - 1, self.wc - 1, self.wc);
+        let vals = k.values();
+        let amax = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         let tiny = f64::EPSILON * amax;
         let mut umax = 0.0f64;
-        // last column touched by a pivot row so far (U's fill)
-        let mut ju = 0usize;
+        let win = &mut self.win;
+        win.fill(0.0);
+        self.u_val.clear();
+        self.l_val.clear();
+        let load = |win: &mut [f64], i: usize| {
+            let row = &mut win[(i & rm) * wc..(i & rm) * wc + wc];
+            row.fill(0.0);
+            for &(s, c) in &self.row_ent[self.row_ptr[i]..self.row_ptr[i + 1]] {
+                row[c as usize & cm] += vals[s as usize];
+            }
+        };
+        for i in 0..kl.min(dim) {
+            load(win, i);
+        }
+        let mut l = [0.0f64; MAX_BANDWIDTH];
         for j in 0..dim {
+            if j + kl < dim {
+                load(win, j + kl);
+            }
             let km = kl.min(dim - 1 - j);
-            let col = j * ldab + kv; // Ã_jj
+            let cj = j & cm;
+            let at = |i: usize| (i & rm) * wc;
             let mut p = 0;
-            let mut best = ab[col].abs();
+            let mut best = win[at(j) + cj].abs();
             for t in 1..=km {
-                let a = ab[col + t].abs();
+                let a = win[at(j + t) + cj].abs();
                 if a > best {
                     best = a;
                     p = t;
@@ -165,33 +199,56 @@ impl Band {
                 return Err(Reject::TinyPivot);
             }
             self.ipiv[j] = j + p;
-            ju = ju.max((j + ku + p).min(dim - 1));
             if p != 0 {
-                // rows j and j + p, columns j..=ju (row i of column c at
-                // c ldab + kv + i − c)
-                for c in j..=ju {
-                    let base = c * ldab + kv - c;
-                    ab.swap(base + j, base + j + p);
+                let (a, b) = (at(j), at(j + p));
+                let (lo, hi) = (a.min(b), a.max(b));
+                let (x, y) = win.split_at_mut(hi);
+                x[lo..lo + wc].swap_with_slice(&mut y[..wc]);
+            }
+            // the pivot row: U's row j up to its last non-zero
+            let pr = at(j);
+            let last = (j + kv).min(dim - 1);
+            let mut e = j;
+            for c in (j + 1..=last).rev() {
+                if win[pr + (c & cm)] != 0.0 {
+                    e = c;
+                    break;
                 }
             }
-            let r = 1.0 / ab[col];
-            for t in 1..=km {
-                ab[col + t] *= r;
-            }
-            let (left, right) = ab.split_at_mut((j + 1) * ldab);
-            let l = &left[col + 1..col + 1 + km];
-            for c in j + 1..=ju {
-                // column c's rows j..=j + km start at this offset in `right`
-                let base = (c - j - 1) * ldab + kv + j - c;
-                let u = right[base];
-                umax = umax.max(u.abs());
-                if u != 0.0 {
-                    for (a, &li) in right[base + 1..base + 1 + km].iter_mut().zip(l) {
-                        *a -= li * u;
-                    }
-                }
-            }
+            let pivot = win[pr + cj];
+            let d = 1.0 / pivot;
+            self.dinv[j] = d;
             umax = umax.max(best);
+            for c in j + 1..=e {
+                let u = win[pr + (c & cm)];
+                umax = umax.max(u.abs());
+                self.u_val.push(u);
+            }
+            self.u_ptr[j + 1] = self.u_val.len();
+            // multipliers, column j leaves the window
+            let mut lk = 0;
+            for t in 1..=km {
+                let slot = at(j + t) + cj;
+                let li = win[slot] * d;
+                win[slot] = 0.0;
+                l[t - 1] = li;
+                if li != 0.0 {
+                    lk = t;
+                }
+            }
+            self.l_val.extend_from_slice(&l[..lk]);
+            self.l_ptr[j + 1] = self.l_val.len();
+            // the rows below: row j + t −= l_t × (pivot row)
+            let u = &self.u_val[self.u_ptr[j]..];
+            for (t, &li) in l[..lk].iter().enumerate() {
+                if li == 0.0 {
+                    continue;
+                }
+                let r = at(j + 1 + t);
+                for (c, &uc) in (j + 1..=e).zip(u) {
+                    win[r + (c & cm)] -= li * uc;
+                }
+            }
         }
         if umax > growth_limit * amax || !umax.is_finite() {
             return Err(Reject::Growth);
@@ -202,39 +259,30 @@ impl Band {
     /// `rhs ← K⁻¹ rhs` from the last factorisation; false if the solution
     /// is not finite.
     fn solve(&mut self, rhs: &mut [f64]) -> bool {
-        let (dim, kl, ldab) = (self.dim, self.kl, self.ldab);
-        let kv = kl + self.ku;
-        let (ab, w) = (&self.ab, &mut self.w);
+        let dim = self.dim;
+        let w = &mut self.w;
         for (wi, &p) in w.iter_mut().zip(&self.perm) {
             *wi = rhs[p];
         }
-        // L y = P w
+        // L y = P w, column by column
         for j in 0..dim {
             let l = self.ipiv[j];
             if l != j {
                 w.swap(j, l);
             }
-            let km = kl.min(dim - 1 - j);
             let wj = w[j];
+            let lj = &self.l_val[self.l_ptr[j]..self.l_ptr[j + 1]];
             if wj != 0.0 {
-                let col = j * ldab + kv;
-                for (wi, &li) in w[j + 1..=j + km].iter_mut().zip(&ab[col + 1..=col + km]) {
+                for (wi, &li) in w[j + 1..].iter_mut().zip(lj) {
                     *wi -= li * wj;
                 }
             }
         }
-        // U x = y, column by column from the last
+        // U x = y, row by row from the last
         for j in (0..dim).rev() {
-            let col = j * ldab + kv;
-            let xj = w[j] / ab[col];
-            w[j] = xj;
-            let i0 = j.saturating_sub(kv);
-            if xj != 0.0 {
-                let u = &ab[col - (j - i0)..col];
-                for (wi, &ui) in w[i0..j].iter_mut().zip(u) {
-                    *wi -= ui * xj;
-                }
-            }
+            let uj = &self.u_val[self.u_ptr[j]..self.u_ptr[j + 1]];
+            let s: f64 = uj.iter().zip(&w[j + 1..]).map(|(u, x)| u * x).sum();
+            w[j] = (w[j] - s) * self.dinv[j];
         }
         let mut finite = true;
         for (&p, &wi) in self.perm.iter().zip(w.iter()) {
@@ -242,6 +290,12 @@ impl Band {
             finite &= wi.is_finite();
         }
         finite
+    }
+
+    /// Stored values of `L` and `U` (diagonal included) of the last
+    /// factorisation.
+    fn factor_len(&self) -> (usize, usize) {
+        (self.l_val.len(), self.u_val.len() + self.dim)
     }
 }
 
@@ -311,24 +365,11 @@ impl ChainLu {
         self.band.as_ref().map(|b| (b.kl, b.ku))
     }
 
-    /// Non-zero values of the last band factorisation's `L` (below the
-    /// diagonal) and `U` (`None` on the pattern's fallback path).
-    pub fn factor_nonzeros(&self) -> Option<(usize, usize)> {
-        let b = self.band.as_ref()?;
-        let kv = b.kl + b.ku;
-        let (mut l, mut u) = (0, 0);
-        for (j, col) in b.ab.chunks(b.ldab).enumerate() {
-            for (r, v) in col.iter().enumerate() {
-                if *v != 0.0 && r + j >= kv {
-                    if r > kv {
-                        l += 1;
-                    } else {
-                        u += 1;
-                    }
-                }
-            }
-        }
-        Some((l, u))
+    /// Stored values of the last band factorisation's `L` (below the
+    /// diagonal) and `U` (diagonal included), each row or column up to its
+    /// last non-zero (`None` on the pattern's fallback path).
+    pub fn factor_len(&self) -> Option<(usize, usize)> {
+        self.band.as_ref().map(Band::factor_len)
     }
 
     /// Factorise with the fallback, analysing it first if needed.
