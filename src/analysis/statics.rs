@@ -282,8 +282,7 @@ pub fn static_equilibrium_from(
             Some(s) => s.write(tan, k, c_m, c_k),
             None => tan.write_saddle_of_rows(k, [c_m, 0.0, c_k], &kept),
         };
-    let mut solver =
-        super::full_storage_solver(opts.linear_solver, n + mk, "static equilibrium")?;
+    let mut solver = super::full_storage_solver(opts.linear_solver, n + mk, "static equilibrium")?;
     let lin = |source| FormulationError::Linear { t, source };
     solver.analyze(&k).map_err(lin)?;
     // λ₀: the multipliers of the start at rest (M q̈ + Φ_qᵀλ = g,

@@ -8,7 +8,10 @@ use mbsolve::linalg::SolverKind;
 
 /// `max |x − y| / max |y|`.
 fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
-    let d = x.iter().zip(y).fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+    let d = x
+        .iter()
+        .zip(y)
+        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
     d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
 
@@ -50,7 +53,12 @@ fn chain_lu_and_sparse_lu_give_the_same_equilibrium_and_modes() {
     assert_eq!(a.modes.len(), 10);
     for (ma, mb) in a.modes.iter().zip(&b.modes) {
         let df = (ma.frequency_hz - mb.frequency_hz).abs() / mb.frequency_hz;
-        assert!(df < 1e-10, "{} Hz vs {} Hz", ma.frequency_hz, mb.frequency_hz);
+        assert!(
+            df < 1e-10,
+            "{} Hz vs {} Hz",
+            ma.frequency_hz,
+            mb.frequency_hz
+        );
         let ds = rel_diff(&ma.shape, &mb.shape);
         assert!(ds < 1e-6, "shape at {} Hz: {ds:e}", ma.frequency_hz);
     }

@@ -91,7 +91,10 @@ fn dense_solve(k: &SaddleMatrix, b: &[f64]) -> Vec<f64> {
 
 /// `max |x − y| / max |y|`.
 fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
-    let d = x.iter().zip(y).fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+    let d = x
+        .iter()
+        .zip(y)
+        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
     d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
 
@@ -200,8 +203,13 @@ fn chain_lu_reports_a_singular_matrix_as_an_error() {
     let x3 = 9;
     let (col_ptr, row_idx) = (k.col_ptr().to_vec(), k.row_idx().to_vec());
     for c in 0..k.dim() {
-        for s in col_ptr[c]..col_ptr[c + 1] {
-            if c == x3 || row_idx[s] == x3 {
+        for (s, &r) in row_idx
+            .iter()
+            .enumerate()
+            .take(col_ptr[c + 1])
+            .skip(col_ptr[c])
+        {
+            if c == x3 || r == x3 {
                 k.values_mut()[s] = 0.0;
             }
         }

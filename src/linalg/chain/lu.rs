@@ -131,7 +131,10 @@ impl Band {
                 next[i] += 1;
             }
         }
-        let (wr, wc) = ((kl + 1).next_power_of_two(), (kl + ku + 1).next_power_of_two());
+        let (wr, wc) = (
+            (kl + 1).next_power_of_two(),
+            (kl + ku + 1).next_power_of_two(),
+        );
         Some(Self {
             dim,
             nnz: k.nnz(),
@@ -194,8 +197,8 @@ impl Band {
                     p = t;
                 }
             }
-            // also false for NaN
-            if !(best > tiny) {
+            // a NaN pivot is rejected too
+            if best <= tiny || best.is_nan() {
                 return Err(Reject::TinyPivot);
             }
             self.ipiv[j] = j + p;
