@@ -147,10 +147,12 @@ impl Band {
             wr,
             wc,
             u_ptr: vec![0; dim + 1],
-            u_val: Vec::new(),
+            // the largest sizes, reserved (not touched): no reallocation
+            // and copy as the factors grow
+            u_val: Vec::with_capacity(dim * (kl + ku)),
             dinv: vec![0.0; dim],
             l_ptr: vec![0; dim + 1],
-            l_val: Vec::new(),
+            l_val: Vec::with_capacity(dim * kl),
             ipiv: vec![0; dim],
             w: vec![0.0; dim],
         })
