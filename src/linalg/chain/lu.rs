@@ -23,9 +23,21 @@
 //! `kl + ku`, so fill stays inside a band of fixed width and the cost is
 //! linear in the number of bodies, the factors streaming through memory in
 //! body order (Golub & Van Loan, *Matrix Computations*, 4th ed., §4.3.5;
-//! LAPACK's `xGBTF2` and its band storage). Partial pivoting takes the
-//! zero diagonals and the indefinite cases in its stride: the pivot of
-//! column `j` is the largest of its at most `kl + 1` candidates.
+//! LAPACK's `xGBTF2`). Partial pivoting takes the zero diagonals and the
+//! indefinite cases in its stride: the pivot of column `j` is the largest
+//! of its at most `kl + 1` candidates.
+//!
+//! **Window.** Step `j` of the elimination only reads and writes rows
+//! `j..=j + kl` and columns `j..=j + kl + ku` of the partly eliminated
+//! matrix (rows further down have no entry in column `j` yet). These rows
+//! live in a small dense window (Irons' frontal order; rows and columns
+//! indexed modulo powers of 2 at least `kl + 1` and `kl + ku + 1`) that
+//! stays in the L1 cache: row `j + kl` is loaded from `K` when step `j`
+//! begins, the pivot row leaves as row `j` of `U`, the multipliers as
+//! column `j` of `L`, each stored up to its last non-zero, and column `j`
+//! is cleared for column `j + 2^⌈log₂(kl + ku + 1)⌉`. The solve applies
+//! the row interchanges and `L` column by column (as LAPACK's `xGBTRS`) and
+//! `U` row by row (dot products).
 //!
 //! **Fallback** to [`SparseLu`] (faer's sparse LU after COLAMD: today's
 //! path of the analyses):
@@ -64,7 +76,7 @@ struct Band {
     /// `row_ent[row_ptr[i]..row_ptr[i + 1]]`.
     row_ptr: Vec<usize>,
     row_ent: Vec<(u32, u32)>,
-    /// The window of the elimination (module docs, "Window"): rows
+    /// The window of the elimination (module docs, **Window**): rows
     /// `j..=j + kl` of the partly eliminated matrix, row `i` at
     /// `(i mod wr) wc`, column `c` at `c mod wc` (`wr`, `wc` powers of 2).
     win: Vec<f64>,
