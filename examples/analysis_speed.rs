@@ -4,8 +4,13 @@
 //! state (every segment at 5°).
 //!
 //! ```text
-//! RAYON_NUM_THREADS=1 target/release/examples/analysis_speed [static|modes|all] [rounds=R] [N …]
+//! RAYON_NUM_THREADS=1 target/release/examples/analysis_speed [static|modes|all|solver] [rounds=R] [N …]
 //! ```
+//!
+//! `solver` times the linear algebra alone, for the chain LU and faer's
+//! sparse LU on the same matrix (`[K, Φ_qᵀ; Φ_q, 0]` about the
+//! equilibrium, the modes' matrix at σ = 0): `analyze`, one
+//! `factorize` and one solve, minimum over the rounds.
 //!
 //! Every call is timed alone by the calling thread's CPU clock
 //! (`clock_gettime(CLOCK_THREAD_CPUTIME_ID)`, nanoseconds: neither the
@@ -25,6 +30,7 @@ mod common;
 use common::thread_cpu;
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
 use mbsolve::builders::stiff_chain;
+use mbsolve::linalg::{solver_for, ChainLu, SaddlePointSolver, SolverKind, Storage};
 
 /// Minor page faults of the calling thread so far (`RUSAGE_THREAD`).
 fn minor_faults() -> i64 {
@@ -94,6 +100,10 @@ fn main() {
     let once = std::env::var_os("MBSOLVE_ONCE").is_some();
     if once {
         rounds = 1;
+    }
+    if what == "solver" {
+        solver_times(&ns, rounds);
+        return;
     }
     let (do_static, do_modes) = (what != "modes", what != "static");
     let opts = ModeOptions {
@@ -175,5 +185,63 @@ fn main() {
     }
     if !slopes.is_empty() {
         println!("{{{}}}", slopes.join(","));
+    }
+}
+
+/// The `solver` case (module docs): per N and solver, the minimum thread
+/// CPU time of `analyze`, `factorize` and one solve over `rounds` rounds.
+fn solver_times(ns: &[usize], rounds: usize) {
+    for &n in ns {
+        let (sys, q0, _, _) = stiff_chain(n, 5f64.to_radians()).expect("the stiff chain");
+        let eq = static_equilibrium(&sys, &q0, StaticOptions::default()).expect("equilibrium");
+        let mut tan = Tangent::new(&sys);
+        tan.evaluate(0.0, &eq.q, &vec![0.0; eq.q.len()], &eq.lambda)
+            .expect("tangent");
+        let mut k = tan.saddle_matrix(Storage::Full);
+        tan.write_saddle(&mut k, [0.0, 0.0, 1.0]);
+        let dim = k.dim();
+        let rhs: Vec<f64> = (0..dim).map(|i| 1.0 + (i as f64 * 0.37).sin()).collect();
+        let mut c = ChainLu::default();
+        c.analyze(&k).expect("analyze");
+        c.factorize(&k).expect("factorize");
+        println!(
+            "{{\"n\":{n},\"bandwidths\":{:?},\"factor_len\":{:?},\"band\":{}}}",
+            c.bandwidths(),
+            c.factor_len(),
+            c.bandwidths().map_or(0, |(l, u)| dim * (2 * l + u + 1))
+        );
+        for kind in [SolverKind::ChainLu, SolverKind::SparseLu] {
+            let mut best = [f64::INFINITY; 3];
+            let mut x = rhs.clone();
+            let mut name = "";
+            for _ in 0..rounds.max(1) {
+                let mut s = solver_for(kind, dim, Default::default());
+                let mut t = thread_cpu();
+                s.analyze(&k).expect("analyze");
+                let mut lap = |i: usize, t: &mut f64| {
+                    let now = thread_cpu();
+                    best[i] = best[i].min(now - *t);
+                    *t = now;
+                };
+                lap(0, &mut t);
+                s.factorize(&k).expect("factorize");
+                lap(1, &mut t);
+                for _ in 0..3 {
+                    x.copy_from_slice(&rhs);
+                    t = thread_cpu();
+                    s.solve_in_place(&k, &mut x).expect("solve");
+                    lap(2, &mut t);
+                }
+                name = s.name();
+            }
+            let mut r = vec![0.0; dim];
+            let res = k.relative_residual(&x, &rhs, &mut r);
+            println!(
+                "{{\"case\":\"solver\",\"n\":{n},\"dim\":{dim},\"solver\":\"{name}\",\
+                 \"analyze_s\":{:.6},\"factorize_s\":{:.6},\"solve_s\":{:.6},\
+                 \"relative_residual\":{res:.2e}}}",
+                best[0], best[1], best[2]
+            );
+        }
     }
 }

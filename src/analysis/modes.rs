@@ -6,10 +6,11 @@
 //! by Lanczos with full M-orthogonal reorthogonalisation on the
 //! shift-inverted operator `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
 //! (Ericsson & Ruhe 1980; the constrained form keeps every iterate in
-//! `Φ_q y = 0`). The saddle matrix is factorised once by the project's
-//! sparse LU ([`crate::linalg::SparseLu`]; exact also where `K` is
-//! indefinite or singular on the coordinates); each Lanczos step is one
-//! solve, so the cost is linear in N for chains. No dense N × N matrix is
+//! `Φ_q y = 0`). The saddle matrix is factorised once by an LU with
+//! partial pivoting ([`crate::linalg::ChainLu`]: in the band of the
+//! body-by-body order for a chain, faer's sparse LU otherwise; exact also
+//! where `K` is indefinite or singular on the coordinates); each Lanczos
+//! step is one solve, so the cost is linear in N for chains. No dense N × N matrix is
 //! formed. Ritz values `θ` of the tridiagonal matrix give
 //! `ω² = σ + 1/θ`; a mode is converged when its residual estimate
 //! `|β_j s_j| ≤ tol |θ|`. `K` is used as evaluated (symmetric for
@@ -36,7 +37,7 @@
 
 use super::tangent::Tangent;
 use crate::formulation::FormulationError;
-use crate::linalg::{solver_for, SaddlePointSolver, SolverKind, SolverOptions, Storage};
+use crate::linalg::{SaddlePointSolver, SolverKind, Storage};
 use serde::Serialize;
 
 /// Options of [`eigenmodes`].
@@ -54,6 +55,11 @@ pub struct ModeOptions {
     /// Largest Lanczos basis (default 0: `max(4 count + 40, 80)`, at most
     /// the degrees of freedom).
     pub max_basis: usize,
+    /// Solver of the shifted matrix: [`SolverKind::ChainLu`] (default: the
+    /// band LU in the body-by-body order, faer's sparse LU for other
+    /// patterns) or [`SolverKind::SparseLu`]; the symmetric solvers are
+    /// rejected (`K` can be unsymmetric, `K − σM` indefinite).
+    pub linear_solver: SolverKind,
 }
 
 impl Default for ModeOptions {
@@ -63,6 +69,7 @@ impl Default for ModeOptions {
             shift: None,
             tol: 1e-10,
             max_basis: 0,
+            linear_solver: SolverKind::ChainLu,
         }
     }
 }
@@ -96,6 +103,8 @@ pub struct Modes {
     pub lanczos_steps: usize,
     /// Whether every returned mode met the tolerance.
     pub converged: bool,
+    /// The shifted matrix's factorisations (solver, count, fallbacks).
+    pub factorizations: super::Factorizations,
 }
 
 /// The `count` undamped modes nearest the shift and their damped
@@ -113,6 +122,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             shift: 0.0,
             lanczos_steps: 0,
             converged: true,
+            factorizations: Default::default(),
         });
     }
     let kt = tan.stiffness();
@@ -128,7 +138,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()))
     };
     let mut k = tan.saddle_matrix(Storage::Full);
-    let mut solver = solver_for(SolverKind::SparseLu, n + m, SolverOptions::default());
+    let mut solver = super::full_storage_solver(opts.linear_solver, n + m, "eigenmodes")?;
     let lin = |source| FormulationError::Linear {
         t: f64::NAN,
         source,
@@ -169,7 +179,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     let mut basis: Vec<Vec<f64>> = Vec::new();
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
     let mut x = vec![0.0; n + m];
-    let mut coeffs: [Vec<f64>; 2] = Default::default();
+    let mut coeffs: Vec<f64> = Vec::new();
     let mdot = |a: &[f64], b: &[f64]| -> f64 {
         a.iter().zip(b).zip(mass).map(|((x, y), w)| x * y * w).sum()
     };
@@ -195,10 +205,11 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         let j = basis.len() - 1;
         apply(&mut *solver, &k, mass, &basis[j], &mut w, &mut x, n)?;
         w[nb..].fill(0.0);
-        // α_j = v_jᵀ M w is the last coefficient of the first pass of the
-        // full reorthogonalisation (twice is enough)
-        let bnext = reorthogonalise_twice(&basis, mass, &mut w, &mut coeffs).sqrt();
-        alpha.push(coeffs[0][j]);
+        // the recurrence and one full Gram–Schmidt pass (twice is enough)
+        let beta_prev = beta.last().copied().unwrap_or(0.0);
+        let (a, norm2) = orthogonalise(&basis, mass, &mut w, beta_prev, &mut coeffs);
+        let bnext = norm2.sqrt();
+        alpha.push(a);
         let size = basis.len();
         let check = size >= count && (size % 5 == 0 || size == max_basis || bnext == 0.0);
         let anorm = alpha.iter().fold(0.0f64, |s, a| s.max(a.abs()));
@@ -258,36 +269,46 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         shift: sigma,
         lanczos_steps: steps,
         converged,
+        factorizations: super::Factorizations::of(&*solver),
     })
 }
 
-/// Entries per block of [`reorthogonalise_twice`]: the blocks of `w`, `M`
+/// Entries per block of [`orthogonalise`]: the blocks of `w`, `M`
 /// and of every basis vector (25 … 80 of them, 0.5 kB each) stay in the
 /// L1 / L2 cache while a block is worked on.
 const REORTH_BLOCK: usize = 64;
 
-/// Two classical Gram–Schmidt passes in the M inner product,
-/// `w ← w − Σ_b (bᵀ M w) b` over the (M-orthonormal) `basis`, in three
-/// sweeps over blocks of the coordinates: the first pass's coefficients
-/// `coeffs[0]`; its update fused with the second pass's coefficients
-/// `coeffs[1]` (a block of `w` is final for the first pass once updated);
-/// the second update with `wᵀ M w`, which is returned. Each basis vector
-/// is read three times from memory instead of the four reads (and the
-/// reads of `w` and `M` per basis vector) of modified Gram–Schmidt; two
-/// classical passes are as accurate as two modified ones ("twice is
-/// enough": Giraud, Langou & Rozložník 2005).
-fn reorthogonalise_twice(
+/// The orthogonalisation of one Lanczos step in the M inner product,
+/// `w = Op v_j` against the (M-orthonormal) `basis` `v_0 … v_j`: the
+/// three-term recurrence `w ← w − α v_j − β v_{j−1}` (`α = v_jᵀ M w`,
+/// `β` = `beta_prev`, the previous step's norm) as the first pass, then a
+/// classical Gram–Schmidt pass against the whole basis,
+/// `w ← w − Σ_b (bᵀ M w) b` — the recurrence removes the large
+/// components, the full pass what the loss of orthogonality left ("twice
+/// is enough": Giraud, Langou & Rozložník 2005; Paige's full
+/// reorthogonalisation of Lanczos). When the full pass still shrinks `w`
+/// below `1/√2` of its norm (Daniel, Gragg, Kaufman & Stewart 1976) it is
+/// repeated once. Three sweeps over blocks of the coordinates, of which
+/// two read the basis: `α` (`v_j`, `w`); the recurrence fused with the
+/// full pass's coefficients `coeffs`; the update with `wᵀ M w`. Returns
+/// `(α + coeffs[j], wᵀ M w)` (the diagonal of the tridiagonal matrix with
+/// the full pass's correction, the squared norm).
+fn orthogonalise(
     basis: &[Vec<f64>],
     mass: &[f64],
     w: &mut [f64],
-    coeffs: &mut [Vec<f64>; 2],
-) -> f64 {
+    beta_prev: f64,
+    coeffs: &mut Vec<f64>,
+) -> (f64, f64) {
     let n = w.len();
-    for c in coeffs.iter_mut() {
-        c.clear();
-        c.resize(basis.len(), 0.0);
-    }
-    let [c1, c2] = coeffs;
+    let j = basis.len() - 1;
+    let vj = &basis[j];
+    let prev = j.checked_sub(1).map(|p| &basis[p][..]);
+    let blocks = || {
+        (0..n)
+            .step_by(REORTH_BLOCK)
+            .map(|lo| (lo, (lo + REORTH_BLOCK).min(n)))
+    };
     let dots = |c: &mut [f64], w: &[f64], lo: usize, hi: usize| {
         let mut mw = [0.0f64; REORTH_BLOCK];
         let mw = &mut mw[..hi - lo];
@@ -309,26 +330,52 @@ fn reorthogonalise_twice(
             }
         }
     };
-    for lo in (0..n).step_by(REORTH_BLOCK) {
-        let hi = (lo + REORTH_BLOCK).min(n);
-        dots(c1, &w[lo..hi], lo, hi);
-    }
-    for lo in (0..n).step_by(REORTH_BLOCK) {
-        let hi = (lo + REORTH_BLOCK).min(n);
-        update(c1, &mut w[lo..hi], lo, hi);
-        dots(c2, &w[lo..hi], lo, hi);
-    }
-    let mut norm2 = 0.0;
-    for lo in (0..n).step_by(REORTH_BLOCK) {
-        let hi = (lo + REORTH_BLOCK).min(n);
-        update(c2, &mut w[lo..hi], lo, hi);
-        norm2 += w[lo..hi]
-            .iter()
+    let mnorm2 = |w: &[f64], lo: usize, hi: usize| {
+        w.iter()
             .zip(&mass[lo..hi])
             .map(|(x, m)| x * x * m)
-            .sum::<f64>();
+            .sum::<f64>()
+    };
+    let alpha: f64 = w
+        .iter()
+        .zip(vj)
+        .zip(mass)
+        .map(|((x, v), m)| x * v * m)
+        .sum();
+    coeffs.clear();
+    coeffs.resize(basis.len(), 0.0);
+    let mut before = 0.0;
+    for (lo, hi) in blocks() {
+        let wb = &mut w[lo..hi];
+        for (wi, vi) in wb.iter_mut().zip(&vj[lo..hi]) {
+            *wi -= alpha * vi;
+        }
+        if let Some(p) = prev {
+            for (wi, pi) in wb.iter_mut().zip(&p[lo..hi]) {
+                *wi -= beta_prev * pi;
+            }
+        }
+        before += mnorm2(wb, lo, hi);
+        dots(coeffs, wb, lo, hi);
     }
-    norm2
+    let (mut correction, mut repeated) = (0.0, false);
+    loop {
+        correction += coeffs[j];
+        let mut norm2 = 0.0;
+        for (lo, hi) in blocks() {
+            update(coeffs, &mut w[lo..hi], lo, hi);
+            norm2 += mnorm2(&w[lo..hi], lo, hi);
+        }
+        if repeated || norm2 >= 0.5 * before {
+            return (alpha + correction, norm2);
+        }
+        // the full pass removed more than half of ‖w‖²: once more
+        (before, repeated) = (norm2, true);
+        coeffs.iter_mut().for_each(|c| *c = 0.0);
+        for (lo, hi) in blocks() {
+            dots(coeffs, &w[lo..hi], lo, hi);
+        }
+    }
 }
 
 /// `y = Op x`: `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`.

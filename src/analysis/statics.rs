@@ -6,8 +6,9 @@
 //!
 //! (velocity-dependent forces at q̇ = 0; our λ, see [`super::tangent`]),
 //! with the exact Newton matrix `[K Φ_qᵀ; Φ_q 0]` of [`Tangent`]
-//! (`K = −∂g/∂q + (Φ_qᵀλ)_q`) factorised by the sparse LU of the project's
-//! saddle-point solvers ([`crate::linalg::SparseLu`]: exact for
+//! (`K = −∂g/∂q + (Φ_qᵀλ)_q`) factorised by an LU with partial pivoting
+//! ([`crate::linalg::ChainLu`]: in the band of the body-by-body order for
+//! a chain, linear in N; faer's sparse LU otherwise — exact for
 //! unsymmetric `K`, and `K` may be singular on coordinates held only by the
 //! constraints).
 //!
@@ -56,7 +57,7 @@
 
 use super::tangent::Tangent;
 use crate::formulation::FormulationError;
-use crate::linalg::{solver_for, SolverKind, SolverOptions, Storage};
+use crate::linalg::{SolverKind, Storage};
 use crate::model::System;
 use serde::Serialize;
 
@@ -78,6 +79,11 @@ pub struct StaticOptions {
     pub max_load_steps: usize,
     /// Smallest load-factor increment before giving up (default 1e-6).
     pub min_load_step: f64,
+    /// Solver of the Newton matrix: [`SolverKind::ChainLu`] (default: the
+    /// band LU in the body-by-body order, faer's sparse LU for other
+    /// patterns) or [`SolverKind::SparseLu`]; the symmetric solvers are
+    /// rejected (`K` can be unsymmetric).
+    pub linear_solver: SolverKind,
 }
 
 impl Default for StaticOptions {
@@ -88,6 +94,7 @@ impl Default for StaticOptions {
             max_iter: 30,
             max_load_steps: 200,
             min_load_step: 1e-6,
+            linear_solver: SolverKind::ChainLu,
         }
     }
 }
@@ -115,6 +122,8 @@ pub struct Equilibrium {
     /// Constraint rows left out as redundant (module docs), ascending;
     /// their λ are 0. Empty when Φ_q has full row rank at the start.
     pub redundant: Vec<usize>,
+    /// The Newton matrix's factorisations (solver, count, fallbacks).
+    pub factorizations: super::Factorizations,
 }
 
 impl Equilibrium {
@@ -273,7 +282,7 @@ pub fn static_equilibrium_from(
             Some(s) => s.write(tan, k, c_m, c_k),
             None => tan.write_saddle_of_rows(k, [c_m, 0.0, c_k], &kept),
         };
-    let mut solver = solver_for(SolverKind::SparseLu, n + mk, SolverOptions::default());
+    let mut solver = super::full_storage_solver(opts.linear_solver, n + mk, "static equilibrium")?;
     let lin = |source| FormulationError::Linear { t, source };
     solver.analyze(&k).map_err(lin)?;
     // λ₀: the multipliers of the start at rest (M q̈ + Φ_qᵀλ = g,
@@ -494,6 +503,7 @@ pub fn static_equilibrium_from(
         residual,
         constraint_residual,
         redundant,
+        factorizations: super::Factorizations::of(&*solver),
     })
 }
 

@@ -21,6 +21,7 @@
 //! | `Chain` | [`ChainLdlt`] (envelope LDLᵀ for chain patterns, else [`SparseLdlt`]) | symmetric | Newton matrix of `Index3` |
 //! | `Dense` | [`DenseLu`] | symmetric | cross-checks |
 //! | `SparseLu` | [`SparseLu`] | full | exact Newton with unsymmetric Jacobians |
+//! | `ChainLu` | [`ChainLu`] (band LU with partial pivoting for chain patterns, else [`SparseLu`]) | full | static equilibrium, eigenmodes |
 //! | `Schur` | [`SchurComplement`] (eq. (9), dense Cholesky) | symmetric | diagonal `A`, λ eliminated |
 //!
 //! Outside the trait, [`ComplexChainLdlt`] factorises the complex
@@ -40,7 +41,9 @@ mod saddle;
 mod schur;
 mod sparse;
 
-pub use chain::{ChainLdlt, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM};
+pub use chain::{
+    ChainLdlt, ChainLu, DEFAULT_GROWTH_LIMIT, MAX_BANDWIDTH, PARALLEL_MIN_DIM, SPLIT_MIN_DIM,
+};
 pub use chain_complex::ComplexChainLdlt;
 pub use dense::{full_pivot_order, DenseLu, PivotOrder};
 pub use lu::SparseLu;
@@ -149,6 +152,11 @@ pub trait SaddlePointSolver: Send {
     fn solve_in_place(&mut self, k: &SaddleMatrix, rhs: &mut [f64]) -> Result<(), LinalgError>;
     /// Counters since construction.
     fn stats(&self) -> SolverStats;
+    /// Factorisations the solver handed to another one after rejecting its
+    /// own ([`ChainLu`]'s fallback to [`SparseLu`]); 0 for the others.
+    fn fallbacks(&self) -> usize {
+        0
+    }
 }
 
 /// Which saddle-point solver to use (scenario key `linear_solver`).
@@ -165,6 +173,10 @@ pub enum SolverKind {
     Sparse,
     /// Sparse LU (faer) of the full matrix: unsymmetric Newton matrices.
     SparseLu,
+    /// [`ChainLu`]: LU with partial pivoting inside the band of the
+    /// body-by-body order when the pattern is a chain, [`SparseLu`]
+    /// otherwise; full storage, unsymmetric and indefinite matrices.
+    ChainLu,
     /// λ eliminated by the Schur complement of a diagonal `A`, eq. (9).
     Schur,
     /// [`ChainLdlt`]: the envelope LDLᵀ when the pattern is a chain in
@@ -230,6 +242,7 @@ pub fn solver_for(kind: SolverKind, dim: usize, opts: SolverOptions) -> Box<dyn 
         SolverKind::Auto if dim < AUTO_DENSE_MAX_DIM => Box::new(DenseLu::default()),
         SolverKind::Auto => ldlt(),
         SolverKind::SparseLu => Box::new(SparseLu::default()),
+        SolverKind::ChainLu => Box::new(ChainLu::default()),
         SolverKind::Schur => Box::new(SchurComplement::default()),
         SolverKind::Chain => {
             Box::new(ChainLdlt::default().with_residual_check(opts.residual_check))

@@ -4,6 +4,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod chain_lu;
 mod inverse;
 mod linearize;
 mod modes;

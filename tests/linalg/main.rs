@@ -9,6 +9,7 @@ mod common;
 #[path = "../common/counting.rs"]
 mod counting;
 
+mod chain_lu;
 mod dense_pivoting;
 mod determinism;
 mod kernels;

@@ -70,11 +70,16 @@
 //! # Files
 //!
 //! [`order`] the body-by-body orders and the envelope layout, [`factor`]
-//! the scaled, regularised Crout LDLᵀ, [`solve`] the substitutions.
+//! the scaled, regularised Crout LDLᵀ, [`solve`] the substitutions;
+//! [`lu`] the band LU with partial pivoting of full (unsymmetric,
+//! indefinite) matrices in the same order ([`ChainLu`]).
 
 mod factor;
+mod lu;
 mod order;
 mod solve;
+
+pub use lu::{ChainLu, DEFAULT_GROWTH_LIMIT};
 
 pub(super) use solve::Scatter;
 

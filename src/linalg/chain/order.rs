@@ -108,6 +108,18 @@ fn split_order(n: usize, groups: &[(usize, usize)]) -> (Vec<usize>, usize, usize
     (perm, s0, sb)
 }
 
+/// The one-sided body-by-body order of `k` (`perm[i]`: the row and
+/// column eliminated `i`-th), or `None` when `n` is not a multiple of 3 or
+/// a multiplier row has no coordinate column. The order of [`Envelope`]'s
+/// unsplit layout, shared with [`super::lu`].
+pub(super) fn body_order(k: &SaddleMatrix) -> Option<Vec<usize>> {
+    let n = k.n();
+    if n % 3 != 0 {
+        return None;
+    }
+    Some(plain_order(n, &row_groups(k)?))
+}
+
 impl Envelope {
     /// The envelope of `k` in the body-by-body order (two-sided when
     /// `split` and the pattern allows it), or `None` when a multiplier row

@@ -1,0 +1,76 @@
+//! The analyses with the chain LU (their default solver) against the same
+//! analyses with faer's sparse LU: the static equilibrium of the peers'
+//! stiff chain and its 10 lowest modes, N = 50, agree to rounding.
+
+use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
+use mbsolve::builders::stiff_chain;
+use mbsolve::linalg::SolverKind;
+
+/// `max |x − y| / max |y|`.
+fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
+    let d = x
+        .iter()
+        .zip(y)
+        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+    d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+}
+
+#[test]
+fn chain_lu_and_sparse_lu_give_the_same_equilibrium_and_modes() {
+    let (sys, q0, _, _) = stiff_chain(50, 5f64.to_radians()).unwrap();
+    let with = |linear_solver| StaticOptions {
+        linear_solver,
+        ..Default::default()
+    };
+    let chain = static_equilibrium(&sys, &q0, with(SolverKind::ChainLu)).unwrap();
+    let sparse = static_equilibrium(&sys, &q0, with(SolverKind::SparseLu)).unwrap();
+    assert_eq!(chain.factorizations.solver, "chain-lu");
+    assert_eq!(chain.factorizations.fallbacks, 0);
+    assert_eq!(sparse.factorizations.solver, "sparse-lu");
+    assert_eq!(chain.iterations, sparse.iterations);
+    let dq = rel_diff(&chain.q, &sparse.q);
+    let dl = rel_diff(&chain.lambda, &sparse.lambda);
+    assert!(dq < 1e-12 && dl < 1e-9, "q {dq:e}, λ {dl:e}");
+    // the equilibrium hangs, it is not the start
+    assert!(rel_diff(&chain.q, &q0) > 1e-3);
+
+    let mut tan = Tangent::new(&sys);
+    tan.evaluate(0.0, &chain.q, &vec![0.0; q0.len()], &chain.lambda)
+        .unwrap();
+    let modes = |linear_solver| {
+        let opts = ModeOptions {
+            count: 10,
+            linear_solver,
+            ..Default::default()
+        };
+        eigenmodes(&tan, opts).unwrap()
+    };
+    let (a, b) = (modes(SolverKind::ChainLu), modes(SolverKind::SparseLu));
+    assert_eq!(a.factorizations.solver, "chain-lu");
+    assert_eq!(a.factorizations.fallbacks, 0);
+    assert_eq!(b.factorizations.solver, "sparse-lu");
+    assert!(a.converged && b.converged);
+    assert_eq!(a.modes.len(), 10);
+    for (ma, mb) in a.modes.iter().zip(&b.modes) {
+        let df = (ma.frequency_hz - mb.frequency_hz).abs() / mb.frequency_hz;
+        assert!(
+            df < 1e-10,
+            "{} Hz vs {} Hz",
+            ma.frequency_hz,
+            mb.frequency_hz
+        );
+        let ds = rel_diff(&ma.shape, &mb.shape);
+        assert!(ds < 1e-6, "shape at {} Hz: {ds:e}", ma.frequency_hz);
+    }
+}
+
+#[test]
+fn analyses_reject_a_symmetric_solver() {
+    let (sys, q0, _, _) = stiff_chain(3, 5f64.to_radians()).unwrap();
+    let opts = StaticOptions {
+        linear_solver: SolverKind::Chain,
+        ..Default::default()
+    };
+    let e = static_equilibrium(&sys, &q0, opts).unwrap_err().to_string();
+    assert!(e.contains("linear_solver Chain"), "{e}");
+}
