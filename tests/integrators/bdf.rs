@@ -481,9 +481,15 @@ fn growth_run(p: usize, ndf: bool, rtol: f64, h: Option<f64>) -> (usize, f64, us
         }
     }
     let mut last = Last(vec![]);
-    let r = bdf
-        .integrate(&mut sys, 0.0, 1.0, &[1.0], &[1.0], &[1.0], &mut last)
-        .unwrap();
+    let span = mbsolve::integrate::Span {
+        t0: 0.0,
+        t_end: 1.0,
+        q0: &[1.0],
+        qd0: &[1.0],
+        output_times: &[1.0],
+        obs: &mut last,
+    };
+    let r = bdf.integrate(&mut sys, span).unwrap();
     let st = bdf.stats();
     (
         r.stats.steps,

@@ -407,9 +407,15 @@ fn radau5_first_step_rejections(sys: &mut LinearDae, q0: &[f64], h: f64, rtol: f
     let mut radau = Radau5::new(opts, ode).unwrap();
     let qd0 = vec![0.0; q0.len()];
     let mut cplx = LinearDae::new(sys.m.clone(), sys.k.clone(), sys.g.clone());
-    let rep = radau
-        .integrate(sys, &mut cplx, 0.0, h, q0, &qd0, &[h], &mut Quiet)
-        .unwrap();
+    let span = mbsolve::integrate::Span {
+        t0: 0.0,
+        t_end: h,
+        q0,
+        qd0: &qd0,
+        output_times: &[h],
+        obs: &mut Quiet,
+    };
+    let rep = radau.integrate(sys, &mut cplx, span).unwrap();
     assert_eq!(
         rep.termination,
         mbsolve::integrate::Termination::Completed,

@@ -22,5 +22,6 @@ pub(crate) use dense::settle_output;
 pub(crate) use failure::{attempt_or_cut, Attempted, CutRules, Cuts, Shrink, StepTry, Warn};
 pub use problem::{MultiplierUpdate, SecondOrderDae};
 pub use renewal::{Renewal, RenewalOptions};
-pub(crate) use run::{run, validate_run, ImplicitStepper};
+pub use run::Span;
+pub(crate) use run::{implicit_stepper, run, validate_run, ImplicitStepper};
 pub use stats::{ImplicitStats, COUNTED_ORDERS};

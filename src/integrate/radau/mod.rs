@@ -133,7 +133,7 @@ use super::implicit::{
     Remainder, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
-    common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
+    common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Span,
     Stats, SystemError, Tolerance, ROUNDING_ULPS,
 };
 use std::sync::Arc;
@@ -214,29 +214,14 @@ impl Radau5 {
     /// Integrate from `(t0, q0, q̇0)` to `t_end`; `cplx` is the complex
     /// Newton matrix of the same system. Outputs as [`super::GenAlpha::integrate`]
     /// (`y = [q; q̇]`, dense output from the collocation polynomials).
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         sys: &mut dyn SecondOrderDae,
         cplx: &mut dyn ComplexNewton,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
-        let (report, stats) = integrate_stages(
-            &self.tab,
-            &self.opts,
-            &self.ode,
-            sys,
-            vec![cplx],
-            (t0, t_end),
-            (q0, qd0),
-            output_times,
-            obs,
-        )?;
+        let (tab, opts, ode) = (&self.tab, &self.opts, &self.ode);
+        let (report, stats) = integrate_stages(tab, opts, ode, sys, vec![cplx], span)?;
         self.stats = stats;
         Ok(report)
     }
@@ -245,20 +230,19 @@ impl Radau5 {
 /// Integrate with the stages of `tab` from `(t0, q0, q̇0)` to `t_end`
 /// (radau5's and radau9's `integrate`); `cplx` holds one complex Newton
 /// matrix per complex pair of 𝔄.
-#[allow(clippy::too_many_arguments)]
 fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
     tab: &T,
     opts: &ImplicitOptions,
     ode: &OdeOptions,
     sys: &'s mut dyn SecondOrderDae,
     cplx: Vec<&'s mut dyn ComplexNewton>,
-    (t0, t_end): (f64, f64),
-    (q0, qd0): (&[f64], &[f64]),
-    output_times: &[f64],
-    obs: &mut dyn Observer,
+    run_span: Span<'_>,
 ) -> Result<(Report, ImplicitStats), IntegratorError> {
     let (n, m) = (sys.n(), sys.m());
-    validate_run(n, t0, t_end, q0, qd0, output_times, ode, opts.adaptive)?;
+    validate_run(n, &run_span, ode, opts.adaptive)?;
+    let Span {
+        t0, t_end, q0, qd0, ..
+    } = run_span;
     let span = t_end - t0;
     let h_max = ode.max_step.unwrap_or(0.1 * span).min(span);
     // 0: chosen in `start` from the initial accelerations
@@ -322,13 +306,7 @@ fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
             first_cause: false,
         }),
     };
-    Ok(run_implicit(
-        &mut run,
-        output_times,
-        ode.max_steps,
-        t_end,
-        obs,
-    ))
+    Ok(run_implicit(&mut run, run_span, ode.max_steps))
 }
 
 /// The next attempt of a Radau IIA run from `t`: the step `h` (the
