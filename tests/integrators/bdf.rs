@@ -409,34 +409,28 @@ impl mbsolve::integrate::SecondOrderDae for Growth {
     }
     fn accelerations(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: mbsolve::integrate::StateView<'_>,
         qdd: &mut [f64],
         _l: &mut [f64],
     ) -> Result<(), mbsolve::integrate::SystemError> {
-        qdd[0] = q[0];
+        qdd[0] = x.q[0];
         Ok(())
     }
     fn residual(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: mbsolve::integrate::StateView<'_>,
         qdd: &[f64],
         _l: &[f64],
         scale: f64,
         r: &mut [f64],
     ) -> Result<(), mbsolve::integrate::SystemError> {
-        r[0] = scale * (qdd[0] - q[0]);
+        r[0] = scale * (qdd[0] - x.q[0]);
         Ok(())
     }
     fn constraints(&mut self, _t: f64, _q: &[f64], _phi: &mut [f64]) {}
     fn factorize(
         &mut self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
+        _x: mbsolve::integrate::StateView<'_>,
         _l: &[f64],
         c: [f64; 3],
     ) -> Result<(), mbsolve::integrate::SystemError> {

@@ -95,7 +95,7 @@ use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
     attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
-    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StepTry, Warn,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView, StepTry, Warn,
 };
 use super::{
     IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Stats, SystemError, Tolerance,
@@ -474,7 +474,7 @@ impl Stepper for BdfRun<'_> {
         let (q0, v0) = self.ys[0].split_at(n);
         self.stats.residual_evaluations += 1;
         self.sys
-            .accelerations(t, q0, v0, &mut self.qdd, &mut self.lam)
+            .accelerations(StateView { t, q: q0, qd: v0 }, &mut self.qdd, &mut self.lam)
             .map_err(|e| Failure::System {
                 what: "consistent accelerations",
                 t,

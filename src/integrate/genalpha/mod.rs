@@ -184,8 +184,8 @@ use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
     attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
-    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink, Span, StepTry,
-    Warn,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink, Span,
+    StateView, StepTry, Warn,
 };
 use super::Tolerance;
 use super::{
@@ -223,6 +223,15 @@ impl State {
             qdd: vec![0.0; n],
             a: vec![0.0; n],
             lam: vec![0.0; m],
+        }
+    }
+
+    /// `(t, q, q̇)` of this state at `t`.
+    fn at(&self, t: f64) -> StateView<'_> {
+        StateView {
+            t,
+            q: &self.q,
+            qd: &self.v,
         }
     }
 }
@@ -479,9 +488,13 @@ impl Stepper for Run<'_, '_> {
     fn start(&mut self) -> Result<(), Failure> {
         let t0 = self.t0;
         self.stats.residual_evaluations += 1;
-        let (q, v) = (&self.cur.q, &self.cur.v);
+        let x = StateView {
+            t: t0,
+            q: &self.cur.q,
+            qd: &self.cur.v,
+        };
         self.sys
-            .accelerations(t0, q, v, &mut self.cur.qdd, &mut self.cur.lam)
+            .accelerations(x, &mut self.cur.qdd, &mut self.cur.lam)
             .map_err(|e| Failure::System {
                 what: "initial accelerations",
                 t: t0,

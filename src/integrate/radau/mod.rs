@@ -134,7 +134,7 @@ use super::implicit::{
 };
 use super::{
     common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Span,
-    Stats, SystemError, Tolerance, ROUNDING_ULPS,
+    StateView, Stats, SystemError, Tolerance, ROUNDING_ULPS,
 };
 use std::sync::Arc;
 
@@ -167,12 +167,10 @@ pub const KEEP_STEP: f64 = 1.2;
 /// (`[re, im]`, `c₀` real), factorised and solved (implemented for
 /// multibody systems by [`crate::formulation::Index3Complex`]).
 pub trait ComplexNewton {
-    /// Assemble and factorise at `(t, q, q̇, λ)`.
+    /// Assemble and factorise at `x = (t, q, q̇)` and `λ`.
     fn factorize_complex(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), SystemError>;
@@ -518,7 +516,15 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
     fn start(&mut self) -> Result<(), Failure> {
         self.stats.residual_evaluations += 1;
         self.sys
-            .accelerations(self.t0, &self.q, &self.v, &mut self.qdd, &mut self.lam)
+            .accelerations(
+                StateView {
+                    t: self.t0,
+                    q: &self.q,
+                    qd: &self.v,
+                },
+                &mut self.qdd,
+                &mut self.lam,
+            )
             .map_err(|e| Failure::System {
                 what: "initial accelerations",
                 t: self.t0,
