@@ -110,7 +110,7 @@
 //! `ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j` (RADAU5 tests the stage increments `ΔZ`)
 //! below `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` times the error
 //! test's weights (the tip errors this gives against rtol: docs/radau.md).
-
+#![warn(unreachable_pub)]
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
@@ -143,24 +143,24 @@ use std::sync::Arc;
 /// on the grid differ from `h` in their last bits (measured: 4e-4 came out
 /// as 3.999999999999976e-4 and 4.000000000000045e-4, and every such step
 /// renewed both factorisations).
-pub const SAME_STEP: f64 = 1e-9;
+pub(super) const SAME_STEP: f64 = 1e-9;
 
 /// Adaptive mode: the matrices factorised for a step `h_f` serve a step
 /// within this relative distance of it (a simplified Newton on a matrix
 /// of a nearby step, as generalized-α's `REUSE_BAND`): fewer
 /// factorisations than renewing at every change of the step
 /// (docs/scaling.md, "Measurements behind the defaults").
-pub const ADAPTIVE_REUSE_BAND: f64 = 0.2;
+pub(super) const ADAPTIVE_REUSE_BAND: f64 = 0.2;
 
 /// Safety factor of the step-size controller (RADAU5's `SAFE`).
-pub const SAFETY: f64 = 0.9;
+pub(super) const SAFETY: f64 = 0.9;
 /// Largest growth of the step after an accepted one (RADAU5: `1/FACR`).
-pub const MAX_GROWTH: f64 = 8.0;
+pub(super) const MAX_GROWTH: f64 = 8.0;
 /// Largest reduction after a rejected one (RADAU5: `FACL`).
-pub const MAX_SHRINK: f64 = 5.0;
+pub(super) const MAX_SHRINK: f64 = 5.0;
 /// A new step within `[1, KEEP_STEP]` times the last one keeps it, and
 /// with it the factorisations (RADAU5's `QUOT2`).
-pub const KEEP_STEP: f64 = 1.2;
+pub(super) const KEEP_STEP: f64 = 1.2;
 
 /// The complex Newton matrix of the transformed Radau stages:
 /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` with complex coefficients `c`
