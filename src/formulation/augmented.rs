@@ -50,7 +50,7 @@ use super::{
     all_finite, check_state, linear_at, FormulationError, StartCorrection, START_MAX_ITER,
     START_TOL,
 };
-use crate::integrate::{MultiplierUpdate, SecondOrderDae, SystemError};
+use crate::integrate::{DaeResult, MultiplierUpdate, SecondOrderDae, StateView, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
@@ -472,24 +472,15 @@ impl SecondOrderDae for Augmented<'_> {
     fn mass_diagonal(&self) -> &[f64] {
         self.sys.mass_diagonal()
     }
-    fn accelerations(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &mut [f64],
-        lam: &mut [f64],
-    ) -> Result<(), SystemError> {
-        self.initial_accelerations(t, q, qd, qdd, lam)
+    fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64], lam: &mut [f64]) -> DaeResult {
+        self.initial_accelerations(x.t, x.q, x.qd, qdd, lam)
             .map_err(sys_err)
     }
     /// The scaled residual `r = s (M q̈ + Φ_qᵀ(αΦ + λ*) − g(q, q̇, t))` (n
     /// rows; λ is λ*).
     fn residual(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         qdd: &[f64],
         lam: &[f64],
         s: f64,
@@ -525,15 +516,8 @@ impl SecondOrderDae for Augmented<'_> {
         self.sys.phi(q, t, phi);
     }
     /// Assemble and factorise `W = c[0] M + c[1] C + c[2] (K + Φ_qᵀαΦ_q)`.
-    fn factorize(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lam: &[f64],
-        c: [f64; 3],
-    ) -> Result<(), SystemError> {
-        let cp = c[2] * self.alpha;
+    fn factorize(&mut self, x: StateView<'_>, lam: &[f64], c: [f64; 3]) -> DaeResult {
+        let (StateView { t, q, qd }, cp) = (x, c[2] * self.alpha);
         self.assemble(t, q, qd, lam, c[0], c[1], c[2], cp)
             .map_err(sys_err)
     }

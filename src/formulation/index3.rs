@@ -67,7 +67,7 @@
 use super::dynamic_blocks::DynamicBlocks;
 use super::state_border::StateBorder;
 use super::{all_finite, linear_at, mass_orthogonal_step, FormulationError};
-use crate::integrate::{SecondOrderDae, SystemError};
+use crate::integrate::{DaeResult, SecondOrderDae, StateView, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
@@ -611,21 +611,12 @@ impl SecondOrderDae for Index3<'_> {
     fn mass_diagonal(&self) -> &[f64] {
         self.sys.mass_diagonal()
     }
-    fn accelerations(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &mut [f64],
-        lambda: &mut [f64],
-    ) -> Result<(), SystemError> {
-        Index3::accelerations(self, t, q, qd, qdd, lambda).map_err(SystemError::new)
+    fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64], lam: &mut [f64]) -> DaeResult {
+        Index3::accelerations(self, x.t, x.q, x.qd, qdd, lam).map_err(SystemError::new)
     }
     fn residual(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         qdd: &[f64],
         lambda: &[f64],
         scale: f64,
@@ -637,14 +628,8 @@ impl SecondOrderDae for Index3<'_> {
     fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]) {
         self.sys.phi(q, t, phi);
     }
-    fn factorize(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lambda: &[f64],
-        c: [f64; 3],
-    ) -> Result<(), SystemError> {
+    fn factorize(&mut self, x: StateView<'_>, lambda: &[f64], c: [f64; 3]) -> DaeResult {
+        let StateView { t, q, qd } = x;
         self.assemble_and_factorize(t, q, qd, lambda, c[0], c[1], c[2])
             .map_err(SystemError::new)
     }

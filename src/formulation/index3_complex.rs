@@ -39,7 +39,7 @@
 use super::dynamic_blocks::DynamicBlocks;
 use super::state_border::ComplexStateBorder;
 use super::{all_finite, linear_at, FormulationError};
-use crate::integrate::{ComplexNewton, SystemError};
+use crate::integrate::{ComplexNewton, StateView, SystemError};
 use crate::linalg::{
     solver_for, APattern, ComplexChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind,
     SolverOptions, Storage, Symmetry,
@@ -430,9 +430,7 @@ impl LuPath {
 impl ComplexNewton for Index3Complex<'_> {
     fn factorize_complex(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), SystemError> {

@@ -37,7 +37,7 @@ use super::FormulationError;
 use super::{all_finite, Index1Options};
 use crate::integrate::{
     integrator, Failure, Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem,
-    Report, Stats, SystemError, Termination,
+    Report, Span, Stats, SystemError, Termination,
 };
 use crate::linalg::full_pivot_order;
 use crate::model::System;
@@ -652,18 +652,20 @@ impl<'a> Partitioned<'a> {
     /// pivoting there picks a different dependent set; then the integrator
     /// is rebuilt and restarted from that full state (fresh first step,
     /// outputs after it). Work and notices of all segments are summed.
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         method: Method,
         ode: &OdeOptions,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        times: &[f64],
-        obs: &mut dyn Observer,
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
+        let Span {
+            t0,
+            t_end,
+            q0,
+            qd0,
+            output_times: times,
+            obs,
+        } = span;
         let sys = self.sys;
         let n = sys.n_coords();
         let (mut t, mut q, mut qd) = (t0, q0.to_vec(), qd0.to_vec());

@@ -64,7 +64,7 @@ pub use genalpha::{
     AlphaParameters, GenAlpha, ALM_MAX_NEWTON, MAX_PENALTY_FACTOR, NOISE_REL, REUSE_BAND,
     ROUNDING_ULPS, SAFETY, SLOW_CONTRACTION, SLOW_ITERATIONS, STAGNATION, THETA_REFACTOR,
 };
-pub use implicit::{ImplicitStats, MultiplierUpdate, SecondOrderDae};
+pub use implicit::{DaeResult, ImplicitStats, MultiplierUpdate, SecondOrderDae, Span, StateView};
 pub(crate) use method::methods_taking;
 pub use method::{
     alias as method_alias, markdown_table as method_table_markdown, Alias, Equations, Family,

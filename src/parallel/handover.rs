@@ -27,37 +27,37 @@ use std::time::Duration;
 
 #[cfg(not(loom))]
 mod sync {
-    pub use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
-    pub use std::sync::Mutex;
-    pub use std::thread::{current, park, Thread};
+    pub(super) use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+    pub(super) use std::sync::Mutex;
+    pub(crate) use std::thread::{current, park, Thread};
     use std::time::{Duration, Instant};
 
     /// A cell whose accesses the protocol serialises.
-    pub struct Slot<T>(std::cell::UnsafeCell<T>);
+    pub(super) struct Slot<T>(std::cell::UnsafeCell<T>);
     impl<T> Slot<T> {
-        pub fn new(v: T) -> Self {
+        pub(super) fn new(v: T) -> Self {
             Self(std::cell::UnsafeCell::new(v))
         }
-        pub fn with_mut<R>(&self, f: impl FnOnce(*mut T) -> R) -> R {
+        pub(super) fn with_mut<R>(&self, f: impl FnOnce(*mut T) -> R) -> R {
             f(self.0.get())
         }
     }
 
     /// A bounded busy-wait: `spin` is true until `limit` has passed.
-    pub struct Spin {
+    pub(super) struct Spin {
         start: Instant,
         n: u32,
         limit: Duration,
     }
     impl Spin {
-        pub fn new(limit: Duration) -> Self {
+        pub(super) fn new(limit: Duration) -> Self {
             Self {
                 start: Instant::now(),
                 n: 0,
                 limit,
             }
         }
-        pub fn spin(&mut self) -> bool {
+        pub(super) fn spin(&mut self) -> bool {
             std::hint::spin_loop();
             self.n = self.n.wrapping_add(1);
             // read the clock only every 64 spins
@@ -98,7 +98,7 @@ mod sync {
     }
 }
 
-pub use sync::Thread;
+pub(super) use sync::Thread;
 use sync::{current, park, AtomicBool, AtomicU8, Mutex, Ordering, Slot, Spin};
 
 /// How long an idle helper busy-waits for the next half before it parks:
@@ -108,13 +108,13 @@ pub const SPIN: Duration = Duration::from_micros(300);
 
 /// How long a caller busy-waits for a half the helper is running before
 /// it parks: a few times the imbalance of two equal halves.
-pub const WAIT_SPIN: Duration = Duration::from_micros(50);
+pub(super) const WAIT_SPIN: Duration = Duration::from_micros(50);
 
 /// How long a caller whose own half is done waits for an awake helper to
 /// start the posted half before taking it back: a few cache-line
 /// transfers, far below the cost of a half (a helper that is awake but
 /// not on a core costs at most this per join).
-pub const GRACE: Duration = Duration::from_micros(5);
+pub(super) const GRACE: Duration = Duration::from_micros(5);
 
 const IDLE: u8 = 0;
 const POSTED: u8 = 1;
@@ -130,7 +130,7 @@ type Panic = Box<dyn std::any::Any + Send>;
 
 /// How a [`Handover::join`] ran its second half.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Ran {
+pub(super) enum Ran {
     /// On the helper.
     Helper,
     /// Taken back and run by the caller (the helper had not started it).
@@ -138,7 +138,7 @@ pub enum Ran {
 }
 
 /// The shared state of a caller thread and its helper.
-pub struct Handover {
+pub(super) struct Handover {
     state: AtomicU8,
     /// The posted half: written by the caller in `IDLE` before `POSTED`,
     /// taken by the helper after its `POSTED → RUNNING`, or cleared by the
@@ -171,7 +171,7 @@ unsafe impl Send for Handover {}
 
 impl Handover {
     /// The hand-over of halves from the calling thread.
-    pub fn new() -> Self {
+    pub(super) fn new() -> Self {
         Self {
             state: AtomicU8::new(IDLE),
             job: Slot::new(None),
@@ -187,12 +187,12 @@ impl Handover {
 
     /// Whether the helper runs and no half is out (a [`Self::join`] would
     /// post).
-    pub fn ready(&self) -> bool {
+    pub(super) fn ready(&self) -> bool {
         self.started.load(Ordering::Acquire) && self.state.load(Ordering::Acquire) == IDLE
     }
 
     /// Wakes a parked helper (it spins for [`SPIN`] again).
-    pub fn wake_helper(&self) {
+    pub(super) fn wake_helper(&self) {
         if self.helper_parked.load(Ordering::SeqCst) {
             if let Some(h) = self.helper.lock().unwrap().as_ref() {
                 h.unpark();
@@ -205,7 +205,7 @@ impl Handover {
     /// for it. A panic of either half is resumed here after both ended
     /// (first `a`'s). Call only from the thread that created the hand-over,
     /// in state `IDLE` ([`Self::ready`]).
-    pub fn join<A, B, RA, RB>(&self, a: A, b: B) -> ((RA, RB), Ran)
+    pub(super) fn join<A, B, RA, RB>(&self, a: A, b: B) -> ((RA, RB), Ran)
     where
         A: FnOnce() -> RA,
         B: FnOnce() -> RB + Send,
@@ -276,7 +276,7 @@ impl Handover {
     /// not on a core: the machine is busy) since the last call; clears it.
     /// A take-back from a parked helper (woken too late after a long
     /// serial stretch) does not count.
-    pub fn take_preempted(&self) -> bool {
+    pub(super) fn take_preempted(&self) -> bool {
         self.preempted.swap(false, Ordering::Relaxed)
     }
 
@@ -296,7 +296,7 @@ impl Handover {
     }
 
     /// Ends the helper's loop (after the last join).
-    pub fn stop(&self) {
+    pub(super) fn stop(&self) {
         self.state.store(STOP, Ordering::SeqCst);
         if let Some(h) = self.helper.lock().unwrap().as_ref() {
             h.unpark();
@@ -305,7 +305,7 @@ impl Handover {
 
     /// The helper: take posted halves until [`Self::stop`]; busy-wait
     /// [`SPIN`] after each, then park until the caller posts again.
-    pub fn helper_loop(&self) {
+    pub(super) fn helper_loop(&self) {
         *self.helper.lock().unwrap() = Some(current());
         self.started.store(true, Ordering::Release);
         let mut spin = Spin::new(SPIN);

@@ -12,6 +12,7 @@
 //! This module imports nothing else of the crate: the floors below and
 //! above it (`linalg`, `integrate`, `formulation`, the generated kernels)
 //! take their concurrency from here.
+#![warn(unreachable_pub)]
 
 mod handover;
 pub(crate) mod team;

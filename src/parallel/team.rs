@@ -72,22 +72,22 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 pub use super::handover::SPIN;
 
 /// Take-backs in a row after which an `Auto` team stops posting halves.
-pub const MISS_LIMIT: u32 = 4;
+pub(crate) const MISS_LIMIT: u32 = 4;
 /// Joins an `Auto` team runs on one thread after [`MISS_LIMIT`] misses.
-pub const SOLO_MIN: u32 = 64;
+pub(crate) const SOLO_MIN: u32 = 64;
 /// The longest such stretch (each miss of the next try doubles it).
-pub const SOLO_MAX: u32 = 16_384;
+pub(crate) const SOLO_MAX: u32 = 16_384;
 
 /// Passes ([`concurrent`] calls on the caller) in one probe window of an
 /// `Auto` team.
-pub const PROBE_PASSES: u32 = 24;
+pub(crate) const PROBE_PASSES: u32 = 24;
 /// Windows an `Auto` team runs the way its last probe found faster (the
 /// first time, and after a probe that changed its mind).
-pub const EXPLOIT_MIN: u32 = 8;
+pub(crate) const EXPLOIT_MIN: u32 = 8;
 /// The most windows between two probes (each probe that confirms the last
 /// decision doubles the stretch up to this), unless the machine gives
 /// evidence against the decision ([`DOUBT_WINDOWS`]).
-pub const EXPLOIT_MAX: u32 = 128;
+pub(crate) const EXPLOIT_MAX: u32 = 128;
 /// Windows in a row with evidence against the decision being run after
 /// which an `Auto` team ends the stretch and probes at once: running with
 /// the helper, a half taken back from a helper that was awake but had not
@@ -95,11 +95,11 @@ pub const EXPLOIT_MAX: u32 = 128;
 /// no core was free, or on a first choice of one thread, fewer runnable
 /// tasks on the machine than cores (`/proc/loadavg`: a core is free now).
 /// The probe still decides.
-pub const DOUBT_WINDOWS: u32 = 2;
+pub(crate) const DOUBT_WINDOWS: u32 = 2;
 /// An `Auto` team runs with its helper only when its probe windows took at
 /// most this fraction of the wall time of the windows alone (a tie goes
 /// to one thread).
-pub const TEAM_MARGIN: f64 = 0.97;
+pub(crate) const TEAM_MARGIN: f64 = 0.97;
 
 /// The probe windows, in order: with the helper (`false`) or alone
 /// (`true`).
@@ -740,7 +740,7 @@ fn current_team<'a>() -> Option<&'a Team> {
 /// computation with it (results must not depend on the choice), once per
 /// pass whatever the answer: in an `Auto` team each call counts one pass
 /// of the A/B rule's windows (module docs).
-pub fn concurrent() -> bool {
+pub(crate) fn concurrent() -> bool {
     match current_team() {
         Some(t) => {
             let solo = t.pass();
@@ -759,7 +759,7 @@ pub fn concurrent() -> bool {
 /// the helper has not started it by then); else `rayon::join` outside a
 /// team, or both here (in order a, b) inside a busy or backed-off team, on
 /// a helper, or under `One`.
-pub fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+pub(crate) fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
     A: FnOnce() -> RA + Send,
     B: FnOnce() -> RB + Send,

@@ -5,7 +5,7 @@
 //! Lagrangian.
 
 use super::*;
-use crate::integrate::{AlphaParameters, ImplicitStats};
+use crate::integrate::{AlphaParameters, ImplicitStats, Span};
 
 /// A run's extra summary fields ([`Summary::extra`]).
 type Extra = serde_json::Map<String, serde_json::Value>;
@@ -22,28 +22,11 @@ fn index3_start(
     Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
 }
 
-/// What a run integrates: its settings, the initial state `(q0, q̇0)`
-/// and the output times.
-pub(super) struct Span<'a> {
-    /// The run's settings (`t0`, `t_end`, method, options).
-    pub cfg: &'a RunConfig,
-    /// Initial positions.
-    pub q0: &'a [f64],
-    /// Initial velocities.
-    pub qd0: &'a [f64],
-    /// Output times.
-    pub times: &'a [f64],
-}
-
 /// A method bound to its formulation: the one interface [`simulate`]
 /// drives, whichever the method.
 pub(super) trait MethodRun {
-    /// Integrate from `(q0, q̇0)`, delivering `times` to `obs`.
-    fn integrate(
-        &mut self,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError>;
+    /// Integrate `span` with the settings `cfg`.
+    fn integrate(&mut self, cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError>;
     /// Move an inconsistent initial state onto the constraint manifold
     /// before the run, where the method needs it (the index-3 forms:
     /// [`Index3::consistent_start`], [`Augmented::consistent_start`]);
@@ -79,16 +62,10 @@ impl<'s> Explicit<'s> {
 }
 
 impl MethodRun for Explicit<'_> {
-    fn integrate(
-        &mut self,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let mut y0 = s.q0.to_vec();
-        y0.extend_from_slice(s.qd0);
-        let cfg = s.cfg;
+    fn integrate(&mut self, _cfg: &RunConfig, s: Span<'_>) -> Result<Report, IntegratorError> {
+        let y0 = [s.q0, s.qd0].concat();
         self.integ
-            .integrate(&mut self.f, cfg.t0, cfg.t_end, &y0, s.times, obs)
+            .integrate(&mut self.f, s.t0, s.t_end, &y0, s.output_times, s.obs)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let stats = self.f.stats();
@@ -134,15 +111,8 @@ pub(super) struct Partition<'s> {
 }
 
 impl MethodRun for Partition<'_> {
-    fn integrate(
-        &mut self,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let cfg = s.cfg;
-        self.f.integrate(
-            cfg.method, &cfg.ode, cfg.t0, cfg.t_end, s.q0, s.qd0, s.times, obs,
-        )
+    fn integrate(&mut self, cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError> {
+        self.f.integrate(cfg.method, &cfg.ode, span)
     }
     fn work(&self, _cfg: &RunConfig) -> (Work, Extra) {
         let ps = self.f.stats();
@@ -209,14 +179,8 @@ impl<'s> AugmentedRun<'s> {
 }
 
 impl MethodRun for AugmentedRun<'_> {
-    fn integrate(
-        &mut self,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
-        self.integ
-            .integrate(&mut self.f, t0, t1, s.q0, s.qd0, s.times, obs)
+    fn integrate(&mut self, _cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError> {
+        self.integ.integrate(&mut self.f, span)
     }
     fn consistent_start(
         &mut self,
@@ -329,13 +293,8 @@ fn fields<const N: usize>(pairs: [(&str, serde_json::Value); N]) -> Extra {
 /// An index-3 scheme on [`Index3`] ([`Index3Run`]): how it integrates and
 /// what it adds to the summary.
 pub(super) trait Index3Scheme {
-    /// Integrate on `f` (as [`MethodRun::integrate`]).
-    fn integrate(
-        &mut self,
-        f: &mut Index3<'_>,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError>;
+    /// Integrate `span` on `f` (as [`MethodRun::integrate`]).
+    fn integrate(&mut self, f: &mut Index3<'_>, span: Span<'_>) -> Result<Report, IntegratorError>;
     /// The factorisations of the run (all Newton matrices) and the
     /// scheme's summary `extra` fields.
     fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra);
@@ -367,12 +326,8 @@ impl<'s, S> Index3Run<'s, S> {
 }
 
 impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
-    fn integrate(
-        &mut self,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        self.scheme.integrate(&mut self.f, s, obs)
+    fn integrate(&mut self, _cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError> {
+        self.scheme.integrate(&mut self.f, span)
     }
     fn consistent_start(
         &mut self,
@@ -416,14 +371,8 @@ impl<'s> GenAlphaRun<'s> {
 }
 
 impl Index3Scheme for GenAlpha {
-    fn integrate(
-        &mut self,
-        f: &mut Index3<'_>,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
-        GenAlpha::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
+    fn integrate(&mut self, f: &mut Index3<'_>, span: Span<'_>) -> Result<Report, IntegratorError> {
+        GenAlpha::integrate(self, f, span)
     }
     fn work(&self, f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let gs = self.stats();
@@ -464,14 +413,8 @@ impl<'s> BdfRun<'s> {
 }
 
 impl Index3Scheme for Bdf {
-    fn integrate(
-        &mut self,
-        f: &mut Index3<'_>,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
-        Bdf::integrate(self, f, t0, t1, s.q0, s.qd0, s.times, obs)
+    fn integrate(&mut self, f: &mut Index3<'_>, span: Span<'_>) -> Result<Report, IntegratorError> {
+        Bdf::integrate(self, f, span)
     }
     fn work(&self, f: &Index3<'_>, _cfg: &RunConfig) -> (usize, Extra) {
         let bs = self.stats();
@@ -523,21 +466,13 @@ impl<'s> RadauRun<'s> {
 }
 
 impl Index3Scheme for RadauScheme<'_> {
-    fn integrate(
-        &mut self,
-        f: &mut Index3<'_>,
-        s: &Span<'_>,
-        obs: &mut dyn Observer,
-    ) -> Result<Report, IntegratorError> {
-        let (t0, t1) = (s.cfg.t0, s.cfg.t_end);
+    fn integrate(&mut self, f: &mut Index3<'_>, span: Span<'_>) -> Result<Report, IntegratorError> {
         match &mut self.integ {
-            RadauOrder::Three(r5) => {
-                r5.integrate(f, &mut self.c, t0, t1, s.q0, s.qd0, s.times, obs)
-            }
+            RadauOrder::Three(r5) => r5.integrate(f, &mut self.c, span),
             RadauOrder::Five(b) => {
                 let (r9, c2) = &mut **b;
                 let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
-                r9.integrate(f, cplx, t0, t1, s.q0, s.qd0, s.times, obs)
+                r9.integrate(f, cplx, span)
             }
         }
     }

@@ -7,7 +7,7 @@ use crate::formulation::{
 };
 use crate::integrate::{
     integrator, Bdf, Family, GenAlpha, ImplicitOptions, Integrator, IntegratorError, Method,
-    Observer, OdeOptions, Radau5, Report, Stats, Termination, Tolerance,
+    Observer, OdeOptions, Radau5, Report, Span, Stats, Termination, Tolerance,
 };
 use crate::model::System;
 use crate::parallel::{with_threads, Threads};
@@ -20,7 +20,7 @@ mod methods;
 mod stiffness;
 mod watch;
 pub use choice::MethodChoice;
-use methods::{AugmentedRun, BdfRun, Explicit, GenAlphaRun, MethodRun, Partition, RadauRun, Span};
+use methods::{AugmentedRun, BdfRun, Explicit, GenAlphaRun, MethodRun, Partition, RadauRun};
 use stiffness::stability_check;
 pub use stiffness::LOAD_CROSSINGS;
 use watch::Watch;
@@ -457,12 +457,14 @@ pub fn simulate_into(
     let start = Instant::now();
     let (report, team) = with_threads(threads, || {
         let span = Span {
-            cfg,
+            t0: cfg.t0,
+            t_end: cfg.t_end,
             q0: &q0,
             qd0: &qd0,
-            times: &times,
+            output_times: &times,
+            obs: &mut watch,
         };
-        method.integrate(&span, &mut watch)
+        method.integrate(cfg, span)
     });
     let report = report?;
     let wall_s = start.elapsed().as_secs_f64();

@@ -409,34 +409,28 @@ impl mbsolve::integrate::SecondOrderDae for Growth {
     }
     fn accelerations(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: mbsolve::integrate::StateView<'_>,
         qdd: &mut [f64],
         _l: &mut [f64],
     ) -> Result<(), mbsolve::integrate::SystemError> {
-        qdd[0] = q[0];
+        qdd[0] = x.q[0];
         Ok(())
     }
     fn residual(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: mbsolve::integrate::StateView<'_>,
         qdd: &[f64],
         _l: &[f64],
         scale: f64,
         r: &mut [f64],
     ) -> Result<(), mbsolve::integrate::SystemError> {
-        r[0] = scale * (qdd[0] - q[0]);
+        r[0] = scale * (qdd[0] - x.q[0]);
         Ok(())
     }
     fn constraints(&mut self, _t: f64, _q: &[f64], _phi: &mut [f64]) {}
     fn factorize(
         &mut self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
+        _x: mbsolve::integrate::StateView<'_>,
         _l: &[f64],
         c: [f64; 3],
     ) -> Result<(), mbsolve::integrate::SystemError> {
@@ -481,9 +475,15 @@ fn growth_run(p: usize, ndf: bool, rtol: f64, h: Option<f64>) -> (usize, f64, us
         }
     }
     let mut last = Last(vec![]);
-    let r = bdf
-        .integrate(&mut sys, 0.0, 1.0, &[1.0], &[1.0], &[1.0], &mut last)
-        .unwrap();
+    let span = mbsolve::integrate::Span {
+        t0: 0.0,
+        t_end: 1.0,
+        q0: &[1.0],
+        qd0: &[1.0],
+        output_times: &[1.0],
+        obs: &mut last,
+    };
+    let r = bdf.integrate(&mut sys, span).unwrap();
     let st = bdf.stats();
     (
         r.stats.steps,

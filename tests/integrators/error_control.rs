@@ -22,7 +22,7 @@
 
 use mbsolve::integrate::{
     integrator, ComplexNewton, FnSystem, ImplicitOptions, Method, Observer, OdeOptions, Radau5,
-    RadauTableau, SecondOrderDae, SystemError, Tolerance,
+    RadauTableau, SecondOrderDae, StateView, SystemError, Tolerance,
 };
 use mbsolve::simulation::RunConfig;
 use std::ops::ControlFlow;
@@ -161,13 +161,11 @@ impl SecondOrderDae for LinearDae {
     }
     fn accelerations(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: StateView<'_>,
         qdd: &mut [f64],
         lambda: &mut [f64],
     ) -> Result<(), SystemError> {
-        let (n, m) = self.dims();
+        let (n, m, q) = (self.dims().0, self.dims().1, x.q);
         let a: Vec<Vec<f64>> = self
             .saddle([1.0, 0.0], [0.0, 0.0])
             .into_iter()
@@ -182,15 +180,13 @@ impl SecondOrderDae for LinearDae {
     }
     fn residual(
         &mut self,
-        _t: f64,
-        q: &[f64],
-        _qd: &[f64],
+        x: StateView<'_>,
         qdd: &[f64],
         lambda: &[f64],
         scale: f64,
         r: &mut [f64],
     ) -> Result<(), SystemError> {
-        let (n, _) = self.dims();
+        let (n, q) = (self.dims().0, x.q);
         for i in 0..n {
             let gl: f64 = self.g.iter().zip(lambda).map(|(row, l)| row[i] * l).sum();
             r[i] = scale * (self.m[i] * qdd[i] + self.k[i] * q[i] + gl);
@@ -205,14 +201,7 @@ impl SecondOrderDae for LinearDae {
             *p = row.iter().zip(q).map(|(a, b)| a * b).sum();
         }
     }
-    fn factorize(
-        &mut self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
-        _l: &[f64],
-        c: [f64; 3],
-    ) -> Result<(), SystemError> {
+    fn factorize(&mut self, _x: StateView<'_>, _l: &[f64], c: [f64; 3]) -> Result<(), SystemError> {
         // C_t = 0, K_t = K
         self.real = self
             .saddle([c[0], 0.0], [c[2], 0.0])
@@ -234,9 +223,7 @@ impl SecondOrderDae for LinearDae {
 impl ComplexNewton for LinearDae {
     fn factorize_complex(
         &mut self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
+        _x: StateView<'_>,
         _l: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), SystemError> {
@@ -407,9 +394,15 @@ fn radau5_first_step_rejections(sys: &mut LinearDae, q0: &[f64], h: f64, rtol: f
     let mut radau = Radau5::new(opts, ode).unwrap();
     let qd0 = vec![0.0; q0.len()];
     let mut cplx = LinearDae::new(sys.m.clone(), sys.k.clone(), sys.g.clone());
-    let rep = radau
-        .integrate(sys, &mut cplx, 0.0, h, q0, &qd0, &[h], &mut Quiet)
-        .unwrap();
+    let span = mbsolve::integrate::Span {
+        t0: 0.0,
+        t_end: h,
+        q0,
+        qd0: &qd0,
+        output_times: &[h],
+        obs: &mut Quiet,
+    };
+    let rep = radau.integrate(sys, &mut cplx, span).unwrap();
     assert_eq!(
         rep.termination,
         mbsolve::integrate::Termination::Completed,

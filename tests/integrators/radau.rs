@@ -24,13 +24,14 @@
 
 use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::{ComplexSolverKind, Index3, Index3Complex, NewtonSolverKind};
-use mbsolve::integrate::SecondOrderDae;
+use mbsolve::integrate::{SecondOrderDae, StateView};
 use mbsolve::linalg::SolverKind;
 
 /// Dense `[c₀M + c₁C + c₂K, Φ_qᵀ; Φ_q, 0]` of `Index3` (exact, sparse-LU
 /// storage) for real coefficients.
 fn dense(f: &mut Index3, q: &[f64], qd: &[f64], lam: &[f64], c: [f64; 3]) -> faer::Mat<f64> {
-    f.factorize(0.0, q, qd, lam, c).expect("factorises");
+    let x = StateView { t: 0.0, q, qd };
+    f.factorize(x, lam, c).expect("factorises");
     f.newton_matrix().to_dense()
 }
 

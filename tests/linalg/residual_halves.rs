@@ -6,7 +6,7 @@
 
 use mbsolve::builders::{build_rod, stiff_chain, RodParams};
 use mbsolve::formulation::Index3;
-use mbsolve::integrate::SecondOrderDae;
+use mbsolve::integrate::{SecondOrderDae, StateView};
 use mbsolve::linalg::SolverKind;
 use mbsolve::model::{Evaluation, System};
 use mbsolve::parallel::PARALLEL_MIN_COORDS;
@@ -64,7 +64,12 @@ fn check(sys: &System, q0: &[f64], dx: impl Fn(usize) -> f64) {
             let mut r = vec![0.0; want.len()];
             // twice: the second call finds the buffers of the first
             for _ in 0..2 {
-                SecondOrderDae::residual(&mut f, 0.0, &q, &qd, &qdd, &lam, s, &mut r).unwrap();
+                let x = StateView {
+                    t: 0.0,
+                    q: &q,
+                    qd: &qd,
+                };
+                SecondOrderDae::residual(&mut f, x, &qdd, &lam, s, &mut r).unwrap();
             }
             r
         });

@@ -94,12 +94,12 @@ mod newton;
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, settle_output, validate_run, Attempted, CutRules, Cuts,
-    ImplicitStats, ImplicitStepper, Renewal, RenewalOptions, Shrink, StepTry, Warn,
+    attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView, StepTry, Warn,
 };
 use super::{
-    IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae, Stats, SystemError,
-    Tolerance, REUSE_BAND, ROUNDING_ULPS,
+    IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Stats, SystemError, Tolerance,
+    REUSE_BAND, ROUNDING_ULPS,
 };
 use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
 
@@ -169,21 +169,14 @@ impl Bdf {
 
     /// Integrate from `(t0, q0, q̇0)` to `t_end`; the observer receives
     /// `y = [q; q̇]` (as [`super::GenAlpha::integrate`]).
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         sys: &mut dyn SecondOrderDae,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
-        let n = sys.n();
-        validate_run(n, t0, t_end, q0, qd0, output_times, &self.ode, true)?;
-        let mut run = BdfRun::new(sys, &self.ode, t0, t_end, q0, qd0);
-        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
+        validate_run(sys.n(), &span, &self.ode, true)?;
+        let mut run = BdfRun::new(sys, &self.ode, &span);
+        let (report, stats) = run_implicit(&mut run, span, self.ode.max_steps);
         self.stats = stats;
         Ok(report)
     }
@@ -283,15 +276,11 @@ struct BdfRun<'s> {
 }
 
 impl<'s> BdfRun<'s> {
-    fn new(
-        sys: &'s mut dyn SecondOrderDae,
-        ode: &OdeOptions,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-    ) -> Self {
+    fn new(sys: &'s mut dyn SecondOrderDae, ode: &OdeOptions, span: &Span<'_>) -> Self {
         let (n, m) = (sys.n(), sys.m());
+        let Span {
+            t0, t_end, q0, qd0, ..
+        } = *span;
         let mut tol = common::MatlabTolerances::new(ode, 2 * n, t0, t_end);
         if let Tolerance::Vector(v) = &ode.atol {
             if v.len() == n {
@@ -476,20 +465,7 @@ impl EstimateIn<'_> {
     }
 }
 
-impl ImplicitStepper for BdfRun<'_> {
-    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
-        (&mut self.stats, &mut self.warnings)
-    }
-    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
-        self.attempt(t_new, h)
-    }
-    fn renewal(&mut self) -> &mut Renewal {
-        &mut self.renewal
-    }
-    fn cuts(&mut self) -> &mut Cuts {
-        &mut self.cuts
-    }
-}
+implicit_stepper!(BdfRun<'_>);
 
 impl Stepper for BdfRun<'_> {
     fn start(&mut self) -> Result<(), Failure> {
@@ -498,7 +474,7 @@ impl Stepper for BdfRun<'_> {
         let (q0, v0) = self.ys[0].split_at(n);
         self.stats.residual_evaluations += 1;
         self.sys
-            .accelerations(t, q0, v0, &mut self.qdd, &mut self.lam)
+            .accelerations(StateView { t, q: q0, qd: v0 }, &mut self.qdd, &mut self.lam)
             .map_err(|e| Failure::System {
                 what: "consistent accelerations",
                 t,

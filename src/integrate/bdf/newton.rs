@@ -11,9 +11,11 @@ impl BdfRun<'_> {
         self.stats.factorizations += 1;
         self.renewal.factorising();
         self.sys.factorize(
-            t1,
-            &self.q,
-            &self.v,
+            StateView {
+                t: t1,
+                q: &self.q,
+                qd: &self.v,
+            },
             &self.lam_new,
             [1.0, 1.0 / a0, 1.0 / (a0 * a0)],
         )?;
@@ -118,9 +120,11 @@ impl BdfRun<'_> {
         loop {
             self.stats.residual_evaluations += 1;
             self.sys.residual(
-                t1,
-                &self.q,
-                &self.v,
+                StateView {
+                    t: t1,
+                    q: &self.q,
+                    qd: &self.v,
+                },
                 &self.qdd,
                 &self.lam_new,
                 s,

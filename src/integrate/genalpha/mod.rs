@@ -183,13 +183,13 @@ pub use step::SAFETY;
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, settle_output, validate_run, Attempted, CutRules, Cuts,
-    ImplicitStats, ImplicitStepper, Renewal, RenewalOptions, SecondOrderDae, Shrink, StepTry, Warn,
+    attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink, Span,
+    StateView, StepTry, Warn,
 };
 use super::Tolerance;
 use super::{
-    common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, Stats,
-    SystemError,
+    common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, Stats, SystemError,
 };
 use std::sync::Arc;
 
@@ -223,6 +223,15 @@ impl State {
             qdd: vec![0.0; n],
             a: vec![0.0; n],
             lam: vec![0.0; m],
+        }
+    }
+
+    /// `(t, q, q̇)` of this state at `t`.
+    fn at(&self, t: f64) -> StateView<'_> {
+        StateView {
+            t,
+            q: &self.q,
+            qd: &self.v,
         }
     }
 }
@@ -297,34 +306,18 @@ impl GenAlpha {
     /// accepted step. `output_times` must be strictly increasing within
     /// `[t0, t_end]`. Inputs are validated as for the explicit integrators;
     /// a failure midway is `Ok` with [`Termination::Failed`](super::Termination::Failed).
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         sys: &mut dyn SecondOrderDae,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
-        let (n, m) = (sys.n(), sys.m());
         if sys.multiplier_update().is_some() {
             augmented::check_options(self.method, &self.opts)?;
         }
-        validate_run(
-            n,
-            t0,
-            t_end,
-            q0,
-            qd0,
-            output_times,
-            &self.ode,
-            self.opts.adaptive,
-        )?;
+        validate_run(sys.n(), &span, &self.ode, self.opts.adaptive)?;
         self.stats = ImplicitStats::default();
-        let mut run = Run::new(self, sys, n, m, t0, t_end, q0, qd0);
-        let (report, stats) = run_implicit(&mut run, output_times, self.ode.max_steps, t_end, obs);
+        let mut run = Run::new(self, sys, &span);
+        let (report, stats) = run_implicit(&mut run, span, self.ode.max_steps);
         self.stats = stats;
         Ok(report)
     }
@@ -390,17 +383,11 @@ struct Run<'g, 's> {
 }
 
 impl<'g, 's> Run<'g, 's> {
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        g: &'g GenAlpha,
-        sys: &'s mut dyn SecondOrderDae,
-        n: usize,
-        m: usize,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-    ) -> Self {
+    fn new(g: &'g GenAlpha, sys: &'s mut dyn SecondOrderDae, span: &Span<'_>) -> Self {
+        let (n, m) = (sys.n(), sys.m());
+        let Span {
+            t0, t_end, q0, qd0, ..
+        } = *span;
         let mut cur = State::new(n, m);
         cur.q.copy_from_slice(q0);
         cur.v.copy_from_slice(qd0);
@@ -493,20 +480,7 @@ impl<'g, 's> Run<'g, 's> {
     }
 }
 
-impl ImplicitStepper for Run<'_, '_> {
-    fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
-        (&mut self.stats, &mut self.warnings)
-    }
-    fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
-        self.attempt(t_new, h)
-    }
-    fn renewal(&mut self) -> &mut Renewal {
-        &mut self.renewal
-    }
-    fn cuts(&mut self) -> &mut Cuts {
-        &mut self.cuts
-    }
-}
+implicit_stepper!(Run<'_, '_>);
 
 impl Stepper for Run<'_, '_> {
     /// Consistent accelerations and multipliers at t0 (`a_0 = q̈_0`) and
@@ -514,9 +488,13 @@ impl Stepper for Run<'_, '_> {
     fn start(&mut self) -> Result<(), Failure> {
         let t0 = self.t0;
         self.stats.residual_evaluations += 1;
-        let (q, v) = (&self.cur.q, &self.cur.v);
+        let x = StateView {
+            t: t0,
+            q: &self.cur.q,
+            qd: &self.cur.v,
+        };
         self.sys
-            .accelerations(t0, q, v, &mut self.cur.qdd, &mut self.cur.lam)
+            .accelerations(x, &mut self.cur.qdd, &mut self.cur.lam)
             .map_err(|e| Failure::System {
                 what: "initial accelerations",
                 t: t0,

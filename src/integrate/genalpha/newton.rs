@@ -101,8 +101,8 @@ impl Run<'_, '_> {
     pub(super) fn factor(&mut self, t1: f64, h: f64, c: [f64; 3]) -> Result<(), SystemError> {
         self.stats.factorizations += 1;
         self.renewal.factorising();
-        self.sys
-            .factorize(t1, &self.new.q, &self.new.v, &self.new.lam, c)?;
+        let new = &self.new;
+        self.sys.factorize(new.at(t1), &new.lam, c)?;
         self.renewal.factorised(h);
         Ok(())
     }
@@ -221,7 +221,7 @@ impl Run<'_, '_> {
             self.stats.residual_evaluations += 1;
             let new = &self.new;
             self.sys
-                .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+                .residual(new.at(t1), &new.qdd, &new.lam, s, &mut self.r)?;
             // solving for r (not −r) gives −Δ, the correction negated
             // exactly (the solve is linear and rounds symmetrically):
             // `correct` and the multipliers subtract it, the same bits as
@@ -432,7 +432,7 @@ impl Run<'_, '_> {
         self.stats.residual_evaluations += 1;
         let new = &self.new;
         self.sys
-            .residual(t1, &new.q, &new.v, &new.qdd, &new.lam, s, &mut self.r)?;
+            .residual(new.at(t1), &new.qdd, &new.lam, s, &mut self.r)?;
         self.r[self.n..].fill(0.0);
         self.sys.solve(t1, &mut self.r)
     }

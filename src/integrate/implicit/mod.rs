@@ -20,7 +20,8 @@ pub use convergence::{
 };
 pub(crate) use dense::settle_output;
 pub(crate) use failure::{attempt_or_cut, Attempted, CutRules, Cuts, Shrink, StepTry, Warn};
-pub use problem::{MultiplierUpdate, SecondOrderDae};
+pub use problem::{DaeResult, MultiplierUpdate, SecondOrderDae, StateView};
 pub use renewal::{Renewal, RenewalOptions};
-pub(crate) use run::{run, validate_run, ImplicitStepper};
+pub use run::Span;
+pub(crate) use run::{implicit_stepper, run, validate_run, ImplicitStepper};
 pub use stats::{ImplicitStats, COUNTED_ORDERS};

@@ -5,6 +5,22 @@
 
 use super::super::SystemError;
 
+/// What an evaluation of a [`SecondOrderDae`] returns: nothing, or the
+/// system's typed failure.
+pub type DaeResult = Result<(), SystemError>;
+
+/// A state `(t, q, q̇)` of a [`SecondOrderDae`], as the implicit schemes
+/// hand it to their problem.
+#[derive(Debug, Clone, Copy)]
+pub struct StateView<'a> {
+    /// Time t \[s\].
+    pub t: f64,
+    /// Positions q, n of them.
+    pub q: &'a [f64],
+    /// Velocities q̇, n of them.
+    pub qd: &'a [f64],
+}
+
 /// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
 /// `Φ(q, t) = 0` with a diagonal mass matrix, as the implicit integrators
 /// see it (implemented for multibody systems by
@@ -26,23 +42,14 @@ pub trait SecondOrderDae {
     fn m(&self) -> usize;
     /// Diagonal of M.
     fn mass_diagonal(&self) -> &[f64];
-    /// Consistent accelerations and multipliers at `(t, q, q̇)`:
+    /// Consistent accelerations and multipliers at `x = (t, q, q̇)`:
     /// `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`.
-    fn accelerations(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &mut [f64],
-        lambda: &mut [f64],
-    ) -> Result<(), SystemError>;
-    /// Scaled residual: `r[..n] = scale (M q̈ + Φ_qᵀ λ − g)`, `r[n..] = Φ(q, t)`.
-    #[allow(clippy::too_many_arguments)]
+    fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64], lam: &mut [f64]) -> DaeResult;
+    /// Scaled residual at `x` with the accelerations `qdd` and multipliers
+    /// `lambda`: `r[..n] = scale (M q̈ + Φ_qᵀ λ − g)`, `r[n..] = Φ(q, t)`.
     fn residual(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         qdd: &[f64],
         lambda: &[f64],
         scale: f64,
@@ -51,18 +58,11 @@ pub trait SecondOrderDae {
     /// Φ(q, t) into `phi`.
     fn constraints(&mut self, t: f64, q: &[f64], phi: &mut [f64]);
     /// Assemble and factorise the iteration matrix
-    /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)` with
+    /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `x = (t, q, q̇)` and `λ` with
     /// `C_t = −∂g/∂q̇`, `K_t = −∂g/∂q + (Φ_qᵀ λ)_q` (or an approximation
     /// of them, e.g. [`crate::formulation::Index3`]'s reciprocal part of
     /// unsymmetric force Jacobians).
-    fn factorize(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lambda: &[f64],
-        c: [f64; 3],
-    ) -> Result<(), SystemError>;
+    fn factorize(&mut self, x: StateView<'_>, lambda: &[f64], c: [f64; 3]) -> DaeResult;
     /// Overwrite `rhs` (length n + m) with the solution of the last factorised matrix.
     fn solve(&mut self, t: f64, rhs: &mut [f64]) -> Result<(), SystemError>;
     /// Project `(q, q̇)` onto `Φ = 0`, `Φ_q q̇ + Φ_t = 0`.

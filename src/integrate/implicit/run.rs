@@ -5,6 +5,24 @@ use super::super::driver::{self, Stepper};
 use super::super::{common, IntegratorError, Observer, OdeOptions, Report, SystemError, Tolerance};
 use super::{Cuts, ImplicitStats, Renewal};
 
+/// One run of an implicit scheme: from `(t0, q0, q̇0)` to `t_end`, and
+/// the output times with the observer that receives them.
+pub struct Span<'a> {
+    /// Start time t0 \[s\].
+    pub t0: f64,
+    /// End time \[s\], after `t0` (only forward integration).
+    pub t_end: f64,
+    /// Initial positions q0, n of them (finite).
+    pub q0: &'a [f64],
+    /// Initial velocities q̇0, n of them (finite).
+    pub qd0: &'a [f64],
+    /// Output times, strictly increasing within `[t0, t_end]`.
+    pub output_times: &'a [f64],
+    /// Receives `y = [q; q̇]`: `output` at each output time, `step` after
+    /// every accepted step.
+    pub obs: &'a mut dyn Observer,
+}
+
 /// A scheme's run as [`run`] drives it: a [`Stepper`] that counts its
 /// work in [`ImplicitStats`], collects warnings, and whose step attempts
 /// go through the one failure path ([`super::attempt_or_cut`]).
@@ -21,18 +39,40 @@ pub(crate) trait ImplicitStepper: Stepper {
     fn cuts(&mut self) -> &mut Cuts;
 }
 
-/// Drive `st` through [`driver::drive`] to `t_end`, delivering
-/// `output_times` to `obs` with at most `max_steps` steps: the report
+/// The [`ImplicitStepper`] of a scheme's run type whose books are its
+/// fields `stats`, `warnings`, `renewal` and `cuts` and whose Newton
+/// attempt is its method `attempt(t_new, h)`.
+macro_rules! implicit_stepper {
+    ($run:ty) => {
+        impl $crate::integrate::implicit::ImplicitStepper for $run {
+            fn books(&mut self) -> (&mut ImplicitStats, &mut Vec<String>) {
+                (&mut self.stats, &mut self.warnings)
+            }
+            fn newton_attempt(&mut self, t_new: f64, h: f64) -> Result<(), SystemError> {
+                self.attempt(t_new, h)
+            }
+            fn renewal(&mut self) -> &mut Renewal {
+                &mut self.renewal
+            }
+            fn cuts(&mut self) -> &mut Cuts {
+                &mut self.cuts
+            }
+        }
+    };
+}
+pub(crate) use implicit_stepper;
+
+/// Drive `st` through [`driver::drive`] over `span` with at most
+/// `max_steps` steps: the report
 /// (a failure midway is [`super::super::Termination::Failed`]) and the
 /// counters of the run (`min_step_taken` = 0 without an accepted step).
 pub(crate) fn run<S: ImplicitStepper>(
     st: &mut S,
-    output_times: &[f64],
+    span: Span<'_>,
     max_steps: usize,
-    t_end: f64,
-    obs: &mut dyn Observer,
 ) -> (Report, ImplicitStats) {
-    let (termination, t_reached) = driver::drive(st, output_times, max_steps, t_end, obs);
+    let (times, t_end) = (span.output_times, span.t_end);
+    let (termination, t_reached) = driver::drive(st, times, max_steps, t_end, span.obs);
     let (stats, warnings) = st.books();
     let stats = stats.finished();
     let report = Report {
@@ -47,17 +87,20 @@ pub(crate) fn run<S: ImplicitStepper>(
 /// Check the inputs of an implicit run: the time span, `q0` and `q̇0` of
 /// length `n` and finite, with `adaptive` a vector `atol` of length `n`
 /// or `2n`, and the output times within the span.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn validate_run(
     n: usize,
-    t0: f64,
-    t_end: f64,
-    q0: &[f64],
-    qd0: &[f64],
-    output_times: &[f64],
+    span: &Span<'_>,
     ode: &OdeOptions,
     adaptive: bool,
 ) -> Result<(), IntegratorError> {
+    let Span {
+        t0,
+        t_end,
+        q0,
+        qd0,
+        output_times,
+        ..
+    } = *span;
     common::check_span(t0, t_end)?;
     for (what, v) in [("q0", q0), ("qd0", qd0)] {
         if v.len() != n {

@@ -110,7 +110,7 @@
 //! `ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j` (RADAU5 tests the stage increments `ΔZ`)
 //! below `fnewt = max(10 ε / rtol', min(0.03, √rtol'))` times the error
 //! test's weights (the tip errors this gives against rtol: docs/radau.md).
-
+#![warn(unreachable_pub)]
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
@@ -133,8 +133,8 @@ use super::implicit::{
     Remainder, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
-    common, ImplicitOptions, IntegratorError, Method, Observer, OdeOptions, Report, SecondOrderDae,
-    Stats, SystemError, Tolerance, ROUNDING_ULPS,
+    common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Span,
+    StateView, Stats, SystemError, Tolerance, ROUNDING_ULPS,
 };
 use std::sync::Arc;
 
@@ -143,36 +143,34 @@ use std::sync::Arc;
 /// on the grid differ from `h` in their last bits (measured: 4e-4 came out
 /// as 3.999999999999976e-4 and 4.000000000000045e-4, and every such step
 /// renewed both factorisations).
-pub const SAME_STEP: f64 = 1e-9;
+pub(super) const SAME_STEP: f64 = 1e-9;
 
 /// Adaptive mode: the matrices factorised for a step `h_f` serve a step
 /// within this relative distance of it (a simplified Newton on a matrix
 /// of a nearby step, as generalized-α's `REUSE_BAND`): fewer
 /// factorisations than renewing at every change of the step
 /// (docs/scaling.md, "Measurements behind the defaults").
-pub const ADAPTIVE_REUSE_BAND: f64 = 0.2;
+pub(super) const ADAPTIVE_REUSE_BAND: f64 = 0.2;
 
 /// Safety factor of the step-size controller (RADAU5's `SAFE`).
-pub const SAFETY: f64 = 0.9;
+pub(super) const SAFETY: f64 = 0.9;
 /// Largest growth of the step after an accepted one (RADAU5: `1/FACR`).
-pub const MAX_GROWTH: f64 = 8.0;
+pub(super) const MAX_GROWTH: f64 = 8.0;
 /// Largest reduction after a rejected one (RADAU5: `FACL`).
-pub const MAX_SHRINK: f64 = 5.0;
+pub(super) const MAX_SHRINK: f64 = 5.0;
 /// A new step within `[1, KEEP_STEP]` times the last one keeps it, and
 /// with it the factorisations (RADAU5's `QUOT2`).
-pub const KEEP_STEP: f64 = 1.2;
+pub(super) const KEEP_STEP: f64 = 1.2;
 
 /// The complex Newton matrix of the transformed Radau stages:
 /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` with complex coefficients `c`
 /// (`[re, im]`, `c₀` real), factorised and solved (implemented for
 /// multibody systems by [`crate::formulation::Index3Complex`]).
 pub trait ComplexNewton {
-    /// Assemble and factorise at `(t, q, q̇, λ)`.
+    /// Assemble and factorise at `x = (t, q, q̇)` and `λ`.
     fn factorize_complex(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), SystemError>;
@@ -214,29 +212,14 @@ impl Radau5 {
     /// Integrate from `(t0, q0, q̇0)` to `t_end`; `cplx` is the complex
     /// Newton matrix of the same system. Outputs as [`super::GenAlpha::integrate`]
     /// (`y = [q; q̇]`, dense output from the collocation polynomials).
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         sys: &mut dyn SecondOrderDae,
         cplx: &mut dyn ComplexNewton,
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
-        let (report, stats) = integrate_stages(
-            &self.tab,
-            &self.opts,
-            &self.ode,
-            sys,
-            vec![cplx],
-            (t0, t_end),
-            (q0, qd0),
-            output_times,
-            obs,
-        )?;
+        let (tab, opts, ode) = (&self.tab, &self.opts, &self.ode);
+        let (report, stats) = integrate_stages(tab, opts, ode, sys, vec![cplx], span)?;
         self.stats = stats;
         Ok(report)
     }
@@ -245,20 +228,19 @@ impl Radau5 {
 /// Integrate with the stages of `tab` from `(t0, q0, q̇0)` to `t_end`
 /// (radau5's and radau9's `integrate`); `cplx` holds one complex Newton
 /// matrix per complex pair of 𝔄.
-#[allow(clippy::too_many_arguments)]
 fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
     tab: &T,
     opts: &ImplicitOptions,
     ode: &OdeOptions,
     sys: &'s mut dyn SecondOrderDae,
     cplx: Vec<&'s mut dyn ComplexNewton>,
-    (t0, t_end): (f64, f64),
-    (q0, qd0): (&[f64], &[f64]),
-    output_times: &[f64],
-    obs: &mut dyn Observer,
+    run_span: Span<'_>,
 ) -> Result<(Report, ImplicitStats), IntegratorError> {
     let (n, m) = (sys.n(), sys.m());
-    validate_run(n, t0, t_end, q0, qd0, output_times, ode, opts.adaptive)?;
+    validate_run(n, &run_span, ode, opts.adaptive)?;
+    let Span {
+        t0, t_end, q0, qd0, ..
+    } = run_span;
     let span = t_end - t0;
     let h_max = ode.max_step.unwrap_or(0.1 * span).min(span);
     // 0: chosen in `start` from the initial accelerations
@@ -322,13 +304,7 @@ fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
             first_cause: false,
         }),
     };
-    Ok(run_implicit(
-        &mut run,
-        output_times,
-        ode.max_steps,
-        t_end,
-        obs,
-    ))
+    Ok(run_implicit(&mut run, run_span, ode.max_steps))
 }
 
 /// The next attempt of a Radau IIA run from `t`: the step `h` (the
@@ -549,7 +525,15 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
     fn start(&mut self) -> Result<(), Failure> {
         self.stats.residual_evaluations += 1;
         self.sys
-            .accelerations(self.t0, &self.q, &self.v, &mut self.qdd, &mut self.lam)
+            .accelerations(
+                StateView {
+                    t: self.t0,
+                    q: &self.q,
+                    qd: &self.v,
+                },
+                &mut self.qdd,
+                &mut self.lam,
+            )
             .map_err(|e| Failure::System {
                 what: "initial accelerations",
                 t: self.t0,

@@ -42,12 +42,12 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             (self.t, &self.q, &self.v, &self.lam)
         };
         self.stats.factorizations += 1;
-        self.sys
-            .factorize(t, q, v, lam, [1.0, h * g, h * h * g * g])?;
+        let x = StateView { t, q, qd: v };
+        self.sys.factorize(x, lam, [1.0, h * g, h * h * g * g])?;
         for (c, mu) in self.cplx.iter_mut().zip(&tab.mu) {
             let hmu = [h * mu[0], h * mu[1]];
             self.stats.complex_factorizations += 1;
-            c.factorize_complex(t, q, v, lam, [[1.0, 0.0], hmu, cmul(hmu, hmu)])?;
+            c.factorize_complex(x, lam, [[1.0, 0.0], hmu, cmul(hmu, hmu)])?;
         }
         self.renewal.factorised(h);
         Ok(())
@@ -133,9 +133,11 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 self.stats.residual_evaluations += 1;
                 let ti = self.t + tab.c[i] * h;
                 self.sys.residual(
-                    ti,
-                    &self.qs,
-                    &self.vs,
+                    StateView {
+                        t: ti,
+                        q: &self.qs,
+                        qd: &self.vs,
+                    },
                     &self.a[i],
                     &self.l[i],
                     1.0,

@@ -77,30 +77,14 @@ impl Radau9 {
     /// Integrate from `(t0, q0, q̇0)` to `t_end`; `cplx` are two complex
     /// Newton matrices of the same system (one per complex pair of 𝔄).
     /// Outputs as [`Radau5::integrate`].
-    #[allow(clippy::too_many_arguments)]
     pub fn integrate(
         &mut self,
         sys: &mut dyn SecondOrderDae,
-        cplx: [&mut dyn ComplexNewton; 2],
-        t0: f64,
-        t_end: f64,
-        q0: &[f64],
-        qd0: &[f64],
-        output_times: &[f64],
-        obs: &mut dyn Observer,
+        [c1, c2]: [&mut dyn ComplexNewton; 2],
+        span: Span<'_>,
     ) -> Result<Report, IntegratorError> {
-        let [c1, c2] = cplx;
-        let (report, stats) = integrate_stages(
-            &self.tab,
-            &self.opts,
-            &self.ode,
-            sys,
-            vec![c1, c2],
-            (t0, t_end),
-            (q0, qd0),
-            output_times,
-            obs,
-        )?;
+        let (tab, opts, ode) = (&self.tab, &self.opts, &self.ode);
+        let (report, stats) = integrate_stages(tab, opts, ode, sys, vec![c1, c2], span)?;
         self.stats = stats;
         Ok(report)
     }

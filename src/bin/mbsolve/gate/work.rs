@@ -48,15 +48,21 @@ pub fn work_counts() -> Vec<Check> {
                 ..Default::default()
             }
         };
+        let span = mbsolve::integrate::Span {
+            t0: 0.0,
+            t_end,
+            q0: &q0,
+            qd0: &qd0,
+            output_times: &[t_end],
+            obs: &mut (),
+        };
         let run = if what.starts_with("genalpha") {
             let mut g =
                 GenAlpha::new(Method::GenAlpha, ImplicitOptions::default(), ode).expect("options");
-            g.integrate(&mut f, 0.0, t_end, &q0, &qd0, &[t_end], &mut ())
-                .map(|r| (r, g.stats()))
+            g.integrate(&mut f, span).map(|r| (r, g.stats()))
         } else {
             let mut b = Bdf::new(ode).expect("options");
-            b.integrate(&mut f, 0.0, t_end, &q0, &qd0, &[t_end], &mut ())
-                .map(|r| (r, b.stats()))
+            b.integrate(&mut f, span).map(|r| (r, b.stats()))
         };
         let (rep, st) = match run {
             Ok((rep, st)) if rep.termination == mbsolve::integrate::Termination::Completed => {
