@@ -438,6 +438,9 @@ mod tests {
                 assert_eq!(a.to_bits(), b.to_bits(), "dqd[{k}]");
             }
         }
-        assert!(touching > 100 && clear > 100, "{touching} near a wall, {clear} clear");
+        assert!(
+            touching > 100 && clear > 100,
+            "{touching} near a wall, {clear} clear"
+        );
     }
 }
