@@ -408,11 +408,11 @@ mod tests {
         for _ in 0..20 {
             let mut q: Vec<f64> = (0..n).map(|_| next(-1.0, 1.0)).collect();
             let qd: Vec<f64> = (0..n).map(|_| next(-1.0, 1.0)).collect();
-            for k in 0..nb {
+            for (k, contact) in contacts.iter().enumerate() {
                 let o = 3 * (body0 + k);
                 q[o] = next(-0.02, 0.02);
                 q[o + 2] = next(-0.3, 0.3);
-                if contacts[k].clear_of_walls(q[o]) {
+                if contact.clear_of_walls(q[o]) {
                     clear += 1;
                 } else {
                     touching += 1;
