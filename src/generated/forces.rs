@@ -251,10 +251,10 @@ impl ForceKernels for ContactJacobians {
         body_blocks(self.q0, self.fp.len() / 8)
     }
     /// The generated element kernel for the segments that may touch a
-    /// wall only: a segment clear of both walls ([`Clearance`], the test
-    /// of the elements' forces) has every corner at δ ≤ 0, where the
-    /// kernel adds zeros, so skipping it leaves `dq`, `dqd` as they were
-    /// (most of a long rod's segments, at every factorisation).
+    /// wall only: a segment clear of both walls (the elements' own test,
+    /// as in their forces) has every corner at δ ≤ 0, where the kernel
+    /// adds zeros, so skipping it leaves `dq`, `dqd` as they were (most
+    /// of a long rod's segments, at every factorisation).
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
         let ne = self.fp.len() / 8;
         assert!(dq.len() >= 9 * ne && dqd.len() >= 9 * ne);
