@@ -9,6 +9,8 @@
 //!
 //! ```text
 //! cargo run --release --example falling_rod_speed -- N [genalpha:H | agenalpha:RTOL | bdf:RTOL ...]
+//!     radau5:H fixed step, aradau5:RTOL adaptive radau5, auto:RTOL the
+//!     method `integrator.method = "auto"` chooses for rtol = RTOL
 //! cargo run --release --example falling_rod_speed -- compare RUN.txt REF.txt T_C
 //!     max over output times t ≤ T_C of the largest of the three position
 //!     differences (run against reference) [m]
@@ -18,14 +20,14 @@
 //!
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
 //! 1e-3 s), `MBS_ATOL` (absolute tolerance of the adaptive runs, default
-//! 1e-3·rtol), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
+//! 1e-3·rtol), `MBS_MAX_STEP` (s, the adaptive runs' largest step), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
 //! LU of the full iteration matrix), `MBS_TRACE` (file), `MBS_THREADS` (the rayon
 //! pool the run is installed in, default 1; CPU time counts every thread).
 
 use mbsolve::builders::{build_rod, RodInfo, RodParams};
 use mbsolve::events::ContactMonitor;
 use mbsolve::integrate::{Method, Tolerance};
-use mbsolve::simulation::{simulate_into, Monitor, RunConfig, Sample, Sink};
+use mbsolve::simulation::{simulate_into, MethodChoice, Monitor, RunConfig, Sample, Sink};
 use std::io::Write;
 use std::time::Instant;
 
@@ -177,9 +179,17 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         std::process::exit(2);
     };
     let adaptive_ga = name == "agenalpha";
-    let method: Method = if adaptive_ga { "genalpha" } else { name }
-        .parse()
-        .unwrap_or_else(|e| panic!("{spec}: {e}"));
+    let adaptive_radau = name == "aradau5";
+    let auto = name == "auto";
+    let method: Method = match name {
+        "agenalpha" => "genalpha",
+        "aradau5" => "radau5",
+        // the method is chosen at t0; the index-1 defaults stand until then
+        "auto" => "ode45",
+        other => other,
+    }
+    .parse()
+    .unwrap_or_else(|e| panic!("{spec}: {e}"));
     let value: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
     let mut cfg = RunConfig {
         method,
@@ -190,13 +200,16 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
     cfg.ode.max_steps = 100_000_000;
     if (method.is_generalized_alpha() && !adaptive_ga && method == Method::GenAlpha)
         || method == Method::Rk4
-        || method == Method::Radau5
+        || (method == Method::Radau5 && !adaptive_radau)
     {
         cfg.ode.fixed_step = Some(value);
     } else {
         cfg.ode.rtol = value;
         cfg.ode.atol = Tolerance::Scalar(env("MBS_ATOL").unwrap_or(value * 1e-3));
-        cfg.implicit.adaptive = adaptive_ga;
+        cfg.implicit.adaptive = adaptive_ga || adaptive_radau;
+    }
+    if auto {
+        cfg.choice = MethodChoice::Auto;
     }
     if let Some(lu) = env::<u8>("MBS_LU") {
         cfg.implicit.lu = lu != 0;
@@ -206,6 +219,9 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
     }
     if let Some(x) = env::<u8>("MBS_EXTRAPOLATE") {
         cfg.implicit.extrapolate = x != 0;
+    }
+    if let Some(h) = env("MBS_MAX_STEP") {
+        cfg.ode.max_step = Some(h);
     }
     if let Some(t) = env("MBS_NEWTON_TOL") {
         cfg.implicit.newton_tol = t;
@@ -254,6 +270,10 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
         "failed_steps": s.failed_steps,
         "newton_iterations": get("newton_iterations"),
         "newton_failures": get("newton_failures"),
+        "error_rejections": get("error_rejections"),
+        "method_choice": get("method_choice"),
+        "min_step_taken": get("min_step_taken"),
+        "max_step_taken": get("max_step_taken"),
         "newton_per_step": get("newton_iterations").as_f64().map(|i| i / s.steps.max(1) as f64),
         "factorizations": s.factorizations,
         "first_contact_time": first.map(|e| e.t),

@@ -250,9 +250,28 @@ impl ForceKernels for ContactJacobians {
     fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
         body_blocks(self.q0, self.fp.len() / 8)
     }
+    /// The generated element kernel for the segments that may touch a
+    /// wall only: a segment clear of both walls (the elements' own test,
+    /// as in their forces) has every corner at δ ≤ 0, where the kernel
+    /// adds zeros, so skipping it leaves `dq`, `dqd` as they were (most
+    /// of a long rod's segments, at every factorisation).
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
-        let r = self.q0..self.q0 + 3 * (self.fp.len() / 8);
-        kernels::contact_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
+        let ne = self.fp.len() / 8;
+        assert!(dq.len() >= 9 * ne && dqd.len() >= 9 * ne);
+        for (k, clear) in self.clearance.iter().enumerate() {
+            let o = self.q0 + 3 * k;
+            if clear.clear(q[o]) {
+                continue;
+            }
+            let qk: &[f64; 3] = q[o..o + 3].try_into().expect("3 coordinates");
+            let qdk: &[f64; 3] = qd[o..o + 3].try_into().expect("3 velocities");
+            let pk: &[f64; 8] = self.fp[8 * k..8 * k + 8].try_into().expect("8 parameters");
+            let dqk: &mut [f64; 9] = (&mut dq[9 * k..9 * k + 9]).try_into().expect("a 3×3 block");
+            let dqdk: &mut [f64; 9] = (&mut dqd[9 * k..9 * k + 9])
+                .try_into()
+                .expect("a 3×3 block");
+            kernels::contact_bodies_element_jacobians(qk, qdk, pk, dqk, dqdk);
+        }
     }
     /// The contact forces in one loop over the elements: the segments clear
     /// of both walls (most of a long rod's) are skipped by the elements' own
@@ -352,5 +371,76 @@ mod tests {
                 assert_eq!(a.to_bits(), b.to_bits(), "case {case}, g[{k}]");
             }
         }
+    }
+
+    /// The contact Jacobians that skip the segments clear of both walls
+    /// have the bits of the generated kernel over every segment: at random
+    /// states with some segments pressed into a wall (moving, rotating)
+    /// and some clear of both, from a body other than the first, into
+    /// buffers that already hold values.
+    #[test]
+    fn contact_jacobians_skipping_clear_segments_have_the_bits_of_the_full_kernel() {
+        let (nb, body0, ls) = (40, 3, 0.002);
+        let contacts: Vec<WallContact> = (0..nb)
+            .map(|k| WallContact {
+                body: body0 + k,
+                segment: k,
+                width: 0.03,
+                length: ls,
+                left_wall: -0.025,
+                right_wall: 0.025,
+                stiffness: 1e9,
+                damping: 0.75,
+                friction: 0.3,
+                slip_velocity: 1e-3,
+            })
+            .collect();
+        let kern = ContactJacobians::new(body0, &contacts);
+        let mut seed = 99u64;
+        let mut next = move |lo: f64, hi: f64| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            lo + (hi - lo) * ((seed >> 11) as f64 / (1u64 << 53) as f64)
+        };
+        let n = 3 * (body0 + nb);
+        let (mut touching, mut clear) = (0, 0);
+        for _ in 0..20 {
+            let mut q: Vec<f64> = (0..n).map(|_| next(-1.0, 1.0)).collect();
+            let qd: Vec<f64> = (0..n).map(|_| next(-1.0, 1.0)).collect();
+            for (k, contact) in contacts.iter().enumerate() {
+                let o = 3 * (body0 + k);
+                q[o] = next(-0.02, 0.02);
+                q[o + 2] = next(-0.3, 0.3);
+                if contact.clear_of_walls(q[o]) {
+                    clear += 1;
+                } else {
+                    touching += 1;
+                }
+            }
+            let base_q: Vec<f64> = (0..9 * nb).map(|_| next(-1.0, 1.0)).collect();
+            let base_qd: Vec<f64> = (0..9 * nb).map(|_| next(-1.0, 1.0)).collect();
+            let (mut dq, mut dqd) = (base_q.clone(), base_qd.clone());
+            kern.add_jacobians(0.0, &q, &qd, &mut dq, &mut dqd);
+            let (mut want_q, mut want_qd) = (base_q, base_qd);
+            let r = 3 * body0..n;
+            kernels::contact_bodies_force_jacobians(
+                &q[r.clone()],
+                &qd[r],
+                &kern.fp,
+                &mut want_q,
+                &mut want_qd,
+            );
+            for (k, (a, b)) in dq.iter().zip(&want_q).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "dq[{k}]");
+            }
+            for (k, (a, b)) in dqd.iter().zip(&want_qd).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "dqd[{k}]");
+            }
+        }
+        assert!(
+            touching > 100 && clear > 100,
+            "{touching} near a wall, {clear} clear"
+        );
     }
 }
