@@ -140,9 +140,8 @@ use std::sync::Arc;
 
 /// Relative difference below which a step counts as the one the Newton
 /// matrices were factorised for: the fixed steps computed as `target − t`
-/// on the grid differ from `h` in their last bits (measured: 4e-4 came out
-/// as 3.999999999999976e-4 and 4.000000000000045e-4, and every such step
-/// renewed both factorisations).
+/// on the grid differ from `h` in their last bits, and an exact comparison
+/// would renew both factorisations at every such step.
 pub(super) const SAME_STEP: f64 = 1e-9;
 
 /// Adaptive mode: the matrices factorised for a step `h_f` serve a step
