@@ -165,16 +165,7 @@ impl DynamicBlocks {
         [c_m, c_c, c_k]: [f64; 3],
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        self.evaluate(
-            sys,
-            t,
-            q,
-            qd,
-            lam,
-            c_c != 0.0 || c_k != 0.0,
-            c_k != 0.0,
-            jac,
-        )?;
+        self.evaluate_for(sys, t, q, qd, lam, [c_m, c_c, c_k], jac)?;
         self.write(sys, k, [c_m, c_c, c_k]);
         Ok(())
     }
@@ -280,6 +271,32 @@ impl DynamicBlocks {
 }
 
 impl DynamicBlocks {
+    /// [`Self::evaluate`] with what the coefficients `[c_m, c_c, c_k]`
+    /// need: the force Jacobians when `c_c` or `c_k` ≠ 0, the Hessians when
+    /// `c_k` ≠ 0.
+    #[allow(clippy::too_many_arguments)]
+    fn evaluate_for(
+        &mut self,
+        sys: &System,
+        t: f64,
+        q: &[f64],
+        qd: &[f64],
+        lam: &[f64],
+        [_, c_c, c_k]: [f64; 3],
+        jac: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        self.evaluate(
+            sys,
+            t,
+            q,
+            qd,
+            lam,
+            c_c != 0.0 || c_k != 0.0,
+            c_k != 0.0,
+            jac,
+        )
+    }
+
     /// [`Self::evaluate`], then [`Self::write_with_jacobian`] with `Φ_q`
     /// from `jac`: [`Self::assemble`] followed by
     /// [`SaddleMatrix::set_jacobian`], the same values.
@@ -295,16 +312,7 @@ impl DynamicBlocks {
         [c_m, c_c, c_k]: [f64; 3],
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        self.evaluate(
-            sys,
-            t,
-            q,
-            qd,
-            lam,
-            c_c != 0.0 || c_k != 0.0,
-            c_k != 0.0,
-            jac,
-        )?;
+        self.evaluate_for(sys, t, q, qd, lam, [c_m, c_c, c_k], jac)?;
         self.write_with_jacobian(sys, k, [c_m, c_c, c_k], jac);
         Ok(())
     }
