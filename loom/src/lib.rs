@@ -13,6 +13,9 @@
 
 #[path = "../../src/parallel/handover.rs"]
 #[allow(dead_code)]
+// The file's docs link to its private constants, which only the main
+// crate's private docs show.
+#[allow(rustdoc::private_intra_doc_links)]
 pub mod handover;
 
 #[cfg(test)]
