@@ -49,7 +49,7 @@ pub fn ignore_file_size_signal() {
 }
 
 /// The files of the run in progress, for the second signal's handler;
-/// `None` before they are claimed and once the final summary is written.
+/// `None` before they are claimed.
 static CLAIMED: std::sync::Mutex<Option<Claimed>> = std::sync::Mutex::new(None);
 
 /// What a run has claimed in its output directory.
@@ -62,6 +62,9 @@ struct Claimed {
     part: PathBuf,
     /// `DIR/<stem>.lock`.
     lock: PathBuf,
+    /// The final summary is written (or being written, under the lock):
+    /// the second signal's handler only removes the lock.
+    summary_written: bool,
 }
 
 /// A second signal: the summary must not stay "running" nor claim what is
@@ -70,9 +73,14 @@ struct Claimed {
 /// its `.part`) or not; this process's temporary summary and its lock are
 /// removed.
 fn second_signal() {
-    let Some(c) = CLAIMED.lock().ok().and_then(|mut g| g.take()) else {
+    let mut claim = CLAIMED.lock().unwrap_or_else(|p| p.into_inner());
+    let Some(c) = claim.take() else {
         return;
     };
+    if c.summary_written {
+        let _ = std::fs::remove_file(&c.lock);
+        return;
+    }
     let _ = std::fs::remove_file(sibling(&c.summary, &format!(".{}.tmp", std::process::id())));
     let message = if c.part.exists() || !c.table.exists() {
         format!(
@@ -445,12 +453,14 @@ impl<'s> RunFiles<'s> {
         let part = sibling(&csv, ".part");
         let text = serde_json::to_string_pretty(running).map_err(|e| OutputError::new(&json, e))?;
         write_atomic(&json, &(text + "\n"))?;
-        if let Ok(mut g) = CLAIMED.lock() {
+        {
+            let mut g = CLAIMED.lock().unwrap_or_else(|p| p.into_inner());
             *g = Some(Claimed {
                 summary: json.clone(),
                 table: csv.clone(),
                 part: part.clone(),
                 lock: lock.path.clone(),
+                summary_written: false,
             });
         }
         for f in Format::NAMES {
@@ -486,6 +496,8 @@ impl<'s> RunFiles<'s> {
         if let Some(p) = &self.progress {
             p.clear();
         }
+        // the trailer and the sync may take long: outside the claim, so a
+        // second signal does not wait for them
         let table = match self.table.take() {
             Some(mut t) => t
                 .finish()
@@ -496,38 +508,48 @@ impl<'s> RunFiles<'s> {
                         .and_then(|f| f.sync_all())
                         .map_err(|e| OutputError::new(&self.part, e))
                 })
-                .and_then(|()| {
-                    std::fs::rename(&self.part, &self.csv)
-                        .map_err(|e| OutputError::new(&self.csv, e))
-                }),
-            None => Ok(()),
+                .map(|()| true),
+            None => Ok(false),
         };
-        let written = match table {
-            Ok(()) => write_final_summary(&self.json, summary),
-            Err(e) => {
-                // the table could not be finished: the run failed, and its
-                // summary says so rather than staying "running"
-                let mut s = summary.clone();
-                s.message = Some(format!(
-                    "{}; finishing the table failed: {e}",
-                    s.message.as_deref().unwrap_or(&s.status)
-                ));
-                s.status = "failed".into();
-                let _ = write_final_summary(&self.json, &s);
-                Err(e)
+        under_claim(|| {
+            let renamed = table.and_then(|finished| match finished {
+                true => std::fs::rename(&self.part, &self.csv)
+                    .map_err(|e| OutputError::new(&self.csv, e)),
+                false => Ok(()),
+            });
+            match renamed {
+                Ok(()) => write_final_summary(&self.json, summary),
+                Err(e) => {
+                    // the table could not be finished: the run failed, and
+                    // its summary says so rather than staying "running"
+                    let mut s = summary.clone();
+                    s.message = Some(format!(
+                        "{}; finishing the table failed: {e}",
+                        s.message.as_deref().unwrap_or(&s.status)
+                    ));
+                    s.status = "failed".into();
+                    let _ = write_final_summary(&self.json, &s);
+                    Err(e)
+                }
             }
-        };
-        release_claim();
-        written
+        })
     }
 }
 
-/// The final summary is written: a second signal from here on leaves the
-/// files alone.
-fn release_claim() {
-    if let Ok(mut g) = CLAIMED.lock() {
-        *g = None;
-    }
+/// Rename the table into place and write the final summary (`finish`)
+/// while holding the claim, then mark it written: a second signal that
+/// arrives meanwhile waits for it instead of racing it (its handler would
+/// see a table half renamed, remove the temporary summary, and the process
+/// exit could cut an in-place write short), and one that comes later only
+/// removes the lock. Where the handler has already taken the claim, its
+/// summary stands and nothing is written.
+fn under_claim(finish: impl FnOnce() -> Result<(), OutputError>) -> Result<(), OutputError> {
+    let mut claim = CLAIMED.lock().unwrap_or_else(|p| p.into_inner());
+    let Some(c) = claim.as_mut().filter(|c| !c.summary_written) else {
+        return Ok(());
+    };
+    c.summary_written = true;
+    finish()
 }
 
 impl RunFiles<'_> {
@@ -537,9 +559,7 @@ impl RunFiles<'_> {
         remove_stale(&self.part)?;
         let s = serde_json::json!({"status": "failed", "message": message, "output_rows": 0});
         let text = serde_json::to_string_pretty(&s).map_err(|e| OutputError::new(&self.json, e))?;
-        let written = write_atomic(&self.json, &(text + "\n"));
-        release_claim();
-        written
+        under_claim(|| write_atomic(&self.json, &(text + "\n")))
     }
 }
 
