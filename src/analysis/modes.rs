@@ -497,8 +497,9 @@ fn damped_modes(
             x[r * k + j] = v;
         }
     }
-    let cr = projected(&x, k, tan.damping_entries());
-    let kr = projected(&x, k, tan.stiffness_entries());
+    let mut ax = vec![0.0; n * k];
+    let cr = projected(&x, k, tan.damping_entries(), &mut ax);
+    let kr = projected(&x, k, tan.stiffness_entries(), &mut ax);
     let mut a = faer::Mat::<f64>::zeros(2 * k, 2 * k);
     for i in 0..k {
         a[(i, k + i)] = 1.0;
@@ -550,15 +551,16 @@ fn damped_modes(
 }
 
 /// `Xᵀ A X` (`k × k`) of the `n × k` row-major `x` and the matrix given
-/// by its `entries` (duplicates summed): `A X` by one pass over the
-/// entries, then the products row by row (each row of `x` and `A X` read
-/// once).
+/// by its `entries` (duplicates summed): `A X` into `ax` (same shape as
+/// `x`) by one pass over the entries, then the products row by row (each
+/// row of `x` and `A X` read once).
 fn projected(
     x: &[f64],
     k: usize,
     entries: impl Iterator<Item = (usize, usize, f64)>,
+    ax: &mut [f64],
 ) -> faer::Mat<f64> {
-    let mut ax = vec![0.0; x.len()];
+    ax.fill(0.0);
     for (i, j, v) in entries {
         for (y, &xv) in ax[i * k..i * k + k].iter_mut().zip(&x[j * k..j * k + k]) {
             *y += v * xv;
