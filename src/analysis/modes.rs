@@ -5,7 +5,8 @@
 //! nearest the shift σ (the lowest ones for σ at or below the spectrum)
 //! by Lanczos with M-orthogonal reorthogonalisation (partial: against
 //! the whole basis only where the measured loss of orthogonality exceeds
-//! `√ε`, Simon 1984; [`orthogonalise`]) on the shift-inverted operator `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
+//! `√ε`, Simon 1984; `orthogonalise`) on the shift-inverted operator
+//! `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
 //! (Ericsson & Ruhe 1980; the constrained form keeps every iterate in
 //! `Φ_q y = 0`). The saddle matrix is factorised once by an LU with
 //! partial pivoting ([`crate::linalg::ChainLu`]: in the band of the
