@@ -3,8 +3,10 @@
 //!
 //! **Undamped modes**: `K x = ω² M x`, `Φ_q x = 0` — the `count` eigenvalues
 //! nearest the shift σ (the lowest ones for σ at or below the spectrum)
-//! by Lanczos with full M-orthogonal reorthogonalisation on the
-//! shift-inverted operator `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
+//! by Lanczos with M-orthogonal reorthogonalisation (partial: against
+//! the whole basis only where the measured loss of orthogonality exceeds
+//! `√ε`, Simon 1984; `orthogonalise`) on the shift-inverted operator
+//! `x ↦ y`, `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`
 //! (Ericsson & Ruhe 1980; the constrained form keeps every iterate in
 //! `Φ_q y = 0`). The saddle matrix is factorised once by an LU with
 //! partial pivoting ([`crate::linalg::ChainLu`]: in the band of the
@@ -125,10 +127,9 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             factorizations: Default::default(),
         });
     }
-    let kt = tan.stiffness();
     let kmax = {
         let mut d = vec![0.0f64; n];
-        for &(i, j, v) in &kt.entries {
+        for (i, j, v) in tan.stiffness_entries() {
             if i == j {
                 d[i] += v;
             }
@@ -201,11 +202,11 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     v.iter_mut().for_each(|e| *e /= nv);
     let mut w = vec![0.0; n];
     let (ritz, converged) = loop {
-        basis.push(v.clone());
+        basis.push(std::mem::take(&mut v));
         let j = basis.len() - 1;
         apply(&mut *solver, &k, mass, &basis[j], &mut w, &mut x, n)?;
         w[nb..].fill(0.0);
-        // the recurrence and one full Gram–Schmidt pass (twice is enough)
+        // the recurrence and a Gram–Schmidt pass, partial or full
         let beta_prev = beta.last().copied().unwrap_or(0.0);
         let (a, norm2) = orthogonalise(&basis, mass, &mut w, beta_prev, &mut coeffs);
         let bnext = norm2.sqrt();
@@ -278,21 +279,34 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
 /// L1 / L2 cache while a block is worked on.
 const REORTH_BLOCK: usize = 64;
 
+/// Largest cosine `|bᵀ M w| / ‖w‖_M` between `w` and a basis vector
+/// older than `v_{j−1}` that [`orthogonalise`] leaves in place:
+/// semi-orthogonality, `√ε` (Simon 1984: with every such cosine at most
+/// `√ε` the tridiagonal matrix is the projection of the operator onto an
+/// orthonormal basis to `O(ε ‖Op‖)`, so its Ritz values are accurate to
+/// rounding).
+const SEMI_ORTHOGONAL: f64 = 1.490_116_119_384_765_6e-8;
+
 /// The orthogonalisation of one Lanczos step in the M inner product,
 /// `w = Op v_j` against the (M-orthonormal) `basis` `v_0 … v_j`: the
 /// three-term recurrence `w ← w − α v_j − β v_{j−1}` (`α = v_jᵀ M w`,
-/// `β` = `beta_prev`, the previous step's norm) as the first pass, then a
+/// `β` = `beta_prev`, the previous step's norm) as the first pass, then
+/// the coefficients `c_b = bᵀ M w` against the whole basis. When every
+/// `c_b` of the vectors older than `v_{j−1}` is at most
+/// [`SEMI_ORTHOGONAL`] `‖w‖_M` (partial reorthogonalisation with the
+/// measured inner products in place of Simon's estimates), only `c_j v_j`
+/// and `c_{j−1} v_{j−1}` are removed (local reorthogonalisation); else a
 /// classical Gram–Schmidt pass against the whole basis,
-/// `w ← w − Σ_b (bᵀ M w) b` — the recurrence removes the large
-/// components, the full pass what the loss of orthogonality left ("twice
-/// is enough": Giraud, Langou & Rozložník 2005; Paige's full
-/// reorthogonalisation of Lanczos). When the full pass still shrinks `w`
-/// below `1/√2` of its norm (Daniel, Gragg, Kaufman & Stewart 1976) it is
-/// repeated once. Three sweeps over blocks of the coordinates, of which
-/// two read the basis: `α` (`v_j`, `w`); the recurrence fused with the
-/// full pass's coefficients `coeffs`; the update with `wᵀ M w`. Returns
-/// `(α + coeffs[j], wᵀ M w)` (the diagonal of the tridiagonal matrix with
-/// the full pass's correction, the squared norm).
+/// `w ← w − Σ_b c_b b` — the recurrence removes the large components,
+/// the full pass what the loss of orthogonality left ("twice is enough":
+/// Giraud, Langou & Rozložník 2005; Paige's full reorthogonalisation of
+/// Lanczos). When the full pass still shrinks `w` below `1/√2` of its
+/// norm (Daniel, Gragg, Kaufman & Stewart 1976) it is repeated once.
+/// Sweeps over blocks of the coordinates: `α` (`v_j`, `w`); the
+/// recurrence fused with the coefficients (the whole basis); the update
+/// with `wᵀ M w` (two vectors, or the whole basis). Returns
+/// `(α + c_j, wᵀ M w)` (the diagonal of the tridiagonal matrix with the
+/// correction, the squared norm).
 fn orthogonalise(
     basis: &[Vec<f64>],
     mass: &[f64],
@@ -323,8 +337,9 @@ fn orthogonalise(
                 .sum::<f64>();
         }
     };
-    let update = |c: &[f64], w: &mut [f64], lo: usize, hi: usize| {
-        for (&c, b) in c.iter().zip(basis) {
+    // w ← w − Σ c_b basis[first + b]
+    let update = |c: &[f64], w: &mut [f64], lo: usize, hi: usize, first: usize| {
+        for (&c, b) in c.iter().zip(&basis[first..]) {
             for (wi, bi) in w.iter_mut().zip(&b[lo..hi]) {
                 *wi -= c * bi;
             }
@@ -358,12 +373,22 @@ fn orthogonalise(
         before += mnorm2(wb, lo, hi);
         dots(coeffs, wb, lo, hi);
     }
+    let older = j.saturating_sub(1);
+    let lim = SEMI_ORTHOGONAL * before.sqrt();
+    if coeffs[..older].iter().all(|c| c.abs() <= lim) {
+        let mut norm2 = 0.0;
+        for (lo, hi) in blocks() {
+            update(&coeffs[older..], &mut w[lo..hi], lo, hi, older);
+            norm2 += mnorm2(&w[lo..hi], lo, hi);
+        }
+        return (alpha + coeffs[j], norm2);
+    }
     let (mut correction, mut repeated) = (0.0, false);
     loop {
         correction += coeffs[j];
         let mut norm2 = 0.0;
         for (lo, hi) in blocks() {
-            update(coeffs, &mut w[lo..hi], lo, hi);
+            update(coeffs, &mut w[lo..hi], lo, hi, 0);
             norm2 += mnorm2(&w[lo..hi], lo, hi);
         }
         if repeated || norm2 >= 0.5 * before {
@@ -465,21 +490,17 @@ fn damped_modes(
 ) -> Result<Vec<(f64, f64)>, FormulationError> {
     let k = modes.len();
     let n = tan.n();
-    let c = tan.damping();
-    let kt = tan.stiffness();
-    let mut cx = vec![0.0; n];
-    let mut kx = vec![0.0; n];
-    let mut cr = faer::Mat::<f64>::zeros(k, k);
-    let mut kr = faer::Mat::<f64>::zeros(k, k);
-    for j in 0..k {
-        c.mul_vec(&modes[j].1, &mut cx);
-        kt.mul_vec(&modes[j].1, &mut kx);
-        for i in 0..k {
-            let xi = &modes[i].1;
-            cr[(i, j)] = xi.iter().zip(&cx).map(|(a, b)| a * b).sum();
-            kr[(i, j)] = xi.iter().zip(&kx).map(|(a, b)| a * b).sum();
+    // the shapes by coordinate (n × k, row-major), so that one pass over
+    // the entries of C or K applies them to every shape
+    let mut x = vec![0.0; n * k];
+    for (j, mode) in modes.iter().enumerate() {
+        for (r, &v) in mode.1.iter().enumerate() {
+            x[r * k + j] = v;
         }
     }
+    let mut ax = vec![0.0; n * k];
+    let cr = projected(&x, k, tan.damping_entries(), &mut ax);
+    let kr = projected(&x, k, tan.stiffness_entries(), &mut ax);
     let mut a = faer::Mat::<f64>::zeros(2 * k, 2 * k);
     for i in 0..k {
         a[(i, k + i)] = 1.0;
@@ -528,6 +549,33 @@ fn damped_modes(
             }
         })
         .collect())
+}
+
+/// `Xᵀ A X` (`k × k`) of the `n × k` row-major `x` and the matrix given
+/// by its `entries` (duplicates summed): `A X` into `ax` (same shape as
+/// `x`) by one pass over the entries, then the products row by row (each
+/// row of `x` and `A X` read once).
+fn projected(
+    x: &[f64],
+    k: usize,
+    entries: impl Iterator<Item = (usize, usize, f64)>,
+    ax: &mut [f64],
+) -> faer::Mat<f64> {
+    ax.fill(0.0);
+    for (i, j, v) in entries {
+        for (y, &xv) in ax[i * k..i * k + k].iter_mut().zip(&x[j * k..j * k + k]) {
+            *y += v * xv;
+        }
+    }
+    let mut r = vec![0.0; k * k];
+    for (xr, ar) in x.chunks_exact(k).zip(ax.chunks_exact(k)) {
+        for (ri, &xi) in r.chunks_exact_mut(k).zip(xr) {
+            for (rij, &aj) in ri.iter_mut().zip(ar) {
+                *rij += xi * aj;
+            }
+        }
+    }
+    faer::Mat::from_fn(k, k, |i, j| r[i * k + j])
 }
 
 /// One eigenvalue `s` of a first-order model `ẋ = A x` ([`first_order_modes`]).

@@ -33,7 +33,10 @@
 //! are 0: with rigid bodies the split of the reactions among redundant
 //! joints is statically indeterminate, and this is the particular solution
 //! in which the rows the partitioning keeps carry all of it
-//! ([`Equilibrium::redundant`] lists the rows left out).
+//! ([`Equilibrium::redundant`] lists the rows left out). With the chain
+//! LU the partitioning runs only when the band LU of `[s I, Φ_qᵀ; Φ_q, 0]`
+//! at the start does not show full row rank (`NewtonMatrix::shows_full_rank`):
+//! a chain without redundant joints skips it.
 //!
 //! **Controller states** ([`crate::model::State`], `ż = f(t, q, q̇, z)`,
 //! held as the velocity of a coordinate w of unit mass after the bodies'):
@@ -258,62 +261,36 @@ pub fn static_equilibrium_from(
         qd: qd0.clone(),
     };
     let mut tan = Tangent::new(sys);
-    // the rows kept in the Newton matrix: all but the redundant ones at q₀
     let zero = qd0.clone();
-    let redundant = if m > 0 && tan.evaluate(t, q0, &zero, &vec![0.0; m]).is_ok() {
+    // the rows kept in the Newton matrix: all but the redundant ones at q₀
+    // (the partitioning decides, unless the band LU shows full rank first:
+    // NewtonMatrix::shows_full_rank)
+    let evaluated = m > 0 && tan.evaluate(t, q0, &zero, &vec![0.0; m]).is_ok();
+    let mut nm = NewtonMatrix::new(sys, &tan, (0..m).collect(), opts)?;
+    let mut redundant = Vec::new();
+    if evaluated && !nm.shows_full_rank(&tan) {
         let phi = tan.constraint_jacobian();
-        super::partitioning::partition(phi.rows, phi.cols, &phi.entries, super::inverse::RANK_TOL)
-            .redundant
-    } else {
-        Vec::new()
-    };
-    let kept: Vec<usize> = (0..m)
-        .filter(|r| redundant.binary_search(r).is_err())
-        .collect();
-    let mk = kept.len();
-    let states = StateColumns::new(sys, &kept);
-    let mut k = match &states {
-        Some(s) => s.saddle_matrix(n, mk),
-        None => tan.saddle_matrix_of_rows(Storage::Full, &kept),
-    };
-    // A = c_m M + (K, or K̃ with states: module docs) and Φ_q of the kept rows
-    let write =
-        |tan: &Tangent, k: &mut crate::linalg::SaddleMatrix, c_m: f64, c_k: f64| match &states {
-            Some(s) => s.write(tan, k, c_m, c_k),
-            None => tan.write_saddle_of_rows(k, [c_m, 0.0, c_k], &kept),
-        };
-    let mut solver = super::full_storage_solver(opts.linear_solver, n + mk, "static equilibrium")?;
-    let lin = |source| FormulationError::Linear { t, source };
-    solver.analyze(&k).map_err(lin)?;
-    // λ₀: the multipliers of the start at rest (M q̈ + Φ_qᵀλ = g,
-    // Φ_q q̈ = γ), so that K holds the constraint forces' geometric
-    // stiffness from the first iteration on (a mechanism held only by it —
-    // a pendulum under gravity — has a singular Newton matrix at λ = 0);
-    // 0 when that solve fails (the iteration finds λ)
-    let mut lam0 = vec![0.0; m];
-    {
-        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the same LU (kept rows)
-        let mut ok = tan.evaluate(t, q0, &zero, &lam0).is_ok();
-        if ok {
-            write(&tan, &mut k, 1.0, 0.0);
-            let mut rhs = vec![0.0; n + mk];
-            let mut gamma = vec![0.0; m];
-            sys.forces_into(t, q0, &zero, &mut rhs[..n]);
-            sys.gamma(q0, &zero, t, &mut gamma);
-            for (x, &r) in rhs[n..].iter_mut().zip(&kept) {
-                *x = gamma[r];
-            }
-            ok = solver.factorize(&k).is_ok() && solver.solve_in_place(&k, &mut rhs).is_ok();
-            if ok {
-                for (x, &r) in rhs[n..].iter().zip(&kept) {
-                    lam0[r] = *x;
-                }
-            }
-        }
-        if !ok || lam0.iter().any(|v| !v.is_finite()) {
-            lam0.fill(0.0);
+        redundant = super::partitioning::partition(
+            phi.rows,
+            phi.cols,
+            &phi.entries,
+            super::inverse::RANK_TOL,
+        )
+        .redundant;
+        if !redundant.is_empty() {
+            let kept = (0..m)
+                .filter(|r| redundant.binary_search(r).is_err())
+                .collect();
+            nm = NewtonMatrix::new(sys, &tan, kept, opts)?;
         }
     }
+    let lam0 = match evaluated {
+        true => nm.lambda0(sys, &tan, t, q0, &zero),
+        false => None,
+    };
+    // 0 when the λ₀ solve fails (the iteration finds λ)
+    let lam0 = lam0.unwrap_or_else(|| vec![0.0; m]);
+    let mk = nm.kept.len();
     // F₀ = F(q₀, λ₀): the start's unbalanced load
     let mut f0 = vec![0.0; n];
     let zero_n = vec![0.0; n];
@@ -327,7 +304,7 @@ pub fn static_equilibrium_from(
     }
     // a state whose rate is not zero and depends on nothing the iteration
     // moves (ż = 1) has no equilibrium
-    if let Some(s) = &states {
+    if let Some(s) = &nm.states {
         tan.evaluate(t, q0, &qd0, &lam0)?;
         for (k, st) in sys.states().iter().enumerate() {
             let rate = f0[nb + k];
@@ -409,14 +386,14 @@ pub fn static_equilibrium_from(
             // Newton step, the residual stays exact)
             let mut eps = 0.0;
             let solved = loop {
-                write(&tan, &mut k, eps, 1.0);
-                if solver.factorize(&k).is_ok() {
+                nm.write(&tan, eps, 1.0);
+                if nm.solver.factorize(&nm.k).is_ok() {
                     x[..n].copy_from_slice(&f);
-                    for (xi, &r) in x[n..].iter_mut().zip(&kept) {
+                    for (xi, &r) in x[n..].iter_mut().zip(&nm.kept) {
                         *xi = -w.phi[r];
                     }
                     let big = 1e8 * qscale;
-                    if solver.solve_in_place(&k, &mut x).is_ok()
+                    if nm.solver.solve_in_place(&nm.k, &mut x).is_ok()
                         && x[..n].iter().all(|v| v.is_finite() && v.abs() < big)
                         && x[n..].iter().all(|v| v.is_finite())
                     {
@@ -445,7 +422,7 @@ pub fn static_equilibrium_from(
                 *zi += d;
             }
             w.qd[nb..].copy_from_slice(&zt);
-            for (&r, d) in kept.iter().zip(&x[n..]) {
+            for (&r, d) in nm.kept.iter().zip(&x[n..]) {
                 lt[r] += d;
             }
         }
@@ -503,8 +480,122 @@ pub fn static_equilibrium_from(
         residual,
         constraint_residual,
         redundant,
-        factorizations: super::Factorizations::of(&*solver),
+        factorizations: super::Factorizations::of(&*nm.solver),
     })
+}
+
+/// The static Newton matrix `[A Φ_qᵀ; Φ_q 0]` of the kept constraint rows
+/// (module docs: `A = c_m M + K`, or `K̃` with controller states) and its
+/// solver, analysed once for the pattern.
+struct NewtonMatrix {
+    /// The constraint rows kept (ascending).
+    kept: Vec<usize>,
+    /// The states' columns, `None` without states.
+    states: Option<StateColumns>,
+    k: crate::linalg::SaddleMatrix,
+    solver: Box<dyn crate::linalg::SaddlePointSolver>,
+}
+
+impl NewtonMatrix {
+    fn new(
+        sys: &System,
+        tan: &Tangent,
+        kept: Vec<usize>,
+        opts: StaticOptions,
+    ) -> Result<Self, StaticError> {
+        let (n, mk) = (sys.n_coords(), kept.len());
+        let states = StateColumns::new(sys, &kept);
+        let k = match &states {
+            Some(s) => s.saddle_matrix(n, mk),
+            None if mk == sys.n_constraints() => tan.saddle_matrix(Storage::Full),
+            None => tan.saddle_matrix_of_rows(Storage::Full, &kept),
+        };
+        let mut solver =
+            super::full_storage_solver(opts.linear_solver, n + mk, "static equilibrium")?;
+        solver
+            .analyze(&k)
+            .map_err(|source| FormulationError::Linear { t: opts.t0, source })?;
+        Ok(Self {
+            kept,
+            states,
+            k,
+            solver,
+        })
+    }
+
+    /// `A = c_m M + c_k K` (or `K̃`) and `Φ_q` of the kept rows from the
+    /// last evaluation of `tan`.
+    fn write(&mut self, tan: &Tangent, c_m: f64, c_k: f64) {
+        match &self.states {
+            Some(s) => s.write(tan, &mut self.k, c_m, c_k),
+            None if self.kept.len() == tan.m() => tan.write_saddle(&mut self.k, [c_m, 0.0, c_k]),
+            None => tan.write_saddle_of_rows(&mut self.k, [c_m, 0.0, c_k], &self.kept),
+        }
+    }
+
+    /// Does the band LU show that `Φ_q` (of `tan`'s last evaluation) has
+    /// full row rank? It factorises `[s I, Φ_qᵀ; Φ_q, 0]`, `s = max |Φ_q|`,
+    /// regular exactly when `Φ_q` has full row rank: eliminating the
+    /// coordinates leaves the Schur complement `−Φ_q Φ_qᵀ / s`, whose
+    /// pivots are about `r_ii² / s` for `r_ii` the distance of a row from
+    /// the rows before it (the `R` of `Φ_qᵀ = QR`). The band LU rejects a
+    /// pivot at or below `ε s`, i.e. a row within about `√ε s` of the
+    /// others, more than the partitioning's [`super::inverse::RANK_TOL`]
+    /// `s`; so when it accepts, no row is redundant and the
+    /// partitioning is skipped. Only [`crate::linalg::ChainLu`] on its
+    /// band path answers (an accepted factorisation with no fallback);
+    /// other solvers return false and the partitioning decides.
+    fn shows_full_rank(&mut self, tan: &Tangent) -> bool {
+        if self.solver.name() != "chain-lu" {
+            return false;
+        }
+        let s = tan
+            .jacobian_values()
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        if !(s > 0.0 && s.is_finite()) {
+            return false;
+        }
+        self.write(tan, 0.0, 0.0);
+        for i in 0..tan.n() {
+            self.k.add_diagonal(i, s);
+        }
+        let fallbacks = self.solver.fallbacks();
+        self.solver.factorize(&self.k).is_ok() && self.solver.fallbacks() == fallbacks
+    }
+
+    /// λ₀: the multipliers of the start at rest (`M q̈ + Φ_qᵀλ = g`,
+    /// `Φ_q q̈ = γ`, the kept rows; the others 0), so that `K` holds the
+    /// constraint forces' geometric stiffness from the first iteration on
+    /// (a mechanism held only by it — a pendulum under gravity — has a
+    /// singular Newton matrix at λ = 0). `tan` evaluated at `(q0, zero)`;
+    /// `None` when the solve fails or is not finite.
+    fn lambda0(
+        &mut self,
+        sys: &System,
+        tan: &Tangent,
+        t: f64,
+        q0: &[f64],
+        zero: &[f64],
+    ) -> Option<Vec<f64>> {
+        let (n, m) = (sys.n_coords(), sys.n_constraints());
+        // [M Φ_qᵀ; Φ_q 0] [q̈; λ₀] = [g; γ] with the Newton matrix's LU
+        self.write(tan, 1.0, 0.0);
+        let mut rhs = vec![0.0; n + self.kept.len()];
+        let mut gamma = vec![0.0; m];
+        sys.forces_into(t, q0, zero, &mut rhs[..n]);
+        sys.gamma(q0, zero, t, &mut gamma);
+        for (x, &r) in rhs[n..].iter_mut().zip(&self.kept) {
+            *x = gamma[r];
+        }
+        self.solver.factorize(&self.k).ok()?;
+        self.solver.solve_in_place(&self.k, &mut rhs).ok()?;
+        let mut lam0 = vec![0.0; m];
+        for (x, &r) in rhs[n..].iter().zip(&self.kept) {
+            lam0[r] = *x;
+        }
+        lam0.iter().all(|v| v.is_finite()).then_some(lam0)
+    }
 }
 
 /// The static Newton matrix of a system with controller states (module

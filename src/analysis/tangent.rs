@@ -211,47 +211,60 @@ impl<'a> Tangent<'a> {
     /// `C = −∂g/∂q̇` at the last evaluated state (`n × n`, exact, possibly
     /// unsymmetric).
     pub fn damping(&self) -> Triplets {
-        self.assert_evaluated();
-        let (_, dqd, _) = self.blocks.values();
         let n = self.n();
         Triplets {
             rows: n,
             cols: n,
-            entries: self
-                .sys
-                .force_jacobian_pattern()
-                .iter()
-                .zip(dqd)
-                .map(|(&(i, j), &v)| (i, j, -v))
-                .collect(),
+            entries: self.damping_entries().collect(),
         }
+    }
+
+    /// The entries of [`Tangent::damping`], in its order, without
+    /// collecting them.
+    pub fn damping_entries(&self) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
+        self.assert_evaluated();
+        let (_, dqd, _) = self.blocks.values();
+        self.sys
+            .force_jacobian_pattern()
+            .iter()
+            .zip(dqd)
+            .map(|(&(i, j), &v)| (i, j, -v))
     }
 
     /// `K = −∂g/∂q + (Φ_qᵀλ)_q` at the last evaluated state (`n × n`,
     /// exact, possibly unsymmetric).
     pub fn stiffness(&self) -> Triplets {
+        let n = self.n();
+        Triplets {
+            rows: n,
+            cols: n,
+            entries: self.stiffness_entries().collect(),
+        }
+    }
+
+    /// The entries of [`Tangent::stiffness`], in its order (the force
+    /// Jacobian's, then each Hessian entry and its mirror), without
+    /// collecting them.
+    pub fn stiffness_entries(&self) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
         self.assert_evaluated();
         let (dq, _, hess) = self.blocks.values();
-        let n = self.n();
-        let mut entries: Vec<(usize, usize, f64)> = self
+        let force = self
             .sys
             .force_jacobian_pattern()
             .iter()
             .zip(dq)
-            .map(|(&(i, j), &v)| (i, j, -v))
-            .collect();
+            .map(|(&(i, j), &v)| (i, j, -v));
         // the Hessian pattern is one triangle of a symmetric matrix
-        for (&(i, j), &v) in self.sys.hessian_pattern().iter().zip(hess) {
-            entries.push((i, j, v));
-            if i != j {
-                entries.push((j, i, v));
-            }
-        }
-        Triplets {
-            rows: n,
-            cols: n,
-            entries,
-        }
+        let hessian = self
+            .sys
+            .hessian_pattern()
+            .iter()
+            .zip(hess)
+            .flat_map(|(&(i, j), &v)| {
+                let mirror = (i != j).then_some((j, i, v));
+                std::iter::once((i, j, v)).chain(mirror)
+            });
+        force.chain(hessian)
     }
 
     /// `Φ_q` at the last evaluated state (`m × n`).

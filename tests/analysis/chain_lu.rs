@@ -74,3 +74,43 @@ fn analyses_reject_a_symmetric_solver() {
     let e = static_equilibrium(&sys, &q0, opts).unwrap_err().to_string();
     assert!(e.contains("linear_solver Chain"), "{e}");
 }
+
+/// The chain LU shows full rank by factorising `[s I, Φ_qᵀ; Φ_q, 0]`
+/// and then skips the coordinate partitioning (the stiff chain, above);
+/// where a row is redundant that factorisation is rejected and the
+/// partitioning decides. Against the sparse LU, which always partitions:
+/// the redundant parallelogram (a coupler pin too many per loop) and its
+/// non-redundant twin give the same rows left out and the same
+/// equilibrium.
+#[test]
+fn full_rank_shown_by_the_band_lu_or_decided_by_the_partitioning() {
+    use mbsolve::builders::{parallelogram_chain, ParallelogramChain};
+    for redundant in [true, false] {
+        let p = ParallelogramChain {
+            loops: 3,
+            theta0: -1.2,
+            redundant,
+            ..Default::default()
+        };
+        let sys = parallelogram_chain(&p).unwrap();
+        let (q0, _) = sys.initial_state();
+        let with = |linear_solver| StaticOptions {
+            linear_solver,
+            ..Default::default()
+        };
+        let chain = static_equilibrium(&sys, &q0, with(SolverKind::ChainLu)).unwrap();
+        let sparse = static_equilibrium(&sys, &q0, with(SolverKind::SparseLu)).unwrap();
+        // the redundant one is banded in the body order (the rejected rank
+        // test, then the partitioning); the twin's pattern is wider than
+        // the band (faer's sparse LU, the partitioning)
+        let band = if redundant { "chain-lu" } else { "sparse-lu" };
+        assert_eq!(chain.factorizations.solver, band);
+        assert_eq!(chain.redundant, sparse.redundant, "redundant = {redundant}");
+        assert_eq!(chain.redundant.is_empty(), !redundant);
+        // the Newton matrix of the kept rows stays on the band
+        assert_eq!(chain.factorizations.fallbacks, 0);
+        let dq = rel_diff(&chain.q, &sparse.q);
+        let dl = rel_diff(&chain.lambda, &sparse.lambda);
+        assert!(dq < 1e-12 && dl < 1e-9, "q {dq:e}, λ {dl:e}");
+    }
+}

@@ -83,19 +83,30 @@ struct Band {
     wr: usize,
     wc: usize,
     /// `U` by rows without the diagonal: row `j` holds `u_{j, j+1..}` up
-    /// to its last non-zero, `u_val[u_ptr[j]..u_ptr[j + 1]]`.
-    u_ptr: Vec<usize>,
+    /// to its last non-zero, `steps[j].u` values after rows `0..j`'s.
     u_val: Vec<f64>,
     /// `1 / u_jj`.
     dinv: Vec<f64>,
     /// `L` by columns without the unit diagonal: column `j` holds
-    /// `l_{j+1.., j}` up to its last non-zero, `l_val[l_ptr[j]..l_ptr[j + 1]]`.
-    l_ptr: Vec<usize>,
+    /// `l_{j+1.., j}` up to its last non-zero, `steps[j].l` values after
+    /// columns `0..j`'s.
     l_val: Vec<f64>,
-    /// Row interchanged with row `j` at step `j`.
-    ipiv: Vec<usize>,
+    /// Per elimination step, what the solve reads besides the values
+    /// (three bytes where three indices took 24: the solve streams them).
+    steps: Vec<Step>,
     /// Permuted right-hand side.
     w: Vec<f64>,
+}
+
+/// One elimination step's row interchange and factor lengths ([`Band`]).
+#[derive(Debug, Clone, Copy, Default)]
+struct Step {
+    /// Row `j + pivot` was interchanged with row `j`.
+    pivot: u8,
+    /// Stored values of column `j` of `L` (below the diagonal).
+    l: u8,
+    /// Stored values of row `j` of `U` (right of the diagonal).
+    u: u8,
 }
 
 /// Why a band factorisation was handed to [`SparseLu`].
@@ -158,14 +169,12 @@ impl Band {
             win: vec![0.0; wr * wc],
             wr,
             wc,
-            u_ptr: vec![0; dim + 1],
             // the largest sizes, reserved (not touched): no reallocation
             // and copy as the factors grow
             u_val: Vec::with_capacity(dim * (kl + ku)),
             dinv: vec![0.0; dim],
-            l_ptr: vec![0; dim + 1],
             l_val: Vec::with_capacity(dim * kl),
-            ipiv: vec![0; dim],
+            steps: vec![Step::default(); dim],
             w: vec![0.0; dim],
         })
     }
@@ -215,7 +224,8 @@ impl Band {
             if best <= tiny || best.is_nan() {
                 return Err(Reject::TinyPivot);
             }
-            self.ipiv[j] = j + p;
+            // p ≤ kl and the lengths ≤ kl + ku ≤ 2 MAX_BANDWIDTH fit a byte
+            self.steps[j].pivot = p as u8;
             if p != 0 {
                 let (a, b) = (at(j), at(j + p));
                 let (lo, hi) = (a.min(b), a.max(b));
@@ -241,7 +251,8 @@ impl Band {
                 umax = umax.max(u.abs());
                 self.u_val.push(u);
             }
-            self.u_ptr[j + 1] = self.u_val.len();
+            let u_start = self.u_val.len() - (e - j);
+            self.steps[j].u = (e - j) as u8;
             // multipliers, column j leaves the window
             let mut lk = 0;
             for t in 1..=km {
@@ -254,9 +265,9 @@ impl Band {
                 }
             }
             self.l_val.extend_from_slice(&l[..lk]);
-            self.l_ptr[j + 1] = self.l_val.len();
+            self.steps[j].l = lk as u8;
             // the rows below: row j + t −= l_t × (pivot row)
-            let u = &self.u_val[self.u_ptr[j]..];
+            let u = &self.u_val[u_start..];
             for (t, &li) in l[..lk].iter().enumerate() {
                 if li == 0.0 {
                     continue;
@@ -276,29 +287,34 @@ impl Band {
     /// `rhs ← K⁻¹ rhs` from the last factorisation; false if the solution
     /// is not finite.
     fn solve(&mut self, rhs: &mut [f64]) -> bool {
-        let dim = self.dim;
         let w = &mut self.w;
         for (wi, &p) in w.iter_mut().zip(&self.perm) {
             *wi = rhs[p];
         }
         // L y = P w, column by column
-        for j in 0..dim {
-            let l = self.ipiv[j];
-            if l != j {
-                w.swap(j, l);
+        let mut at = 0;
+        for (j, st) in self.steps.iter().enumerate() {
+            let p = st.pivot as usize;
+            if p != 0 {
+                w.swap(j, j + p);
             }
             let wj = w[j];
-            let lj = &self.l_val[self.l_ptr[j]..self.l_ptr[j + 1]];
+            let lj = &self.l_val[at..at + st.l as usize];
+            at += lj.len();
             if wj != 0.0 {
                 for (wi, &li) in w[j + 1..].iter_mut().zip(lj) {
                     *wi -= li * wj;
                 }
             }
         }
-        // U x = y, row by row from the last
-        for j in (0..dim).rev() {
-            let uj = &self.u_val[self.u_ptr[j]..self.u_ptr[j + 1]];
-            let s: f64 = uj.iter().zip(&w[j + 1..]).map(|(u, x)| u * x).sum();
+        // U x = y, row by row from the last; each row's dot product from
+        // its far end, so that the term of x_{j+1}, computed just before,
+        // enters last (the other products do not wait for it)
+        let mut end = self.u_val.len();
+        for (j, st) in self.steps.iter().enumerate().rev() {
+            let uj = &self.u_val[end - st.u as usize..end];
+            end -= uj.len();
+            let s: f64 = uj.iter().zip(&w[j + 1..]).rev().map(|(u, x)| u * x).sum();
             w[j] = (w[j] - s) * self.dinv[j];
         }
         let mut finite = true;
