@@ -480,29 +480,32 @@ impl ComplexChainLdlt {
         let env = &self.env[..ptr[dim]];
         let dinv = &self.dinv;
         let w = &mut self.w;
+        let rows = CRows {
+            first,
+            ptr,
+            env,
+            perm,
+            pscale: ps,
+        };
+        // two threads: a half each; one: the halves one after the other (the
+        // rows of a complex substitution are bound by their arithmetic, not
+        // by the latency of the row chain: interleaving the halves, as the
+        // real solver does, did not pay)
+        let two = par && crate::parallel::concurrent();
         {
             let (br, bi): (&[f64], &[f64]) = (re, im);
-            let b = |i: usize| {
-                C {
-                    re: br[perm[i]],
-                    im: bi[perm[i]],
-                }
-                .scale(ps[i])
-            };
-            // forward rows of one half, `w` from row `base`
-            let forward = |base: usize, rows: std::ops::Range<usize>, w: &mut [C]| {
-                for i in rows {
-                    let (fi, pi) = (first[i], ptr[i]);
-                    w[i - base] = b(i).sub(cdot(&env[pi..ptr[i + 1]], &w[fi - base..i - base]));
-                }
-            };
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
-            join_if(par, || forward(0, 0..s0, w_t), || forward(s0, s0..sb, w_b));
+            join_if(
+                two,
+                || rows.forward((br, bi), (0, 0..s0, w_t)),
+                || rows.forward((br, bi), (s0, s0..sb, w_b)),
+            );
             for i in sb..dim {
                 let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
                 let la = s0 - fai;
-                w[i] = b(i)
+                w[i] = rows
+                    .rhs((br, bi), i)
                     .sub(cdot(&env[pi..pi + la], &w[fai..s0]))
                     .sub(cdot(&env[pi + la..ptr[i + 1]], &w[fi..i]));
             }
@@ -518,14 +521,10 @@ impl ComplexChainLdlt {
             join_if(par, || scale(w_lo, d_lo), || scale(w_hi, d_hi));
         }
         {
-            let (out_re, out_im) = (Scatter::new(re), Scatter::new(im));
-            let put = |i: usize, z: C| {
-                out_re.set(perm[i], z.re * ps[i]);
-                out_im.set(perm[i], z.im * ps[i]);
-            };
+            let out = (Scatter::new(re), Scatter::new(im));
             for i in (sb..dim).rev() {
                 let (fai, fi, pi, z) = (fa[i - sb], first[i], ptr[i], w[i]);
-                put(i, z);
+                rows.put(&out, i, z);
                 let la = s0 - fai;
                 for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
                     *v = v.sub(l.mul(z));
@@ -534,25 +533,19 @@ impl ComplexChainLdlt {
                     *v = v.sub(l.mul(z));
                 }
             }
-            // backward rows of one half, `w` from row `base`
-            let backward = |base: usize, rows: std::ops::Range<usize>, w: &mut [C]| {
-                for i in rows.rev() {
-                    let (fi, pi, z) = (first[i], ptr[i], w[i - base]);
-                    put(i, z);
-                    for (v, &l) in w[fi - base..i - base].iter_mut().zip(&env[pi..ptr[i + 1]]) {
-                        *v = v.sub(l.mul(z));
-                    }
-                }
-            };
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             join_if(
-                par,
-                || backward(0, 0..s0, w_t),
-                || backward(s0, s0..sb, w_b),
+                two,
+                || rows.backward(&out, (0, 0..s0, w_t)),
+                || rows.backward(&out, (s0, s0..sb, w_b)),
             );
         }
-        let finite = |a: &[f64], b: &[f64]| a.iter().chain(b).all(|v| v.is_finite());
+        // the vectorised scan of each part
+        let finite = |a: &[f64], b: &[f64]| {
+            crate::numeric::first_non_finite(a).is_none()
+                && crate::numeric::first_non_finite(b).is_none()
+        };
         let (re_lo, re_hi) = re.split_at(dim / 2);
         let (im_lo, im_hi) = im.split_at(dim / 2);
         let (lo, hi) = join_if(par, || finite(re_lo, im_lo), || finite(re_hi, im_hi));
@@ -561,6 +554,126 @@ impl ComplexChainLdlt {
         } else {
             Err(LinalgError::NonFiniteSolution("complex envelope LDLᵀ"))
         }
+    }
+}
+
+/// What the substitutions read of a complex factorisation: the envelope
+/// rows (`first`, `ptr`, `env`), the permutation and the symmetric
+/// scaling (the right-hand side's entry `perm[i]` is row `i`'s, times
+/// `pscale[i]`); the complex counterpart of the real solver's rows
+/// (`chain/solve.rs`), with the same register carries.
+#[derive(Clone, Copy)]
+struct CRows<'a> {
+    first: &'a [usize],
+    ptr: &'a [usize],
+    env: &'a [C],
+    perm: &'a [usize],
+    pscale: &'a [f64],
+}
+
+/// One half's plain rows for a substitution: the first row's index
+/// (`base`), the rows and their part of the work vector.
+type CHalf<'a> = (usize, std::ops::Range<usize>, &'a mut [C]);
+
+/// The right-hand side's real and imaginary parts.
+type Rhs<'a> = (&'a [f64], &'a [f64]);
+
+/// The solution's real and imaginary parts, written through the
+/// permutation.
+type Out<'a> = (Scatter<'a>, Scatter<'a>);
+
+impl CRows<'_> {
+    /// `(P S b)_i`: row `i`'s entry of the permuted, scaled right-hand side.
+    #[inline(always)]
+    fn rhs(&self, (br, bi): Rhs<'_>, i: usize) -> C {
+        let p = self.perm[i];
+        C {
+            re: br[p],
+            im: bi[p],
+        }
+        .scale(self.pscale[i])
+    }
+
+    /// `x_{perm[i]} = z_i s_i`.
+    #[inline(always)]
+    fn put(&self, (re, im): &Out<'_>, i: usize, z: C) {
+        let (p, s) = (self.perm[i], self.pscale[i]);
+        re.set(p, z.re * s);
+        im.set(p, z.im * s);
+    }
+
+    /// Forward substitution `L y = P S b` over the plain rows of one half
+    /// (`y` into `w`, from row `base`).
+    fn forward(&self, b: Rhs<'_>, (base, rows, w): CHalf<'_>) {
+        let mut prev = C::ZERO;
+        for i in rows {
+            prev = self.forward_row(b, base, i, w, prev);
+        }
+    }
+
+    /// Row `i` of [`Self::forward`]: `y_i = (P S b)_i − Σ_j L_ij y_j` over
+    /// its envelope `[first[i], i)`, whose last column is `i − 1` when not
+    /// empty: `prev = y_{i−1}` comes from the register, not from `w`, so
+    /// the chain of dependent rows does not wait on a store and a reload.
+    /// The terms are added in column order (the same bits as one `cdot`).
+    #[inline(always)]
+    fn forward_row(&self, b: Rhs<'_>, base: usize, i: usize, w: &mut [C], prev: C) -> C {
+        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
+        assert!(self.ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
+        let len = i - fi;
+        let mut y = self.rhs(b, i);
+        if len > 0 {
+            let mut s = cdot(&env[pi..pi + len - 1], &w[fi - base..i - base - 1]);
+            let l = env[pi + len - 1];
+            s = C {
+                re: s.re + (l.re * prev.re - l.im * prev.im),
+                im: s.im + (l.re * prev.im + l.im * prev.re),
+            };
+            y = y.sub(s);
+        }
+        w[i - base] = y;
+        y
+    }
+
+    /// Backward substitution `Lᵀ z = w` over the plain rows of one half,
+    /// from the last (`w` from row `base`); each `z_i`, final once its row
+    /// is reached, goes to the solution at once.
+    fn backward(&self, out: &Out<'_>, (base, rows, w): CHalf<'_>) {
+        let mut carry = (C::ZERO, C::ZERO);
+        for i in rows.rev() {
+            carry = self.backward_row(out, base, i, w, carry);
+        }
+    }
+
+    /// Row `i` of [`Self::backward`]: `z_i = w_i − L_{i+1,i} z_{i+1}` with
+    /// the row after's last update `carry = (L_{i+1,i}, z_{i+1})` from the
+    /// register, then `w_j −= L_ij z_i` over the envelope but its last
+    /// column `i − 1`, returned as the next row's carry. Each `w_j` gets
+    /// its updates in the same order as without the carry (the same bits).
+    #[inline(always)]
+    fn backward_row(
+        &self,
+        out: &Out<'_>,
+        base: usize,
+        i: usize,
+        w: &mut [C],
+        carry: (C, C),
+    ) -> (C, C) {
+        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
+        assert!(self.ptr[i + 1] <= env.len() && fi >= base);
+        let zi = w[i - base].sub(carry.0.mul(carry.1));
+        self.put(out, i, zi);
+        let len = i - fi;
+        if len == 0 {
+            return (C::ZERO, C::ZERO);
+        }
+        for (v, &l) in w[fi - base..i - base - 1]
+            .iter_mut()
+            .zip(&env[pi..pi + len - 1])
+        {
+            *v = v.sub(l.mul(zi));
+        }
+        (env[pi + len - 1], zi)
     }
 }
 

@@ -492,7 +492,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         }
         x[n..].fill(0.0);
         self.sys.solve(self.t, x)?;
-        // the step's end, Q_S = q_{n+1}, for the weights
+        // the step's end, Q_S = q_{n+1}, for the weights (an accepted step
+        // takes it from `qs`, `vs`)
         self.stage_state(S - 1, h);
         let x = &self.x[0];
         let norm = common::max_weighted(
@@ -610,11 +611,15 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 self.rejected = false;
             }
             // accept: stiffly accurate, the last stage is the step's end
-            self.q_old.copy_from_slice(&self.q);
-            self.v_old.copy_from_slice(&self.v);
-            self.stage_state(S - 1, h);
-            self.q.copy_from_slice(&self.qs);
-            self.v.copy_from_slice(&self.vs);
+            // (the adaptive error test left it in `qs`, `vs` already);
+            // `q_old ← q`, `q ← Q_S` by swapping buffers (`qs` is scratch)
+            if !adaptive {
+                self.stage_state(S - 1, h);
+            }
+            std::mem::swap(&mut self.q_old, &mut self.q);
+            std::mem::swap(&mut self.q, &mut self.qs);
+            std::mem::swap(&mut self.v_old, &mut self.v);
+            std::mem::swap(&mut self.v, &mut self.vs);
             self.qdd.copy_from_slice(&self.a[S - 1]);
             self.lam.copy_from_slice(&self.l[S - 1]);
             if self.opts.project {
