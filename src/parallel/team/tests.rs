@@ -331,6 +331,41 @@ fn a_large_implicit_run_posts_halves_to_the_helper() {
     assert_eq!(s.extra["halves_taken_back"].as_u64(), Some(0));
 }
 
+/// The stability check before a run (`fastest_modes`: 3 power
+/// iterations of 61 chain solves and one solve for the loads'
+/// accelerations) runs in the run's team: a short generalized-α run of a
+/// chain whose Newton matrix is large enough for two-sided solves counts
+/// those 184 solves as passes of its team beside its own.
+#[test]
+fn the_stability_check_runs_in_the_team() {
+    use crate::integrate::{Method, OdeOptions};
+    use crate::simulation::{simulate, RunConfig};
+    // 3·2000 coordinates and 2·2000 constraints: dimension 10 000, the
+    // chain solves' two-sided size (`linalg::chain::PARALLEL_MIN_DIM`)
+    let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+    let cfg = RunConfig {
+        method: Method::GenAlpha,
+        t_end: 1e-5,
+        output_dt: 1e-5,
+        ode: OdeOptions {
+            fixed_step: Some(1e-5),
+            ..Default::default()
+        },
+        threads: Threads::Two,
+        ..Default::default()
+    };
+    let (_, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    // the integration's passes: a residual per evaluation and a solve
+    // per Newton iteration (a pass count does not depend on timing)
+    let run = s.rhs_evals + s.extra["newton_iterations"].as_u64().unwrap() as usize;
+    let passes = TEST_PASSES.with(|p| p.get());
+    assert!(
+        passes >= 184 + run,
+        "{passes} passes, {run} of them the run's"
+    );
+}
+
 #[test]
 fn one_thread_pool_and_nested_joins_run_in_order() {
     pool(1).install(|| {
