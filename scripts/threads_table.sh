@@ -70,7 +70,7 @@ echo "raw lines: $OUT" >&2
 python3 - "$OUT" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / solo | probes skipped | same tip |")
+print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / taken back / solo | probes: team, alone, skipped | same tip |")
 print("|---|---|---|---|---|---|---|---|---|---|")
 key = lambda r: (r["mode"], r["method"], r["round"])
 groups = {}
@@ -80,9 +80,10 @@ for (mode, method, rnd), g in groups.items():
     if 1 not in g or 2 not in g:
         continue
     a, b = g[1], g[2]
+    rule = b.get('threads_rule') or {}
     print(f"| {method} | {mode} | {rnd} | {a['load']:.1f} | {a['wall_s']:.2f} ({a['cpu_s']:.2f}) "
           f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× "
-          f"| {b['halves_split']} / {b['halves_solo']} "
-          f"| {(b.get('threads_rule') or {}).get('skipped', '–')} "
+          f"| {b['halves_split']} / {b['halves_taken_back']} / {b['halves_solo']} "
+          f"| {rule.get('team', '–')}, {rule.get('alone', '–')}, {rule.get('skipped', '–')} "
           f"| {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")
 PY

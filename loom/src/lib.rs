@@ -70,7 +70,7 @@ mod tests {
             let mut x = 0u64;
             let (_, ran) = h.join(|| (), || x = 7);
             assert_eq!(x, 7);
-            assert!(matches!(ran, Ran::Helper | Ran::TakenBack));
+            assert!(matches!(ran, Ran::Helper | Ran::TakenBack { .. }));
             h.stop();
             helper.join().unwrap();
         });

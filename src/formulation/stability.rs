@@ -211,13 +211,13 @@ pub fn fastest_modes(
         let mut y = vec![0.0; n];
         let mut rq = 0.0;
         for it in 0..=iterations {
-            // x ← P M⁻¹ (A x) (the first pass only projects the start)
+            // x ← P M⁻¹ (A x) (the first pass only projects the start);
+            // y = A x from the last pass's Rayleigh quotient
             if it == 0 {
                 for i in 0..n {
                     rhs[i] = mass[i] * x[i];
                 }
             } else {
-                apply(&x, &mut y);
                 rhs[..n].copy_from_slice(&y);
             }
             rhs[n..].fill(0.0);

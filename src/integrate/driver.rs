@@ -174,10 +174,7 @@ pub fn drive(
     obs: &mut dyn Observer,
 ) -> (Termination, f64) {
     let state = st.state().1.len();
-    let large = state >= 2 * crate::parallel::PARALLEL_MIN_COORDS;
-    crate::parallel::team::run(large, state, || {
-        drive_loop(st, times, max_steps, t_end, obs)
-    })
+    crate::parallel::run_with_team(state, || drive_loop(st, times, max_steps, t_end, obs))
 }
 
 /// [`drive`]'s loop.

@@ -133,8 +133,13 @@ type Panic = Box<dyn std::any::Any + Send>;
 pub(super) enum Ran {
     /// On the helper.
     Helper,
-    /// Taken back and run by the caller (the helper had not started it).
-    TakenBack,
+    /// Taken back and run by the caller (the helper had not started it);
+    /// `awake`: the helper was not parked, so not on a core (a busy
+    /// machine), else it was woken too late (a wake-up latency).
+    TakenBack {
+        /// Whether the helper was awake when the half was taken back.
+        awake: bool,
+    },
 }
 
 /// The shared state of a caller thread and its helper.
@@ -229,13 +234,13 @@ impl Handover {
         self.state.store(POSTED, Ordering::SeqCst);
         self.wake_helper();
         let ra = catch_unwind(AssertUnwindSafe(a));
-        let (panic_b, ran) = if self.take_back() {
+        let (panic_b, ran) = if let Some(awake) = self.take_back() {
             // SAFETY: the take-back made the slot the caller's again (the
             // helper takes the job only after its own POSTED → RUNNING).
             self.job.with_mut(|s| unsafe { *s = None });
             (
                 catch_unwind(AssertUnwindSafe(&mut run_b)).err(),
-                Ran::TakenBack,
+                Ran::TakenBack { awake },
             )
         } else {
             self.wait_done();
@@ -256,7 +261,8 @@ impl Handover {
 
     /// Takes the posted half back unless the helper has started it; a
     /// helper that is awake (not parked) gets [`GRACE`] to start it first.
-    fn take_back(&self) -> bool {
+    /// Returns, for a half taken back, whether the helper was awake.
+    fn take_back(&self) -> Option<bool> {
         let awake = !self.helper_parked.load(Ordering::SeqCst);
         if awake {
             let mut spin = Spin::new(GRACE);
@@ -269,7 +275,7 @@ impl Handover {
         if taken && awake {
             self.preempted.store(true, Ordering::Relaxed);
         }
-        taken
+        taken.then_some(awake)
     }
 
     /// Whether a half was taken back from an awake helper (one that was

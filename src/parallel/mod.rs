@@ -130,6 +130,15 @@ pub fn with_threads<R>(threads: Threads, f: impl FnOnce() -> R) -> (R, TeamRepor
     (out, report)
 }
 
+/// `f()` (a run whose state, `q` and `q̇`, has `state` entries) with a
+/// two-thread team ([`team::run`]) as the thread setting asks, for a state
+/// of at least 2·[`PARALLEL_MIN_COORDS`] entries under `auto`. Opened once
+/// around a run's stability check and integration; a nested call (the
+/// integration's driver) runs in the team already open.
+pub(crate) fn run_with_team<R>(state: usize, f: impl FnOnce() -> R) -> R {
+    team::run(state >= 2 * PARALLEL_MIN_COORDS, state, f)
+}
+
 /// [`team::join(a, b)`](team::join) when `parallel` (the run's two-thread
 /// team, else `rayon::join`; both halves here under [`Threads::One`]),
 /// else `a()` then `b()` on this thread: the same operations either way,

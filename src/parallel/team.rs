@@ -14,7 +14,8 @@
 //! caller has finished its own is taken back and run by the caller, and a
 //! caller waiting for a running half parks after a short spin. Under
 //! [`Threads::Auto`] a team whose helper keeps missing its halves (a busy
-//! machine: [`MISS_LIMIT`] take-backs in a row) stops posting for a while
+//! machine: [`MISS_LIMIT`] take-backs in a row from a helper that was
+//! awake, not parked: it was not on a core) stops posting for a while
 //! ([`SOLO_MIN`] joins, doubled at each further miss up to [`SOLO_MAX`])
 //! and lets the helper park, then tries again: the run falls back to one
 //! thread while the second is not available.
@@ -540,7 +541,12 @@ impl Team {
     }
 
     /// Records how a posted half ran; after [`MISS_LIMIT`] take-backs in a
-    /// row an adaptive team runs the next `backoff` joins alone.
+    /// row from an awake helper (one that was not on a core) an adaptive
+    /// team runs the next `backoff` joins alone. A take-back from a parked
+    /// helper, woken too late after a serial stretch longer than [`SPIN`],
+    /// is a wake-up latency, not a busy machine: it neither counts as a
+    /// miss nor resets the count (posting to a parked helper costs the
+    /// post; the helper is awake at the next join).
     fn note(&self, ran: Ran) {
         let r = Ordering::Relaxed;
         match ran {
@@ -549,7 +555,10 @@ impl Team {
                 self.misses.store(0, r);
                 self.backoff.store(SOLO_MIN, r);
             }
-            Ran::TakenBack => {
+            Ran::TakenBack { awake: false } => {
+                self.taken_back.fetch_add(1, r);
+            }
+            Ran::TakenBack { awake: true } => {
                 self.taken_back.fetch_add(1, r);
                 let m = self.misses.load(r) + 1;
                 if self.adaptive && m >= MISS_LIMIT {

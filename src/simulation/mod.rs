@@ -451,20 +451,25 @@ pub fn simulate_into(
     if let Some(message) = moved {
         watch.warn(message);
     }
-    stability_check(sys, cfg, &q0, &qd0, &mut watch)?;
-    watch.start_balance(cfg.t0, &q0, &qd0);
     let times = cfg.output_times();
-    let start = Instant::now();
+    let mut start = Instant::now();
+    // one team for the stability check's solves and the integration, both
+    // under the run's thread setting
     let (report, team) = with_threads(threads, || {
-        let span = Span {
-            t0: cfg.t0,
-            t_end: cfg.t_end,
-            q0: &q0,
-            qd0: &qd0,
-            output_times: &times,
-            obs: &mut watch,
-        };
-        method.integrate(cfg, span)
+        crate::parallel::run_with_team(q0.len() + qd0.len(), || {
+            stability_check(sys, cfg, &q0, &qd0, &mut watch)?;
+            watch.start_balance(cfg.t0, &q0, &qd0);
+            start = Instant::now();
+            let span = Span {
+                t0: cfg.t0,
+                t_end: cfg.t_end,
+                q0: &q0,
+                qd0: &qd0,
+                output_times: &times,
+                obs: &mut watch,
+            };
+            Ok::<_, SimulationError>(method.integrate(cfg, span)?)
+        })
     });
     let report = report?;
     let wall_s = start.elapsed().as_secs_f64();

@@ -55,8 +55,10 @@ fn a_half_the_helper_started_runs_there_and_returns_its_result() {
     assert_eq!(rep.threads(), 2);
 }
 
-/// After MISS_LIMIT take-backs in a row an adaptive team runs joins
-/// alone, longer after each further miss; a hit resets it.
+/// After MISS_LIMIT take-backs in a row from an awake helper an adaptive
+/// team runs joins alone, longer after each further miss; a hit resets
+/// it. Take-backs from a parked helper (woken too late) are no misses
+/// and do not interrupt a row of them.
 #[test]
 fn a_team_whose_helper_misses_backs_off() {
     // opened with a core free: its A/B rule starts with a window with the
@@ -64,8 +66,23 @@ fn a_team_whose_helper_misses_backs_off() {
     TEST_FREE.with(|f| f.set(Some(true)));
     let team = Team::new(true);
     TEST_FREE.with(|f| f.set(None));
-    for _ in 0..MISS_LIMIT {
-        team.note(Ran::TakenBack);
+    let parked = Ran::TakenBack { awake: false };
+    let missed = Ran::TakenBack { awake: true };
+    // any number of late wake-ups: the team keeps posting
+    for _ in 0..10 * MISS_LIMIT {
+        team.note(parked);
+    }
+    assert_eq!(team.solo_left.load(Ordering::Relaxed), 0);
+    assert!(!team.solo_join());
+    assert_eq!(
+        team.taken_back.load(Ordering::Relaxed),
+        10 * MISS_LIMIT as usize
+    );
+    for k in 0..MISS_LIMIT {
+        team.note(missed);
+        team.note(parked);
+        let backed_off = team.solo_left.load(Ordering::Relaxed) > 0;
+        assert_eq!(backed_off, k + 1 == MISS_LIMIT, "miss {k}");
     }
     assert_eq!(team.solo_left.load(Ordering::Relaxed), SOLO_MIN);
     let mut alone = 0;
@@ -74,7 +91,7 @@ fn a_team_whose_helper_misses_backs_off() {
     }
     assert_eq!(alone, SOLO_MIN);
     // the next try misses again: twice as long alone
-    team.note(Ran::TakenBack);
+    team.note(missed);
     assert_eq!(team.solo_left.load(Ordering::Relaxed), 2 * SOLO_MIN);
     // a hit resets
     team.note(Ran::Helper);
@@ -83,7 +100,7 @@ fn a_team_whose_helper_misses_backs_off() {
     // a forced team never backs off
     let forced = Team::new(false);
     for _ in 0..10 * MISS_LIMIT {
-        forced.note(Ran::TakenBack);
+        forced.note(missed);
     }
     assert!(!forced.solo_join());
 }
@@ -276,7 +293,8 @@ fn a_posted_half_nobody_takes_runs_on_the_caller() {
     for k in 0..10u64 {
         let me = std::thread::current().id();
         let ((a, (b, id)), ran) = h.join(|| k, || (k + 1, std::thread::current().id()));
-        assert_eq!((a, b, id, ran), (k, k + 1, me, Ran::TakenBack));
+        assert_eq!((a, b, id), (k, k + 1, me));
+        assert!(matches!(ran, Ran::TakenBack { .. }));
     }
 }
 
@@ -311,6 +329,41 @@ fn a_large_implicit_run_posts_halves_to_the_helper() {
     assert_eq!(s.extra["threads"].as_u64(), Some(1));
     assert_eq!(s.extra["halves_split"].as_u64(), Some(0));
     assert_eq!(s.extra["halves_taken_back"].as_u64(), Some(0));
+}
+
+/// The stability check before a run (`fastest_modes`: 3 power
+/// iterations of 61 chain solves and one solve for the loads'
+/// accelerations) runs in the run's team: a short generalized-α run of a
+/// chain whose Newton matrix is large enough for two-sided solves counts
+/// those 184 solves as passes of its team beside its own.
+#[test]
+fn the_stability_check_runs_in_the_team() {
+    use crate::integrate::{Method, OdeOptions};
+    use crate::simulation::{simulate, RunConfig};
+    // 3·2000 coordinates and 2·2000 constraints: dimension 10 000, the
+    // chain solves' two-sided size (`linalg::chain::PARALLEL_MIN_DIM`)
+    let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+    let cfg = RunConfig {
+        method: Method::GenAlpha,
+        t_end: 1e-5,
+        output_dt: 1e-5,
+        ode: OdeOptions {
+            fixed_step: Some(1e-5),
+            ..Default::default()
+        },
+        threads: Threads::Two,
+        ..Default::default()
+    };
+    let (_, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    // the integration's passes: a residual per evaluation and a solve
+    // per Newton iteration (a pass count does not depend on timing)
+    let run = s.rhs_evals + s.extra["newton_iterations"].as_u64().unwrap() as usize;
+    let passes = TEST_PASSES.with(|p| p.get());
+    assert!(
+        passes >= 184 + run,
+        "{passes} passes, {run} of them the run's"
+    );
 }
 
 #[test]
