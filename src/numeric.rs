@@ -39,3 +39,15 @@ pub(crate) fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
         .zip(b)
         .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
 }
+
+/// Uniform pseudo-random numbers in `[0, 1)` for tests: Knuth's MMIX
+/// linear congruential generator from `seed`, the top 53 bits.
+#[cfg(test)]
+pub(crate) fn test_uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

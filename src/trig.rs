@@ -28,23 +28,19 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     let mut r = x - n * PIO2_1;
     let mut w = n * PIO2_1T;
     let mut y0 = r - w;
-    let ey = (y0.to_bits() >> 52) as i32 & 0x7ff;
     let ex = (x.to_bits() >> 52) as i32 & 0x7ff;
-    if ex - ey > 16 {
-        // cancellation: second and, if needed, third part of π/2
-        let t = r;
-        w = n * PIO2_2;
-        r = t - w;
-        w = n * PIO2_2T - ((t - r) - w);
-        y0 = r - w;
+    // cancellation of more than 16 (then 49) bits: the second (then third)
+    // part of π/2
+    for (part, tail, bits) in [(PIO2_2, PIO2_2T, 16), (PIO2_3, PIO2_3T, 49)] {
         let ey = (y0.to_bits() >> 52) as i32 & 0x7ff;
-        if ex - ey > 49 {
-            let t = r;
-            w = n * PIO2_3;
-            r = t - w;
-            w = n * PIO2_3T - ((t - r) - w);
-            y0 = r - w;
+        if ex - ey <= bits {
+            break;
         }
+        let t = r;
+        w = n * part;
+        r = t - w;
+        w = n * tail - ((t - r) - w);
+        y0 = r - w;
     }
     let y1 = (r - y0) - w;
     let (s, c) = (kernel_sin(y0, y1), kernel_cos(y0, y1));

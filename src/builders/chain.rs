@@ -3,14 +3,17 @@
 //! linear torsional spring–damper in every one, an optional ground pivot;
 //! the generated kernels attached to exactly its joints and springs.
 
-use super::rod::{add_chain, attach_chain_kernels, check_value, invalid, ChainNames};
+use super::rod::{add_chain, attach_chain_kernels, ChainNames};
 use crate::constraints::Revolute;
+use crate::forces::Check;
 use crate::forces::TorsionalSpringDamper;
 use crate::generated::{GroundPivot, TorsionalChainJacobians};
 use crate::model::{BodyRef, ModelError, SystemBuilder};
 
 /// Element name used in the parameter errors of this module.
-const CHAIN: &str = "chain parameters";
+const CHAIN: Check = Check {
+    element: "chain parameters",
+};
 
 /// A straight chain of `links` uniform links, SI units.
 ///
@@ -64,35 +67,13 @@ impl LinkChain {
     /// finite. Errors name the field and its value.
     pub fn validate(&self) -> Result<(), ModelError> {
         if self.links == 0 {
-            return Err(invalid(
-                CHAIN,
-                "links",
-                "0".into(),
-                "the chain needs at least one link".into(),
-            ));
+            return Err(CHAIN.fail("links", "0".into(), "the chain needs at least one link"));
         }
-        check_value(CHAIN, "length", self.length, true)?;
-        check_value(CHAIN, "mass", self.mass, true)?;
-        check_value(CHAIN, "inertia", self.inertia, true)?;
-        check_value(CHAIN, "stiffness", self.stiffness, false)?;
-        check_value(CHAIN, "damping", self.damping, false)?;
-        if !self.position.iter().all(|v| v.is_finite()) {
-            return Err(invalid(
-                CHAIN,
-                "position",
-                format!("{:?}", self.position),
-                "must be finite".into(),
-            ));
-        }
-        if !self.angle.is_finite() {
-            return Err(invalid(
-                CHAIN,
-                "angle",
-                self.angle.to_string(),
-                "must be finite".into(),
-            ));
-        }
-        Ok(())
+        let (l, m, i) = (self.length, self.mass, self.inertia);
+        CHAIN.positive(&[("length", l), ("mass", m), ("inertia", i)])?;
+        CHAIN.non_negative(&[("stiffness", self.stiffness), ("damping", self.damping)])?;
+        CHAIN.finite_point("position", self.position)?;
+        CHAIN.finite("angle", self.angle)
     }
 }
 

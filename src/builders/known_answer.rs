@@ -1,10 +1,9 @@
 //! The known-answer chains of problem D (docs/problems.md): the
 //! finite-segment cantilever and the N-link pendulum.
 
-use super::rod::{
-    add_chain, attach_chain_kernels, check_value, invalid, ChainNames, RodInfo, RodParams,
-};
+use super::rod::{add_chain, attach_chain_kernels, ChainNames, RodInfo, RodParams};
 use crate::constraints::Revolute;
+use crate::forces::Check;
 use crate::forces::{AppliedForce, Gravity, TorsionalSpringDamper};
 use crate::generated::GroundPivot;
 use crate::model::{BodyRef, ModelError, System, SystemBuilder, TimeFunction};
@@ -36,14 +35,10 @@ pub fn add_cantilever(
     tip_load: [f64; 2],
 ) -> Result<RodInfo, ModelError> {
     params.validate_structure()?;
-    if !tip_load.iter().all(|v| v.is_finite()) {
-        return Err(invalid(
-            "cantilever",
-            "tip_load",
-            format!("{tip_load:?}"),
-            "must be finite".into(),
-        ));
+    Check {
+        element: "cantilever",
     }
+    .finite_point("tip_load", tip_load)?;
     let p = params;
     let n = p.n_segments;
     let ls = p.segment_length();
@@ -117,26 +112,15 @@ pub fn n_link_pendulum(
     initial_angle: f64,
     gravity: f64,
 ) -> Result<(System, RodInfo), ModelError> {
-    const PEND: &str = "n-link pendulum";
+    const PEND: Check = Check {
+        element: "n-link pendulum",
+    };
     if n == 0 {
-        return Err(invalid(
-            PEND,
-            "n",
-            "0".into(),
-            "the pendulum needs at least one link".into(),
-        ));
+        return Err(PEND.fail("n", "0".into(), "the pendulum needs at least one link"));
     }
-    check_value(PEND, "link_length", link_length, true)?;
-    check_value(PEND, "link_mass", link_mass, true)?;
-    check_value(PEND, "gravity", gravity, false)?;
-    if !initial_angle.is_finite() {
-        return Err(invalid(
-            PEND,
-            "initial_angle",
-            initial_angle.to_string(),
-            "must be finite".into(),
-        ));
-    }
+    PEND.positive(&[("link_length", link_length), ("link_mass", link_mass)])?;
+    PEND.sign("gravity", gravity, false)?;
+    PEND.finite("initial_angle", initial_angle)?;
     let (s, c) = initial_angle.sin_cos();
     let down = [s, -c]; // −e_a: from the top end towards the bottom end
     let inertia = link_mass * link_length * link_length / 12.0;

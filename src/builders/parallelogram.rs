@@ -29,8 +29,8 @@
 //! [`ParallelogramChain::marked_point`] is the tip of the last crank,
 //! `(k L + r cos θ, r sin θ)`.
 
-use super::rod::{check_value, invalid};
 use crate::constraints::{DriveCoordinate, Revolute};
+use crate::forces::Check;
 use crate::model::{Body, BodyRef, ModelError, System, SystemBuilder, TimeFunction};
 
 /// A chain of `loops` parallelogram four-bars (module docs), SI units.
@@ -82,30 +82,23 @@ impl Default for ParallelogramChain {
     }
 }
 
-const NAME: &str = "parallelogram chain";
+const NAME: Check = Check {
+    element: "parallelogram chain",
+};
 
 impl ParallelogramChain {
     /// Check every parameter (errors name the field).
     pub fn validate(&self) -> Result<(), ModelError> {
         if self.loops == 0 {
-            return Err(invalid(
-                NAME,
-                "loops",
-                "0".into(),
-                "the chain needs at least one loop".into(),
-            ));
+            return Err(NAME.fail("loops", "0".into(), "the chain needs at least one loop"));
         }
-        check_value(NAME, "crank_length", self.crank_length, true)?;
-        check_value(NAME, "spacing", self.spacing, true)?;
-        check_value(NAME, "crank_mass", self.crank_mass, true)?;
-        check_value(NAME, "coupler_mass", self.coupler_mass, true)?;
-        check_value(NAME, "gravity", self.gravity, false)?;
-        for (field, v) in [("theta0", self.theta0), ("rate0", self.rate0)] {
-            if !v.is_finite() {
-                return Err(invalid(NAME, field, v.to_string(), "must be finite".into()));
-            }
-        }
-        Ok(())
+        NAME.sign("crank_length", self.crank_length, true)?;
+        NAME.sign("spacing", self.spacing, true)?;
+        NAME.sign("crank_mass", self.crank_mass, true)?;
+        NAME.sign("coupler_mass", self.coupler_mass, true)?;
+        NAME.sign("gravity", self.gravity, false)?;
+        NAME.finite("theta0", self.theta0)?;
+        NAME.finite("rate0", self.rate0)
     }
 
     /// Reduced inertia `I = (k + 1) m_c r²/3 + k m_b r²` \[kg m²\].

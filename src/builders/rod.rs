@@ -3,7 +3,9 @@
 //! ([`super::known_answer`]).
 
 use crate::constraints::Revolute;
-use crate::forces::{Buoyancy, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact};
+use crate::forces::{
+    Buoyancy, Check, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
+};
 use crate::generated::{
     ChainKernels, ContactJacobians, DragJacobians, GroundPivot, SharedTrig, TorsionalChainJacobians,
 };
@@ -70,36 +72,9 @@ impl Default for RodParams {
 }
 
 /// Element name used in the parameter errors of this module.
-const ROD: &str = "rod parameters";
-
-pub(super) fn invalid(element: &str, field: &str, value: String, why: String) -> ModelError {
-    ModelError::InvalidParameter {
-        element: element.into(),
-        field: field.into(),
-        value,
-        why,
-    }
-}
-
-/// `Err` unless `v` is finite and `> 0` (`strict`) or `≥ 0`.
-pub(super) fn check_value(
-    element: &str,
-    field: &str,
-    v: f64,
-    strict: bool,
-) -> Result<(), ModelError> {
-    let ok = v.is_finite() && if strict { v > 0.0 } else { v >= 0.0 };
-    if ok {
-        Ok(())
-    } else {
-        let why = if strict {
-            "must be finite and > 0"
-        } else {
-            "must be finite and >= 0"
-        };
-        Err(invalid(element, field, v.to_string(), why.into()))
-    }
-}
+const ROD: Check = Check {
+    element: "rod parameters",
+};
 
 impl RodParams {
     /// problem B (docs/problems.md) exactly, with `n_segments` segments.
@@ -180,27 +155,21 @@ impl RodParams {
     /// The parameters shared by every chain built from a `RodParams`.
     pub(super) fn validate_structure(&self) -> Result<(), ModelError> {
         if self.n_segments == 0 {
-            return Err(invalid(
-                ROD,
+            return Err(ROD.fail(
                 "n_segments",
                 "0".into(),
-                "the rod needs at least one segment".into(),
+                "the rod needs at least one segment",
             ));
         }
-        check_value(ROD, "length", self.length, true)?;
-        check_value(ROD, "width", self.width, true)?;
-        check_value(ROD, "density", self.density, true)?;
-        check_value(ROD, "youngs_modulus", self.youngs_modulus, true)?;
-        check_value(ROD, "damping_time", self.damping_time, false)?;
-        if !self.tilt.is_finite() {
-            return Err(invalid(
-                ROD,
-                "tilt",
-                self.tilt.to_string(),
-                "must be finite".into(),
-            ));
-        }
-        Ok(())
+        let (l, w, d, e) = (self.length, self.width, self.density, self.youngs_modulus);
+        ROD.positive(&[
+            ("length", l),
+            ("width", w),
+            ("density", d),
+            ("youngs_modulus", e),
+        ])?;
+        ROD.sign("damping_time", self.damping_time, false)?;
+        ROD.finite("tilt", self.tilt)
     }
 
     /// Check every parameter used by [`add_rod`]: positive finite segment
@@ -219,52 +188,32 @@ impl RodParams {
     pub(crate) fn validate_at(&self, first_end: Option<[f64; 2]>) -> Result<(), ModelError> {
         self.validate_structure()?;
         if let Some(p) = first_end {
-            if !p.iter().all(|v| v.is_finite()) {
-                return Err(invalid(
-                    ROD,
-                    "position",
-                    format!("{p:?}"),
-                    "must be finite".into(),
-                ));
-            }
+            ROD.finite_point("position", p)?;
         }
-        if !self.initial_velocity.iter().all(|v| v.is_finite()) {
-            return Err(invalid(
-                ROD,
-                "initial_velocity",
-                format!("{:?}", self.initial_velocity),
-                "must be finite".into(),
-            ));
-        }
-        check_value(ROD, "gravity", self.gravity, false)?;
+        ROD.finite_point("initial_velocity", self.initial_velocity)?;
+        ROD.sign("gravity", self.gravity, false)?;
         if self.fluid {
-            check_value(ROD, "water_density", self.water_density, false)?;
-            check_value(ROD, "drag_transverse", self.drag_transverse, false)?;
-            check_value(ROD, "drag_skin", self.drag_skin, false)?;
-            check_value(ROD, "drag_end", self.drag_end, false)?;
+            ROD.sign("water_density", self.water_density, false)?;
+            ROD.sign("drag_transverse", self.drag_transverse, false)?;
+            ROD.sign("drag_skin", self.drag_skin, false)?;
+            ROD.sign("drag_end", self.drag_end, false)?;
         }
         if self.contact {
-            check_value(ROD, "channel_width", self.channel_width, true)?;
+            ROD.sign("channel_width", self.channel_width, true)?;
             if self.channel_width <= self.width {
-                return Err(invalid(
-                    ROD,
+                return Err(ROD.fail(
                     "channel_width",
                     self.channel_width.to_string(),
-                    format!(
+                    &format!(
                         "the channel must be wider than the rod (width = {})",
                         self.width
                     ),
                 ));
             }
-            check_value(ROD, "contact_stiffness", self.contact_stiffness, true)?;
-            check_value(ROD, "contact_damping", self.contact_damping, false)?;
-            check_value(
-                ROD,
-                "friction_coefficient",
-                self.friction_coefficient,
-                false,
-            )?;
-            check_value(ROD, "friction_velocity", self.friction_velocity, true)?;
+            ROD.sign("contact_stiffness", self.contact_stiffness, true)?;
+            ROD.sign("contact_damping", self.contact_damping, false)?;
+            ROD.sign("friction_coefficient", self.friction_coefficient, false)?;
+            ROD.sign("friction_velocity", self.friction_velocity, true)?;
             // Initial penetration: every corner of the straight tilted rod.
             let mut worst: Option<(f64, usize, usize, &str)> = None;
             let probe = self.contact_element(0, 0);
@@ -285,11 +234,10 @@ impl RodParams {
                 }
             }
             if let Some((delta, i, c, wall)) = worst {
-                return Err(invalid(
-                    ROD,
+                return Err(ROD.fail(
                     "tilt",
                     format!("{} rad ({}°)", self.tilt, self.tilt.to_degrees()),
-                    format!(
+                    &format!(
                         "at the initial state corner {c} of segment {} penetrates the {wall} \
                          wall by {delta:.3e} m (channel_width = {}, length = {}, width = {})",
                         i + 1,

@@ -232,16 +232,12 @@ impl<'a> Augmented<'a> {
     ) -> Result<(), FormulationError> {
         let sys = self.sys;
         check_state(t, q, qd)?;
-        self.blocks.assemble(
-            sys,
-            &mut self.k,
-            t,
-            q,
-            qd,
-            lam,
-            [c_m, c_c, c_k],
-            &mut self.jac,
-        )?;
+        let c = [c_m, c_c, c_k];
+        let (forces, hessians) = DynamicBlocks::needs(c);
+        let jac = &mut self.jac;
+        self.blocks
+            .evaluate(sys, t, q, qd, lam, forces, hessians, jac)?;
+        self.blocks.write(sys, &mut self.k, c);
         self.penalty.add(&mut self.k, c_p, &self.jac);
         self.solver
             .factorize(&self.k)

@@ -147,29 +147,6 @@ impl DynamicBlocks {
         (&self.dq, &self.dqd, &self.hess_vals)
     }
 
-    /// Zero `k` and write `c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀλ)_q`
-    /// at `(t, q, q̇, λ)` into its `A` block (the force Jacobians only when
-    /// `c_c` or `c_k` ≠ 0, the Hessians only when `c_k` ≠ 0); `Φ_q(q, t)`
-    /// into `jac`. Every evaluation is checked finite
-    /// ([`FormulationError::NonFinite`]), so an overflow is not reported as
-    /// a singular matrix.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn assemble(
-        &mut self,
-        sys: &System,
-        k: &mut SaddleMatrix,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lam: &[f64],
-        [c_m, c_c, c_k]: [f64; 3],
-        jac: &mut [f64],
-    ) -> Result<(), FormulationError> {
-        self.evaluate_for(sys, t, q, qd, lam, [c_m, c_c, c_k], jac)?;
-        self.write(sys, k, [c_m, c_c, c_k]);
-        Ok(())
-    }
-
     /// Evaluate the force Jacobians (when `forces`), the Hessians (when
     /// `hessians`) and `Φ_q(q, t)` into `jac`, each checked finite; the
     /// blocks not evaluated keep their old values.
@@ -271,34 +248,17 @@ impl DynamicBlocks {
 }
 
 impl DynamicBlocks {
-    /// [`Self::evaluate`] with what the coefficients `[c_m, c_c, c_k]`
-    /// need: the force Jacobians when `c_c` or `c_k` ≠ 0, the Hessians when
-    /// `c_k` ≠ 0.
-    #[allow(clippy::too_many_arguments)]
-    fn evaluate_for(
-        &mut self,
-        sys: &System,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lam: &[f64],
-        [_, c_c, c_k]: [f64; 3],
-        jac: &mut [f64],
-    ) -> Result<(), FormulationError> {
-        self.evaluate(
-            sys,
-            t,
-            q,
-            qd,
-            lam,
-            c_c != 0.0 || c_k != 0.0,
-            c_k != 0.0,
-            jac,
-        )
+    /// What the coefficients `[c_m, c_c, c_k]` of [`Self::write`] need
+    /// [`Self::evaluate`] to evaluate: `(forces, hessians)`, the force
+    /// Jacobians when `c_c` or `c_k` ≠ 0, the Hessians when `c_k` ≠ 0.
+    pub(crate) fn needs([_, c_c, c_k]: [f64; 3]) -> (bool, bool) {
+        (c_c != 0.0 || c_k != 0.0, c_k != 0.0)
     }
 
-    /// [`Self::evaluate`], then [`Self::write_with_jacobian`] with `Φ_q`
-    /// from `jac`: [`Self::assemble`] followed by
+    /// [`Self::evaluate`] what `c` [`Self::needs`] (each evaluation checked
+    /// finite, [`FormulationError::NonFinite`], so an overflow is not
+    /// reported as a singular matrix), then [`Self::write_with_jacobian`]
+    /// with `Φ_q` from `jac`: [`Self::write`] followed by
     /// [`SaddleMatrix::set_jacobian`], the same values.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn assemble_with_jacobian(
@@ -309,11 +269,12 @@ impl DynamicBlocks {
         q: &[f64],
         qd: &[f64],
         lam: &[f64],
-        [c_m, c_c, c_k]: [f64; 3],
+        c: [f64; 3],
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        self.evaluate_for(sys, t, q, qd, lam, [c_m, c_c, c_k], jac)?;
-        self.write_with_jacobian(sys, k, [c_m, c_c, c_k], jac);
+        let (forces, hessians) = Self::needs(c);
+        self.evaluate(sys, t, q, qd, lam, forces, hessians, jac)?;
+        self.write_with_jacobian(sys, k, c, jac);
         Ok(())
     }
 
@@ -522,13 +483,8 @@ mod tests {
         let mut blocks = DynamicBlocks::register(&sys, &mut a);
         let jp = sys.jacobian_pattern();
         let k0 = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
-        let mut seed = 12345u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut u = crate::numeric::test_uniform(12345);
+        let mut rnd = move || u() * 2.0 - 1.0;
         let q: Vec<f64> = q0.iter().map(|x| x + 1e-3 * rnd()).collect();
         let qd: Vec<f64> = qd0.iter().map(|x| x + rnd()).collect();
         let lam: Vec<f64> = (0..m).map(|_| 1e3 * rnd()).collect();

@@ -297,15 +297,7 @@ impl Index1<'_> {
             if (residual <= p.tol && !direct) || residual == 0.0 || (direct && iterations == 1) {
                 break;
             }
-            // also catches a non-finite residual
-            if iterations == p.max_iter || !residual.is_finite() {
-                return Err(FormulationError::Projection {
-                    t,
-                    residual,
-                    tol: p.tol,
-                    iterations,
-                });
-            }
+            FormulationError::check_projection(t, residual, p.tol, iterations, p.max_iter)?;
             self.factor_at(t, q)?;
             mass_orthogonal_step(
                 &mut *self.b.solver,

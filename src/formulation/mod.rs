@@ -450,3 +450,27 @@ pub enum FormulationError {
         reason: String,
     },
 }
+
+impl FormulationError {
+    /// The rule of a projection's Newton iteration that has not reached
+    /// `tol` at `t` (‖Φ‖ = `residual`) after `iterations`: it gives up at
+    /// `max_iter` or at a non-finite residual
+    /// ([`FormulationError::Projection`]).
+    pub(crate) fn check_projection(
+        t: f64,
+        residual: f64,
+        tol: f64,
+        iterations: usize,
+        max_iter: usize,
+    ) -> Result<(), Self> {
+        if iterations == max_iter || !residual.is_finite() {
+            return Err(FormulationError::Projection {
+                t,
+                residual,
+                tol,
+                iterations,
+            });
+        }
+        Ok(())
+    }
+}

@@ -37,7 +37,7 @@ use super::FormulationError;
 use super::{all_finite, Index1Options};
 use crate::integrate::{
     integrator, Failure, Integrator, IntegratorError, Method, Observer, OdeOptions, OdeSystem,
-    Report, Span, Stats, SystemError, Termination,
+    Report, Span, StateView, Stats, SystemError, Termination,
 };
 use crate::linalg::full_pivot_order;
 use crate::model::System;
@@ -365,14 +365,7 @@ impl Split {
             if residual <= opts.tol {
                 break;
             }
-            if iterations == opts.max_iter || !residual.is_finite() {
-                return Err(FormulationError::Projection {
-                    t,
-                    residual,
-                    tol: opts.tol,
-                    iterations,
-                });
-            }
+            FormulationError::check_projection(t, residual, opts.tol, iterations, opts.max_iter)?;
             self.dense_jacobian(sys, t, q);
             self.factor_block();
             for (x, &i) in self.rhs.iter_mut().zip(&self.rows) {
@@ -551,13 +544,8 @@ impl<'a> Partitioned<'a> {
     /// `q̈` from eq. (5) on the independent rows R,
     /// `[M Φ_Rᵀ; Φ_R 0][q̈; λ_R] = [g; γ_R]`, at a state completed by
     /// [`Partitioned::expand`] (Φ_q of that state in the split's buffer).
-    fn accelerations(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &mut [f64],
-    ) -> Result<(), FormulationError> {
+    fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64]) -> Result<(), FormulationError> {
+        let StateView { t, q, qd } = x;
         let sys = self.sys;
         let n = sys.n_coords();
         sys.forces_into(t, q, qd, &mut self.g);
@@ -627,7 +615,10 @@ impl<'a> Partitioned<'a> {
     fn start_segment(&mut self, t: f64, q: &[f64], qd: &[f64]) {
         self.split.dense_jacobian(self.sys, t, q);
         let mut qdd = std::mem::take(&mut self.qdd);
-        if self.accelerations(t, q, qd, &mut qdd).is_err() {
+        if self
+            .accelerations(StateView { t, q, qd }, &mut qdd)
+            .is_err()
+        {
             qdd.fill(0.0);
         }
         self.split.set_base(t, q, qd, &qdd);
@@ -762,7 +753,7 @@ impl OdeSystem for Partitioned<'_> {
         let (mut q, mut qd) = (std::mem::take(&mut self.q), std::mem::take(&mut self.qd));
         let r = self.expand(t, y, &mut q, &mut qd).and_then(|_| {
             let mut qdd = std::mem::take(&mut self.qdd);
-            let r = self.accelerations(t, &q, &qd, &mut qdd);
+            let r = self.accelerations(StateView { t, q: &q, qd: &qd }, &mut qdd);
             self.qdd = qdd;
             r.map(|()| {
                 let d = self.split.dof();

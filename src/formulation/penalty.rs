@@ -26,7 +26,7 @@ use super::{
     check_state, feedback, linear_at, Formulation, FormulationError, Index1, Index1Options,
     RhsStats,
 };
-use crate::integrate::{OdeSystem, SystemError};
+use crate::integrate::{OdeSystem, StateView, SystemError};
 use crate::linalg::{solver_for, APattern, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::System;
 use serde::Serialize;
@@ -148,11 +148,10 @@ impl<'a> Penalty<'a> {
     /// Accelerations from `(M + αΦ_qᵀΦ_q) q̈ = g + αΦ_qᵀ(γ − 2ξωΦ̇ − ω²Φ)`.
     pub fn accelerations(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         qdd: &mut [f64],
     ) -> Result<(), FormulationError> {
+        let StateView { t, q, qd } = x;
         let sys = self.sys;
         self.b.stats.evaluations += 1;
         check_state(t, q, qd)?;
@@ -208,7 +207,7 @@ impl OdeSystem for Penalty<'_> {
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) -> Result<(), SystemError> {
         first_order_rhs(self.sys.n_coords(), y, dydt, |q, qd, qdd| {
-            self.accelerations(t, q, qd, qdd)
+            self.accelerations(StateView { t, q, qd }, qdd)
         })
     }
 }

@@ -341,13 +341,8 @@ mod tests {
             .with_trig(chain.shared_trig())
             .trig
             .is_none());
-        let mut seed = 17u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 4.0 - 2.0
-        };
+        let mut u = crate::numeric::test_uniform(17);
+        let mut next = move || u() * 4.0 - 2.0;
         let n = 3 * nb;
         let mut q: Vec<f64> = (0..n).map(|_| next()).collect();
         let qd: Vec<f64> = (0..n).map(|_| next()).collect();
@@ -396,13 +391,8 @@ mod tests {
             })
             .collect();
         let kern = ContactJacobians::new(body0, &contacts);
-        let mut seed = 99u64;
-        let mut next = move |lo: f64, hi: f64| {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            lo + (hi - lo) * ((seed >> 11) as f64 / (1u64 << 53) as f64)
-        };
+        let mut u = crate::numeric::test_uniform(99);
+        let mut next = move |lo: f64, hi: f64| lo + (hi - lo) * u();
         let n = 3 * (body0 + nb);
         let (mut touching, mut clear) = (0, 0);
         for _ in 0..20 {

@@ -6,7 +6,7 @@
 use std::ops::ControlFlow;
 use std::sync::Arc;
 
-use super::driver::{Failure, Stepper};
+use super::driver::{Failure, StepCut, Stepper};
 use super::{IntegratorError, Observer, OdeOptions, OdeSystem, Stats, Tolerance};
 pub(crate) use crate::numeric::first_non_finite;
 
@@ -221,6 +221,121 @@ pub fn eps(x: f64) -> f64 {
         f64::from_bits(1u64 << (exp.max(1) - 1))
     } else {
         f64::from_bits(((exp - 52) as u64) << 52)
+    }
+}
+
+/// MATLAB's step-size state of ode23/ode45/ode113 over one run: the
+/// tolerances ([`MatlabTolerances`]), the span's end, the user's first step
+/// and the proposed `|h|` of the next step.
+pub(crate) struct MatlabSteps {
+    /// `rtol`, at least `100 eps`.
+    pub(crate) rtol: f64,
+    /// `atol / rtol` per component.
+    pub(crate) threshold: Vec<f64>,
+    /// The largest step.
+    pub(crate) hmax: f64,
+    /// The user's first step, if given.
+    pub(crate) initial_step: Option<f64>,
+    /// The end of the span.
+    pub(crate) t_end: f64,
+    /// The proposed `|h|` of the next step.
+    pub(crate) absh: f64,
+    /// The tolerances' warnings.
+    pub(crate) warnings: Vec<String>,
+}
+
+impl MatlabSteps {
+    /// The state at the start of `run`.
+    pub(crate) fn new(run: &RunSpan<'_>) -> Self {
+        let tol = MatlabTolerances::new(run.opts, run.n, run.t0, run.t_end);
+        MatlabSteps {
+            rtol: tol.rtol,
+            threshold: tol.threshold,
+            hmax: tol.hmax,
+            initial_step: run.opts.initial_step,
+            t_end: run.t_end,
+            absh: 0.0,
+            warnings: tol.warnings,
+        }
+    }
+
+    /// MATLAB's first step from `f0 = f(t, y)`: the given `initial_step`
+    /// clamped to `[16 eps(t), hmax]`; else `min(hmax, |t_end − t|)`, cut
+    /// to `1/rh` with `rh = ‖f0‖ / scale` in the norm of [`error_norm`],
+    /// and no smaller than `16 eps(t)`.
+    pub(crate) fn first(&mut self, t: f64, f0: &[f64], y: &[f64], scale: f64) {
+        let hmin = 16.0 * eps(t);
+        self.absh = match self.initial_step {
+            Some(htry) => self.hmax.min(hmin.max(htry)),
+            None => {
+                let mut absh = self.hmax.min((self.t_end - t).abs());
+                let rh = error_norm(f0, y, y, &self.threshold) / scale;
+                if absh * rh > 1.0 {
+                    absh = 1.0 / rh;
+                }
+                absh.max(hmin)
+            }
+        };
+    }
+
+    /// The first attempt of the step from `t` ([`Attempt`]).
+    pub(crate) fn attempt(&self, t: f64) -> Attempt {
+        let hmin = 16.0 * eps(t);
+        let absh = self.hmax.min(hmin.max(self.absh));
+        if 1.1 * absh >= (self.t_end - t).abs() {
+            let h = self.t_end - t;
+            Attempt {
+                h,
+                absh: h.abs(),
+                hmin,
+                done: true,
+            }
+        } else {
+            Attempt {
+                h: absh,
+                absh,
+                hmin,
+                done: false,
+            }
+        }
+    }
+}
+
+/// MATLAB's step attempt from `t` (ode23/ode45/ode113): `|h|` the proposed
+/// `absh` clamped to `[hmin, hmax]` with `hmin = 16 eps(t)`, stretched to
+/// end at `t_end` when within 10 % of it (`done`); after a failed error
+/// test, a smaller `|h|` ([`Attempt::retry`]).
+pub(crate) struct Attempt {
+    /// The step.
+    pub(crate) h: f64,
+    /// Its modulus.
+    pub(crate) absh: f64,
+    /// The smallest step, `16 eps(t)`.
+    pub(crate) hmin: f64,
+    /// The step ends at `t_end`.
+    pub(crate) done: bool,
+}
+
+impl Attempt {
+    /// After a failed error test (`err > rtol`): the step cannot be cut
+    /// below `hmin` ([`Failure::StepTooSmall`] at `t`).
+    pub(crate) fn check_cut(&self, t: f64, err: f64, rtol: f64) -> Result<(), Failure> {
+        if self.absh <= self.hmin {
+            return Err(Failure::StepTooSmall {
+                t,
+                h: self.absh,
+                h_min: self.hmin,
+                cause: StepCut::ErrorTest { err: err / rtol },
+            });
+        }
+        Ok(())
+    }
+
+    /// Retry with the smaller `absh` (no longer ending at `t_end`).
+    pub(crate) fn retry(&mut self, absh: f64) {
+        self.absh = absh;
+        self.h = absh;
+        self.done = false;
     }
 }
 

@@ -174,81 +174,73 @@ pub fn drive(
     obs: &mut dyn Observer,
 ) -> (Termination, f64) {
     let state = st.state().1.len();
-    crate::parallel::run_with_team(state, || drive_loop(st, times, max_steps, t_end, obs))
-}
-
-/// [`drive`]'s loop.
-fn drive_loop(
-    st: &mut dyn Stepper,
-    times: &[f64],
-    max_steps: usize,
-    t_end: f64,
-    obs: &mut dyn Observer,
-) -> (Termination, f64) {
-    let mut outputs = OutputCursor::new(times);
-    let (t0, y0) = st.state();
-    let mut buf = vec![0.0; y0.len()];
-    if let ControlFlow::Break((t, reason)) = outputs.deliver_initial(t0, y0, obs) {
-        return (Termination::Stopped { t, reason }, t0);
-    }
-    let mut warned = 0;
-    for msg in st.warnings() {
-        obs.warning(msg);
-        warned += 1;
-    }
-    if let Err(reason) = st.start() {
-        return (Termination::Failed { t: t0, reason }, t0);
-    }
-    loop {
-        let t = st.state().0;
-        if st.stats().steps >= max_steps {
-            let reason = Failure::MaxSteps {
-                max_steps,
-                t,
-                t_end,
-            };
-            return (Termination::Failed { t, reason }, t);
+    // the loop runs on the run's thread team (`parallel::run_with_team`)
+    crate::parallel::run_with_team(state, || {
+        let mut outputs = OutputCursor::new(times);
+        let (t0, y0) = st.state();
+        let mut buf = vec![0.0; y0.len()];
+        if let ControlFlow::Break((t, reason)) = outputs.deliver_initial(t0, y0, obs) {
+            return (Termination::Stopped { t, reason }, t0);
         }
-        let outcome = st.step();
-        let w = st.warnings();
-        for msg in w.iter().skip(warned) {
+        let mut warned = 0;
+        for msg in st.warnings() {
             obs.warning(msg);
+            warned += 1;
         }
-        warned = warned.max(w.len());
-        let done = match outcome {
-            Ok(done) => done,
-            Err(reason) => {
-                let t = st.state().0;
+        if let Err(reason) = st.start() {
+            return (Termination::Failed { t: t0, reason }, t0);
+        }
+        loop {
+            let t = st.state().0;
+            if st.stats().steps >= max_steps {
+                let reason = Failure::MaxSteps {
+                    max_steps,
+                    t,
+                    t_end,
+                };
                 return (Termination::Failed { t, reason }, t);
             }
-        };
-        let t_new = st.state().0;
-        if t_new <= t {
-            let reason = Failure::StepTooSmall {
-                t,
-                h: t_new - t,
-                h_min: super::common::eps(t),
-                cause: StepCut::NoProgress,
+            let outcome = st.step();
+            let w = st.warnings();
+            for msg in w.iter().skip(warned) {
+                obs.warning(msg);
+            }
+            warned = warned.max(w.len());
+            let done = match outcome {
+                Ok(done) => done,
+                Err(reason) => {
+                    let t = st.state().0;
+                    return (Termination::Failed { t, reason }, t);
+                }
             };
-            return (Termination::Failed { t, reason }, t);
+            let t_new = st.state().0;
+            if t_new <= t {
+                let reason = Failure::StepTooSmall {
+                    t,
+                    h: t_new - t,
+                    h_min: super::common::eps(t),
+                    cause: StepCut::NoProgress,
+                };
+                return (Termination::Failed { t, reason }, t);
+            }
+            let flow = outputs.deliver_step_snapped(t_new, done, &mut *st, &mut buf, obs);
+            let w = st.warnings();
+            for msg in w.iter().skip(warned) {
+                obs.warning(msg);
+            }
+            warned = warned.max(w.len());
+            if let ControlFlow::Break((t, reason)) = flow {
+                return (Termination::Stopped { t, reason }, t_new);
+            }
+            if let ControlFlow::Break(reason) = obs.step(t_new, st.state().1) {
+                return (Termination::Stopped { t: t_new, reason }, t_new);
+            }
+            if let ControlFlow::Break(reason) = obs.progress(t_new, &st.stats()) {
+                return (Termination::Stopped { t: t_new, reason }, t_new);
+            }
+            if done {
+                return (Termination::Completed, t_new);
+            }
         }
-        let flow = outputs.deliver_step_snapped(t_new, done, &mut *st, &mut buf, obs);
-        let w = st.warnings();
-        for msg in w.iter().skip(warned) {
-            obs.warning(msg);
-        }
-        warned = warned.max(w.len());
-        if let ControlFlow::Break((t, reason)) = flow {
-            return (Termination::Stopped { t, reason }, t_new);
-        }
-        if let ControlFlow::Break(reason) = obs.step(t_new, st.state().1) {
-            return (Termination::Stopped { t: t_new, reason }, t_new);
-        }
-        if let ControlFlow::Break(reason) = obs.progress(t_new, &st.stats()) {
-            return (Termination::Stopped { t: t_new, reason }, t_new);
-        }
-        if done {
-            return (Termination::Completed, t_new);
-        }
-    }
+    })
 }

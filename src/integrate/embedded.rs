@@ -28,9 +28,10 @@
 //! plus 1 per step whose end state [`OdeSystem::post_step`] moved.
 
 use super::common::{
-    self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, RunSpan, StepEnds,
+    self, call_rhs, error_norm, eval_stages, lincomb, post_step, weighted_sum, MatlabSteps,
+    RunSpan, StepEnds,
 };
-use super::driver::{Failure, StepCut, Stepper};
+use super::driver::{Failure, Stepper};
 use super::tableau::{EmbeddedTableau, MAX_STAGES};
 use super::{OdeSystem, Stats};
 
@@ -39,12 +40,8 @@ use super::{OdeSystem, Stats};
 pub(crate) struct EmbeddedStepper<'a> {
     sys: &'a mut dyn OdeSystem,
     tab: &'static EmbeddedTableau,
-    rtol: f64,
-    threshold: Vec<f64>,
-    initial_step: Option<f64>,
-    t_end: f64,
-    hmax: f64,
-    absh: f64,
+    /// MATLAB's step sizes.
+    steps: MatlabSteps,
     /// Start and end of the last accepted step (the current state).
     ends: StepEnds,
     /// Its (purified) size.
@@ -56,7 +53,6 @@ pub(crate) struct EmbeddedStepper<'a> {
     f_post: Vec<f64>,
     k: Vec<f64>,
     pub(crate) stats: Stats,
-    pub(crate) warnings: Vec<String>,
 }
 
 impl<'a> EmbeddedStepper<'a> {
@@ -66,17 +62,11 @@ impl<'a> EmbeddedStepper<'a> {
         run: &RunSpan<'_>,
         tab: &'static EmbeddedTableau,
     ) -> Self {
-        let (opts, t0, t_end, y0, n) = (run.opts, run.t0, run.t_end, run.y0, run.n);
-        let tol = common::MatlabTolerances::new(opts, n, t0, t_end);
+        let (t0, y0, n) = (run.t0, run.y0, run.n);
         Self {
             sys,
             tab,
-            rtol: tol.rtol,
-            threshold: tol.threshold,
-            initial_step: opts.initial_step,
-            t_end,
-            hmax: tol.hmax,
-            absh: 0.0,
+            steps: MatlabSteps::new(run),
             ends: StepEnds::new(t0, y0),
             h: 0.0,
             post_changed: false,
@@ -84,7 +74,6 @@ impl<'a> EmbeddedStepper<'a> {
             f_post: vec![0.0; n],
             k: vec![0.0; tab.stages() * n],
             stats: Stats::default(),
-            warnings: tol.warnings,
         }
     }
 }
@@ -101,26 +90,14 @@ impl Stepper for EmbeddedStepper<'_> {
             &mut self.stats,
             None,
         )?;
-        let hmin = 16.0 * common::eps(t);
-        let pow = self.tab.pow;
-        self.absh = match self.initial_step {
-            Some(htry) => self.hmax.min(hmin.max(htry)),
-            None => {
-                let mut absh = self.hmax.min((self.t_end - t).abs());
-                let rh = error_norm(&self.k[..n], &self.ends.y, &self.ends.y, &self.threshold)
-                    / (0.8 * self.rtol.powf(pow));
-                if absh * rh > 1.0 {
-                    absh = 1.0 / rh;
-                }
-                absh.max(hmin)
-            }
-        };
+        let scale = 0.8 * self.steps.rtol.powf(self.tab.pow);
+        self.steps.first(t, &self.k[..n], &self.ends.y, scale);
         Ok(())
     }
 
     fn step(&mut self) -> Result<bool, Failure> {
         let tab = self.tab;
-        let (n, s, pow, rtol) = (self.ends.y.len(), tab.stages(), tab.pow, self.rtol);
+        let (n, s, pow, rtol) = (self.ends.y.len(), tab.stages(), tab.pow, self.steps.rtol);
         if self.ends.advance() {
             // reuse f(tnew, ynew) as the first stage (FSAL)
             if self.post_changed {
@@ -130,16 +107,7 @@ impl Stepper for EmbeddedStepper<'_> {
             }
         }
         let t = self.ends.t;
-        let hmin = 16.0 * common::eps(t);
-        let mut absh = self.hmax.min(hmin.max(self.absh));
-        let mut h = absh;
-        let mut done = false;
-        // Stretch the step if within 10% of t_end - t.
-        if 1.1 * absh >= (self.t_end - t).abs() {
-            h = self.t_end - t;
-            absh = h.abs();
-            done = true;
-        }
+        let mut a = self.steps.attempt(t);
 
         // Attempt the step until the error test passes.
         let mut nofailed = true;
@@ -148,7 +116,7 @@ impl Stepper for EmbeddedStepper<'_> {
             eval_stages(
                 self.sys,
                 t,
-                h,
+                a.h,
                 &self.ends.y,
                 tab.c,
                 tab.a,
@@ -157,9 +125,9 @@ impl Stepper for EmbeddedStepper<'_> {
                 &mut self.ytmp,
                 &mut self.stats,
             )?;
-            let tnew = if done { self.t_end } else { t + h };
-            h = tnew - t; // purify h
-            lincomb(&mut self.ends.ynew, &self.ends.y, h, tab.b(), k);
+            let tnew = if a.done { self.steps.t_end } else { t + a.h };
+            a.h = tnew - t; // purify h
+            lincomb(&mut self.ends.ynew, &self.ends.y, a.h, tab.b(), k);
             common::step_end(
                 self.sys,
                 t,
@@ -170,39 +138,33 @@ impl Stepper for EmbeddedStepper<'_> {
             )?;
 
             weighted_sum(&mut self.ytmp, 1.0, tab.e, k);
-            let err = absh * error_norm(&self.ytmp, &self.ends.y, &self.ends.ynew, &self.threshold);
+            let thr = &self.steps.threshold;
+            let err = a.absh * error_norm(&self.ytmp, &self.ends.y, &self.ends.ynew, thr);
 
             if err > rtol {
                 self.stats.failed_steps += 1;
-                if absh <= hmin {
-                    return Err(Failure::StepTooSmall {
-                        t,
-                        h: absh,
-                        h_min: hmin,
-                        cause: StepCut::ErrorTest { err: err / rtol },
-                    });
-                }
-                if nofailed {
+                a.check_cut(t, err, rtol)?;
+                let absh = if nofailed {
                     nofailed = false;
-                    absh =
-                        hmin.max(absh * tab.first_failure_floor.max(0.8 * (rtol / err).powf(pow)));
+                    let cut = tab.first_failure_floor.max(0.8 * (rtol / err).powf(pow));
+                    a.hmin.max(a.absh * cut)
                 } else {
-                    absh = hmin.max(0.5 * absh);
-                }
-                h = absh;
-                done = false;
+                    a.hmin.max(0.5 * a.absh)
+                };
+                a.retry(absh);
             } else {
                 break (tnew, err);
             }
         };
         self.stats.steps += 1;
         // If there were no failures compute a new h.
-        if nofailed && !done {
+        let mut absh = a.absh;
+        if nofailed && !a.done {
             let temp = 1.25 * (err / rtol).powf(pow);
             absh = if temp > 0.2 { absh / temp } else { 5.0 * absh };
         }
-        self.absh = absh;
-        self.h = h;
+        self.steps.absh = absh;
+        self.h = a.h;
         self.post_changed = post_step(
             self.sys,
             tnew,
@@ -211,7 +173,7 @@ impl Stepper for EmbeddedStepper<'_> {
             &mut self.stats,
         )?;
         self.ends.accept(tnew);
-        Ok(done)
+        Ok(a.done)
     }
 
     fn state(&self) -> (f64, &[f64]) {
@@ -236,7 +198,7 @@ impl Stepper for EmbeddedStepper<'_> {
     }
 
     fn warnings(&self) -> &[String] {
-        &self.warnings
+        &self.steps.warnings
     }
 
     fn stats(&self) -> Stats {

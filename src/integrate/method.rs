@@ -127,7 +127,8 @@ pub struct MethodInfo {
     pub aliases: &'static [Alias],
     /// Its family.
     pub family: Family,
-    /// The equations it integrates.
+    /// The equations it integrates (those of its family,
+    /// [`Family::equations`]).
     pub equations: Equations,
     /// Fixed or adaptive steps.
     pub stepping: Stepping,
@@ -135,9 +136,14 @@ pub struct MethodInfo {
     /// `PARALLEL_MIN_COORDS` coordinates; results identical for any
     /// thread count).
     pub threads: &'static str,
-    /// The `[integrator]` keys that apply to it besides `method`, and when.
-    pub keys: &'static [(&'static str, KeyUse)],
+    /// The `[integrator]` keys of the method itself that apply besides
+    /// `method` and the step keys its [`Stepping`] implies
+    /// ([`Stepping::key_use`]), in groups with when they apply.
+    pub keys: Keys,
 }
+
+/// Groups of `[integrator]` keys, each with when its keys apply.
+pub type Keys = &'static [(&'static [&'static str], KeyUse)];
 
 /// Another name of a method that fixes its spectral radius: the
 /// trapezoidal rule is Newmark (β = ¼, γ = ½), i.e. generalized-α with
@@ -162,173 +168,160 @@ pub fn alias(name: &str) -> Option<(&'static MethodInfo, Alias)> {
 /// The step-control keys of the adaptive methods.
 pub const STEP_CONTROL_KEYS: [&str; 4] = ["rtol", "atol", "max_step", "initial_step"];
 
-const ADAPTIVE_KEYS: &[(&str, KeyUse)] = &[
-    ("rtol", KeyUse::Always),
-    ("atol", KeyUse::Always),
-    ("max_step", KeyUse::Always),
-    ("initial_step", KeyUse::Always),
+/// The keys whose use follows from a method's [`Stepping`]
+/// ([`Stepping::key_use`]), in the order of the docs table.
+const STEPPING_KEYS: [&str; 6] = [
+    "step",
+    "rtol",
+    "atol",
+    "max_step",
+    "initial_step",
+    "adaptive",
 ];
 
-const ALPHA_KEYS: &[(&str, KeyUse)] = &[
-    ("step", KeyUse::FixedStep),
-    ("rtol", KeyUse::Adaptive),
-    ("atol", KeyUse::Adaptive),
-    ("max_step", KeyUse::Adaptive),
-    ("initial_step", KeyUse::Adaptive),
-    ("rho_inf", KeyUse::Always),
-    ("adaptive", KeyUse::Always),
-    ("newton_tol", KeyUse::Always),
-    ("max_newton", KeyUse::Always),
-    ("project", KeyUse::Always),
-    ("reuse", KeyUse::Always),
-    ("filter_error", KeyUse::Adaptive),
-    ("check_constraints", KeyUse::Always),
-    ("min_step", KeyUse::Always),
-    ("lu", KeyUse::Always),
-    ("extrapolate", KeyUse::Always),
+impl Stepping {
+    /// When a step key applies with this stepping: `step` to fixed steps,
+    /// the [`STEP_CONTROL_KEYS`] to adaptive ones, `adaptive` where there
+    /// is a choice; `None`: never (or not a step key).
+    pub fn key_use(self, key: &str) -> Option<KeyUse> {
+        let (fixed, adaptive) = match self {
+            Stepping::Fixed => (Some(KeyUse::Always), None),
+            Stepping::Adaptive => (None, Some(KeyUse::Always)),
+            Stepping::FixedOrAdaptive => (Some(KeyUse::FixedStep), Some(KeyUse::Adaptive)),
+        };
+        match key {
+            "step" => fixed,
+            "adaptive" => (self == Stepping::FixedOrAdaptive).then_some(KeyUse::Always),
+            k if STEP_CONTROL_KEYS.contains(&k) => adaptive,
+            _ => None,
+        }
+    }
+}
+
+impl Family {
+    /// The equations the family integrates.
+    pub const fn equations(self) -> Equations {
+        match self {
+            Family::RungeKutta | Family::Adams => Equations::Index1,
+            Family::Bdf | Family::GeneralizedAlpha | Family::Radau => Equations::Index3,
+        }
+    }
+}
+
+/// The keys of the Newton iteration of the generalized-α family and
+/// Radau IIA.
+const NEWTON_KEYS: &[&str] = &["newton_tol", "max_newton", "project", "reuse", "min_step"];
+
+/// The generalized-α family's own keys.
+const ALPHA_KEYS: Keys = &[
+    (&["rho_inf"], KeyUse::Always),
+    (NEWTON_KEYS, KeyUse::Always),
+    (&["filter_error"], KeyUse::Adaptive),
+    (&["check_constraints", "lu", "extrapolate"], KeyUse::Always),
 ];
+
+/// Radau IIA's own keys: those of its Newton iteration.
+const RADAU_KEYS: Keys = &[(NEWTON_KEYS, KeyUse::Always)];
 
 const EXPLICIT_THREADS: &str = "forces ∥ constraint terms of each RHS";
 const ALPHA_THREADS: &str = "residual halves, Newton updates, split chain LDLᵀ";
+const RADAU_THREADS: &str = "residual halves, split real chain LDLᵀ";
+
+impl MethodInfo {
+    /// A row without aliases; its equations are its family's.
+    const fn row(
+        method: Method,
+        family: Family,
+        stepping: Stepping,
+        threads: &'static str,
+        keys: Keys,
+    ) -> Self {
+        MethodInfo {
+            method,
+            name: Method::NAMES[method as usize],
+            aliases: &[],
+            family,
+            equations: family.equations(),
+            stepping,
+            threads,
+            keys,
+        }
+    }
+
+    /// An explicit method's row: no keys of its own.
+    const fn explicit(method: Method, family: Family, stepping: Stepping) -> Self {
+        Self::row(method, family, stepping, EXPLICIT_THREADS, &[])
+    }
+
+    /// A generalized-α member's row.
+    const fn alpha(method: Method, aliases: &'static [Alias]) -> Self {
+        let f = Family::GeneralizedAlpha;
+        let row = Self::row(
+            method,
+            f,
+            Stepping::FixedOrAdaptive,
+            ALPHA_THREADS,
+            ALPHA_KEYS,
+        );
+        MethodInfo { aliases, ..row }
+    }
+}
 
 /// Every method, one row each, in the order of [`Method::ALL`].
 pub const METHODS: [MethodInfo; 10] = [
-    MethodInfo {
-        method: Method::Ode23,
-        name: "ode23",
-        aliases: &[],
-        family: Family::RungeKutta,
-        equations: Equations::Index1,
-        stepping: Stepping::Adaptive,
-        threads: EXPLICIT_THREADS,
-        keys: ADAPTIVE_KEYS,
-    },
-    MethodInfo {
-        method: Method::Ode45,
-        name: "ode45",
-        aliases: &[],
-        family: Family::RungeKutta,
-        equations: Equations::Index1,
-        stepping: Stepping::Adaptive,
-        threads: EXPLICIT_THREADS,
-        keys: ADAPTIVE_KEYS,
-    },
-    MethodInfo {
-        method: Method::Rk4,
-        name: "rk4",
-        aliases: &[],
-        family: Family::RungeKutta,
-        equations: Equations::Index1,
-        stepping: Stepping::Fixed,
-        threads: EXPLICIT_THREADS,
-        keys: &[("step", KeyUse::Always)],
-    },
-    MethodInfo {
-        method: Method::Ode113,
-        name: "ode113",
-        aliases: &[],
-        family: Family::Adams,
-        equations: Equations::Index1,
-        stepping: Stepping::Adaptive,
-        threads: EXPLICIT_THREADS,
-        keys: ADAPTIVE_KEYS,
-    },
-    MethodInfo {
-        method: Method::Bdf,
-        name: "bdf",
-        aliases: &[],
-        family: Family::Bdf,
-        equations: Equations::Index3,
-        stepping: Stepping::Adaptive,
-        threads: "residual halves, predictor, error test, Newton updates, split chain LDLᵀ",
-        keys: &[
-            ("rtol", KeyUse::Always),
-            ("atol", KeyUse::Always),
-            ("max_step", KeyUse::Always),
-            ("initial_step", KeyUse::Always),
-            ("max_order", KeyUse::Always),
-            ("ndf", KeyUse::Always),
-        ],
-    },
-    MethodInfo {
-        method: Method::GenAlpha,
-        name: "genalpha",
-        aliases: &[],
-        family: Family::GeneralizedAlpha,
-        equations: Equations::Index3,
-        stepping: Stepping::FixedOrAdaptive,
-        threads: ALPHA_THREADS,
-        keys: ALPHA_KEYS,
-    },
-    MethodInfo {
-        method: Method::Hht,
-        name: "hht",
-        aliases: &[],
-        family: Family::GeneralizedAlpha,
-        equations: Equations::Index3,
-        stepping: Stepping::FixedOrAdaptive,
-        threads: ALPHA_THREADS,
-        keys: ALPHA_KEYS,
-    },
-    MethodInfo {
-        method: Method::Newmark,
-        name: "newmark",
-        aliases: &[Alias {
+    MethodInfo::explicit(Method::Ode23, Family::RungeKutta, Stepping::Adaptive),
+    MethodInfo::explicit(Method::Ode45, Family::RungeKutta, Stepping::Adaptive),
+    MethodInfo::explicit(Method::Rk4, Family::RungeKutta, Stepping::Fixed),
+    MethodInfo::explicit(Method::Ode113, Family::Adams, Stepping::Adaptive),
+    MethodInfo::row(
+        Method::Bdf,
+        Family::Bdf,
+        Stepping::Adaptive,
+        "residual halves, predictor, error test, Newton updates, split chain LDLᵀ",
+        &[(&["max_order", "ndf"], KeyUse::Always)],
+    ),
+    MethodInfo::alpha(Method::GenAlpha, &[]),
+    MethodInfo::alpha(Method::Hht, &[]),
+    MethodInfo::alpha(
+        Method::Newmark,
+        &[Alias {
             name: "trapezoidal",
             rho_inf: 1.0,
         }],
-        family: Family::GeneralizedAlpha,
-        equations: Equations::Index3,
-        stepping: Stepping::FixedOrAdaptive,
-        threads: ALPHA_THREADS,
-        keys: ALPHA_KEYS,
-    },
-    MethodInfo {
-        method: Method::Radau5,
-        name: "radau5",
-        aliases: &[],
-        family: Family::Radau,
-        equations: Equations::Index3,
-        stepping: Stepping::FixedOrAdaptive,
-        threads: "residual halves, split real chain LDLᵀ",
-        keys: &[
-            ("step", KeyUse::FixedStep),
-            ("rtol", KeyUse::Adaptive),
-            ("atol", KeyUse::Adaptive),
-            ("max_step", KeyUse::Adaptive),
-            ("initial_step", KeyUse::Adaptive),
-            ("adaptive", KeyUse::Always),
-            ("newton_tol", KeyUse::Always),
-            ("max_newton", KeyUse::Always),
-            ("project", KeyUse::Always),
-            ("reuse", KeyUse::Always),
-            ("min_step", KeyUse::Always),
-        ],
-    },
-    MethodInfo {
-        method: Method::Radau9,
-        name: "radau9",
-        aliases: &[],
-        family: Family::Radau,
-        equations: Equations::Index3,
-        stepping: Stepping::Fixed,
-        threads: "residual halves, split real chain LDLᵀ",
-        keys: &[
-            ("step", KeyUse::Always),
-            ("newton_tol", KeyUse::Always),
-            ("max_newton", KeyUse::Always),
-            ("project", KeyUse::Always),
-            ("reuse", KeyUse::Always),
-            ("min_step", KeyUse::Always),
-        ],
-    },
+    ),
+    MethodInfo::row(
+        Method::Radau5,
+        Family::Radau,
+        Stepping::FixedOrAdaptive,
+        RADAU_THREADS,
+        RADAU_KEYS,
+    ),
+    MethodInfo::row(
+        Method::Radau9,
+        Family::Radau,
+        Stepping::Fixed,
+        RADAU_THREADS,
+        RADAU_KEYS,
+    ),
 ];
 
 impl MethodInfo {
     /// When `key` (an `[integrator]` key) applies to this method; `None`:
     /// never.
     pub(crate) fn key_use(&self, key: &str) -> Option<KeyUse> {
-        self.keys.iter().find(|k| k.0 == key).map(|k| k.1)
+        self.stepping
+            .key_use(key)
+            .or_else(|| self.keys.iter().find(|k| k.0.contains(&key)).map(|k| k.1))
+    }
+
+    /// Every key that applies to this method besides `method`, with when:
+    /// the step keys of its stepping, then its own.
+    pub fn all_keys(&self) -> impl Iterator<Item = (&'static str, KeyUse)> + '_ {
+        let stepping = STEPPING_KEYS
+            .into_iter()
+            .filter_map(|k| self.stepping.key_use(k).map(|u| (k, u)));
+        let own = (self.keys.iter()).flat_map(|&(keys, u)| keys.iter().map(move |&k| (k, u)));
+        stepping.chain(own)
     }
 
     /// Whether `key` applies to this method with (`adaptive`) or without
@@ -364,15 +357,9 @@ impl Method {
         Method::Radau9,
     ];
     /// The valid method names, in the order of [`METHODS`].
-    pub const NAMES: [&'static str; 10] = {
-        let mut names = [""; 10];
-        let mut i = 0;
-        while i < 10 {
-            names[i] = METHODS[i].name;
-            i += 1;
-        }
-        names
-    };
+    pub const NAMES: [&'static str; 10] = [
+        "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark", "radau5", "radau9",
+    ];
 
     /// This method's row of [`METHODS`].
     pub fn info(&self) -> &'static MethodInfo {
@@ -484,8 +471,7 @@ pub fn markdown_table() -> String {
             Stepping::FixedOrAdaptive => "fixed or `adaptive`",
         };
         let keys = m
-            .keys
-            .iter()
+            .all_keys()
             .map(|(k, u)| match u {
                 KeyUse::Always => format!("`{k}`"),
                 KeyUse::FixedStep => format!("`{k}` (fixed)"),

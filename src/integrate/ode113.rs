@@ -35,8 +35,8 @@
 
 #![allow(clippy::needless_range_loop)] // 1-based transcription of STEP/INTRP
 
-use super::common::{self, call_rhs, post_step, RunSpan};
-use super::driver::{Failure, StepCut, Stepper};
+use super::common::{self, call_rhs, post_step, MatlabSteps, RunSpan};
+use super::driver::{Failure, Stepper};
 use super::{OdeSystem, Stats};
 
 /// Highest order of the predictor (the corrector is one higher).
@@ -66,12 +66,8 @@ fn wnorm(x: &[f64], invwt: &[f64]) -> f64 {
 /// the coefficient arrays of STEP (1-based, index 0 unused).
 pub(crate) struct Ode113Stepper<'a> {
     sys: &'a mut dyn OdeSystem,
-    rtol: f64,
-    threshold: Vec<f64>,
-    initial_step: Option<f64>,
-    t_end: f64,
-    hmax: f64,
-    absh: f64,
+    /// MATLAB's step sizes.
+    steps: MatlabSteps,
     t: f64,
     y: Vec<f64>,
     /// `f(t, y)` at the current state.
@@ -97,14 +93,12 @@ pub(crate) struct Ode113Stepper<'a> {
     invwt: Vec<f64>,
     f_post: Vec<f64>,
     pub(crate) stats: Stats,
-    pub(crate) warnings: Vec<String>,
 }
 
 impl<'a> Ode113Stepper<'a> {
     /// The stepper of one run (`n` = `sys.dim()`).
     pub(crate) fn new(sys: &'a mut dyn OdeSystem, run: &RunSpan<'_>) -> Self {
-        let (opts, t0, t_end, y0, n) = (run.opts, run.t0, run.t_end, run.y0, run.n);
-        let tol = common::MatlabTolerances::new(opts, n, t0, t_end);
+        let (t0, y0, n) = (run.t0, run.y0, run.n);
         let mut g = [0.0; NPHI];
         g[1] = 1.0;
         g[2] = 0.5;
@@ -112,12 +106,7 @@ impl<'a> Ode113Stepper<'a> {
         sig[1] = 1.0;
         Self {
             sys,
-            rtol: tol.rtol,
-            threshold: tol.threshold,
-            initial_step: opts.initial_step,
-            t_end,
-            hmax: tol.hmax,
-            absh: 0.0,
+            steps: MatlabSteps::new(run),
             t: t0,
             y: y0.to_vec(),
             yp: vec![0.0; n],
@@ -139,7 +128,6 @@ impl<'a> Ode113Stepper<'a> {
             invwt: vec![0.0; n],
             f_post: vec![0.0; n],
             stats: Stats::default(),
-            warnings: tol.warnings,
         }
     }
 
@@ -213,41 +201,22 @@ impl Stepper for Ode113Stepper<'_> {
         let t = self.t;
         call_rhs(self.sys, t, &self.y, &mut self.yp, &mut self.stats, None)?;
         self.phi[n..2 * n].copy_from_slice(&self.yp);
-        let hmin = 16.0 * common::eps(t);
-        self.absh = match self.initial_step {
-            Some(htry) => self.hmax.min(hmin.max(htry)),
-            None => {
-                let mut absh = self.hmax.min((self.t_end - t).abs());
-                let rh = common::error_norm(&self.yp, &self.y, &self.y, &self.threshold)
-                    / (0.25 * self.rtol.sqrt());
-                if absh * rh > 1.0 {
-                    absh = 1.0 / rh;
-                }
-                absh.max(hmin)
-            }
-        };
+        let scale = 0.25 * self.steps.rtol.sqrt();
+        self.steps.first(t, &self.yp, &self.y, scale);
         Ok(())
     }
 
     fn step(&mut self) -> Result<bool, Failure> {
         let n = self.n();
-        let rtol = self.rtol;
+        let rtol = self.steps.rtol;
         let tlast = self.t;
-        let hmin = 16.0 * common::eps(tlast);
-        let mut absh = self.hmax.min(hmin.max(self.absh));
-        let mut h = absh;
-        let mut done = false;
-        if 1.1 * absh >= (self.t_end - tlast).abs() {
-            h = self.t_end - tlast;
-            absh = h.abs();
-            done = true;
-        }
+        let mut a = self.steps.attempt(tlast);
         for i in 0..n {
-            self.invwt[i] = 1.0 / self.y[i].abs().max(self.threshold[i]);
+            self.invwt[i] = 1.0 / self.y[i].abs().max(self.steps.threshold[i]);
         }
         let mut failed = 0;
         let (knew, erkm1, mut erk) = loop {
-            self.coefficients(h);
+            self.coefficients(a.h);
             let (k, ns) = (self.k, self.ns);
             // φ → φ* (β_i φ_i for i > ns).
             for i in ns + 1..=k {
@@ -271,9 +240,13 @@ impl Stepper for Ode113Stepper<'_> {
                 }
             }
             for l in 0..n {
-                self.p[l] = self.y[l] + h * self.p[l];
+                self.p[l] = self.y[l] + a.h * self.p[l];
             }
-            let tnew = if done { self.t_end } else { tlast + h };
+            let tnew = if a.done {
+                self.steps.t_end
+            } else {
+                tlast + a.h
+            };
             call_rhs(
                 self.sys,
                 tnew,
@@ -297,20 +270,24 @@ impl Stepper for Ode113Stepper<'_> {
                 m
             };
             let erkm2 = if k > 2 {
-                absh * self.sig[k - 1]
+                a.absh
+                    * self.sig[k - 1]
                     * GSTAR[k - 2]
                     * sum_norm(self.col(k - 1), &self.phikp1, &self.invwt)
             } else {
                 0.0
             };
             let erkm1 = if k > 1 {
-                absh * self.sig[k] * GSTAR[k - 1] * sum_norm(self.col(k), &self.phikp1, &self.invwt)
+                a.absh
+                    * self.sig[k]
+                    * GSTAR[k - 1]
+                    * sum_norm(self.col(k), &self.phikp1, &self.invwt)
             } else {
                 0.0
             };
             let nrm = wnorm(&self.phikp1, &self.invwt);
-            let erk = absh * self.sig[k + 1] * GSTAR[k] * nrm;
-            let err = absh * (self.g[k] - self.g[k + 1]) * nrm;
+            let erk = a.absh * self.sig[k + 1] * GSTAR[k] * nrm;
+            let err = a.absh * (self.g[k] - self.g[k + 1]) * nrm;
             let mut knew = k;
             if (k == 2 && erkm1 <= 0.5 * erk) || (k > 2 && erkm1.max(erkm2) <= erk) {
                 knew = k - 1;
@@ -320,14 +297,7 @@ impl Stepper for Ode113Stepper<'_> {
             }
             // Failed: restore φ and ψ, cut the step.
             self.stats.failed_steps += 1;
-            if absh <= hmin {
-                return Err(Failure::StepTooSmall {
-                    t: tlast,
-                    h: absh,
-                    h_min: hmin,
-                    cause: StepCut::ErrorTest { err: err / rtol },
-                });
-            }
+            a.check_cut(tlast, err, rtol)?;
             self.phase1 = false;
             for i in 1..=k {
                 let b = 1.0 / self.beta[i];
@@ -337,7 +307,7 @@ impl Stepper for Ode113Stepper<'_> {
                 }
             }
             for i in 2..=k {
-                self.psi[i - 1] = self.psi[i] - h;
+                self.psi[i - 1] = self.psi[i] - a.h;
             }
             failed += 1;
             let mut reduce: f64 = 0.5;
@@ -346,18 +316,20 @@ impl Stepper for Ode113Stepper<'_> {
             } else if failed > 3 {
                 reduce = reduce.min((0.5 * rtol / erk).sqrt());
             }
-            absh = (reduce * absh).max(hmin);
-            h = absh;
+            a.retry((reduce * a.absh).max(a.hmin));
             self.k = knew;
-            done = false;
         };
         self.stats.steps += 1;
         let k = self.k;
         self.klast = k;
-        self.hlast = h;
-        let tnew = if done { self.t_end } else { tlast + h };
+        self.hlast = a.h;
+        let tnew = if a.done {
+            self.steps.t_end
+        } else {
+            tlast + a.h
+        };
         // Correct and evaluate.
-        let gk1 = h * self.g[k + 1];
+        let gk1 = a.h * self.g[k + 1];
         for l in 0..n {
             self.y[l] = self.p[l] + gk1 * self.phikp1[l];
         }
@@ -391,7 +363,7 @@ impl Stepper for Ode113Stepper<'_> {
             self.k = k - 1;
             erk = erkm1;
         } else if k < self.ns {
-            let erkp1 = absh * GSTAR[k + 1] * wnorm(self.col(k + 2), &self.invwt);
+            let erkp1 = a.absh * GSTAR[k + 1] * wnorm(self.col(k + 2), &self.invwt);
             if k == 1 {
                 if erkp1 < 0.5 * erk {
                     self.k = 2;
@@ -407,12 +379,12 @@ impl Stepper for Ode113Stepper<'_> {
         }
         // A new step size.
         if self.phase1 || 0.5 * rtol >= erk * 2f64.powi(self.k as i32 + 1) {
-            absh *= 2.0;
+            a.absh *= 2.0;
         } else if 0.5 * rtol < erk {
             let reduce = (0.5 * rtol / erk).powf(1.0 / (self.k + 1) as f64);
-            absh *= reduce.clamp(0.5, 0.9);
+            a.absh *= reduce.clamp(0.5, 0.9);
         }
-        self.absh = absh;
+        self.steps.absh = a.absh;
         self.t = tnew;
         if post_step(
             self.sys,
@@ -429,7 +401,7 @@ impl Stepper for Ode113Stepper<'_> {
             }
             self.yp.copy_from_slice(&self.f_post);
         }
-        Ok(done)
+        Ok(a.done)
     }
 
     fn state(&self) -> (f64, &[f64]) {
@@ -471,7 +443,7 @@ impl Stepper for Ode113Stepper<'_> {
     }
 
     fn warnings(&self) -> &[String] {
-        &self.warnings
+        &self.steps.warnings
     }
 
     fn stats(&self) -> Stats {

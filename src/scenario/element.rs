@@ -20,6 +20,90 @@ impl RawTagged {
     }
 }
 
+/// A `[[force]]` or `[[joint]]` type: its serde struct (the keys besides
+/// `type` and `name`, `deny_unknown_fields`) and what it adds to the model
+/// being built in the context `C` (force elements, a constraint).
+pub(super) trait ElementType<C>: DeserializeOwned {
+    /// The `type` value that selects it.
+    const TYPE: &'static str;
+    /// Adds what the table declares; errors name `<table>[k].<key>`.
+    fn add(self, cx: &mut C) -> Result<(), ScenarioError>;
+}
+
+/// A type's row in the list of the `[[force]]`, `[[joint]]` or
+/// `[[sensor]]` types: its `type` value, its keys and `add`, which reads a
+/// table as the type and adds it (`A`: the function type of its kind;
+/// `()` where a kind reads its types itself).
+pub(super) struct Decl<A> {
+    /// The `type` value.
+    pub(super) name: &'static str,
+    /// Its keys besides `type` and `name`, in declaration order (read by
+    /// the test that holds docs/scenarios.md to the declarations).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(super) keys: fn() -> &'static [&'static str],
+    /// Reads a table as this type and adds what it declares.
+    pub(super) add: A,
+}
+
+impl<A> Decl<A> {
+    /// The row of the type `name` whose struct is `T`.
+    pub(super) const fn new<T: DeserializeOwned>(name: &'static str, add: A) -> Self {
+        Decl {
+            name,
+            keys: keys_of::<T>,
+            add,
+        }
+    }
+}
+
+/// A kind of tagged table: its name in key paths (`force`) and in
+/// messages (`force element`).
+pub(super) struct Kind {
+    /// The table's name in key paths.
+    pub(super) table: &'static str,
+    /// What one table declares, in messages.
+    pub(super) what: &'static str,
+}
+
+impl Kind {
+    /// The kind of the `table` tables, each declaring `what`.
+    pub(super) const fn new(table: &'static str, what: &'static str) -> Self {
+        Kind { table, what }
+    }
+
+    /// `<table>[k]`.
+    pub(super) fn path(&self, k: usize) -> String {
+        format!("{}[{k}]", self.table)
+    }
+
+    /// [`read`]: table `k` of this kind as the struct `T` of the type
+    /// `name`.
+    pub(super) fn read<T: DeserializeOwned>(
+        &self,
+        raw: &RawTagged,
+        name: &str,
+        k: usize,
+        file: &str,
+    ) -> Result<T, ScenarioError> {
+        read(raw, &self.path(k), &format!("{name} {}", self.what), file)
+    }
+
+    /// The row of `types` that the `type` of table `k` names ([`tag`]),
+    /// after checking its optional `name` ([`check_name`]).
+    pub(super) fn decl<'t, A>(
+        &self,
+        raw: &RawTagged,
+        types: &'t [Decl<A>],
+        k: usize,
+        file: &str,
+    ) -> Result<&'t Decl<A>, ScenarioError> {
+        let path = self.path(k);
+        let kind = tag(raw, &path, self.table, types.iter().map(|t| t.name), file)?;
+        check_name(raw, &path, file)?;
+        Ok(types.iter().find(|t| t.name == kind).expect("tag checked"))
+    }
+}
+
 /// Checks that the optional `name` of the table at `path` is a string.
 pub(super) fn check_name(raw: &RawTagged, path: &str, file: &str) -> Result<(), ScenarioError> {
     match raw.0.get("name") {
@@ -338,6 +422,48 @@ pub(super) mod docs {
         keys.sort();
         keys.dedup();
         keys
+    }
+
+    /// docs/scenarios.md lists exactly each row's keys of `types`, as
+    /// `listed(type)` finds them; `table` names the table in messages.
+    pub(in crate::scenario) fn check_keys<A>(
+        types: &[super::Decl<A>],
+        table: &str,
+        listed: impl Fn(&str) -> Vec<String>,
+    ) {
+        for t in types {
+            assert_eq!(
+                listed(t.name),
+                sorted((t.keys)()),
+                "docs/scenarios.md, {table} type {}: the keys differ from its struct",
+                t.name
+            );
+        }
+    }
+
+    /// Each `(table, key, near)` of `cases` appended to `base` fails at
+    /// `<kind>[0].<key>` as not a key of its type, suggesting `near`; the
+    /// errors, for further checks.
+    pub(in crate::scenario) fn check_typos(
+        kind: &super::Kind,
+        base: &str,
+        cases: &[(&str, &str, &str)],
+    ) -> Vec<crate::scenario::ScenarioError> {
+        let errors = cases.iter().map(|&(table, key, near)| {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("{}[0].{key}", kind.table), "{e}");
+            assert!(
+                e.message.contains(&format!("did you mean `{near}`?")),
+                "{e}"
+            );
+            let ty = table.split('"').nth(1).unwrap();
+            let what = format!("{ty} {}", kind.what);
+            let not_a_key = format!("not a key of {} {what}", super::article(&what));
+            assert!(e.message.starts_with(&not_a_key), "{e}");
+            e
+        });
+        errors.collect()
     }
 
     /// `keys` sorted, as owned strings.

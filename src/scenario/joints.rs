@@ -2,15 +2,14 @@
 //! `drive_coordinate`, `drive_angle`), read from the joint's table after
 //! its `type` ([`super::element`]), and the constraint each builds.
 
-use super::element::{check_name, keys_of, read, tag, RawTagged};
-use super::model::{body_index, body_point, body_ref, RawFunction, RawPoint};
+use super::element::{Decl, ElementType, Kind, RawTagged};
+use super::model::{body_index, body_point, body_ref, time_function, RawPoint};
 use super::{error, ScenarioError};
 use crate::constraints::{
     expression_motion, spline_motion, DriveCoordinate, DriveRelativeAngle, Revolute, Spline,
     Translational,
 };
 use crate::model::{BodyRef, SystemBuilder, TimeFunction};
-use serde::de::DeserializeOwned;
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -63,7 +62,7 @@ impl Context<'_> {
 
 /// A function of time at key `fld` (a drive's `motion`, a wall's
 /// `wall_motion` entry): a number, a polynomial or harmonic table
-/// ([`RawFunction`]), an expression of t, or a table of points
+/// ([`time_function`]), an expression of t, or a table of points
 /// `{ t = [...], value = [...], spline = "cubic" | "linear" }`. Errors:
 /// (key, message).
 pub(in crate::scenario) fn function_of_time(
@@ -79,17 +78,15 @@ pub(in crate::scenario) fn function_of_time(
         .as_table()
         .is_some_and(|t| ["t", "value", "spline"].iter().any(|k| t.contains_key(*k)));
     if !is_table {
-        return RawFunction::try_from(v)
-            .map(|f| f.to_function())
-            .map_err(|m| {
-                err(
-                    fld,
-                    &format!(
-                        "{m}; or an expression of t (\"0.1*sin(6*t)\") or points \
+        return time_function(v).map_err(|m| {
+            err(
+                fld,
+                &format!(
+                    "{m}; or an expression of t (\"0.1*sin(6*t)\") or points \
                          {{ t = [...], value = [...], spline = \"cubic\" }}"
-                    ),
-                )
-            });
+                ),
+            )
+        });
     }
     let t = v.as_table().expect("a table");
     for k in t.keys() {
@@ -140,35 +137,17 @@ pub(in crate::scenario) fn function_of_time(
     spline_motion(&ts, &ys, kind).map_err(|m| err(fld, &m))
 }
 
-/// One `[[joint]]` type: its struct (the keys besides `type` and `name`)
-/// and the constraint it adds.
-trait JointType: DeserializeOwned {
-    /// The `type` value that selects it.
-    const TYPE: &'static str;
-    /// Adds the constraint; errors name `joint[k].<key>`.
-    fn add(self, cx: &mut Context) -> Result<(), ScenarioError>;
-}
+/// The `[[joint]]` tables.
+const JOINT: Kind = Kind::new("joint", "joint");
 
 /// A joint type's row of [`TYPES`].
-pub(super) struct JointDecl {
-    /// The `type` value.
-    pub(super) name: &'static str,
-    /// Its keys besides `type` and `name`, in declaration order (read by
-    /// the test that holds docs/scenarios.md to the declarations).
-    #[cfg_attr(not(test), allow(dead_code))]
-    pub(super) keys: fn() -> &'static [&'static str],
-    add: fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>,
-}
+pub(super) type JointDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
 
-const fn decl<T: JointType>() -> JointDecl {
-    JointDecl {
-        name: T::TYPE,
-        keys: keys_of::<T>,
-        add: |raw, cx| {
-            let what = format!("{} joint", T::TYPE);
-            read::<T>(raw, &format!("joint[{}]", cx.k), &what, cx.file)?.add(cx)
-        },
-    }
+/// The row of the joint type `T`.
+const fn decl<T: for<'a> ElementType<Context<'a>>>() -> JointDecl {
+    JointDecl::new::<T>(T::TYPE, |raw, cx| {
+        JOINT.read::<T>(raw, T::TYPE, cx.k, cx.file)?.add(cx)
+    })
 }
 
 /// Every `[[joint]]` type, in the order of docs/scenarios.md.
@@ -188,10 +167,7 @@ pub(super) fn add_joint(
     ends: &HashMap<usize, f64>,
     file: &str,
 ) -> Result<(), ScenarioError> {
-    let path = format!("joint[{k}]");
-    let kind = tag(raw, &path, "joint", TYPES.iter().map(|t| t.name), file)?;
-    check_name(raw, &path, file)?;
-    let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
+    let decl = JOINT.decl(raw, TYPES, k, file)?;
     let mut cx = Context {
         builder,
         k,
@@ -219,7 +195,7 @@ struct RevoluteJoint {
     point_j: RawPoint,
 }
 
-impl JointType for RevoluteJoint {
+impl ElementType<Context<'_>> for RevoluteJoint {
     const TYPE: &'static str = "revolute";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
@@ -250,7 +226,7 @@ struct TranslationalJoint {
     point_j: RawPoint,
 }
 
-impl JointType for TranslationalJoint {
+impl ElementType<Context<'_>> for TranslationalJoint {
     const TYPE: &'static str = "translational";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
@@ -289,7 +265,7 @@ struct DriveCoordinateJoint {
     motion: toml::Value,
 }
 
-impl JointType for DriveCoordinateJoint {
+impl ElementType<Context<'_>> for DriveCoordinateJoint {
     const TYPE: &'static str = "drive_coordinate";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let b = body_index(cx.names, cx.file, cx.key("body"), &self.body)?;
@@ -319,7 +295,7 @@ struct DriveAngleJoint {
     motion: toml::Value,
 }
 
-impl JointType for DriveAngleJoint {
+impl ElementType<Context<'_>> for DriveAngleJoint {
     const TYPE: &'static str = "drive_angle";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let bi = cx.body_ref("body_i", &self.body_i)?;
@@ -334,20 +310,13 @@ impl JointType for DriveAngleJoint {
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{keys_of_row, sorted};
+    use super::{JOINT, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
 
     /// docs/scenarios.md's joint table lists exactly each joint struct's keys.
     #[test]
     fn docs_list_each_joint_types_keys() {
-        for t in TYPES {
-            assert_eq!(
-                keys_of_row("## `[[joint]]`", t.name),
-                sorted((t.keys)()),
-                "docs/scenarios.md, [[joint]] type {}: the keys differ from its struct",
-                t.name
-            );
-        }
+        check_keys(TYPES, "[[joint]]", |t| keys_of_row("## `[[joint]]`", t));
     }
 
     /// A typo in a joint table is reported at its key with the nearest key
@@ -356,19 +325,13 @@ mod tests {
     fn typos_suggest_the_nearest_key_of_this_type() {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [time]\nend = 0.1\n[[joint]]\n";
-        for (table, key, near) in [
+        let cases = [
             ("type = \"revolute\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_i = [0.0, 0.0]\npoint_jj = [0.0, 0.0]", "point_jj", "point_j"),
             ("type = \"translational\"\nbody_i = \"a\"\nbody_j = \"ground\"\naxis = [1.0, 0.0]", "axis", "axis_i"),
             ("type = \"drive_coordinate\"\nbody = \"a\"\ncoordinate = \"x\"\nmotoin = 0.0", "motoin", "motion"),
             ("type = \"drive_angle\"\nbody_i = \"a\"\nbody_jj = \"ground\"\nmotion = 0.0", "body_jj", "body_j"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("joint[0].{key}"), "{e}");
-            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
-            let kind = table.split('"').nth(1).unwrap();
-            assert!(e.message.contains(&format!("not a key of a {kind} joint")), "{e}");
-        }
+        ];
+        check_typos(&JOINT, base, &cases);
         let e = crate::scenario::parse(
             &format!("{base}type = \"revolut\"\nbody_i = \"a\"\nbody_j = \"ground\""),
             "f.toml",

@@ -195,7 +195,7 @@ impl RawTable {
 }
 
 /// A load of `type = "expression"`: an expression string (a function of
-/// time, [`RawFunction`], is read to say so in the error).
+/// time, [`time_function`], is read to say so in the error).
 #[derive(Debug)]
 pub(super) enum RawLoad {
     Function,
@@ -207,7 +207,7 @@ impl<'de> Deserialize<'de> for RawLoad {
         let v = toml::Value::deserialize(d)?;
         match v {
             toml::Value::String(s) => Ok(RawLoad::Text(s)),
-            v => RawFunction::try_from(v)
+            v => time_function(v)
                 .map(|_| RawLoad::Function)
                 .map_err(serde::de::Error::custom),
         }
@@ -216,89 +216,51 @@ impl<'de> Deserialize<'de> for RawLoad {
 
 /// A number (constant) or a table `{ polynomial = [c0, c1, …] }` or
 /// `{ amplitude, omega, phase = 0, offset = 0 }` (harmonic).
-#[derive(Debug, Deserialize)]
-#[serde(try_from = "toml::Value")]
-pub(super) enum RawFunction {
-    Constant(f64),
-    Polynomial(Vec<f64>),
-    Harmonic {
-        amplitude: f64,
-        omega: f64,
-        phase: f64,
-        offset: f64,
-    },
-}
-
-impl TryFrom<toml::Value> for RawFunction {
-    type Error = String;
-    fn try_from(v: toml::Value) -> Result<Self, String> {
-        const EXPECTED: &str = "expected a number, { polynomial = [c0, c1, ...] } or \
-                                { amplitude, omega, phase, offset }";
-        let num = |v: &toml::Value| match v {
-            toml::Value::Float(f) => Some(*f),
-            toml::Value::Integer(i) => Some(*i as f64),
-            _ => None,
-        };
-        if let Some(c) = num(&v) {
-            return Ok(RawFunction::Constant(c));
-        }
-        let t = v
-            .as_table()
-            .ok_or_else(|| format!("invalid value {v}: {EXPECTED}"))?;
-        if let Some(p) = t.get("polynomial") {
-            if t.len() != 1 {
-                return Err(format!("a polynomial takes no other keys: {EXPECTED}"));
-            }
-            let arr = p
-                .as_array()
-                .ok_or_else(|| format!("polynomial must be an array of numbers, got {p}"))?;
-            return arr
-                .iter()
-                .map(|c| {
-                    num(c).ok_or_else(|| format!("polynomial coefficient {c} is not a number"))
-                })
-                .collect::<Result<Vec<_>, _>>()
-                .map(RawFunction::Polynomial);
-        }
-        for k in t.keys() {
-            if !["amplitude", "omega", "phase", "offset"].contains(&k.as_str()) {
-                return Err(format!("unknown key '{k}': {EXPECTED}"));
-            }
-        }
-        let get = |k: &str, required: bool| -> Result<f64, String> {
-            match t.get(k) {
-                Some(x) => num(x).ok_or_else(|| format!("{k} = {x} is not a number")),
-                None if required => Err(format!("missing key '{k}': {EXPECTED}")),
-                None => Ok(0.0),
-            }
-        };
-        Ok(RawFunction::Harmonic {
-            amplitude: get("amplitude", true)?,
-            omega: get("omega", true)?,
-            phase: get("phase", false)?,
-            offset: get("offset", false)?,
-        })
+pub(super) fn time_function(v: toml::Value) -> Result<TimeFunction, String> {
+    const EXPECTED: &str = "expected a number, { polynomial = [c0, c1, ...] } or \
+                            { amplitude, omega, phase, offset }";
+    let num = |v: &toml::Value| match v {
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    };
+    if let Some(c) = num(&v) {
+        return Ok(TimeFunction::Constant(c));
     }
-}
-
-impl RawFunction {
-    pub(super) fn to_function(&self) -> TimeFunction {
-        match self {
-            RawFunction::Constant(c) => TimeFunction::Constant(*c),
-            RawFunction::Polynomial(c) => TimeFunction::Polynomial(c.clone()),
-            RawFunction::Harmonic {
-                amplitude,
-                omega,
-                phase,
-                offset,
-            } => TimeFunction::Harmonic {
-                amplitude: *amplitude,
-                omega: *omega,
-                phase: *phase,
-                offset: *offset,
-            },
+    let t = v
+        .as_table()
+        .ok_or_else(|| format!("invalid value {v}: {EXPECTED}"))?;
+    if let Some(p) = t.get("polynomial") {
+        if t.len() != 1 {
+            return Err(format!("a polynomial takes no other keys: {EXPECTED}"));
+        }
+        let arr = p
+            .as_array()
+            .ok_or_else(|| format!("polynomial must be an array of numbers, got {p}"))?;
+        return arr
+            .iter()
+            .map(|c| num(c).ok_or_else(|| format!("polynomial coefficient {c} is not a number")))
+            .collect::<Result<Vec<_>, _>>()
+            .map(TimeFunction::Polynomial);
+    }
+    for k in t.keys() {
+        if !["amplitude", "omega", "phase", "offset"].contains(&k.as_str()) {
+            return Err(format!("unknown key '{k}': {EXPECTED}"));
         }
     }
+    let get = |k: &str, required: bool| -> Result<f64, String> {
+        match t.get(k) {
+            Some(x) => num(x).ok_or_else(|| format!("{k} = {x} is not a number")),
+            None if required => Err(format!("missing key '{k}': {EXPECTED}")),
+            None => Ok(0.0),
+        }
+    };
+    Ok(TimeFunction::Harmonic {
+        amplitude: get("amplitude", true)?,
+        omega: get("omega", true)?,
+        phase: get("phase", false)?,
+        offset: get("offset", false)?,
+    })
 }
 
 /// Build the model of `raw`; errors name keys of `file`.

@@ -1,7 +1,7 @@
 //! `[[sensor]]` → named [`Sensor`]s (docs/scenarios.md): `point`,
 //! `joint_angle`, `distance`, `force_element`, `contact`.
 
-use super::element::{keys_of, read, tag, RawTagged};
+use super::element::{Decl, Kind, RawTagged};
 use super::model::{body_point, body_ref, RawPoint};
 use super::{error, ScenarioError};
 use crate::model::{joint_short_name, Sensor, SensorKind, System};
@@ -59,53 +59,35 @@ enum Spec {
     Element { force: String, contact: bool },
 }
 
-/// A sensor type's row of [`TYPES`]: its name, keys and reader.
-struct SensorDecl {
-    name: &'static str,
-    /// Its keys besides `type` and `name` (read by the docs test).
-    #[cfg_attr(not(test), allow(dead_code))]
-    keys: fn() -> &'static [&'static str],
-    read: fn(&RawTagged, &str, &str) -> Result<Spec, ScenarioError>,
-}
+/// The `[[sensor]]` tables.
+const SENSOR: Kind = Kind::new("sensor", "sensor");
 
-/// Every `[[sensor]]` type, in the order of docs/scenarios.md.
-const TYPES: &[SensorDecl] = &[
-    SensorDecl {
-        name: "point",
-        keys: keys_of::<PointSensor>,
-        read: |raw, path, file| read(raw, path, "point sensor", file).map(Spec::Point),
-    },
-    SensorDecl {
-        name: "joint_angle",
-        keys: keys_of::<JointAngleSensor>,
-        read: |raw, path, file| read(raw, path, "joint_angle sensor", file).map(Spec::JointAngle),
-    },
-    SensorDecl {
-        name: "distance",
-        keys: keys_of::<DistanceSensor>,
-        read: |raw, path, file| read(raw, path, "distance sensor", file).map(Spec::Distance),
-    },
-    SensorDecl {
-        name: "force_element",
-        keys: keys_of::<ElementSensor>,
-        read: |raw, path, file| {
-            read(raw, path, "force_element sensor", file).map(|e: ElementSensor| Spec::Element {
-                force: e.force,
-                contact: false,
-            })
-        },
-    },
-    SensorDecl {
-        name: "contact",
-        keys: keys_of::<ElementSensor>,
-        read: |raw, path, file| {
-            read(raw, path, "contact sensor", file).map(|e: ElementSensor| Spec::Element {
-                force: e.force,
-                contact: true,
-            })
-        },
-    },
+/// Every `[[sensor]]` type, in the order of docs/scenarios.md (read by
+/// [`spec`]).
+const TYPES: &[Decl<()>] = &[
+    Decl::new::<PointSensor>("point", ()),
+    Decl::new::<JointAngleSensor>("joint_angle", ()),
+    Decl::new::<DistanceSensor>("distance", ()),
+    Decl::new::<ElementSensor>("force_element", ()),
+    Decl::new::<ElementSensor>("contact", ()),
 ];
+
+/// Sensor table `k` read as the struct of its type `name` (a row of
+/// [`TYPES`]).
+fn spec(raw: &RawTagged, name: &str, k: usize, file: &str) -> Result<Spec, ScenarioError> {
+    Ok(match name {
+        "point" => Spec::Point(SENSOR.read(raw, name, k, file)?),
+        "joint_angle" => Spec::JointAngle(SENSOR.read(raw, name, k, file)?),
+        "distance" => Spec::Distance(SENSOR.read(raw, name, k, file)?),
+        _ => {
+            let e: ElementSensor = SENSOR.read(raw, name, k, file)?;
+            Spec::Element {
+                force: e.force,
+                contact: name == "contact",
+            }
+        }
+    })
+}
 
 /// The sensors of `raw`; errors name `sensor[k].key` of `file`.
 pub(super) fn build(
@@ -120,7 +102,6 @@ pub(super) fn build(
     for (k, s) in raw.iter().enumerate() {
         let key = |f: &str| format!("sensor[{k}].{f}");
         let err = |f: &str, m: String| error(file, key(f), m);
-        let path = format!("sensor[{k}]");
         let name = match s.0.get("name") {
             Some(toml::Value::String(n)) => n.clone(),
             Some(v) => {
@@ -146,13 +127,12 @@ pub(super) fn build(
         if out.iter().any(|o| o.name == name) {
             return Err(err("name", format!("duplicate sensor name '{name}'")));
         }
-        let kind = tag(s, &path, "sensor", TYPES.iter().map(|t| t.name), file)?;
-        let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
+        let decl = SENSOR.decl(s, TYPES, k, file)?;
         let body = |f: &str, n: &str| body_ref(names, file, key(f), n);
         // `[x, y]`, or the ends of rod segments and chain links, as joints
         // and forces take them
         let point = |f: &str, p: Option<RawPoint>, b| body_point(p, b, ends, file, key(f));
-        let kind = match (decl.read)(s, &path, file)? {
+        let kind = match spec(s, decl.name, k, file)? {
             Spec::Point(p) => {
                 let b = body("body", &p.body)?;
                 SensorKind::Point {
@@ -264,20 +244,13 @@ pub(super) fn build(
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{keys_of_row, sorted};
+    use super::{SENSOR, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
 
     /// docs/scenarios.md's sensor table lists exactly each type's keys.
     #[test]
     fn docs_list_each_sensor_types_keys() {
-        for t in TYPES {
-            assert_eq!(
-                keys_of_row("## `[[sensor]]`", t.name),
-                sorted((t.keys)()),
-                "docs/scenarios.md, [[sensor]] type {}: the keys differ from its struct",
-                t.name
-            );
-        }
+        check_keys(TYPES, "[[sensor]]", |t| keys_of_row("## `[[sensor]]`", t));
     }
 
     /// A typo in a sensor table is reported at its key with the nearest
@@ -287,7 +260,7 @@ mod tests {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\n\
                     [time]\nend = 0.1\n[[sensor]]\nname = \"m\"\n";
-        for (table, key, near) in [
+        let cases = [
             (
                 "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]",
                 "piont",
@@ -305,14 +278,7 @@ mod tests {
                 "force",
             ),
             ("type = \"contact\"\nforc = \"s\"", "forc", "force"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("sensor[0].{key}"), "{e}");
-            assert!(
-                e.message.contains(&format!("did you mean `{near}`?")),
-                "{e}"
-            );
-        }
+        ];
+        check_typos(&SENSOR, base, &cases);
     }
 }

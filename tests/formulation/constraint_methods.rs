@@ -10,7 +10,7 @@ use mbsolve::formulation::{
     Baumgarte, Formulation, FormulationError, Index1, Index1Options, Penalty, PenaltyParams,
     Projection,
 };
-use mbsolve::integrate::{Method, OdeSystem, Tolerance};
+use mbsolve::integrate::{Method, OdeSystem, StateView, Tolerance};
 use mbsolve::model::System;
 use mbsolve::scenario::{self, Scenario, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
@@ -321,7 +321,8 @@ fn penalty_accelerations_satisfy_the_penalty_equations() {
         };
         let mut f = Penalty::new(sys, opts).unwrap();
         let mut qdd = vec![0.0; n];
-        f.accelerations(t, &q, &qd, &mut qdd).unwrap();
+        let x = StateView { t, q: &q, qd: &qd };
+        f.accelerations(x, &mut qdd).unwrap();
         let mut jac = vec![0.0; sys.jacobian_pattern().len()];
         sys.jacobian_values(&q, t, &mut jac);
         let mut dense = vec![vec![0.0; n]; m];

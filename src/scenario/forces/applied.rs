@@ -1,6 +1,6 @@
 //! `type = "force"`: an applied force at a body point ([`AppliedForce`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::AppliedForce;
 use crate::model::BodyRef;
 use crate::scenario::model::RawPoint;
@@ -21,7 +21,7 @@ pub(in crate::scenario) struct Force {
     fy: toml::Value,
 }
 
-impl ForceType for Force {
+impl ElementType<Context<'_>> for Force {
     const TYPE: &'static str = "force";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;

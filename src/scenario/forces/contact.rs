@@ -1,7 +1,7 @@
 //! `type = "contact"`: a body point or circle against a straight wall,
 //! fixed or moving ([`HalfPlaneContact`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::{HalfPlaneContact, RoadContact};
 use crate::model::BodyRef;
 use crate::scenario::joints::function_of_time;
@@ -41,7 +41,7 @@ pub(in crate::scenario) struct Contact {
     road: Option<String>,
 }
 
-impl ForceType for Contact {
+impl ElementType<Context<'_>> for Contact {
     const TYPE: &'static str = "contact";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;

@@ -3,7 +3,7 @@
 //! expressions in t and named bodies' coordinates; the bodies it may read
 //! are those named in its expressions (`B.x`, …) and its own.
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::{ExpressionError, ExpressionLoadBuilder, LinePoint};
 use crate::model::BodyRef;
 use crate::scenario::model::{body_index, body_point, body_ref, unknown_body, RawLoad, RawPoint};
@@ -37,7 +37,7 @@ pub(in crate::scenario) struct Expression {
     force: Option<String>,
 }
 
-impl ForceType for Expression {
+impl ElementType<Context<'_>> for Expression {
     const TYPE: &'static str = "expression";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let f = &self;

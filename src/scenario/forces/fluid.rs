@@ -1,7 +1,7 @@
 //! `type = "fluid"`: buoyancy and/or drag on a body ([`Buoyancy`],
 //! [`Drag`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::{Buoyancy, Drag};
 use crate::scenario::{error, ScenarioError};
 use serde::Deserialize;
@@ -30,7 +30,7 @@ pub(in crate::scenario) struct Fluid {
     end_face: Option<bool>,
 }
 
-impl ForceType for Fluid {
+impl ElementType<Context<'_>> for Fluid {
     const TYPE: &'static str = "fluid";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;

@@ -6,7 +6,7 @@
 //! [`crate::forces::ExpressionLoad`] (exact symbolic Jacobians).
 
 use super::expression::{bodies_named, expression_error};
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::{ExpressionLoadBuilder, LinePoint};
 use crate::model::{BodyRef, JointGeometry};
 use crate::scenario::ScenarioError;
@@ -107,7 +107,7 @@ fn builder(cx: &Context, text: &str, sides: &[&Option<String>]) -> ExpressionLoa
     ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states)
 }
 
-impl ForceType for JointTorque {
+impl ElementType<Context<'_>> for JointTorque {
     const TYPE: &'static str = "joint_torque";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let j = find(cx, "joint_torque", &self.joint, "revolute")?;
@@ -124,7 +124,7 @@ impl ForceType for JointTorque {
     }
 }
 
-impl ForceType for JointForce {
+impl ElementType<Context<'_>> for JointForce {
     const TYPE: &'static str = "joint_force";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let j = find(cx, "joint_force", &self.joint, "translational")?;

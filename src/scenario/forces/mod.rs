@@ -1,15 +1,15 @@
 //! `[[force]]`: one serde struct per `type` (its own file here), read from
 //! the force's table after its `type` ([`super::element`]), and the
 //! context every type builds its elements with. A new force type is a file
-//! with its struct and [`ForceType`] implementation and one row of
+//! with its struct and [`ElementType`] implementation and one row of
 //! [`TYPES`].
 
-use super::element::{keys_of, read, RawTagged};
+pub(super) use super::element::ElementType;
+use super::element::{Decl, Kind, RawTagged};
 use super::model::{body_index, body_point, body_ref, RawPoint, RawTable};
 use super::{error, ScenarioError};
 use crate::forces::{ForceElement, Law};
 use crate::model::{BodyRef, ModelError, SystemBuilder, TimeFunction};
-use serde::de::DeserializeOwned;
 use std::collections::HashMap;
 
 mod applied;
@@ -24,37 +24,17 @@ mod torque;
 pub(super) use expression::expression_names;
 pub(super) use joint::NamedJoint;
 
-/// One `[[force]]` type: its struct (the keys it takes besides `type` and
-/// `name`, `deny_unknown_fields`) and how it adds its elements.
-pub(super) trait ForceType: DeserializeOwned {
-    /// The `type` value that selects it.
-    const TYPE: &'static str;
-    /// Adds the element(s) of this table to `cx.builder`; errors name
-    /// `force[k].<key>`.
-    fn add(self, cx: &mut Context) -> Result<(), ScenarioError>;
-}
+/// The `[[force]]` tables.
+pub(super) const FORCE: Kind = Kind::new("force", "force element");
 
-/// A force type's row of [`TYPES`]: its name, its keys and its reader.
-pub(super) struct ForceDecl {
-    /// The `type` value.
-    pub(super) name: &'static str,
-    /// Its keys besides `type` and `name`, in declaration order (read by
-    /// the test that holds docs/scenarios.md to the declarations).
-    #[cfg_attr(not(test), allow(dead_code))]
-    pub(super) keys: fn() -> &'static [&'static str],
-    /// Reads the table as this type and adds its elements.
-    add: fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>,
-}
+/// A force type's row of [`TYPES`].
+pub(super) type ForceDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
 
-const fn decl<T: ForceType>() -> ForceDecl {
-    ForceDecl {
-        name: T::TYPE,
-        keys: keys_of::<T>,
-        add: |raw, cx| {
-            let what = format!("{} force element", T::TYPE);
-            read::<T>(raw, &format!("force[{}]", cx.k), &what, cx.file)?.add(cx)
-        },
-    }
+/// The row of the force type `T`.
+const fn decl<T: for<'a> ElementType<Context<'a>>>() -> ForceDecl {
+    ForceDecl::new::<T>(T::TYPE, |raw, cx| {
+        FORCE.read::<T>(raw, T::TYPE, cx.k, cx.file)?.add(cx)
+    })
 }
 
 /// Every `[[force]]` type, in the order of docs/scenarios.md.
@@ -122,15 +102,7 @@ pub(super) fn add_force(
         joints,
         states,
     } = known;
-    let kind = super::element::tag(
-        raw,
-        &format!("force[{k}]"),
-        "force",
-        TYPES.iter().map(|t| t.name),
-        file,
-    )?;
-    let decl = TYPES.iter().find(|t| t.name == kind).expect("tag checked");
-    super::element::check_name(raw, &format!("force[{k}]"), file)?;
+    let decl = FORCE.decl(raw, TYPES, k, file)?;
     let mut cx = Context {
         builder,
         k,
@@ -297,22 +269,14 @@ impl Context<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{keys_after, sorted};
+    use super::{FORCE, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_after};
 
     /// docs/scenarios.md has a key table per force type listing exactly
     /// the fields of its struct.
     #[test]
     fn docs_list_each_force_types_keys() {
-        for t in TYPES {
-            let heading = format!("### `{}` —", t.name);
-            assert_eq!(
-                keys_after(&heading),
-                sorted((t.keys)()),
-                "docs/scenarios.md, {heading}: the keys differ from the {} struct",
-                t.name
-            );
-        }
+        check_keys(TYPES, "[[force]]", |t| keys_after(&format!("### `{t}` —")));
     }
 
     /// A typo in a force table is reported at its key with the nearest key
@@ -321,7 +285,7 @@ mod tests {
     fn typos_suggest_the_nearest_key_of_this_type() {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [time]\nend = 0.1\n[[force]]\n";
-        for (table, key, near) in [
+        let cases = [
             ("type = \"torque\"\nbody = \"a\"\ntorqe = 1.0", "torqe", "torque"),
             ("type = \"force\"\nbody = \"a\"\nfx = 1.0\nfy = 0.0\npoimt = [0.0, 0.0]", "poimt", "point"),
             ("type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\ndampin = 1.0", "dampin", "damping"),
@@ -329,11 +293,8 @@ mod tests {
             ("type = \"contact\"\nbody = \"a\"\nstiffness = 1.0\nwall_normal_dg = 90.0", "wall_normal_dg", "wall_normal_deg"),
             ("type = \"fluid\"\nbody = \"a\"\nfluid_density = 1.0\nvolum = 1.0", "volum", "volume"),
             ("type = \"expression\"\nbody = \"a\"\ntorq = \"1\"", "torq", "torque"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("force[0].{key}"), "{e}");
-            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+        ];
+        for ((table, ..), e) in cases.iter().zip(check_typos(&FORCE, base, &cases)) {
             let kind = table.split('"').nth(1).unwrap();
             let decl = TYPES.iter().find(|t| t.name == kind).unwrap();
             assert!(e.message.contains(&(decl.keys)().join(", ")), "{e}");

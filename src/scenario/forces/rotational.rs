@@ -1,7 +1,7 @@
 //! `type = "rotational_spring"`: a rotational spring–damper on the
 //! relative angle of two bodies ([`RotationalSpringDamper`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::RotationalSpringDamper;
 use crate::scenario::model::RawTable;
 use crate::scenario::ScenarioError;
@@ -29,7 +29,7 @@ pub(in crate::scenario) struct RotationalSpring {
     torque_rate: Option<RawTable>,
 }
 
-impl ForceType for RotationalSpring {
+impl ElementType<Context<'_>> for RotationalSpring {
     const TYPE: &'static str = "rotational_spring";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let (body_i, body_j) = cx.two_bodies("a rotational spring", &self.body_i, &self.body_j)?;

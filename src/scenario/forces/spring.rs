@@ -1,7 +1,7 @@
 //! `type = "spring"`: a point-to-point spring–damper–actuator
 //! ([`PointSpringDamper`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::PointSpringDamper;
 use crate::scenario::model::{RawPoint, RawTable};
 use crate::scenario::ScenarioError;
@@ -35,7 +35,7 @@ pub(in crate::scenario) struct Spring {
     actuator: Option<toml::Value>,
 }
 
-impl ForceType for Spring {
+impl ElementType<Context<'_>> for Spring {
     const TYPE: &'static str = "spring";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let (body_i, body_j) = cx.two_bodies("a spring", &self.body_i, &self.body_j)?;

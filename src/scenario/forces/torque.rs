@@ -1,6 +1,6 @@
 //! `type = "torque"`: an applied torque on a body ([`AppliedTorque`]).
 
-use super::{Context, ForceType};
+use super::{Context, ElementType};
 use crate::forces::AppliedTorque;
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
@@ -16,7 +16,7 @@ pub(in crate::scenario) struct Torque {
     torque: toml::Value,
 }
 
-impl ForceType for Torque {
+impl ElementType<Context<'_>> for Torque {
     const TYPE: &'static str = "torque";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;
