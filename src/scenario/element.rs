@@ -66,6 +66,11 @@ pub(super) struct Kind {
 }
 
 impl Kind {
+    /// The kind of the `table` tables, each declaring `what`.
+    pub(super) const fn new(table: &'static str, what: &'static str) -> Self {
+        Kind { table, what }
+    }
+
     /// `<table>[k]`.
     pub(super) fn path(&self, k: usize) -> String {
         format!("{}[{k}]", self.table)
@@ -434,6 +439,31 @@ pub(super) mod docs {
                 t.name
             );
         }
+    }
+
+    /// Each `(table, key, near)` of `cases` appended to `base` fails at
+    /// `<kind>[0].<key>` as not a key of its type, suggesting `near`; the
+    /// errors, for further checks.
+    pub(in crate::scenario) fn check_typos(
+        kind: &super::Kind,
+        base: &str,
+        cases: &[(&str, &str, &str)],
+    ) -> Vec<crate::scenario::ScenarioError> {
+        let errors = cases.iter().map(|&(table, key, near)| {
+            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
+                .expect_err(table);
+            assert_eq!(e.key, format!("{}[0].{key}", kind.table), "{e}");
+            assert!(
+                e.message.contains(&format!("did you mean `{near}`?")),
+                "{e}"
+            );
+            let ty = table.split('"').nth(1).unwrap();
+            let what = format!("{ty} {}", kind.what);
+            let not_a_key = format!("not a key of {} {what}", super::article(&what));
+            assert!(e.message.starts_with(&not_a_key), "{e}");
+            e
+        });
+        errors.collect()
     }
 
     /// `keys` sorted, as owned strings.

@@ -138,10 +138,7 @@ pub(in crate::scenario) fn function_of_time(
 }
 
 /// The `[[joint]]` tables.
-const JOINT: Kind = Kind {
-    table: "joint",
-    what: "joint",
-};
+const JOINT: Kind = Kind::new("joint", "joint");
 
 /// A joint type's row of [`TYPES`].
 pub(super) type JointDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
@@ -313,8 +310,8 @@ impl ElementType<Context<'_>> for DriveAngleJoint {
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{check_keys, keys_of_row};
+    use super::{JOINT, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
 
     /// docs/scenarios.md's joint table lists exactly each joint struct's keys.
     #[test]
@@ -328,19 +325,13 @@ mod tests {
     fn typos_suggest_the_nearest_key_of_this_type() {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [time]\nend = 0.1\n[[joint]]\n";
-        for (table, key, near) in [
+        let cases = [
             ("type = \"revolute\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_i = [0.0, 0.0]\npoint_jj = [0.0, 0.0]", "point_jj", "point_j"),
             ("type = \"translational\"\nbody_i = \"a\"\nbody_j = \"ground\"\naxis = [1.0, 0.0]", "axis", "axis_i"),
             ("type = \"drive_coordinate\"\nbody = \"a\"\ncoordinate = \"x\"\nmotoin = 0.0", "motoin", "motion"),
             ("type = \"drive_angle\"\nbody_i = \"a\"\nbody_jj = \"ground\"\nmotion = 0.0", "body_jj", "body_j"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("joint[0].{key}"), "{e}");
-            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
-            let kind = table.split('"').nth(1).unwrap();
-            assert!(e.message.contains(&format!("not a key of a {kind} joint")), "{e}");
-        }
+        ];
+        check_typos(&JOINT, base, &cases);
         let e = crate::scenario::parse(
             &format!("{base}type = \"revolut\"\nbody_i = \"a\"\nbody_j = \"ground\""),
             "f.toml",

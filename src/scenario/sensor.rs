@@ -60,10 +60,7 @@ enum Spec {
 }
 
 /// The `[[sensor]]` tables.
-const SENSOR: Kind = Kind {
-    table: "sensor",
-    what: "sensor",
-};
+const SENSOR: Kind = Kind::new("sensor", "sensor");
 
 /// Every `[[sensor]]` type, in the order of docs/scenarios.md (read by
 /// [`spec`]).
@@ -247,8 +244,8 @@ pub(super) fn build(
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{check_keys, keys_of_row};
+    use super::{SENSOR, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
 
     /// docs/scenarios.md's sensor table lists exactly each type's keys.
     #[test]
@@ -263,7 +260,7 @@ mod tests {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\n\
                     [time]\nend = 0.1\n[[sensor]]\nname = \"m\"\n";
-        for (table, key, near) in [
+        let cases = [
             (
                 "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]",
                 "piont",
@@ -281,14 +278,7 @@ mod tests {
                 "force",
             ),
             ("type = \"contact\"\nforc = \"s\"", "forc", "force"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("sensor[0].{key}"), "{e}");
-            assert!(
-                e.message.contains(&format!("did you mean `{near}`?")),
-                "{e}"
-            );
-        }
+        ];
+        check_typos(&SENSOR, base, &cases);
     }
 }

@@ -25,10 +25,7 @@ pub(super) use expression::expression_names;
 pub(super) use joint::NamedJoint;
 
 /// The `[[force]]` tables.
-pub(super) const FORCE: Kind = Kind {
-    table: "force",
-    what: "force element",
-};
+pub(super) const FORCE: Kind = Kind::new("force", "force element");
 
 /// A force type's row of [`TYPES`].
 pub(super) type ForceDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
@@ -272,8 +269,8 @@ impl Context<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::TYPES;
-    use crate::scenario::element::docs::{check_keys, keys_after};
+    use super::{FORCE, TYPES};
+    use crate::scenario::element::docs::{check_keys, check_typos, keys_after};
 
     /// docs/scenarios.md has a key table per force type listing exactly
     /// the fields of its struct.
@@ -288,7 +285,7 @@ mod tests {
     fn typos_suggest_the_nearest_key_of_this_type() {
         let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
                     [time]\nend = 0.1\n[[force]]\n";
-        for (table, key, near) in [
+        let cases = [
             ("type = \"torque\"\nbody = \"a\"\ntorqe = 1.0", "torqe", "torque"),
             ("type = \"force\"\nbody = \"a\"\nfx = 1.0\nfy = 0.0\npoimt = [0.0, 0.0]", "poimt", "point"),
             ("type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\ndampin = 1.0", "dampin", "damping"),
@@ -296,11 +293,8 @@ mod tests {
             ("type = \"contact\"\nbody = \"a\"\nstiffness = 1.0\nwall_normal_dg = 90.0", "wall_normal_dg", "wall_normal_deg"),
             ("type = \"fluid\"\nbody = \"a\"\nfluid_density = 1.0\nvolum = 1.0", "volum", "volume"),
             ("type = \"expression\"\nbody = \"a\"\ntorq = \"1\"", "torq", "torque"),
-        ] {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("force[0].{key}"), "{e}");
-            assert!(e.message.contains(&format!("did you mean `{near}`?")), "{e}");
+        ];
+        for ((table, ..), e) in cases.iter().zip(check_typos(&FORCE, base, &cases)) {
             let kind = table.split('"').nth(1).unwrap();
             let decl = TYPES.iter().find(|t| t.name == kind).unwrap();
             assert!(e.message.contains(&(decl.keys)().join(", ")), "{e}");
