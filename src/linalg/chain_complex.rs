@@ -489,8 +489,8 @@ impl ComplexChainLdlt {
         };
         // two threads: a half each; one: the halves one after the other (the
         // rows of a complex substitution are bound by their arithmetic, not
-        // by the latency of the row chain: interleaving the halves, as the
-        // real solver does, did not pay)
+        // by the latency of the row chain, so they are not interleaved as
+        // the real solver's are)
         let two = par && crate::parallel::concurrent();
         {
             let (br, bi): (&[f64], &[f64]) = (re, im);
