@@ -33,12 +33,7 @@ impl SaddlePointSolver for SparseLu {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
-        if k.storage() != Storage::Full {
-            return Err(LinalgError::Storage {
-                solver: self.name(),
-                needs: Storage::Full,
-            });
-        }
+        k.require_storage(Storage::Full, self.name())?;
         let dim = k.dim();
         let pattern =
             SymbolicSparseColMatRef::new_checked(dim, dim, k.col_ptr(), None, k.row_idx());

@@ -232,6 +232,19 @@ impl SaddleMatrix {
     pub fn storage(&self) -> Storage {
         self.storage
     }
+    /// `Ok` when the values are stored as `needs`, else the error naming
+    /// `solver` (a solver's check at `analyze`).
+    pub(crate) fn require_storage(
+        &self,
+        needs: Storage,
+        solver: &'static str,
+    ) -> Result<(), LinalgError> {
+        if self.storage == needs {
+            Ok(())
+        } else {
+            Err(LinalgError::Storage { solver, needs })
+        }
+    }
     /// Column pointers (length `dim + 1`).
     pub fn col_ptr(&self) -> &[usize] {
         &self.pattern.col_ptr

@@ -50,12 +50,7 @@ impl SaddlePointSolver for SchurComplement {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
-        if k.storage() != Storage::SymmetricLower {
-            return Err(LinalgError::Storage {
-                solver: self.name(),
-                needs: Storage::SymmetricLower,
-            });
-        }
+        k.require_storage(Storage::SymmetricLower, self.name())?;
         let (n, m) = (k.n(), k.m());
         let mut by_col = vec![Vec::new(); n];
         for (c, col) in by_col.iter_mut().enumerate() {

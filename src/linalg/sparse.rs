@@ -355,12 +355,7 @@ impl SaddlePointSolver for SparseLdlt {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
-        if k.storage() != super::Storage::SymmetricLower {
-            return Err(LinalgError::Storage {
-                solver: self.name(),
-                needs: super::Storage::SymmetricLower,
-            });
-        }
+        k.require_storage(super::Storage::SymmetricLower, self.name())?;
         let dim = k.dim();
         let n = k.n();
         let nnz = k.nnz();

@@ -2,18 +2,10 @@
 //! analyses with faer's sparse LU: the static equilibrium of the peers'
 //! stiff chain and its 10 lowest modes, N = 50, agree to rounding.
 
+use crate::common::rel_diff;
 use mbsolve::analysis::{eigenmodes, static_equilibrium, ModeOptions, StaticOptions, Tangent};
 use mbsolve::builders::stiff_chain;
 use mbsolve::linalg::SolverKind;
-
-/// `max |x − y| / max |y|`.
-fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
-    let d = x
-        .iter()
-        .zip(y)
-        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
-    d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
-}
 
 #[test]
 fn chain_lu_and_sparse_lu_give_the_same_equilibrium_and_modes() {

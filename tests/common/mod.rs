@@ -15,3 +15,12 @@ pub mod rod;
 pub mod setup;
 pub mod stiff_chain;
 pub mod trajectory;
+
+/// `max |x − y| / max |y|`.
+pub fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
+    let d = x
+        .iter()
+        .zip(y)
+        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+    d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+}

@@ -5,6 +5,7 @@
 //! sparse LU: a pattern too wide for the band, and a factorisation it
 //! rejects.
 
+use crate::common::rel_diff;
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 use mbsolve::linalg::{
@@ -87,15 +88,6 @@ fn dense_solve(k: &SaddleMatrix, b: &[f64]) -> Vec<f64> {
     let rhs = Mat::<f64>::from_fn(b.len(), 1, |i, _| b[i]);
     let x = d.partial_piv_lu().solve(&rhs);
     (0..b.len()).map(|i| x[(i, 0)]).collect()
-}
-
-/// `max |x − y| / max |y|`.
-fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
-    let d = x
-        .iter()
-        .zip(y)
-        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
-    d / y.iter().fold(0.0f64, |a, v| a.max(v.abs()))
 }
 
 /// Normwise backward error `‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞)` (of the

@@ -39,8 +39,8 @@
 //! the row interchanges and `L` column by column (as LAPACK's `xGBTRS`) and
 //! `U` row by row (dot products).
 //!
-//! **Fallback** to [`SparseLu`] (faer's sparse LU after COLAMD: today's
-//! path of the analyses):
+//! **Fallback** to [`SparseLu`] (faer's sparse LU after COLAMD, the
+//! analyses' general path):
 //! - for the pattern, at `analyze`, when the band in this order is wider
 //!   than [`MAX_BANDWIDTH`] (trees, loops across the numbering, controller
 //!   states coupled to many bodies) — then every factorisation is
@@ -92,7 +92,7 @@ struct Band {
     /// columns `0..j`'s.
     l_val: Vec<f64>,
     /// Per elimination step, what the solve reads besides the values
-    /// (three bytes where three indices took 24: the solve streams them).
+    /// (three bytes: the solve streams them).
     steps: Vec<Step>,
     /// Permuted right-hand side.
     w: Vec<f64>,
@@ -430,12 +430,7 @@ impl SaddlePointSolver for ChainLu {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
-        if k.storage() != Storage::Full {
-            return Err(LinalgError::Storage {
-                solver: "chain-lu",
-                needs: Storage::Full,
-            });
-        }
+        k.require_storage(Storage::Full, "chain-lu")?;
         self.factorized = false;
         self.analyzed = true;
         self.fallback_analyzed = false;

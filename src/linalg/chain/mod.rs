@@ -244,12 +244,7 @@ impl SaddlePointSolver for ChainLdlt {
     }
 
     fn analyze(&mut self, k: &SaddleMatrix) -> Result<(), LinalgError> {
-        if k.storage() != Storage::SymmetricLower {
-            return Err(LinalgError::Storage {
-                solver: "chain-ldlt",
-                needs: Storage::SymmetricLower,
-            });
-        }
+        k.require_storage(Storage::SymmetricLower, "chain-ldlt")?;
         self.factorized = false;
         self.analyzed = true;
         self.envelope = Envelope::analyze(k, self.split);
