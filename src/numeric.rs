@@ -40,6 +40,43 @@ pub(crate) fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
+/// A complex number `[re, im]`.
+pub(crate) type C64 = [f64; 2];
+
+/// `a + b`.
+#[inline]
+pub(crate) fn cadd(a: C64, b: C64) -> C64 {
+    [a[0] + b[0], a[1] + b[1]]
+}
+
+/// `a − b`.
+#[inline]
+pub(crate) fn csub(a: C64, b: C64) -> C64 {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// `a b`.
+#[inline]
+pub(crate) fn cmul(a: C64, b: C64) -> C64 {
+    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
+}
+
+/// `a / b` (`a b̄ / |b|²`).
+#[inline]
+pub(crate) fn cdiv(a: C64, b: C64) -> C64 {
+    let d = b[0] * b[0] + b[1] * b[1];
+    [
+        (a[0] * b[0] + a[1] * b[1]) / d,
+        (a[1] * b[0] - a[0] * b[1]) / d,
+    ]
+}
+
+/// `|a|` (without overflow: [`f64::hypot`]).
+#[inline]
+pub(crate) fn cabs(a: C64) -> f64 {
+    a[0].hypot(a[1])
+}
+
 /// Uniform pseudo-random numbers in `[0, 1)` for tests: Knuth's MMIX
 /// linear congruential generator from `seed`, the top 53 bits.
 #[cfg(test)]

@@ -38,6 +38,7 @@
 use super::dynamic_blocks::DynamicBlocks;
 use crate::linalg::{LinalgError, SaddleMatrix, SaddlePointSolver, Storage};
 use crate::model::System;
+use crate::numeric::{cabs, cdiv, cmul, C64};
 
 /// The border of a system with controller states ([module docs](self)).
 pub(crate) struct StateBorder {
@@ -211,33 +212,14 @@ impl StateBorder {
 pub(crate) struct ComplexStateBorder {
     shape: Shape,
     /// The shape's entries' values in `K` at the last factorisation.
-    vals: Vec<C>,
+    vals: Vec<C64>,
     /// `K_PP⁻¹ K_PS` column by column, real and imaginary parts.
     z_re: Vec<f64>,
     z_im: Vec<f64>,
-    lu: Vec<C>,
+    lu: Vec<C64>,
     perm: Vec<usize>,
-    rs: Vec<C>,
-    tmp: Vec<C>,
-}
-
-/// A complex number (re, im).
-type C = [f64; 2];
-
-fn cmul(a: C, b: C) -> C {
-    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
-}
-
-fn cdiv(a: C, b: C) -> C {
-    let d = b[0] * b[0] + b[1] * b[1];
-    [
-        (a[0] * b[0] + a[1] * b[1]) / d,
-        (a[1] * b[0] - a[0] * b[1]) / d,
-    ]
-}
-
-fn cabs(a: C) -> f64 {
-    a[0].hypot(a[1])
+    rs: Vec<C64>,
+    tmp: Vec<C64>,
 }
 
 impl ComplexStateBorder {
@@ -263,7 +245,7 @@ impl ComplexStateBorder {
         &mut self,
         sys: &System,
         blocks: &DynamicBlocks,
-        [c0, c1, c2]: [C; 3],
+        [c0, c1, c2]: [C64; 3],
         mut solve: impl FnMut(&mut [f64], &mut [f64]) -> Result<(), LinalgError>,
     ) -> Result<(), LinalgError> {
         let (dq, dqd, _) = blocks.values();
@@ -385,7 +367,7 @@ impl ComplexStateBorder {
 }
 
 /// [`lu_factor`] in complex arithmetic.
-fn clu_factor(a: &mut [C], perm: &mut [usize], n: usize) -> Result<(), LinalgError> {
+fn clu_factor(a: &mut [C64], perm: &mut [usize], n: usize) -> Result<(), LinalgError> {
     for (k, p) in perm.iter_mut().enumerate() {
         *p = k;
     }

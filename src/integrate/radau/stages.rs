@@ -10,29 +10,8 @@
 //! splits the simplified Newton system into one real and `(S − 1)/2`
 //! complex systems.
 
-/// A complex number `[re, im]`.
-pub(super) type C64 = [f64; 2];
-
-fn cadd(a: C64, b: C64) -> C64 {
-    [a[0] + b[0], a[1] + b[1]]
-}
-fn csub(a: C64, b: C64) -> C64 {
-    [a[0] - b[0], a[1] - b[1]]
-}
-/// Complex product.
-pub(super) fn cmul(a: C64, b: C64) -> C64 {
-    [a[0] * b[0] - a[1] * b[1], a[0] * b[1] + a[1] * b[0]]
-}
-fn cdiv(a: C64, b: C64) -> C64 {
-    let d = b[0] * b[0] + b[1] * b[1];
-    [
-        (a[0] * b[0] + a[1] * b[1]) / d,
-        (a[1] * b[0] - a[0] * b[1]) / d,
-    ]
-}
-fn cabs(a: C64) -> f64 {
-    a[0].hypot(a[1])
-}
+use crate::numeric::{cabs, cadd, cdiv, csub};
+pub(super) use crate::numeric::{cmul, C64};
 
 /// The Radau IIA coefficients of `S` stages (S odd) and the real
 /// eigen-transformation of 𝔄.
