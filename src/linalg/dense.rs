@@ -45,12 +45,7 @@ impl SaddlePointSolver for DenseLu {
 
     fn solve_in_place(&mut self, k: &SaddleMatrix, rhs: &mut [f64]) -> Result<(), LinalgError> {
         let lu = self.lu.as_ref().ok_or(LinalgError::NotReady("factorize"))?;
-        if rhs.len() != k.dim() {
-            return Err(LinalgError::Dimension {
-                expected: k.dim(),
-                got: rhs.len(),
-            });
-        }
+        LinalgError::check_solve(true, k.dim(), k, rhs)?;
         if self.work.len() != k.dim() {
             self.work = vec![0.0; k.dim()];
             self.rhs0 = vec![0.0; k.dim()];
@@ -59,9 +54,7 @@ impl SaddlePointSolver for DenseLu {
         let dim = rhs.len();
         lu.solve_in_place(MatMut::from_column_major_slice_mut(rhs, dim, 1));
         self.stats.solves += 1;
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteSolution("dense LU"));
-        }
+        LinalgError::check_solution(rhs, "dense LU")?;
         let res = k.relative_residual(rhs, &self.rhs0, &mut self.work);
         if res > SINGULAR_RESIDUAL {
             return Err(LinalgError::Singular(format!(

@@ -92,15 +92,7 @@ impl SaddlePointSolver for SparseLu {
         let (Some(symbolic), Some(mem)) = (&self.symbolic, &mut self.mem) else {
             return Err(LinalgError::NotReady("analyze"));
         };
-        if !self.ready {
-            return Err(LinalgError::NotReady("factorize"));
-        }
-        if rhs.len() != self.dim || k.dim() != self.dim {
-            return Err(LinalgError::Dimension {
-                expected: self.dim,
-                got: rhs.len(),
-            });
-        }
+        LinalgError::check_solve(self.ready, self.dim, k, rhs)?;
         if self.dim > 0 {
             LuRef::new_unchecked(symbolic, &self.numeric).solve_in_place_with_conj(
                 Conj::No,
@@ -110,10 +102,7 @@ impl SaddlePointSolver for SparseLu {
             );
         }
         self.stats.solves += 1;
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteSolution("sparse LU"));
-        }
-        Ok(())
+        LinalgError::check_solution(rhs, "sparse LU")
     }
 
     fn stats(&self) -> SolverStats {

@@ -100,6 +100,38 @@ pub enum LinalgError {
     },
 }
 
+impl LinalgError {
+    /// The checks before a solve: a factorisation in place (`factorized`,
+    /// else [`LinalgError::NotReady`]) and `rhs` and `k` of the factorised
+    /// dimension `dim` (else [`LinalgError::Dimension`] with `rhs`'s length).
+    pub(crate) fn check_solve(
+        factorized: bool,
+        dim: usize,
+        k: &SaddleMatrix,
+        rhs: &[f64],
+    ) -> Result<(), LinalgError> {
+        if !factorized {
+            return Err(LinalgError::NotReady("factorize"));
+        }
+        if rhs.len() != dim || k.dim() != dim {
+            return Err(LinalgError::Dimension {
+                expected: dim,
+                got: rhs.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// [`LinalgError::NonFiniteSolution`] of `solver` when the solution `x`
+    /// has an entry that is not finite.
+    pub(crate) fn check_solution(x: &[f64], solver: &'static str) -> Result<(), LinalgError> {
+        match crate::numeric::first_non_finite(x) {
+            Some(_) => Err(LinalgError::NonFiniteSolution(solver)),
+            None => Ok(()),
+        }
+    }
+}
+
 /// What one numeric factorisation reports.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct FactorInfo {
@@ -246,6 +278,61 @@ pub fn solver_for(kind: SolverKind, dim: usize, opts: SolverOptions) -> Box<dyn 
         SolverKind::Schur => Box::new(SchurComplement::default()),
         SolverKind::Chain => {
             Box::new(ChainLdlt::default().with_residual_check(opts.residual_check))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every solver [`solver_for`] makes checks a solve alike: before a
+    /// factorisation `NotReady("factorize")`, a right-hand side of another
+    /// length `Dimension` with the expected and the given length, and
+    /// after a factorisation the solution of `[diag(2, 1, 3), Φ_qᵀ; Φ_q, 0]`
+    /// with `Φ_q = [1 0 1]` (by hand: `x = (−0.1, 2, 0.6)`, `λ = 1.2` for
+    /// the right-hand side `(1, 2, 3, 0.5)`); a non-finite solution is
+    /// `NonFiniteSolution` naming the solver.
+    #[test]
+    fn every_solver_checks_its_solves_alike() {
+        use SolverKind::*;
+        for kind in [Dense, Sparse, SparseLu, ChainLu, Schur, Chain] {
+            let mut s = solver_for(kind, 4, SolverOptions::default());
+            let mut k =
+                SaddleMatrix::with_storage(3, 1, &APattern::new(), &[(0, 0), (0, 2)], s.storage());
+            k.set_a_diagonal(&[2.0, 1.0, 3.0]);
+            k.set_jacobian(&[1.0, 1.0]);
+            s.analyze(&k).unwrap();
+            let mut x = vec![1.0, 2.0, 3.0, 0.5];
+            let early = s.solve_in_place(&k, &mut x);
+            assert!(
+                matches!(early, Err(LinalgError::NotReady("factorize"))),
+                "{kind:?}: {early:?}"
+            );
+            s.factorize(&k).unwrap();
+            let short = s.solve_in_place(&k, &mut [1.0; 3]);
+            assert!(
+                matches!(
+                    short,
+                    Err(LinalgError::Dimension {
+                        expected: 4,
+                        got: 3
+                    })
+                ),
+                "{kind:?}: {short:?}"
+            );
+            s.solve_in_place(&k, &mut x).unwrap();
+            for (xi, want) in x.iter().zip([-0.1, 2.0, 0.6, 1.2]) {
+                assert!((xi - want).abs() < 1e-12, "{kind:?}: {x:?}");
+            }
+        }
+        assert!(LinalgError::check_solution(&[1.0, -2.0], "lu").is_ok());
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let e = LinalgError::check_solution(&[1.0, bad, 3.0], "lu");
+            assert!(
+                matches!(e, Err(LinalgError::NonFiniteSolution("lu"))),
+                "{e:?}"
+            );
         }
     }
 }

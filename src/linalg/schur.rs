@@ -124,15 +124,7 @@ impl SaddlePointSolver for SchurComplement {
 
     fn solve_in_place(&mut self, k: &SaddleMatrix, rhs: &mut [f64]) -> Result<(), LinalgError> {
         let (n, m) = (self.n, self.m);
-        if !self.ready {
-            return Err(LinalgError::NotReady("factorize"));
-        }
-        if rhs.len() != n + m || k.dim() != n + m {
-            return Err(LinalgError::Dimension {
-                expected: n + m,
-                got: rhs.len(),
-            });
-        }
+        LinalgError::check_solve(self.ready, n + m, k, rhs)?;
         let (vals, diag) = (k.values(), k.diag_slots());
         // right-hand side Φ_q A⁻¹ b₁ − b₂
         for r in 0..m {
@@ -162,10 +154,7 @@ impl SaddlePointSolver for SchurComplement {
             rhs[n + r] = self.rhs[(r, 0)];
         }
         self.stats.solves += 1;
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteSolution("the Schur-complement solve"));
-        }
-        Ok(())
+        LinalgError::check_solution(rhs, "the Schur-complement solve")
     }
 
     fn stats(&self) -> SolverStats {

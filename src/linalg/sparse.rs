@@ -528,15 +528,7 @@ impl SaddlePointSolver for SparseLdlt {
             .analysis
             .as_mut()
             .ok_or(LinalgError::NotReady("analyze"))?;
-        if !self.factorized {
-            return Err(LinalgError::NotReady("factorize"));
-        }
-        if rhs.len() != an.dim || k.dim() != an.dim {
-            return Err(LinalgError::Dimension {
-                expected: an.dim,
-                got: rhs.len(),
-            });
-        }
+        LinalgError::check_solve(self.factorized, an.dim, k, rhs)?;
         self.stats.solves += 1;
         if self.check_residual {
             let refined = self.bufs.solve_checked(k, rhs, |x| scaled_solve(an, x));
@@ -544,10 +536,7 @@ impl SaddlePointSolver for SparseLdlt {
         } else {
             scaled_solve(an, rhs);
         }
-        if rhs.iter().any(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteSolution("sparse LDLᵀ"));
-        }
-        Ok(())
+        LinalgError::check_solution(rhs, "sparse LDLᵀ")
     }
 
     fn stats(&self) -> SolverStats {
