@@ -34,7 +34,7 @@
 //!
 //! [`prelude`] re-exports what an embedding program needs (scenario
 //! loading, model building, the simulate entry points, results, errors,
-//! the analyses); `numeric` and `trig` are crate-internal leaves.
+//! the analyses); `numeric`, `trig` and `words` are crate-internal leaves.
 //!
 //! The `mbsolve` binary (src/bin/mbsolve/) adds the CLI, the paper's
 //! studies, sweeps, the performance gate, figures and animations.
@@ -58,3 +58,4 @@ pub mod prelude;
 pub mod scenario;
 pub mod simulation;
 pub(crate) mod trig;
+pub(crate) mod words;

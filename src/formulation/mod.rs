@@ -55,6 +55,7 @@ pub use singularity::{SingularCrossing, SingularityMonitor, MONITOR_MAX_COORDS, 
 pub use stability::{explicit_reach, fastest_modes, FastestModes};
 
 use crate::linalg::{LinalgError, SaddleMatrix, SaddlePointSolver};
+use crate::words::from_words;
 use serde::Serialize;
 
 /// One minimum-mass-norm correction onto `Φ_q Δ = −r` (the projections of
@@ -107,22 +108,9 @@ pub enum Formulation {
     Partitioned,
 }
 
-impl std::str::FromStr for Formulation {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "saddle" => Ok(Self::Saddle),
-            "eliminated" => Ok(Self::Eliminated),
-            "penalty" => Ok(Self::Penalty),
-            "augmented_lagrangian" => Ok(Self::AugmentedLagrangian),
-            "partitioned" => Ok(Self::Partitioned),
-            o => Err(format!(
-                "unknown formulation '{o}' (expected saddle, eliminated, penalty, \
-                 augmented_lagrangian or partitioned)"
-            )),
-        }
-    }
-}
+from_words!(Formulation, "formulation", "saddle" => Saddle, "eliminated" => Eliminated,
+    "penalty" => Penalty, "augmented_lagrangian" => AugmentedLagrangian,
+    "partitioned" => Partitioned);
 
 /// Baumgarte parameters (α, β) of eq. (10): `Φ̈ + 2αΦ̇ + β²Φ = 0`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -159,22 +147,8 @@ pub enum BaumgarteRule {
     Step,
 }
 
-impl std::str::FromStr for BaumgarteRule {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "explicit" => Ok(Self::Explicit),
-            "equal" => Ok(Self::Equal),
-            "alpha_sqrt2" => Ok(Self::AlphaSqrt2),
-            "sqrt_2alpha" => Ok(Self::Sqrt2Alpha),
-            "step" => Ok(Self::Step),
-            o => Err(format!(
-                "unknown Baumgarte rule '{o}' (expected explicit, equal, alpha_sqrt2, sqrt_2alpha \
-                 or step)"
-            )),
-        }
-    }
-}
+from_words!(BaumgarteRule, "Baumgarte rule", "explicit" => Explicit, "equal" => Equal,
+    "alpha_sqrt2" => AlphaSqrt2, "sqrt_2alpha" => Sqrt2Alpha, "step" => Step);
 
 impl BaumgarteRule {
     /// The scenario name: `explicit`, `equal`, `alpha_sqrt2`, `sqrt_2alpha`
@@ -323,18 +297,7 @@ pub enum Correction {
     Direct,
 }
 
-impl std::str::FromStr for Correction {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "newton" => Ok(Self::Newton),
-            "direct" => Ok(Self::Direct),
-            o => Err(format!(
-                "unknown correction '{o}' (expected newton or direct)"
-            )),
-        }
-    }
-}
+from_words!(Correction, "correction", "newton" => Newton, "direct" => Direct);
 
 impl Default for Projection {
     /// Off; tolerance 1e-10, 10 iterations, Newton.

@@ -55,6 +55,7 @@ pub use sparse::{
     chain_order, Ordering, SparseLdlt, DEFAULT_DELTA, DEFAULT_EPSILON, REFINE_THRESHOLD,
 };
 
+use crate::words::from_words;
 use serde::Serialize;
 
 /// Failure of a saddle-point factorisation or solve.
@@ -233,20 +234,8 @@ impl Default for SolverOptions {
     }
 }
 
-impl std::str::FromStr for SolverKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(Self::Auto),
-            "dense" => Ok(Self::Dense),
-            "sparse" => Ok(Self::Sparse),
-            "chain" => Ok(Self::Chain),
-            other => Err(format!(
-                "unknown linear solver '{other}' (expected auto, sparse, chain or dense)"
-            )),
-        }
-    }
-}
+from_words!(SolverKind, "linear solver", "auto" => Auto, "sparse" => Sparse, "chain" => Chain,
+    "dense" => Dense);
 
 /// `SolverKind::Auto` uses the dense LU for saddle-point matrices of
 /// dimension `n + m` below this and the sparse LDLᵀ from it on.
