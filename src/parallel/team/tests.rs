@@ -332,10 +332,10 @@ fn a_large_implicit_run_posts_halves_to_the_helper() {
 }
 
 /// The stability check before a run (`fastest_modes`: 3 power
-/// iterations of 61 chain solves and one solve for the loads'
+/// iterations of 61 chain solves, besides the solve for the loads'
 /// accelerations) runs in the run's team: a short generalized-α run of a
 /// chain whose Newton matrix is large enough for two-sided solves counts
-/// those 184 solves as passes of its team beside its own.
+/// at least those 183 solves as passes of its team beside its own.
 #[test]
 fn the_stability_check_runs_in_the_team() {
     use crate::integrate::{Method, OdeOptions};
@@ -361,7 +361,7 @@ fn the_stability_check_runs_in_the_team() {
     let run = s.rhs_evals + s.extra["newton_iterations"].as_u64().unwrap() as usize;
     let passes = TEST_PASSES.with(|p| p.get());
     assert!(
-        passes >= 184 + run,
+        passes >= 183 + run,
         "{passes} passes, {run} of them the run's"
     );
 }
