@@ -317,7 +317,7 @@ pub struct TeamReport {
 /// CPU seconds of a run on the thread that drives it (so that other
 /// processes holding the core do not count), kept when [`CLOCK_ENV`] is
 /// `1` (else zero; it reads the thread CPU clock, a system call, twice per
-/// pass and twice per half): inside [`run`] (the stability check and the
+/// pass and twice per half): inside the run (its stability check and
 /// integration), inside the outermost passes in halves there (joins, and
 /// the one-thread forms of two-half passes), and each half's on the
 /// thread that ran it. `halves_s / run_s` is the share of the run in
@@ -329,7 +329,7 @@ pub struct TeamReport {
 /// Zero where the thread CPU clock is unavailable (not Linux).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Clock {
-    /// CPU seconds inside [`run`].
+    /// CPU seconds of the run (stability check and integration).
     pub run_s: f64,
     /// CPU seconds inside the outermost passes in halves.
     pub halves_s: f64,
