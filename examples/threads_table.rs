@@ -78,6 +78,7 @@ fn main() {
         "halves_taken_back": get("halves_taken_back"),
         "halves_solo": get("halves_solo"),
         "threads_rule": get("threads_rule"),
+        "threads_clock": get("threads_clock"),
     });
     println!("{line}");
 }

@@ -13,7 +13,14 @@
 # "quiet" for one), OUT (a file for the raw JSON lines; default a
 # temporary file, printed at the end), BIN (a `threads_table` binary to
 # run instead of building this tree's: another build's, for a before /
-# after table in one session).
+# after table in one session), CLOCK (1: the runs keep their
+# `threads_clock`, MBSOLVE_THREADS_CLOCK=1, at the cost of a few system
+# calls per pass; default 0). Its columns from the summary's
+# `threads_clock`, for the one- and the two-thread run: the share of the
+# run inside passes in halves, the gain a free second thread would bound
+# (Amdahl, each pass as long as its longer half), the seconds outside and
+# inside the halves, and of the two-thread run's halves the longer halves'
+# seconds and the rest (the hand-over's cost and waits).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 N=${1:-10000}
@@ -24,6 +31,7 @@ T_GENALPHA=${T_GENALPHA:-0.005}
 BUSY_MODES=${BUSY_MODES:-"quiet busy"}
 OUT=${OUT:-$(mktemp /tmp/threads_table.XXXXXX.jsonl)}
 export CARGO_PROFILE_RELEASE_INCREMENTAL=true
+if [ "${CLOCK:-0}" = 1 ]; then export MBSOLVE_THREADS_CLOCK=1; fi
 if [ -n "${BIN:-}" ]; then
   bin=$BIN
 else
@@ -70,8 +78,8 @@ echo "raw lines: $OUT" >&2
 python3 - "$OUT" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | halves split / taken back / solo | probes: team, alone, skipped | same tip |")
-print("|---|---|---|---|---|---|---|---|---|---|")
+print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | in halves 1 / 2 | bound 1 / 2 | outside halves 1 / 2 [s] | in halves 1 / 2 [s] | 2: longer halves, hand-over [s] | halves split / taken back / solo | probes: team, alone, skipped | same tip |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 key = lambda r: (r["mode"], r["method"], r["round"])
 groups = {}
 for r in rows:
@@ -81,8 +89,22 @@ for (mode, method, rnd), g in groups.items():
         continue
     a, b = g[1], g[2]
     rule = b.get('threads_rule') or {}
+    # the run's clock (summary `threads_clock`): share of the run in
+    # passes in halves, Amdahl's bound with each pass as long as its
+    # longer half, the time outside / inside the halves, and with two
+    # threads the longer halves and the rest of the passes' time (hand-over)
+    ca, cb = a.get('threads_clock') or {}, b.get('threads_clock') or {}
+    if ca.get('run_s') and cb.get('run_s'):
+        share = lambda c: f"{100 * c['halves_s'] / c['run_s']:.0f} %"
+        bound = lambda c: f"{c['run_s'] / (c['run_s'] - c['halves_s'] + c['longer_s']):.2f}×"
+        out = lambda c: f"{c['run_s'] - c['halves_s']:.2f}"
+        clock = (f"{share(ca)} / {share(cb)} | {bound(ca)} / {bound(cb)} "
+                 f"| {out(ca)} / {out(cb)} | {ca['halves_s']:.2f} / {cb['halves_s']:.2f} "
+                 f"| {cb['longer_s']:.2f}, {cb['halves_s'] - cb['longer_s']:.2f}")
+    else:
+        clock = "– | – | – | – | –"
     print(f"| {method} | {mode} | {rnd} | {a['load']:.1f} | {a['wall_s']:.2f} ({a['cpu_s']:.2f}) "
-          f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× "
+          f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× | {clock} "
           f"| {b['halves_split']} / {b['halves_taken_back']} / {b['halves_solo']} "
           f"| {rule.get('team', '–')}, {rule.get('alone', '–')}, {rule.get('skipped', '–')} "
           f"| {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")

@@ -490,14 +490,15 @@ impl ComplexChainLdlt {
         // two threads: a half each; one: the halves one after the other (the
         // rows of a complex substitution are bound by their arithmetic, not
         // by the latency of the row chain, so they are not interleaved as
-        // the real solver's are)
-        let two = par && crate::parallel::concurrent();
+        // the real solver's are), as the team decides in `join_if`; the
+        // pass counted once for an `Auto` team's A/B rule (`concurrent`)
+        let _pass = par && crate::parallel::concurrent();
         {
             let (br, bi): (&[f64], &[f64]) = (re, im);
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             join_if(
-                two,
+                par,
                 || rows.forward((br, bi), (0, 0..s0, w_t)),
                 || rows.forward((br, bi), (s0, s0..sb, w_b)),
             );
@@ -536,7 +537,7 @@ impl ComplexChainLdlt {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
             join_if(
-                two,
+                par,
                 || rows.backward(&out, (0, 0..s0, w_t)),
                 || rows.backward(&out, (s0, s0..sb, w_b)),
             );

@@ -17,7 +17,7 @@
 mod handover;
 pub(crate) mod team;
 
-pub use team::{Rule, TeamReport, SPIN};
+pub use team::{Clock, Rule, TeamReport, CLOCK_ENV, SPIN};
 
 use serde::Serialize;
 use std::cell::Cell;
@@ -97,6 +97,36 @@ impl Threads {
             other => Ok(other),
         }
     }
+}
+
+/// CPU time of the calling thread in seconds (`clock_gettime` with
+/// `CLOCK_THREAD_CPUTIME_ID`, nanoseconds, current slice included): unlike
+/// wall time it does not count the time other processes hold the core.
+/// `None` where unavailable.
+#[cfg(target_os = "linux")]
+pub fn thread_cpu_seconds() -> Option<f64> {
+    #[repr(C)]
+    struct Timespec {
+        tv_sec: std::ffi::c_long,
+        tv_nsec: std::ffi::c_long,
+    }
+    extern "C" {
+        fn clock_gettime(clock: std::ffi::c_int, tp: *mut Timespec) -> std::ffi::c_int;
+    }
+    const CLOCK_THREAD_CPUTIME_ID: std::ffi::c_int = 3;
+    let mut ts = Timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec of the C layout
+    // (`time_t` and `long` are `long` on Linux); the call only writes it.
+    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    (rc == 0).then_some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
+}
+
+#[cfg(not(target_os = "linux"))]
+pub fn thread_cpu_seconds() -> Option<f64> {
+    None
 }
 
 thread_local! {

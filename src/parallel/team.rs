@@ -72,6 +72,9 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 
 pub use super::handover::SPIN;
 
+/// Environment variable that makes a run keep its [`Clock`] (`1`).
+pub const CLOCK_ENV: &str = "MBSOLVE_THREADS_CLOCK";
+
 /// Take-backs in a row after which an `Auto` team stops posting halves.
 pub(crate) const MISS_LIMIT: u32 = 4;
 /// Joins an `Auto` team runs on one thread after [`MISS_LIMIT`] misses.
@@ -307,6 +310,35 @@ pub struct TeamReport {
     /// Why the run used the threads it did (the last integration of the
     /// run that reached the rule).
     pub rule: Rule,
+    /// Where the run's wall time went ([`Clock`]).
+    pub clock: Clock,
+}
+
+/// CPU seconds of a run on the thread that drives it (so that other
+/// processes holding the core do not count), kept when [`CLOCK_ENV`] is
+/// `1` (else zero; it reads the thread CPU clock, a system call, twice per
+/// pass and twice per half): inside the run (its stability check and
+/// integration), inside the outermost passes in halves there (joins, and
+/// the one-thread forms of two-half passes), and each half's on the
+/// thread that ran it. `halves_s / run_s` is the share of the run in
+/// passes that split; `run_s / (run_s − halves_s + longer_s)` bounds the
+/// gain of a second thread that costs nothing (Amdahl's law, each pass as
+/// long as its longer half); with two threads `run_s − halves_s` is the
+/// caller's serial work and `halves_s − longer_s` what the hand-over cost
+/// it beyond the longer halves (spinning; parked waits do not count).
+/// Zero where the thread CPU clock is unavailable (not Linux).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Clock {
+    /// CPU seconds of the run (stability check and integration).
+    pub run_s: f64,
+    /// CPU seconds inside the outermost passes in halves.
+    pub halves_s: f64,
+    /// Both halves of those passes, each timed on the thread that ran it
+    /// (a one-thread form that interleaves them: the whole pass).
+    pub work_s: f64,
+    /// The longer half of each of those passes (a one-thread form that
+    /// interleaves them: half the pass).
+    pub longer_s: f64,
 }
 
 /// The thread rule's decision for one integration (`run`), with its
@@ -437,6 +469,10 @@ impl TeamReport {
         self.passes += o.passes;
         self.decisions[0] += o.decisions[0];
         self.decisions[1] += o.decisions[1];
+        self.clock.run_s += o.clock.run_s;
+        self.clock.halves_s += o.clock.halves_s;
+        self.clock.work_s += o.clock.work_s;
+        self.clock.longer_s += o.clock.longer_s;
         if o.rule != Rule::None {
             self.rule = o.rule;
         }
@@ -453,8 +489,21 @@ thread_local! {
             passes: 0,
             decisions: [0; 2],
             rule: Rule::None,
+            clock: Clock {
+                run_s: 0.0,
+                halves_s: 0.0,
+                work_s: 0.0,
+                longer_s: 0.0,
+            },
         })
     };
+    /// Nesting of passes in halves on this thread (only the outermost is
+    /// timed).
+    static DEPTH: Cell<u32> = const { Cell::new(0) };
+    /// Set while a [`run`] is timed on this thread.
+    static IN_RUN: Cell<bool> = const { Cell::new(false) };
+    /// Whether the run on this thread keeps a [`Clock`] ([`CLOCK_ENV`]).
+    static CLOCK_ON: Cell<bool> = const { Cell::new(false) };
     /// The team of the run this thread drives, if any.
     static CURRENT: Cell<*const Team> = const { Cell::new(std::ptr::null()) };
     /// Set on a helper thread while it runs (joins there run sequentially).
@@ -616,6 +665,7 @@ impl Team {
             passes: self.passes.load(Ordering::Relaxed),
             decisions,
             rule,
+            clock: Clock::default(),
         }
     }
 }
@@ -659,6 +709,31 @@ pub(crate) fn run<R>(large: bool, state: usize, f: impl FnOnce() -> R) -> R {
     if !CURRENT.with(|c| c.get()).is_null() || IN_HELPER.with(|h| h.get()) {
         return f();
     }
+    // a call nested in a run without a team (one thread) is timed by the
+    // outer one
+    let outer = !IN_RUN.with(|r| r.replace(true));
+    let clock = outer && clock_wanted();
+    if outer {
+        CLOCK_ON.with(|c| c.set(clock));
+    }
+    /// Adds the run's CPU seconds to the report ([`Clock::run_s`]).
+    struct RunClock(bool, Option<f64>);
+    impl Drop for RunClock {
+        fn drop(&mut self) {
+            if self.0 {
+                IN_RUN.with(|r| r.set(false));
+                CLOCK_ON.with(|c| c.set(false));
+            }
+            if let Some(start) = self.1 {
+                REPORT.with(|r| {
+                    let mut v = r.get();
+                    v.clock.run_s += cpu() - start;
+                    r.set(v);
+                });
+            }
+        }
+    }
+    let _clock = RunClock(outer, clock.then(cpu));
     let decided = |rule: Rule| {
         REPORT.with(|r| {
             let mut v = r.get();
@@ -775,19 +850,18 @@ where
     RA: Send,
     RB: Send,
 {
-    match current_team() {
-        Some(t) => {
-            if !t.h.ready() || t.solo_join() {
-                return (a(), b());
-            }
+    let mut clock = Timed::new();
+    let on = clock.start.is_some();
+    let (a, b) = (clocked(on, a), clocked(on, b));
+    let ((ra, da), (rb, db)) = match current_team() {
+        Some(t) if t.h.ready() && !t.solo_join() => {
             let (r, ran) = t.h.join(a, b);
             t.note(ran);
             r
         }
+        Some(_) => (a(), b()),
+        None if IN_HELPER.with(|h| h.get()) || policy() == Threads::One => (a(), b()),
         None => {
-            if IN_HELPER.with(|h| h.get()) || policy() == Threads::One {
-                return (a(), b());
-            }
             let me = std::thread::current().id();
             let (ra, (rb, other)) = rayon::join(a, || (b(), std::thread::current().id() != me));
             if other {
@@ -799,7 +873,83 @@ where
             }
             (ra, rb)
         }
+    };
+    clock.halves = Some((da, db));
+    (ra, rb)
+}
+
+/// Whether a run keeps a [`Clock`]: [`CLOCK_ENV`] is `1` (in tests,
+/// always).
+fn clock_wanted() -> bool {
+    cfg!(test) || std::env::var_os(CLOCK_ENV).is_some_and(|v| v == "1")
+}
+
+/// The calling thread's CPU seconds ([`super::thread_cpu_seconds`]; 0
+/// where unavailable).
+fn cpu() -> f64 {
+    super::thread_cpu_seconds().unwrap_or(0.0)
+}
+
+/// `f` returning its result and, when `on`, its own CPU seconds on
+/// whichever thread runs it.
+fn clocked<R>(on: bool, f: impl FnOnce() -> R) -> impl FnOnce() -> (R, f64) {
+    move || {
+        if !on {
+            return (f(), 0.0);
+        }
+        let start = cpu();
+        let r = f();
+        (r, cpu() - start)
     }
+}
+
+/// The timing of one pass in halves on this thread ([`Clock`]): started
+/// for an outermost pass off a helper when the run keeps a clock, added
+/// to the report when dropped.
+struct Timed {
+    /// The thread's CPU seconds at the start, for a timed pass.
+    start: Option<f64>,
+    /// The CPU seconds of the two halves, where known.
+    halves: Option<(f64, f64)>,
+}
+
+impl Timed {
+    fn new() -> Self {
+        let depth = DEPTH.with(|d| d.replace(d.get() + 1));
+        let outermost = depth == 0 && !IN_HELPER.with(|h| h.get());
+        let timed = outermost && CLOCK_ON.with(|c| c.get());
+        Self {
+            start: timed.then(cpu),
+            halves: None,
+        }
+    }
+}
+
+impl Drop for Timed {
+    fn drop(&mut self) {
+        DEPTH.with(|d| d.set(d.get() - 1));
+        if let Some(s) = self.start {
+            let whole = cpu() - s;
+            // a one-thread form that runs both halves at once: two equal
+            // halves
+            let (a, b) = self.halves.unwrap_or((whole / 2.0, whole / 2.0));
+            REPORT.with(|r| {
+                let mut v = r.get();
+                v.clock.halves_s += whole;
+                v.clock.work_s += a + b;
+                v.clock.longer_s += a.max(b);
+                r.set(v);
+            });
+        }
+    }
+}
+
+/// `f()`: a two-half pass in a one-thread form that runs both halves at
+/// once (interleaved rows), timed as a pass in halves ([`Clock`]) of two
+/// equal halves.
+pub(crate) fn one_thread_form<R>(f: impl FnOnce() -> R) -> R {
+    let _clock = Timed::new();
+    f()
 }
 
 #[cfg(test)]

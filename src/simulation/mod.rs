@@ -487,6 +487,12 @@ pub fn simulate_into(
         serde_json::to_value(team.rule).unwrap_or_default(),
     );
     extra.insert("threads_reason".into(), team.rule.reason().into());
+    if team.clock.run_s > 0.0 {
+        extra.insert(
+            "threads_clock".into(),
+            serde_json::to_value(team.clock).unwrap_or_default(),
+        );
+    }
     if let Some((run, reason)) = &chosen {
         extra.insert("method_choice".into(), run.method.name().into());
         extra.insert("method_choice_reason".into(), reason.clone().into());

@@ -52,6 +52,7 @@ use mbsolve::formulation::{Index1, Index1Options};
 use mbsolve::integrate::{Method, OdeOptions};
 use mbsolve::linalg::SolverKind;
 use mbsolve::model::{Evaluation, System};
+use mbsolve::parallel::thread_cpu_seconds;
 use mbsolve::simulation::{simulate, RunConfig};
 use serde::Serialize;
 use std::time::Instant;
@@ -661,36 +662,6 @@ pub fn oversubscribed_two_over_one() -> Check {
         passed: r >= OVERSUBSCRIBED_MIN,
         detail: format!("one thread / two threads: {}", detail.join("; ")),
     }
-}
-
-/// CPU time of the calling thread in seconds (`clock_gettime` with
-/// `CLOCK_THREAD_CPUTIME_ID`, nanoseconds, current slice included): unlike
-/// wall time it does not count the time other processes hold the core.
-/// `None` where unavailable.
-#[cfg(target_os = "linux")]
-fn thread_cpu_seconds() -> Option<f64> {
-    #[repr(C)]
-    struct Timespec {
-        tv_sec: std::ffi::c_long,
-        tv_nsec: std::ffi::c_long,
-    }
-    extern "C" {
-        fn clock_gettime(clock: std::ffi::c_int, tp: *mut Timespec) -> std::ffi::c_int;
-    }
-    const CLOCK_THREAD_CPUTIME_ID: std::ffi::c_int = 3;
-    let mut ts = Timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec of the C layout
-    // (`time_t` and `long` are `long` on Linux); the call only writes it.
-    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    (rc == 0).then_some(ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9)
-}
-
-#[cfg(not(target_os = "linux"))]
-fn thread_cpu_seconds() -> Option<f64> {
-    None
 }
 
 /// Time `f` over `batch` calls, seconds per call: the thread's CPU time

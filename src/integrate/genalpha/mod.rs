@@ -627,13 +627,30 @@ impl Stepper for Run<'_, '_> {
             if self.opts.extrapolate {
                 self.choose_predictor(h_try);
             }
-            self.prev_qdd.copy_from_slice(&self.cur.qdd);
             self.h_prev = Some(h_try);
             std::mem::swap(&mut self.cur, &mut self.new);
             self.t = t_new;
             self.stats.accept(h_try);
-            self.y[..n].copy_from_slice(&self.cur.q);
-            self.y[n..].copy_from_slice(&self.cur.v);
+            // the step's start's q̈ becomes the history and the state the
+            // output: copies, in two halves for a large run
+            {
+                let (y_q, y_v) = self.y.split_at_mut(n);
+                let (old, cur) = (&self.new.qdd[..n], &self.cur);
+                crate::parallel::split_pass(
+                    n >= crate::parallel::PARALLEL_MIN_COORDS,
+                    n,
+                    (
+                        [&mut self.prev_qdd[..n], y_q, &mut y_v[..n]],
+                        [old, &cur.q[..n], &cur.v[..n]],
+                    ),
+                    |_, ([p, yq, yv], [o, q, v])| {
+                        p.copy_from_slice(o);
+                        yq.copy_from_slice(q);
+                        yv.copy_from_slice(v);
+                    },
+                    |(), ()| (),
+                );
+            }
             // Next step size.
             if adaptive {
                 let mut hn = (h_try * fac).min(self.max_step);

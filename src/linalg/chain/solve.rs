@@ -40,7 +40,9 @@ impl Envelope {
                     || rows.forward(xr, (s0, s0..sb, w_b)),
                 );
             } else {
-                rows.forward_interleaved(xr, (0, 0..s0, w_t), (s0, s0..sb, w_b));
+                crate::parallel::team::one_thread_form(|| {
+                    rows.forward_interleaved(xr, (0, 0..s0, w_t), (s0, s0..sb, w_b))
+                });
             }
         }
         for i in sb..dim {
@@ -91,7 +93,9 @@ impl Envelope {
                     || rows.backward(&out, (s0, s0..sb, w_b)),
                 );
             } else {
-                rows.backward_interleaved(&out, (0, 0..s0, w_t), (s0, s0..sb, w_b));
+                crate::parallel::team::one_thread_form(|| {
+                    rows.backward_interleaved(&out, (0, 0..s0, w_t), (s0, s0..sb, w_b))
+                });
             }
         }
         let (x_lo, x_hi) = x.split_at(dim / 2);

@@ -332,10 +332,10 @@ fn a_large_implicit_run_posts_halves_to_the_helper() {
 }
 
 /// The stability check before a run (`fastest_modes`: 3 power
-/// iterations of 61 chain solves and one solve for the loads'
+/// iterations of 61 chain solves, besides the solve for the loads'
 /// accelerations) runs in the run's team: a short generalized-α run of a
 /// chain whose Newton matrix is large enough for two-sided solves counts
-/// those 184 solves as passes of its team beside its own.
+/// at least those 183 solves as passes of its team beside its own.
 #[test]
 fn the_stability_check_runs_in_the_team() {
     use crate::integrate::{Method, OdeOptions};
@@ -361,7 +361,7 @@ fn the_stability_check_runs_in_the_team() {
     let run = s.rhs_evals + s.extra["newton_iterations"].as_u64().unwrap() as usize;
     let passes = TEST_PASSES.with(|p| p.get());
     assert!(
-        passes >= 184 + run,
+        passes >= 183 + run,
         "{passes} passes, {run} of them the run's"
     );
 }
@@ -398,10 +398,67 @@ fn one_thread_pool_and_nested_joins_run_in_order() {
         assert_eq!((a, b), (me, me));
         let one = TeamReport {
             rule: Rule::One,
+            clock: rep.clock,
             ..TeamReport::default()
         };
         assert_eq!(rep, one);
     });
+}
+
+/// Busy-waits `ms` milliseconds of this thread's CPU time (work of a
+/// known length however loaded the machine).
+fn work(ms: u64) {
+    let t = cpu();
+    while cpu() - t < 1e-3 * ms as f64 {
+        std::hint::spin_loop();
+    }
+}
+
+/// The run's clock counts each outermost pass in halves once, its
+/// nested joins not again, and each half's own time on its thread:
+/// with passes nested three deep, each level's halves 2 ms and 1 ms of
+/// their own, counting the nested joins would put more time in halves
+/// than in the run.
+#[test]
+fn the_clock_counts_outermost_passes_once() {
+    fn nest(level: u32) {
+        if level > 0 {
+            join(
+                || {
+                    work(2);
+                    nest(level - 1)
+                },
+                || work(1),
+            );
+        }
+    }
+    for threads in [Threads::One, Threads::Two] {
+        let ((), rep) = with_threads(threads, || {
+            run(true, 0, || {
+                work(3);
+                nest(3);
+                let r = one_thread_form(|| {
+                    work(2);
+                    7
+                });
+                assert_eq!(r, 7);
+            })
+        });
+        let c = rep.clock;
+        // at least: 3 levels of 2 ms + 1 ms in halves (in turn) or 2 ms
+        // (two threads), plus the 2 ms of the one-thread form
+        let min_halves = if threads == Threads::One { 11e-3 } else { 8e-3 };
+        assert!(c.halves_s >= min_halves, "{threads:?}: {c:?}");
+        assert!(c.run_s >= c.halves_s + 3e-3, "{threads:?}: {c:?}");
+        // the halves: the first 3 × 2 ms + 2 + 1 ms nested in it, the
+        // second 1 ms; the one-thread form's 2 ms counts as two halves
+        assert!(c.work_s >= 11e-3, "{threads:?}: {c:?}");
+        assert!(c.longer_s >= 9e-3, "{threads:?}: {c:?}");
+        assert!(c.longer_s <= c.work_s, "{threads:?}: {c:?}");
+        if threads == Threads::One {
+            assert!(c.work_s <= c.halves_s, "{threads:?}: {c:?}");
+        }
+    }
 }
 
 #[test]
