@@ -125,17 +125,7 @@ pub fn add_link_chain(
     attach_chain_kernels(builder, &bodies, &joints, &points, pivot);
     let mut springs = Vec::new();
     if c.stiffness != 0.0 || c.damping != 0.0 {
-        let elements: Vec<TorsionalSpringDamper> = bodies
-            .windows(2)
-            .map(|b| {
-                TorsionalSpringDamper::new(
-                    BodyRef::Body(b[0]),
-                    BodyRef::Body(b[1]),
-                    c.stiffness,
-                    c.damping,
-                )
-            })
-            .collect();
+        let elements = TorsionalSpringDamper::in_chain(&bodies, c.stiffness, c.damping);
         springs = elements
             .iter()
             .map(|s| builder.add_force(s.clone()))

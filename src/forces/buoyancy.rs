@@ -1,14 +1,14 @@
 //! Static buoyancy (docs/problems.md, problem B).
 
-use super::{check_coordinates, Check, ForceElement};
-use crate::model::ModelError;
+use super::{check_coordinates, Check};
+use crate::model::{BodyLoads, ModelError};
 
 /// Static buoyancy of fully submerged bodies in still fluid (docs/problems.md, problem B,
 /// "buoyancy"): a constant uplift `ρ_w g V` along +y on every listed body,
 /// applied at its centre (no torque). For a rod segment `V = w² l_s`.
 ///
 /// One element may cover many bodies. The force does not depend on the state,
-/// so [`ForceElement::jacobian_coordinates`] is empty. Potential energy
+/// so it is a [`BodyLoads`] (no Jacobian block). Potential energy
 /// `−Σ ρ_w g V y`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Buoyancy {
@@ -27,54 +27,33 @@ impl Buoyancy {
     }
 }
 
-impl ForceElement for Buoyancy {
-    fn name(&self) -> String {
+impl BodyLoads for Buoyancy {
+    fn label(&self) -> String {
         format!("buoyancy ({} bodies)", self.bodies.len())
     }
 
-    fn coordinates(&self) -> Vec<usize> {
+    fn loaded_coordinates(&self) -> Vec<usize> {
         let mut c: Vec<usize> = self.bodies.iter().map(|&(b, _)| 3 * b + 1).collect();
         c.sort_unstable();
         c.dedup();
         c
     }
 
-    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        self.add_forces_on_bodies(t, q, qd, g, 0..usize::MAX)
-    }
-
-    fn jacobian_coordinates(&self) -> Vec<usize> {
-        Vec::new()
-    }
-
-    fn separable_by_body(&self) -> bool {
-        true
-    }
-
-    fn add_forces_on_bodies(
-        &self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
-        g: &mut [f64],
-        bodies: std::ops::Range<usize>,
-    ) {
+    fn add_loads(&self, g: &mut [f64], bodies: std::ops::Range<usize>) {
         for &(b, v) in self.bodies.iter().filter(|(b, _)| bodies.contains(b)) {
             g[3 * b + 1] += self.uplift(v);
         }
     }
 
-    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
-        Some(
-            self.bodies
-                .iter()
-                .map(|&(b, v)| -self.uplift(v) * q[3 * b + 1])
-                .sum(),
-        )
+    fn load_energy(&self, q: &[f64]) -> f64 {
+        self.bodies
+            .iter()
+            .map(|&(b, v)| -self.uplift(v) * q[3 * b + 1])
+            .sum()
     }
 
-    fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
-        let name = self.name();
+    fn check(&self, n_coords: usize) -> Result<(), ModelError> {
+        let name = self.label();
         let check = Check { element: &name };
         check.sign("fluid_density", self.fluid_density, false)?;
         check.sign("gravity", self.gravity, false)?;
@@ -87,13 +66,13 @@ impl ForceElement for Buoyancy {
                 ));
             }
         }
-        if self.coordinates().len() != self.bodies.len() {
+        if self.loaded_coordinates().len() != self.bodies.len() {
             return Err(check.fail(
                 "bodies",
                 format!("{:?}", self.bodies),
                 "each body may appear only once",
             ));
         }
-        check_coordinates(&name, &self.coordinates(), n_coords)
+        check_coordinates(&name, &self.loaded_coordinates(), n_coords)
     }
 }

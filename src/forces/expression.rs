@@ -258,6 +258,27 @@ impl ExpressionLoadBuilder {
         }
     }
 
+    /// The force `f u` at the point `plus.1` of body `plus.0` and `−f u` at
+    /// `minus.1` of body `minus.0` (`None`: the ground, which takes nothing).
+    fn add_force_pair(
+        &mut self,
+        f: Id,
+        u: [Id; 2],
+        plus: (Option<usize>, [Id; 2]),
+        minus: (Option<usize>, [Id; 2]),
+    ) {
+        let c = &mut self.ctx;
+        let (fx, fy) = (c.mul(f, u[0]), c.mul(f, u[1]));
+        if let (Some(k), p) = plus {
+            self.add_point_force(k, p, [fx, fy]);
+        }
+        if let (Some(k), p) = minus {
+            let c = &mut self.ctx;
+            let (nx, ny) = (c.neg(fx), c.neg(fy));
+            self.add_point_force(k, p, [nx, ny]);
+        }
+    }
+
     /// A force `(fx, fy)` in the global frame \[N\] at the body-fixed point
     /// `point` of `body`.
     pub fn force(
@@ -311,16 +332,7 @@ impl ExpressionLoadBuilder {
         let (a1, a2) = (c.mul(ux, dvx), c.mul(uy, dvy));
         let rate = c.add(a1, a2);
         let f = self.parse("force", force, &[("length", len), ("length_rate", rate)])?;
-        let c = &mut self.ctx;
-        let (fx, fy) = (c.mul(f, ux), c.mul(f, uy));
-        if let Some(k) = ka {
-            self.add_point_force(k, pa, [fx, fy]);
-        }
-        if let Some(k) = kb {
-            let c = &mut self.ctx;
-            let (nx, ny) = (c.neg(fx), c.neg(fy));
-            self.add_point_force(k, pb, [nx, ny]);
-        }
+        self.add_force_pair(f, [ux, uy], (ka, pa), (kb, pb));
         Ok(self)
     }
 

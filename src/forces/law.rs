@@ -126,38 +126,26 @@ impl Law {
                         &format!("needs as many values as abscissae ({})", x.len()),
                     ));
                 }
-                for (i, v) in x.iter().enumerate() {
-                    if !v.is_finite() {
-                        return Err(bad(&format!(".x[{i}]"), v.to_string(), "must be finite"));
+                for (name, v) in [("x", x), ("f", f)] {
+                    if let Some(i) = v.iter().position(|v| !v.is_finite()) {
+                        return Err(bad(
+                            &format!(".{name}[{i}]"),
+                            v[i].to_string(),
+                            "must be finite",
+                        ));
                     }
                 }
-                for (i, v) in f.iter().enumerate() {
-                    if !v.is_finite() {
-                        return Err(bad(&format!(".f[{i}]"), v.to_string(), "must be finite"));
-                    }
-                }
+                // entry i of `v` (`name`) against its predecessor
+                let step = |name: &str, v: &[f64], i: usize, rule: &str| {
+                    let before = format!("{rule} ({name}[{}] = {})", i - 1, v[i - 1]);
+                    bad(&format!(".{name}[{i}]"), v[i].to_string(), &before)
+                };
                 for i in 1..x.len() {
                     if x[i] <= x[i - 1] {
-                        return Err(bad(
-                            &format!(".x[{i}]"),
-                            x[i].to_string(),
-                            &format!(
-                                "abscissae must increase strictly (x[{}] = {})",
-                                i - 1,
-                                x[i - 1]
-                            ),
-                        ));
+                        return Err(step("x", x, i, "abscissae must increase strictly"));
                     }
                     if monotone && f[i] < f[i - 1] {
-                        return Err(bad(
-                            &format!(".f[{i}]"),
-                            f[i].to_string(),
-                            &format!(
-                                "the law must be non-decreasing (f[{}] = {})",
-                                i - 1,
-                                f[i - 1]
-                            ),
-                        ));
+                        return Err(step("f", f, i, "the law must be non-decreasing"));
                     }
                 }
             }

@@ -36,7 +36,9 @@ pub use rotational::RotationalSpringDamper;
 pub use spring::PointSpringDamper;
 pub use torsional::TorsionalSpringDamper;
 
-pub use crate::model::{check_coordinates, FdWorkspace, ForceElement, ForceJacobians, Gravity};
+pub use crate::model::{
+    check_coordinates, BodyLoads, FdWorkspace, ForceElement, ForceJacobians, Gravity,
+};
 
 use crate::model::{BodyRef, ModelError};
 

@@ -1,6 +1,6 @@
 //! The relative angle `Δφ = φ_j − φ_i` of two bodies, either of them
-//! possibly the ground (angle and rate 0): the bookkeeping shared by the
-//! rotational and the torsional spring–damper.
+//! possibly the ground (angle and rate 0): the bookkeeping of the
+//! rotational spring–damper (and so of the torsional one, its linear case).
 
 use crate::model::BodyRef;
 

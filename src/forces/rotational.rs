@@ -18,8 +18,8 @@ use crate::model::{BodyRef, ModelError};
 /// `∂T/∂φ̇_j = −c'` (`k'`, `c'` the law slopes), with the opposite signs
 /// for body i. Potential energy `V = ∫₀^{Δφ − rest_angle} stiffness`.
 ///
-/// The rod's [`super::TorsionalSpringDamper`] is the linear case with
-/// its own (generated-kernel) bookkeeping; it is kept as it is.
+/// The rod's [`super::TorsionalSpringDamper`] is the linear case under
+/// its own name and parameters (`k`, `c`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RotationalSpringDamper {
     /// First body (receives `−T`); may be the ground.

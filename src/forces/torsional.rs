@@ -1,7 +1,6 @@
 //! Torsional spring–damper between two bodies (bending of the rod, problem B (docs/problems.md)).
 
-use super::relative_angle::AnglePair;
-use super::{check_coordinates, Check, ForceElement, ForceJacobians};
+use super::{check_coordinates, Check, ForceElement, ForceJacobians, RotationalSpringDamper};
 use crate::model::{BodyRef, ModelError};
 
 /// Linear torsional spring–damper acting on the relative angle of two bodies
@@ -12,7 +11,8 @@ use crate::model::{BodyRef, ModelError};
 /// Either side may be [`BodyRef::Ground`], whose angle and rate are 0 (the
 /// rod builders use a ground `body_i` for the clamped cantilever base).
 /// Potential energy `½ k (Δφ − rest_angle)²`. Jacobians are analytic and
-/// constant: `∂g/∂φ = ∓k`, `∂g/∂φ̇ = ∓c`.
+/// constant: `∂g/∂φ = ∓k`, `∂g/∂φ̇ = ∓c`. The law is that of a
+/// [`RotationalSpringDamper`] with linear stiffness and damping.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TorsionalSpringDamper {
     /// First body (receives `−T`); may be the ground.
@@ -39,15 +39,24 @@ impl TorsionalSpringDamper {
         }
     }
 
-    /// The two bodies.
-    fn pair(&self) -> AnglePair {
-        AnglePair::new(self.body_i, self.body_j)
+    /// A spring–damper `k`, `c` in every joint of a chain of `bodies`
+    /// (between consecutive ones), relaxed at `Δφ = 0`.
+    pub(crate) fn in_chain(bodies: &[usize], k: f64, c: f64) -> Vec<Self> {
+        bodies
+            .windows(2)
+            .map(|b| Self::new(BodyRef::Body(b[0]), BodyRef::Body(b[1]), k, c))
+            .collect()
+    }
+
+    /// The same element as a [`RotationalSpringDamper`] with linear laws,
+    /// whose torque, Jacobians and energy it uses.
+    fn law(&self) -> RotationalSpringDamper {
+        RotationalSpringDamper::linear(self.body_i, self.body_j, self.rest_angle, self.k, self.c)
     }
 
     /// The torque `T` on body j (body i receives `−T`).
     pub fn torque(&self, q: &[f64], qd: &[f64]) -> f64 {
-        let (dphi, drate) = self.pair().relative(q, qd);
-        -self.k * (dphi - self.rest_angle) - self.c * drate
+        self.law().torque(q, qd)
     }
 }
 
@@ -60,22 +69,19 @@ impl ForceElement for TorsionalSpringDamper {
     }
 
     fn coordinates(&self) -> Vec<usize> {
-        self.pair().coordinates()
+        self.law().coordinates()
     }
 
-    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        self.pair().add_torque(self.torque(q, qd), g);
+    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+        self.law().add_forces(t, q, qd, g)
     }
 
-    fn add_jacobians(&self, _t: f64, _q: &[f64], _qd: &[f64], out: ForceJacobians<'_>) {
-        let ForceJacobians { dq, dqd, .. } = out;
-        // g_j = −k(φ_j − φ_i − r) − c(φ̇_j − φ̇_i), g_i = −g_j
-        self.pair().add_jacobians(self.k, self.c, dq, dqd);
+    fn add_jacobians(&self, t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
+        self.law().add_jacobians(t, q, qd, out)
     }
 
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
-        let e = self.pair().relative(q, q).0 - self.rest_angle;
-        Some(0.5 * self.k * e * e)
+        self.law().potential_energy(q)
     }
 
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {

@@ -75,6 +75,60 @@ pub trait ForceElement: Send + Sync + Debug {
     }
 }
 
+/// State-independent loads, each on a single body (gravity, buoyancy): a
+/// [`ForceElement`] with no Jacobian block (`∂g/∂q = ∂g/∂q̇ = 0`) that splits
+/// by body ([`ForceElement::separable_by_body`]). Implementing this trait
+/// implements [`ForceElement`].
+pub trait BodyLoads: Send + Sync + Debug {
+    /// Description used in messages ([`ForceElement::name`]).
+    fn label(&self) -> String;
+    /// The loaded coordinates ([`ForceElement::coordinates`]).
+    fn loaded_coordinates(&self) -> Vec<usize>;
+    /// Add the loads on the bodies in `bodies` to `g`.
+    fn add_loads(&self, g: &mut [f64], bodies: std::ops::Range<usize>);
+    /// Potential energy of the loads at `q` \[J\].
+    fn load_energy(&self, q: &[f64]) -> f64;
+    /// Check parameters ([`ForceElement::validate`]). Default: the
+    /// coordinates only.
+    fn check(&self, n_coords: usize) -> Result<(), ModelError> {
+        check_coordinates(&self.label(), &self.loaded_coordinates(), n_coords)
+    }
+}
+
+impl<L: BodyLoads> ForceElement for L {
+    fn name(&self) -> String {
+        self.label()
+    }
+    fn coordinates(&self) -> Vec<usize> {
+        self.loaded_coordinates()
+    }
+    fn add_forces(&self, _t: f64, _q: &[f64], _qd: &[f64], g: &mut [f64]) {
+        self.add_loads(g, 0..usize::MAX)
+    }
+    fn jacobian_coordinates(&self) -> Vec<usize> {
+        Vec::new()
+    }
+    fn separable_by_body(&self) -> bool {
+        true
+    }
+    fn add_forces_on_bodies(
+        &self,
+        _t: f64,
+        _q: &[f64],
+        _qd: &[f64],
+        g: &mut [f64],
+        bodies: std::ops::Range<usize>,
+    ) {
+        self.add_loads(g, bodies)
+    }
+    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
+        Some(self.load_energy(q))
+    }
+    fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
+        self.check(n_coords)
+    }
+}
+
 /// A force element described as data ([`ForceElement::geometry`]), what a
 /// drawing of the model needs. Points are in the body frame (global for the
 /// ground) \[m\].

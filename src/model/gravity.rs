@@ -1,6 +1,6 @@
 //! Uniform gravity.
 
-use super::ForceElement;
+use super::BodyLoads;
 
 /// Uniform gravity `m g` on every listed body (g = (0, −9.81) m/s² in the
 /// reference problems). Potential energy `−Σ m g·r`.
@@ -12,44 +12,26 @@ pub struct Gravity {
     pub bodies: Vec<(usize, f64)>,
 }
 
-impl ForceElement for Gravity {
-    fn name(&self) -> String {
+impl BodyLoads for Gravity {
+    fn label(&self) -> String {
         "gravity".into()
     }
-    fn coordinates(&self) -> Vec<usize> {
+    fn loaded_coordinates(&self) -> Vec<usize> {
         self.bodies
             .iter()
             .flat_map(|&(b, _)| [3 * b, 3 * b + 1])
             .collect()
     }
-    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        self.add_forces_on_bodies(t, q, qd, g, 0..usize::MAX)
-    }
-    fn jacobian_coordinates(&self) -> Vec<usize> {
-        Vec::new()
-    }
-    fn separable_by_body(&self) -> bool {
-        true
-    }
-    fn add_forces_on_bodies(
-        &self,
-        _t: f64,
-        _q: &[f64],
-        _qd: &[f64],
-        g: &mut [f64],
-        bodies: std::ops::Range<usize>,
-    ) {
+    fn add_loads(&self, g: &mut [f64], bodies: std::ops::Range<usize>) {
         for &(b, m) in self.bodies.iter().filter(|(b, _)| bodies.contains(b)) {
             g[3 * b] += m * self.g[0];
             g[3 * b + 1] += m * self.g[1];
         }
     }
-    fn potential_energy(&self, q: &[f64]) -> Option<f64> {
-        Some(
-            self.bodies
-                .iter()
-                .map(|&(b, m)| -m * (self.g[0] * q[3 * b] + self.g[1] * q[3 * b + 1]))
-                .sum(),
-        )
+    fn load_energy(&self, q: &[f64]) -> f64 {
+        self.bodies
+            .iter()
+            .map(|&(b, m)| -m * (self.g[0] * q[3 * b] + self.g[1] * q[3 * b + 1]))
+            .sum()
     }
 }

@@ -25,7 +25,9 @@ pub use body::{Body, BodyRef};
 pub(crate) use constraint::touched_columns;
 pub use constraint::{check_bodies, Constraint, JointGeometry};
 pub use energy::EnergyWorkspace;
-pub use force::{check_coordinates, FdWorkspace, ForceElement, ForceGeometry, ForceJacobians};
+pub use force::{
+    check_coordinates, BodyLoads, FdWorkspace, ForceElement, ForceGeometry, ForceJacobians,
+};
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
 pub use sensor::joint_short_name;

@@ -4,9 +4,12 @@
 //! fields of its struct, so a typo lists this type's keys and suggests the
 //! nearest, and errors keep their key path (`force[2].damping`).
 
+use super::model::{body_index, body_point, body_ref, RawPoint};
 use super::{error, ScenarioError};
+use crate::model::BodyRef;
 use serde::de::{self, DeserializeOwned, Visitor};
 use serde::Deserialize;
+use std::collections::HashMap;
 
 /// One tagged table as written: its keys and values, read by type later.
 #[derive(Debug, Clone, Deserialize)]
@@ -88,6 +91,27 @@ impl Kind {
         read(raw, &self.path(k), &format!("{name} {}", self.what), file)
     }
 
+    /// Where table `k` (`raw`) is, with the model's names.
+    pub(super) fn site<'a>(
+        &'static self,
+        raw: &RawTagged,
+        k: usize,
+        names: &'a HashMap<String, usize>,
+        ends: &'a HashMap<usize, f64>,
+        file: &'a str,
+    ) -> Site<'a> {
+        Site {
+            kind: self,
+            k,
+            names,
+            ends,
+            file,
+            name: raw
+                .name()
+                .map_or_else(|| format!("{}{}", self.table, k + 1), str::to_string),
+        }
+    }
+
     /// The row of `types` that the `type` of table `k` names ([`tag`]),
     /// after checking its optional `name` ([`check_name`]).
     pub(super) fn decl<'t, A>(
@@ -101,6 +125,76 @@ impl Kind {
         let kind = tag(raw, &path, self.table, types.iter().map(|t| t.name), file)?;
         check_name(raw, &path, file)?;
         Ok(types.iter().find(|t| t.name == kind).expect("tag checked"))
+    }
+}
+
+/// Where an element's table is (`force[k]`, `joint[k]`, `sensor[k]`) and
+/// the model's names its keys resolve against: the key paths, errors,
+/// bodies and points every `[[force]]`, `[[joint]]` and `[[sensor]]` type
+/// reads its table with.
+pub(super) struct Site<'a> {
+    /// The kind of table.
+    pub(super) kind: &'static Kind,
+    /// The index k of the table.
+    pub(super) k: usize,
+    /// Body index by name.
+    pub(super) names: &'a HashMap<String, usize>,
+    /// The half length of every rod segment and chain link by body index.
+    pub(super) ends: &'a HashMap<usize, f64>,
+    /// The scenario file, for errors.
+    pub(super) file: &'a str,
+    /// The element's name: its `name`, default `<table>{k+1}`.
+    pub(super) name: String,
+}
+
+impl Site<'_> {
+    /// `<table>[k].<fld>`.
+    pub(super) fn key(&self, fld: &str) -> String {
+        format!("{}.{fld}", self.kind.path(self.k))
+    }
+
+    /// An error at `<table>[k].<fld>`.
+    pub(super) fn err(&self, fld: &str, message: impl Into<String>) -> ScenarioError {
+        error(self.file, self.key(fld), message)
+    }
+
+    /// The body (or ground) named at `fld`.
+    pub(super) fn body_ref(&self, fld: &str, name: &str) -> Result<BodyRef, ScenarioError> {
+        body_ref(self.names, self.file, self.key(fld), name)
+    }
+
+    /// The body (not the ground) named at `fld`.
+    pub(super) fn body_index(&self, fld: &str, name: &str) -> Result<usize, ScenarioError> {
+        body_index(self.names, self.file, self.key(fld), name)
+    }
+
+    /// `body_i` and `body_j` of a two-body element (`what`, e.g. "a
+    /// spring"), which must differ.
+    pub(super) fn two_bodies(
+        &self,
+        what: &str,
+        body_i: &str,
+        body_j: &str,
+    ) -> Result<(BodyRef, BodyRef), ScenarioError> {
+        let bi = self.body_ref("body_i", body_i)?;
+        let bj = self.body_ref("body_j", body_j)?;
+        if bi == bj {
+            return Err(self.err(
+                "body_j",
+                format!("{what} must connect two different bodies, got '{body_j}' twice"),
+            ));
+        }
+        Ok((bi, bj))
+    }
+
+    /// The body-frame point at `fld` on `body` (`None`: the origin).
+    pub(super) fn point(
+        &self,
+        fld: &str,
+        p: Option<RawPoint>,
+        body: BodyRef,
+    ) -> Result<[f64; 2], ScenarioError> {
+        body_point(p, body, self.ends, self.file, self.key(fld))
     }
 }
 

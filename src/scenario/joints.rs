@@ -2,9 +2,9 @@
 //! `drive_coordinate`, `drive_angle`), read from the joint's table after
 //! its `type` ([`super::element`]), and the constraint each builds.
 
-use super::element::{Decl, ElementType, Kind, RawTagged};
-use super::model::{body_index, body_point, body_ref, time_function, RawPoint};
-use super::{error, ScenarioError};
+use super::element::{Decl, ElementType, Kind, RawTagged, Site};
+use super::model::{time_function, RawPoint};
+use super::ScenarioError;
 use crate::constraints::{
     expression_motion, spline_motion, DriveCoordinate, DriveRelativeAngle, Revolute, Spline,
     Translational,
@@ -15,48 +15,24 @@ use std::collections::HashMap;
 
 /// What a joint type builds with.
 pub(super) struct Context<'a> {
+    /// Where `joint[k]` is, its name and the model's names (its key, error
+    /// and body helpers, through `Deref`).
+    site: Site<'a>,
     /// The system being built.
     builder: &'a mut SystemBuilder,
-    /// The index k of `joint[k]`.
-    k: usize,
-    /// The joint's name (`name`, default `joint{k+1}`).
-    name: String,
-    /// Body index by name.
-    names: &'a HashMap<String, usize>,
-    /// The half length of every rod segment and chain link by body index.
-    ends: &'a HashMap<usize, f64>,
-    /// The scenario file, for errors.
-    file: &'a str,
+}
+
+impl<'a> std::ops::Deref for Context<'a> {
+    type Target = Site<'a>;
+    fn deref(&self) -> &Site<'a> {
+        &self.site
+    }
 }
 
 impl Context<'_> {
-    fn key(&self, fld: &str) -> String {
-        format!("joint[{}].{fld}", self.k)
-    }
-    fn err(&self, fld: &str, message: impl Into<String>) -> ScenarioError {
-        error(self.file, self.key(fld), message)
-    }
-    fn body_ref(&self, fld: &str, name: &str) -> Result<BodyRef, ScenarioError> {
-        body_ref(self.names, self.file, self.key(fld), name)
-    }
-    fn point(&self, fld: &str, p: RawPoint, b: BodyRef) -> Result<[f64; 2], ScenarioError> {
-        body_point(Some(p), b, self.ends, self.file, self.key(fld))
-    }
     /// The `motion` of a drive ([`function_of_time`]).
     fn motion(&self, v: toml::Value) -> Result<TimeFunction, ScenarioError> {
         function_of_time(v, "motion").map_err(|(k, m)| self.err(&k, m))
-    }
-    /// `body_i` and `body_j`, which must differ.
-    fn two_bodies(&self, body_i: &str, body_j: &str) -> Result<(BodyRef, BodyRef), ScenarioError> {
-        let bi = self.body_ref("body_i", body_i)?;
-        let bj = self.body_ref("body_j", body_j)?;
-        if bi == bj {
-            return Err(self.err(
-                "body_j",
-                format!("a joint must connect two different bodies, got '{body_j}' twice"),
-            ));
-        }
-        Ok((bi, bj))
     }
 }
 
@@ -138,7 +114,7 @@ pub(in crate::scenario) fn function_of_time(
 }
 
 /// The `[[joint]]` tables.
-const JOINT: Kind = Kind::new("joint", "joint");
+static JOINT: Kind = Kind::new("joint", "joint");
 
 /// A joint type's row of [`TYPES`].
 pub(super) type JointDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
@@ -169,14 +145,8 @@ pub(super) fn add_joint(
 ) -> Result<(), ScenarioError> {
     let decl = JOINT.decl(raw, TYPES, k, file)?;
     let mut cx = Context {
+        site: JOINT.site(raw, k, names, ends, file),
         builder,
-        k,
-        name: raw
-            .name()
-            .map_or_else(|| format!("joint{}", k + 1), str::to_string),
-        names,
-        ends,
-        file,
     };
     (decl.add)(raw, &mut cx)
 }
@@ -198,10 +168,10 @@ struct RevoluteJoint {
 impl ElementType<Context<'_>> for RevoluteJoint {
     const TYPE: &'static str = "revolute";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
-        let pi = cx.point("point_i", self.point_i, bi)?;
-        let pj = cx.point("point_j", self.point_j, bj)?;
-        let name = std::mem::take(&mut cx.name);
+        let (bi, bj) = cx.two_bodies("a joint", &self.body_i, &self.body_j)?;
+        let pi = cx.point("point_i", Some(self.point_i), bi)?;
+        let pj = cx.point("point_j", Some(self.point_j), bj)?;
+        let name = std::mem::take(&mut cx.site.name);
         cx.builder
             .add_constraint(Revolute::new(name, bi, pi, bj, pj));
         Ok(())
@@ -229,9 +199,9 @@ struct TranslationalJoint {
 impl ElementType<Context<'_>> for TranslationalJoint {
     const TYPE: &'static str = "translational";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (bi, bj) = cx.two_bodies(&self.body_i, &self.body_j)?;
-        let pi = cx.point("point_i", self.point_i, bi)?;
-        let pj = cx.point("point_j", self.point_j, bj)?;
+        let (bi, bj) = cx.two_bodies("a joint", &self.body_i, &self.body_j)?;
+        let pi = cx.point("point_i", Some(self.point_i), bi)?;
+        let pj = cx.point("point_j", Some(self.point_j), bj)?;
         let axis = self.axis_i;
         let len = axis[0].hypot(axis[1]);
         if !len.is_finite() || len <= 0.0 {
@@ -245,7 +215,7 @@ impl ElementType<Context<'_>> for TranslationalJoint {
             BodyRef::Body(i) => cx.builder.bodies()[i].q0[2],
         };
         let theta0 = angle(bj) - angle(bi);
-        let name = std::mem::take(&mut cx.name);
+        let name = std::mem::take(&mut cx.site.name);
         cx.builder
             .add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
         Ok(())
@@ -268,7 +238,7 @@ struct DriveCoordinateJoint {
 impl ElementType<Context<'_>> for DriveCoordinateJoint {
     const TYPE: &'static str = "drive_coordinate";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let b = body_index(cx.names, cx.file, cx.key("body"), &self.body)?;
+        let b = cx.body_index("body", &self.body)?;
         let c = match self.coordinate.as_str() {
             "x" => 0,
             "y" => 1,
@@ -276,7 +246,7 @@ impl ElementType<Context<'_>> for DriveCoordinateJoint {
             o => return Err(cx.err("coordinate", format!("'{o}' is not one of x, y, phi"))),
         };
         let f = cx.motion(self.motion)?;
-        let name = std::mem::take(&mut cx.name);
+        let name = std::mem::take(&mut cx.site.name);
         cx.builder
             .add_constraint(DriveCoordinate::new(name, b, c, f));
         Ok(())
@@ -301,7 +271,7 @@ impl ElementType<Context<'_>> for DriveAngleJoint {
         let bi = cx.body_ref("body_i", &self.body_i)?;
         let bj = cx.body_ref("body_j", &self.body_j)?;
         let f = cx.motion(self.motion)?;
-        let name = std::mem::take(&mut cx.name);
+        let name = std::mem::take(&mut cx.site.name);
         cx.builder
             .add_constraint(DriveRelativeAngle::new(name, bi, bj, f));
         Ok(())

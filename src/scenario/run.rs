@@ -152,14 +152,18 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     ode.fixed_step = ri.step;
     ode.max_step = ri.max_step;
     ode.initial_step = ri.initial_step;
+    // a count at `integrator.<key>`; a negative one is invalid because `must`
+    let count = |key: &str, v: i64, must: &str| {
+        usize::try_from(v).map_err(|_| {
+            err(
+                format!("integrator.{key}"),
+                format!("{v} is invalid: {must}"),
+            )
+        })
+    };
     if let Some(v) = ri.max_order {
         // a negative value is out of 1 … 5 (OdeOptions::validate names it)
-        ode.max_order = usize::try_from(v).map_err(|_| {
-            err(
-                "integrator.max_order".into(),
-                format!("{v} is invalid: must be 1, 2, 3, 4 or 5"),
-            )
-        })?;
+        ode.max_order = count("max_order", v, "must be 1, 2, 3, 4 or 5")?;
     }
     ode.ndf = ri.ndf.unwrap_or(false);
     let threads: Threads = match &ri.threads {
@@ -180,12 +184,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
     }
     implicit.min_step = ri.min_step;
     if let Some(v) = ri.max_newton {
-        implicit.max_newton = usize::try_from(v).map_err(|_| {
-            err(
-                "integrator.max_newton".into(),
-                format!("{v} is invalid: must be ≥ 1"),
-            )
-        })?;
+        implicit.max_newton = count("max_newton", v, "must be ≥ 1")?;
     }
     for (flag, slot) in [
         (ri.adaptive, &mut implicit.adaptive),
@@ -544,17 +543,18 @@ fn augmented_lagrangian(
     if formulation != Formulation::AugmentedLagrangian {
         return Ok(AugmentedParams::default());
     }
-    let ri = &raw.integrator;
-    for (key, present) in [
-        ("adaptive", ri.adaptive.is_some()),
-        ("project", ri.project.is_some()),
-        ("reuse", ri.reuse.is_some()),
-        ("filter_error", ri.filter_error.is_some()),
-        ("check_constraints", ri.check_constraints.is_some()),
-        ("lu", ri.lu.is_some()),
-        ("extrapolate", ri.extrapolate.is_some()),
-    ] {
-        if present {
+    // generalized-α's keys that the augmented Lagrangian does not use
+    let unused = [
+        "adaptive",
+        "project",
+        "reuse",
+        "filter_error",
+        "check_constraints",
+        "lu",
+        "extrapolate",
+    ];
+    for (key, present) in integrator_keys(&raw.integrator) {
+        if present && unused.contains(&key) {
             return Err((
                 format!("integrator.{key}"),
                 "does not apply to formulation = \"augmented_lagrangian\" (fixed step, \

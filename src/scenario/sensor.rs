@@ -2,8 +2,8 @@
 //! `joint_angle`, `distance`, `force_element`, `contact`.
 
 use super::element::{Decl, Kind, RawTagged};
-use super::model::{body_point, body_ref, RawPoint};
-use super::{error, ScenarioError};
+use super::model::RawPoint;
+use super::ScenarioError;
 use crate::model::{joint_short_name, Sensor, SensorKind, System};
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -60,7 +60,7 @@ enum Spec {
 }
 
 /// The `[[sensor]]` tables.
-const SENSOR: Kind = Kind::new("sensor", "sensor");
+static SENSOR: Kind = Kind::new("sensor", "sensor");
 
 /// Every `[[sensor]]` type, in the order of docs/scenarios.md (read by
 /// [`spec`]).
@@ -100,8 +100,8 @@ pub(super) fn build(
 ) -> Result<Vec<Sensor>, ScenarioError> {
     let mut out: Vec<Sensor> = Vec::with_capacity(raw.len());
     for (k, s) in raw.iter().enumerate() {
-        let key = |f: &str| format!("sensor[{k}].{f}");
-        let err = |f: &str, m: String| error(file, key(f), m);
+        let site = SENSOR.site(s, k, names, ends, file);
+        let err = |f: &str, m: String| site.err(f, m);
         let name = match s.0.get("name") {
             Some(toml::Value::String(n)) => n.clone(),
             Some(v) => {
@@ -128,10 +128,10 @@ pub(super) fn build(
             return Err(err("name", format!("duplicate sensor name '{name}'")));
         }
         let decl = SENSOR.decl(s, TYPES, k, file)?;
-        let body = |f: &str, n: &str| body_ref(names, file, key(f), n);
+        let body = |f: &str, n: &str| site.body_ref(f, n);
         // `[x, y]`, or the ends of rod segments and chain links, as joints
         // and forces take them
-        let point = |f: &str, p: Option<RawPoint>, b| body_point(p, b, ends, file, key(f));
+        let point = |f: &str, p: Option<RawPoint>, b| site.point(f, p, b);
         let kind = match spec(s, decl.name, k, file)? {
             Spec::Point(p) => {
                 let b = body("body", &p.body)?;

@@ -10,16 +10,35 @@ use crate::integrate::{AlphaParameters, ImplicitStats, Span};
 /// A run's extra summary fields ([`Summary::extra`]).
 type Extra = serde_json::Map<String, serde_json::Value>;
 
-/// The index-3 methods' consistent start ([`Index3::consistent_start`]),
-/// with the warning that says how far it moved the state.
-fn index3_start(
-    f: &mut Index3<'_>,
-    cfg: &RunConfig,
-    q: &mut [f64],
-    qd: &mut [f64],
-) -> Result<Option<String>, SimulationError> {
-    let c = f.consistent_start(cfg.t0, q, qd)?;
-    Ok(c.changed().then(|| c.describe(cfg.t0, "projection")))
+/// An index-3 form's consistent start ([`Index3::consistent_start`],
+/// [`Augmented::consistent_start`]) and the name of its iterations in the
+/// warning.
+pub(super) trait StartForm {
+    /// The iterations' name in the warning.
+    fn how(&self) -> &'static str;
+    /// Move `(q, v)` at `t` onto the constraint manifold.
+    fn start(&mut self, t: f64, q: &mut [f64], v: &mut [f64]) -> StartResult;
+}
+
+/// What a consistent start returns.
+type StartResult = Result<crate::formulation::StartCorrection, FormulationError>;
+
+impl StartForm for Index3<'_> {
+    fn how(&self) -> &'static str {
+        "projection"
+    }
+    fn start(&mut self, t: f64, q: &mut [f64], v: &mut [f64]) -> StartResult {
+        self.consistent_start(t, q, v)
+    }
+}
+
+impl StartForm for Augmented<'_> {
+    fn how(&self) -> &'static str {
+        "augmented-Lagrangian"
+    }
+    fn start(&mut self, t: f64, q: &mut [f64], v: &mut [f64]) -> StartResult {
+        self.consistent_start(t, q, v)
+    }
 }
 
 /// A method bound to its formulation: the one interface [`simulate`]
@@ -27,18 +46,27 @@ fn index3_start(
 pub(super) trait MethodRun {
     /// Integrate `span` with the settings `cfg`.
     fn integrate(&mut self, cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError>;
+    /// The form that moves an inconsistent initial state onto the
+    /// constraint manifold before the run, where the method needs it (the
+    /// index-3 forms); `None`: the index-1 forms keep the given state,
+    /// their stabilization or projection treats the violation.
+    fn start_form(&mut self) -> Option<&mut dyn StartForm> {
+        None
+    }
     /// Move an inconsistent initial state onto the constraint manifold
-    /// before the run, where the method needs it (the index-3 forms:
-    /// [`Index3::consistent_start`], [`Augmented::consistent_start`]);
-    /// `Some(warning)` if it moved. The index-1 forms keep the given
-    /// state: their stabilization or projection treats the violation.
+    /// before the run ([`MethodRun::start_form`]); `Some(warning)` if it
+    /// moved.
     fn consistent_start(
         &mut self,
-        _cfg: &RunConfig,
-        _q: &mut [f64],
-        _qd: &mut [f64],
+        cfg: &RunConfig,
+        q: &mut [f64],
+        qd: &mut [f64],
     ) -> Result<Option<String>, SimulationError> {
-        Ok(None)
+        let Some(f) = self.start_form() else {
+            return Ok(None);
+        };
+        let c = f.start(cfg.t0, q, qd)?;
+        Ok(c.changed().then(|| c.describe(cfg.t0, f.how())))
     }
     /// The formulation-specific figures of the run, and extra summary
     /// fields.
@@ -182,15 +210,8 @@ impl MethodRun for AugmentedRun<'_> {
     fn integrate(&mut self, _cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError> {
         self.integ.integrate(&mut self.f, span)
     }
-    fn consistent_start(
-        &mut self,
-        cfg: &RunConfig,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SimulationError> {
-        let c = self.f.consistent_start(cfg.t0, q, qd)?;
-        Ok(c.changed()
-            .then(|| c.describe(cfg.t0, "augmented-Lagrangian")))
+    fn start_form(&mut self) -> Option<&mut dyn StartForm> {
+        Some(&mut self.f)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let gs = self.integ.stats();
@@ -329,13 +350,8 @@ impl<S: Index3Scheme> MethodRun for Index3Run<'_, S> {
     fn integrate(&mut self, _cfg: &RunConfig, span: Span<'_>) -> Result<Report, IntegratorError> {
         self.scheme.integrate(&mut self.f, span)
     }
-    fn consistent_start(
-        &mut self,
-        cfg: &RunConfig,
-        q: &mut [f64],
-        qd: &mut [f64],
-    ) -> Result<Option<String>, SimulationError> {
-        index3_start(&mut self.f, cfg, q, qd)
+    fn start_form(&mut self) -> Option<&mut dyn StartForm> {
+        Some(&mut self.f)
     }
     fn work(&self, cfg: &RunConfig) -> (Work, Extra) {
         let (factorizations, extra) = self.scheme.work(&self.f, cfg);

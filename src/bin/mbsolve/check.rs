@@ -138,19 +138,17 @@ fn report(sc: &Scenario, s: &Size) -> String {
     let mut line = |k: &str, v: String| out.push_str(&format!("{k:<22}{v}\n"));
     line("scenario", sc.name.clone());
     line("bodies", s.bodies.to_string());
-    line(
-        "coordinates",
+    // a count, with a note on the controller states when there are any
+    let with_states = |n: usize, note: String| {
         if s.states > 0 {
-            format!(
-                "{} ({} of the bodies, {} controller states)",
-                s.coordinates,
-                s.coordinates - s.states,
-                s.states
-            )
+            format!("{n} ({note})")
         } else {
-            s.coordinates.to_string()
-        },
-    );
+            n.to_string()
+        }
+    };
+    let bodies = s.coordinates - s.states;
+    let note = format!("{bodies} of the bodies, {} controller states", s.states);
+    line("coordinates", with_states(s.coordinates, note));
     line("constraint equations", s.constraints.to_string());
     line(
         "rank of Phi_q",
@@ -159,14 +157,8 @@ fn report(sc: &Scenario, s: &Size) -> String {
             s.rank
         ),
     );
-    line(
-        "degrees of freedom",
-        if s.states > 0 {
-            format!("{} (besides the {} controller states)", s.dof, s.states)
-        } else {
-            s.dof.to_string()
-        },
-    );
+    let note = format!("besides the {} controller states", s.states);
+    line("degrees of freedom", with_states(s.dof, note));
     line("redundant equations", s.redundant.to_string());
     line(
         "joints",

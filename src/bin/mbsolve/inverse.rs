@@ -41,7 +41,7 @@ fn inverse(
     // along the prescribed motion)
     inv.set_states(&sc.qd0[sys.n_body_coords()..])
         .map_err(|e| format!("{}: {e}", path.display()))?;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    crate::output::create_dir(out)?;
     let quantities = OutputQuantities {
         velocities: true,
         accelerations: true,

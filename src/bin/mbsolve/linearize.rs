@@ -112,7 +112,7 @@ pub fn command(a: &LinearizeArgs) -> Result<ExitCode, String> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| sc.name.clone());
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::output::create_dir(&a.out)?;
     let eig = eigenvalues(&ss);
     let json = a.out.join(format!("{stem}.linear.json"));
     write_atomic(&json, &(to_json(a, &sc, &ss, &eig) + "\n")).map_err(|e| e.to_string())?;

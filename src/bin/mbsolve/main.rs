@@ -366,19 +366,17 @@ fn command(cli: Cli) -> ExitCode {
             animate,
             forces,
             out,
-        } => mbsolve::drawing::arrows::ArrowSet::parse(forces.as_deref().unwrap_or(""))
-            .map_err(|e| format!("--forces: {e}"))
-            .and_then(|forces| {
-                modes::command(&modes::ModesArgs {
-                    scenario: &scenario,
-                    set: &set,
-                    count,
-                    at,
-                    out: &out,
-                    animate,
-                    forces,
-                })
-            }),
+        } => forces_arg(forces.as_deref()).and_then(|forces| {
+            modes::command(&modes::ModesArgs {
+                scenario: &scenario,
+                set: &set,
+                count,
+                at,
+                out: &out,
+                animate,
+                forces,
+            })
+        }),
         Command::Study { which: _, out } => study_constraints(&out),
         Command::Check {
             scenario,
@@ -394,8 +392,7 @@ fn command(cli: Cli) -> ExitCode {
             every,
             at,
             forces,
-        } => mbsolve::drawing::arrows::ArrowSet::parse(forces.as_deref().unwrap_or(""))
-            .map_err(|e| format!("--forces: {e}"))
+        } => forces_arg(forces.as_deref())
             .and_then(|forces| {
                 animate::animate(&animate::AnimateArgs {
                     at,
@@ -449,6 +446,12 @@ fn command(cli: Cli) -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// The force arrows of `--forces` (none when absent).
+fn forces_arg(forces: Option<&str>) -> Result<mbsolve::drawing::arrows::ArrowSet, String> {
+    mbsolve::drawing::arrows::ArrowSet::parse(forces.unwrap_or(""))
+        .map_err(|e| format!("--forces: {e}"))
 }
 
 /// `mbsolve run`: load, check the output files, run streaming the rows,

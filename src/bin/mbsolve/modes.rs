@@ -127,7 +127,7 @@ pub fn command(a: &ModesArgs) -> Result<ExitCode, String> {
     } else {
         Some(first_order(&sc, a.at, t0, &q, &qd).map_err(|e| format!("{}: {e}", path.display()))?)
     };
-    std::fs::create_dir_all(a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::output::create_dir(a.out)?;
     let stem = stem(path);
     let names: Vec<String> = coordinate_columns(sys).into_iter().flatten().collect();
     let list: Vec<_> = modes

@@ -26,6 +26,11 @@ impl OutputError {
     }
 }
 
+/// Create the directory `dir` and its parents; the error names it.
+pub fn create_dir(dir: &Path) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
+}
+
 /// The sidecar `<stem>.columns.json`: every column with its unit, and a
 /// body's coordinate columns (`crank.x`, …) with their positional name of
 /// earlier versions as `"alias"` (`x1`, …; still accepted by `plot` and the

@@ -79,8 +79,7 @@ pub struct FourBarCase {
 /// under `out/fourbar/`. Returns the cases.
 pub fn fourbar_study(out: &Path) -> Result<Vec<FourBarCase>, ReproduceError> {
     let dir = out.join("fourbar");
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| ReproduceError::Io(format!("{}: {e}", dir.display())))?;
+    crate::output::create_dir(&dir).map_err(ReproduceError::Io)?;
     let mut cases = Vec::new();
     for incorrect in [false, true] {
         let tag = if incorrect { "incorrect" } else { "correct" };
@@ -287,8 +286,7 @@ pub fn rod_study(out: &Path) -> Result<Vec<RodCase>, ReproduceError> {
     use mbsolve::events::ContactMonitor;
     use mbsolve::simulation::Monitor;
     let dir = out.join("falling_rod");
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| ReproduceError::Io(format!("{}: {e}", dir.display())))?;
+    crate::output::create_dir(&dir).map_err(ReproduceError::Io)?;
     let mut cases = Vec::new();
     let mut stab_curves: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
     for (method, alpha) in [
@@ -549,8 +547,7 @@ pub fn chain_modes_study(out: &Path) -> Result<ChainModes, ReproduceError> {
     use mbsolve::analysis::{eigenmodes, ModeOptions, Tangent};
     use mbsolve::builders::{cantilever, RodParams};
     let dir = out.join("chain_modes");
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| ReproduceError::Io(format!("{}: {e}", dir.display())))?;
+    crate::output::create_dir(&dir).map_err(ReproduceError::Io)?;
     let n = CHAIN_MODES_N;
     let mut p = RodParams::problem_b(n);
     p.tilt = std::f64::consts::PI;

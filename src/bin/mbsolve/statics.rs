@@ -168,7 +168,7 @@ pub fn command(
             ),
         )
     };
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    crate::output::create_dir(out)?;
     let stem = stem(path);
     let state_path = out.join(format!("{stem}.equilibrium.json"));
     write_atomic(&state_path, &state_json(&eq.q, &eq.velocities(), t0))

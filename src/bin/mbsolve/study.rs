@@ -38,146 +38,171 @@ const ENERGY_TOL: f64 = 1e-4;
 /// ‖Φ(t_end)‖ below this passes the incorrect start \[m\].
 const RECOVERY_TOL: f64 = 1e-5;
 
-/// One constraint-enforcement method: a label and how it sets a run up
-/// (`h` is the problem's step for the fixed-step implicit methods).
+/// One constraint-enforcement method: a label and how it sets a run up.
 pub struct StudyMethod {
     /// Short name (file names, CSV).
     pub key: &'static str,
     /// Table label.
     pub label: &'static str,
-    /// Set the run up.
-    pub apply: fn(&mut RunConfig, h: f64),
+    /// The integrator it runs on.
+    pub base: Base,
+    /// The method's own settings, on top of `base`'s.
+    pub tweak: fn(&mut RunConfig),
 }
 
-fn explicit(c: &mut RunConfig) {
-    c.method = Method::Ode45;
-    c.ode.rtol = RTOL;
-    c.ode.atol = Tolerance::Scalar(ATOL);
-    c.ode.max_steps = MAX_STEPS;
+/// The integrator a study method runs on.
+#[derive(Clone, Copy)]
+pub enum Base {
+    /// ode45 at [`RTOL`], [`ATOL`].
+    Ode45,
+    /// Generalized-α at the problem's fixed step.
+    GenAlpha,
+    /// Variable-order BDF at [`RTOL`], [`ATOL`].
+    Bdf,
 }
 
-fn implicit(c: &mut RunConfig, h: f64) {
-    c.method = Method::GenAlpha;
-    c.ode.fixed_step = Some(h);
-    c.ode.max_steps = MAX_STEPS;
+impl StudyMethod {
+    /// Set a run up: `base` (`h` is the problem's step for the fixed-step
+    /// implicit methods, at most [`MAX_STEPS`] steps), then `tweak`.
+    pub fn apply(&self, c: &mut RunConfig, h: f64) {
+        c.method = match self.base {
+            Base::Ode45 => Method::Ode45,
+            Base::GenAlpha => Method::GenAlpha,
+            Base::Bdf => Method::Bdf,
+        };
+        match self.base {
+            Base::Ode45 | Base::Bdf => {
+                c.ode.rtol = RTOL;
+                c.ode.atol = Tolerance::Scalar(ATOL);
+            }
+            Base::GenAlpha => c.ode.fixed_step = Some(h),
+        }
+        c.ode.max_steps = MAX_STEPS;
+        (self.tweak)(c);
+    }
 }
+
+/// Baumgarte α = β = 10 \[1/s\].
+const BAUMGARTE_10: Baumgarte = Baumgarte {
+    alpha: 10.0,
+    beta: 10.0,
+};
 
 /// The methods compared, in table order.
 pub fn methods() -> Vec<StudyMethod> {
+    use Base::{Bdf, GenAlpha, Ode45};
+    let row = |key, label, base, tweak: fn(&mut RunConfig)| StudyMethod {
+        key,
+        label,
+        base,
+        tweak,
+    };
     vec![
-        StudyMethod {
-            key: "none",
-            label: "index 1, eq. (5), no stabilization (ode45)",
-            apply: |c, _| explicit(c),
-        },
-        StudyMethod {
-            key: "baumgarte",
-            label: "Baumgarte α = β = 10, eq. (5) (ode45)",
-            apply: |c, _| {
-                explicit(c);
-                c.formulation.baumgarte = Baumgarte {
-                    alpha: 10.0,
-                    beta: 10.0,
-                };
+        row(
+            "none",
+            "index 1, eq. (5), no stabilization (ode45)",
+            Ode45,
+            |_| {},
+        ),
+        row(
+            "baumgarte",
+            "Baumgarte α = β = 10, eq. (5) (ode45)",
+            Ode45,
+            |c| {
+                c.formulation.baumgarte = BAUMGARTE_10;
             },
-        },
-        StudyMethod {
-            key: "eliminated",
-            label: "Baumgarte α = β = 10, λ eliminated, eq. (9) (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "eliminated",
+            "Baumgarte α = β = 10, λ eliminated, eq. (9) (ode45)",
+            Ode45,
+            |c| {
                 c.formulation.formulation = Formulation::Eliminated;
-                c.formulation.baumgarte = Baumgarte {
-                    alpha: 10.0,
-                    beta: 10.0,
-                };
+                c.formulation.baumgarte = BAUMGARTE_10;
             },
-        },
-        StudyMethod {
-            key: "projection",
-            label: "mass-orthogonal projection of q, q̇ (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "projection",
+            "mass-orthogonal projection of q, q̇ (ode45)",
+            Ode45,
+            |c| {
                 c.formulation.projection.enabled = true;
             },
-        },
-        StudyMethod {
-            key: "direct",
-            label: "direct violation correction, one M-weighted step (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "direct",
+            "direct violation correction, one M-weighted step (ode45)",
+            Ode45,
+            |c| {
                 c.formulation.projection.enabled = true;
                 c.formulation.projection.correction = Correction::Direct;
             },
-        },
-        StudyMethod {
-            key: "step_rule",
-            label: "Baumgarte α = β = 1/h, h = max step 1e-3 s (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "step_rule",
+            "Baumgarte α = β = 1/h, h = max step 1e-3 s (ode45)",
+            Ode45,
+            |c| {
                 c.ode.max_step = Some(1e-3);
                 c.formulation.baumgarte = Baumgarte::from_step(1e-3);
             },
-        },
-        StudyMethod {
-            key: "partitioned",
-            label: "coordinate partitioning, Wehage & Haug (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "partitioned",
+            "coordinate partitioning, Wehage & Haug (ode45)",
+            Ode45,
+            |c| {
                 c.formulation.formulation = Formulation::Partitioned;
             },
-        },
-        StudyMethod {
-            key: "penalty",
-            label: "penalty, α = 1e7, ξ = 1, ω = 10 (ode45)",
-            apply: |c, _| {
-                explicit(c);
+        ),
+        row(
+            "penalty",
+            "penalty, α = 1e7, ξ = 1, ω = 10 (ode45)",
+            Ode45,
+            |c| {
                 c.formulation.formulation = Formulation::Penalty;
             },
-        },
-        StudyMethod {
-            key: "alm_trapezoidal",
-            label: "index-3 augmented Lagrangian + projections, trapezoidal",
-            apply: |c, h| {
-                implicit(c, h);
+        ),
+        row(
+            "alm_trapezoidal",
+            "index-3 augmented Lagrangian + projections, trapezoidal",
+            GenAlpha,
+            |c| {
                 c.method = Method::Newmark;
                 c.implicit.rho_inf = 1.0;
                 c.implicit.max_newton = ALM_MAX_NEWTON;
                 c.formulation.formulation = Formulation::AugmentedLagrangian;
             },
-        },
-        StudyMethod {
-            key: "alm_genalpha",
-            label: "index-3 augmented Lagrangian + projections, generalized-α",
-            apply: |c, h| {
-                implicit(c, h);
+        ),
+        row(
+            "alm_genalpha",
+            "index-3 augmented Lagrangian + projections, generalized-α",
+            GenAlpha,
+            |c| {
                 c.implicit.max_newton = ALM_MAX_NEWTON;
                 c.formulation.formulation = Formulation::AugmentedLagrangian;
             },
-        },
-        StudyMethod {
-            key: "genalpha",
-            label: "index 3, generalized-α ρ∞ = 0.8",
-            apply: implicit,
-        },
-        StudyMethod {
-            key: "bdf",
-            label: "index 3, variable-order BDF (rtol 1e-6)",
-            apply: |c, _| {
-                c.method = Method::Bdf;
-                c.ode.rtol = RTOL;
-                c.ode.atol = Tolerance::Scalar(ATOL);
-                c.ode.max_steps = MAX_STEPS;
-            },
-        },
-        StudyMethod {
-            key: "genalpha_projected",
-            label: "index 3, generalized-α + projection",
-            apply: |c, h| {
-                implicit(c, h);
+        ),
+        row(
+            "genalpha",
+            "index 3, generalized-α ρ∞ = 0.8",
+            GenAlpha,
+            |_| {},
+        ),
+        row(
+            "bdf",
+            "index 3, variable-order BDF (rtol 1e-6)",
+            Bdf,
+            |_| {},
+        ),
+        row(
+            "genalpha_projected",
+            "index 3, generalized-α + projection",
+            GenAlpha,
+            |c| {
                 c.implicit.project = true;
             },
-        },
+        ),
     ]
 }
 
@@ -491,7 +516,7 @@ fn fmt_e(v: f64) -> String {
 /// their CSVs under `out/constraints/`. Returns the rows.
 pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
     let dir = out.join("constraints");
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    crate::output::create_dir(&dir)?;
     let mut rows = Vec::new();
     for p in problems()? {
         let mut norm_series = Vec::new();
@@ -499,7 +524,7 @@ pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
         let mut dev_series = Vec::new();
         for m in methods() {
             let mut c = p.base.clone();
-            (m.apply)(&mut c, p.h);
+            m.apply(&mut c, p.h);
             c.outputs.energy = true;
             let mut r = Record::default();
             let summary = match simulate_into(&p.system, &p.q0, &p.qd0, &c, &mut [], &mut r) {
@@ -561,56 +586,32 @@ pub fn constraints(out: &Path) -> Result<Vec<StudyRow>, String> {
                 summary,
             });
         }
-        let save =
-            |f: Figure, name: String| f.save(&dir, &name).map_err(|e: OutputError| e.to_string());
-        save(
-            Figure {
-                title: format!("{}: ‖Φ‖₂", p.title),
+        // one figure over time, log y: `what` in its title, saved as `<problem>_<file>`
+        let save = |what: &str, y_label: &str, series: Vec<Series>, file: &str| {
+            let f = Figure {
+                title: format!("{}: {what}", p.title),
                 x_label: "t [s]".into(),
-                y_label: "‖Φ‖₂ [m]".into(),
-                series: norm_series,
+                y_label: y_label.into(),
+                series,
                 log_y: true,
                 ..Default::default()
-            },
-            format!("{}_norm", p.key),
-        )?;
-        save(
-            Figure {
-                title: format!("{}: energy balance error", p.title),
-                x_label: "t [s]".into(),
-                y_label: "|T + V − E0 − W| [J]".into(),
-                series: energy_series,
-                log_y: true,
-                ..Default::default()
-            },
-            format!("{}_energy", p.key),
-        )?;
+            };
+            let name = format!("{}_{file}", p.key);
+            f.save(&dir, &name).map_err(|e: OutputError| e.to_string())
+        };
+        save("‖Φ‖₂", "‖Φ‖₂ [m]", norm_series, "norm")?;
+        let energy = "|T + V − E0 − W| [J]";
+        save("energy balance error", energy, energy_series, "energy")?;
         if !dev_series.is_empty() {
-            let chain = matches!(p.reference, Reference::Chain(..));
-            save(
-                Figure {
-                    title: format!(
-                        "{}: {}",
-                        p.title,
-                        if chain {
-                            "point error against the 1-DOF solution"
-                        } else {
-                            "max |q − q_ref| (ode45, rtol 1e-12, projected)"
-                        }
-                    ),
-                    x_label: "t [s]".into(),
-                    y_label: if chain {
-                        "error [m]"
-                    } else {
-                        "max |Δq| [m, rad]"
-                    }
-                    .into(),
-                    series: dev_series,
-                    log_y: true,
-                    ..Default::default()
-                },
-                format!("{}_deviation", p.key),
-            )?;
+            let (what, y_label) = if matches!(p.reference, Reference::Chain(..)) {
+                ("point error against the 1-DOF solution", "error [m]")
+            } else {
+                (
+                    "max |q − q_ref| (ode45, rtol 1e-12, projected)",
+                    "max |Δq| [m, rad]",
+                )
+            };
+            save(what, y_label, dev_series, "deviation")?;
         }
     }
     let md = table(&rows);

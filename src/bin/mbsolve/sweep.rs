@@ -639,7 +639,7 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     }
     let label = shard.map_or(String::new(), |s| format!("shard {}/{}: ", s.i, s.n));
     crate::stream::install_interrupt_handler();
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    crate::output::create_dir(&a.out)?;
     let record = Record {
         metrics: &cli_metrics,
         keep: a.keep_runs.then_some((a.out.as_path(), stem.as_str())),
@@ -746,6 +746,16 @@ pub fn command(a: &SweepArgs) -> Result<ExitCode, String> {
     })
 }
 
+/// The members of `all` that are not `present`, as "a, b, c" (`None`:
+/// none missing).
+fn missing(all: impl Iterator<Item = usize>, present: impl Fn(usize) -> bool) -> Option<String> {
+    let m: Vec<String> = all
+        .filter(|&i| !present(i))
+        .map(|i| i.to_string())
+        .collect();
+    (!m.is_empty()).then(|| m.join(", "))
+}
+
 /// Join the shard tables `<stem>_sweep.shard-I-of-N.csv` in `dir` into
 /// `<stem>_sweep.csv` (product order, without the run column). Every run
 /// 0 … total−1 must appear exactly once, all shards must share one N and
@@ -793,16 +803,8 @@ fn merge(
             s.2
         ));
     }
-    let missing: Vec<String> = (1..=n)
-        .filter(|i| !shards.iter().any(|s| s.1 == *i))
-        .map(|i| i.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(format!(
-            "{}: shard(s) {} of {n} missing",
-            dir.display(),
-            missing.join(", ")
-        ));
+    if let Some(m) = missing(1..=n, |i| shards.iter().any(|s| s.1 == i)) {
+        return Err(format!("{}: shard(s) {m} of {n} missing", dir.display()));
     }
     let mut rows: Vec<Option<csv::StringRecord>> = vec![None; total];
     for (path, _, _) in &shards {
@@ -832,15 +834,10 @@ fn merge(
             rows[k] = Some(rec.iter().skip(1).collect());
         }
     }
-    let missing: Vec<String> = (0..total)
-        .filter(|k| rows[*k].is_none())
-        .map(|k| k.to_string())
-        .collect();
-    if !missing.is_empty() {
+    if let Some(m) = missing(0..total, |k| rows[k].is_some()) {
         return Err(format!(
-            "{}: run(s) {} of the sweep are in no shard table (a shard did not finish?)",
+            "{}: run(s) {m} of the sweep are in no shard table (a shard did not finish?)",
             dir.display(),
-            missing.join(", ")
         ));
     }
     let table = dir.join(format!("{stem}_sweep.csv"));

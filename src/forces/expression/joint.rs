@@ -92,16 +92,7 @@ impl ExpressionLoadBuilder {
         }
         let speed = self.ctx.sum(&terms);
         let f = self.parse("force", force, &[("slide", slide), ("speed", speed)])?;
-        let c = &mut self.ctx;
-        let (fx, fy) = (c.mul(f, ux), c.mul(f, uy));
-        if let Some(k) = kb {
-            self.add_point_force(k, pb, [fx, fy]);
-        }
-        if let Some(k) = ka {
-            let c = &mut self.ctx;
-            let (nx, ny) = (c.neg(fx), c.neg(fy));
-            self.add_point_force(k, pb, [nx, ny]);
-        }
+        self.add_force_pair(f, [ux, uy], (kb, pb), (ka, pb));
         Ok(self)
     }
 }

@@ -6,7 +6,7 @@
 use super::{Context, ElementType};
 use crate::forces::{ExpressionError, ExpressionLoadBuilder, LinePoint};
 use crate::model::BodyRef;
-use crate::scenario::model::{body_index, body_point, body_ref, unknown_body, RawLoad, RawPoint};
+use crate::scenario::model::{unknown_body, RawLoad, RawPoint};
 use crate::scenario::{list, ScenarioError};
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -41,8 +41,7 @@ impl ElementType<Context<'_>> for Expression {
     const TYPE: &'static str = "expression";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let f = &self;
-        let (names, ends, file) = (cx.names, cx.ends, cx.file);
-        let key = |fld: &str| cx.key(fld);
+        let names = cx.names;
         let err = |fld: &str, message: String| cx.err(fld, message);
         let text = |fld: &str, l: &Option<RawLoad>| match l {
             Some(RawLoad::Text(s)) => Ok(s.clone()),
@@ -119,9 +118,9 @@ impl ElementType<Context<'_>> for Expression {
             if let Some(b) = b {
                 // checks the name (ground allowed only for line-force ends)
                 if fld == "body" {
-                    body_index(names, file, key(fld), b)?;
+                    cx.body_index(fld, b)?;
                 } else {
-                    body_ref(names, file, key(fld), b)?;
+                    cx.body_ref(fld, b)?;
                 }
                 note(b);
             }
@@ -136,11 +135,11 @@ impl ElementType<Context<'_>> for Expression {
             )
         } else if let Some(force) = &f.force {
             let end = |fld: &str, body: &Option<String>, p: Option<RawPoint>| {
-                let b = body_ref(names, file, key(fld), body.as_deref().unwrap_or_default())?;
+                let b = cx.body_ref(fld, body.as_deref().unwrap_or_default())?;
                 let fld = fld.replace("body", "point");
                 Ok::<_, ScenarioError>(LinePoint {
                     body: body.clone().filter(|b| b != "ground"),
-                    point: body_point(p, b, ends, file, key(&fld))?,
+                    point: cx.point(&fld, p, b)?,
                 })
             };
             let (a, c) = (
@@ -152,15 +151,10 @@ impl ElementType<Context<'_>> for Expression {
             }
             b.line_force(&a, &c, force)
         } else {
-            let body = body_index(
-                names,
-                file,
-                key("body"),
-                f.body.as_deref().unwrap_or_default(),
-            )?;
+            let body = cx.body_index("body", f.body.as_deref().unwrap_or_default())?;
             b.force(
                 f.body.as_deref().unwrap_or_default(),
-                body_point(f.point, BodyRef::Body(body), ends, file, key("point"))?,
+                cx.point("point", f.point, BodyRef::Body(body))?,
                 &text("fx", &f.fx)?,
                 &text("fy", &f.fy)?,
             )

@@ -5,11 +5,11 @@
 //! [`TYPES`].
 
 pub(super) use super::element::ElementType;
-use super::element::{Decl, Kind, RawTagged};
-use super::model::{body_index, body_point, body_ref, RawPoint, RawTable};
+use super::element::{Decl, Kind, RawTagged, Site};
+use super::model::RawTable;
 use super::{error, ScenarioError};
 use crate::forces::{ForceElement, Law};
-use crate::model::{BodyRef, ModelError, SystemBuilder, TimeFunction};
+use crate::model::{ModelError, SystemBuilder, TimeFunction};
 use std::collections::HashMap;
 
 mod applied;
@@ -25,7 +25,7 @@ pub(super) use expression::expression_names;
 pub(super) use joint::NamedJoint;
 
 /// The `[[force]]` tables.
-pub(super) const FORCE: Kind = Kind::new("force", "force element");
+pub(super) static FORCE: Kind = Kind::new("force", "force element");
 
 /// A force type's row of [`TYPES`].
 pub(super) type ForceDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
@@ -53,20 +53,13 @@ pub(super) const TYPES: &[ForceDecl] = &[
 /// What a force type builds with: the builder, where its table is, and
 /// the model's names.
 pub(super) struct Context<'a> {
+    /// Where `force[k]` is, its name and the model's names (its key, error
+    /// and body helpers, through `Deref`).
+    site: Site<'a>,
     /// The system being built.
     pub(super) builder: &'a mut SystemBuilder,
-    /// The index k of `force[k]`.
-    pub(super) k: usize,
-    /// The force's name (`name`, default `force{k+1}`).
-    pub(super) name: String,
     /// The scenario's `gravity`.
     pub(super) gravity: Option<[f64; 2]>,
-    /// Body index by name.
-    pub(super) names: &'a HashMap<String, usize>,
-    /// The half length of every rod segment and chain link by body index.
-    pub(super) ends: &'a HashMap<usize, f64>,
-    /// The scenario file, for errors.
-    pub(super) file: &'a str,
     /// The `[[joint]]`s by name (for joint loads).
     pub(super) joints: &'a [NamedJoint],
     /// The `[[state]]`s: (name, coordinate).
@@ -104,61 +97,23 @@ pub(super) fn add_force(
     } = known;
     let decl = FORCE.decl(raw, TYPES, k, file)?;
     let mut cx = Context {
+        site: FORCE.site(raw, k, names, ends, file),
         builder,
-        k,
-        name: raw
-            .name()
-            .map_or_else(|| format!("force{}", k + 1), str::to_string),
         gravity,
-        names,
-        ends,
-        file,
         joints,
         states,
     };
     (decl.add)(raw, &mut cx)
 }
 
+impl<'a> std::ops::Deref for Context<'a> {
+    type Target = Site<'a>;
+    fn deref(&self) -> &Site<'a> {
+        &self.site
+    }
+}
+
 impl Context<'_> {
-    /// `force[k].<fld>`.
-    pub(super) fn key(&self, fld: &str) -> String {
-        format!("force[{}].{fld}", self.k)
-    }
-
-    /// An error at `force[k].<fld>`.
-    pub(super) fn err(&self, fld: &str, message: impl Into<String>) -> ScenarioError {
-        error(self.file, self.key(fld), message)
-    }
-
-    /// The body (or ground) named at `fld`.
-    pub(super) fn body_ref(&self, fld: &str, name: &str) -> Result<BodyRef, ScenarioError> {
-        body_ref(self.names, self.file, self.key(fld), name)
-    }
-
-    /// The body (not the ground) named at `fld`.
-    pub(super) fn body_index(&self, fld: &str, name: &str) -> Result<usize, ScenarioError> {
-        body_index(self.names, self.file, self.key(fld), name)
-    }
-
-    /// `body_i` and `body_j` of a two-body element (`what`, e.g. "a
-    /// spring"), which must differ.
-    pub(super) fn two_bodies(
-        &self,
-        what: &str,
-        body_i: &str,
-        body_j: &str,
-    ) -> Result<(BodyRef, BodyRef), ScenarioError> {
-        let bi = self.body_ref("body_i", body_i)?;
-        let bj = self.body_ref("body_j", body_j)?;
-        if bi == bj {
-            return Err(self.err(
-                "body_j",
-                format!("{what} must connect two different bodies, got '{body_j}' twice"),
-            ));
-        }
-        Ok((bi, bj))
-    }
-
     /// `v` at `fld` if finite.
     pub(super) fn finite(&self, fld: &str, v: f64) -> Result<f64, ScenarioError> {
         if v.is_finite() {
@@ -166,16 +121,6 @@ impl Context<'_> {
         } else {
             Err(self.err(fld, format!("{v} is not finite")))
         }
-    }
-
-    /// The body-frame point at `fld` on `body` (`None`: the origin).
-    pub(super) fn point(
-        &self,
-        fld: &str,
-        p: Option<RawPoint>,
-        body: BodyRef,
-    ) -> Result<[f64; 2], ScenarioError> {
-        body_point(p, body, self.ends, self.file, self.key(fld))
     }
 
     /// A global point at `fld` (`None`: the origin), finite.
@@ -256,13 +201,10 @@ impl Context<'_> {
                 let head_len = field.find(['.', '[']).unwrap_or(field.len());
                 let (head, tail) = field.split_at(head_len);
                 let head = rename.iter().find(|r| r.0 == head).map_or(head, |r| r.1);
-                error(
-                    self.file,
-                    format!("force[{}].{head}{tail}", self.k),
-                    format!("{value} is invalid: {why}"),
-                )
+                let key = self.key(&format!("{head}{tail}"));
+                error(self.file, key, format!("{value} is invalid: {why}"))
             }
-            other => error(self.file, format!("force[{}]", self.k), other.to_string()),
+            other => error(self.file, self.kind.path(self.k), other.to_string()),
         }
     }
 }

@@ -187,35 +187,63 @@ fn quantize(c: &[u8]) -> u8 {
     level(r) * 36 + level(g) * 6 + level(b)
 }
 
+/// The start of an animated file: the font registered, the frames of
+/// [`schedule`] at `(speed, every)` with `(min_delay, tick)`, and `path`
+/// created (the error names it).
+fn start(
+    s: &Scene,
+    path: &Path,
+    (speed, every): (f64, usize),
+    (min_delay, tick): (f64, f64),
+) -> Result<(Vec<usize>, Vec<u32>, std::fs::File), String> {
+    crate::figure::register_font();
+    let (rows, delays) = schedule(&s.t, speed, min_delay, every, tick);
+    let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok((rows, delays, file))
+}
+
+/// The frames `rows` (delays `delays`) drawn in parallel, 64 at a time
+/// (bounded memory), each image made into a frame by `frame`, and handed
+/// to `write` in order with its delay.
+fn frames_in_order<F: Send>(
+    s: &Scene,
+    rows: &[usize],
+    delays: &[u32],
+    frame: impl Fn(Vec<u8>, u32) -> Result<F, String> + Sync,
+    mut write: impl FnMut(F, u32) -> Result<(), String>,
+) -> Result<(), String> {
+    for chunk in rows.iter().zip(delays).collect::<Vec<_>>().chunks(64) {
+        let frames: Vec<F> = chunk
+            .par_iter()
+            .map(|(&r, &d)| frame(render_rgb(s, r)?, d))
+            .collect::<Result<_, String>>()?;
+        for (f, (_, &d)) in frames.into_iter().zip(chunk) {
+            write(f, d)?;
+        }
+    }
+    Ok(())
+}
+
 /// The GIF: frames chosen by [`schedule`], drawn and LZW-encoded in
 /// parallel, written in order with a fixed global palette.
 pub(super) fn write_gif(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
-    crate::figure::register_font();
-    let (rows, delays) = schedule(&s.t, speed, GIF_MIN_DELAY, every, GIF_TICK);
+    let (rows, delays, file) = start(s, path, (speed, every), (GIF_MIN_DELAY, GIF_TICK))?;
     let (w, h) = s.size;
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
     let pal = palette();
     let mut enc = gif::Encoder::new(std::io::BufWriter::new(file), w as u16, h as u16, &pal)
         .map_err(|e| err(&e))?;
     enc.set_repeat(gif::Repeat::Infinite).map_err(|e| err(&e))?;
-    // bounded memory: 64 frames at a time
-    for chunk in rows.iter().zip(&delays).collect::<Vec<_>>().chunks(64) {
-        let frames: Vec<gif::Frame<'static>> = chunk
-            .par_iter()
-            .map(|(&r, &d)| {
-                let rgb = render_rgb(s, r)?;
-                let idx: Vec<u8> = rgb.chunks_exact(3).map(quantize).collect();
-                let mut f = gif::Frame::from_indexed_pixels(w as u16, h as u16, &idx, None);
-                f.delay = d.min(u16::MAX as u32) as u16;
-                f.make_lzw_pre_encoded();
-                Ok(f)
-            })
-            .collect::<Result<_, String>>()?;
-        for f in &frames {
-            enc.write_lzw_pre_encoded_frame(f).map_err(|e| err(&e))?;
-        }
-    }
+    let frame = |rgb: Vec<u8>, d: u32| {
+        let idx: Vec<u8> = rgb.chunks_exact(3).map(quantize).collect();
+        let mut f = gif::Frame::from_indexed_pixels(w as u16, h as u16, &idx, None);
+        f.delay = d.min(u16::MAX as u32) as u16;
+        f.make_lzw_pre_encoded();
+        Ok(f)
+    };
+    frames_in_order(s, &rows, &delays, frame, |f, _| {
+        enc.write_lzw_pre_encoded_frame(&f).map_err(|e| err(&e))
+    })?;
     drop(enc);
     report_schedule(s, &rows, &delays, GIF_TICK, speed, "GIF");
     Ok(())
@@ -229,23 +257,21 @@ const APNG_TICK: f64 = 0.001;
 /// The APNG: full-colour frames chosen by [`schedule`] at 1 ms delay
 /// resolution, drawn in parallel (64 at a time), written in order.
 pub(super) fn write_apng(s: &Scene, path: &Path, speed: f64, every: usize) -> Result<(), String> {
-    crate::figure::register_font();
-    let (rows, delays) = schedule(&s.t, speed, APNG_MIN_DELAY, every, APNG_TICK);
+    let (rows, delays, file) = start(s, path, (speed, every), (APNG_MIN_DELAY, APNG_TICK))?;
     let (w, h) = s.size;
     let err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-    let file = std::fs::File::create(path).map_err(|e| err(&e))?;
     let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     enc.set_animated(rows.len() as u32, 0)
         .map_err(|e| err(&e))?;
     let mut writer = enc.write_header().map_err(|e| err(&e))?;
-    for chunk in rows.iter().zip(&delays).collect::<Vec<_>>().chunks(64) {
-        let frames: Vec<Vec<u8>> = chunk
-            .par_iter()
-            .map(|(&r, _)| render_rgb(s, r))
-            .collect::<Result<_, String>>()?;
-        for (rgb, (_, &d)) in frames.iter().zip(chunk) {
+    frames_in_order(
+        s,
+        &rows,
+        &delays,
+        |rgb, _| Ok(rgb),
+        |rgb, d| {
             // a delay beyond u16 ms (65 s) in whole seconds
             let (num, den) = if d <= u16::MAX as u32 {
                 (d as u16, 1000)
@@ -253,9 +279,9 @@ pub(super) fn write_apng(s: &Scene, path: &Path, speed: f64, every: usize) -> Re
                 (((d + 500) / 1000).min(u16::MAX as u32) as u16, 1)
             };
             writer.set_frame_delay(num, den).map_err(|e| err(&e))?;
-            writer.write_image_data(rgb).map_err(|e| err(&e))?;
-        }
-    }
+            writer.write_image_data(&rgb).map_err(|e| err(&e))
+        },
+    )?;
     writer.finish().map_err(|e| err(&e))?;
     report_schedule(s, &rows, &delays, APNG_TICK, speed, "APNG");
     Ok(())

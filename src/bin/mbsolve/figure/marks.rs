@@ -171,21 +171,32 @@ pub(super) fn reference_style(s: f64) -> ShapeStyle {
     REFERENCE.stroke_width((1.2 * s).max(1.0) as u32)
 }
 
+/// Dash `i` of the cycle solid, `dashed`, `dotted` (each `(on, off)`),
+/// scaled by `s`; `None` when solid.
+fn cycle_dash(i: usize, s: f64, [dashed, dotted]: [(f64, f64); 2]) -> Option<(f64, f64)> {
+    match i % 3 {
+        0 => None,
+        1 => Some((dashed.0 * s, dashed.1 * s)),
+        _ => Some((dotted.0 * s, dotted.1 * s)),
+    }
+}
+
+/// The SVG `stroke-dasharray` attribute of a dash ("" when solid).
+fn dash_attribute(dash: Option<(f64, f64)>) -> String {
+    dash.map_or(String::new(), |(on, off)| {
+        format!(r#" stroke-dasharray="{} {}""#, num(on), num(off))
+    })
+}
+
 /// Dash pattern of the reference lines of group `g`: solid, dashed,
 /// dotted in turn.
 pub(super) fn reference_dash(g: usize, s: f64) -> Option<(f64, f64)> {
-    match g % 3 {
-        0 => None,
-        1 => Some((5.0 * s, 3.0 * s)),
-        _ => Some((1.2 * s, 2.4 * s)),
-    }
+    cycle_dash(g, s, [(5.0, 3.0), (1.2, 2.4)])
 }
 
 /// The SVG `stroke-dasharray` attribute of reference group `g`.
 pub(super) fn reference_dash_attr(g: usize, s: f64) -> String {
-    reference_dash(g, s).map_or(String::new(), |(on, off)| {
-        format!(r#" stroke-dasharray="{} {}""#, num(on), num(off))
-    })
+    dash_attribute(reference_dash(g, s))
 }
 
 /// `#RRGGBB`.
@@ -217,18 +228,12 @@ pub(super) fn number_text(v: f64) -> String {
 
 /// Line style of curve `i`: solid, dashed, dotted in turn.
 pub(super) fn dash(i: usize, s: f64) -> Option<(f64, f64)> {
-    match i % 3 {
-        0 => None,
-        1 => Some((6.0 * s, 3.5 * s)),
-        _ => Some((1.6 * s, 2.6 * s)),
-    }
+    cycle_dash(i, s, [(6.0, 3.5), (1.6, 2.6)])
 }
 
 /// The SVG `stroke-dasharray` attribute of curve `i` ("" when solid).
 pub(super) fn dash_attr(i: usize, s: f64) -> String {
-    dash(i, s).map_or(String::new(), |(on, off)| {
-        format!(r#" stroke-dasharray="{} {}""#, num(on), num(off))
-    })
+    dash_attribute(dash(i, s))
 }
 
 /// The sparse markers of curve `i` among its points (phase shifted per

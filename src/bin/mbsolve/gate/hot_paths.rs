@@ -3,7 +3,7 @@
 
 use super::{per_call, Check};
 use mbsolve::builders::stiff_chain;
-use mbsolve::linalg::SolverKind;
+use mbsolve::linalg::{SaddleMatrix, SaddlePointSolver, SolverKind};
 
 /// Blocks of the yardstick ([`yardstick`]).
 const YARD_BLOCKS: usize = 20_000;
@@ -140,6 +140,30 @@ struct HotPath<'a> {
     run: Box<dyn FnMut() + 'a>,
 }
 
+impl<'a> HotPath<'a> {
+    /// The path `name` run by `run` (its clean time set later).
+    fn new(name: &'static str, run: impl FnMut() + 'a) -> Self {
+        HotPath {
+            name,
+            clean: 0.0,
+            run: Box::new(run),
+        }
+    }
+}
+
+/// The hot path `name`: `solver` factorises `k` and solves `k x = b`.
+fn factor_and_solve<'a, S: SaddlePointSolver>(
+    name: &'static str,
+    solver: &'a mut S,
+    (k, b, x): (&'a SaddleMatrix, &'a [f64], &'a mut [f64]),
+) -> HotPath<'a> {
+    HotPath::new(name, move || {
+        solver.factorize(k).expect("factorises");
+        x.copy_from_slice(b);
+        solver.solve_in_place(k, x).expect("solves");
+    })
+}
+
 /// The hot paths of an implicit run on the stiff chain (N = 1000, its
 /// Newton matrix at a bent, moving state), each timed against the
 /// [`yardstick`] in the same round, on the gate's one thread: the sparse
@@ -151,7 +175,7 @@ struct HotPath<'a> {
 /// its clean ratio.
 pub fn hot_paths_against_yardstick() -> Vec<Check> {
     use mbsolve::formulation::Index3;
-    use mbsolve::linalg::{ChainLdlt, SaddlePointSolver, SparseLdlt};
+    use mbsolve::linalg::{ChainLdlt, SparseLdlt};
     let (sys, q0, _, _) = stiff_chain(1000, 5f64.to_radians()).expect("stiff chain builds");
     let (n, m) = (sys.n_coords(), sys.n_constraints());
     let q: Vec<f64> = q0
@@ -192,44 +216,31 @@ pub fn hot_paths_against_yardstick() -> Vec<Check> {
     let mut r2 = vec![0.0; n + m];
     let mut f2 = Index3::new(&sys, SolverKind::Auto).expect("formulation");
     let mut paths = [
-        HotPath {
-            name: "sparse LDLᵀ factor + solve (faer), stiff chain N = 1000 Newton matrix",
-            clean: 0.0,
-            run: Box::new(|| {
-                sparse.factorize(&k).expect("factorises");
-                x.copy_from_slice(&b);
-                sparse.solve_in_place(&k, &mut x).expect("solves");
-            }),
-        },
-        HotPath {
-            name: "chain LDLᵀ factor + solve, stiff chain N = 1000 Newton matrix",
-            clean: 0.0,
-            run: Box::new(|| {
-                chain.factorize(&k).expect("factorises");
-                x2.copy_from_slice(&b);
-                chain.solve_in_place(&k, &mut x2).expect("solves");
-            }),
-        },
-        HotPath {
-            name: "index-3 residual, stiff chain N = 1000",
-            clean: 0.0,
-            run: Box::new(|| {
-                f.residual_into(0.0, &q, &qd, &qdd, &lam, 1.0, &mut r)
-                    .expect("residual");
-            }),
-        },
-        HotPath {
-            name: "one Newton iteration (residual, assembly + factorisation, solve), stiff chain N = 1000",
-            clean: 0.0,
-            run: Box::new(|| {
+        factor_and_solve(
+            "sparse LDLᵀ factor + solve (faer), stiff chain N = 1000 Newton matrix",
+            &mut sparse,
+            (&k, &b, &mut x),
+        ),
+        factor_and_solve(
+            "chain LDLᵀ factor + solve, stiff chain N = 1000 Newton matrix",
+            &mut chain,
+            (&k, &b, &mut x2),
+        ),
+        HotPath::new("index-3 residual, stiff chain N = 1000", || {
+            f.residual_into(0.0, &q, &qd, &qdd, &lam, 1.0, &mut r)
+                .expect("residual");
+        }),
+        HotPath::new(
+            "one Newton iteration (residual, assembly + factorisation, solve), stiff chain N = 1000",
+            || {
                 f2.residual_into(0.0, &q, &qd, &qdd, &lam, 1.0, &mut r2)
                     .expect("residual");
                 f2.assemble_and_factorize(0.0, &q, &qd, &lam, c_m, c_c, c_k)
                     .expect("factorises");
                 x3.copy_from_slice(&r2);
                 f2.solve_newton(0.0, &mut x3).expect("solves");
-            }),
-        },
+            },
+        ),
     ];
     for (p, clean) in paths.iter_mut().zip(HOT_PATH_CLEAN) {
         p.clean = clean;
