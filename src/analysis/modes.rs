@@ -197,10 +197,8 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             "eigenmodes: the start vector vanished in the constrained space".into(),
         ));
     }
-    basis.push_scaled(&w, nv);
+    basis.push_scaled(&w, nv, mass, &mut x[..n]);
     let (ritz, converged) = loop {
-        let j = basis.len() - 1;
-        basis.times_mass(j, mass, &mut x[..n]);
         apply(&mut *solver, &k, &mut w, &mut x, n)?;
         w[nb..].fill(0.0);
         // the recurrence and a Gram–Schmidt pass, partial or full
@@ -220,20 +218,25 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             }
         }
         beta.push(bnext);
-        basis.push_scaled(&w, bnext);
+        basis.push_scaled(&w, bnext, mass, &mut x[..n]);
     };
     let steps = basis.len();
     // shapes X s (block by block, so that the basis's block stays in the
     // cache for every shape), M-normalised, by increasing ω²
-    let mut shapes: Vec<Vec<f64>> = ritz.iter().map(|_| vec![0.0; n]).collect();
-    for (lo, vs) in basis.blocks() {
+    // (each block summed from 0 in a buffer and appended: no zeroed
+    // shapes to add into)
+    let mut shapes: Vec<Vec<f64>> = ritz.iter().map(|_| Vec::with_capacity(n)).collect();
+    for (_, vs) in basis.blocks() {
         let bs = vs.len() / steps;
         for (shape, (_, s, _)) in shapes.iter_mut().zip(&ritz) {
+            let mut acc = [0.0f64; REORTH_BLOCK];
+            let acc = &mut acc[..bs];
             for (b, &c) in vs.chunks_exact(bs).zip(s) {
-                for (xi, bi) in shape[lo..lo + bs].iter_mut().zip(b) {
+                for (xi, bi) in acc.iter_mut().zip(b) {
                     *xi += c * bi;
                 }
             }
+            shape.extend_from_slice(acc);
         }
     }
     let mut modes: Vec<(f64, Vec<f64>, f64)> = ritz
@@ -440,8 +443,10 @@ impl Basis {
         })
     }
 
-    /// Append `w / d`, doubling the capacity when it is used up.
-    fn push_scaled(&mut self, w: &[f64], d: f64) {
+    /// Append `v = w / d`, doubling the capacity when it is used up, and
+    /// write `M v` into `mv` (`mass` the diagonal of `M`): the operator's
+    /// next right-hand side.
+    fn push_scaled(&mut self, w: &[f64], d: f64, mass: &[f64], mv: &mut [f64]) {
         if self.len == self.cap {
             let mut grown = Self::new(self.n, 2 * self.cap);
             for lo in (0..self.n).step_by(REORTH_BLOCK) {
@@ -456,25 +461,13 @@ impl Basis {
         for lo in (0..self.n).step_by(REORTH_BLOCK) {
             let bs = REORTH_BLOCK.min(self.n - lo);
             let at = lo * self.cap + j * bs;
-            for (v, &wi) in self.data[at..at + bs].iter_mut().zip(&w[lo..lo + bs]) {
+            let dst = self.data[at..at + bs].iter_mut().zip(&mut mv[lo..lo + bs]);
+            for ((v, o), (&wi, &mi)) in dst.zip(w[lo..lo + bs].iter().zip(&mass[lo..lo + bs])) {
                 *v = wi / d;
+                *o = mi * *v;
             }
         }
         self.len += 1;
-    }
-
-    /// `out = M v_j` (`mass` the diagonal of `M`).
-    fn times_mass(&self, j: usize, mass: &[f64], out: &mut [f64]) {
-        for (lo, vs) in self.blocks() {
-            let bs = vs.len() / self.len;
-            for ((o, &v), &mi) in out[lo..lo + bs]
-                .iter_mut()
-                .zip(&vs[j * bs..(j + 1) * bs])
-                .zip(&mass[lo..lo + bs])
-            {
-                *o = mi * v;
-            }
-        }
     }
 
     /// The storage, for reuse once the basis is no longer needed.
@@ -570,9 +563,11 @@ fn damped_modes(
     // the shapes by coordinate (n × k, row-major), so that one pass over
     // the entries of C or K applies them to every shape, and `A X`, in
     // `scratch`'s memory
-    scratch.clear();
-    scratch.resize(2 * n * k, 0.0);
-    let (x, ax) = scratch.split_at_mut(n * k);
+    // (X is written whole and `projected` zeroes A X: no zeroing here)
+    if scratch.len() < 2 * n * k {
+        scratch.resize(2 * n * k, 0.0);
+    }
+    let (x, ax) = scratch[..2 * n * k].split_at_mut(n * k);
     for (j, mode) in modes.iter().enumerate() {
         for (r, &v) in mode.1.iter().enumerate() {
             x[r * k + j] = v;
