@@ -153,7 +153,10 @@ impl SaddleMatrix {
         // diagonal stays out of the pattern (its structural zeros would
         // change LU's column ordering).
         let n_diag = if full { n } else { dim };
-        let mut entries: Vec<(usize, usize)> = (0..n_diag).map(|i| (i, i)).collect();
+        let mut entries: Vec<(usize, usize)> = Vec::with_capacity(
+            n_diag + 2 * a.entries.len() + (1 + usize::from(full)) * jac_pattern.len(),
+        );
+        entries.extend((0..n_diag).map(|i| (i, i)));
         for (&(i, j), &sym) in a.entries.iter().zip(&a.symmetry) {
             match (full, sym) {
                 (false, _) => entries.push(lower(i, j)),
