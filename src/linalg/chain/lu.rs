@@ -161,7 +161,8 @@ impl Band {
             (kl + 1).next_power_of_two(),
             (kl + ku + 1).next_power_of_two(),
         );
-        let (spare_u, spare_l) = SPARE.take();
+        // (none while the thread's locals are being destroyed)
+        let (spare_u, spare_l) = SPARE.try_with(Cell::take).unwrap_or_default();
         Some(Self {
             dim,
             nnz: k.nnz(),
@@ -382,7 +383,9 @@ impl Drop for Band {
             std::mem::take(&mut self.l_val),
         );
         if u.capacity() + l.capacity() <= SPARE_MAX_VALUES {
-            SPARE.set((u, l));
+            // dropped with the storage while the thread's locals are being
+            // destroyed
+            let _ = SPARE.try_with(|s| s.set((u, l)));
         }
     }
 }
