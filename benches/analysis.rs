@@ -8,8 +8,9 @@
 //! ```
 //!
 //! `slope`: each analysis at N = 1000 and 10 000, interleaved over 15
-//! rounds, every call timed alone by the calling thread's CPU clock (the
-//! analyses do not open a team); the minimum and the median per N and the
+//! rounds, every call timed alone by the calling thread's CPU clock, with
+//! the thread setting `Threads::One` (every concurrent pass on that
+//! thread); the minimum and the median per N and the
 //! slopes `log(t₁₀₀₀₀ / t₁₀₀₀) / log 10` of both. The budgets are 1 s
 //! for the static equilibrium and 2 s for the modes at N = 10 000, a slope
 //! of at most 1.1.
@@ -27,6 +28,7 @@ use mbsolve::analysis::{
 };
 use mbsolve::builders::stiff_chain;
 use mbsolve::model::System;
+use mbsolve::parallel::{with_threads, Threads};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -71,11 +73,15 @@ fn bench(c: &mut Criterion) {
 
 criterion_group!(benches, bench);
 
-/// Appends the thread CPU time of each of `reps` calls of `f` to `out`.
+/// Appends the thread CPU time of each of `reps` calls of `f` to `out`,
+/// each with the thread setting `Threads::One`: every concurrent pass of
+/// the library then runs on this thread and enters its clock (from
+/// `PARALLEL_MIN_COORDS` coordinates on it would run on a rayon worker
+/// while this thread waits).
 fn sample(out: &mut Vec<f64>, reps: usize, mut f: impl FnMut()) {
     for _ in 0..reps {
         let t = thread_cpu();
-        f();
+        with_threads(Threads::One, &mut f);
         out.push(thread_cpu() - t);
     }
 }

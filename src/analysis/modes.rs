@@ -50,7 +50,8 @@ pub struct ModeOptions {
     pub count: usize,
     /// Shift σ \[1/s²\]; `None` (default): 0, or, when the shifted matrix is
     /// singular (free rigid-body motion), `−10⁻⁶` of the largest
-    /// `K_ii / M_ii`.
+    /// `|K_ii| / M_ii` (of 1 when `K` has no diagonal:
+    /// [`Tangent::stiffness_scale`]).
     pub shift: Option<f64>,
     /// Relative residual of a converged Ritz value (default 1e-10).
     pub tol: f64,
@@ -127,17 +128,6 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             factorizations: Default::default(),
         });
     }
-    let kmax = {
-        let mut d = vec![0.0f64; n];
-        for (i, j, v) in tan.stiffness_entries() {
-            if i == j {
-                d[i] += v;
-            }
-        }
-        d.iter()
-            .zip(mass)
-            .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()))
-    };
     let mut k = tan.saddle_matrix(Storage::Full);
     let mut solver = super::full_storage_solver(opts.linear_solver, n + m, "eigenmodes")?;
     let lin = |source| FormulationError::Linear {
@@ -145,12 +135,17 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         source,
     };
     solver.analyze(&k).map_err(lin)?;
-    let shifts: Vec<f64> = match opts.shift {
-        Some(s) => vec![s],
-        None => vec![0.0, -1e-6 * kmax.max(1e-300)],
-    };
+    // σ as asked, or 0 and then (singular at 0) a fraction of K's scale
+    let tries = if opts.shift.is_some() { 1 } else { 2 };
+    let mut shifts: Vec<f64> = Vec::new();
     let mut sigma = f64::NAN;
-    for &s in &shifts {
+    while shifts.len() < tries {
+        let s = match (opts.shift, shifts.len()) {
+            (Some(s), _) => s,
+            (None, 0) => 0.0,
+            (None, _) => -1e-6 * tan.stiffness_scale(),
+        };
+        shifts.push(s);
         tan.write_saddle(&mut k, [-s, 0.0, 1.0]);
         // a held state: its row of K (−∂ż/∂q) only feeds its own entry,
         // which is zeroed after every solve; a unit diagonal keeps the
@@ -176,8 +171,8 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     }
     .min(dof)
     .max(count);
-    // Lanczos, full reorthogonalisation in the M inner product
-    let mut basis: Vec<Vec<f64>> = Vec::new();
+    // Lanczos, partial reorthogonalisation in the M inner product
+    let mut basis = Basis::new(n, max_basis.min(LANCZOS_START_CAPACITY));
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
     let mut x = vec![0.0; n + m];
     let mut coeffs: Vec<f64> = Vec::new();
@@ -185,26 +180,26 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         a.iter().zip(b).zip(mass).map(|((x, y), w)| x * y * w).sum()
     };
     // start: the operator applied to a deterministic, non-special vector
-    let mut v: Vec<f64> = (0..n)
+    let mut w: Vec<f64> = (0..n)
         .map(|i| match i < nb {
             true => 1.0 + 0.5 * ((i as f64) * 0.618_033_988_75).fract(),
             false => 0.0,
         })
         .collect();
-    apply(&mut *solver, &k, mass, &v.clone(), &mut v, &mut x, n)?;
-    v[nb..].fill(0.0);
-    let nv = mdot(&v, &v).sqrt();
+    for ((b, &wi), &mi) in x.iter_mut().zip(&w).zip(mass) {
+        *b = mi * wi;
+    }
+    apply(&mut *solver, &k, &mut w, &mut x, n)?;
+    w[nb..].fill(0.0);
+    let nv = mdot(&w, &w).sqrt();
     if nv == 0.0 || !nv.is_finite() {
         return Err(FormulationError::Invalid(
             "eigenmodes: the start vector vanished in the constrained space".into(),
         ));
     }
-    v.iter_mut().for_each(|e| *e /= nv);
-    let mut w = vec![0.0; n];
+    basis.push_scaled(&w, nv, mass, &mut x[..n]);
     let (ritz, converged) = loop {
-        basis.push(std::mem::take(&mut v));
-        let j = basis.len() - 1;
-        apply(&mut *solver, &k, mass, &basis[j], &mut w, &mut x, n)?;
+        apply(&mut *solver, &k, &mut w, &mut x, n)?;
         w[nb..].fill(0.0);
         // the recurrence and a Gram–Schmidt pass, partial or full
         let beta_prev = beta.last().copied().unwrap_or(0.0);
@@ -223,20 +218,25 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
             }
         }
         beta.push(bnext);
-        v = w.iter().map(|e| e / bnext).collect();
+        basis.push_scaled(&w, bnext, mass, &mut x[..n]);
     };
     let steps = basis.len();
-    // shapes X s (in blocks of the coordinates, so that the basis's block
-    // stays in the cache for every shape), M-normalised, by increasing ω²
-    let mut shapes: Vec<Vec<f64>> = ritz.iter().map(|_| vec![0.0; n]).collect();
-    for lo in (0..n).step_by(REORTH_BLOCK) {
-        let hi = (lo + REORTH_BLOCK).min(n);
+    // shapes X s (block by block, so that the basis's block stays in the
+    // cache for every shape), M-normalised, by increasing ω²
+    // (each block summed from 0 in a buffer and appended: no zeroed
+    // shapes to add into)
+    let mut shapes: Vec<Vec<f64>> = ritz.iter().map(|_| Vec::with_capacity(n)).collect();
+    for (_, vs) in basis.blocks() {
+        let bs = vs.len() / steps;
         for (shape, (_, s, _)) in shapes.iter_mut().zip(&ritz) {
-            for (b, &c) in basis.iter().zip(s) {
-                for (xi, bi) in shape[lo..hi].iter_mut().zip(&b[lo..hi]) {
+            let mut acc = [0.0f64; REORTH_BLOCK];
+            let acc = &mut acc[..bs];
+            for (b, &c) in vs.chunks_exact(bs).zip(s) {
+                for (xi, bi) in acc.iter_mut().zip(b) {
                     *xi += c * bi;
                 }
             }
+            shape.extend_from_slice(acc);
         }
     }
     let mut modes: Vec<(f64, Vec<f64>, f64)> = ritz
@@ -253,7 +253,8 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
         })
         .collect();
     modes.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let damped = damped_modes(tan, &modes)?;
+    // the basis's memory, no longer needed, holds the damped projection's
+    let damped = damped_modes(tan, &modes, basis.into_storage())?;
     Ok(Modes {
         modes: modes
             .into_iter()
@@ -274,9 +275,9 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
     })
 }
 
-/// Entries per block of [`orthogonalise`]: the blocks of `w`, `M`
-/// and of every basis vector (25 … 80 of them, 0.5 kB each) stay in the
-/// L1 / L2 cache while a block is worked on.
+/// Entries per block of [`orthogonalise`] and [`Basis`]: the blocks of
+/// `w`, `M` and of every basis vector (25 … 80 of them, 0.5 kB each) stay
+/// in the L1 / L2 cache while a block is worked on.
 const REORTH_BLOCK: usize = 64;
 
 /// Largest cosine `|bᵀ M w| / ‖w‖_M` between `w` and a basis vector
@@ -308,78 +309,73 @@ const SEMI_ORTHOGONAL: f64 = 1.490_116_119_384_765_6e-8;
 /// `(α + c_j, wᵀ M w)` (the diagonal of the tridiagonal matrix with the
 /// correction, the squared norm).
 fn orthogonalise(
-    basis: &[Vec<f64>],
+    basis: &Basis,
     mass: &[f64],
     w: &mut [f64],
     beta_prev: f64,
     coeffs: &mut Vec<f64>,
 ) -> (f64, f64) {
-    let n = w.len();
     let j = basis.len() - 1;
-    let vj = &basis[j];
-    let prev = j.checked_sub(1).map(|p| &basis[p][..]);
-    let blocks = || {
-        (0..n)
-            .step_by(REORTH_BLOCK)
-            .map(|lo| (lo, (lo + REORTH_BLOCK).min(n)))
-    };
-    let dots = |c: &mut [f64], w: &[f64], lo: usize, hi: usize| {
+    // c_b += bᵀ M w over one block (`vs`: the block of every vector)
+    let dots = |c: &mut [f64], w: &[f64], lo: usize, vs: &[f64]| {
+        let bs = w.len();
         let mut mw = [0.0f64; REORTH_BLOCK];
-        let mw = &mut mw[..hi - lo];
-        for ((d, wi), mi) in mw.iter_mut().zip(w).zip(&mass[lo..hi]) {
+        let mw = &mut mw[..bs];
+        for ((d, wi), mi) in mw.iter_mut().zip(w).zip(&mass[lo..lo + bs]) {
             *d = wi * mi;
         }
-        for (c, b) in c.iter_mut().zip(basis) {
-            *c += b[lo..hi]
-                .iter()
-                .zip(mw.iter())
-                .map(|(x, y)| x * y)
-                .sum::<f64>();
+        for (c, b) in c.iter_mut().zip(vs.chunks_exact(bs)) {
+            *c += b.iter().zip(mw.iter()).map(|(x, y)| x * y).sum::<f64>();
         }
     };
-    // w ← w − Σ c_b basis[first + b]
-    let update = |c: &[f64], w: &mut [f64], lo: usize, hi: usize, first: usize| {
-        for (&c, b) in c.iter().zip(&basis[first..]) {
-            for (wi, bi) in w.iter_mut().zip(&b[lo..hi]) {
+    // w ← w − Σ c_b v_{first + b} over one block
+    let update = |c: &[f64], w: &mut [f64], vs: &[f64], first: usize| {
+        let bs = w.len();
+        for (&c, b) in c.iter().zip(vs.chunks_exact(bs).skip(first)) {
+            for (wi, bi) in w.iter_mut().zip(b) {
                 *wi -= c * bi;
             }
         }
     };
-    let mnorm2 = |w: &[f64], lo: usize, hi: usize| {
+    let mnorm2 = |w: &[f64], lo: usize| {
         w.iter()
-            .zip(&mass[lo..hi])
+            .zip(&mass[lo..lo + w.len()])
             .map(|(x, m)| x * x * m)
             .sum::<f64>()
     };
-    let alpha: f64 = w
-        .iter()
-        .zip(vj)
-        .zip(mass)
-        .map(|((x, v), m)| x * v * m)
-        .sum();
+    let mut alpha = 0.0;
+    for (lo, vs) in basis.blocks() {
+        let bs = vs.len() / basis.len();
+        let vj = &vs[j * bs..(j + 1) * bs];
+        for ((x, v), m) in w[lo..lo + bs].iter().zip(vj).zip(&mass[lo..lo + bs]) {
+            alpha += x * v * m;
+        }
+    }
     coeffs.clear();
     coeffs.resize(basis.len(), 0.0);
     let mut before = 0.0;
-    for (lo, hi) in blocks() {
-        let wb = &mut w[lo..hi];
-        for (wi, vi) in wb.iter_mut().zip(&vj[lo..hi]) {
+    for (lo, vs) in basis.blocks() {
+        let bs = vs.len() / basis.len();
+        let wb = &mut w[lo..lo + bs];
+        for (wi, vi) in wb.iter_mut().zip(&vs[j * bs..]) {
             *wi -= alpha * vi;
         }
-        if let Some(p) = prev {
-            for (wi, pi) in wb.iter_mut().zip(&p[lo..hi]) {
+        if j > 0 {
+            for (wi, pi) in wb.iter_mut().zip(&vs[(j - 1) * bs..]) {
                 *wi -= beta_prev * pi;
             }
         }
-        before += mnorm2(wb, lo, hi);
-        dots(coeffs, wb, lo, hi);
+        before += mnorm2(wb, lo);
+        dots(coeffs, wb, lo, vs);
     }
     let older = j.saturating_sub(1);
     let lim = SEMI_ORTHOGONAL * before.sqrt();
     if coeffs[..older].iter().all(|c| c.abs() <= lim) {
         let mut norm2 = 0.0;
-        for (lo, hi) in blocks() {
-            update(&coeffs[older..], &mut w[lo..hi], lo, hi, older);
-            norm2 += mnorm2(&w[lo..hi], lo, hi);
+        for (lo, vs) in basis.blocks() {
+            let wb = &mut w[lo..lo + vs.len() / basis.len()];
+            update(&coeffs[older..], wb, vs, older);
+            norm2 += mnorm2(wb, lo);
         }
         return (alpha + coeffs[j], norm2);
     }
@@ -387,9 +383,10 @@ fn orthogonalise(
     loop {
         correction += coeffs[j];
         let mut norm2 = 0.0;
-        for (lo, hi) in blocks() {
-            update(coeffs, &mut w[lo..hi], lo, hi, 0);
-            norm2 += mnorm2(&w[lo..hi], lo, hi);
+        for (lo, vs) in basis.blocks() {
+            let wb = &mut w[lo..lo + vs.len() / basis.len()];
+            update(coeffs, wb, vs, 0);
+            norm2 += mnorm2(wb, lo);
         }
         if repeated || norm2 >= 0.5 * before {
             return (alpha + correction, norm2);
@@ -397,25 +394,97 @@ fn orthogonalise(
         // the full pass removed more than half of ‖w‖²: once more
         (before, repeated) = (norm2, true);
         coeffs.iter_mut().for_each(|c| *c = 0.0);
-        for (lo, hi) in blocks() {
-            dots(coeffs, &w[lo..hi], lo, hi);
+        for (lo, vs) in basis.blocks() {
+            dots(coeffs, &w[lo..lo + vs.len() / basis.len()], lo, vs);
         }
     }
 }
 
-/// `y = Op x`: `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`.
+/// Basis vectors allocated at the start of [`eigenmodes`]' Lanczos
+/// iteration ([`Basis`] doubles its capacity when they are used up).
+const LANCZOS_START_CAPACITY: usize = 32;
+
+/// The Lanczos basis `v_0 … v_{len−1}` (length `n` each), block-major:
+/// for each block of [`REORTH_BLOCK`] coordinates `lo..hi`, the entries
+/// `lo..hi` of every vector one after the other, so that a sweep of
+/// [`orthogonalise`] over the whole basis reads one contiguous stretch
+/// of memory per block. Block `b` (`lo = b·REORTH_BLOCK`, `bs = hi − lo`)
+/// starts at `lo · cap`; vector `j`'s part of it at `lo · cap + j · bs`.
+struct Basis {
+    n: usize,
+    cap: usize,
+    len: usize,
+    data: Vec<f64>,
+}
+
+impl Basis {
+    /// An empty basis of vectors of length `n`, room for `cap` of them.
+    fn new(n: usize, cap: usize) -> Self {
+        let cap = cap.max(1);
+        Self {
+            n,
+            cap,
+            len: 0,
+            data: vec![0.0; n * cap],
+        }
+    }
+
+    /// Number of vectors.
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Per block of coordinates: its first coordinate `lo` and the block
+    /// of every vector, `len · bs` entries (vector `j` at `j · bs`).
+    fn blocks(&self) -> impl Iterator<Item = (usize, &[f64])> + '_ {
+        (0..self.n).step_by(REORTH_BLOCK).map(move |lo| {
+            let bs = REORTH_BLOCK.min(self.n - lo);
+            (lo, &self.data[lo * self.cap..lo * self.cap + self.len * bs])
+        })
+    }
+
+    /// Append `v = w / d`, doubling the capacity when it is used up, and
+    /// write `M v` into `mv` (`mass` the diagonal of `M`): the operator's
+    /// next right-hand side.
+    fn push_scaled(&mut self, w: &[f64], d: f64, mass: &[f64], mv: &mut [f64]) {
+        if self.len == self.cap {
+            let mut grown = Self::new(self.n, 2 * self.cap);
+            for lo in (0..self.n).step_by(REORTH_BLOCK) {
+                let used = self.len * REORTH_BLOCK.min(self.n - lo);
+                grown.data[lo * grown.cap..lo * grown.cap + used]
+                    .copy_from_slice(&self.data[lo * self.cap..lo * self.cap + used]);
+            }
+            grown.len = self.len;
+            *self = grown;
+        }
+        let j = self.len;
+        for lo in (0..self.n).step_by(REORTH_BLOCK) {
+            let bs = REORTH_BLOCK.min(self.n - lo);
+            let at = lo * self.cap + j * bs;
+            let dst = self.data[at..at + bs].iter_mut().zip(&mut mv[lo..lo + bs]);
+            for ((v, o), (&wi, &mi)) in dst.zip(w[lo..lo + bs].iter().zip(&mass[lo..lo + bs])) {
+                *v = wi / d;
+                *o = mi * *v;
+            }
+        }
+        self.len += 1;
+    }
+
+    /// The storage, for reuse once the basis is no longer needed.
+    fn into_storage(self) -> Vec<f64> {
+        self.data
+    }
+}
+
+/// `y = Op x`: `[K − σM, Φ_qᵀ; Φ_q, 0] [y; μ] = [M x; 0]`, `buf[..n]`
+/// holding `M x` on entry.
 fn apply(
     solver: &mut dyn SaddlePointSolver,
     k: &crate::linalg::SaddleMatrix,
-    mass: &[f64],
-    xin: &[f64],
     y: &mut [f64],
     buf: &mut [f64],
     n: usize,
 ) -> Result<(), FormulationError> {
-    for i in 0..n {
-        buf[i] = mass[i] * xin[i];
-    }
     buf[n..].fill(0.0);
     solver
         .solve_in_place(k, buf)
@@ -487,20 +556,25 @@ fn tridiagonal_ritz(
 fn damped_modes(
     tan: &Tangent,
     modes: &[(f64, Vec<f64>, f64)],
+    mut scratch: Vec<f64>,
 ) -> Result<Vec<(f64, f64)>, FormulationError> {
     let k = modes.len();
     let n = tan.n();
     // the shapes by coordinate (n × k, row-major), so that one pass over
-    // the entries of C or K applies them to every shape
-    let mut x = vec![0.0; n * k];
+    // the entries of C or K applies them to every shape, and `A X`, in
+    // `scratch`'s memory
+    // (X is written whole and `projected` zeroes A X: no zeroing here)
+    if scratch.len() < 2 * n * k {
+        scratch.resize(2 * n * k, 0.0);
+    }
+    let (x, ax) = scratch[..2 * n * k].split_at_mut(n * k);
     for (j, mode) in modes.iter().enumerate() {
         for (r, &v) in mode.1.iter().enumerate() {
             x[r * k + j] = v;
         }
     }
-    let mut ax = vec![0.0; n * k];
-    let cr = projected(&x, k, tan.damping_entries(), &mut ax);
-    let kr = projected(&x, k, tan.stiffness_entries(), &mut ax);
+    let cr = projected(x, k, tan.damping_entries(), ax);
+    let kr = projected(x, k, tan.stiffness_entries(), ax);
     let mut a = faer::Mat::<f64>::zeros(2 * k, 2 * k);
     for i in 0..k {
         a[(i, k + i)] = 1.0;

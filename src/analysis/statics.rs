@@ -400,7 +400,7 @@ pub fn static_equilibrium_from(
                         break true;
                     }
                 }
-                let kscale = diagonal_ratio(&tan);
+                let kscale = tan.stiffness_scale();
                 if eps == 0.0 {
                     eps = 1e-12 * kscale;
                 } else {
@@ -698,26 +698,5 @@ impl StateColumns {
             .map(|&e| kt.entries[e])
             .chain(self.from_c.iter().map(|&e| ct.entries[e]))
             .any(|(i, _, v)| i == r && v != 0.0)
-    }
-}
-
-/// The largest `|K_ii| / M_ii` (or 1 when `K` has no diagonal) of the last
-/// evaluation: the scale of ω² \[1/s²\].
-fn diagonal_ratio(tan: &Tangent) -> f64 {
-    let mass = tan.mass_diagonal();
-    let mut d = vec![0.0f64; mass.len()];
-    for &(i, j, v) in &tan.stiffness().entries {
-        if i == j {
-            d[i] += v;
-        }
-    }
-    let r = d
-        .iter()
-        .zip(mass)
-        .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()));
-    if r > 0.0 && r.is_finite() {
-        r
-    } else {
-        1.0
     }
 }

@@ -267,6 +267,29 @@ impl<'a> Tangent<'a> {
         force.chain(hessian)
     }
 
+    /// The scale of ω² \[1/s²\] at the last evaluated state: the largest
+    /// `|K_ii| / M_ii`, or 1 when that is not positive and finite (`K`
+    /// without a diagonal). The static Newton iteration's regularisation
+    /// and the modes' fallback shift are fractions of it.
+    pub fn stiffness_scale(&self) -> f64 {
+        let mass = self.mass_diagonal();
+        let mut d = vec![0.0f64; mass.len()];
+        for (i, j, v) in self.stiffness_entries() {
+            if i == j {
+                d[i] += v;
+            }
+        }
+        let r = d
+            .iter()
+            .zip(mass)
+            .fold(0.0f64, |a, (k, mi)| a.max((k / mi).abs()));
+        if r > 0.0 && r.is_finite() {
+            r
+        } else {
+            1.0
+        }
+    }
+
     /// `Φ_q` at the last evaluated state (`m × n`).
     pub fn constraint_jacobian(&self) -> Triplets {
         self.assert_evaluated();

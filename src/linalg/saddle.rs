@@ -103,6 +103,9 @@ pub struct SaddleMatrix {
     jac_slots: Vec<usize>,
     /// Slots of Φ_qᵀ (full storage only).
     jac_slots_t: Vec<usize>,
+    /// Per Φ_q entry: the first in `jac_pattern` order with its slot
+    /// (its duplicates after it are summed into that slot).
+    jac_first: Vec<bool>,
 }
 
 impl SaddleMatrix {
@@ -150,7 +153,10 @@ impl SaddleMatrix {
         // diagonal stays out of the pattern (its structural zeros would
         // change LU's column ordering).
         let n_diag = if full { n } else { dim };
-        let mut entries: Vec<(usize, usize)> = (0..n_diag).map(|i| (i, i)).collect();
+        let mut entries: Vec<(usize, usize)> = Vec::with_capacity(
+            n_diag + 2 * a.entries.len() + (1 + usize::from(full)) * jac_pattern.len(),
+        );
+        entries.extend((0..n_diag).map(|i| (i, i)));
         for (&(i, j), &sym) in a.entries.iter().zip(&a.symmetry) {
             match (full, sym) {
                 (false, _) => entries.push(lower(i, j)),
@@ -196,7 +202,12 @@ impl SaddleMatrix {
         let diag_slots = (0..dim)
             .map(|i| if i < n_diag { slot(i, i) } else { NONE })
             .collect();
-        let jac_slots = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
+        let jac_slots: Vec<usize> = jac_pattern.iter().map(|&(r, c)| slot(n + r, c)).collect();
+        let mut seen = vec![false; pattern.nnz()];
+        let jac_first = jac_slots
+            .iter()
+            .map(|&s| !std::mem::replace(&mut seen[s], true))
+            .collect();
         let jac_slots_t = if full {
             jac_pattern.iter().map(|&(r, c)| slot(c, n + r)).collect()
         } else {
@@ -212,6 +223,7 @@ impl SaddleMatrix {
             a_map,
             jac_slots,
             jac_slots_t,
+            jac_first,
             pattern,
         }
     }
@@ -346,22 +358,33 @@ impl SaddleMatrix {
     }
 
     /// Write the values of Φ_q, given in the order of `jac_pattern`
-    /// (duplicate entries are summed).
+    /// (duplicate entries are summed), in one pass: the first entry of a
+    /// slot sets it (`0 + v`, as adding to a zeroed slot), the duplicates
+    /// after it add.
     pub fn set_jacobian(&mut self, vals: &[f64]) {
         debug_assert_eq!(vals.len(), self.jac_slots.len());
-        for &s in self.jac_slots.iter().chain(&self.jac_slots_t) {
-            self.values[s] = 0.0;
+        let put = |values: &mut [f64], s: usize, first: bool, v: f64| {
+            values[s] = (if first { 0.0 } else { values[s] }) + v;
+        };
+        if self.jac_slots_t.is_empty() {
+            for ((&s, &first), &v) in self.jac_slots.iter().zip(&self.jac_first).zip(vals) {
+                put(&mut self.values, s, first, v);
+            }
+            return;
         }
-        for (&s, &v) in self.jac_slots.iter().zip(vals) {
-            self.values[s] += v;
-        }
-        for (&s, &v) in self.jac_slots_t.iter().zip(vals) {
-            self.values[s] += v;
+        let slots = self.jac_slots.iter().zip(&self.jac_slots_t);
+        for (((&s, &t), &first), &v) in slots.zip(&self.jac_first).zip(vals) {
+            put(&mut self.values, s, first, v);
+            put(&mut self.values, t, first, v);
         }
     }
 
-    /// Check that every value is finite.
+    /// Check that every value is finite (one pass over the values; the
+    /// columns are searched for the entry to name only when one is not).
     pub(crate) fn check_finite(&self) -> Result<(), LinalgError> {
+        if self.values.iter().all(|v| v.is_finite()) {
+            return Ok(());
+        }
         for col in 0..self.dim() {
             for s in self.pattern.col_ptr[col]..self.pattern.col_ptr[col + 1] {
                 if !self.values[s].is_finite() {

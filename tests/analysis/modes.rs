@@ -129,6 +129,32 @@ fn chain_lowest_three_match_the_hand_derived_absolute_angle_model() {
     }
 }
 
+/// Many modes of a chain whose coordinates are not a whole number of the
+/// Lanczos basis's blocks (240): more Lanczos steps than the basis first
+/// has room for (32), so the basis grows during the iteration; every
+/// frequency against the hand-derived model.
+#[test]
+fn many_modes_match_the_hand_derived_model_as_the_basis_grows() {
+    let (count, n) = (30, 80);
+    let (w, _, p) = chain_modes(n, count);
+    let reference = hand_omegas(&p, count);
+    for i in 0..count {
+        let e = (w[i] - reference[i]).abs() / reference[i];
+        assert!(e < 1e-9, "mode {}: {} vs {}", i + 1, w[i], reference[i]);
+    }
+    let (sys, q0, _) = chain(n);
+    let mut tan = Tangent::new(&sys);
+    let z = vec![0.0; sys.n_coords()];
+    tan.evaluate(0.0, &q0, &z, &vec![0.0; sys.n_constraints()])
+        .unwrap();
+    let opts = ModeOptions {
+        count,
+        ..Default::default()
+    };
+    let steps = eigenmodes(&tan, opts).unwrap().lanczos_steps;
+    assert!(steps > 32, "{steps} Lanczos steps: the basis did not grow");
+}
+
 #[test]
 fn chain_converges_to_euler_bernoulli_at_first_order() {
     let beta = [1.8751, 4.6941, 7.8548];

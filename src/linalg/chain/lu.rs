@@ -55,6 +55,7 @@ use super::super::{
     FactorInfo, LinalgError, SaddleMatrix, SaddlePointSolver, SolverStats, SparseLu, Storage,
 };
 use super::{order::body_order, MAX_BANDWIDTH};
+use std::cell::Cell;
 
 /// Default largest growth factor `max|u| / max|a|` of the band
 /// factorisation before a factorisation is redone by [`SparseLu`]. Partial
@@ -109,8 +110,10 @@ struct Step {
     u: u8,
 }
 
-/// Why a band factorisation was handed to [`SparseLu`].
+/// Why a band factorisation was handed to [`SparseLu`], or failed.
 enum Reject {
+    /// An entry of the matrix is not finite (an error, no fallback).
+    NonFinite,
     /// A pivot at the rounding level of the matrix (or not finite).
     TinyPivot,
     /// The growth factor above the limit.
@@ -158,6 +161,8 @@ impl Band {
             (kl + 1).next_power_of_two(),
             (kl + ku + 1).next_power_of_two(),
         );
+        // (none while the thread's locals are being destroyed)
+        let (spare_u, spare_l) = SPARE.try_with(Cell::take).unwrap_or_default();
         Some(Self {
             dim,
             nnz: k.nnz(),
@@ -171,33 +176,42 @@ impl Band {
             wc,
             // the largest sizes, reserved (not touched): no reallocation
             // and copy as the factors grow
-            u_val: Vec::with_capacity(dim * (kl + ku)),
+            u_val: reuse(spare_u, dim * (kl + ku)),
             dinv: vec![0.0; dim],
-            l_val: Vec::with_capacity(dim * kl),
+            l_val: reuse(spare_l, dim * kl),
             steps: vec![Step::default(); dim],
             w: vec![0.0; dim],
         })
     }
 
     /// `P Ã = L U` of the current values of `k`, partial pivoting inside
-    /// the band; rejected (module docs) at a pivot at the rounding level or
-    /// a growth above `growth_limit`.
+    /// the band; rejected (module docs) at a non-finite entry, a pivot at
+    /// the rounding level or a growth above `growth_limit`. The rounding
+    /// level `ε max|a|` is known once every row is loaded (each value of
+    /// `k` is read once, by the load of its row), so the pivots are
+    /// checked at the end: the smallest `|u_jj|` against it, the
+    /// elimination being the same up to the first pivot that fails.
     fn factorize(&mut self, k: &SaddleMatrix, growth_limit: f64) -> Result<(), Reject> {
         let (dim, kl, kv) = (self.dim, self.kl, self.kl + self.ku);
         let (rm, cm, wc) = (self.wr - 1, self.wc - 1, self.wc);
         let vals = k.values();
-        let amax = vals.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let tiny = f64::EPSILON * amax;
+        // max |a|, whether every a is finite, the smallest pivot and
+        // whether one was NaN
+        let (mut amax, mut finite) = (0.0f64, true);
+        let (mut min_pivot, mut nan_pivot) = (f64::INFINITY, false);
         let mut umax = 0.0f64;
         let win = &mut self.win;
         win.fill(0.0);
         self.u_val.clear();
         self.l_val.clear();
-        let load = |win: &mut [f64], i: usize| {
+        let mut load = |win: &mut [f64], i: usize| {
             let row = &mut win[(i & rm) * wc..(i & rm) * wc + wc];
             row.fill(0.0);
             for &(s, c) in &self.row_ent[self.row_ptr[i]..self.row_ptr[i + 1]] {
-                row[c as usize & cm] += vals[s as usize];
+                let v = vals[s as usize];
+                amax = amax.max(v.abs());
+                finite &= v.is_finite();
+                row[c as usize & cm] += v;
             }
         };
         for i in 0..kl.min(dim) {
@@ -221,9 +235,8 @@ impl Band {
                 }
             }
             // a NaN pivot is rejected too
-            if best <= tiny || best.is_nan() {
-                return Err(Reject::TinyPivot);
-            }
+            min_pivot = min_pivot.min(best);
+            nan_pivot |= best.is_nan();
             // p ≤ kl and the lengths ≤ kl + ku ≤ 2 MAX_BANDWIDTH fit a byte
             self.steps[j].pivot = p as u8;
             if p != 0 {
@@ -278,6 +291,12 @@ impl Band {
                 }
             }
         }
+        if !finite {
+            return Err(Reject::NonFinite);
+        }
+        if nan_pivot || min_pivot <= f64::EPSILON * amax {
+            return Err(Reject::TinyPivot);
+        }
         if umax > growth_limit * amax || !umax.is_finite() {
             return Err(Reject::Growth);
         }
@@ -329,6 +348,45 @@ impl Band {
     /// factorisation.
     fn factor_len(&self) -> (usize, usize) {
         (self.l_val.len(), self.u_val.len() + self.dim)
+    }
+}
+
+thread_local! {
+    /// The factor storage (`u_val`, `l_val`) of the last [`Band`] dropped
+    /// on this thread, taken by the next [`Band::analyze`]: the analyses
+    /// build a solver per call, and the factors of a long chain are
+    /// megabytes that the allocator would return to the system at the end
+    /// of one call and map afresh (page faults, zeroed pages) in the next.
+    /// Kept only up to [`SPARE_MAX_VALUES`] values.
+    static SPARE: Cell<(Vec<f64>, Vec<f64>)> = const { Cell::new((Vec::new(), Vec::new())) };
+}
+
+/// Largest factor storage (values of `U` and `L` reserved) that a dropped
+/// [`Band`] leaves to the next one on its thread: 4 Mi values, 32 MiB.
+const SPARE_MAX_VALUES: usize = 1 << 22;
+
+/// `spare`, emptied, when it has room for `cap` values, else a new vector
+/// with that capacity.
+fn reuse(mut spare: Vec<f64>, cap: usize) -> Vec<f64> {
+    if spare.capacity() >= cap {
+        spare.clear();
+        spare
+    } else {
+        Vec::with_capacity(cap)
+    }
+}
+
+impl Drop for Band {
+    fn drop(&mut self) {
+        let (u, l) = (
+            std::mem::take(&mut self.u_val),
+            std::mem::take(&mut self.l_val),
+        );
+        if u.capacity() + l.capacity() <= SPARE_MAX_VALUES {
+            // dropped with the storage while the thread's locals are being
+            // destroyed
+            let _ = SPARE.try_with(|s| s.set((u, l)));
+        }
     }
 }
 
@@ -456,14 +514,18 @@ impl SaddlePointSolver for ChainLu {
                 got: k.dim(),
             });
         }
-        k.check_finite()?;
+        let result = band.factorize(k, self.growth_limit);
+        if let Err(Reject::NonFinite) = result {
+            // the error naming the first non-finite entry
+            k.check_finite()?;
+        }
         self.stats.factorizations += 1;
-        let info = match band.factorize(k, self.growth_limit) {
+        let info = match result {
             Ok(()) => {
                 self.on_fallback = false;
                 FactorInfo::default()
             }
-            Err(Reject::TinyPivot | Reject::Growth) => {
+            Err(Reject::NonFinite | Reject::TinyPivot | Reject::Growth) => {
                 self.fallbacks += 1;
                 self.factorize_fallback(k)?
             }
