@@ -452,7 +452,11 @@ impl DynamicBlocks {
         if force.contains(&true) {
             for &(e, s, w) in &ops.force {
                 let (dq, dqd) = (self.dq[e], self.dqd[e]);
-                for (v, &[_, c_c, c_k]) in vs.iter_mut().zip(&cs).filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0) {
+                for (v, &[_, c_c, c_k]) in vs
+                    .iter_mut()
+                    .zip(&cs)
+                    .filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0)
+                {
                     v[s] += w * -(c_c * dqd + c_k * dq);
                 }
             }
@@ -461,7 +465,11 @@ impl DynamicBlocks {
                 let dq = reciprocal_correction(ents, &self.dq);
                 let dqd = reciprocal_correction(ents, &self.dqd);
                 if dq != 0.0 || dqd != 0.0 {
-                    for (v, &[_, c_c, c_k]) in vs.iter_mut().zip(&cs).filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0) {
+                    for (v, &[_, c_c, c_k]) in vs
+                        .iter_mut()
+                        .zip(&cs)
+                        .filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0)
+                    {
                         v[s] += w * (-2.0 * (c_c * dqd + c_k * dq));
                     }
                 }
@@ -670,7 +678,10 @@ mod tests {
                     .all(|(x, y)| x.to_bits() == y.to_bits());
                 assert!(same, "{bodies} bodies, {threads} thread(s)");
             }
-            assert_eq!(blocks.plan.get().unwrap().is_some(), n >= PARALLEL_MIN_COORDS);
+            assert_eq!(
+                blocks.plan.get().unwrap().is_some(),
+                n >= PARALLEL_MIN_COORDS
+            );
             assert!(im1.values().iter().any(|v| *v != 0.0));
         }
     }
