@@ -214,6 +214,9 @@ pub struct ContactJacobians {
     /// The elements, for their forces in one loop, and their wall tests.
     contacts: Vec<WallContact>,
     clearance: Vec<Clearance>,
+    /// The one clearance of every element when they all have the same
+    /// (the rod's segments), read from registers in the loops.
+    uniform: Option<Clearance>,
 }
 
 impl ContactJacobians {
@@ -223,6 +226,10 @@ impl ContactJacobians {
             q0: 3 * body0,
             contacts: contacts.to_vec(),
             clearance: contacts.iter().map(WallContact::clearance).collect(),
+            uniform: contacts
+                .first()
+                .map(WallContact::clearance)
+                .filter(|c| contacts.iter().all(|e| e.clearance() == *c)),
             fp: contacts
                 .iter()
                 .flat_map(|e| {
@@ -289,7 +296,11 @@ impl ForceKernels for ContactJacobians {
         elements: std::ops::Range<usize>,
     ) -> bool {
         for k in elements {
-            if !self.clearance[k].clear(q[self.q0 + 3 * k]) {
+            let clear = match &self.uniform {
+                Some(c) => c.clear(q[self.q0 + 3 * k]),
+                None => self.clearance[k].clear(q[self.q0 + 3 * k]),
+            };
+            if !clear {
                 ForceElement::add_forces(&self.contacts[k], t, q, qd, g);
             }
         }
