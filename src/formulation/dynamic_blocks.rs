@@ -564,22 +564,21 @@ mod tests {
     use super::*;
     use crate::builders::stiff_chain;
 
-    /// [`DynamicBlocks::write_with_jacobian`] in its two halves (on two
-    /// threads of a pool) writes the bits of [`DynamicBlocks::write`] and
-    /// [`SaddleMatrix::set_jacobian`] in one piece, for each combination of
-    /// blocks, with unsymmetric force Jacobians (every coordinate pair gets
-    /// a reciprocal correction) and over stale values.
-    #[test]
-    fn halves_write_the_one_piece_bits() {
-        let (sys, q0, qd0, _) = stiff_chain(2100, 0.1).unwrap();
+    /// The blocks of a stiff chain of `bodies` bodies evaluated at a random
+    /// state near its start, with random unsymmetric parts added to the
+    /// force Jacobians (every coordinate pair gets a reciprocal
+    /// correction): the system, the blocks, a matrix of their pattern in
+    /// symmetric storage and Φ_q.
+    fn random_blocks(
+        bodies: usize,
+        rnd: &mut impl FnMut() -> f64,
+    ) -> (System, DynamicBlocks, SaddleMatrix, Vec<f64>) {
+        let (sys, q0, qd0, _) = stiff_chain(bodies, 0.1).unwrap();
         let (n, m) = (sys.n_coords(), sys.n_constraints());
-        assert!(n >= PARALLEL_MIN_COORDS);
         let mut a = APattern::new();
         let mut blocks = DynamicBlocks::register(&sys, &mut a);
         let jp = sys.jacobian_pattern();
         let k0 = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
-        let mut u = crate::numeric::test_uniform(12345);
-        let mut rnd = move || u() * 2.0 - 1.0;
         let q: Vec<f64> = q0.iter().map(|x| x + 1e-3 * rnd()).collect();
         let qd: Vec<f64> = qd0.iter().map(|x| x + rnd()).collect();
         let lam: Vec<f64> = (0..m).map(|_| 1e3 * rnd()).collect();
@@ -590,6 +589,20 @@ mod tests {
         for v in blocks.dq.iter_mut().chain(blocks.dqd.iter_mut()) {
             *v += 1e4 * rnd();
         }
+        (sys, blocks, k0, jac)
+    }
+
+    /// [`DynamicBlocks::write_with_jacobian`] in its two halves (on two
+    /// threads of a pool) writes the bits of [`DynamicBlocks::write`] and
+    /// [`SaddleMatrix::set_jacobian`] in one piece, for each combination of
+    /// blocks, with unsymmetric force Jacobians (every coordinate pair gets
+    /// a reciprocal correction) and over stale values.
+    #[test]
+    fn halves_write_the_one_piece_bits() {
+        let mut u = crate::numeric::test_uniform(12345);
+        let mut rnd = move || u() * 2.0 - 1.0;
+        let (sys, blocks, k0, jac) = random_blocks(2100, &mut rnd);
+        assert!(sys.n_coords() >= PARALLEL_MIN_COORDS);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
@@ -637,23 +650,9 @@ mod tests {
         let mut u = crate::numeric::test_uniform(777);
         let mut rnd = move || u() * 2.0 - 1.0;
         for (bodies, threads) in [(40, 1), (2100, 1), (2100, 2)] {
-            let (sys, q0, qd0, _) = stiff_chain(bodies, 0.1).unwrap();
-            let (n, m) = (sys.n_coords(), sys.n_constraints());
-            let mut a = APattern::new();
-            let mut blocks = DynamicBlocks::register(&sys, &mut a);
-            let jp = sys.jacobian_pattern();
-            let k0 = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
-            let q: Vec<f64> = q0.iter().map(|x| x + 1e-3 * rnd()).collect();
-            let qd: Vec<f64> = qd0.iter().map(|x| x + rnd()).collect();
-            let lam: Vec<f64> = (0..m).map(|_| 1e3 * rnd()).collect();
-            let mut jac = vec![0.0; jp.len()];
-            blocks
-                .evaluate(&sys, 0.0, &q, &qd, &lam, true, true, &mut jac)
-                .unwrap();
-            for v in blocks.dq.iter_mut().chain(blocks.dqd.iter_mut()) {
-                *v += 1e4 * rnd();
-            }
-            let zeros = vec![0.0; jp.len()];
+            let (sys, blocks, k0, jac) = random_blocks(bodies, &mut rnd);
+            let n = sys.n_coords();
+            let zeros = vec![0.0; jac.len()];
             let c = [[1.0, 0.0], [rnd(), rnd()], [1e-3 * rnd(), 1e-3 * rnd()]];
             let part = |p: usize| c.map(|ci| ci[p]);
             let (mut re1, mut im1) = (k0.clone(), k0.clone());
