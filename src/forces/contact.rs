@@ -246,7 +246,7 @@ impl WallContact {
 
 /// A segment's reach (half its width plus half its length, widened by
 /// 1e-12 relative) and the two walls: [`WallContact::clear_of_walls`].
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Clearance {
     reach: f64,
     left: f64,

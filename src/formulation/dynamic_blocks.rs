@@ -215,33 +215,61 @@ impl DynamicBlocks {
     /// true Jacobian does not have (on the falling rod's contacts: an
     /// indefinite `A` and diverging corrections; docs/scaling.md,
     /// "Measurements behind the defaults").
-    pub(crate) fn write(&self, sys: &System, k: &mut SaddleMatrix, [c_m, c_c, c_k]: [f64; 3]) {
-        k.set_zero();
-        for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
-            k.add_diagonal(i, c_m * mi);
-        }
-        if c_c != 0.0 || c_k != 0.0 {
-            let symmetric = k.storage() == Storage::SymmetricLower;
-            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
-                if !(symmetric && self.skip[e]) {
-                    k.add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
+    pub(crate) fn write(&self, sys: &System, k: &mut SaddleMatrix, c: [f64; 3]) {
+        self.write_parts(sys, [k], [c]);
+    }
+
+    /// [`Self::write`] into each matrix of `ks` with its coefficients of
+    /// `cs`, in one pass over the blocks: each matrix receives the
+    /// operations `write` makes, in the same order (the same bits), except
+    /// that a zero `c_m` adds no mass (its zeroed slots stay +0, which is
+    /// what adding `0 · M_ii` gives).
+    fn write_parts<const P: usize>(
+        &self,
+        sys: &System,
+        mut ks: [&mut SaddleMatrix; P],
+        cs: [[f64; 3]; P],
+    ) {
+        for (k, &[c_m, _, _]) in ks.iter_mut().zip(&cs) {
+            k.set_zero();
+            if c_m != 0.0 {
+                for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
+                    k.add_diagonal(i, c_m * mi);
                 }
             }
-            if symmetric {
-                for (p, &first) in self.skew_first.iter().enumerate() {
-                    let ents = &self.skew_ent[self.skew_ptr[p]..self.skew_ptr[p + 1]];
-                    let dq = reciprocal_correction(ents, &self.dq);
-                    let dqd = reciprocal_correction(ents, &self.dqd);
-                    if dq != 0.0 || dqd != 0.0 {
-                        // through an entry of the pair (weight ½ in this storage)
-                        k.add_a(self.force_first + first, -2.0 * (c_c * dqd + c_k * dq));
+        }
+        let force = cs.map(|[_, c_c, c_k]| c_c != 0.0 || c_k != 0.0);
+        let symmetric: [bool; P] =
+            std::array::from_fn(|p| force[p] && ks[p].storage() == Storage::SymmetricLower);
+        if force.contains(&true) {
+            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
+                for p in 0..P {
+                    if force[p] && !(symmetric[p] && self.skip[e]) {
+                        let [_, c_c, c_k] = cs[p];
+                        ks[p].add_a(self.force_first + e, -(c_c * dqd + c_k * dq));
                     }
                 }
             }
         }
-        if c_k != 0.0 {
-            for (e, &h) in self.hess_vals.iter().enumerate() {
-                k.add_a(self.hess_first + e, c_k * h);
+        if symmetric.contains(&true) {
+            for (pair, &first) in self.skew_first.iter().enumerate() {
+                let ents = &self.skew_ent[self.skew_ptr[pair]..self.skew_ptr[pair + 1]];
+                let dq = reciprocal_correction(ents, &self.dq);
+                let dqd = reciprocal_correction(ents, &self.dqd);
+                if dq != 0.0 || dqd != 0.0 {
+                    for p in (0..P).filter(|&p| symmetric[p]) {
+                        let [_, c_c, c_k] = cs[p];
+                        // through an entry of the pair (weight ½ in this storage)
+                        ks[p].add_a(self.force_first + first, -2.0 * (c_c * dqd + c_k * dq));
+                    }
+                }
+            }
+        }
+        for (k, &[_, _, c_k]) in ks.iter_mut().zip(&cs) {
+            if c_k != 0.0 {
+                for (e, &h) in self.hess_vals.iter().enumerate() {
+                    k.add_a(self.hess_first + e, c_k * h);
+                }
             }
         }
     }
@@ -292,16 +320,57 @@ impl DynamicBlocks {
         c: [f64; 3],
         jac: &[f64],
     ) {
-        let plan = self.plan.get_or_init(|| self.half_plan(sys, k)).as_ref();
+        self.write_parts_with_jacobian(sys, [k], [c], [Some(jac)]);
+    }
+
+    /// The real and imaginary parts `[re, im]` of the complex Newton matrix
+    /// `c₀ M − c₁ ∂g/∂q̇ − c₂ ∂g/∂q + c₂ (Φ_qᵀλ)_q` with `Φ_q` from `jac` in
+    /// `re` (`c = [c₀, c₁, c₂]`, each `[re, im]`; `c₀` real): the bits of
+    /// [`Self::write_with_jacobian`] of each part (`im` with `Φ_q` = 0), in
+    /// one pass over the blocks.
+    pub(crate) fn write_complex_with_jacobian(
+        &self,
+        sys: &System,
+        [re, im]: [&mut SaddleMatrix; 2],
+        c: [[f64; 2]; 3],
+        jac: &[f64],
+    ) {
+        let part = |p: usize| c.map(|ci| ci[p]);
+        self.write_parts_with_jacobian(sys, [re, im], [part(0), part(1)], [Some(jac), None]);
+    }
+
+    /// [`Self::write_parts`] and the Jacobian block of each matrix: `Φ_q`
+    /// from `jacs[p]`, or 0 for `None`; in two halves of the values
+    /// ([`Self::write_with_jacobian`]) when the plan applies to every
+    /// matrix (all of one pattern).
+    fn write_parts_with_jacobian<const P: usize>(
+        &self,
+        sys: &System,
+        mut ks: [&mut SaddleMatrix; P],
+        cs: [[f64; 3]; P],
+        jacs: [Option<&[f64]>; P],
+    ) {
+        let Some(k0) = ks.first() else {
+            return;
+        };
+        let plan = self.plan.get_or_init(|| self.half_plan(sys, k0)).as_ref();
         match plan {
-            Some(p) if p.nnz == k.nnz() && p.dim == k.dim() => {
-                let nnz = k.nnz();
-                let apply = |base: usize, v: &mut [f64]| self.apply(p, base, v, sys, c, jac);
-                split_pass(true, nnz, k.values_mut(), apply, |(), ()| ());
+            Some(p) if ks.iter().all(|k| p.nnz == k.nnz() && p.dim == k.dim()) => {
+                let nnz = p.nnz;
+                let vs = ks.map(|k| k.values_mut());
+                let apply = |base: usize, vs: [&mut [f64]; P]| {
+                    self.apply(p, base, vs, sys, cs, jacs);
+                };
+                split_pass(true, nnz, vs, apply, |(), ()| ());
             }
             _ => {
-                self.write(sys, k, c);
-                k.set_jacobian(jac);
+                // the Φ_q slots of a `None` stay at the zeros of `set_zero`
+                self.write_parts(sys, ks.each_mut().map(|k| &mut **k), cs);
+                for (k, jac) in ks.iter_mut().zip(jacs) {
+                    if let Some(jac) = jac {
+                        k.set_jacobian(jac);
+                    }
+                }
             }
         }
     }
@@ -356,44 +425,70 @@ impl DynamicBlocks {
         })
     }
 
-    /// One half of [`Self::write_with_jacobian`]: `v` = the values from
-    /// index `base` (0: the low half), zeroed, then its additions in the
-    /// one-piece order ([`Self::write`], [`SaddleMatrix::set_jacobian`]).
-    fn apply(
+    /// One half of [`Self::write_parts_with_jacobian`]: `vs` = each
+    /// matrix's values from index `base` (0: the low half), zeroed, then
+    /// its additions in the one-piece order ([`Self::write_parts`],
+    /// [`SaddleMatrix::set_jacobian`]).
+    fn apply<const P: usize>(
         &self,
         p: &HalfPlan,
         base: usize,
-        v: &mut [f64],
+        mut vs: [&mut [f64]; P],
         sys: &System,
-        [c_m, c_c, c_k]: [f64; 3],
-        jac: &[f64],
+        cs: [[f64; 3]; P],
+        jacs: [Option<&[f64]>; P],
     ) {
         let ops = &p.halves[usize::from(base > 0)];
-        v.fill(0.0);
         let mass = sys.mass_diagonal();
-        for &(i, s) in &ops.diag {
-            v[s] += c_m * mass[i];
+        for (v, &[c_m, _, _]) in vs.iter_mut().zip(&cs) {
+            v.fill(0.0);
+            if c_m != 0.0 {
+                for &(i, s) in &ops.diag {
+                    v[s] += c_m * mass[i];
+                }
+            }
         }
-        if c_c != 0.0 || c_k != 0.0 {
+        let force = cs.map(|[_, c_c, c_k]| c_c != 0.0 || c_k != 0.0);
+        if force.contains(&true) {
             for &(e, s, w) in &ops.force {
-                v[s] += w * -(c_c * self.dqd[e] + c_k * self.dq[e]);
+                let (dq, dqd) = (self.dq[e], self.dqd[e]);
+                for (v, &[_, c_c, c_k]) in vs
+                    .iter_mut()
+                    .zip(&cs)
+                    .filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0)
+                {
+                    v[s] += w * -(c_c * dqd + c_k * dq);
+                }
             }
             for &(pair, s, w) in &ops.skew {
                 let ents = &self.skew_ent[self.skew_ptr[pair]..self.skew_ptr[pair + 1]];
                 let dq = reciprocal_correction(ents, &self.dq);
                 let dqd = reciprocal_correction(ents, &self.dqd);
                 if dq != 0.0 || dqd != 0.0 {
-                    v[s] += w * (-2.0 * (c_c * dqd + c_k * dq));
+                    for (v, &[_, c_c, c_k]) in vs
+                        .iter_mut()
+                        .zip(&cs)
+                        .filter(|(_, c)| c[1] != 0.0 || c[2] != 0.0)
+                    {
+                        v[s] += w * (-2.0 * (c_c * dqd + c_k * dq));
+                    }
                 }
             }
         }
-        if c_k != 0.0 {
+        if cs.iter().any(|c| c[2] != 0.0) {
             for &(e, s, w) in &ops.hess {
-                v[s] += w * (c_k * self.hess_vals[e]);
+                let h = self.hess_vals[e];
+                for (v, &[_, _, c_k]) in vs.iter_mut().zip(&cs).filter(|(_, c)| c[2] != 0.0) {
+                    v[s] += w * (c_k * h);
+                }
             }
         }
-        for &(e, s) in &ops.jac {
-            v[s] += jac[e];
+        for (v, jac) in vs.iter_mut().zip(jacs) {
+            if let Some(jac) = jac {
+                for &(e, s) in &ops.jac {
+                    v[s] += jac[e];
+                }
+            }
         }
     }
 }
@@ -469,22 +564,21 @@ mod tests {
     use super::*;
     use crate::builders::stiff_chain;
 
-    /// [`DynamicBlocks::write_with_jacobian`] in its two halves (on two
-    /// threads of a pool) writes the bits of [`DynamicBlocks::write`] and
-    /// [`SaddleMatrix::set_jacobian`] in one piece, for each combination of
-    /// blocks, with unsymmetric force Jacobians (every coordinate pair gets
-    /// a reciprocal correction) and over stale values.
-    #[test]
-    fn halves_write_the_one_piece_bits() {
-        let (sys, q0, qd0, _) = stiff_chain(2100, 0.1).unwrap();
+    /// The blocks of a stiff chain of `bodies` bodies evaluated at a random
+    /// state near its start, with random unsymmetric parts added to the
+    /// force Jacobians (every coordinate pair gets a reciprocal
+    /// correction): the system, the blocks, a matrix of their pattern in
+    /// symmetric storage and Φ_q.
+    fn random_blocks(
+        bodies: usize,
+        rnd: &mut impl FnMut() -> f64,
+    ) -> (System, DynamicBlocks, SaddleMatrix, Vec<f64>) {
+        let (sys, q0, qd0, _) = stiff_chain(bodies, 0.1).unwrap();
         let (n, m) = (sys.n_coords(), sys.n_constraints());
-        assert!(n >= PARALLEL_MIN_COORDS);
         let mut a = APattern::new();
         let mut blocks = DynamicBlocks::register(&sys, &mut a);
         let jp = sys.jacobian_pattern();
         let k0 = SaddleMatrix::with_storage(n, m, &a, jp, Storage::SymmetricLower);
-        let mut u = crate::numeric::test_uniform(12345);
-        let mut rnd = move || u() * 2.0 - 1.0;
         let q: Vec<f64> = q0.iter().map(|x| x + 1e-3 * rnd()).collect();
         let qd: Vec<f64> = qd0.iter().map(|x| x + rnd()).collect();
         let lam: Vec<f64> = (0..m).map(|_| 1e3 * rnd()).collect();
@@ -495,6 +589,20 @@ mod tests {
         for v in blocks.dq.iter_mut().chain(blocks.dqd.iter_mut()) {
             *v += 1e4 * rnd();
         }
+        (sys, blocks, k0, jac)
+    }
+
+    /// [`DynamicBlocks::write_with_jacobian`] in its two halves (on two
+    /// threads of a pool) writes the bits of [`DynamicBlocks::write`] and
+    /// [`SaddleMatrix::set_jacobian`] in one piece, for each combination of
+    /// blocks, with unsymmetric force Jacobians (every coordinate pair gets
+    /// a reciprocal correction) and over stale values.
+    #[test]
+    fn halves_write_the_one_piece_bits() {
+        let mut u = crate::numeric::test_uniform(12345);
+        let mut rnd = move || u() * 2.0 - 1.0;
+        let (sys, blocks, k0, jac) = random_blocks(2100, &mut rnd);
+        assert!(sys.n_coords() >= PARALLEL_MIN_COORDS);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
@@ -526,5 +634,54 @@ mod tests {
             reciprocal_correction(ents, &blocks.dq) != 0.0
         });
         assert!(corrected);
+    }
+
+    /// [`DynamicBlocks::write_complex_with_jacobian`] writes the bits of
+    /// two [`DynamicBlocks::write_with_jacobian`] calls (the imaginary part
+    /// with Φ_q = 0), in one piece (n below [`PARALLEL_MIN_COORDS`]) and in
+    /// the two halves (above, on one thread and on two), over stale values,
+    /// with unsymmetric force Jacobians and random complex coefficients.
+    #[test]
+    fn complex_parts_in_one_pass_have_the_bits_of_two_writes() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let mut u = crate::numeric::test_uniform(777);
+        let mut rnd = move || u() * 2.0 - 1.0;
+        for (bodies, threads) in [(40, 1), (2100, 1), (2100, 2)] {
+            let (sys, blocks, k0, jac) = random_blocks(bodies, &mut rnd);
+            let n = sys.n_coords();
+            let zeros = vec![0.0; jac.len()];
+            let c = [[1.0, 0.0], [rnd(), rnd()], [1e-3 * rnd(), 1e-3 * rnd()]];
+            let part = |p: usize| c.map(|ci| ci[p]);
+            let (mut re1, mut im1) = (k0.clone(), k0.clone());
+            blocks.write_with_jacobian(&sys, &mut re1, part(0), &jac);
+            blocks.write_with_jacobian(&sys, &mut im1, part(1), &zeros);
+            let (mut re2, mut im2) = (k0.clone(), k0.clone());
+            re2.values_mut().fill(f64::NAN);
+            im2.values_mut().fill(-3.0);
+            let pool = (threads == 2).then_some(&pool);
+            let mut write = || {
+                blocks.write_complex_with_jacobian(&sys, [&mut re2, &mut im2], c, &jac);
+            };
+            match pool {
+                Some(p) => p.install(write),
+                None => write(),
+            }
+            for (one, two) in [(&re1, &re2), (&im1, &im2)] {
+                let same = one
+                    .values()
+                    .iter()
+                    .zip(two.values())
+                    .all(|(x, y)| x.to_bits() == y.to_bits());
+                assert!(same, "{bodies} bodies, {threads} thread(s)");
+            }
+            assert_eq!(
+                blocks.plan.get().unwrap().is_some(),
+                n >= PARALLEL_MIN_COORDS
+            );
+            assert!(im1.values().iter().any(|v| *v != 0.0));
+        }
     }
 }

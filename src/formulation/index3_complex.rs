@@ -64,7 +64,6 @@ struct ChainPath {
     kr: SaddleMatrix,
     ki: SaddleMatrix,
     jac: Vec<f64>,
-    zeros: Vec<f64>,
     ldlt: ComplexChainLdlt,
     /// The controller states' exact border over `ldlt`.
     border: Option<ComplexStateBorder>,
@@ -89,7 +88,6 @@ impl ChainPath {
             ki: kr.clone(),
             kr,
             jac: vec![0.0; jp.len()],
-            zeros: vec![0.0; jp.len()],
             ldlt,
         })
     }
@@ -107,11 +105,10 @@ impl ChainPath {
     ) -> Result<(), FormulationError> {
         self.blocks
             .evaluate(sys, t, q, qd, lambda, true, true, &mut self.jac)?;
-        // each in two halves of its values for large n (same pattern)
+        // both parts in one pass, in two halves of their values for large n
+        let parts = [&mut self.kr, &mut self.ki];
         self.blocks
-            .write_with_jacobian(sys, &mut self.kr, [c0[0], c1[0], c2[0]], &self.jac);
-        self.blocks
-            .write_with_jacobian(sys, &mut self.ki, [c0[1], c1[1], c2[1]], &self.zeros);
+            .write_complex_with_jacobian(sys, parts, [c0, c1, c2], &self.jac);
         self.ldlt
             .factorize(&self.kr, &self.ki)
             .map_err(linear_at(t))?;

@@ -131,9 +131,7 @@ impl ForceKernels for DragJacobians {
         if let Some(t) = &self.trig {
             if let Ok(mut m) = t.memo.try_write() {
                 let sc = m.update(&q[t.q0..t.q0 + 3 * t.n_bodies]);
-                for k in 0..nb {
-                    self.force(k, sc[2 * k], sc[2 * k + 1], qd, g);
-                }
+                self.forces_with(0..nb, &sc[..2 * nb], qd, g);
                 return true;
             }
         }
@@ -154,9 +152,8 @@ impl ForceKernels for DragJacobians {
         if let Some(t) = &self.trig {
             if let Ok(m) = t.memo.try_read() {
                 if m.current(&q[t.q0..], elements.clone()) {
-                    for k in elements {
-                        self.force(k, m.sc[2 * k], m.sc[2 * k + 1], qd, g);
-                    }
+                    let sc = &m.sc[2 * elements.start..2 * elements.end];
+                    self.forces_with(elements, sc, qd, g);
                     return true;
                 }
             }
@@ -167,20 +164,21 @@ impl ForceKernels for DragJacobians {
 }
 
 impl DragJacobians {
-    /// The drag force of body `k` with its angle's sine and cosine added
-    /// to `g`: the roundings of `Drag::force` (bit-identical;
+    /// The drag forces of bodies `ks` added to `g`, from their angles'
+    /// sines and cosines `sc` (`[sin, cos]` per body of `ks`): the
+    /// roundings of `Drag::force`, body after body (bit-identical;
     /// tests/model/codegen.rs).
-    fn force(&self, k: usize, sn: f64, cs: f64, qd: &[f64], g: &mut [f64]) {
-        let (o, a) = (self.q0 + 3 * k, 3 * k);
-        let f = drag_force(
-            (self.fp[a], self.fp[a + 1], self.fp[a + 2]),
-            sn,
-            cs,
-            [qd[o], qd[o + 1], qd[o + 2]],
-        );
-        g[o] += f[0];
-        g[o + 1] += f[1];
-        g[o + 2] += f[2];
+    fn forces_with(&self, ks: std::ops::Range<usize>, sc: &[f64], qd: &[f64], g: &mut [f64]) {
+        let r = self.q0 + 3 * ks.start..self.q0 + 3 * ks.end;
+        let fp = &self.fp[3 * ks.start..3 * ks.end];
+        assert!(sc.len() == 2 * ks.len() && r.end <= qd.len().min(g.len()));
+        let bodies = g[r.clone()].chunks_exact_mut(3).zip(qd[r].chunks_exact(3));
+        for ((gk, v), (a, sc)) in bodies.zip(fp.chunks_exact(3).zip(sc.chunks_exact(2))) {
+            let f = drag_force((a[0], a[1], a[2]), sc[0], sc[1], [v[0], v[1], v[2]]);
+            gk[0] += f[0];
+            gk[1] += f[1];
+            gk[2] += f[2];
+        }
     }
     /// The drag forces of bodies `ks`, the sines and cosines computed four
     /// at a time ([`sin_cos4`], else [`sin_cos`]; the same bits).
@@ -193,13 +191,14 @@ impl DragJacobians {
                 *xl = q[self.q0 + 3 * (k + l) + 2];
             }
             let sc4 = if m == 4 { sin_cos4(x) } else { None };
+            let mut sc = [0.0; 8];
             for l in 0..m {
-                let (sn, cs) = match sc4 {
+                (sc[2 * l], sc[2 * l + 1]) = match sc4 {
                     Some((s, c)) => (s[l], c[l]),
                     None => sin_cos(x[l]),
                 };
-                self.force(k + l, sn, cs, qd, g);
             }
+            self.forces_with(k..k + m, &sc[..2 * m], qd, g);
             k += m;
         }
     }
@@ -215,6 +214,9 @@ pub struct ContactJacobians {
     /// The elements, for their forces in one loop, and their wall tests.
     contacts: Vec<WallContact>,
     clearance: Vec<Clearance>,
+    /// The one clearance of every element when they all have the same
+    /// (the rod's segments), read from registers in the loops.
+    uniform: Option<Clearance>,
 }
 
 impl ContactJacobians {
@@ -224,6 +226,10 @@ impl ContactJacobians {
             q0: 3 * body0,
             contacts: contacts.to_vec(),
             clearance: contacts.iter().map(WallContact::clearance).collect(),
+            uniform: contacts
+                .first()
+                .map(WallContact::clearance)
+                .filter(|c| contacts.iter().all(|e| e.clearance() == *c)),
             fp: contacts
                 .iter()
                 .flat_map(|e| {
@@ -290,7 +296,11 @@ impl ForceKernels for ContactJacobians {
         elements: std::ops::Range<usize>,
     ) -> bool {
         for k in elements {
-            if !self.clearance[k].clear(q[self.q0 + 3 * k]) {
+            let clear = match &self.uniform {
+                Some(c) => c.clear(q[self.q0 + 3 * k]),
+                None => self.clearance[k].clear(q[self.q0 + 3 * k]),
+            };
+            if !clear {
                 ForceElement::add_forces(&self.contacts[k], t, q, qd, g);
             }
         }
