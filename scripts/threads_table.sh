@@ -13,7 +13,7 @@
 # "quiet" for one), OUT (a file for the raw JSON lines; default a
 # temporary file, printed at the end), BIN (a `threads_table` binary to
 # run instead of building this tree's: another build's, for a before /
-# after table in one session), CLOCK (1: the runs keep their
+# after table from one run of this script), CLOCK (1: the runs keep their
 # `threads_clock`, MBSOLVE_THREADS_CLOCK=1, at the cost of a few system
 # calls per pass; default 0). Its columns from the summary's
 # `threads_clock`, for the one- and the two-thread run: the share of the

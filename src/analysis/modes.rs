@@ -276,7 +276,7 @@ pub fn eigenmodes(tan: &Tangent, opts: ModeOptions) -> Result<Modes, Formulation
 }
 
 /// Entries per block of [`orthogonalise`] and [`Basis`]: the blocks of
-/// `w`, `M` and of every basis vector (25 … 80 of them, 0.5 kB each) stay
+/// `w`, `M` and of every basis vector (one per Lanczos step) stay
 /// in the L1 / L2 cache while a block is worked on.
 const REORTH_BLOCK: usize = 64;
 

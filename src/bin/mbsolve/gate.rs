@@ -315,7 +315,7 @@ fn cpu_seconds() -> f64 {
 /// (measurements in docs/scaling.md).
 pub const IMPLICIT_GENERATED_MIN: f64 = 1.5;
 
-/// Whole generalized-α run of the stiff chain (N = 1000, h = 1e-5, 400
+/// Whole generalized-α run of the stiff chain (N = 1000, h = 1e-5, 800
 /// steps) with the generated evaluation (kernels, fused trigonometry)
 /// over the generic one (every joint and force element on its own): CPU
 /// time of the process (the gate's one-thread pool), the minimum over
