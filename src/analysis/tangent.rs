@@ -194,29 +194,29 @@ impl<'a> Tangent<'a> {
 
     /// `M` as triplets (`n × n`, diagonal).
     pub fn mass(&self) -> Triplets {
+        self.square(
+            self.sys
+                .mass_diagonal()
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| (i, i, v)),
+        )
+    }
+
+    /// An `n × n` matrix of `entries`.
+    fn square(&self, entries: impl Iterator<Item = (usize, usize, f64)>) -> Triplets {
         let n = self.n();
         Triplets {
             rows: n,
             cols: n,
-            entries: self
-                .sys
-                .mass_diagonal()
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| (i, i, v))
-                .collect(),
+            entries: entries.collect(),
         }
     }
 
     /// `C = −∂g/∂q̇` at the last evaluated state (`n × n`, exact, possibly
     /// unsymmetric).
     pub fn damping(&self) -> Triplets {
-        let n = self.n();
-        Triplets {
-            rows: n,
-            cols: n,
-            entries: self.damping_entries().collect(),
-        }
+        self.square(self.damping_entries())
     }
 
     /// The entries of [`Tangent::damping`], in its order, without
@@ -234,12 +234,7 @@ impl<'a> Tangent<'a> {
     /// `K = −∂g/∂q + (Φ_qᵀλ)_q` at the last evaluated state (`n × n`,
     /// exact, possibly unsymmetric).
     pub fn stiffness(&self) -> Triplets {
-        let n = self.n();
-        Triplets {
-            rows: n,
-            cols: n,
-            entries: self.stiffness_entries().collect(),
-        }
+        self.square(self.stiffness_entries())
     }
 
     /// The entries of [`Tangent::stiffness`], in its order (the force
