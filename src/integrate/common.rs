@@ -4,7 +4,6 @@
 //! delivery of requested outputs (used by [`super::driver::drive`]).
 
 use std::ops::ControlFlow;
-use std::sync::Arc;
 
 use super::driver::{Failure, StepCut, Stepper};
 use super::{IntegratorError, Observer, OdeOptions, OdeSystem, Stats, Tolerance};
@@ -58,12 +57,8 @@ pub(crate) fn call_rhs(
     step_from: Option<f64>,
 ) -> Result<(), Failure> {
     stats.rhs_evals += 1;
-    sys.rhs(t, y, dydt).map_err(|e| Failure::System {
-        what: "right-hand side",
-        t,
-        step_from,
-        source: Arc::new(e),
-    })?;
+    sys.rhs(t, y, dydt)
+        .map_err(Failure::system("right-hand side", t, step_from))?;
     if let Some((index, value)) = first_non_finite(dydt) {
         return Err(Failure::NonFinite {
             what: "right-hand side",
@@ -134,12 +129,9 @@ pub(crate) fn post_step(
     f: &mut [f64],
     stats: &mut Stats,
 ) -> Result<bool, Failure> {
-    let changed = sys.post_step(t, y).map_err(|e| Failure::System {
-        what: "post-step projection",
-        t,
-        step_from: None,
-        source: Arc::new(e),
-    })?;
+    let changed = sys
+        .post_step(t, y)
+        .map_err(Failure::system("post-step projection", t, None))?;
     if changed {
         if let Some((index, value)) = first_non_finite(y) {
             return Err(Failure::NonFinite {

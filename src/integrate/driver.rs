@@ -113,6 +113,23 @@ pub enum Failure {
     },
 }
 
+impl Failure {
+    /// The [`Failure::System`] of `what` evaluated at `t` (inside the step
+    /// from `step_from`), made from the system's error: for `map_err`.
+    pub(crate) fn system(
+        what: &'static str,
+        t: f64,
+        step_from: Option<f64>,
+    ) -> impl FnOnce(SystemError) -> Self {
+        move |e| Self::System {
+            what,
+            t,
+            step_from,
+            source: Arc::new(e),
+        }
+    }
+}
+
 /// What made a step size collapse ([`Failure::StepTooSmall`]).
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum StepCut {

@@ -87,18 +87,18 @@
 #![allow(clippy::needless_range_loop)] // index loops over parallel arrays (q, v, history)
 
 use std::collections::VecDeque;
-use std::sync::Arc;
 
 mod newton;
 
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
-    attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
-    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView, StepTry, Warn,
+    attempt_or_cut, implicit_outputs, implicit_stepper, run as run_implicit, validate_run,
+    Attempted, CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView,
+    StepTry, Warn,
 };
 use super::{
-    IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Stats, SystemError, Tolerance,
+    IntegratorError, Method, OdeOptions, Report, SecondOrderDae, SystemError, Tolerance,
     REUSE_BAND, ROUNDING_ULPS,
 };
 use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
@@ -475,12 +475,7 @@ impl Stepper for BdfRun<'_> {
         self.stats.residual_evaluations += 1;
         self.sys
             .accelerations(StateView { t, q: q0, qd: v0 }, &mut self.qdd, &mut self.lam)
-            .map_err(|e| Failure::System {
-                what: "consistent accelerations",
-                t,
-                step_from: None,
-                source: Arc::new(e),
-            })?;
+            .map_err(Failure::system("consistent accelerations", t, None))?;
         self.f0[..n].copy_from_slice(v0);
         self.f0[n..].copy_from_slice(&self.qdd);
         if let Some((index, value)) = common::first_non_finite(&self.f0) {
@@ -716,18 +711,7 @@ impl Stepper for BdfRun<'_> {
         }
     }
 
-    fn stats(&self) -> Stats {
-        self.stats.counts()
-    }
-
-    fn warnings(&self) -> &[String] {
-        &self.warnings
-    }
-
-    /// Interpolated rows projected onto the constraints.
-    fn settle(&mut self, t: f64, out: &mut [f64]) {
-        settle_output(self.sys, t, out, &mut self.warnings);
-    }
+    implicit_outputs!();
 }
 
 #[cfg(test)]

@@ -66,7 +66,6 @@ use super::super::driver::Failure;
 use super::super::implicit::Convergence;
 use super::super::{ImplicitOptions, IntegratorError, Method};
 use super::Run;
-use std::sync::Arc;
 
 /// Newton iterations per attempt that scenarios give the augmented
 /// Lagrangian when `integrator.max_newton` is not set (the implicit
@@ -166,12 +165,7 @@ impl Run<'_, '_> {
         if let Some(al) = self.sys.multiplier_update() {
             let new = &mut self.new;
             al.project_motion(t_new, &new.q, &mut new.v, &mut new.qdd, s)
-                .map_err(|e| Failure::System {
-                    what: "projection",
-                    t: t_new,
-                    step_from: Some(t_from),
-                    source: Arc::new(e),
-                })?;
+                .map_err(Failure::system("projection", t_new, Some(t_from)))?;
         }
         let (am, af) = (self.p.alpha_m, self.p.alpha_f);
         let (cur, new) = (&self.cur, &mut self.new);

@@ -183,15 +183,12 @@ pub use step::SAFETY;
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    attempt_or_cut, implicit_stepper, run as run_implicit, settle_output, validate_run, Attempted,
-    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink, Span,
-    StateView, StepTry, Warn,
+    attempt_or_cut, implicit_outputs, implicit_stepper, run as run_implicit, validate_run,
+    Attempted, CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink,
+    Span, StateView, StepTry, Warn,
 };
 use super::Tolerance;
-use super::{
-    common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, Stats, SystemError,
-};
-use std::sync::Arc;
+use super::{common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SystemError};
 
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
@@ -495,12 +492,7 @@ impl Stepper for Run<'_, '_> {
         };
         self.sys
             .accelerations(x, &mut self.cur.qdd, &mut self.cur.lam)
-            .map_err(|e| Failure::System {
-                what: "initial accelerations",
-                t: t0,
-                step_from: None,
-                source: Arc::new(e),
-            })?;
+            .map_err(Failure::system("initial accelerations", t0, None))?;
         self.cur.a.copy_from_slice(&self.cur.qdd);
 
         let span = self.t_end - t0;
@@ -611,12 +603,8 @@ impl Stepper for Run<'_, '_> {
             if self.opts.project {
                 self.stats.projections += 1;
                 let (q, v) = (&mut self.new.q, &mut self.new.v);
-                self.sys.project(t_new, q, v).map_err(|e| Failure::System {
-                    what: "projection",
-                    t: t_new,
-                    step_from: Some(self.t),
-                    source: Arc::new(e),
-                })?;
+                let failed = Failure::system("projection", t_new, Some(self.t));
+                self.sys.project(t_new, q, v).map_err(failed)?;
             }
             if self.augmented {
                 self.project_motion(t_new, h_try)?;
@@ -688,18 +676,7 @@ impl Stepper for Run<'_, '_> {
         1e-9 * self.h_last
     }
 
-    /// Interpolated rows projected onto the constraints.
-    fn settle(&mut self, t: f64, out: &mut [f64]) {
-        settle_output(self.sys, t, out, &mut self.warnings);
-    }
-
-    fn warnings(&self) -> &[String] {
-        &self.warnings
-    }
-
-    fn stats(&self) -> Stats {
-        self.stats.counts()
-    }
+    implicit_outputs!();
 }
 
 /// Cubic Hermite interpolation between two step ends `a` (s = 0) and `b`

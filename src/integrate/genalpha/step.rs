@@ -48,14 +48,11 @@ impl Run<'_, '_> {
                 *e *= c_m * m;
             }
             self.err[n..].fill(0.0);
-            self.sys
-                .solve(t1, &mut self.err)
-                .map_err(|e| Failure::System {
-                    what: "error filter",
-                    t: t1,
-                    step_from: Some(self.t),
-                    source: std::sync::Arc::new(e),
-                })?;
+            self.sys.solve(t1, &mut self.err).map_err(Failure::system(
+                "error filter",
+                t1,
+                Some(self.t),
+            ))?;
         }
         let norm = common::max_weighted(
             n,

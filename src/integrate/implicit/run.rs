@@ -62,6 +62,29 @@ macro_rules! implicit_stepper {
 }
 pub(crate) use implicit_stepper;
 
+/// The [`Stepper`] methods every implicit run has alike, written inside
+/// its `impl Stepper` block: the counters (its field `stats`), the
+/// warnings (its field `warnings`) and the interpolated output rows
+/// projected onto the constraints with its system (field `sys`,
+/// [`super::settle_output`]).
+macro_rules! implicit_outputs {
+    () => {
+        /// Interpolated rows projected onto the constraints.
+        fn settle(&mut self, t: f64, out: &mut [f64]) {
+            $crate::integrate::implicit::settle_output(self.sys, t, out, &mut self.warnings);
+        }
+
+        fn warnings(&self) -> &[String] {
+            &self.warnings
+        }
+
+        fn stats(&self) -> $crate::integrate::Stats {
+            self.stats.counts()
+        }
+    };
+}
+pub(crate) use implicit_outputs;
+
 /// Drive `st` through [`driver::drive`] over `span` with at most
 /// `max_steps` steps: the report
 /// (a failure midway is [`super::super::Termination::Failed`]) and the
