@@ -17,6 +17,20 @@ macro_rules! side {
     };
 }
 
+/// `memoised!(memo; f_sc | f(q, args…))`: `kernels::f_sc(q, sc, args…)`
+/// with the sines and cosines `sc` of `q`'s angles from the chain's memo
+/// (updated here, shared with Φ, Φ_q, γ and the force kernels at the same
+/// q), or `kernels::f(q, args…)` computing them afresh when another thread
+/// holds the memo (the same bits).
+macro_rules! memoised {
+    ($memo:expr; $sc:ident | $plain:ident($q:expr $(, $arg:expr)*)) => {
+        match $memo.try_write() {
+            Ok(mut m) => kernels::$sc($q, m.update($q) $(, $arg)*),
+            Err(_) => kernels::$plain($q $(, $arg)*),
+        }
+    };
+}
+
 /// A revolute joint between the ground and one body.
 #[derive(Debug, Clone)]
 struct GroundJoint {
@@ -259,12 +273,7 @@ impl ConstraintKernels for ChainKernels {
         };
         let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
         let o = &mut vals[chain_at..chain_at + nh];
-        // memoised sines and cosines (shared with Φ, Φ_q, γ at the same q);
-        // computed afresh when another thread holds the memo
-        match self.memo.try_write() {
-            Ok(mut m) => kernels::revolute_chain_hessian_sc(qc, m.update(qc), p, l, o),
-            Err(_) => kernels::revolute_chain_hessian(qc, p, l, o),
-        }
+        memoised!(self.memo; revolute_chain_hessian_sc | revolute_chain_hessian(qc, p, l, o));
         if let Some(g) = &self.ground {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }
@@ -299,11 +308,7 @@ impl ConstraintKernels for ChainKernels {
     fn phi(&self, q_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
         let (p, q) = (&self.params, self.chain_q(q_all));
-        // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_write() {
-            Ok(mut m) => kernels::revolute_chain_phi_sc(q, m.update(q), p, o),
-            Err(_) => kernels::revolute_chain_phi(q, p, o),
-        }
+        memoised!(self.memo; revolute_chain_phi_sc | revolute_chain_phi(q, p, o));
         if let Some(g) = &self.ground {
             g.phi(q_all, out);
         }
@@ -311,11 +316,7 @@ impl ConstraintKernels for ChainKernels {
     fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
         let o = &mut vals[self.chain_vals()];
         let (p, q) = (&self.params, self.chain_q(q_all));
-        // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_write() {
-            Ok(mut m) => kernels::revolute_chain_jacobian_sc(q, m.update(q), p, o),
-            Err(_) => kernels::revolute_chain_jacobian(q, p, o),
-        }
+        memoised!(self.memo; revolute_chain_jacobian_sc | revolute_chain_jacobian(q, p, o));
         if let Some(g) = &self.ground {
             g.jacobian(q_all, vals);
         }
@@ -334,11 +335,7 @@ impl ConstraintKernels for ChainKernels {
             &mut phi[rows],
             &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
         );
-        // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_write() {
-            Ok(mut m) => kernels::revolute_chain_phi_tmul_sc(q, m.update(q), p, l, o, gc),
-            Err(_) => kernels::revolute_chain_phi_tmul(q, p, l, o, gc),
-        }
+        memoised!(self.memo; revolute_chain_phi_tmul_sc | revolute_chain_phi_tmul(q, p, l, o, gc));
         if let Some(gj) = &self.ground {
             gj.phi_tmul(q_all, lambda, phi, g);
         }
@@ -405,11 +402,7 @@ impl ConstraintKernels for ChainKernels {
     fn gamma(&self, q_all: &[f64], qd_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
         let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
-        // memoised sines and cosines; computed afresh when another thread holds the memo
-        match self.memo.try_write() {
-            Ok(mut m) => kernels::revolute_chain_gamma_sc(q, m.update(q), qd, p, o),
-            Err(_) => kernels::revolute_chain_gamma(q, qd, p, o),
-        }
+        memoised!(self.memo; revolute_chain_gamma_sc | revolute_chain_gamma(q, qd, p, o));
         if let Some(g) = &self.ground {
             g.gamma(q_all, qd_all, out);
         }
