@@ -16,7 +16,9 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use mbsolve::constraints::Revolute;
 use mbsolve::generated::{attach_generated, ChainKernels};
-use mbsolve::model::{Body, BodyRef, ConstraintKernels, Evaluation, System, SystemBuilder};
+use mbsolve::model::{
+    Body, BodyRef, ConstraintKernels, ConstraintTerms, Evaluation, System, SystemBuilder,
+};
 use std::hint::black_box;
 
 fn rod_chain(n: usize) -> System {
@@ -82,14 +84,12 @@ fn bench(c: &mut Criterion) {
         }
         g.bench_with_input(BenchmarkId::new("generated_fused", n), &n, |b, _| {
             b.iter(|| {
-                fused.evaluate(
-                    black_box(&q),
-                    black_box(&qd),
-                    0.0,
-                    &mut phi,
-                    &mut vals,
-                    &mut gamma,
-                );
+                let out = ConstraintTerms {
+                    phi: &mut phi,
+                    vals: &mut vals,
+                    gamma: &mut gamma,
+                };
+                fused.evaluate(black_box(&q), black_box(&qd), 0.0, out);
                 black_box((&phi, &vals, &gamma));
             })
         });

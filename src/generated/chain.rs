@@ -3,7 +3,7 @@
 
 use super::memo::{SharedTrig, TrigMemo};
 use super::{arr, arr_mut, kernels, revolute};
-use crate::model::{BodyRef, ConstraintKernels, System};
+use crate::model::{BodyRef, ConstraintKernels, ConstraintTerms, System};
 
 /// The kernel `$gb` when the ground is the joint's side i, else `$bg`
 /// (the same kernel of the other orientation).
@@ -61,12 +61,12 @@ impl GroundJoint {
         let o = arr_mut(&mut out[self.row0..]);
         side!(self, revolute_gb_gamma, revolute_bg_gamma)(qb, vb, &self.params, &[], o);
     }
-    fn eval(&self, q: &[f64], qd: &[f64], phi: &mut [f64], vals: &mut [f64], gamma: &mut [f64]) {
+    fn eval(&self, q: &[f64], qd: &[f64], out: ConstraintTerms<'_>) {
         let (qb, vb) = (arr(&q[self.off..]), arr(&qd[self.off..]));
         let (p, v, g) = (
-            arr_mut(&mut phi[self.row0..]),
-            arr_mut(&mut vals[self.jac0..]),
-            arr_mut(&mut gamma[self.row0..]),
+            arr_mut(&mut out.phi[self.row0..]),
+            arr_mut(&mut out.vals[self.jac0..]),
+            arr_mut(&mut out.gamma[self.row0..]),
         );
         side!(self, revolute_gb_eval, revolute_bg_eval)(qb, vb, &self.params, &[], p, v, g);
     }
@@ -278,15 +278,7 @@ impl ConstraintKernels for ChainKernels {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }
     }
-    fn evaluate(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        _t: f64,
-        phi: &mut [f64],
-        vals: &mut [f64],
-        gamma: &mut [f64],
-    ) {
+    fn evaluate(&self, q: &[f64], qd: &[f64], _t: f64, out: ConstraintTerms<'_>) {
         // sines and cosines computed once per body instead of once per
         // function and joint side
         let (r, v) = (self.chain_rows(), self.chain_vals());
@@ -294,12 +286,12 @@ impl ConstraintKernels for ChainKernels {
             self.chain_q(q),
             self.chain_q(qd),
             &self.params,
-            &mut phi[r.clone()],
-            &mut vals[v],
-            &mut gamma[r],
+            &mut out.phi[r.clone()],
+            &mut out.vals[v],
+            &mut out.gamma[r],
         );
         if let Some(g) = &self.ground {
-            g.eval(q, qd, phi, vals, gamma);
+            g.eval(q, qd, out);
         }
     }
     fn name(&self) -> &str {

@@ -1,7 +1,7 @@
 //! Generated, fully unrolled kernels of the four-bar.
 
 use super::{arr, arr_mut, code, kernels, revolute};
-use crate::model::{ConstraintKernels, System};
+use crate::model::{ConstraintKernels, ConstraintTerms, System};
 
 /// Generated, fully unrolled kernels for the four-bar (docs/problems.md, problem A).
 #[derive(Debug, Clone)]
@@ -43,24 +43,9 @@ impl ConstraintKernels for FourBarKernels {
     fn add_hessian(&self, q: &[f64], _t: f64, lambda: &[f64], vals: &mut [f64]) {
         kernels::fourbar_hessian(arr(q), &self.params, &[], arr(lambda), arr_mut(vals));
     }
-    fn evaluate(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        _t: f64,
-        phi: &mut [f64],
-        vals: &mut [f64],
-        gamma: &mut [f64],
-    ) {
-        kernels::fourbar_eval(
-            arr(q),
-            arr(qd),
-            &self.params,
-            &[],
-            arr_mut(phi),
-            arr_mut(vals),
-            arr_mut(gamma),
-        );
+    fn evaluate(&self, q: &[f64], qd: &[f64], _t: f64, out: ConstraintTerms<'_>) {
+        let (phi, vals, gamma) = (arr_mut(out.phi), arr_mut(out.vals), arr_mut(out.gamma));
+        kernels::fourbar_eval(arr(q), arr(qd), &self.params, &[], phi, vals, gamma);
     }
     fn name(&self) -> &str {
         "generated:fourbar"

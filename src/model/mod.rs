@@ -34,7 +34,8 @@ pub use sensor::joint_short_name;
 pub use sensor::{drives, Drive, Sensor, SensorKind};
 pub(crate) use sensor::{evaluate_sensors, point_state};
 pub use system::{
-    ConstraintKernels, Evaluation, ForceKernels, ResidualHalves, State, System, SystemBuilder,
+    ConstraintKernels, ConstraintTerms, Evaluation, ForceKernels, ResidualHalves, State, System,
+    SystemBuilder,
 };
 pub use time_function::TimeFunction;
 

@@ -7,7 +7,7 @@ use std::ops::Range;
 mod halves;
 mod kernels;
 pub use halves::ResidualHalves;
-pub use kernels::{ConstraintKernels, ForceKernels};
+pub use kernels::{ConstraintKernels, ConstraintTerms, ForceKernels};
 
 /// Force kernels attached to a range of elements, with the range of their
 /// Jacobian values.
@@ -531,14 +531,12 @@ impl System {
                         }
                         Segment::Kernels(i) => {
                             let b = &self.kernels[i];
-                            b.kernels.evaluate(
-                                q,
-                                qd,
-                                t,
-                                &mut p[b.rows.clone()],
-                                &mut vals[b.vals.clone()],
-                                &mut gamma[b.rows.clone()],
-                            );
+                            let out = ConstraintTerms {
+                                phi: &mut p[b.rows.clone()],
+                                vals: &mut vals[b.vals.clone()],
+                                gamma: &mut gamma[b.rows.clone()],
+                            };
+                            b.kernels.evaluate(q, qd, t, out);
                         }
                     }
                 }

@@ -9,7 +9,8 @@ use mbsolve::constraints::{Revolute, Translational};
 use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
 use mbsolve::model::{
-    Body, BodyRef, ConstraintKernels, Evaluation, JointGeometry, System, SystemBuilder,
+    Body, BodyRef, ConstraintKernels, ConstraintTerms, Evaluation, JointGeometry, System,
+    SystemBuilder,
 };
 use mbsolve::scenario;
 use mbsolve::scenario::FOURBAR_TOML;
@@ -151,7 +152,12 @@ fn rod_chains_match_generic() {
         let qd = r.vec(sys.n_coords(), -1.0, 1.0);
         let (m, nnz) = (sys.n_constraints(), sys.jacobian_pattern().len());
         let (mut a, mut b, mut c) = (vec![0.0; m], vec![0.0; nnz], vec![0.0; m]);
-        k.evaluate(&q, &qd, 0.0, &mut a, &mut b, &mut c);
+        let out = ConstraintTerms {
+            phi: &mut a,
+            vals: &mut b,
+            gamma: &mut c,
+        };
+        k.evaluate(&q, &qd, 0.0, out);
         let (mut a2, mut b2, mut c2) = (vec![0.0; m], vec![0.0; nnz], vec![0.0; m]);
         sys.set_evaluation(Evaluation::Generic).unwrap();
         sys.phi(&q, 0.0, &mut a2);

@@ -74,21 +74,28 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         let _ = (q, t, lambda, phi, g, joints);
         false
     }
-    /// Φ, Φ_q values and γ in one pass. Default: the three calls; kernels
-    /// override it to share the sines and cosines of every angle.
-    fn evaluate(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        t: f64,
-        phi: &mut [f64],
-        vals: &mut [f64],
-        gamma: &mut [f64],
-    ) {
-        self.phi(q, t, phi);
-        self.jacobian_values(q, t, vals);
-        self.gamma(q, qd, t, gamma);
+    /// Φ, Φ_q values and γ in one pass into `out`. Default: the three
+    /// calls; kernels override it to share the sines and cosines of every
+    /// angle.
+    fn evaluate(&self, q: &[f64], qd: &[f64], t: f64, out: ConstraintTerms<'_>) {
+        self.phi(q, t, out.phi);
+        self.jacobian_values(q, t, out.vals);
+        self.gamma(q, qd, t, out.gamma);
     }
+}
+
+/// Where [`ConstraintKernels::evaluate`] writes its range's terms in one
+/// pass: Φ and γ (the range's rows, the same length, so named rather than
+/// placed) and the Φ_q values (the range's entries of
+/// [`System::jacobian_pattern`]).
+#[derive(Debug)]
+pub struct ConstraintTerms<'a> {
+    /// Φ(q, t).
+    pub phi: &'a mut [f64],
+    /// Φ_q values in pattern order.
+    pub vals: &'a mut [f64],
+    /// γ(q, q̇, t), the right-hand side of `Φ_q q̈ = γ`.
+    pub gamma: &'a mut [f64],
 }
 
 /// Specialised Jacobians ∂g/∂q and ∂g/∂q̇ of a contiguous range of force
