@@ -261,3 +261,32 @@ pub fn drive(
         }
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `Failure::system` makes the `Failure::System` of its arguments,
+    /// with the system's error as the source, worded as the enum says.
+    #[test]
+    fn failure_system_keeps_what_time_step_and_source() {
+        let f = Failure::system("projection", 0.5, Some(0.25))(SystemError::msg("singular"));
+        let Failure::System {
+            what,
+            t,
+            step_from,
+            ref source,
+        } = f
+        else {
+            panic!("{f:?}");
+        };
+        assert_eq!((what, t, step_from), ("projection", 0.5, Some(0.25)));
+        assert_eq!(source.to_string(), "singular");
+        assert_eq!(
+            f.to_string(),
+            "projection failed at t = 5e-1 (in the step from t = 2.5e-1): singular"
+        );
+        let g = Failure::system("right-hand side", 2.0, None)(SystemError::msg("nan"));
+        assert_eq!(g.to_string(), "right-hand side failed at t = 2e0: nan");
+    }
+}
