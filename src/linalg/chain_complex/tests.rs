@@ -219,3 +219,27 @@ fn errors_before_factorisation_and_on_singular_pivots() {
         Err(LinalgError::NonFinite { .. })
     ));
 }
+
+/// The substitutions' compact row table (`RowTable`) walks the envelope
+/// rows of the layout: counting `ptr` on by the stored lengths from each
+/// half's first row gives every plain row's `ptr` and `first`, and the
+/// half's end; the permutation is the same. One- and two-sided orders.
+#[test]
+fn the_row_table_walks_the_envelope_rows() {
+    for (bodies, split) in [(50, false), (400, true), (1001, true)] {
+        let (kr, _) = chain_pair(bodies, 7);
+        let e = Envelope::analyze(&kr, split).expect("a chain pattern");
+        assert_eq!(e.s0 < e.dim, split);
+        let t = &e.rows;
+        assert!(t.perm.iter().zip(&e.perm).all(|(&a, &b)| a as usize == b));
+        for half in [0..e.s0, e.s0..e.sb] {
+            let mut p = e.ptr[half.start];
+            for i in half.clone() {
+                assert_eq!(p, e.ptr[i], "N = {bodies}, row {i}");
+                assert_eq!(i - usize::from(t.len[i]), e.first[i], "row {i}");
+                p += usize::from(t.len[i]);
+            }
+            assert_eq!(p, e.ptr[half.end], "N = {bodies}");
+        }
+    }
+}
