@@ -564,6 +564,12 @@ mod tests {
     use super::*;
     use crate::builders::stiff_chain;
 
+    /// Do two matrices hold the same values, bit for bit?
+    fn same_bits(a: &SaddleMatrix, b: &SaddleMatrix) -> bool {
+        let (a, b) = (a.values(), b.values());
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+
     /// The blocks of a stiff chain of `bodies` bodies evaluated at a random
     /// state near its start, with random unsymmetric parts added to the
     /// force Jacobians (every coordinate pair gets a reciprocal
@@ -614,12 +620,7 @@ mod tests {
             blocks.write(&sys, &mut one, c);
             one.set_jacobian(&jac);
             pool.install(|| blocks.write_with_jacobian(&sys, &mut two, c, &jac));
-            let same = one
-                .values()
-                .iter()
-                .zip(two.values())
-                .all(|(x, y)| x.to_bits() == y.to_bits());
-            assert!(same, "coefficients {c:?}");
+            assert!(same_bits(&one, &two), "coefficients {c:?}");
             assert!(one.values().iter().all(|v| v.is_finite()));
         }
         // the halves were used, each with a share of every block
@@ -670,12 +671,7 @@ mod tests {
                 None => write(),
             }
             for (one, two) in [(&re1, &re2), (&im1, &im2)] {
-                let same = one
-                    .values()
-                    .iter()
-                    .zip(two.values())
-                    .all(|(x, y)| x.to_bits() == y.to_bits());
-                assert!(same, "{bodies} bodies, {threads} thread(s)");
+                assert!(same_bits(one, two), "{bodies} bodies, {threads} thread(s)");
             }
             assert_eq!(
                 blocks.plan.get().unwrap().is_some(),

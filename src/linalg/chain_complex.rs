@@ -29,7 +29,7 @@
 //! where the real embedding `[K_r −K_i; K_i K_r]` of size `2 dim` through
 //! a sparse LU cost ≈ 50 × (measured in `docs/radau.md`).
 
-use super::chain::{Envelope, Fill, Scatter, PARALLEL_MIN_DIM};
+use super::chain::{Envelope, Fill, RowTable, Scatter, PARALLEL_MIN_DIM};
 use super::sparse::{coordinate_scale, multiplier_scale};
 use super::{LinalgError, SaddleMatrix, Storage, DEFAULT_EPSILON};
 use crate::parallel::join_if;
@@ -123,6 +123,8 @@ pub struct ComplexChainLdlt {
     dinv: Vec<C>,
     pscale: Vec<f64>,
     w: Vec<C>,
+    /// The substitutions' compact copy of `first` and `perm`.
+    rows: RowTable,
     factorized: bool,
 }
 
@@ -295,6 +297,7 @@ impl ComplexChainLdlt {
             dslot,
             phi_ptr,
             phi_ent,
+            rows,
             ..
         } = Envelope::analyze(k, split)?;
         let profile = ptr[dim];
@@ -331,6 +334,7 @@ impl ComplexChainLdlt {
             dinv: vec![C::ZERO; dim],
             pscale: vec![1.0; dim],
             w: vec![C::ZERO; dim],
+            rows,
             factorized: false,
         })
     }
@@ -475,16 +479,15 @@ impl ComplexChainLdlt {
         }
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let par = dim >= PARALLEL_MIN_DIM;
-        let (first, ptr, perm, ps, fa) =
-            (&self.first, &self.ptr, &self.perm, &self.pscale, &self.fa);
+        let (first, ptr, ps, fa) = (&self.first, &self.ptr, &self.pscale, &self.fa);
         let env = &self.env[..ptr[dim]];
         let dinv = &self.dinv;
         let w = &mut self.w;
         let rows = CRows {
-            first,
+            len: &self.rows.len,
             ptr,
             env,
-            perm,
+            perm: &self.rows.perm,
             pscale: ps,
         };
         // two threads: a half each; one: the halves one after the other (the
@@ -559,16 +562,17 @@ impl ComplexChainLdlt {
 }
 
 /// What the substitutions read of a complex factorisation: the envelope
-/// rows (`first`, `ptr`, `env`), the permutation and the symmetric
-/// scaling (the right-hand side's entry `perm[i]` is row `i`'s, times
-/// `pscale[i]`); the complex counterpart of the real solver's rows
-/// (`chain/solve.rs`), with the same register carries.
+/// rows (their lengths [`RowTable`], where each half's rows start in
+/// `ptr`, `env`), the permutation and the symmetric scaling (the
+/// right-hand side's entry `perm[i]` is row `i`'s, times `pscale[i]`);
+/// the complex counterpart of the real solver's rows (`chain/solve.rs`),
+/// with the same register carries.
 #[derive(Clone, Copy)]
 struct CRows<'a> {
-    first: &'a [usize],
+    len: &'a [u8],
     ptr: &'a [usize],
     env: &'a [C],
-    perm: &'a [usize],
+    perm: &'a [u32],
     pscale: &'a [f64],
 }
 
@@ -587,7 +591,7 @@ impl CRows<'_> {
     /// `(P S b)_i`: row `i`'s entry of the permuted, scaled right-hand side.
     #[inline(always)]
     fn rhs(&self, (br, bi): Rhs<'_>, i: usize) -> C {
-        let p = self.perm[i];
+        let p = self.perm[i] as usize;
         C {
             re: br[p],
             im: bi[p],
@@ -598,7 +602,7 @@ impl CRows<'_> {
     /// `x_{perm[i]} = z_i s_i`.
     #[inline(always)]
     fn put(&self, (re, im): &Out<'_>, i: usize, z: C) {
-        let (p, s) = (self.perm[i], self.pscale[i]);
+        let (p, s) = (self.perm[i] as usize, self.pscale[i]);
         re.set(p, z.re * s);
         im.set(p, z.im * s);
     }
@@ -606,9 +610,9 @@ impl CRows<'_> {
     /// Forward substitution `L y = P S b` over the plain rows of one half
     /// (`y` into `w`, from row `base`).
     fn forward(&self, b: Rhs<'_>, (base, rows, w): CHalf<'_>) {
-        let mut prev = C::ZERO;
+        let (mut prev, mut p) = (C::ZERO, self.ptr[rows.start]);
         for i in rows {
-            prev = self.forward_row(b, base, i, w, prev);
+            prev = self.forward_row(b, base, i, w, prev, &mut p);
         }
     }
 
@@ -616,12 +620,23 @@ impl CRows<'_> {
     /// its envelope `[first[i], i)`, whose last column is `i − 1` when not
     /// empty: `prev = y_{i−1}` comes from the register, not from `w`, so
     /// the chain of dependent rows does not wait on a store and a reload.
-    /// The terms are added in column order (the same bits as one `cdot`).
+    /// Its entries start at `env[*p]`, and `*p` moves on to the next
+    /// row's. The terms are added in column order (the same bits as one
+    /// `cdot`).
     #[inline(always)]
-    fn forward_row(&self, b: Rhs<'_>, base: usize, i: usize, w: &mut [C], prev: C) -> C {
-        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
-        assert!(self.ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
-        let len = i - fi;
+    fn forward_row(
+        &self,
+        b: Rhs<'_>,
+        base: usize,
+        i: usize,
+        w: &mut [C],
+        prev: C,
+        p: &mut usize,
+    ) -> C {
+        let (env, len, pi) = (self.env, usize::from(self.len[i]), *p);
+        *p = pi + len;
+        assert!(pi + len <= env.len() && i - base < w.len() && len <= i - base);
+        let fi = i - len;
         let mut y = self.rhs(b, i);
         if len > 0 {
             let mut s = cdot(&env[pi..pi + len - 1], &w[fi - base..i - base - 1]);
@@ -640,9 +655,9 @@ impl CRows<'_> {
     /// from the last (`w` from row `base`); each `z_i`, final once its row
     /// is reached, goes to the solution at once.
     fn backward(&self, out: &Out<'_>, (base, rows, w): CHalf<'_>) {
-        let mut carry = (C::ZERO, C::ZERO);
+        let (mut carry, mut p) = ((C::ZERO, C::ZERO), self.ptr[rows.end]);
         for i in rows.rev() {
-            carry = self.backward_row(out, base, i, w, carry);
+            carry = self.backward_row(out, base, i, w, carry, &mut p);
         }
     }
 
@@ -651,6 +666,8 @@ impl CRows<'_> {
     /// register, then `w_j −= L_ij z_i` over the envelope but its last
     /// column `i − 1`, returned as the next row's carry. Each `w_j` gets
     /// its updates in the same order as without the carry (the same bits).
+    /// Its entries end at `env[*p]`, and `*p` moves back to where they
+    /// start.
     #[inline(always)]
     fn backward_row(
         &self,
@@ -659,15 +676,18 @@ impl CRows<'_> {
         i: usize,
         w: &mut [C],
         carry: (C, C),
+        p: &mut usize,
     ) -> (C, C) {
-        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
-        assert!(self.ptr[i + 1] <= env.len() && fi >= base);
+        let (env, len) = (self.env, usize::from(self.len[i]));
+        assert!(len <= *p && *p <= env.len() && len <= i - base);
+        let pi = *p - len;
+        *p = pi;
         let zi = w[i - base].sub(carry.0.mul(carry.1));
         self.put(out, i, zi);
-        let len = i - fi;
         if len == 0 {
             return (C::ZERO, C::ZERO);
         }
+        let fi = i - len;
         for (v, &l) in w[fi - base..i - base - 1]
             .iter_mut()
             .zip(&env[pi..pi + len - 1])

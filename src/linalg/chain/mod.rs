@@ -152,6 +152,41 @@ pub(super) struct Envelope {
     pscale: Vec<f64>,
     /// Permuted right-hand side.
     w: Vec<f64>,
+    /// The substitutions' compact copy of `first` and `perm`.
+    pub(super) rows: RowTable,
+}
+
+/// What the substitutions read per plain row besides the values, in 5
+/// bytes instead of the 24 of `first`, `ptr` and `perm`: the length
+/// `i − first[i]` of row `i`'s (last) envelope segment, at most
+/// `MAX_SEPARATOR_ROW` < 256 (a plain row's entries start where the
+/// previous row's end, `ptr[i + 1] = ptr[i] + len[i]`, so a sweep counts
+/// `ptr` on from its first row), and `perm[i]`. Where the factors do not
+/// fit the last-level cache (the stiff chain at N = 10⁵), every sweep
+/// streams these arrays from memory with the values.
+#[derive(Debug)]
+pub(in crate::linalg) struct RowTable {
+    /// `i − first[i]`.
+    pub(in crate::linalg) len: Vec<u8>,
+    /// `perm[i]`.
+    pub(in crate::linalg) perm: Vec<u32>,
+}
+
+impl RowTable {
+    /// The table of `first` and `perm`, or `None` when a row is longer
+    /// than 255 or an index does not fit 32 bits.
+    pub(super) fn new(first: &[usize], perm: &[usize]) -> Option<Self> {
+        let len = first
+            .iter()
+            .enumerate()
+            .map(|(i, &f)| u8::try_from(i - f).ok())
+            .collect::<Option<_>>()?;
+        let perm = perm
+            .iter()
+            .map(|&p| u32::try_from(p).ok())
+            .collect::<Option<_>>()?;
+        Some(Self { len, perm })
+    }
 }
 
 /// One value of `K` in the envelope: slot, position in its part's

@@ -236,6 +236,7 @@ impl Envelope {
         let phi_ent: Vec<(usize, usize)> =
             by_row.idx.iter().map(|&s| (s, col_of_slot[s])).collect();
         let positive = perm.iter().map(|&i| i < n).collect();
+        let rows = super::RowTable::new(&first, &perm)?;
         Some(Self {
             dim,
             n,
@@ -255,6 +256,7 @@ impl Envelope {
             positive,
             pscale: vec![1.0; dim],
             w: vec![0.0; dim],
+            rows,
         })
     }
 

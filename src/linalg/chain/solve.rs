@@ -19,10 +19,10 @@ impl Envelope {
         let (perm, pscale, dinv) = (&self.perm, &self.pscale, &self.dinv);
         let env = &self.env[..ptr[dim]];
         let rows = Rows {
-            first,
+            len: &self.rows.len,
             ptr,
             env,
-            perm,
+            perm: &self.rows.perm,
             pscale,
         };
         // the halves' forward rows read their right-hand side `(P S x)_i`
@@ -138,14 +138,15 @@ impl<'a> Scatter<'a> {
 }
 
 /// What the substitutions read of a factorisation: the envelope rows
-/// (`first`, `ptr`, `env`), the permutation and the symmetric scaling
-/// (`x`'s entry `perm[i]` is row `i`'s, times `pscale[i]`).
+/// (their lengths [`RowTable`], where each half's rows start in `ptr`,
+/// `env`), the permutation and the symmetric scaling (`x`'s entry
+/// `perm[i]` is row `i`'s, times `pscale[i]`).
 #[derive(Clone, Copy)]
 struct Rows<'a> {
-    first: &'a [usize],
+    len: &'a [u8],
     ptr: &'a [usize],
     env: &'a [f64],
-    perm: &'a [usize],
+    perm: &'a [u32],
     pscale: &'a [f64],
 }
 
@@ -157,9 +158,9 @@ impl Rows<'_> {
     /// Forward substitution `L y = P S x` over the plain rows of one half
     /// (`y` into `w`, from row `base`).
     fn forward(&self, x: &[f64], (base, rows, w): Half<'_>) {
-        let mut prev = 0.0;
+        let (mut prev, mut p) = (0.0, self.ptr[rows.start]);
         for i in rows {
-            prev = self.forward_row(x, base, i, w, prev);
+            prev = self.forward_row(x, base, i, w, prev, &mut p);
         }
     }
 
@@ -167,19 +168,29 @@ impl Rows<'_> {
     /// over its envelope `[first[i], i)`, which ends at column `i − 1`
     /// when not empty: `prev = y_{i−1}`, the previous row's result, is
     /// taken from the register instead of `w`, so the chain of dependent
-    /// rows does not wait on a store and a reload. Returns `y_i`. The
+    /// rows does not wait on a store and a reload. Its entries start at
+    /// `env[*p]`, and `*p` moves on to the next row's. Returns `y_i`. The
     /// terms are added in column order (the same bits as a plain dot
     /// product after a separate gather).
     #[inline(always)]
-    fn forward_row(&self, x: &[f64], base: usize, i: usize, w: &mut [f64], prev: f64) -> f64 {
-        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
-        assert!(self.ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
-        let len = i - fi;
-        let mut y = x[self.perm[i]] * self.pscale[i];
+    fn forward_row(
+        &self,
+        x: &[f64],
+        base: usize,
+        i: usize,
+        w: &mut [f64],
+        prev: f64,
+        p: &mut usize,
+    ) -> f64 {
+        let (env, len, pi) = (self.env, usize::from(self.len[i]), *p);
+        *p = pi + len;
+        assert!(pi + len <= env.len() && i - base < w.len() && len <= i - base);
+        let fi = i - len;
+        let mut y = x[self.perm[i] as usize] * self.pscale[i];
         if len > 0 {
             let mut dot = 0.0;
             for o in 0..len - 1 {
-                // SAFETY: row i's entries are env[pi..ptr[i + 1]] (checked
+                // SAFETY: row i's entries are env[pi..pi + len] (checked
                 // above) and its columns base ≤ fi + o < i lie in `w`.
                 unsafe {
                     dot += env.get_unchecked(pi + o) * w.get_unchecked(fi - base + o);
@@ -195,9 +206,9 @@ impl Rows<'_> {
     /// from the last (`w` from row `base`); each `z_i`, final once its row
     /// is reached, goes to `x_{perm[i]} = z_i s_i` at once.
     fn backward(&self, out: &Scatter<'_>, (base, rows, w): Half<'_>) {
-        let mut carry = (0.0, 0.0);
+        let (mut carry, mut p) = ((0.0, 0.0), self.ptr[rows.end]);
         for i in rows.rev() {
-            carry = self.backward_row(out, base, i, w, carry);
+            carry = self.backward_row(out, base, i, w, carry, &mut p);
         }
     }
 
@@ -205,9 +216,10 @@ impl Rows<'_> {
     /// the last update, `carry = (L_{i+1,i}, z_{i+1})` from the row after,
     /// taken from the register (the others are already in `w`), then
     /// `w_j −= L_ij z_i` over the envelope but its last column `i − 1`,
-    /// which is returned as the next row's carry. The updates of each
-    /// `w_j` come in the same order as scattered one by one (the same
-    /// bits).
+    /// which is returned as the next row's carry. Its entries end at
+    /// `env[*p]`, and `*p` moves back to where they start (the previous
+    /// row's end). The updates of each `w_j` come in the same order as
+    /// scattered one by one (the same bits).
     #[inline(always)]
     fn backward_row(
         &self,
@@ -216,15 +228,18 @@ impl Rows<'_> {
         i: usize,
         w: &mut [f64],
         carry: (f64, f64),
+        p: &mut usize,
     ) -> (f64, f64) {
-        let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
-        assert!(self.ptr[i + 1] <= env.len() && fi >= base);
+        let (env, len) = (self.env, usize::from(self.len[i]));
+        assert!(len <= *p && *p <= env.len() && len <= i - base);
+        let pi = *p - len;
+        *p = pi;
         let zi = w[i - base] - carry.0 * carry.1;
-        out.set(self.perm[i], zi * self.pscale[i]);
-        let len = i - fi;
+        out.set(self.perm[i] as usize, zi * self.pscale[i]);
         if len == 0 {
             return (0.0, 0.0);
         }
+        let fi = i - len;
         for o in 0..len - 1 {
             // SAFETY: as in `forward_row`
             unsafe {
@@ -243,18 +258,19 @@ impl Rows<'_> {
         let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
         let common = rt.len().min(rb.len());
         let (mut pt, mut pb) = (0.0, 0.0);
+        let (mut qt, mut qb) = (self.ptr[rt.start], self.ptr[rb.start]);
         for r in 0..common {
-            pt = self.forward_row(x, bt, rt.start + r, wt, pt);
-            pb = self.forward_row(x, bb, rb.start + r, wb, pb);
+            pt = self.forward_row(x, bt, rt.start + r, wt, pt, &mut qt);
+            pb = self.forward_row(x, bb, rb.start + r, wb, pb, &mut qb);
         }
         // the longer half's rest, its chain continued
-        let rest = |(b, r, w): Half<'_>, mut prev: f64| {
+        let rest = |(b, r, w): Half<'_>, mut prev: f64, mut p: usize| {
             for i in r.start + common..r.end {
-                prev = self.forward_row(x, b, i, w, prev);
+                prev = self.forward_row(x, b, i, w, prev, &mut p);
             }
         };
-        rest((bt, rt, wt), pt);
-        rest((bb, rb, wb), pb);
+        rest((bt, rt, wt), pt, qt);
+        rest((bb, rb, wb), pb, qb);
     }
 
     /// [`Self::backward`] of both halves on one thread, a row of each in
@@ -263,16 +279,17 @@ impl Rows<'_> {
         let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
         let common = rt.len().min(rb.len());
         let (mut ct, mut cb) = ((0.0, 0.0), (0.0, 0.0));
+        let (mut qt, mut qb) = (self.ptr[rt.end], self.ptr[rb.end]);
         for r in 1..=common {
-            ct = self.backward_row(out, bt, rt.end - r, wt, ct);
-            cb = self.backward_row(out, bb, rb.end - r, wb, cb);
+            ct = self.backward_row(out, bt, rt.end - r, wt, ct, &mut qt);
+            cb = self.backward_row(out, bb, rb.end - r, wb, cb, &mut qb);
         }
-        let rest = |(b, r, w): Half<'_>, mut carry: (f64, f64)| {
+        let rest = |(b, r, w): Half<'_>, mut carry: (f64, f64), mut p: usize| {
             for i in (r.start..r.end - common).rev() {
-                carry = self.backward_row(out, b, i, w, carry);
+                carry = self.backward_row(out, b, i, w, carry, &mut p);
             }
         };
-        rest((bt, rt, wt), ct);
-        rest((bb, rb, wb), cb);
+        rest((bt, rt, wt), ct, qt);
+        rest((bb, rb, wb), cb, qb);
     }
 }

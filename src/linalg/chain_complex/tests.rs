@@ -54,6 +54,14 @@ fn chain_pair(bodies: usize, seed: u64) -> (SaddleMatrix, SaddleMatrix) {
     (re, im)
 }
 
+/// Do two complex solutions `(re, im)` have the same bits?
+fn same_bits(a: &(Vec<f64>, Vec<f64>), b: &(Vec<f64>, Vec<f64>)) -> bool {
+    let bits = |x: &(Vec<f64>, Vec<f64>)| -> Vec<u64> {
+        x.0.iter().chain(&x.1).map(|v| v.to_bits()).collect()
+    };
+    bits(a) == bits(b)
+}
+
 /// The residual `(K_r + i K_i)(x_r + i x_i) − b` of the solution,
 /// computed with the two real matrices' products (independent of the
 /// factorisation), is at rounding level.
@@ -158,12 +166,7 @@ fn the_two_sided_order_solves_like_the_one_sided_one() {
         let size = x1.0.iter().chain(&x1.1).fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(diff <= 1e-12 * size, "N = {bodies}: {diff:e} of {size:e}");
         let again = solve_with(&mut two, &kr, &ki);
-        assert!(again
-            .0
-            .iter()
-            .chain(&again.1)
-            .zip(x2.0.iter().chain(&x2.1))
-            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(same_bits(&again, &x2));
     }
 }
 
@@ -184,12 +187,7 @@ fn the_halves_give_the_same_bits_on_one_thread_and_two() {
             })
     };
     let (a, b) = (run(1), run(2));
-    assert!(a
-        .0
-        .iter()
-        .chain(&a.1)
-        .zip(b.0.iter().chain(&b.1))
-        .all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert!(same_bits(&a, &b));
     let dim = kr.dim();
     let br: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
     let bi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
@@ -218,4 +216,28 @@ fn errors_before_factorisation_and_on_singular_pivots() {
         f.factorize(&nan, &ki),
         Err(LinalgError::NonFinite { .. })
     ));
+}
+
+/// The substitutions' compact row table (`RowTable`) walks the envelope
+/// rows of the layout: counting `ptr` on by the stored lengths from each
+/// half's first row gives every plain row's `ptr` and `first`, and the
+/// half's end; the permutation is the same. One- and two-sided orders.
+#[test]
+fn the_row_table_walks_the_envelope_rows() {
+    for (bodies, split) in [(50, false), (400, true), (1001, true)] {
+        let (kr, _) = chain_pair(bodies, 7);
+        let e = Envelope::analyze(&kr, split).expect("a chain pattern");
+        assert_eq!(e.s0 < e.dim, split);
+        let t = &e.rows;
+        assert!(t.perm.iter().zip(&e.perm).all(|(&a, &b)| a as usize == b));
+        for half in [0..e.s0, e.s0..e.sb] {
+            let mut p = e.ptr[half.start];
+            for i in half.clone() {
+                assert_eq!(p, e.ptr[i], "N = {bodies}, row {i}");
+                assert_eq!(i - usize::from(t.len[i]), e.first[i], "row {i}");
+                p += usize::from(t.len[i]);
+            }
+            assert_eq!(p, e.ptr[half.end], "N = {bodies}");
+        }
+    }
 }
