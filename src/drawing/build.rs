@@ -290,24 +290,24 @@ impl Drawing {
                         .min(0.3 * l0.max(free_length))
                         .max(1e-3 * scale);
                     let off = if spring && damper { 0.6 * width } else { 0.0 };
+                    let span = Span {
+                        body_i: bi,
+                        a,
+                        body_j: bj,
+                        b,
+                        width,
+                        offset: off,
+                    };
                     if spring || !damper {
-                        d.parts.push(Part::Spring {
-                            body_i: bi,
-                            a,
-                            body_j: bj,
-                            b,
-                            width,
-                            offset: off,
-                        });
+                        d.parts.push(Part::Spring(span));
                     }
                     if damper {
                         d.parts.push(Part::Damper {
-                            body_i: bi,
-                            a,
-                            body_j: bj,
-                            b,
-                            width: 0.8 * width,
-                            offset: -off,
+                            span: Span {
+                                width: 0.8 * width,
+                                offset: -off,
+                                ..span
+                            },
                             rest: if l0 > 0.0 {
                                 l0
                             } else {
