@@ -90,6 +90,7 @@ use super::Tangent;
 use crate::formulation::FormulationError;
 use crate::linalg::LinalgError;
 use crate::model::{Sensor, System};
+use crate::simulation::check_state;
 use chart::{project, Chart};
 use faer::linalg::solvers::Solve;
 use faer::Mat;
@@ -381,19 +382,8 @@ pub fn linearize(
     outputs: &[Output],
     opts: &LinearizeOptions,
 ) -> Result<StateSpace, LinearizeError> {
+    check_state(sys, q, qd).map_err(LinearizeError::Invalid)?;
     let n = sys.n_coords();
-    if q.len() != n || qd.len() != n {
-        return Err(LinearizeError::Invalid(format!(
-            "expected {n} positions and velocities, got {} and {}",
-            q.len(),
-            qd.len()
-        )));
-    }
-    if let Some(i) = q.iter().chain(qd).position(|v| !v.is_finite()) {
-        return Err(LinearizeError::Invalid(format!(
-            "state entry {i} is not finite"
-        )));
-    }
     let mut drive_rows = Vec::new();
     let mut drive_inputs = Vec::new();
     let all_drives = crate::model::drives(sys);
