@@ -19,7 +19,7 @@
 pub mod arrows;
 mod build;
 
-use crate::model::{BodyRef, ForceGeometry, JointGeometry, System};
+use crate::model::{BodyRef, ForceGeometry, JointGeometry, Slide, System};
 use serde::{Deserialize, Serialize};
 
 /// A point or vector in the plane \[m\].
@@ -160,40 +160,42 @@ pub enum Part {
         /// Distance of the two lines \[m\].
         gap: f64,
     },
-    /// A spring between two body points: a zig-zag of `width`, shifted
-    /// sideways by `offset` (beside a damper of the same element).
-    Spring {
-        /// First body.
-        body_i: Option<usize>,
-        /// Point on it.
-        a: P,
-        /// Second body.
-        body_j: Option<usize>,
-        /// Point on it.
-        b: P,
-        /// Zig-zag width \[m\].
-        width: f64,
-        /// Sideways offset \[m\].
-        offset: f64,
-    },
+    /// A spring between two body points: a zig-zag.
+    Spring(Span),
     /// A dashpot between two body points: a cylinder on the first, a
     /// piston on the second.
     Damper {
-        /// First body (cylinder).
-        body_i: Option<usize>,
-        /// Point on it.
-        a: P,
-        /// Second body (piston).
-        body_j: Option<usize>,
-        /// Point on it.
-        b: P,
-        /// Cylinder width \[m\].
-        width: f64,
-        /// Sideways offset \[m\].
-        offset: f64,
+        /// Where it is drawn (`width`: the cylinder's).
+        #[serde(flatten)]
+        span: Span,
         /// Length at which the piston sits mid-cylinder \[m\].
         rest: f64,
     },
+}
+
+/// The line of a spring or dashpot between two body points, its width and
+/// its sideways offset (beside the other of the same element).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Span {
+    /// First body.
+    pub body_i: Option<usize>,
+    /// Point on it.
+    pub a: P,
+    /// Second body.
+    pub body_j: Option<usize>,
+    /// Point on it.
+    pub b: P,
+    /// Width \[m\].
+    pub width: f64,
+    /// Sideways offset \[m\].
+    pub offset: f64,
+}
+
+impl Span {
+    /// The two end points, global, at `q`.
+    fn ends(&self, q: &[f64]) -> (P, P) {
+        (world(q, self.body_i, self.a), world(q, self.body_j, self.b))
+    }
 }
 
 /// How a mark is inked; each renderer maps these to the same colours
@@ -624,38 +626,16 @@ impl Drawing {
                         }
                     }
                 }
-                Part::Spring {
-                    body_i,
-                    a,
-                    body_j,
-                    b,
-                    width,
-                    offset,
-                } => out.push(Mark::Line {
-                    points: zigzag(
-                        world(q, *body_i, *a),
-                        world(q, *body_j, *b),
-                        *width,
-                        *offset,
-                    ),
-                    ink: Ink::Spring,
-                }),
-                Part::Damper {
-                    body_i,
-                    a,
-                    body_j,
-                    b,
-                    width,
-                    offset,
-                    rest,
-                } => {
-                    for points in dashpot(
-                        world(q, *body_i, *a),
-                        world(q, *body_j, *b),
-                        *width,
-                        *offset,
-                        *rest,
-                    ) {
+                Part::Spring(s) => {
+                    let (a, b) = s.ends(q);
+                    out.push(Mark::Line {
+                        points: zigzag(a, b, s.width, s.offset),
+                        ink: Ink::Spring,
+                    })
+                }
+                Part::Damper { span, rest } => {
+                    let (a, b) = span.ends(q);
+                    for points in dashpot(a, b, span.width, span.offset, *rest) {
                         out.push(Mark::Line {
                             points,
                             ink: Ink::Damper,

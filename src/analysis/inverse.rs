@@ -36,9 +36,9 @@
 //! them would remove a freedom).
 
 use super::partitioning::{partition, Partition};
-use crate::formulation::{FormulationError, Index1, Index1Options, Projection};
+use crate::formulation::{FormulationError, Index1, Index1Options, LockKind, Projection};
 use crate::linalg::full_pivot_order;
-use crate::model::{point_state, JointGeometry, ReactionMap, System};
+use crate::model::{JointGeometry, ReactionMap, System};
 use crate::simulation::Sample;
 
 /// Relative pivot tolerance of the rank decisions of [`freedom`]
@@ -162,52 +162,21 @@ fn dense_jacobian(sys: &System, q: &[f64], t: f64) -> Vec<f64> {
 }
 
 /// The row of a joint's relative coordinate, if the joint has one: the
-/// relative angle `φ_j − φ_i` of a revolute joint, the displacement
-/// `u·(P_j − P_i)` along a translational joint's axis (by central
-/// differences, h = 1e-7).
+/// gradient of the relative angle `φ_j − φ_i` of a revolute joint, or of
+/// the slide along a translational joint's axis ([`LockKind::eval`]).
 fn relative_row(sys: &System, geometry: JointGeometry, q: &[f64]) -> Option<Vec<f64>> {
-    let n = sys.n_coords();
-    let mut row = vec![0.0; n];
-    match geometry {
+    let kind = match geometry {
         JointGeometry::Revolute { body_i, body_j, .. } => {
-            if let Some(o) = body_j.offset() {
-                row[o + 2] += 1.0;
-            }
-            if let Some(o) = body_i.offset() {
-                row[o + 2] -= 1.0;
-            }
+            LockKind::RelativeAngle { body_i, body_j }
         }
-        JointGeometry::Translational {
-            body_i,
-            s_i,
-            u_i,
-            body_j,
-            s_j,
-        } => {
-            let zero = vec![0.0; n];
-            let s = |q: &[f64]| {
-                let (pi, _) = point_state(body_i, s_i, q, &zero);
-                let (pj, _) = point_state(body_j, s_j, q, &zero);
-                let phi = body_i.offset().map_or(0.0, |o| q[o + 2]);
-                let (sn, cs) = phi.sin_cos();
-                let u = [cs * u_i[0] - sn * u_i[1], sn * u_i[0] + cs * u_i[1]];
-                u[0] * (pj[0] - pi[0]) + u[1] * (pj[1] - pi[1])
-            };
-            let h = 1e-7;
-            let mut qp = q.to_vec();
-            let cols = [body_i.offset(), body_j.offset()];
-            for o in cols.into_iter().flatten() {
-                for c in o..o + 3 {
-                    qp[c] = q[c] + h;
-                    let up = s(&qp);
-                    qp[c] = q[c] - h;
-                    let dn = s(&qp);
-                    qp[c] = q[c];
-                    row[c] += (up - dn) / (2.0 * h);
-                }
-            }
-        }
+        JointGeometry::Translational(slide) => LockKind::Slide(slide),
         JointGeometry::Other => return None,
+    };
+    let mut grad = [0.0; 6];
+    kind.eval(q, &mut grad);
+    let mut row = vec![0.0; sys.n_coords()];
+    for (c, g) in kind.columns().into_iter().zip(grad) {
+        row[c] += g;
     }
     Some(row)
 }

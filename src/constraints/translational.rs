@@ -4,7 +4,7 @@ use super::{
     angle, angular_velocity, check_bodies, check_finite, point, two_body_pattern, velocity,
     Constraint, JointGeometry,
 };
-use crate::model::{perp, rotate, BodyRef, ModelError};
+use crate::model::{perp, rotate, BodyRef, ModelError, Slide};
 
 /// Translational joint, 2 equations:
 ///
@@ -69,13 +69,13 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 
 impl Constraint for Translational {
     fn geometry(&self) -> JointGeometry {
-        JointGeometry::Translational {
+        JointGeometry::Translational(Slide {
             body_i: self.body_i,
             s_i: self.s_i,
             u_i: self.u_i,
             body_j: self.body_j,
             s_j: self.s_j,
-        }
+        })
     }
 
     fn name(&self) -> String {

@@ -45,10 +45,10 @@ impl Drawing {
                         BodyRef::Ground => (carrier(body_i), s_i),
                     });
                 }
-                JointGeometry::Translational {
+                JointGeometry::Translational(Slide {
                     body_j: BodyRef::Body(j),
                     ..
-                } => sliders[j] = true,
+                }) => sliders[j] = true,
                 _ => {}
             }
         }
@@ -228,22 +228,16 @@ impl Drawing {
                         },
                     )
                 }
-                JointGeometry::Translational {
-                    body_i,
-                    s_i,
-                    u_i,
-                    body_j,
-                    s_j,
-                } => {
-                    let axis = mul(u_i, 1.0 / norm(u_i).max(1e-300));
+                JointGeometry::Translational(slide) => {
+                    let axis = mul(slide.u_i, 1.0 / norm(slide.u_i).max(1e-300));
                     let gap = slider_box[1] * 1.3;
-                    match (body_i, body_j) {
-                        (BodyRef::Ground, BodyRef::Body(j)) => {
-                            d.pending.push(Pending::GroundGuide(s_i, axis, gap, j, s_j))
-                        }
+                    match (slide.body_i, slide.body_j) {
+                        (BodyRef::Ground, BodyRef::Body(j)) => d
+                            .pending
+                            .push(Pending::GroundGuide(slide.s_i, axis, gap, j, slide.s_j)),
                         (BodyRef::Body(_), _) => d.parts.push(Part::Guide {
-                            body: carrier(body_i),
-                            point: s_i,
+                            body: carrier(slide.body_i),
+                            point: slide.s_i,
                             axis,
                             from: -0.25 * scale,
                             to: 0.25 * scale,
@@ -296,24 +290,24 @@ impl Drawing {
                         .min(0.3 * l0.max(free_length))
                         .max(1e-3 * scale);
                     let off = if spring && damper { 0.6 * width } else { 0.0 };
+                    let span = Span {
+                        body_i: bi,
+                        a,
+                        body_j: bj,
+                        b,
+                        width,
+                        offset: off,
+                    };
                     if spring || !damper {
-                        d.parts.push(Part::Spring {
-                            body_i: bi,
-                            a,
-                            body_j: bj,
-                            b,
-                            width,
-                            offset: off,
-                        });
+                        d.parts.push(Part::Spring(span));
                     }
                     if damper {
                         d.parts.push(Part::Damper {
-                            body_i: bi,
-                            a,
-                            body_j: bj,
-                            b,
-                            width: 0.8 * width,
-                            offset: -off,
+                            span: Span {
+                                width: 0.8 * width,
+                                offset: -off,
+                                ..span
+                            },
                             rest: if l0 > 0.0 {
                                 l0
                             } else {

@@ -3,7 +3,7 @@
 
 use super::{all_finite, linear_at, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
-use crate::model::{BodyRef, System};
+use crate::model::{BodyRef, Slide, System};
 use serde::Serialize;
 
 /// What a lock row of the assembly holds at its given value: a body
@@ -20,20 +20,8 @@ pub enum LockKind {
         /// Second body.
         body_j: BodyRef,
     },
-    /// `d = (r_Pj − r_Pi) · R(φ_i) u_i`: the slide of point `s_j` of body j
-    /// along the unit axis `u_i` through point `s_i` of body i \[m\].
-    Slide {
-        /// Body carrying the axis.
-        body_i: BodyRef,
-        /// Point of the axis (body i frame).
-        s_i: [f64; 2],
-        /// Unit axis (body i frame).
-        u_i: [f64; 2],
-        /// Sliding body.
-        body_j: BodyRef,
-        /// Sliding point (body j frame).
-        s_j: [f64; 2],
-    },
+    /// The slide of a translational joint \[m\] ([`Slide::eval`]).
+    Slide(Slide),
 }
 
 /// A lock row `ℓ(q) = value` of the assembly, with the rate `ℓ̇ = ∇ℓ·q̇ =
@@ -48,23 +36,6 @@ pub struct Lock {
     pub rate: f64,
 }
 
-/// `R(φ) s` and `∂(R(φ) s)/∂φ` (the ground: `s` and 0).
-fn rotated(q: &[f64], b: BodyRef, s: [f64; 2]) -> ([f64; 2], [f64; 2]) {
-    match b.offset() {
-        None => (s, [0.0; 2]),
-        Some(o) => {
-            let (sn, cs) = q[o + 2].sin_cos();
-            let a = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
-            (a, [-a[1], a[0]])
-        }
-    }
-}
-
-/// The position of body `b`'s origin (the ground's: 0).
-fn origin(q: &[f64], b: BodyRef) -> [f64; 2] {
-    b.offset().map_or([0.0; 2], |o| [q[o], q[o + 1]])
-}
-
 impl LockKind {
     /// The coordinates `ℓ` depends on (the order of [`LockKind::eval`]'s
     /// gradient).
@@ -75,11 +46,7 @@ impl LockKind {
                 .iter()
                 .filter_map(|b| b.offset().map(|o| o + 2))
                 .collect(),
-            LockKind::Slide { body_i, body_j, .. } => [body_i, body_j]
-                .iter()
-                .filter_map(|b| b.offset())
-                .flat_map(|o| [o, o + 1, o + 2])
-                .collect(),
+            LockKind::Slide(s) => s.columns(),
         }
     }
 
@@ -101,33 +68,7 @@ impl LockKind {
                 }
                 ang(body_j) - ang(body_i)
             }
-            LockKind::Slide {
-                body_i,
-                s_i,
-                u_i,
-                body_j,
-                s_j,
-            } => {
-                let (ri, rj) = (origin(q, body_i), origin(q, body_j));
-                let (ai, dai) = rotated(q, body_i, s_i);
-                let (aj, daj) = rotated(q, body_j, s_j);
-                let (u, du) = rotated(q, body_i, u_i);
-                let d = [rj[0] + aj[0] - ri[0] - ai[0], rj[1] + aj[1] - ri[1] - ai[1]];
-                let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
-                let mut k = 0;
-                if body_i.offset().is_some() {
-                    grad[0] = -u[0];
-                    grad[1] = -u[1];
-                    grad[2] = -dot(u, dai) + dot(d, du);
-                    k = 3;
-                }
-                if body_j.offset().is_some() {
-                    grad[k] = u[0];
-                    grad[k + 1] = u[1];
-                    grad[k + 2] = dot(u, daj);
-                }
-                dot(d, u)
-            }
+            LockKind::Slide(s) => s.eval(q, grad),
         }
     }
 }

@@ -7,7 +7,7 @@
 //! acceleration equation Φ_q q̈ = γ (paper, eq. (4)–(5)). For implicit
 //! integrators it also provides (Φ_qᵀ λ)_q.
 
-use super::{BodyRef, FdWorkspace, ModelError};
+use super::{perp, rotate, BodyRef, FdWorkspace, ModelError};
 use std::fmt::Debug;
 
 /// A holonomic (possibly rheonomic) constraint block of `n_eq` equations.
@@ -97,18 +97,7 @@ pub enum JointGeometry {
     },
     /// Translational joint: the point `s_j` of body j slides along the axis
     /// `u_i` through `s_i` on body i.
-    Translational {
-        /// Body carrying the axis.
-        body_i: BodyRef,
-        /// Point of the axis.
-        s_i: [f64; 2],
-        /// Axis direction (unit).
-        u_i: [f64; 2],
-        /// Sliding body.
-        body_j: BodyRef,
-        /// Sliding point.
-        s_j: [f64; 2],
-    },
+    Translational(Slide),
     /// Anything else (drives, user constraints).
     Other,
 }
@@ -123,16 +112,86 @@ impl JointGeometry {
                 body_j,
                 s_j,
             }
-            | JointGeometry::Translational {
+            | JointGeometry::Translational(Slide {
                 body_i,
                 s_i,
                 body_j,
                 s_j,
                 ..
-            } => vec![(body_i, s_i), (body_j, s_j)],
+            }) => vec![(body_i, s_i), (body_j, s_j)],
             JointGeometry::Other => Vec::new(),
         }
     }
+}
+
+/// A translational joint as data: the point `s_j` of body j slides along
+/// the unit axis `u_i` through the point `s_i` of body i (body frames;
+/// global for the ground).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Slide {
+    /// Body carrying the axis.
+    pub body_i: BodyRef,
+    /// Point of the axis (body i frame).
+    pub s_i: [f64; 2],
+    /// Unit axis (body i frame).
+    pub u_i: [f64; 2],
+    /// Sliding body.
+    pub body_j: BodyRef,
+    /// Sliding point (body j frame).
+    pub s_j: [f64; 2],
+}
+
+impl Slide {
+    /// The coordinates the slide depends on: x, y, φ of body i, then of
+    /// body j (none for the ground); the order of [`Slide::eval`]'s
+    /// gradient.
+    pub fn columns(&self) -> Vec<usize> {
+        [self.body_i, self.body_j]
+            .iter()
+            .filter_map(|b| b.offset())
+            .flat_map(|o| [o, o + 1, o + 2])
+            .collect()
+    }
+
+    /// The slide `d = (r_Pj − r_Pi) · R(φ_i) u_i` \[m\] at `q`, and its
+    /// gradient over [`Slide::columns`] into `grad` (exact).
+    pub fn eval(&self, q: &[f64], grad: &mut [f64]) -> f64 {
+        let (ri, rj) = (origin(q, self.body_i), origin(q, self.body_j));
+        let (ai, dai) = rotated(q, self.body_i, self.s_i);
+        let (aj, daj) = rotated(q, self.body_j, self.s_j);
+        let (u, du) = rotated(q, self.body_i, self.u_i);
+        let d = [rj[0] + aj[0] - ri[0] - ai[0], rj[1] + aj[1] - ri[1] - ai[1]];
+        let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
+        let mut k = 0;
+        if self.body_i.offset().is_some() {
+            grad[0] = -u[0];
+            grad[1] = -u[1];
+            grad[2] = -dot(u, dai) + dot(d, du);
+            k = 3;
+        }
+        if self.body_j.offset().is_some() {
+            grad[k] = u[0];
+            grad[k + 1] = u[1];
+            grad[k + 2] = dot(u, daj);
+        }
+        dot(d, u)
+    }
+}
+
+/// `R(φ) s` and `∂(R(φ) s)/∂φ` (the ground: `s` and 0).
+fn rotated(q: &[f64], b: BodyRef, s: [f64; 2]) -> ([f64; 2], [f64; 2]) {
+    match b.offset() {
+        None => (s, [0.0; 2]),
+        Some(o) => {
+            let a = rotate(q[o + 2], s);
+            (a, perp(a))
+        }
+    }
+}
+
+/// The position of body `b`'s origin (the ground's: 0).
+fn origin(q: &[f64], b: BodyRef) -> [f64; 2] {
+    b.offset().map_or([0.0; 2], |o| [q[o], q[o + 1]])
 }
 
 /// Every referenced body exists and the two sides differ (for
@@ -166,4 +225,55 @@ pub(crate) fn touched_columns(pattern: &[(usize, usize)]) -> Vec<usize> {
     cols.sort_unstable();
     cols.dedup();
     cols
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The slide from its definition, `(r_j + R(φ_j) s_j − r_i − R(φ_i) s_i) · R(φ_i) u_i`.
+    fn slide_by_definition(s: &Slide, q: &[f64]) -> f64 {
+        let point = |b: BodyRef, p: [f64; 2]| match b.offset() {
+            None => p,
+            Some(o) => {
+                let a = rotate(q[o + 2], p);
+                [q[o] + a[0], q[o + 1] + a[1]]
+            }
+        };
+        let u = s.body_i.offset().map_or(s.u_i, |o| rotate(q[o + 2], s.u_i));
+        let (pi, pj) = (point(s.body_i, s.s_i), point(s.body_j, s.s_j));
+        u[0] * (pj[0] - pi[0]) + u[1] * (pj[1] - pi[1])
+    }
+
+    #[test]
+    fn slide_and_its_gradient_match_the_definition_and_central_differences() {
+        let q = [0.3, -0.2, 0.7, 1.1, 0.4, -1.3];
+        let (sn, cs) = 0.4_f64.sin_cos();
+        for body_i in [BodyRef::Body(0), BodyRef::Ground] {
+            let s = Slide {
+                body_i,
+                s_i: [0.25, -0.1],
+                u_i: [cs, sn],
+                body_j: BodyRef::Body(1),
+                s_j: [-0.15, 0.05],
+            };
+            let cols = s.columns();
+            let mut grad = [0.0; 6];
+            let d = s.eval(&q, &mut grad);
+            assert!((d - slide_by_definition(&s, &q)).abs() < 1e-15);
+            let h = 1e-6;
+            for (k, &c) in cols.iter().enumerate() {
+                let (mut up, mut dn) = (q, q);
+                up[c] += h;
+                dn[c] -= h;
+                let fd = (slide_by_definition(&s, &up) - slide_by_definition(&s, &dn)) / (2.0 * h);
+                assert!(
+                    (grad[k] - fd).abs() < 1e-9,
+                    "column {c}: {} vs {fd}",
+                    grad[k]
+                );
+            }
+            assert_eq!(cols.len(), if body_i == BodyRef::Ground { 3 } else { 6 });
+        }
+    }
 }

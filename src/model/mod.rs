@@ -23,16 +23,16 @@ mod time_function;
 
 pub use body::{Body, BodyRef};
 pub(crate) use constraint::touched_columns;
-pub use constraint::{check_bodies, Constraint, JointGeometry};
+pub use constraint::{check_bodies, Constraint, JointGeometry, Slide};
 pub use energy::EnergyWorkspace;
 pub use force::{
     check_coordinates, BodyLoads, FdWorkspace, ForceElement, ForceGeometry, ForceJacobians,
 };
 pub use gravity::Gravity;
 pub use reaction::ReactionMap;
+pub(crate) use sensor::evaluate_sensors;
 pub use sensor::joint_short_name;
 pub use sensor::{drives, Drive, Sensor, SensorKind};
-pub(crate) use sensor::{evaluate_sensors, point_state};
 pub use system::{
     ConstraintKernels, ConstraintTerms, Evaluation, ForceKernels, ResidualHalves, State, System,
     SystemBuilder,

@@ -62,7 +62,7 @@ pub struct Sensor {
 }
 
 /// Position and velocity of point `s` of body `b`.
-pub(crate) fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
+fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
     match b.offset() {
         None => (s, [0.0; 2]),
         Some(o) => {

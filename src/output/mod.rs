@@ -20,6 +20,7 @@ use crate::model::{
     drives, evaluate_sensors, joint_short_name, Drive, ReactionMap, Sensor, System,
 };
 use crate::simulation::{OutputQuantities, Sample};
+use crate::words::from_words;
 
 /// One output column: its name (`t`, `x1`, `B.fx`, …) and SI unit.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -404,18 +405,7 @@ impl Format {
     }
 }
 
-impl std::str::FromStr for Format {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "csv" => Ok(Format::Csv),
-            "arrow" => Ok(Format::Arrow),
-            other => Err(format!(
-                "unknown output format '{other}'; expected csv or arrow"
-            )),
-        }
-    }
-}
+from_words!(Format, "output format", "csv" => Csv, "arrow" => Arrow);
 
 /// Why a table could not be written.
 #[derive(Debug, thiserror::Error)]

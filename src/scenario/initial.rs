@@ -319,13 +319,7 @@ fn joint_lock(
                 rate: rate.unwrap_or(0.0),
             }
         }
-        JointGeometry::Translational {
-            body_i,
-            s_i,
-            u_i,
-            body_j,
-            s_j,
-        } => {
+        JointGeometry::Translational(slide) => {
             for (f, v) in [
                 ("angle", j.angle),
                 ("angle_deg", j.angle_deg),
@@ -346,13 +340,7 @@ fn joint_lock(
                 )
             })?;
             Lock {
-                kind: LockKind::Slide {
-                    body_i,
-                    s_i,
-                    u_i,
-                    body_j,
-                    s_j,
-                },
+                kind: LockKind::Slide(slide),
                 value: d,
                 rate: j.velocity.unwrap_or(0.0),
             }

@@ -391,6 +391,23 @@ pub fn simulate(
     Ok((traj, summary))
 }
 
+/// `Err` with the reason unless `q` and `q̇` are a state of `sys`:
+/// [`System::n_coords`] entries each, all finite.
+pub(crate) fn check_state(sys: &System, q: &[f64], qd: &[f64]) -> Result<(), String> {
+    let n = sys.n_coords();
+    if q.len() != n || qd.len() != n {
+        return Err(format!(
+            "expected {n} coordinates and velocities, got {} and {}",
+            q.len(),
+            qd.len()
+        ));
+    }
+    match q.iter().chain(qd).position(|v| !v.is_finite()) {
+        Some(k) => Err(format!("component {k} of (q, q̇) is not finite")),
+        None => Ok(()),
+    }
+}
+
 /// Integrate the equations of motion of `sys` from `(q0, q̇0)`, handing
 /// each output row to `sink` as the integration delivers it (memory
 /// bounded independently of the number of outputs).
@@ -406,19 +423,7 @@ pub fn simulate_into(
     monitors: &mut [&mut dyn Monitor],
     sink: &mut dyn Sink,
 ) -> Result<Summary, SimulationError> {
-    let n = sys.n_coords();
-    if q0.len() != n || qd0.len() != n {
-        return Err(SimulationError::Initial(format!(
-            "expected {n} coordinates and velocities, got {} and {}",
-            q0.len(),
-            qd0.len()
-        )));
-    }
-    if let Some(k) = q0.iter().chain(qd0).position(|v| !v.is_finite()) {
-        return Err(SimulationError::Initial(format!(
-            "component {k} of (q0, q̇0) is not finite"
-        )));
-    }
+    check_state(sys, q0, qd0).map_err(SimulationError::Initial)?;
     // `integrator.method = "auto"`: the method from the rates at t0
     let chosen = match cfg.choice {
         MethodChoice::Given => None,

@@ -693,3 +693,37 @@ fn drive_inputs_predict_nonlinear_runs_with_perturbed_drives() {
         );
     }
 }
+
+/// A state of the wrong length or with a non-finite entry is refused with
+/// the same reason by the linearisation and by a run.
+#[test]
+fn bad_states_are_refused_alike_by_linearize_and_simulate() {
+    let sys = pendulum(1.5, 0.02, 0.4, 0.3);
+    let (q, qd) = state(0.3, 0.0, 0.4);
+    let mut nan = qd.clone();
+    nan[1] = f64::NAN;
+    let cases = [
+        (
+            q[..2].to_vec(),
+            qd.clone(),
+            "expected 3 coordinates and velocities, got 2 and 3",
+        ),
+        (q.clone(), nan, "component 4 of (q, q̇) is not finite"),
+    ];
+    for (q, qd, why) in cases {
+        let e = linearize(
+            &sys,
+            &[],
+            0.0,
+            &q,
+            &qd,
+            &[],
+            &[],
+            &LinearizeOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains(why), "{e}");
+        let e = simulate(&sys, &q, &qd, &run_config(0.1), &mut []).unwrap_err();
+        assert!(e.to_string().contains(why), "{e}");
+    }
+}

@@ -90,6 +90,7 @@ use super::Tangent;
 use crate::formulation::FormulationError;
 use crate::linalg::LinalgError;
 use crate::model::{Sensor, System};
+use crate::simulation::check_state;
 use chart::{project, Chart};
 use faer::linalg::solvers::Solve;
 use faer::Mat;
@@ -115,6 +116,31 @@ pub enum Input {
 
 /// The motion units of a drive whose generalized force is in `force_unit`
 /// (`"N"`: a translation; `"N m"`: an angle): offset, rate, acceleration.
+/// Central differences of `fun` at `x0`: for every entry `j` (step
+/// `h = step(j)`) and every value `i` of `fun`,
+/// `put(i, j, (fun(x0 + h e_j)_i − fun(x0 − h e_j)_i) / 2h)`.
+fn central_differences(
+    x0: &[f64],
+    step: impl Fn(usize) -> f64,
+    chart: &mut Chart,
+    mut fun: impl FnMut(&[f64], &mut Chart) -> Result<Vec<f64>, LinearizeError>,
+    mut put: impl FnMut(usize, usize, f64),
+) -> Result<(), LinearizeError> {
+    let mut xp = x0.to_vec();
+    for j in 0..x0.len() {
+        let h = step(j);
+        xp[j] = x0[j] + h;
+        let up = fun(&xp, chart)?;
+        xp[j] = x0[j] - h;
+        let dn = fun(&xp, chart)?;
+        xp[j] = x0[j];
+        for (i, (u, d)) in up.iter().zip(&dn).enumerate() {
+            put(i, j, (u - d) / (2.0 * h));
+        }
+    }
+    Ok(())
+}
+
 fn drive_units(force_unit: &str) -> [&'static str; 3] {
     if force_unit == "N" {
         ["m", "m/s", "m/s^2"]
@@ -356,19 +382,8 @@ pub fn linearize(
     outputs: &[Output],
     opts: &LinearizeOptions,
 ) -> Result<StateSpace, LinearizeError> {
+    check_state(sys, q, qd).map_err(LinearizeError::Invalid)?;
     let n = sys.n_coords();
-    if q.len() != n || qd.len() != n {
-        return Err(LinearizeError::Invalid(format!(
-            "expected {n} positions and velocities, got {} and {}",
-            q.len(),
-            qd.len()
-        )));
-    }
-    if let Some(i) = q.iter().chain(qd).position(|v| !v.is_finite()) {
-        return Err(LinearizeError::Invalid(format!(
-            "state entry {i} is not finite"
-        )));
-    }
     let mut drive_rows = Vec::new();
     let mut drive_inputs = Vec::new();
     let all_drives = crate::model::drives(sys);
@@ -624,17 +639,9 @@ pub fn linearize(
                 Ok(independent.iter().map(|&c| qdd[c]).collect())
             };
             if f > 0 {
-                for j in 0..ns {
-                    let h = step(j);
-                    let mut xp = x0.clone();
-                    xp[j] += h;
-                    let up = zdd(&xp, &mut chart)?;
-                    xp[j] = x0[j] - h;
-                    let dn = zdd(&xp, &mut chart)?;
-                    for i in 0..f {
-                        a[(f + i, j)] = (up[i] - dn[i]) / (2.0 * h);
-                    }
-                }
+                central_differences(&x0, step, &mut chart, zdd, |i, j, d| {
+                    a[(f + i, j)] = d;
+                })?;
             }
         }
     }
@@ -687,19 +694,11 @@ pub fn linearize(
             }
             Ok(y)
         };
-        for j in 0..ns {
-            let h = step(j);
-            let mut xp = x0.clone();
-            xp[j] += h;
-            let up = read(&xp, &mut chart)?;
-            xp[j] = x0[j] - h;
-            let dn = read(&xp, &mut chart)?;
-            for r in 0..ny {
-                if !exact[r] {
-                    c[(r, j)] = (up[r] - dn[r]) / (2.0 * h);
-                }
+        central_differences(&x0, step, &mut chart, read, |r, j, d| {
+            if !exact[r] {
+                c[(r, j)] = d;
             }
-        }
+        })?;
     }
     let mut basis = Mat::<f64>::zeros(n, f);
     for (j, col) in v.iter().enumerate() {

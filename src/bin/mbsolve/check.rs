@@ -115,20 +115,24 @@ fn kind(name: &str) -> String {
         .join(" ")
 }
 
-/// Count the elements by kind, as `"2 revolute joint, 1 drag"`.
+/// The number of elements and their count by kind, as
+/// `"3 (2 revolute joint, 1 drag)"` (`"0 (none)"`).
 fn by_kind(names: impl Iterator<Item = String>) -> String {
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
     for n in names {
         *counts.entry(kind(&n)).or_default() += 1;
     }
-    if counts.is_empty() {
-        return "none".into();
-    }
-    counts
-        .iter()
-        .map(|(k, c)| format!("{c} {k}"))
-        .collect::<Vec<_>>()
-        .join(", ")
+    let total: usize = counts.values().sum();
+    let kinds = if counts.is_empty() {
+        "none".into()
+    } else {
+        counts
+            .iter()
+            .map(|(k, c)| format!("{c} {k}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    format!("{total} ({kinds})")
 }
 
 /// The report printed for a valid scenario.
@@ -162,19 +166,11 @@ fn report(sc: &Scenario, s: &Size) -> String {
     line("redundant equations", s.redundant.to_string());
     line(
         "joints",
-        format!(
-            "{} ({})",
-            sys.constraints().len(),
-            by_kind(sys.constraints().iter().map(|c| c.name()))
-        ),
+        by_kind(sys.constraints().iter().map(|c| c.name())),
     );
     line(
         "force elements",
-        format!(
-            "{} ({})",
-            sys.forces().len(),
-            by_kind(sys.forces().iter().map(|f| f.name()))
-        ),
+        by_kind(sys.forces().iter().map(|f| f.name())),
     );
     let force_kernels = sys.force_kernel_names();
     line(

@@ -128,32 +128,25 @@ impl ElementType<Context<'_>> for JointForce {
     const TYPE: &'static str = "joint_force";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let j = find(cx, "joint_force", &self.joint, "translational")?;
-        let JointGeometry::Translational {
-            body_i,
-            s_i,
-            u_i,
-            body_j,
-            s_j,
-        } = j.geometry
-        else {
+        let JointGeometry::Translational(slide) = j.geometry else {
             return Err(cx.err(
                 "joint",
                 format!("joint '{}' is not translational", self.joint),
             ));
         };
-        let (i, jj) = (body_name(cx, body_i), body_name(cx, body_j));
+        let (i, jj) = (body_name(cx, slide.body_i), body_name(cx, slide.body_j));
         let (a, b) = (
             LinePoint {
                 body: i.clone(),
-                point: s_i,
+                point: slide.s_i,
             },
             LinePoint {
                 body: jj.clone(),
-                point: s_j,
+                point: slide.s_j,
             },
         );
         let load = builder(cx, &self.force, &[&i, &jj])
-            .joint_force(&a, u_i, &b, &self.force)
+            .joint_force(&a, slide.u_i, &b, &self.force)
             .map_err(|e| expression_error(cx, e))?
             .build();
         cx.builder.add_force(load);

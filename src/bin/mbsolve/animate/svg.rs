@@ -154,7 +154,7 @@ pub(super) fn write_svg(s: &Scene, path: &Path, speed: f64, every: usize) -> Res
             | Part::Pin { body, .. }
             | Part::Guide { body, .. } => Some(*body),
             Part::Support { .. } | Part::Ground { .. } => Some(None),
-            Part::Spring { .. } | Part::Damper { .. } => None,
+            Part::Spring(_) | Part::Damper { .. } => None,
         };
         match carrier {
             Some(None) => ground.parts.push(p.clone()),
