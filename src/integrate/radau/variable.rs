@@ -104,8 +104,8 @@ impl OrderRule {
 
 /// The stage loop of the current order.
 enum Stages<'g, 's> {
-    Five(Run<'g, 's, 3, ClosedForm>),
-    Nine(Run<'g, 's, 5, RadauStages<5>>),
+    Five(Box<Run<'g, 's, 3, ClosedForm>>),
+    Nine(Box<Run<'g, 's, 5, RadauStages<5>>>),
 }
 
 /// `$body` with `$r` the current order's run.
@@ -150,11 +150,11 @@ impl Stepper for VariableRun<'_, '_> {
         self.run = Some(match (run, self.next_nine) {
             (Stages::Five(r), true) => {
                 self.counts.changes += 1;
-                Stages::Nine(r.into_stages(self.nine))
+                Stages::Nine(Box::new(r.into_stages(self.nine)))
             }
             (Stages::Nine(r), false) => {
                 self.counts.changes += 1;
-                Stages::Five(r.into_stages(self.five))
+                Stages::Five(Box::new(r.into_stages(self.five)))
             }
             (run, _) => run,
         });
@@ -192,7 +192,7 @@ impl Stepper for VariableRun<'_, '_> {
     }
 
     fn stats(&self) -> Stats {
-        on_run!(self.stages(), r => Stepper::stats(r))
+        on_run!(self.stages(), r => Stepper::stats(&**r))
     }
 }
 
@@ -267,7 +267,7 @@ impl Radau59 {
         let (opts, ode) = (&self.opts, &self.ode);
         let run = Run::new(&self.five, opts, ode, sys, vec![c1, c2], &span)?;
         let mut v = VariableRun {
-            run: Some(Stages::Five(run)),
+            run: Some(Stages::Five(Box::new(run))),
             five: &self.five,
             nine: &self.nine,
             rule: OrderRule::default(),
