@@ -7,7 +7,10 @@
 //! cargo run --release --example radau_chain -- N [radau5:H[:TOL] | genalpha:H[:TOL] | aradau5:RTOL[:TOL] ...]
 //! ```
 //! `aradau5:RTOL`: radau5 with adaptive steps at `rtol` (`atol` =
-//! 1e-3·rtol, `MBS_ATOL` overrides); `h` in the output line is then rtol.
+//! 1e-3·rtol, `MBS_ATOL` overrides); `h` in the output line is then rtol;
+//! `radau9:H`, `aradau9:RTOL` the same with radau9; `radau59:RTOL`
+//! radau59 (always adaptive). The line also gives radau59's steps at
+//! order 9 and changes of order.
 //! `TOL`: `integrator.newton_tol` (m/s²) of that run; `MBS_NEWTON_TOL`
 //! sets it for the runs without one. `MBS_T_END` (s, default 0.1).
 //! The stiff-chain comparisons of docs/radau.md run `radau5:4e-4:1`.
@@ -40,7 +43,7 @@ fn main() {
         let (Some(name), Some(value)) = (parts.next(), parts.next()) else {
             panic!("{spec}: expected METHOD:H[:TOL]");
         };
-        let adaptive = name == "aradau5";
+        let adaptive = name.starts_with("aradau");
         let method: Method = name
             .trim_start_matches('a')
             .parse()
@@ -55,8 +58,8 @@ fn main() {
             output_dt: t_end,
             ..Default::default()
         };
-        if adaptive {
-            cfg.implicit.adaptive = true;
+        if adaptive || method.is_adaptive() {
+            cfg.implicit.adaptive = !method.is_adaptive();
             cfg.ode.rtol = h;
             cfg.ode.atol = mbsolve::integrate::Tolerance::Scalar(
                 std::env::var("MBS_ATOL")
@@ -84,7 +87,7 @@ fn main() {
         let err = reference.map(|r| (tip - r).abs());
         let get = |k: &str| s.extra.get(k).cloned().unwrap_or_default();
         println!(
-            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"error_rejections\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
+            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"error_rejections\":{},\"steps_order9\":{},\"order_changes\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
             cfg.implicit.newton_tol,
             s.status,
             err.map_or("null".into(), |e| format!("{e:.3e}")),
@@ -93,6 +96,8 @@ fn main() {
             s.factorizations,
             get("newton_failures"),
             get("error_rejections"),
+            get("steps_order9"),
+            get("order_changes"),
             s.max_constraint_norm,
         );
         if std::env::var("MBS_VERBOSE").is_ok() {

@@ -8,7 +8,8 @@
 //! ```
 //! `DT`: output interval \[s\]; `REF` and each `SPEC`: radau5 as
 //! `f:H[:TOL]` (fixed step H, `newton_tol` TOL), `a:RTOL[:TOL]` (adaptive,
-//! `atol` = 1e-3·rtol) or ode45 as `e:RTOL`. The reference `f:2.5e-5:1e-4`
+//! `atol` = 1e-3·rtol) or ode45 as `e:RTOL`; `f9:`, `a9:` the same with
+//! radau9, `a59:RTOL` radau59. The reference `f:2.5e-5:1e-4`
 //! (its agreement with `f:1.25e-5:1e-4`: docs/radau.md). `DUMP_REF=path`
 //! writes the reference's tip x per row as a JSON array (for
 //! `benches/peers/exudyn_tip_series.py`). `MBS_T_END` (s, default 0.1).
@@ -25,20 +26,26 @@ fn run(n: usize, spec: &str, dt: f64, t_end: f64) -> (Vec<f64>, String) {
         panic!("{spec}: expected f:H[:TOL], a:RTOL[:TOL] or e:RTOL");
     };
     let v: f64 = value.parse().unwrap_or_else(|e| panic!("{spec}: {e}"));
+    // the kind's letter, then the Radau IIA method: "" radau5, "9" radau9
+    let (letter, order) = kind.split_at(kind.len().min(1));
+    let method = match (letter, order) {
+        ("e", "") => Method::Ode45,
+        (_, "") => Method::Radau5,
+        (_, o) => format!("radau{o}")
+            .parse()
+            .unwrap_or_else(|e| panic!("{spec}: {e}")),
+    };
     let mut cfg = RunConfig {
-        method: Method::Radau5,
+        method,
         t_end,
         output_dt: dt,
         ..Default::default()
     };
     cfg.ode.max_steps = 100_000_000;
-    match kind {
+    match letter {
         "f" => cfg.ode.fixed_step = Some(v),
         "a" | "e" => {
-            cfg.implicit.adaptive = kind == "a";
-            if kind == "e" {
-                cfg.method = Method::Ode45;
-            }
+            cfg.implicit.adaptive = letter == "a" && !method.is_adaptive();
             cfg.ode.rtol = v;
             cfg.ode.atol = Tolerance::Scalar(1e-3 * v);
         }
@@ -50,11 +57,15 @@ fn run(n: usize, spec: &str, dt: f64, t_end: f64) -> (Vec<f64>, String) {
     let (tr, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).expect("run starts");
     let get = |k: &str| s.extra.get(k).cloned().unwrap_or_default();
     let counts = format!(
-        "status {:?}, steps {}, Newton iterations {}, factorizations {}",
+        "status {:?}, steps {}, Newton iterations {}, factorizations {}, rejected {}, Newton failures {}, steps at order 9 {}, order changes {}",
         s.status,
         s.steps,
         get("newton_iterations"),
-        s.factorizations
+        s.factorizations,
+        get("error_rejections"),
+        get("newton_failures"),
+        get("steps_order9"),
+        get("order_changes"),
     );
     let tips = tr.q.iter().map(|q| stiff_chain_tip_x(&info, q)).collect();
     (tips, counts)

@@ -43,9 +43,13 @@ pub enum Method {
     /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
     Radau5,
     /// Radau IIA of order 9 (five stages, L-stable) on the index-3
-    /// equations, fixed step ([`super::Radau9`]; docs/radau.md). Not an
-    /// [`super::OdeSystem`] integrator.
+    /// equations, fixed step or adaptive ([`super::Radau9`];
+    /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
     Radau9,
+    /// Radau IIA of variable order, 5 and 9 (RADAU's order selection),
+    /// adaptive, on the index-3 equations ([`super::Radau59`];
+    /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
+    Radau59,
 }
 
 /// The family a method belongs to: what runs it.
@@ -268,7 +272,7 @@ impl MethodInfo {
 }
 
 /// Every method, one row each, in the order of [`Method::ALL`].
-pub const METHODS: [MethodInfo; 10] = [
+pub const METHODS: [MethodInfo; 11] = [
     MethodInfo::explicit(Method::Ode23, Family::RungeKutta, Stepping::Adaptive),
     MethodInfo::explicit(Method::Ode45, Family::RungeKutta, Stepping::Adaptive),
     MethodInfo::explicit(Method::Rk4, Family::RungeKutta, Stepping::Fixed),
@@ -299,7 +303,14 @@ pub const METHODS: [MethodInfo; 10] = [
     MethodInfo::row(
         Method::Radau9,
         Family::Radau,
-        Stepping::Fixed,
+        Stepping::FixedOrAdaptive,
+        RADAU_THREADS,
+        RADAU_KEYS,
+    ),
+    MethodInfo::row(
+        Method::Radau59,
+        Family::Radau,
+        Stepping::Adaptive,
         RADAU_THREADS,
         RADAU_KEYS,
     ),
@@ -344,7 +355,7 @@ impl MethodInfo {
 
 impl Method {
     /// All methods, in the order of [`METHODS`].
-    pub const ALL: [Method; 10] = [
+    pub const ALL: [Method; 11] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
@@ -355,10 +366,12 @@ impl Method {
         Method::Newmark,
         Method::Radau5,
         Method::Radau9,
+        Method::Radau59,
     ];
     /// The valid method names, in the order of [`METHODS`].
-    pub const NAMES: [&'static str; 10] = [
+    pub const NAMES: [&'static str; 11] = [
         "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark", "radau5", "radau9",
+        "radau59",
     ];
 
     /// This method's row of [`METHODS`].
@@ -519,12 +532,15 @@ mod tests {
             .collect();
         assert_eq!(alpha, [GenAlpha, Hht, Newmark]);
         let index3: Vec<Method> = Method::ALL.into_iter().filter(Method::is_index3).collect();
-        assert_eq!(index3, [Bdf, GenAlpha, Hht, Newmark, Radau5, Radau9]);
+        assert_eq!(
+            index3,
+            [Bdf, GenAlpha, Hht, Newmark, Radau5, Radau9, Radau59]
+        );
         let adaptive: Vec<Method> = Method::ALL
             .into_iter()
             .filter(Method::is_adaptive)
             .collect();
-        assert_eq!(adaptive, [Ode23, Ode45, Ode113, Bdf]);
+        assert_eq!(adaptive, [Ode23, Ode45, Ode113, Bdf, Radau59]);
     }
 
     /// docs/scenarios.md carries the generated method table verbatim.

@@ -71,7 +71,7 @@ pub use method::{
     KeyUse, Method, MethodInfo, Stepping, METHODS, STEP_CONTROL_KEYS,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
-pub use radau::{ComplexNewton, Radau5, Radau9, RadauStages, RadauTableau};
+pub use radau::{ComplexNewton, OrderCounts, Radau5, Radau59, Radau9, RadauStages, RadauTableau};
 
 use std::ops::ControlFlow;
 

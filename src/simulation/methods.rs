@@ -457,21 +457,27 @@ pub(super) struct RadauScheme<'s> {
     c: Index3Complex<'s>,
 }
 
-/// The Radau IIA of the run: radau5, or radau9 with the complex matrix of
-/// its second complex pair.
+/// The Radau IIA of the run: radau5, or radau9 or radau59 with the
+/// complex matrix of the second complex pair.
 enum RadauOrder<'s> {
     Three(Box<Radau5>),
     Five(Box<(crate::integrate::Radau9, Index3Complex<'s>)>),
+    Variable(Box<(crate::integrate::Radau59, Index3Complex<'s>)>),
 }
 
 impl<'s> RadauRun<'s> {
     pub(super) fn new(sys: &'s System, cfg: &RunConfig) -> Result<Self, SimulationError> {
         let (imp, ode) = (cfg.implicit.clone(), cfg.ode.clone());
-        let integ = if cfg.method == Method::Radau9 {
-            let r9 = crate::integrate::Radau9::new(imp, ode)?;
-            RadauOrder::Five(Box::new((r9, Index3Complex::new(sys)?)))
-        } else {
-            RadauOrder::Three(Box::new(Radau5::new(imp, ode)?))
+        let integ = match cfg.method {
+            Method::Radau9 => {
+                let r9 = crate::integrate::Radau9::new(imp, ode)?;
+                RadauOrder::Five(Box::new((r9, Index3Complex::new(sys)?)))
+            }
+            Method::Radau59 => {
+                let r = crate::integrate::Radau59::new(imp, ode)?;
+                RadauOrder::Variable(Box::new((r, Index3Complex::new(sys)?)))
+            }
+            _ => RadauOrder::Three(Box::new(Radau5::new(imp, ode)?)),
         };
         let scheme = RadauScheme {
             integ,
@@ -490,19 +496,36 @@ impl Index3Scheme for RadauScheme<'_> {
                 let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
                 r9.integrate(f, cplx, span)
             }
+            RadauOrder::Variable(b) => {
+                let (r, c2) = &mut **b;
+                let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
+                r.integrate(f, cplx, span)
+            }
         }
     }
     fn work(&self, _f: &Index3<'_>, cfg: &RunConfig) -> (usize, Extra) {
         let rs = match &self.integ {
             RadauOrder::Three(r5) => r5.stats(),
             RadauOrder::Five(b) => b.0.stats(),
+            RadauOrder::Variable(b) => b.0.stats(),
         };
         let mut extra = counters(&rs, &IMPLICIT_COUNTERS);
+        if let RadauOrder::Variable(b) = &self.integ {
+            let o = b.0.order_counts();
+            extra.extend(fields([
+                ("steps_order5", o.steps_order5.into()),
+                ("steps_order9", o.steps_order9.into()),
+                ("order_changes", o.changes.into()),
+            ]));
+        }
         extra.extend(fields([
             ("real_factorizations", rs.factorizations.into()),
             ("complex_factorizations", rs.complex_factorizations.into()),
             ("fixed_step", cfg.ode.fixed_step.into()),
-            ("adaptive", cfg.implicit.adaptive.into()),
+            (
+                "adaptive",
+                (cfg.implicit.adaptive || cfg.method.is_adaptive()).into(),
+            ),
             ("newton_tol", cfg.implicit.newton_tol.into()),
         ]));
         (rs.factorizations + rs.complex_factorizations, extra)

@@ -33,11 +33,28 @@ fn pendulum_angle(theta0: f64, t: f64) -> f64 {
     y[0]
 }
 
+/// The largest position error of the pendulum (x, y, φ of its body)
+/// released at `theta0` from rest, at `cfg.t_end` against
+/// [`pendulum_angle`], and the run's accepted steps.
+pub(crate) fn pendulum_run(cfg: &RunConfig, theta0: f64) -> (f64, usize) {
+    let (sys, _) = n_link_pendulum(1, 1.0, 1.0, theta0, G).unwrap();
+    let (q0, qd0) = sys.initial_state();
+    let (traj, s) = simulate(&sys, &q0, &qd0, cfg, &mut []).unwrap();
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    let q = traj.q.last().unwrap();
+    let th = pendulum_angle(theta0, cfg.t_end);
+    let exact = [0.5 * th.sin(), -0.5 * th.cos(), th];
+    let e = q
+        .iter()
+        .zip(&exact)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    (e, s.steps)
+}
+
 /// The largest position error of the pendulum (x, y, φ of its body) at
 /// t = 1 s after radau9 with step `h`.
 fn pendulum_error(h: f64, theta0: f64) -> f64 {
-    let (sys, _) = n_link_pendulum(1, 1.0, 1.0, theta0, G).unwrap();
-    let (q0, qd0) = sys.initial_state();
     let mut cfg = RunConfig {
         method: Method::Radau9,
         t_end: 1.0,
@@ -46,15 +63,7 @@ fn pendulum_error(h: f64, theta0: f64) -> f64 {
     };
     cfg.ode.fixed_step = Some(h);
     cfg.implicit.newton_tol = 1e-10;
-    let (traj, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
-    assert_eq!(s.status, "completed", "{:?}", s.message);
-    let q = traj.q.last().unwrap();
-    let th = pendulum_angle(theta0, 1.0);
-    let exact = [0.5 * th.sin(), -0.5 * th.cos(), th];
-    q.iter()
-        .zip(&exact)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0, f64::max)
+    pendulum_run(&cfg, theta0).0
 }
 
 /// The positions converge with order 9 (2s − 1 for s = 5 on index-3
@@ -112,26 +121,23 @@ fn stiff_chain_n100_against_reference() {
     );
 }
 
-/// Bad input is a clear error: `adaptive` (radau9 has fixed steps only),
-/// no step, and in a scenario `integrator.rtol` with radau9.
+/// Bad input is a clear error: radau9 without a step and without
+/// `adaptive`, a step with `adaptive`, and in a scenario `integrator.rtol`
+/// with a fixed step.
 #[test]
-fn radau9_takes_fixed_steps_only() {
-    let e = mbsolve::integrate::Radau9::new(
-        mbsolve::integrate::ImplicitOptions {
-            adaptive: true,
-            ..Default::default()
-        },
-        mbsolve::integrate::OdeOptions::default(),
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("adaptive") && e.contains("radau9"), "{e}");
+fn radau9_takes_a_step_or_tolerances() {
     let (sys, q0, qd0, _) = stiff_chain(3, 0.1).unwrap();
-    let cfg = RunConfig {
+    let mut cfg = RunConfig {
         method: Method::Radau9,
         t_end: 0.01,
         ..Default::default()
     };
+    let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("fixed_step") && e.contains("radau9"), "{e}");
+    cfg.implicit.adaptive = true;
+    cfg.ode.fixed_step = Some(1e-3);
     let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
         .unwrap_err()
         .to_string();

@@ -10,7 +10,8 @@
 //!
 //! The stage loop (`Run`: state, Newton, error estimate, dense output)
 //! is written for any odd number of stages `S` and a tableau of them
-//! (`stages::Tableau`); it serves [`Radau9`] (S = 5) as well.
+//! (`stages::Tableau`); it serves [`Radau9`] (S = 5) as well, and
+//! [`Radau59`] switches between the two between steps.
 //!
 //! # Stages
 //!
@@ -118,6 +119,7 @@ mod newton;
 mod radau9;
 mod stages;
 mod tableau;
+mod variable;
 
 pub use radau9::Radau9;
 use stages::cmul;
@@ -125,6 +127,7 @@ pub use stages::RadauStages;
 use stages::{dot, Tableau};
 use tableau::ClosedForm;
 pub use tableau::RadauTableau;
+pub use variable::{OrderCounts, Radau59};
 
 use super::driver::{Failure, Stepper};
 use super::implicit::{
@@ -160,6 +163,32 @@ pub(super) const MAX_SHRINK: f64 = 5.0;
 /// A new step within `[1, KEEP_STEP]` times the last one keeps it, and
 /// with it the factorisations (RADAU5's `QUOT2`).
 pub(super) const KEEP_STEP: f64 = 1.2;
+
+/// RADAU's tolerance transformation for `S` stages, `rtol' = 0.1
+/// rtol^{(S+1)/(2S)}` (radau5: `0.1 rtol^{2/3}`): the error estimate is
+/// O(h^{S+1}) for a method of order 2S − 1, and with `rtol'` the global
+/// error follows `rtol` (Hairer & Wanner II, §IV.8; RADAU's `EXPMNS`).
+pub(super) fn transformed_rtol<const S: usize>(rtol: f64) -> f64 {
+    0.1 * rtol.powf((S + 1) as f64 / (2 * S) as f64)
+}
+
+/// The exponent `1/(S + 1)` of the step-size controller (the error
+/// estimate is O(h^{S+1}); RADAU's `EXPO`).
+pub(super) fn error_exponent<const S: usize>() -> f64 {
+    1.0 / (S + 1) as f64
+}
+
+/// RADAU's Newton tolerance as a fraction of the error test's weights,
+/// `fnewt = max(10 ε / rtol', min(0.03, rtol'^{(S−1)/(S+1)}))` (radau5:
+/// `√rtol'`).
+pub(super) fn newton_fraction<const S: usize>(rtol_t: f64) -> f64 {
+    let p = if S == 3 {
+        rtol_t.sqrt()
+    } else {
+        rtol_t.powf((S - 1) as f64 / (S + 1) as f64)
+    };
+    (10.0 * f64::EPSILON / rtol_t).max(0.03f64.min(p))
+}
 
 /// The complex Newton matrix of the transformed Radau stages:
 /// `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` with complex coefficients `c`
@@ -235,75 +264,23 @@ fn integrate_stages<'s, const S: usize, T: Tableau<S>>(
     cplx: Vec<&'s mut dyn ComplexNewton>,
     run_span: Span<'_>,
 ) -> Result<(Report, ImplicitStats), IntegratorError> {
-    let (n, m) = (sys.n(), sys.m());
-    validate_run(n, &run_span, ode, opts.adaptive)?;
-    let Span {
-        t0, t_end, q0, qd0, ..
-    } = run_span;
-    let span = t_end - t0;
-    let h_max = ode.max_step.unwrap_or(0.1 * span).min(span);
-    // 0: chosen in `start` from the initial accelerations
-    let h = match (opts.adaptive, ode.fixed_step) {
-        (false, h) => h.unwrap_or(0.0),
-        (true, _) => ode.initial_step.map_or(0.0, |h| h.min(h_max)),
-    };
-    let vn = || std::array::from_fn(|_| vec![0.0; n]);
-    let vm = || std::array::from_fn(|_| vec![0.0; m]);
-    let vnm = || std::array::from_fn(|_| vec![0.0; n + m]);
-    let mut run = Run {
-        tab,
-        opts,
-        sys,
-        cplx,
-        n,
-        m,
-        t0,
-        t_end,
-        h_fixed: h,
-        h,
-        h_max,
-        rejected: false,
-        accepted: None,
-        last_its: 0,
-        k_grid: 1,
-        t: t0,
-        q: q0.to_vec(),
-        v: qd0.to_vec(),
-        qdd: vec![0.0; n],
-        lam: vec![0.0; m],
-        q_old: q0.to_vec(),
-        v_old: qd0.to_vec(),
-        a: vn(),
-        l: vm(),
-        a_prev: vn(),
-        l_prev: vm(),
-        qs: vec![0.0; n],
-        vs: vec![0.0; n],
-        r: vnm(),
-        x: vnm(),
-        y: [q0, qd0].concat(),
-        renewal: Renewal::new(RenewalOptions {
-            band: if opts.adaptive {
-                ADAPTIVE_REUSE_BAND
-            } else {
-                SAME_STEP
-            },
-            across_attempts: opts.reuse,
-            every_correction: !opts.reuse,
-        }),
-        eta: 1.0,
-        h_last: 0.0,
-        h_prev: None,
-        stats: ImplicitStats::default(),
-        ode,
-        warnings: Vec::new(),
-        cuts: Cuts::new(CutRules {
-            shrink: Shrink::Halve,
-            warn: Warn::First,
-            first_cause: false,
-        }),
-    };
+    let mut run = Run::new(tab, opts, ode, sys, cplx, &run_span)?;
     Ok(run_implicit(&mut run, run_span, ode.max_steps))
+}
+
+/// The Newton-matrix policy of a Radau IIA run: the matrices of a step
+/// within [`ADAPTIVE_REUSE_BAND`] (adaptive) or [`SAME_STEP`] (fixed) of
+/// the factorised one serve it.
+fn renewal(opts: &ImplicitOptions) -> Renewal {
+    Renewal::new(RenewalOptions {
+        band: if opts.adaptive {
+            ADAPTIVE_REUSE_BAND
+        } else {
+            SAME_STEP
+        },
+        across_attempts: opts.reuse,
+        every_correction: !opts.reuse,
+    })
 }
 
 /// The next attempt of a Radau IIA run from `t`: the step `h` (the
@@ -402,6 +379,157 @@ struct Run<'g, 's, const S: usize, T: Tableau<S>> {
     warnings: Vec<String>,
     /// The failure path's state (the cause named when the step collapses).
     cuts: Cuts,
+    /// The contraction θ of the last converged attempt's last correction
+    /// (None: it converged in one correction; radau59's order rule).
+    last_theta: Option<f64>,
+}
+
+impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
+    /// A run from the start of `run_span` with the stages of `tab`; `cplx`
+    /// holds one complex Newton matrix per complex pair of 𝔄 (more are
+    /// left unused).
+    fn new(
+        tab: &'g T,
+        opts: &'g ImplicitOptions,
+        ode: &'g OdeOptions,
+        sys: &'s mut dyn SecondOrderDae,
+        cplx: Vec<&'s mut dyn ComplexNewton>,
+        run_span: &Span<'_>,
+    ) -> Result<Self, IntegratorError> {
+        let (n, m) = (sys.n(), sys.m());
+        validate_run(n, run_span, ode, opts.adaptive)?;
+        let &Span {
+            t0, t_end, q0, qd0, ..
+        } = run_span;
+        let span = t_end - t0;
+        let h_max = ode.max_step.unwrap_or(0.1 * span).min(span);
+        // 0: chosen in `start` from the initial accelerations
+        let h = match (opts.adaptive, ode.fixed_step) {
+            (false, h) => h.unwrap_or(0.0),
+            (true, _) => ode.initial_step.map_or(0.0, |h| h.min(h_max)),
+        };
+        let vn = || std::array::from_fn(|_| vec![0.0; n]);
+        let vm = || std::array::from_fn(|_| vec![0.0; m]);
+        let vnm = || std::array::from_fn(|_| vec![0.0; n + m]);
+        Ok(Run {
+            tab,
+            opts,
+            sys,
+            cplx,
+            n,
+            m,
+            t0,
+            t_end,
+            h_fixed: h,
+            h,
+            h_max,
+            rejected: false,
+            accepted: None,
+            last_its: 0,
+            k_grid: 1,
+            t: t0,
+            q: q0.to_vec(),
+            v: qd0.to_vec(),
+            qdd: vec![0.0; n],
+            lam: vec![0.0; m],
+            q_old: q0.to_vec(),
+            v_old: qd0.to_vec(),
+            a: vn(),
+            l: vm(),
+            a_prev: vn(),
+            l_prev: vm(),
+            qs: vec![0.0; n],
+            vs: vec![0.0; n],
+            r: vnm(),
+            x: vnm(),
+            y: [q0, qd0].concat(),
+            renewal: renewal(opts),
+            eta: 1.0,
+            h_last: 0.0,
+            h_prev: None,
+            stats: ImplicitStats::default(),
+            ode,
+            warnings: Vec::new(),
+            cuts: Cuts::new(CutRules {
+                shrink: Shrink::Halve,
+                warn: Warn::First,
+                first_cause: false,
+            }),
+            last_theta: None,
+        })
+    }
+}
+
+impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
+    /// This run continued with the `R` stages of `tab` (radau59's change of
+    /// order, between steps): state, counters, step, books and the Newton
+    /// rate carry over; the last step's stage polynomials `A(τ)`, `Λ(τ)`
+    /// are evaluated at the new nodes (the next predictor extrapolates
+    /// them); the matrices are factorised anew for the new eigenvalues, and
+    /// the predictive controller starts over (the error norms of two
+    /// orders do not compare).
+    fn into_stages<const R: usize, U: Tableau<R>>(self, tab: &'g U) -> Run<'g, 's, R, U> {
+        let (n, m) = (self.n, self.m);
+        let nodes = tab.stages().c;
+        let w: [[f64; S]; R] = std::array::from_fn(|i| self.tab.basis(nodes[i]));
+        let at_nodes = |p: &[Vec<f64>; S], len: usize| -> [Vec<f64>; R] {
+            std::array::from_fn(|i| (0..len).map(|k| dot(&w[i], |j| p[j][k])).collect())
+        };
+        let (a_prev, l_prev) = (at_nodes(&self.a_prev, n), at_nodes(&self.l_prev, m));
+        Run {
+            tab,
+            opts: self.opts,
+            ode: self.ode,
+            sys: self.sys,
+            cplx: self.cplx,
+            n,
+            m,
+            t0: self.t0,
+            t_end: self.t_end,
+            h_fixed: self.h_fixed,
+            h: self.h,
+            h_max: self.h_max,
+            rejected: self.rejected,
+            accepted: None,
+            last_its: self.last_its,
+            k_grid: self.k_grid,
+            t: self.t,
+            q: self.q,
+            v: self.v,
+            qdd: self.qdd,
+            lam: self.lam,
+            q_old: self.q_old,
+            v_old: self.v_old,
+            a: std::array::from_fn(|_| vec![0.0; n]),
+            l: std::array::from_fn(|_| vec![0.0; m]),
+            a_prev,
+            l_prev,
+            qs: self.qs,
+            vs: self.vs,
+            r: std::array::from_fn(|_| vec![0.0; n + m]),
+            x: std::array::from_fn(|_| vec![0.0; n + m]),
+            y: self.y,
+            renewal: renewal(self.opts),
+            eta: self.eta,
+            h_last: self.h_last,
+            h_prev: self.h_prev,
+            stats: self.stats,
+            warnings: self.warnings,
+            cuts: self.cuts,
+            last_theta: self.last_theta,
+        }
+    }
+
+    /// What radau59's order rule reads after an accepted step.
+    fn signals(&self) -> variable::Signals {
+        variable::Signals {
+            corrections: self.last_its,
+            theta: self.last_theta,
+            h: self.h_last,
+            h_next: self.h,
+            newton_failures: self.stats.newton_failures,
+        }
+    }
 }
 
 impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
@@ -455,23 +583,23 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
     /// positions; ≤ 1 passes (module docs, "Step size").
     ///
     /// For `y = (q, q̇)` the raw estimate is
-    /// `r = γ h f(y_n) + Σ_i e_i (Y_i − y_n)`, `e = γ (−13 − 7√6,
-    /// −13 + 7√6, −1)/3`, with `Q_i − q_n`, `V_i − v_n` from the stages and
+    /// `r = γ h f(y_n) + Σ_i e_i (Y_i − y_n)` (S = 3: `e = γ (−13 − 7√6,
+    /// −13 + 7√6, −1)/3`; any S: [`RadauStages::e`]), with `Q_i − q_n`,
+    /// `V_i − v_n` from the stages and
     /// `f(y_n) = (v_n, q̈_n)`. The filter `(I − hγJ)⁻¹` that keeps stiff
     /// components from dominating becomes, for the positions, the real
     /// stage's Newton matrix: `[M + hγ C + h²γ² K, Φ_qᵀ; Φ_q, 0]
     /// [e_q; ·] = [M (r_q + hγ r_v); 0]` (the term `hγ C r_q` is left
     /// out; `Φ_q e_q = 0`: the error along the constraint manifold). The
     /// norm is the largest `|e_q,i| / (atol_i + rtol max(|q_n,i|,
-    /// |q_{n+1},i|))` times `rtol / rtol'` with RADAU5's tolerance
-    /// transformation `rtol' = 0.1 rtol^{2/3}` (the estimate is O(h⁴) for
-    /// a method of order 5: the global error then follows `rtol`).
+    /// |q_{n+1},i|))` times `rtol / rtol'` with RADAU's tolerance
+    /// transformation ([`transformed_rtol`]; S = 3: `rtol' = 0.1
+    /// rtol^{2/3}`, the estimate is O(h⁴) for a method of order 5: the
+    /// global error then follows `rtol`).
     fn error_norm(&mut self, h: f64) -> Result<f64, SystemError> {
         let n = self.n;
         let tab = self.tab.stages();
-        let Some(e) = self.tab.error_weights() else {
-            return Err(SystemError::msg("this tableau has no error estimate"));
-        };
+        let e = &tab.e;
         let g = tab.gamma;
         // r_q = (γ + Σ e_i c_i) h v + h² Σ_j (Σ_i e_i 𝔄²_ij) A_j,
         // r_v = γ h q̈_n + h Σ_j (Σ_i e_i 𝔄_ij) A_j
@@ -501,8 +629,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             |k| x[k],
             |k| self.atol(k) + self.ode.rtol * self.q[k].abs().max(self.qs[k].abs()),
         );
-        let rtol_t = 0.1 * self.ode.rtol.powf(2.0 / 3.0);
-        Ok(norm * self.ode.rtol / rtol_t)
+        Ok(norm * self.ode.rtol / transformed_rtol::<S>(self.ode.rtol))
     }
 }
 
@@ -581,7 +708,8 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 let nit = self.opts.max_newton as f64;
                 let fac =
                     SAFETY.min(SAFETY * (1.0 + 2.0 * nit) / (self.last_its as f64 + 2.0 * nit));
-                let mut quot = (err.powf(0.25) / fac).clamp(1.0 / MAX_GROWTH, MAX_SHRINK);
+                let expo = error_exponent::<S>();
+                let mut quot = (err.powf(expo) / fac).clamp(1.0 / MAX_GROWTH, MAX_SHRINK);
                 if err > 1.0 {
                     let h_new = h / quot;
                     self.stats.error_rejections += 1;
@@ -597,7 +725,7 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 // Gustafsson's predictive controller (RADAU5's `PRED`):
                 // the more cautious of both
                 if let Some((h_acc, err_acc)) = self.accepted {
-                    let gus = (h_acc / h) * (err * err / err_acc).powf(0.25) / SAFETY;
+                    let gus = (h_acc / h) * (err * err / err_acc).powf(expo) / SAFETY;
                     quot = quot.max(gus.clamp(1.0 / MAX_GROWTH, MAX_SHRINK));
                 }
                 self.accepted = Some((h, err.max(1e-2)));

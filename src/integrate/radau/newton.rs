@@ -113,8 +113,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let adaptive = self.opts.adaptive;
         let a2w = &tab.a2;
         let (fr, fa) = if adaptive {
-            let rt = 0.1 * ode.rtol.powf(2.0 / 3.0);
-            let fnewt = (10.0 * f64::EPSILON / rt).max(0.03f64.min(rt.sqrt()));
+            let rt = transformed_rtol::<S>(ode.rtol);
+            let fnewt = newton_fraction::<S>(rt);
             (fnewt * rt, fnewt * rt / ode.rtol)
         } else {
             (0.0, 0.0)
@@ -277,6 +277,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             }
             match conv.next(dnorm, done) {
                 None => {
+                    self.last_theta = Some(conv.theta()).filter(|th| its > 1 && th.is_finite());
                     match conv.rate_to_keep() {
                         Some(eta) => self.eta = eta,
                         // no rate measured: η₀ creeps back towards 1

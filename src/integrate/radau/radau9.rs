@@ -1,5 +1,5 @@
 //! Radau IIA of order 9 (S = 5 stages) on the index-3 equations of a
-//! [`SecondOrderDae`], fixed step (docs/radau.md, "radau9").
+//! [`SecondOrderDae`], fixed or adaptive steps (docs/radau.md, "radau9").
 //!
 //! The same scheme as [`super::Radau5`] with five stages (Hairer & Wanner
 //! II, §IV.5, §IV.8, §VII.4): stage accelerations `A_i` and multipliers
@@ -30,13 +30,22 @@
 //! polynomials (`V` of degree 5, `Q` the quintic through `q_n` and the
 //! `Q_i`), the rows projected onto `Φ = 0`
 //! ([`SecondOrderDae::project_output`]).
+//!
+//! **Adaptive** ([`ImplicitOptions::adaptive`]): radau5's step control
+//! (its module docs, "Step size") with the five-stage embedded estimate
+//! `γ h f(y_n) + Σ_i e_i (Y_i − y_n)` (RADAU's `DD` for five stages,
+//! [`RadauStages::e`]; O(h⁶)), RADAU's tolerance transformation
+//! `rtol' = 0.1 rtol^{3/5}`, the controller exponent 1/6 and Newton's
+//! fraction `fnewt = max(10 ε / rtol', min(0.03, rtol'^{2/3}))` (Hairer &
+//! Wanner, J. Comput. Appl. Math. 111, 1999).
 
 use super::*;
 
 /// Stages of [`Radau9`].
 const S: usize = 5;
 
-/// Radau IIA, S = 5, fixed step, on the index-3 equations (module docs).
+/// Radau IIA, S = 5, fixed or adaptive steps, on the index-3 equations
+/// (module docs).
 #[derive(Debug, Clone)]
 pub struct Radau9 {
     opts: ImplicitOptions,
@@ -46,19 +55,13 @@ pub struct Radau9 {
 }
 
 impl Radau9 {
-    /// Validate the options: a fixed step ([`OdeOptions::fixed_step`]); of
-    /// [`ImplicitOptions`] it reads `newton_tol`, `max_newton`, `reuse`,
-    /// `project` and `min_step` (`adaptive` is an error: radau9 has fixed
-    /// steps only).
+    /// Validate the options: a fixed step ([`OdeOptions::fixed_step`]),
+    /// or with [`ImplicitOptions::adaptive`] the tolerances `rtol`, `atol`
+    /// (and `max_step`, `initial_step`); of [`ImplicitOptions`] it reads
+    /// `newton_tol`, `max_newton`, `reuse`, `project`, `min_step` and
+    /// `adaptive`, as [`Radau5::new`].
     pub fn new(opts: ImplicitOptions, ode: OdeOptions) -> Result<Self, IntegratorError> {
-        if opts.adaptive {
-            return Err(IntegratorError::InvalidOption {
-                option: "adaptive",
-                value: "true".into(),
-                reason: "radau9 takes fixed steps only (integrator.step)".into(),
-            });
-        }
-        ode.validate(Method::Radau9, false)?;
+        ode.validate(Method::Radau9, opts.adaptive)?;
         opts.validate(Method::Radau9, ode.fixed_step)?;
         Ok(Self {
             opts,

@@ -34,6 +34,12 @@ pub struct RadauStages<const S: usize> {
     pub t: [[f64; S]; S],
     /// `T⁻¹`.
     pub t_inv: [[f64; S]; S],
+    /// The weights `e_i = γ d_i` of the embedded error estimate
+    /// `γ h f(y_n) + Σ_i e_i (Y_i − y_n)` (Hairer & Wanner II, §IV.8, eq.
+    /// (8.19); RADAU's `DD`): `Σ_i d_i c_i = −1` and `Σ_i d_i c_iᵏ = 0`
+    /// for k = 2 … S, so that the estimate vanishes on polynomials of
+    /// degree ≤ S.
+    pub e: [f64; S],
 }
 
 /// The Radau polynomial `P_s(2x − 1) − P_{s−1}(2x − 1)` at `x` (Legendre
@@ -300,6 +306,14 @@ impl<const S: usize> RadauStages<S> {
                 t_inv[i][j] = x[i];
             }
         }
+        // the embedded estimate's d: Σ_i d_i c_iᵏ = −δ_k1, k = 1 … S
+        let m: Vec<Vec<f64>> = (1..=S)
+            .map(|k| (0..S).map(|i| c[i].powi(k as i32)).collect())
+            .collect();
+        let mut rhs = vec![0.0; S];
+        rhs[0] = -1.0;
+        let d = solve_real(m, rhs);
+        let e = std::array::from_fn(|i| gamma * d[i]);
         Self {
             c,
             a,
@@ -309,6 +323,7 @@ impl<const S: usize> RadauStages<S> {
             mu,
             t,
             t_inv,
+            e,
         }
     }
 }
@@ -323,12 +338,6 @@ pub(super) trait Tableau<const S: usize> {
     fn basis(&self, tau: f64) -> [f64; S];
     /// `∫₀^τ ℓ_j` for j = 0 … S − 1.
     fn basis_integral(&self, tau: f64) -> [f64; S];
-    /// The weights `e_i` of the embedded error estimate `Σ_i e_i (Y_i −
-    /// y_n)` (Hairer & Wanner II, §IV.8, eq. (8.19)), where the tableau
-    /// has one (none: fixed steps only).
-    fn error_weights(&self) -> Option<[f64; S]> {
-        None
-    }
 }
 
 /// The tableau computed from its definition, the basis by Horner's rule.
@@ -430,6 +439,21 @@ mod tests {
                 );
             }
         }
+        // the embedded error estimate's d = e/γ against RADAU's DD (NS = 5)
+        let dd = [
+            -27.780_933_944_064_637,
+            3.641_478_498_049_213,
+            -1.252_547_721_169_118_7,
+            0.592_003_167_184_542_9,
+            -0.2,
+        ];
+        for (i, (&e, &d)) in tab.e.iter().zip(&dd).enumerate() {
+            assert!(
+                (e / tab.gamma - d).abs() < 1e-12 * d.abs(),
+                "d[{i}] = {}",
+                e / tab.gamma
+            );
+        }
         // the eigenvalues of 𝔄⁻¹ (computed independently at 40 digits
         // with mpmath's eig of the same 𝔄)
         assert!((1.0 / tab.gamma - 6.2867047517292765).abs() < 1e-12);
@@ -459,6 +483,16 @@ mod tests {
             }
         }
         assert!((gen.gamma - tab.gamma).abs() < 1e-14);
+        // the error weights from their conditions against RADAU5's closed form
+        let closed = super::super::tableau::ClosedForm::new();
+        for i in 0..3 {
+            let c = closed.stages().e[i];
+            assert!(
+                (gen.e[i] - c).abs() < 1e-13 * c.abs(),
+                "e[{i}]: {} against {c}",
+                gen.e[i]
+            );
+        }
         assert!((gen.mu[0][0] - tab.mu[0]).abs() < 1e-14);
         assert!((gen.mu[0][1] - tab.mu[1]).abs() < 1e-14);
     }

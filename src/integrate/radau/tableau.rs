@@ -128,6 +128,14 @@ impl ClosedForm {
     /// The closed-form tableau of three stages.
     pub(super) fn new() -> Self {
         let t = RadauTableau::new();
+        // RADAU5's error weights `DD1`–`DD3` times γ, in closed form
+        let s6 = 6f64.sqrt();
+        let e = [
+            -(13.0 + 7.0 * s6) / 3.0,
+            (-13.0 + 7.0 * s6) / 3.0,
+            -1.0 / 3.0,
+        ]
+        .map(|d| t.gamma * d);
         Self(RadauStages {
             c: t.c,
             a: t.a,
@@ -137,6 +145,7 @@ impl ClosedForm {
             mu: vec![t.mu],
             t: t.t,
             t_inv: t.t_inv,
+            e,
         })
     }
 }
@@ -154,20 +163,6 @@ impl Tableau<3> for ClosedForm {
         self.0
             .lag
             .map(|l| l[0] * tau + l[1] * tau * tau / 2.0 + l[2] * tau.powi(3) / 3.0)
-    }
-
-    /// `e = γ (−13 − 7√6, −13 + 7√6, −1)/3` (RADAU5's `DD1`–`DD3` times γ).
-    fn error_weights(&self) -> Option<[f64; 3]> {
-        let s6 = 6f64.sqrt();
-        let g = self.0.gamma;
-        Some(
-            [
-                -(13.0 + 7.0 * s6) / 3.0,
-                (-13.0 + 7.0 * s6) / 3.0,
-                -1.0 / 3.0,
-            ]
-            .map(|d| g * d),
-        )
     }
 }
 
