@@ -151,6 +151,15 @@ impl<'a> ForceArrows<'a> {
         reactions: Option<&[f64]>,
     ) -> Result<Vec<Arrow>, String> {
         let sys = self.sys;
+        let n = sys.n_coords();
+        if q.len() != n || qd.len() != n {
+            return Err(format!(
+                "force arrows: (q, q̇) have {} and {} entries, the system {n} \
+                 (3 per body, then its controller states)",
+                q.len(),
+                qd.len()
+            ));
+        }
         let given = reactions.filter(|r| r.len() == self.reactions.len());
         let mut out = Vec::new();
         if self.set.contacts {
@@ -366,6 +375,15 @@ mod tests {
         let sys = b.build().unwrap();
         let (q, _) = sys.initial_state();
         (sys, q)
+    }
+
+    #[test]
+    fn a_state_of_another_length_is_an_error() {
+        let (sys, q) = resting();
+        let set = ArrowSet::parse("all").unwrap();
+        let mut fa = ForceArrows::new(&sys, set, &[]).unwrap();
+        let e = fa.at(0.0, &q[..3], &q[..3]).unwrap_err();
+        assert!(e.contains("have 3 and 3 entries, the system 6"), "{e}");
     }
 
     #[test]

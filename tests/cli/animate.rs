@@ -3,7 +3,7 @@
 //! minimum, delays summing to the simulated span over the speed), the SVG's
 //! structure, and bad input.
 
-use crate::common::cli::{animate, mbsolve, png_rgb, run_csv as run, stderr, stdout};
+use crate::common::cli::{animate, mbsolve, png_rgb, run_csv as run, scenario, stderr, stdout};
 use std::path::Path;
 use std::process::Command;
 
@@ -703,4 +703,98 @@ fn names_with_commas_and_quotes_stay_one_column() {
 /// `s` as a TOML basic string.
 fn toml_string(s: &str) -> String {
     format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
+}
+
+/// The frames of the first force arrow's shaft in an animated SVG: per
+/// frame, its two end points in pixels.
+fn first_arrow_frames(svg: &str) -> Vec<Vec<(f64, f64)>> {
+    let el = svg.split(r#"class="force""#).nth(1).expect("a force arrow");
+    let values = el
+        .split("values=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap();
+    values
+        .split(';')
+        .map(|f| {
+            f.split(' ')
+                .map(|xy| {
+                    let (x, y) = xy.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A model with a controller state (the PID pendulum: the torque reads
+/// the integral z, a coordinate after the bodies'): the pin's reaction
+/// computed from the table's state, z from its column, draws the arrow
+/// the run's own reaction columns draw, frame by frame (to the SVG's
+/// 0.01 px), over a run in which z grows from 0 to its equilibrium; with
+/// the z column removed, the states' initial values are taken and a note
+/// says so. `--forces all` and the viewer run on it.
+#[test]
+fn force_arrows_read_the_controller_states() {
+    let dir = tempfile::tempdir().unwrap();
+    let scen = scenario("pid_pendulum.toml");
+    let csv = run(
+        dir.path(),
+        &scen,
+        &["output.quantities=[\"velocities\",\"reactions\"]"],
+    );
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let h = r.headers().unwrap().clone();
+    let rows: Vec<csv::StringRecord> = r.records().map(Result::unwrap).collect();
+    // the same table without some columns
+    let without = |name: &str, drop: &dyn Fn(&str) -> bool| {
+        let path = dir.path().join(name);
+        let mut w = csv::Writer::from_path(&path).unwrap();
+        let keep: Vec<usize> = (0..h.len()).filter(|&k| !drop(&h[k])).collect();
+        w.write_record(keep.iter().map(|&k| &h[k])).unwrap();
+        for row in &rows {
+            w.write_record(keep.iter().map(|&k| &row[k])).unwrap();
+        }
+        w.flush().unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let plain = without("plain.csv", &|c| c.starts_with("pin."));
+    let no_z = without("no_z.csv", &|c| c.starts_with("pin.") || c == "z");
+    let draw = |table: &str, name: &str| {
+        let svg = dir.path().join(name);
+        let o = animate(&scen, table, &svg, &["--forces", "reactions"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (
+            first_arrow_frames(&std::fs::read_to_string(&svg).unwrap()),
+            stdout(&o),
+        )
+    };
+    let (columns, said) = draw(&csv, "columns.svg");
+    assert!(said.contains("from the run's columns"), "{said}");
+    let (computed, said) = draw(&plain, "computed.svg");
+    assert!(said.contains("computed from the state"), "{said}");
+    assert!(!said.contains("controller state"), "{said}");
+    assert_eq!(columns.len(), rows.len());
+    let gap = |a: &[Vec<(f64, f64)>], b: &[Vec<(f64, f64)>]| {
+        a.iter()
+            .zip(b)
+            .flat_map(|(f, g)| f.iter().zip(g))
+            .map(|(p, q)| (p.0 - q.0).abs().max((p.1 - q.1).abs()))
+            .fold(0.0, f64::max)
+    };
+    let d = gap(&columns, &computed);
+    assert!(d <= 0.011, "computed arrow {d} px from the run's");
+    // z at its initial value: the integral torque is missing from the
+    // reaction, visibly
+    let (initial, said) = draw(&no_z, "no_z.svg");
+    assert!(said.contains("lacks a controller state's column"), "{said}");
+    let d = gap(&columns, &initial);
+    assert!(d > 1.0, "without z the arrow is only {d} px off");
+    let png = dir.path().join("all.png");
+    let o = animate(&scen, &csv, &png, &["--forces", "all", "--at", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = mbsolve(&["view", dir.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
 }

@@ -126,6 +126,15 @@ pub fn add_arrows(
     } else {
         None
     };
+    // controller states: z is the velocity of its coordinate (after the
+    // bodies'), read from its column; the coordinate itself (∫z) enters
+    // no force, so it is held at 0
+    let states: Option<Vec<&[f64]>> = sys
+        .states()
+        .iter()
+        .map(|s| table.find(&s.name).map(|k| table.columns[k].as_slice()))
+        .collect();
+    let mut q_all = vec![0.0; sys.n_coords()];
     let mut rows = Vec::with_capacity(scene.t.len());
     let zero = vec![0.0; 3 * nb];
     let mut r_row = vec![0.0; 3 * sys.constraints().len()];
@@ -135,11 +144,19 @@ pub fn add_arrows(
             Some(v) => v.iter().flat_map(|c| [c[0][r], c[1][r], c[2][r]]).collect(),
             None => zero.clone(),
         };
-        let qd = if qd.iter().all(|v| v.is_finite()) {
+        let mut qd = if qd.iter().all(|v| v.is_finite()) {
             qd
         } else {
             zero.clone()
         };
+        qd.extend(sys.states().iter().enumerate().map(|(k, s)| {
+            states
+                .as_ref()
+                .map(|c| c[k][r])
+                .filter(|z| z.is_finite())
+                .unwrap_or(s.initial)
+        }));
+        q_all[..3 * nb].copy_from_slice(q);
         // the run's reactions where it wrote them (finite) for this row
         let reactions = given.as_ref().and_then(|cols| {
             for (k, c) in cols.iter().enumerate() {
@@ -150,7 +167,7 @@ pub fn add_arrows(
         });
         from_columns += usize::from(reactions.is_some());
         rows.push(
-            fa.at_with_reactions(scene.t[r], q, &qd, reactions)
+            fa.at_with_reactions(scene.t[r], &q_all, &qd, reactions)
                 .map_err(|e| format!("force arrows at t = {}: {e}", scene.t[r]))?,
         );
     }
@@ -205,6 +222,13 @@ pub fn add_arrows(
         notes.push(
             "force arrows: the CSV has no velocity columns (output.quantities = \
              [\"velocities\"]): forces computed at zero velocity"
+                .to_string(),
+        );
+    }
+    if states.is_none() {
+        notes.push(
+            "force arrows: the CSV lacks a controller state's column: forces computed with \
+             the states at their initial values"
                 .to_string(),
         );
     }
