@@ -5,17 +5,18 @@
 
 use super::factor::dot2;
 use super::{Envelope, PARALLEL_MIN_DIM};
-use crate::parallel::join_if;
 
 impl Envelope {
     /// `x ← S (S K S)⁻¹ S x` with the last factorisation: `L y = P S x`,
     /// `Lᵀ z = D⁻¹ y` by rows of `L` from the last, `x = S Pᵀ z`; the
-    /// halves concurrently as in `factorize`, the separator between them.
-    /// Returns whether every entry of the solution is finite.
+    /// halves concurrently as in `factorize`, the separator between them:
+    /// two passes in halves (forward, backward). Returns whether every
+    /// entry of the solution is finite.
     pub(super) fn solve(&mut self, x: &mut [f64]) -> bool {
         let (dim, s0, sb) = (self.dim, self.s0, self.sb);
         let par = dim >= PARALLEL_MIN_DIM;
-        let (w, first, ptr, fa) = (&mut self.w, &self.first, &self.ptr, &self.fa);
+        let (first, ptr, fa) = (&self.first, &self.ptr, &self.fa);
+        let (w, wd) = (&mut self.w, &mut self.wd);
         let (perm, pscale, dinv) = (&self.perm, &self.pscale, &self.dinv);
         let env = &self.env[..ptr[dim]];
         let rows = Rows {
@@ -24,24 +25,29 @@ impl Envelope {
             env,
             perm,
             pscale,
+            dinv,
         };
         // the halves' forward rows read their right-hand side `(P S x)_i`
-        // from x (the gather fused into the substitution); the separator's
-        // forward rows need the halves' y before D⁻¹, so D⁻¹ comes after
+        // from x (the gather fused into the substitution) and write both
+        // y (`w`: the separator's forward rows read it) and D⁻¹ y (`wd`:
+        // what the backward substitution starts from), so that D⁻¹ needs
+        // no pass of its own
         let xr: &[f64] = x;
         // two threads: a half each; one: both halves' rows in turn
         let two = par && crate::parallel::concurrent();
         {
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
+            let (wd_t, wd_rest) = wd.split_at_mut(s0);
+            let wd_b = &mut wd_rest[..sb - s0];
             if two {
                 crate::parallel::team::join(
-                    || rows.forward(xr, (0, 0..s0, w_t)),
-                    || rows.forward(xr, (s0, s0..sb, w_b)),
+                    || rows.forward(xr, (0, 0..s0, w_t, wd_t)),
+                    || rows.forward(xr, (s0, s0..sb, w_b, wd_b)),
                 );
             } else {
                 crate::parallel::team::one_thread_form(|| {
-                    rows.forward_interleaved(xr, (0, 0..s0, w_t), (s0, s0..sb, w_b))
+                    rows.forward_interleaved(xr, (0, 0..s0, w_t, wd_t), (s0, s0..sb, w_b, wd_b))
                 });
             }
         }
@@ -54,54 +60,38 @@ impl Envelope {
             let d =
                 dot2(&env[pi..pi + la], &w[fai..s0]) + dot2(&env[pi + la..ptr[i + 1]], &w[fi..i]);
             w[i] -= d;
-        }
-        {
-            let (w_t, w_rest) = w.split_at_mut(s0);
-            let scale = |w: &mut [f64], d: &[f64]| {
-                for (wi, &di) in w.iter_mut().zip(d) {
-                    *wi *= di;
-                }
-            };
-            let (w_b, w_s) = w_rest.split_at_mut(sb - s0);
-            join_if(
-                par,
-                || scale(w_t, &dinv[..s0]),
-                || scale(w_b, &dinv[s0..sb]),
-            );
-            scale(w_s, &dinv[sb..]);
+            wd[i] = w[i] * dinv[i];
         }
         // x = S Pᵀ z: each z_i is written to x as soon as it is final (the
-        // scatter fused into the backward substitution)
+        // scatter fused into the backward substitution), and checked there
         let out = Scatter::new(x);
+        let mut finite = true;
         for i in (sb..dim).rev() {
-            let (fai, fi, pi, wi) = (fa[i - sb], first[i], ptr[i], w[i]);
-            out.set(perm[i], wi * pscale[i]);
+            let (fai, fi, pi, wi) = (fa[i - sb], first[i], ptr[i], wd[i]);
+            let xi = wi * pscale[i];
+            out.set(perm[i], xi);
+            finite &= xi.is_finite();
             let la = s0 - fai;
-            for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
+            for (v, &l) in wd[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
                 *v -= l * wi;
             }
-            for (v, &l) in w[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
+            for (v, &l) in wd[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
                 *v -= l * wi;
             }
         }
-        {
-            let (w_t, w_rest) = w.split_at_mut(s0);
-            let w_b = &mut w_rest[..sb - s0];
-            if two {
-                crate::parallel::team::join(
-                    || rows.backward(&out, (0, 0..s0, w_t)),
-                    || rows.backward(&out, (s0, s0..sb, w_b)),
-                );
-            } else {
-                crate::parallel::team::one_thread_form(|| {
-                    rows.backward_interleaved(&out, (0, 0..s0, w_t), (s0, s0..sb, w_b))
-                });
-            }
-        }
-        let (x_lo, x_hi) = x.split_at(dim / 2);
-        let finite = |x: &[f64]| crate::numeric::first_non_finite(x).is_none();
-        let (lo, hi) = join_if(par, || finite(x_lo), || finite(x_hi));
-        lo && hi
+        let (wd_t, wd_rest) = wd.split_at_mut(s0);
+        let wd_b = &mut wd_rest[..sb - s0];
+        let (lo, hi) = if two {
+            crate::parallel::team::join(
+                || rows.backward(&out, (0, 0..s0, wd_t)),
+                || rows.backward(&out, (s0, s0..sb, wd_b)),
+            )
+        } else {
+            crate::parallel::team::one_thread_form(|| {
+                rows.backward_interleaved(&out, (0, 0..s0, wd_t), (s0, s0..sb, wd_b))
+            })
+        };
+        finite && lo && hi
     }
 }
 
@@ -139,7 +129,7 @@ impl<'a> Scatter<'a> {
 
 /// What the substitutions read of a factorisation: the envelope rows
 /// (`first`, `ptr`, `env`), the permutation and the symmetric scaling
-/// (`x`'s entry `perm[i]` is row `i`'s, times `pscale[i]`).
+/// (`x`'s entry `perm[i]` is row `i`'s, times `pscale[i]`), `D⁻¹`.
 #[derive(Clone, Copy)]
 struct Rows<'a> {
     first: &'a [usize],
@@ -147,19 +137,24 @@ struct Rows<'a> {
     env: &'a [f64],
     perm: &'a [usize],
     pscale: &'a [f64],
+    dinv: &'a [f64],
 }
 
 /// One half's plain rows for a substitution: the first row's index
 /// (`base`), the rows and their part of the work vector.
 type Half<'a> = (usize, std::ops::Range<usize>, &'a mut [f64]);
 
+/// One half's plain rows for the forward substitution: as [`Half`], with
+/// the half's part of `D⁻¹ y` (written beside `y`).
+type HalfFwd<'a> = (usize, std::ops::Range<usize>, &'a mut [f64], &'a mut [f64]);
+
 impl Rows<'_> {
     /// Forward substitution `L y = P S x` over the plain rows of one half
-    /// (`y` into `w`, from row `base`).
-    fn forward(&self, x: &[f64], (base, rows, w): Half<'_>) {
+    /// (`y` into `w`, `D⁻¹ y` into `wd`, from row `base`).
+    fn forward(&self, x: &[f64], (base, rows, w, wd): HalfFwd<'_>) {
         let mut prev = 0.0;
         for i in rows {
-            prev = self.forward_row(x, base, i, w, prev);
+            prev = self.forward_row(x, base, i, (w, wd), prev);
         }
     }
 
@@ -167,11 +162,19 @@ impl Rows<'_> {
     /// over its envelope `[first[i], i)`, which ends at column `i − 1`
     /// when not empty: `prev = y_{i−1}`, the previous row's result, is
     /// taken from the register instead of `w`, so the chain of dependent
-    /// rows does not wait on a store and a reload. Returns `y_i`. The
-    /// terms are added in column order (the same bits as a plain dot
-    /// product after a separate gather).
+    /// rows does not wait on a store and a reload. Writes `y_i` to `w` and
+    /// `y_i / d_i` to `wd` (the same bits as a separate `D⁻¹` pass);
+    /// returns `y_i`. The terms are added in column order (the same bits
+    /// as a plain dot product after a separate gather).
     #[inline(always)]
-    fn forward_row(&self, x: &[f64], base: usize, i: usize, w: &mut [f64], prev: f64) -> f64 {
+    fn forward_row(
+        &self,
+        x: &[f64],
+        base: usize,
+        i: usize,
+        (w, wd): (&mut [f64], &mut [f64]),
+        prev: f64,
+    ) -> f64 {
         let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
         assert!(self.ptr[i + 1] <= env.len() && i - base < w.len() && fi >= base);
         let len = i - fi;
@@ -188,17 +191,20 @@ impl Rows<'_> {
             y -= dot + env[pi + len - 1] * prev;
         }
         w[i - base] = y;
+        wd[i - base] = y * self.dinv[i];
         y
     }
 
     /// Backward substitution `Lᵀ z = w` over the plain rows of one half,
     /// from the last (`w` from row `base`); each `z_i`, final once its row
-    /// is reached, goes to `x_{perm[i]} = z_i s_i` at once.
-    fn backward(&self, out: &Scatter<'_>, (base, rows, w): Half<'_>) {
-        let mut carry = (0.0, 0.0);
+    /// is reached, goes to `x_{perm[i]} = z_i s_i` at once. Returns whether
+    /// every entry it wrote is finite.
+    fn backward(&self, out: &Scatter<'_>, (base, rows, w): Half<'_>) -> bool {
+        let (mut carry, mut finite) = ((0.0, 0.0), true);
         for i in rows.rev() {
-            carry = self.backward_row(out, base, i, w, carry);
+            carry = self.backward_row(out, base, i, w, carry, &mut finite);
         }
+        finite
     }
 
     /// Row `i` of [`Self::backward`]: `z_i = w_i − L_{i+1,i} z_{i+1}` with
@@ -207,7 +213,7 @@ impl Rows<'_> {
     /// `w_j −= L_ij z_i` over the envelope but its last column `i − 1`,
     /// which is returned as the next row's carry. The updates of each
     /// `w_j` come in the same order as scattered one by one (the same
-    /// bits).
+    /// bits). Clears `finite` when the entry written is not finite.
     #[inline(always)]
     fn backward_row(
         &self,
@@ -216,11 +222,14 @@ impl Rows<'_> {
         i: usize,
         w: &mut [f64],
         carry: (f64, f64),
+        finite: &mut bool,
     ) -> (f64, f64) {
         let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
         assert!(self.ptr[i + 1] <= env.len() && fi >= base);
         let zi = w[i - base] - carry.0 * carry.1;
-        out.set(self.perm[i], zi * self.pscale[i]);
+        let xi = zi * self.pscale[i];
+        out.set(self.perm[i], xi);
+        *finite &= xi.is_finite();
         let len = i - fi;
         if len == 0 {
             return (0.0, 0.0);
@@ -239,40 +248,43 @@ impl Rows<'_> {
     /// for row `i − 1`), latency-bound; the two independent chains overlap
     /// in the core. Every row does the same operations as in
     /// [`Self::forward`], so the results are the same bits.
-    fn forward_interleaved(&self, x: &[f64], t: Half<'_>, b: Half<'_>) {
-        let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
+    fn forward_interleaved(&self, x: &[f64], t: HalfFwd<'_>, b: HalfFwd<'_>) {
+        let ((bt, rt, wt, dt), (bb, rb, wb, db)) = (t, b);
         let common = rt.len().min(rb.len());
         let (mut pt, mut pb) = (0.0, 0.0);
         for r in 0..common {
-            pt = self.forward_row(x, bt, rt.start + r, wt, pt);
-            pb = self.forward_row(x, bb, rb.start + r, wb, pb);
+            pt = self.forward_row(x, bt, rt.start + r, (wt, dt), pt);
+            pb = self.forward_row(x, bb, rb.start + r, (wb, db), pb);
         }
         // the longer half's rest, its chain continued
-        let rest = |(b, r, w): Half<'_>, mut prev: f64| {
+        let rest = |(b, r, w, d): HalfFwd<'_>, mut prev: f64| {
             for i in r.start + common..r.end {
-                prev = self.forward_row(x, b, i, w, prev);
+                prev = self.forward_row(x, b, i, (w, d), prev);
             }
         };
-        rest((bt, rt, wt), pt);
-        rest((bb, rb, wb), pb);
+        rest((bt, rt, wt, dt), pt);
+        rest((bb, rb, wb, db), pb);
     }
 
     /// [`Self::backward`] of both halves on one thread, a row of each in
-    /// turn from their last rows (as [`Self::forward_interleaved`]).
-    fn backward_interleaved(&self, out: &Scatter<'_>, t: Half<'_>, b: Half<'_>) {
+    /// turn from their last rows (as [`Self::forward_interleaved`]);
+    /// returns whether every entry of each half it wrote is finite.
+    fn backward_interleaved(&self, out: &Scatter<'_>, t: Half<'_>, b: Half<'_>) -> (bool, bool) {
         let ((bt, rt, wt), (bb, rb, wb)) = (t, b);
         let common = rt.len().min(rb.len());
         let (mut ct, mut cb) = ((0.0, 0.0), (0.0, 0.0));
+        let (mut ft, mut fb) = (true, true);
         for r in 1..=common {
-            ct = self.backward_row(out, bt, rt.end - r, wt, ct);
-            cb = self.backward_row(out, bb, rb.end - r, wb, cb);
+            ct = self.backward_row(out, bt, rt.end - r, wt, ct, &mut ft);
+            cb = self.backward_row(out, bb, rb.end - r, wb, cb, &mut fb);
         }
-        let rest = |(b, r, w): Half<'_>, mut carry: (f64, f64)| {
+        let rest = |(b, r, w): Half<'_>, mut carry: (f64, f64), finite: &mut bool| {
             for i in (r.start..r.end - common).rev() {
-                carry = self.backward_row(out, b, i, w, carry);
+                carry = self.backward_row(out, b, i, w, carry, finite);
             }
         };
-        rest((bt, rt, wt), ct);
-        rest((bb, rb, wb), cb);
+        rest((bt, rt, wt), ct, &mut ft);
+        rest((bb, rb, wb), cb, &mut fb);
+        (ft, fb)
     }
 }
