@@ -524,10 +524,10 @@ impl ComplexChainLdlt {
             }
         }
         let out = (Scatter::new(re), Scatter::new(im));
-        let mut finite = true;
+        let mut bad = 0.0;
         for i in (sb..dim).rev() {
             let (fai, fi, pi, z) = (fa[i - sb], first[i], ptr[i], wd[i]);
-            finite &= rows.put(&out, i, z);
+            bad += rows.put(&out, i, z);
             let la = s0 - fai;
             for (v, &l) in wd[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
                 *v = v.sub(l.mul(z));
@@ -543,7 +543,7 @@ impl ComplexChainLdlt {
             || rows.backward(&out, (0, 0..s0, wd_t)),
             || rows.backward(&out, (s0, s0..sb, wd_b)),
         );
-        if finite && lo && hi {
+        if bad == 0.0 && lo && hi {
             Ok(())
         } else {
             Err(LinalgError::NonFiniteSolution("complex envelope LDLᵀ"))
@@ -594,23 +594,26 @@ impl CRows<'_> {
         .scale(self.pscale[i])
     }
 
-    /// `x_{perm[i]} = z_i s_i`; returns whether both parts are finite.
+    /// `x_{perm[i]} = z_i s_i`; returns `re · 0 + im · 0` of the entry,
+    /// zero when both parts are finite, else NaN (the backward rows sum
+    /// it: no branch).
     #[inline(always)]
-    fn put(&self, (re, im): &Out<'_>, i: usize, z: C) -> bool {
+    fn put(&self, (re, im): &Out<'_>, i: usize, z: C) -> f64 {
         let (p, s) = (self.perm[i], self.pscale[i]);
         let (xr, xi) = (z.re * s, z.im * s);
         re.set(p, xr);
         im.set(p, xi);
-        xr.is_finite() & xi.is_finite()
+        xr * 0.0 + xi * 0.0
     }
 
     /// Forward substitution `L y = P S b` over the plain rows of one half
     /// (`y` into `w`, `D⁻¹ y` into `wd`, from row `base`).
     fn forward(&self, b: Rhs<'_>, (base, rows, w, wd): CHalfFwd<'_>) {
         let mut prev = C::ZERO;
-        for i in rows {
+        let (dinv, wd) = (&self.dinv[rows.clone()], &mut wd[rows.start - base..]);
+        for (k, i) in rows.enumerate() {
             prev = self.forward_row(b, base, i, w, prev);
-            wd[i - base] = prev.mul(self.dinv[i]);
+            wd[k] = prev.mul(dinv[k]);
         }
     }
 
@@ -643,11 +646,11 @@ impl CRows<'_> {
     /// is reached, goes to the solution at once. Returns whether every
     /// entry it wrote is finite.
     fn backward(&self, out: &Out<'_>, (base, rows, w): CHalf<'_>) -> bool {
-        let (mut carry, mut finite) = ((C::ZERO, C::ZERO), true);
+        let (mut carry, mut bad) = ((C::ZERO, C::ZERO), 0.0);
         for i in rows.rev() {
-            carry = self.backward_row(out, base, i, w, carry, &mut finite);
+            carry = self.backward_row(out, base, i, w, carry, &mut bad);
         }
-        finite
+        bad == 0.0
     }
 
     /// Row `i` of [`Self::backward`]: `z_i = w_i − L_{i+1,i} z_{i+1}` with
@@ -655,7 +658,7 @@ impl CRows<'_> {
     /// register, then `w_j −= L_ij z_i` over the envelope but its last
     /// column `i − 1`, returned as the next row's carry. Each `w_j` gets
     /// its updates in the same order as without the carry (the same bits).
-    /// Clears `finite` when the entry written is not finite.
+    /// Adds [`Self::put`]'s check of the entry written to `bad`.
     #[inline(always)]
     fn backward_row(
         &self,
@@ -664,12 +667,12 @@ impl CRows<'_> {
         i: usize,
         w: &mut [C],
         carry: (C, C),
-        finite: &mut bool,
+        bad: &mut f64,
     ) -> (C, C) {
         let (env, fi, pi) = (self.env, self.first[i], self.ptr[i]);
         assert!(self.ptr[i + 1] <= env.len() && fi >= base);
         let zi = w[i - base].sub(carry.0.mul(carry.1));
-        *finite &= self.put(out, i, zi);
+        *bad += self.put(out, i, zi);
         let len = i - fi;
         if len == 0 {
             return (C::ZERO, C::ZERO);
