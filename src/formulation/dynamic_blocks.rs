@@ -7,7 +7,7 @@
 use super::{all_finite, FormulationError};
 use crate::linalg::{APattern, SaddleMatrix, Storage, Symmetry};
 use crate::model::{FdWorkspace, System};
-use crate::parallel::{join_if, split_pass, PARALLEL_MIN_COORDS};
+use crate::parallel::{join_if, Halve, PARALLEL_MIN_COORDS};
 use std::sync::OnceLock;
 
 /// Ids of the registered blocks and the buffers of their values.
@@ -46,8 +46,8 @@ pub(crate) struct DynamicBlocks {
 /// The additions of [`DynamicBlocks::write`] and
 /// [`SaddleMatrix::set_jacobian`] into the values of a symmetric matrix,
 /// sorted into the two halves of its value array (`values[..cut]`,
-/// `values[cut..]`, `cut = nnz / 2`: the cut of
-/// [`split_pass`]). Each half lists the
+/// `values[cut..]`, `cut` where the counted work of the slots before it
+/// reaches half the total: [`HalfPlan::balanced_cut`]). Each half lists the
 /// additions to its slots in the order the one-piece assembly makes them
 /// (diagonal, force Jacobians, their reciprocal parts, Hessians, Φ_q), so
 /// every slot receives the same operations in the same order: the same
@@ -55,6 +55,8 @@ pub(crate) struct DynamicBlocks {
 struct HalfPlan {
     /// Number of values of the matrix it was made for.
     nnz: usize,
+    /// First value of the high half.
+    cut: usize,
     /// Dimension of that matrix.
     dim: usize,
     halves: [HalfOps; 2],
@@ -74,6 +76,46 @@ struct HalfOps {
     hess: Vec<(usize, usize, f64)>,
     /// Φ_q entry `e`.
     jac: Vec<(usize, usize)>,
+}
+
+impl HalfPlan {
+    /// The cut of `k`'s values into two halves of equal counted work (so
+    /// that neither thread waits for the other), counted in memory
+    /// accesses: each value one (zeroing), each addition
+    /// [`DynamicBlocks::write`] and [`SaddleMatrix::set_jacobian`] make to
+    /// it three (its source read, the value read and written), a
+    /// reciprocal part's two more per force entry it reads (`dq` and
+    /// `dqd`); the cut is the first value at which the work before it
+    /// passes half the total. It depends on the pattern only, never on
+    /// the thread count.
+    fn balanced_cut(b: &DynamicBlocks, k: &SaddleMatrix) -> usize {
+        const ADD: usize = 3;
+        let mut work = vec![1usize; k.nnz()];
+        for &slot in &k.diag_slots()[..k.n()] {
+            work[slot] += ADD;
+        }
+        let slot = |id: usize| k.a_entry(id).0;
+        for e in (0..b.dq.len()).filter(|&e| !b.skip[e]) {
+            work[slot(b.force_first + e)] += ADD;
+        }
+        for (p, &first) in b.skew_first.iter().enumerate() {
+            work[slot(b.force_first + first)] += ADD + 2 * (b.skew_ptr[p + 1] - b.skew_ptr[p]);
+        }
+        for e in 0..b.hess_vals.len() {
+            work[slot(b.hess_first + e)] += ADD;
+        }
+        for &s in k.jac_slots() {
+            work[s] += ADD;
+        }
+        let total: usize = work.iter().sum();
+        let mut before = 0;
+        work.iter()
+            .position(|&w| {
+                before += w;
+                2 * before > total
+            })
+            .unwrap_or(k.nnz())
+    }
 }
 
 impl DynamicBlocks {
@@ -307,8 +349,8 @@ impl DynamicBlocks {
     }
 
     /// [`Self::write`] and then `k.set_jacobian(jac)`: the same bits, in
-    /// two concurrent halves of `k`'s values ([`HalfPlan`],
-    /// [`split_pass`]) for a symmetric matrix of at least
+    /// two concurrent halves of `k`'s values of equal counted work
+    /// ([`HalfPlan`], [`join_if`]) for a symmetric matrix of at least
     /// [`PARALLEL_MIN_COORDS`] coordinates, else in one piece. Every `k`
     /// given to one `DynamicBlocks` must have the pattern its blocks were
     /// registered into (a plan made for another number of values is not
@@ -356,12 +398,12 @@ impl DynamicBlocks {
         let plan = self.plan.get_or_init(|| self.half_plan(sys, k0)).as_ref();
         match plan {
             Some(p) if ks.iter().all(|k| p.nnz == k.nnz() && p.dim == k.dim()) => {
-                let nnz = p.nnz;
-                let vs = ks.map(|k| k.values_mut());
-                let apply = |base: usize, vs: [&mut [f64]; P]| {
-                    self.apply(p, base, vs, sys, cs, jacs);
-                };
-                split_pass(true, nnz, vs, apply, |(), ()| ());
+                let (lo, hi) = ks.map(|k| k.values_mut()).halve(p.cut);
+                join_if(
+                    true,
+                    || self.apply(&p.halves[0], lo, sys, cs, jacs),
+                    || self.apply(&p.halves[1], hi, sys, cs, jacs),
+                );
             }
             _ => {
                 // the Φ_q slots of a `None` stay at the zeros of `set_zero`
@@ -382,7 +424,7 @@ impl DynamicBlocks {
         if k.storage() != Storage::SymmetricLower || k.n() < PARALLEL_MIN_COORDS {
             return None;
         }
-        let cut = k.nnz() / 2;
+        let cut = HalfPlan::balanced_cut(self, k);
         let side = |slot: usize| {
             (
                 usize::from(slot >= cut),
@@ -420,25 +462,24 @@ impl DynamicBlocks {
         }
         Some(HalfPlan {
             nnz: k.nnz(),
+            cut,
             dim: k.dim(),
             halves,
         })
     }
 
     /// One half of [`Self::write_parts_with_jacobian`]: `vs` = each
-    /// matrix's values from index `base` (0: the low half), zeroed, then
-    /// its additions in the one-piece order ([`Self::write_parts`],
+    /// matrix's values of the half whose additions `ops` lists, zeroed,
+    /// then its additions in the one-piece order ([`Self::write_parts`],
     /// [`SaddleMatrix::set_jacobian`]).
     fn apply<const P: usize>(
         &self,
-        p: &HalfPlan,
-        base: usize,
+        ops: &HalfOps,
         mut vs: [&mut [f64]; P],
         sys: &System,
         cs: [[f64; 3]; P],
         jacs: [Option<&[f64]>; P],
     ) {
-        let ops = &p.halves[usize::from(base > 0)];
         let mass = sys.mass_diagonal();
         for (v, &[c_m, _, _]) in vs.iter_mut().zip(&cs) {
             v.fill(0.0);
@@ -629,6 +670,23 @@ mod tests {
             assert!(!h.diag.is_empty() && !h.force.is_empty() && !h.skew.is_empty());
             assert!(!h.hess.is_empty() && !h.jac.is_empty());
         }
+        // and they hold equal work, counted from their lists of additions
+        // (as `balanced_cut` weighs them): within 1 % of the total
+        let work = |h: &HalfOps, values: usize| {
+            let skew: usize = h
+                .skew
+                .iter()
+                .map(|&(q, _, _)| 3 + 2 * (blocks.skew_ptr[q + 1] - blocks.skew_ptr[q]))
+                .sum();
+            values + 3 * (h.diag.len() + h.force.len() + h.hess.len() + h.jac.len()) + skew
+        };
+        let (w0, w1) = (work(&p.halves[0], p.cut), work(&p.halves[1], p.nnz - p.cut));
+        assert!(
+            w0.abs_diff(w1) * 100 <= w0 + w1,
+            "work {w0} and {w1}, cut {} of {}",
+            p.cut,
+            p.nnz
+        );
         // the reciprocal corrections are not all zero (the test sees them)
         let corrected = (0..blocks.skew_first.len()).any(|p| {
             let ents = &blocks.skew_ent[blocks.skew_ptr[p]..blocks.skew_ptr[p + 1]];

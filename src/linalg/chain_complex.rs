@@ -122,7 +122,10 @@ pub struct ComplexChainLdlt {
     env: Vec<C>,
     dinv: Vec<C>,
     pscale: Vec<f64>,
+    /// `y` of `L y = P S b`.
     w: Vec<C>,
+    /// `D⁻¹ y`, then `z` of `Lᵀ z = D⁻¹ y` (the backward substitution).
+    wd: Vec<C>,
     /// The substitutions' compact copy of `first` and `perm`.
     rows: RowTable,
     factorized: bool,
@@ -333,8 +336,9 @@ impl ComplexChainLdlt {
             env: vec![C::ZERO; profile + dim],
             dinv: vec![C::ZERO; dim],
             pscale: vec![1.0; dim],
-            w: vec![C::ZERO; dim],
             rows,
+            w: vec![C::ZERO; dim],
+            wd: vec![C::ZERO; dim],
             factorized: false,
         })
     }
@@ -462,9 +466,10 @@ impl ComplexChainLdlt {
     }
 
     /// `re + i·im ← K⁻¹ (re + i·im)` with the last factorisation:
-    /// `L y = P S b` (the halves, then the separator), `D`, `Lᵀ z = y` by
-    /// columns from the last row (the separator, then the halves),
-    /// `x = S Pᵀ z`; the halves through `parallel::join_if` as in
+    /// `L y = P S b` (the halves, then the separator; each row writes `y_i`
+    /// and `y_i / d_i`), `Lᵀ z = D⁻¹ y` by columns from the last row (the
+    /// separator, then the halves), `x = S Pᵀ z`, each entry checked as
+    /// it is written; the halves through `parallel::join_if` as in
     /// [`Self::factorize`]. Errors when no factorisation is ready, on a
     /// length mismatch, or when the solution is not finite.
     pub fn solve(&mut self, re: &mut [f64], im: &mut [f64]) -> Result<(), LinalgError> {
@@ -481,29 +486,35 @@ impl ComplexChainLdlt {
         let par = dim >= PARALLEL_MIN_DIM;
         let (first, ptr, ps, fa) = (&self.first, &self.ptr, &self.pscale, &self.fa);
         let env = &self.env[..ptr[dim]];
-        let dinv = &self.dinv;
-        let w = &mut self.w;
+        let (w, wd) = (&mut self.w, &mut self.wd);
         let rows = CRows {
             len: &self.rows.len,
             ptr,
             env,
             perm: &self.rows.perm,
             pscale: ps,
+            dinv: &self.dinv,
         };
         // two threads: a half each; one: the halves one after the other (the
         // rows of a complex substitution are bound by their arithmetic, not
         // by the latency of the row chain, so they are not interleaved as
         // the real solver's are), as the team decides in `join_if`; the
-        // pass counted once for an `Auto` team's A/B rule (`concurrent`)
+        // pass counted once for an `Auto` team's A/B rule (`concurrent`).
+        // The forward rows write y (`w`: the separator's forward rows read
+        // it) and D⁻¹ y (`wd`: where the backward substitution starts), so
+        // D⁻¹ needs no pass of its own; the backward rows check the
+        // entries they write: two passes in halves
         let _pass = par && crate::parallel::concurrent();
         {
             let (br, bi): (&[f64], &[f64]) = (re, im);
             let (w_t, w_rest) = w.split_at_mut(s0);
             let w_b = &mut w_rest[..sb - s0];
+            let (wd_t, wd_rest) = wd.split_at_mut(s0);
+            let wd_b = &mut wd_rest[..sb - s0];
             join_if(
                 par,
-                || rows.forward((br, bi), (0, 0..s0, w_t)),
-                || rows.forward((br, bi), (s0, s0..sb, w_b)),
+                || rows.forward((br, bi), (0, 0..s0, w_t, wd_t)),
+                || rows.forward((br, bi), (s0, s0..sb, w_b, wd_b)),
             );
             for i in sb..dim {
                 let (fai, fi, pi) = (fa[i - sb], first[i], ptr[i]);
@@ -512,48 +523,30 @@ impl ComplexChainLdlt {
                     .rhs((br, bi), i)
                     .sub(cdot(&env[pi..pi + la], &w[fai..s0]))
                     .sub(cdot(&env[pi + la..ptr[i + 1]], &w[fi..i]));
+                wd[i] = w[i].mul(self.dinv[i]);
             }
         }
-        {
-            let scale = |w: &mut [C], d: &[C]| {
-                for (wi, &di) in w.iter_mut().zip(d) {
-                    *wi = wi.mul(di);
-                }
-            };
-            let (w_lo, w_hi) = w.split_at_mut(dim / 2);
-            let (d_lo, d_hi) = dinv.split_at(dim / 2);
-            join_if(par, || scale(w_lo, d_lo), || scale(w_hi, d_hi));
-        }
-        {
-            let out = (Scatter::new(re), Scatter::new(im));
-            for i in (sb..dim).rev() {
-                let (fai, fi, pi, z) = (fa[i - sb], first[i], ptr[i], w[i]);
-                rows.put(&out, i, z);
-                let la = s0 - fai;
-                for (v, &l) in w[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
-                    *v = v.sub(l.mul(z));
-                }
-                for (v, &l) in w[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
-                    *v = v.sub(l.mul(z));
-                }
+        let out = (Scatter::new(re), Scatter::new(im));
+        let mut bad = 0.0;
+        for i in (sb..dim).rev() {
+            let (fai, fi, pi, z) = (fa[i - sb], first[i], ptr[i], wd[i]);
+            bad += rows.put(&out, i, z);
+            let la = s0 - fai;
+            for (v, &l) in wd[fai..s0].iter_mut().zip(&env[pi..pi + la]) {
+                *v = v.sub(l.mul(z));
             }
-            let (w_t, w_rest) = w.split_at_mut(s0);
-            let w_b = &mut w_rest[..sb - s0];
-            join_if(
-                par,
-                || rows.backward(&out, (0, 0..s0, w_t)),
-                || rows.backward(&out, (s0, s0..sb, w_b)),
-            );
+            for (v, &l) in wd[fi..i].iter_mut().zip(&env[pi + la..ptr[i + 1]]) {
+                *v = v.sub(l.mul(z));
+            }
         }
-        // the vectorised scan of each part
-        let finite = |a: &[f64], b: &[f64]| {
-            crate::numeric::first_non_finite(a).is_none()
-                && crate::numeric::first_non_finite(b).is_none()
-        };
-        let (re_lo, re_hi) = re.split_at(dim / 2);
-        let (im_lo, im_hi) = im.split_at(dim / 2);
-        let (lo, hi) = join_if(par, || finite(re_lo, im_lo), || finite(re_hi, im_hi));
-        if lo && hi {
+        let (wd_t, wd_rest) = wd.split_at_mut(s0);
+        let wd_b = &mut wd_rest[..sb - s0];
+        let (lo, hi) = join_if(
+            par,
+            || rows.backward(&out, (0, 0..s0, wd_t)),
+            || rows.backward(&out, (s0, s0..sb, wd_b)),
+        );
+        if bad == 0.0 && lo && hi {
             Ok(())
         } else {
             Err(LinalgError::NonFiniteSolution("complex envelope LDLᵀ"))
@@ -574,11 +567,17 @@ struct CRows<'a> {
     env: &'a [C],
     perm: &'a [u32],
     pscale: &'a [f64],
+    /// `1/d_i`.
+    dinv: &'a [C],
 }
 
 /// One half's plain rows for a substitution: the first row's index
 /// (`base`), the rows and their part of the work vector.
 type CHalf<'a> = (usize, std::ops::Range<usize>, &'a mut [C]);
+
+/// One half's plain rows for the forward substitution: as [`CHalf`], with
+/// the half's part of `D⁻¹ y` (written beside `y`).
+type CHalfFwd<'a> = (usize, std::ops::Range<usize>, &'a mut [C], &'a mut [C]);
 
 /// The right-hand side's real and imaginary parts.
 type Rhs<'a> = (&'a [f64], &'a [f64]);
@@ -599,20 +598,26 @@ impl CRows<'_> {
         .scale(self.pscale[i])
     }
 
-    /// `x_{perm[i]} = z_i s_i`.
+    /// `x_{perm[i]} = z_i s_i`; returns `re · 0 + im · 0` of the entry,
+    /// zero when both parts are finite, else NaN (the backward rows sum
+    /// it: no branch).
     #[inline(always)]
-    fn put(&self, (re, im): &Out<'_>, i: usize, z: C) {
+    fn put(&self, (re, im): &Out<'_>, i: usize, z: C) -> f64 {
         let (p, s) = (self.perm[i] as usize, self.pscale[i]);
-        re.set(p, z.re * s);
-        im.set(p, z.im * s);
+        let (xr, xi) = (z.re * s, z.im * s);
+        re.set(p, xr);
+        im.set(p, xi);
+        xr * 0.0 + xi * 0.0
     }
 
     /// Forward substitution `L y = P S b` over the plain rows of one half
-    /// (`y` into `w`, from row `base`).
-    fn forward(&self, b: Rhs<'_>, (base, rows, w): CHalf<'_>) {
+    /// (`y` into `w`, `D⁻¹ y` into `wd`, from row `base`).
+    fn forward(&self, b: Rhs<'_>, (base, rows, w, wd): CHalfFwd<'_>) {
         let (mut prev, mut p) = (C::ZERO, self.ptr[rows.start]);
-        for i in rows {
+        let (dinv, wd) = (&self.dinv[rows.clone()], &mut wd[rows.start - base..]);
+        for (k, i) in rows.enumerate() {
             prev = self.forward_row(b, base, i, w, prev, &mut p);
+            wd[k] = prev.mul(dinv[k]);
         }
     }
 
@@ -653,12 +658,14 @@ impl CRows<'_> {
 
     /// Backward substitution `Lᵀ z = w` over the plain rows of one half,
     /// from the last (`w` from row `base`); each `z_i`, final once its row
-    /// is reached, goes to the solution at once.
-    fn backward(&self, out: &Out<'_>, (base, rows, w): CHalf<'_>) {
-        let (mut carry, mut p) = ((C::ZERO, C::ZERO), self.ptr[rows.end]);
+    /// is reached, goes to the solution at once. Returns whether every
+    /// entry it wrote is finite.
+    fn backward(&self, out: &Out<'_>, (base, rows, w): CHalf<'_>) -> bool {
+        let (mut carry, mut bad, mut p) = ((C::ZERO, C::ZERO), 0.0, self.ptr[rows.end]);
         for i in rows.rev() {
-            carry = self.backward_row(out, base, i, w, carry, &mut p);
+            carry = self.backward_row(out, base, i, w, carry, (&mut bad, &mut p));
         }
+        bad == 0.0
     }
 
     /// Row `i` of [`Self::backward`]: `z_i = w_i − L_{i+1,i} z_{i+1}` with
@@ -666,8 +673,8 @@ impl CRows<'_> {
     /// register, then `w_j −= L_ij z_i` over the envelope but its last
     /// column `i − 1`, returned as the next row's carry. Each `w_j` gets
     /// its updates in the same order as without the carry (the same bits).
-    /// Its entries end at `env[*p]`, and `*p` moves back to where they
-    /// start.
+    /// Adds [`Self::put`]'s check of the entry written to `bad`. Its
+    /// entries end at `env[*p]`, and `*p` moves back to where they start.
     #[inline(always)]
     fn backward_row(
         &self,
@@ -676,14 +683,14 @@ impl CRows<'_> {
         i: usize,
         w: &mut [C],
         carry: (C, C),
-        p: &mut usize,
+        (bad, p): (&mut f64, &mut usize),
     ) -> (C, C) {
         let (env, len) = (self.env, usize::from(self.len[i]));
         assert!(len <= *p && *p <= env.len() && len <= i - base);
         let pi = *p - len;
         *p = pi;
         let zi = w[i - base].sub(carry.0.mul(carry.1));
-        self.put(out, i, zi);
+        *bad += self.put(out, i, zi);
         if len == 0 {
             return (C::ZERO, C::ZERO);
         }

@@ -270,6 +270,46 @@ pub(crate) fn split_pass<D: Halve + Send, T: Send>(
     merge(a, b)
 }
 
+/// Two element-wise passes in one hand-over: `f(base, d)` over `d` (`len`
+/// elements) and `g(base, e)` over `e` (`len_e` elements; a Newton
+/// update of the coordinates and of the multipliers), whole on this
+/// thread, or with `parallel` each cut at its own middle (`len / 2`,
+/// `len_e / 2`) and the two low halves run on one thread, the two high
+/// halves on the other, through one [`join_if`]: the same halves as two
+/// [`split_pass`] calls with one join instead of two. `f`'s results are
+/// merged by `merge`; `g`'s are unit. Each half writes only its own
+/// elements, so with an order-free merge the results do not depend on
+/// `parallel` or on the thread count.
+pub(crate) fn split_passes<D: Halve + Send, E: Halve + Send, T: Send>(
+    parallel: bool,
+    (len, d, f): (usize, D, impl Fn(usize, D) -> T + Sync),
+    (len_e, e, g): (usize, E, impl Fn(usize, E) + Sync),
+    merge: impl FnOnce(T, T) -> T,
+) -> T {
+    if !parallel {
+        let t = f(0, d);
+        g(0, e);
+        return t;
+    }
+    let (k, ke) = (len / 2, len_e / 2);
+    let ((d0, d1), (e0, e1)) = (d.halve(k), e.halve(ke));
+    let (f, g) = (&f, &g);
+    let (a, b) = join_if(
+        true,
+        || {
+            let t = f(0, d0);
+            g(0, e0);
+            t
+        },
+        || {
+            let t = f(k, d1);
+            g(ke, e1);
+            t
+        },
+    );
+    merge(a, b)
+}
+
 /// The coordinate slices an element-wise pass over coordinates
 /// `base .. base + len` writes (`w`) and reads (`r`), all of length `len`:
 /// what [`in_halves`] splits.
@@ -358,5 +398,55 @@ mod tests {
         }
         // the high half used its global indices
         assert_eq!(two.1[len - 1], src[len - 1] * (len - 1) as f64);
+    }
+
+    /// [`split_passes`] over a pass of 1001 elements and one of 600, on
+    /// two threads of a pool: each pass sees its halves with their global
+    /// base index (cut at its own middle), and every written bit and the
+    /// merged result equal the two passes in one piece each.
+    #[test]
+    fn split_passes_match_two_passes_in_one_piece() {
+        let (len, len_e) = (1001, 600);
+        let src: Vec<f64> = (0..len).map(|i| (i as f64 * 0.37).sin()).collect();
+        let run = |parallel: bool| {
+            let (mut a, mut e) = (vec![0.0; len], vec![0.0; len_e]);
+            let big = split_passes(
+                parallel,
+                (
+                    len,
+                    (&mut a[..], &src[..]),
+                    |base: usize, (a, x): (&mut [f64], &[f64])| {
+                        let mut big = 0.0_f64;
+                        for k in 0..x.len() {
+                            a[k] = x[k] * (base + k) as f64;
+                            big = big.max(a[k].abs());
+                        }
+                        big
+                    },
+                ),
+                (len_e, &mut e[..], |base: usize, e: &mut [f64]| {
+                    for (k, v) in e.iter_mut().enumerate() {
+                        *v = ((base + k) as f64).sqrt();
+                    }
+                }),
+                f64::max,
+            );
+            (big, a, e)
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let (one, two) = (run(false), pool.install(|| run(true)));
+        assert_eq!(one.0.to_bits(), two.0.to_bits());
+        let expected = (0..len).fold(0.0_f64, |m, k| m.max((src[k] * k as f64).abs()));
+        assert_eq!(two.0, expected);
+        for (x, y) in one.1.iter().zip(&two.1).chain(one.2.iter().zip(&two.2)) {
+            assert_eq!(x.to_bits(), y.to_bits());
+        }
+        // the high halves used their global indices
+        assert_eq!(two.1[len - 1], src[len - 1] * (len - 1) as f64);
+        assert_eq!(two.2[len_e - 1], ((len_e - 1) as f64).sqrt());
+        assert_eq!(two.2[len_e / 2], ((len_e / 2) as f64).sqrt());
     }
 }

@@ -6,7 +6,8 @@ use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::Index3;
 use mbsolve::integrate::{Method, OdeOptions};
 use mbsolve::linalg::{
-    ChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind, PARALLEL_MIN_DIM, SPLIT_MIN_DIM,
+    ChainLdlt, LinalgError, SaddleMatrix, SaddlePointSolver, SolverKind, PARALLEL_MIN_DIM,
+    SPLIT_MIN_DIM,
 };
 use mbsolve::parallel::{Threads, PARALLEL_MIN_COORDS};
 use mbsolve::simulation::{simulate, RunConfig};
@@ -115,6 +116,45 @@ fn split_envelope_solves_random_chains_like_the_one_sided_one() {
         let d = rel_diff(&xs, &xo);
         assert!(d < 1e-11, "nb = {nb}: split vs one-sided {d:e}");
         assert!(xs != xo, "different orders round differently");
+    }
+}
+
+/// The split solve checks the entries of its solution as its backward
+/// rows write them: a right-hand side with one non-finite entry (in turn
+/// at the start, the quarters, the middle and the end of `b`, so in rows
+/// of both halves and of the separator) gives `NonFiniteSolution`, in
+/// pools of one and of two threads; a finite one solves.
+#[test]
+fn split_solve_reports_a_non_finite_solution_on_one_thread_and_two() {
+    let k = random_chain(2001, 5);
+    let dim = k.dim();
+    assert!(dim >= PARALLEL_MIN_DIM);
+    let mut s = ChainLdlt::default()
+        .with_residual_check(false)
+        .with_split(true);
+    s.analyze(&k).unwrap();
+    s.factorize(&k).unwrap();
+    assert_eq!(s.is_split(), Some(true));
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            for at in [0, dim / 4, dim / 2, 3 * dim / 4, dim - 1] {
+                for bad in [f64::NAN, f64::INFINITY] {
+                    let mut x: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+                    x[at] = bad;
+                    let r = s.solve_in_place(&k, &mut x);
+                    assert!(
+                        matches!(r, Err(LinalgError::NonFiniteSolution(_))),
+                        "{threads} thread(s), b[{at}] = {bad}: {r:?}"
+                    );
+                }
+            }
+            let mut x: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+            s.solve_in_place(&k, &mut x).unwrap();
+        });
     }
 }
 

@@ -5,6 +5,7 @@
 
 use super::super::implicit::{Assessment, Convergence, ConvergenceOptions, Next, Remainder};
 use super::*;
+use crate::parallel::split_passes;
 
 impl BdfRun<'_> {
     pub(super) fn factor(&mut self, t1: f64, a0: f64) -> Result<(), SystemError> {
@@ -138,40 +139,39 @@ impl BdfRun<'_> {
             // q += Δq, with q̇ and q̈ from it, the error test's norm of Δq
             // (velocities through `vfac`) and the rounding floor of q: one
             // pass, in two fixed halves concurrently for large n
+            // λ −= Δλ/s in the same hand-over (each in its own two halves)
             let (dq, dl) = self.r.split_at(n);
-            let (mut dnorm, at_floor) = in_halves(
+            let (mut dnorm, at_floor) = split_passes(
                 n >= PARALLEL_MIN_COORDS,
-                n,
-                Slices {
-                    base: 0,
-                    w: [&mut self.q, &mut self.v, &mut self.qdd],
-                    r: [dq, &self.inv_w, &self.rq, &self.rv],
-                },
-                |u| newton_update(u, a0, floor),
+                (
+                    n,
+                    Slices {
+                        base: 0,
+                        w: [&mut self.q, &mut self.v, &mut self.qdd],
+                        r: [dq, &self.inv_w, &self.rq, &self.rv],
+                    },
+                    |_, u| newton_update(u, a0, floor),
+                ),
+                (
+                    dl.len(),
+                    Slices {
+                        base: 0,
+                        w: [&mut self.lam_new],
+                        r: [dl],
+                    },
+                    |_, u| {
+                        let ([l], [d]) = (u.w, u.r);
+                        for (l, d) in l.iter_mut().zip(d) {
+                            *l -= d / s;
+                        }
+                    },
+                ),
                 |(n0, f0), (n1, f1)| (n0.max(n1), f0 && f1),
             );
             dnorm *= vfac;
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
-            // λ −= Δλ/s, in two fixed halves concurrently for large n
-            let m = dl.len();
-            in_halves(
-                n >= PARALLEL_MIN_COORDS,
-                m,
-                Slices {
-                    base: 0,
-                    w: [&mut self.lam_new],
-                    r: [dl],
-                },
-                |u| {
-                    let ([l], [d]) = (u.w, u.r);
-                    for (l, d) in l.iter_mut().zip(d) {
-                        *l -= d / s;
-                    }
-                },
-                |(), ()| (),
-            );
             // a correction at the rounding floor of q, or below
             // NEWTON_FLOOR·rtol, ends the iteration
             let accept = at_floor || dnorm <= NEWTON_FLOOR * self.rtol;

@@ -6,7 +6,7 @@ use super::super::implicit::{
 };
 use super::augmented::{SlowAnswer, SLOW_CONTRACTION};
 use super::*;
-use crate::parallel::{in_halves, Slices, PARALLEL_MIN_COORDS};
+use crate::parallel::{in_halves, split_passes, Slices, PARALLEL_MIN_COORDS};
 
 /// A factorisation is reused while the step size stays within this
 /// relative distance of the one it was computed for.
@@ -234,40 +234,40 @@ impl Run<'_, '_> {
             // update of q, q̇, q̈, a — one pass (two fixed halves
             // concurrently for large n; max is order-free, so the bits do
             // not depend on the thread count)
+            // λ −= (−Δλ)/s in the same hand-over, each in its own two halves
+            // (the augmented Lagrangian's solve has no multiplier rows: an
+            // empty pass)
             let (dx, new) = (&self.r, &mut self.new);
-            let (dnorm, drel) = in_halves(
+            let ml = dx.len() - n;
+            let (dnorm, drel) = split_passes(
                 n >= PARALLEL_MIN_COORDS,
-                n,
-                Slices {
-                    base: 0,
-                    w: [&mut new.q, &mut new.v, &mut new.qdd, &mut new.a],
-                    r: [&dx[..n]],
-                },
-                |u| correct(u, [gp, bp, ap, tol_q]),
-                |(n0, r0), (n1, r1)| (n0.max(n1), r0.max(r1)),
-            );
-            if !dnorm.is_finite() {
-                return Err(SystemError::msg("non-finite Newton correction"));
-            }
-            // λ −= (−Δλ)/s, in two fixed halves concurrently for large n
-            // (the augmented Lagrangian's solve has no multiplier rows)
-            if !augmented {
-                in_halves(
-                    n >= PARALLEL_MIN_COORDS,
-                    dx.len() - n,
+                (
+                    n,
                     Slices {
                         base: 0,
-                        w: [&mut new.lam],
+                        w: [&mut new.q, &mut new.v, &mut new.qdd, &mut new.a],
+                        r: [&dx[..n]],
+                    },
+                    |_, u| correct(u, [gp, bp, ap, tol_q]),
+                ),
+                (
+                    ml,
+                    Slices {
+                        base: 0,
+                        w: [&mut new.lam[..ml]],
                         r: [&dx[n..]],
                     },
-                    |u| {
+                    |_, u| {
                         let ([l], [d]) = (u.w, u.r);
                         for (l, d) in l.iter_mut().zip(d) {
                             *l -= d / s;
                         }
                     },
-                    |(), ()| (),
-                );
+                ),
+                |(n0, r0), (n1, r1)| (n0.max(n1), r0.max(r1)),
+            );
+            if !dnorm.is_finite() {
+                return Err(SystemError::msg("non-finite Newton correction"));
             }
             if fresh && it == 2 && !augmented {
                 // ‖Δq₂‖ = C ‖Δq₁‖² (quadratic convergence on a fresh matrix)

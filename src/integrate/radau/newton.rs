@@ -4,7 +4,7 @@
 //! [`Convergence`](super::super::implicit::Convergence) test.
 
 use super::*;
-use crate::parallel::{split_pass, PARALLEL_MIN_COORDS};
+use crate::parallel::{split_pass, split_passes, Halve, PARALLEL_MIN_COORDS};
 
 /// The rate estimate of an attempt's first correction from the last one
 /// kept, `max(η, ε)^0.8` (RADAU5's `FACCON`).
@@ -145,20 +145,22 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 )?;
             }
             // transformed right-hand sides: x_k = −Σ_i T⁻¹_ki r_i, the
-            // constraint rows divided by h²μ_k²
+            // constraint rows divided by h²μ_k²; the coordinates and the
+            // constraint rows each in their own two halves, in one
+            // hand-over (each thread takes half of both, the same rows as
+            // in the update below)
             let ti = &tab.t_inv;
             {
-                let len = n + m;
-                let r: [&[f64]; S] = std::array::from_fn(|i| &self.r[i][..len]);
-                let x: [&mut [f64]; S] = self.x.each_mut().map(|x| &mut x[..len]);
+                let (x_q, x_l) = self.x.each_mut().map(|x| &mut x[..n + m]).halve(n);
+                let (r_q, r_l) = self.r.each_ref().map(|r| &r[..n + m]).halve(n);
                 let inv_d = &inv_d;
-                let transform = |base: usize, (mut x, r): ([&mut [f64]; S], [&[f64]; S])| {
+                let transform = |constraint: bool, (mut x, r): ([&mut [f64]; S], [&[f64]; S])| {
                     for k in 0..r[0].len() {
                         let rk: [f64; S] = std::array::from_fn(|i| r[i][k]);
                         for (xj, tj) in x.iter_mut().zip(ti) {
                             xj[k] = -dot(tj, |i| rk[i]);
                         }
-                        if base + k >= n {
+                        if constraint {
                             x[0][k] *= inv_g;
                             for (p, d) in inv_d.iter().enumerate() {
                                 let z = cmul([x[1 + 2 * p][k], x[2 + 2 * p][k]], *d);
@@ -168,7 +170,12 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         }
                     }
                 };
-                split_pass(par, len, (x, r), transform, |(), ()| ());
+                split_passes(
+                    par,
+                    (n, (x_q, r_q), |_, d| transform(false, d)),
+                    (m, (x_l, r_l), |_, d| transform(true, d)),
+                    |(), ()| (),
+                );
             }
             {
                 let (x0, rest) = self.x.split_at_mut(1);
@@ -188,7 +195,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 let q = &self.q[..n];
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each);
-                // in two halves concurrently for large n (max: order-free)
+                // in two halves concurrently for large n (max: order-free),
+                // with the multipliers' update
                 let update = |base: usize, (av, x, q): ([&mut [f64]; S], [&[f64]; S], &[f64])| {
                     let mut dnorm = 0.0_f64;
                     for k in 0..q.len() {
@@ -217,7 +225,6 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                     }
                     dnorm
                 };
-                let dnorm = split_pass(par, n, (av, x, q), update, f64::max);
                 let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);
                 let lv: [&mut [f64]; S] = self.l.each_mut().map(|l| &mut l[..m]);
                 let update_l = |_: usize, (mut lv, xl): ([&mut [f64]; S], [&[f64]; S])| {
@@ -228,8 +235,14 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         }
                     }
                 };
-                split_pass(par, m, (lv, xl), update_l, |(), ()| ());
-                dnorm
+                // the coordinates' and the multipliers' updates in one
+                // hand-over (each in its own two halves)
+                split_passes(
+                    par,
+                    (n, (av, x, q), update),
+                    (m, (lv, xl), update_l),
+                    f64::max,
+                )
             };
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));

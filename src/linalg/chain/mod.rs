@@ -47,7 +47,8 @@
 //! recurrences are independent (the envelope fill of each stays in its
 //! half); the rows of `S` have two envelope segments (the tail of `T`,
 //! then the tail of `B` and `S`) and are factorised after both. The solve
-//! follows: forward substitution of `T` and `B`, of `S`; `D⁻¹`; backward
+//! follows: forward substitution of `T` and `B`, of `S` (each row writes
+//! `y_i` and `y_i / d_i`: no `D⁻¹` pass); backward
 //! substitution of `S`, then of `T` and `B` (the forward rows read their
 //! right-hand side `(P S x)_i` from `x` directly, the backward rows write
 //! `x = S Pᵀ z` an entry at a time as it becomes final: no separate gather
@@ -150,10 +151,12 @@ pub(super) struct Envelope {
     positive: Vec<bool>,
     /// The scaling of [`SparseLdlt`] (`saddle_scaling`) in elimination order.
     pscale: Vec<f64>,
-    /// Permuted right-hand side.
+    /// Permuted right-hand side, then `y` of `L y = P S x`.
     w: Vec<f64>,
     /// The substitutions' compact copy of `first` and `perm`.
     pub(super) rows: RowTable,
+    /// `D⁻¹ y`, then `z` of `Lᵀ z = D⁻¹ y` (the backward substitution).
+    wd: Vec<f64>,
 }
 
 /// What the substitutions read per plain row besides the values, in 5

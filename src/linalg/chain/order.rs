@@ -256,6 +256,7 @@ impl Envelope {
             positive,
             pscale: vec![1.0; dim],
             w: vec![0.0; dim],
+            wd: vec![0.0; dim],
             rows,
         })
     }

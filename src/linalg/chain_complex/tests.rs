@@ -195,6 +195,43 @@ fn the_halves_give_the_same_bits_on_one_thread_and_two() {
     assert!(r < 1e-12, "residual {r:e}");
 }
 
+/// The solve checks the entries of its solution as its backward rows
+/// write them: a right-hand side with one non-finite part of one entry
+/// (at the start, the middle and the end: rows of both halves and of the
+/// separator) gives `NonFiniteSolution` in pools of one and two threads.
+#[test]
+fn a_non_finite_right_hand_side_is_reported_on_one_thread_and_two() {
+    let (kr, ki) = chain_pair(2100, 13);
+    let dim = kr.dim();
+    assert!(dim >= PARALLEL_MIN_DIM);
+    let mut f = ComplexChainLdlt::analyze(&kr).expect("a chain pattern");
+    f.factorize(&kr, &ki).unwrap();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            for at in [0, dim / 2, dim - 1] {
+                for imaginary in [false, true] {
+                    let mut br: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
+                    let mut bi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
+                    if imaginary {
+                        bi[at] = f64::INFINITY;
+                    } else {
+                        br[at] = f64::NAN;
+                    }
+                    let r = f.solve(&mut br, &mut bi);
+                    assert!(
+                        matches!(r, Err(LinalgError::NonFiniteSolution(_))),
+                        "{threads} thread(s), entry {at}: {r:?}"
+                    );
+                }
+            }
+        });
+    }
+}
+
 #[test]
 fn errors_before_factorisation_and_on_singular_pivots() {
     let (kr, ki) = chain_pair(3, 7);
