@@ -131,15 +131,14 @@ pub use variable::{OrderCounts, Radau59};
 
 use super::driver::{Failure, Stepper};
 use super::implicit::{
-    attempt_or_cut, run as run_implicit, settle_output, validate_run, Assessment, Attempted,
+    attempt_or_cut, implicit_outputs, run as run_implicit, validate_run, Assessment, Attempted,
     Convergence, ConvergenceOptions, CutRules, Cuts, ImplicitStats, ImplicitStepper, Next,
     Remainder, Renewal, RenewalOptions, Shrink, StepTry, Warn,
 };
 use super::{
     common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SecondOrderDae, Span,
-    StateView, Stats, SystemError, Tolerance, ROUNDING_ULPS,
+    StateView, SystemError, Tolerance, ROUNDING_ULPS,
 };
-use std::sync::Arc;
 
 /// Relative difference below which a step counts as the one the Newton
 /// matrices were factorised for: the fixed steps computed as `target − t`
@@ -661,12 +660,7 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 &mut self.qdd,
                 &mut self.lam,
             )
-            .map_err(|e| Failure::System {
-                what: "initial accelerations",
-                t: self.t0,
-                step_from: None,
-                source: Arc::new(e),
-            })?;
+            .map_err(Failure::system("initial accelerations", self.t0, None))?;
         if self.opts.adaptive && self.h == 0.0 {
             self.h = self.initial_step_guess();
         } else if !self.opts.adaptive {
@@ -699,12 +693,11 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
             // adaptive: the error test (module docs, "Step size")
             let mut h_next = (2.0 * h).min(self.h_fixed);
             if adaptive {
-                let err = self.error_norm(h).map_err(|e| Failure::System {
-                    what: "error estimate",
-                    t: t_new,
-                    step_from: Some(self.t),
-                    source: Arc::new(e),
-                })?;
+                let err = self.error_norm(h).map_err(Failure::system(
+                    "error estimate",
+                    t_new,
+                    Some(self.t),
+                ))?;
                 let nit = self.opts.max_newton as f64;
                 let fac =
                     SAFETY.min(SAFETY * (1.0 + 2.0 * nit) / (self.last_its as f64 + 2.0 * nit));
@@ -753,12 +746,11 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
             if self.opts.project {
                 self.stats.projections += 1;
                 let (q, v) = (&mut self.q, &mut self.v);
-                self.sys.project(t_new, q, v).map_err(|e| Failure::System {
-                    what: "projection",
-                    t: t_new,
-                    step_from: Some(self.t),
-                    source: Arc::new(e),
-                })?;
+                self.sys.project(t_new, q, v).map_err(Failure::system(
+                    "projection",
+                    t_new,
+                    Some(self.t),
+                ))?;
             }
             // the accepted stages become the history (the next attempt's
             // predictor overwrites every entry of `a`, `l`)
@@ -813,16 +805,5 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
         1e-9 * self.h_last
     }
 
-    /// Interpolated rows projected onto the constraints.
-    fn settle(&mut self, t: f64, out: &mut [f64]) {
-        settle_output(self.sys, t, out, &mut self.warnings);
-    }
-
-    fn warnings(&self) -> &[String] {
-        &self.warnings
-    }
-
-    fn stats(&self) -> Stats {
-        self.stats.counts()
-    }
+    implicit_outputs!();
 }

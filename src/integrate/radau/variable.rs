@@ -191,7 +191,7 @@ impl Stepper for VariableRun<'_, '_> {
         on_run!(self.stages(), r => r.warnings())
     }
 
-    fn stats(&self) -> Stats {
+    fn stats(&self) -> crate::integrate::Stats {
         on_run!(self.stages(), r => Stepper::stats(&**r))
     }
 }
