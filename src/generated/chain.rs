@@ -4,6 +4,7 @@
 use super::memo::{SharedTrig, TrigMemo};
 use super::{arr, arr_mut, kernels, revolute};
 use crate::model::{BodyRef, ConstraintKernels, ConstraintTerms, System};
+use crate::trig::sin_cos;
 
 /// The kernel `$gb` when the ground is the joint's side i, else `$bg`
 /// (the same kernel of the other orientation).
@@ -17,18 +18,32 @@ macro_rules! side {
     };
 }
 
-/// `memoised!(memo; f_sc | f(q, args…))`: `kernels::f_sc(q, sc, args…)`
-/// with the sines and cosines `sc` of `q`'s angles from the chain's memo
+/// `memoised!(memo; f_sc(q, args…))`: `kernels::f_sc(q, sc, args…)` with
+/// the sines and cosines `sc` of `q`'s angles from the chain's memo
 /// (updated here, shared with Φ, Φ_q, γ and the force kernels at the same
-/// q), or `kernels::f(q, args…)` computing them afresh when another thread
-/// holds the memo (the same bits).
+/// q), or computed afresh by [`fresh_trig`] when another thread holds the
+/// memo: the same bits either way, so a run's bits do not depend on which
+/// concurrent task took the memo.
 macro_rules! memoised {
-    ($memo:expr; $sc:ident | $plain:ident($q:expr $(, $arg:expr)*)) => {
+    ($memo:expr; $sc:ident($q:expr $(, $arg:expr)*)) => {
         match $memo.try_write() {
             Ok(mut m) => kernels::$sc($q, m.update($q) $(, $arg)*),
-            Err(_) => kernels::$plain($q $(, $arg)*),
+            Err(_) => kernels::$sc($q, &fresh_trig($q) $(, $arg)*),
         }
     };
+}
+
+/// `[sin φ_b, cos φ_b]` of every body of `q` (3 coordinates per body) by
+/// [`sin_cos`], the function whose values the memo holds. (The plain
+/// generated kernels call the standard library's `sin_cos`, which differs
+/// from it in the last bit for some angles.)
+fn fresh_trig(q: &[f64]) -> Vec<f64> {
+    q.chunks_exact(3)
+        .flat_map(|b| {
+            let (s, c) = sin_cos(b[2]);
+            [s, c]
+        })
+        .collect()
 }
 
 /// A revolute joint between the ground and one body.
@@ -273,7 +288,7 @@ impl ConstraintKernels for ChainKernels {
         };
         let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
         let o = &mut vals[chain_at..chain_at + nh];
-        memoised!(self.memo; revolute_chain_hessian_sc | revolute_chain_hessian(qc, p, l, o));
+        memoised!(self.memo; revolute_chain_hessian_sc(qc, p, l, o));
         if let Some(g) = &self.ground {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }
@@ -300,7 +315,7 @@ impl ConstraintKernels for ChainKernels {
     fn phi(&self, q_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
         let (p, q) = (&self.params, self.chain_q(q_all));
-        memoised!(self.memo; revolute_chain_phi_sc | revolute_chain_phi(q, p, o));
+        memoised!(self.memo; revolute_chain_phi_sc(q, p, o));
         if let Some(g) = &self.ground {
             g.phi(q_all, out);
         }
@@ -308,7 +323,7 @@ impl ConstraintKernels for ChainKernels {
     fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
         let o = &mut vals[self.chain_vals()];
         let (p, q) = (&self.params, self.chain_q(q_all));
-        memoised!(self.memo; revolute_chain_jacobian_sc | revolute_chain_jacobian(q, p, o));
+        memoised!(self.memo; revolute_chain_jacobian_sc(q, p, o));
         if let Some(g) = &self.ground {
             g.jacobian(q_all, vals);
         }
@@ -327,7 +342,7 @@ impl ConstraintKernels for ChainKernels {
             &mut phi[rows],
             &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
         );
-        memoised!(self.memo; revolute_chain_phi_tmul_sc | revolute_chain_phi_tmul(q, p, l, o, gc));
+        memoised!(self.memo; revolute_chain_phi_tmul_sc(q, p, l, o, gc));
         if let Some(gj) = &self.ground {
             gj.phi_tmul(q_all, lambda, phi, g);
         }
@@ -341,8 +356,8 @@ impl ConstraintKernels for ChainKernels {
         }
     }
     /// `phi_tmul` of the joints `joints`: the chain's joints among them
-    /// with the memo's sines and cosines where current (else computed,
-    /// the same bits), then the ground joint when among them — the order
+    /// with the memo's sines and cosines where current (else computed by
+    /// [`fresh_trig`], the same bits), then the ground joint when among them — the order
     /// of `phi_tmul`.
     fn phi_tmul_joints(
         &self,
@@ -374,7 +389,7 @@ impl ConstraintKernels for ChainKernels {
                     o,
                     gc,
                 ),
-                _ => kernels::revolute_chain_phi_tmul(qk, p, l, o, gc),
+                _ => kernels::revolute_chain_phi_tmul_sc(qk, &fresh_trig(qk), p, l, o, gc),
             }
         }
         if let Some(gj) = &self.ground {
@@ -394,9 +409,57 @@ impl ConstraintKernels for ChainKernels {
     fn gamma(&self, q_all: &[f64], qd_all: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
         let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
-        memoised!(self.memo; revolute_chain_gamma_sc | revolute_chain_gamma(q, qd, p, o));
+        memoised!(self.memo; revolute_chain_gamma_sc(q, qd, p, o));
         if let Some(g) = &self.ground {
             g.gamma(q_all, qd_all, out);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Φ, Φ_q, (Φ_qᵀλ)_q, γ and Φ_qᵀλ of a chain, in that order.
+    fn terms(k: &ChainKernels, q: &[f64], qd: &[f64], lam: &[f64]) -> Vec<Vec<f64>> {
+        let (m, nv) = (2 * k.n_joints, 8 * k.n_joints);
+        let (mut phi, mut vals, mut hess) = (vec![0.0; m], vec![0.0; nv], vec![0.0; m]);
+        let (mut gamma, mut phi2, mut g) = (vec![0.0; m], vec![0.0; m], vec![0.0; q.len()]);
+        k.phi(q, 0.0, &mut phi);
+        k.jacobian_values(q, 0.0, &mut vals);
+        k.add_hessian(q, 0.0, lam, &mut hess);
+        k.gamma(q, qd, 0.0, &mut gamma);
+        k.phi_tmul(q, 0.0, lam, &mut phi2, &mut g);
+        let (mut phi3, mut g3) = (vec![0.0; m], vec![0.0; q.len()]);
+        k.phi_tmul_joints(q, 0.0, lam, &mut phi3, &mut g3, 0..k.n_joints);
+        vec![phi, vals, hess, gamma, phi2, g, phi3, g3]
+    }
+
+    /// The chain's kernels give the same bits with the sines and cosines
+    /// from the memo and computed afresh (when another thread holds the
+    /// memo), so a run's bits do not depend on which task won the memo.
+    #[test]
+    fn the_memo_and_the_fresh_sines_give_the_same_bits() {
+        let nb = 257;
+        let joints = vec![[0.05, 0.0, -0.05, 0.0]; nb - 1];
+        let k = ChainKernels::new(0, &joints, None);
+        let x = |i: usize| (i as f64 * 0.7548776662466927).fract();
+        let q: Vec<f64> = (0..3 * nb).map(|i| 40.0 * x(i) - 20.0).collect();
+        let qd: Vec<f64> = (0..3 * nb).map(|i| 3.0 * x(i + 7) - 1.5).collect();
+        let lam: Vec<f64> = (0..2 * (nb - 1)).map(|i| x(i + 3) - 0.5).collect();
+        // the angles are ones where the standard library's sines differ
+        // from the memo's (`trig::sin_cos`, within an ulp), so the test
+        // could fail
+        let differ = (0..nb).filter(|&b| q[3 * b + 2].sin_cos() != sin_cos(q[3 * b + 2]));
+        assert!(differ.count() > 0);
+        let with_memo = terms(&k, &q, &qd, &lam);
+        let memo = k.memo.clone();
+        let held = memo.write().unwrap();
+        let fresh = terms(&k, &q, &qd, &lam);
+        drop(held);
+        for (a, b) in with_memo.iter().zip(&fresh) {
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(a), bits(b));
         }
     }
 }
