@@ -50,6 +50,10 @@ pub enum Method {
     /// adaptive, on the index-3 equations ([`super::Radau59`];
     /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
     Radau59,
+    /// Radau IIA of order 13 (seven stages, L-stable) on the index-3
+    /// equations, fixed step or adaptive ([`super::Radau13`];
+    /// docs/radau.md). Not an [`super::OdeSystem`] integrator.
+    Radau13,
 }
 
 /// The family a method belongs to: what runs it.
@@ -66,7 +70,7 @@ pub enum Family {
     /// The generalized-α family (generalized-α, HHT, Newmark) on the
     /// index-3 equations; also the scheme of the augmented Lagrangian.
     GeneralizedAlpha,
-    /// Radau IIA (orders 5 and 9) on the index-3 equations.
+    /// Radau IIA (orders 5, 9 and 13) on the index-3 equations.
     Radau,
 }
 
@@ -272,7 +276,7 @@ impl MethodInfo {
 }
 
 /// Every method, one row each, in the order of [`Method::ALL`].
-pub const METHODS: [MethodInfo; 11] = [
+pub const METHODS: [MethodInfo; 12] = [
     MethodInfo::explicit(Method::Ode23, Family::RungeKutta, Stepping::Adaptive),
     MethodInfo::explicit(Method::Ode45, Family::RungeKutta, Stepping::Adaptive),
     MethodInfo::explicit(Method::Rk4, Family::RungeKutta, Stepping::Fixed),
@@ -311,6 +315,13 @@ pub const METHODS: [MethodInfo; 11] = [
         Method::Radau59,
         Family::Radau,
         Stepping::Adaptive,
+        RADAU_THREADS,
+        RADAU_KEYS,
+    ),
+    MethodInfo::row(
+        Method::Radau13,
+        Family::Radau,
+        Stepping::FixedOrAdaptive,
         RADAU_THREADS,
         RADAU_KEYS,
     ),
@@ -355,7 +366,7 @@ impl MethodInfo {
 
 impl Method {
     /// All methods, in the order of [`METHODS`].
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Ode23,
         Method::Ode45,
         Method::Rk4,
@@ -367,11 +378,12 @@ impl Method {
         Method::Radau5,
         Method::Radau9,
         Method::Radau59,
+        Method::Radau13,
     ];
     /// The valid method names, in the order of [`METHODS`].
-    pub const NAMES: [&'static str; 11] = [
+    pub const NAMES: [&'static str; 12] = [
         "ode23", "ode45", "rk4", "ode113", "bdf", "genalpha", "hht", "newmark", "radau5", "radau9",
-        "radau59",
+        "radau59", "radau13",
     ];
 
     /// This method's row of [`METHODS`].
@@ -534,7 +546,7 @@ mod tests {
         let index3: Vec<Method> = Method::ALL.into_iter().filter(Method::is_index3).collect();
         assert_eq!(
             index3,
-            [Bdf, GenAlpha, Hht, Newmark, Radau5, Radau9, Radau59]
+            [Bdf, GenAlpha, Hht, Newmark, Radau5, Radau9, Radau59, Radau13]
         );
         let adaptive: Vec<Method> = Method::ALL
             .into_iter()

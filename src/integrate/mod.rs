@@ -71,7 +71,10 @@ pub use method::{
     KeyUse, Method, MethodInfo, Stepping, METHODS, STEP_CONTROL_KEYS,
 };
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
-pub use radau::{ComplexNewton, OrderCounts, Radau5, Radau59, Radau9, RadauStages, RadauTableau};
+pub use radau::{
+    ComplexNewton, OrderCounts, Radau13, Radau5, Radau59, Radau9, RadauHigh, RadauStages,
+    RadauTableau,
+};
 
 use std::ops::ControlFlow;
 

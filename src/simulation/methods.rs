@@ -457,11 +457,12 @@ pub(super) struct RadauScheme<'s> {
     c: Index3Complex<'s>,
 }
 
-/// The Radau IIA of the run: radau5, or radau9 or radau59 with the
-/// complex matrix of the second complex pair.
+/// The Radau IIA of the run: radau5, or radau9, radau13 or radau59 with
+/// the complex matrices of the further complex pairs.
 enum RadauOrder<'s> {
     Three(Box<Radau5>),
     Five(Box<(crate::integrate::Radau9, Index3Complex<'s>)>),
+    Seven(Box<(crate::integrate::Radau13, [Index3Complex<'s>; 2])>),
     Variable(Box<(crate::integrate::Radau59, Index3Complex<'s>)>),
 }
 
@@ -472,6 +473,11 @@ impl<'s> RadauRun<'s> {
             Method::Radau9 => {
                 let r9 = crate::integrate::Radau9::new(imp, ode)?;
                 RadauOrder::Five(Box::new((r9, Index3Complex::new(sys)?)))
+            }
+            Method::Radau13 => {
+                let r = crate::integrate::Radau13::new(imp, ode)?;
+                let c = [Index3Complex::new(sys)?, Index3Complex::new(sys)?];
+                RadauOrder::Seven(Box::new((r, c)))
             }
             Method::Radau59 => {
                 let r = crate::integrate::Radau59::new(imp, ode)?;
@@ -496,6 +502,10 @@ impl Index3Scheme for RadauScheme<'_> {
                 let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
                 r9.integrate(f, cplx, span)
             }
+            RadauOrder::Seven(b) => {
+                let (r, [c2, c3]) = &mut **b;
+                r.integrate(f, [&mut self.c, c2, c3], span)
+            }
             RadauOrder::Variable(b) => {
                 let (r, c2) = &mut **b;
                 let cplx: [&mut dyn crate::integrate::ComplexNewton; 2] = [&mut self.c, c2];
@@ -507,6 +517,7 @@ impl Index3Scheme for RadauScheme<'_> {
         let rs = match &self.integ {
             RadauOrder::Three(r5) => r5.stats(),
             RadauOrder::Five(b) => b.0.stats(),
+            RadauOrder::Seven(b) => b.0.stats(),
             RadauOrder::Variable(b) => b.0.stats(),
         };
         let mut extra = counters(&rs, &IMPLICIT_COUNTERS);

@@ -14,6 +14,7 @@ mod every_method;
 mod explicit;
 mod genalpha;
 mod radau;
+mod radau13;
 mod radau59;
 mod radau9;
 mod stability_limit;

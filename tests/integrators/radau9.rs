@@ -53,10 +53,10 @@ pub(crate) fn pendulum_run(cfg: &RunConfig, theta0: f64) -> (f64, usize) {
 }
 
 /// The largest position error of the pendulum (x, y, φ of its body) at
-/// t = 1 s after radau9 with step `h`.
-fn pendulum_error(h: f64, theta0: f64) -> f64 {
+/// t = 1 s after `method` with the fixed step `h`.
+pub(crate) fn pendulum_error(method: Method, h: f64, theta0: f64) -> f64 {
     let mut cfg = RunConfig {
-        method: Method::Radau9,
+        method,
         t_end: 1.0,
         output_dt: 1.0,
         ..Default::default()
@@ -75,7 +75,10 @@ fn pendulum_error(h: f64, theta0: f64) -> f64 {
 fn pendulum_positions_converge_with_order_nine() {
     let th0 = 70f64.to_radians();
     let hs = [0.1, 0.0625, 0.05];
-    let e: Vec<f64> = hs.iter().map(|&h| pendulum_error(h, th0)).collect();
+    let e: Vec<f64> = hs
+        .iter()
+        .map(|&h| pendulum_error(Method::Radau9, h, th0))
+        .collect();
     println!("radau9 pendulum errors at h = {hs:?}: {e:?}");
     for k in 1..3 {
         let order = (e[0] / e[k]).ln() / (hs[0] / hs[k]).ln();
@@ -121,36 +124,39 @@ fn stiff_chain_n100_against_reference() {
     );
 }
 
-/// Bad input is a clear error: radau9 without a step and without
-/// `adaptive`, a step with `adaptive`, and in a scenario `integrator.rtol`
-/// with a fixed step.
+/// Bad input is a clear error: radau9 or radau13 without a step and
+/// without `adaptive`, a step with `adaptive`, and in a scenario
+/// `integrator.rtol` with a fixed step.
 #[test]
-fn radau9_takes_a_step_or_tolerances() {
+fn radau9_and_radau13_take_a_step_or_tolerances() {
     let (sys, q0, qd0, _) = stiff_chain(3, 0.1).unwrap();
-    let mut cfg = RunConfig {
-        method: Method::Radau9,
-        t_end: 0.01,
-        ..Default::default()
-    };
-    let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("fixed_step") && e.contains("radau9"), "{e}");
-    cfg.implicit.adaptive = true;
-    cfg.ode.fixed_step = Some(1e-3);
-    let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("fixed_step") && e.contains("radau9"), "{e}");
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");
-    let set = [
-        "integrator.method=\"radau9\"".to_string(),
-        "integrator.step=1e-3".to_string(),
-        "integrator.rtol=1e-4".to_string(),
-    ];
-    let Err(e) = mbsolve::scenario::load(&path, &set) else {
-        panic!("rtol with radau9");
-    };
-    let e = e.to_string();
-    assert!(e.contains("integrator.rtol") && e.contains("radau9"), "{e}");
+    for method in [Method::Radau9, Method::Radau13] {
+        let name = method.to_string();
+        let mut cfg = RunConfig {
+            method,
+            t_end: 0.01,
+            ..Default::default()
+        };
+        let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("fixed_step") && e.contains(&name), "{e}");
+        cfg.implicit.adaptive = true;
+        cfg.ode.fixed_step = Some(1e-3);
+        let e = simulate(&sys, &q0, &qd0, &cfg, &mut [])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("fixed_step") && e.contains(&name), "{e}");
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");
+        let set = [
+            format!("integrator.method=\"{name}\""),
+            "integrator.step=1e-3".to_string(),
+            "integrator.rtol=1e-4".to_string(),
+        ];
+        let Err(e) = mbsolve::scenario::load(&path, &set) else {
+            panic!("rtol with {name}");
+        };
+        let e = e.to_string();
+        assert!(e.contains("integrator.rtol") && e.contains(&name), "{e}");
+    }
 }

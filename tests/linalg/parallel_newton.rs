@@ -267,11 +267,16 @@ fn radau5_adaptive_stiff_chain_is_bit_identical_with_one_and_two_threads() {
     );
 }
 
-/// The same for adaptive radau9 and radau59 (five stages, two complex
-/// matrices; radau59 changes order between steps): bit-identical.
+/// The same for adaptive radau9, radau13 and radau59 (five and seven
+/// stages, two and three complex matrices; radau59 changes order between
+/// steps): bit-identical.
 #[test]
-fn radau9_and_radau59_adaptive_stiff_chain_are_bit_identical_with_one_and_two_threads() {
-    for (method, adaptive) in [(Method::Radau9, true), (Method::Radau59, false)] {
+fn radau9_radau13_and_radau59_adaptive_stiff_chain_are_bit_identical_with_one_and_two_threads() {
+    for (method, adaptive) in [
+        (Method::Radau9, true),
+        (Method::Radau13, true),
+        (Method::Radau59, false),
+    ] {
         bit_identical_runs(
             method,
             OdeOptions {

@@ -412,7 +412,7 @@ fn applicability_messages_name_the_methods_of_the_table() {
         (
             &["integrator.method=\"ode113\"", "integrator.min_step=1e-9"],
             "integrator.min_step",
-            "applies to the implicit methods genalpha, hht, newmark, radau5, radau9 and radau59 only, not to ode113",
+            "applies to the implicit methods genalpha, hht, newmark, radau5, radau9, radau59 and radau13 only, not to ode113",
         ),
         // a BDF key on the generalized-α family
         (
@@ -438,7 +438,7 @@ fn applicability_messages_name_the_methods_of_the_table() {
         (
             &["integrator.method=\"bdf\"", "integrator.newton_tol=1e-7"],
             "integrator.newton_tol",
-            "applies to the implicit methods genalpha, hht, newmark, radau5, radau9 and radau59 only, not to bdf",
+            "applies to the implicit methods genalpha, hht, newmark, radau5, radau9, radau59 and radau13 only, not to bdf",
         ),
         // Baumgarte on an index-3 method: the index-1 methods from the table
         (

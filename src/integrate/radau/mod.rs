@@ -10,8 +10,9 @@
 //!
 //! The stage loop (`Run`: state, Newton, error estimate, dense output)
 //! is written for any odd number of stages `S` and a tableau of them
-//! (`stages::Tableau`); it serves [`Radau9`] (S = 5) as well, and
-//! [`Radau59`] switches between the two between steps.
+//! (`stages::Tableau`); it serves [`Radau9`] (S = 5) and [`Radau13`]
+//! (S = 7) as well, and [`Radau59`] switches between three and five
+//! stages between steps.
 //!
 //! # Stages
 //!
@@ -101,7 +102,8 @@
 //! in the largest-component norm, and RADAU5's step control: `h_new = h /
 //! quot` with `quot = err^{1/4} / fac`, `fac = SAFETY · (1 + 2 k_max) /
 //! (k + 2 k_max)` (k Newton corrections of the step, `k_max` =
-//! `max_newton`), `quot ∈ [1/MAX_GROWTH, MAX_SHRINK]`, Gustafsson's
+//! `max_newton` for three stages; for S stages RADAU's limit
+//! `max_newton + 5 (S − 3)/2`, `newton_limit`), `quot ∈ [1/MAX_GROWTH, MAX_SHRINK]`, Gustafsson's
 //! predictive controller on accepted steps, no growth right after a
 //! rejection, a first step rejected is retried at h/10, and a new step
 //! within `[1, KEEP_STEP]` times the old one keeps it (and the
@@ -121,7 +123,7 @@ mod stages;
 mod tableau;
 mod variable;
 
-pub use radau9::Radau9;
+pub use radau9::{Radau13, Radau9, RadauHigh};
 use stages::cmul;
 pub use stages::RadauStages;
 use stages::{dot, Tableau};
@@ -187,6 +189,19 @@ pub(super) fn newton_fraction<const S: usize>(rtol_t: f64) -> f64 {
         rtol_t.powf((S - 1) as f64 / (S + 1) as f64)
     };
     (10.0 * f64::EPSILON / rtol_t).max(0.03f64.min(p))
+}
+
+/// RADAU's limit of Newton corrections for `S` stages, `max_newton + 5 (S
+/// − 3)/2` (RADAU's `NIT` raised by 5 per two stages: 7, 12, 17 at its
+/// default; Hairer & Wanner, J. Comput. Appl. Math. 111, 1999): the
+/// corrections allowed per round on one factorisation and the `k_max` of
+/// the step controller's factor (module docs, "Step size"). The predictor
+/// of S stages is further from the converged stages in units of the
+/// tighter Newton tolerance of S stages ([`newton_fraction`]), so a step
+/// takes more corrections, and with radau5's limit the controller's factor
+/// would shrink the steps of five and seven stages.
+pub(super) fn newton_limit<const S: usize>(max_newton: usize) -> usize {
+    max_newton + 5 * (S - 3) / 2
 }
 
 /// The complex Newton matrix of the transformed Radau stages:
@@ -698,7 +713,7 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                     t_new,
                     Some(self.t),
                 ))?;
-                let nit = self.opts.max_newton as f64;
+                let nit = newton_limit::<S>(self.opts.max_newton) as f64;
                 let fac =
                     SAFETY.min(SAFETY * (1.0 + 2.0 * nit) / (self.last_its as f64 + 2.0 * nit));
                 let expo = error_exponent::<S>();

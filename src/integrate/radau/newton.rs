@@ -121,7 +121,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         };
         // the first correction is judged with RADAU5's η₀ = max(η, ε)^0.8
         let eta0 = first_rate(self.eta);
-        let mut conv = Convergence::with_first_rate(radau_convergence(self.opts.max_newton), eta0);
+        let limit = newton_limit::<S>(self.opts.max_newton);
+        let mut conv = Convergence::with_first_rate(radau_convergence(limit), eta0);
         let mut its = 0usize;
         loop {
             if self.renewal.before_correction(conv.round()) {

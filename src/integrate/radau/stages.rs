@@ -402,43 +402,10 @@ mod tests {
             assert!((ci - k).abs() < 1e-15, "c[{i}] = {ci} against {k}");
             assert!(radau_polynomial(5, ci).abs() < 1e-13, "c[{i}] not a root");
         }
-        // B(9): Σ b_i c_i^{k−1} = 1/k, b = last row of 𝔄 (stiffly accurate)
-        for k in 1..=9 {
-            let s: f64 = (0..5).map(|i| tab.a[4][i] * tab.c[i].powi(k - 1)).sum();
-            assert!((s - 1.0 / k as f64).abs() < 1e-14, "B({k}): {s}");
-        }
-        // C(5): Σ_j 𝔄_ij c_j^{k−1} = c_i^k / k
-        for i in 0..5 {
-            for k in 1..=5 {
-                let s: f64 = (0..5).map(|j| tab.a[i][j] * tab.c[j].powi(k - 1)).sum();
-                let e = tab.c[i].powi(k) / k as f64;
-                assert!((s - e).abs() < 1e-14, "C({k}) row {i}: {s} against {e}");
-            }
-        }
+        assert_order_conditions(&tab, 1e-14);
         // T⁻¹ 𝔄 T block-diagonal
         assert_eq!(tab.mu.len(), 2);
-        let mut blocks = [[0.0; 5]; 5];
-        blocks[0][0] = tab.gamma;
-        for (p, m) in tab.mu.iter().enumerate() {
-            let o = 1 + 2 * p;
-            blocks[o][o] = m[0];
-            blocks[o][o + 1] = -m[1];
-            blocks[o + 1][o] = m[1];
-            blocks[o + 1][o + 1] = m[0];
-        }
-        for i in 0..5 {
-            for j in 0..5 {
-                let x: f64 = (0..5)
-                    .flat_map(|k| (0..5).map(move |l| (k, l)))
-                    .map(|(k, l)| tab.t_inv[i][k] * tab.a[k][l] * tab.t[l][j])
-                    .sum();
-                assert!(
-                    (x - blocks[i][j]).abs() < 1e-14,
-                    "T⁻¹𝔄T[{i}][{j}] = {x:e} against {:e}",
-                    blocks[i][j]
-                );
-            }
-        }
+        assert_block_diagonal(&tab, 1e-14);
         // the embedded error estimate's d = e/γ against RADAU's DD (NS = 5)
         let dd = [
             -27.780_933_944_064_637,
@@ -466,6 +433,107 @@ mod tests {
             assert!(
                 (z[0] - re).abs() < 1e-12 && (z[1] - im).abs() < 1e-12,
                 "{z:?}"
+            );
+        }
+    }
+
+    /// B(2S − 1), `Σ b_i c_i^{k−1} = 1/k` with b the last row of 𝔄
+    /// (stiffly accurate), and C(S), `Σ_j 𝔄_ij c_j^{k−1} = c_i^k / k`, to `tol`.
+    fn assert_order_conditions<const S: usize>(tab: &RadauStages<S>, tol: f64) {
+        for k in 1..2 * S as i32 {
+            let s: f64 = (0..S).map(|i| tab.a[S - 1][i] * tab.c[i].powi(k - 1)).sum();
+            assert!((s - 1.0 / k as f64).abs() < tol, "S = {S}, B({k}): {s}");
+        }
+        for i in 0..S {
+            for k in 1..=S as i32 {
+                let s: f64 = (0..S).map(|j| tab.a[i][j] * tab.c[j].powi(k - 1)).sum();
+                let e = tab.c[i].powi(k) / k as f64;
+                assert!(
+                    (s - e).abs() < tol,
+                    "S = {S}, C({k}) row {i}: {s} against {e}"
+                );
+            }
+        }
+    }
+
+    /// `T⁻¹ 𝔄 T` against the blocks of γ and the μ_p, entry by entry.
+    fn assert_block_diagonal<const S: usize>(tab: &RadauStages<S>, tol: f64) {
+        let mut blocks = [[0.0; S]; S];
+        blocks[0][0] = tab.gamma;
+        for (p, m) in tab.mu.iter().enumerate() {
+            let o = 1 + 2 * p;
+            blocks[o][o] = m[0];
+            blocks[o][o + 1] = -m[1];
+            blocks[o + 1][o] = m[1];
+            blocks[o + 1][o + 1] = m[0];
+        }
+        for i in 0..S {
+            for j in 0..S {
+                let x: f64 = (0..S)
+                    .flat_map(|k| (0..S).map(move |l| (k, l)))
+                    .map(|(k, l)| tab.t_inv[i][k] * tab.a[k][l] * tab.t[l][j])
+                    .sum();
+                assert!(
+                    (x - blocks[i][j]).abs() < tol,
+                    "S = {S}: T⁻¹𝔄T[{i}][{j}] = {x:e} against {:e}",
+                    blocks[i][j]
+                );
+            }
+        }
+    }
+
+    /// S = 7 (radau13): every constant against an independent 40-digit
+    /// computation (mpmath: the roots of the Radau polynomial, 𝔄 from
+    /// C(7), its inverse's eigenvalues, the `d_i` from their conditions),
+    /// the order conditions B(13) and C(7), and `T⁻¹ 𝔄 T` block-diagonal.
+    #[test]
+    fn seven_stages_against_an_independent_computation() {
+        let tab = RadauStages::<7>::new();
+        let known = [
+            0.029316427159784893,
+            0.1480785996684843,
+            0.3369846902811543,
+            0.5586715187715501,
+            0.7692338620300545,
+            0.9269456713197411,
+            1.0,
+        ];
+        for (i, (&ci, &k)) in tab.c.iter().zip(&known).enumerate() {
+            assert!((ci - k).abs() < 1e-15, "c[{i}] = {ci} against {k}");
+        }
+        assert_order_conditions(&tab, 1e-13);
+        assert_eq!(tab.mu.len(), 3);
+        assert_block_diagonal(&tab, 1e-12);
+        assert!((1.0 / tab.gamma - 8.936832788405216).abs() < 1e-11);
+        let inv = |m: C64| cdiv([1.0, 0.0], m);
+        for (p, (re, im)) in [
+            (8.511834825102946, -3.281013624325059),
+            (7.14105521918764, -6.623045922639276),
+            (4.378693561506806, -10.169693283795011),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let z = inv(tab.mu[p]);
+            assert!(
+                (z[0] - re).abs() < 1e-11 && (z[1] - im).abs() < 1e-11,
+                "1/μ_{p} = {z:?}"
+            );
+        }
+        let dd = [
+            -54.374436894128614,
+            7.000024004259187,
+            -2.355661091987557,
+            1.1322890661061344,
+            -0.6468913267673587,
+            0.38753338537535237,
+            -1.0 / 7.0,
+        ];
+        for (i, (&e, &d)) in tab.e.iter().zip(&dd).enumerate() {
+            assert!(
+                (e / tab.gamma - d).abs() < 1e-11 * d.abs(),
+                "d[{i}] = {}",
+                e / tab.gamma
             );
         }
     }
