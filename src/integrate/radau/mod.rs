@@ -366,6 +366,9 @@ struct Run<'g, 's, const S: usize, T: Tableau<S>> {
     l_prev: [Vec<f64>; S],
     qs: Vec<f64>,
     vs: Vec<f64>,
+    /// Every stage's position and velocity of the current correction.
+    qst: [Vec<f64>; S],
+    vst: [Vec<f64>; S],
     r: [Vec<f64>; S],
     x: [Vec<f64>; S],
     y: Vec<f64>,
@@ -439,6 +442,8 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             l_prev: vm(),
             qs: vec![0.0; n],
             vs: vec![0.0; n],
+            qst: vn(),
+            vst: vn(),
             r: vnm(),
             x: vnm(),
             y: [q0, qd0].concat(),
@@ -505,6 +510,8 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             l_prev,
             qs: self.qs,
             vs: self.vs,
+            qst: std::array::from_fn(|_| vec![0.0; n]),
+            vst: std::array::from_fn(|_| vec![0.0; n]),
             r: std::array::from_fn(|_| vec![0.0; n + m]),
             x: std::array::from_fn(|_| vec![0.0; n + m]),
             y: self.y,
@@ -531,29 +538,77 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
     }
 }
 
-impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
-    /// Stage i's position and velocity into `qs`, `vs`:
-    /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`.
-    fn stage_state(&mut self, i: usize, h: f64) {
-        let tab = self.tab.stages();
-        let n = self.n;
-        let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
-        // slices of length n: no bounds checks in the loop, vectorised;
-        // element-wise, in two halves concurrently for large n
-        let st: [&[f64]; S] = std::array::from_fn(|j| &self.a[j][..n]);
-        let (q, v) = (&self.q[..n], &self.v[..n]);
-        let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
-        crate::parallel::split_pass(
-            n >= crate::parallel::PARALLEL_MIN_COORDS,
-            n,
-            (qs, vs, q, v, st),
-            |_, (qs, vs, q, v, st)| {
+/// Stages `stages` (`K` of them) of `q`, `v` and the stage accelerations
+/// `st` into `qs[..]`, `vs[..]` (one per stage, of length n):
+/// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`;
+/// element-wise, in two halves concurrently for large n (one hand-over
+/// for all `K` stages, each half stage after stage).
+#[allow(clippy::too_many_arguments)]
+fn stage_states_into<const S: usize, const K: usize>(
+    tab: &RadauStages<S>,
+    stages: std::ops::Range<usize>,
+    h: f64,
+    qs: [&mut [f64]; K],
+    vs: [&mut [f64]; K],
+    q: &[f64],
+    v: &[f64],
+    st: &[Vec<f64>; S],
+) {
+    let n = qs.first().map_or(0, |x| x.len());
+    let st: [&[f64]; S] = std::array::from_fn(|j| &st[j][..n]);
+    crate::parallel::split_pass(
+        n >= crate::parallel::PARALLEL_MIN_COORDS,
+        n,
+        (qs, vs, &q[..n], &v[..n], st),
+        |_, (qs, vs, q, v, st)| {
+            for ((qs, vs), i) in qs.into_iter().zip(vs).zip(stages.clone()) {
+                let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
+                // slices of length n: no bounds checks in the loop, vectorised
+                let (qs, vs) = (&mut qs[..q.len()], &mut vs[..q.len()]);
                 for k in 0..qs.len() {
                     qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
                     vs[k] = v[k] + h * dot(a, |j| st[j][k]);
                 }
-            },
-            |(), ()| (),
+            }
+        },
+        |(), ()| (),
+    );
+}
+
+impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
+    /// Stage i's position and velocity into `qs`, `vs`:
+    /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`.
+    fn stage_state(&mut self, i: usize, h: f64) {
+        let n = self.n;
+        let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
+        stage_states_into(
+            self.tab.stages(),
+            i..i + 1,
+            h,
+            [qs],
+            [vs],
+            &self.q,
+            &self.v,
+            &self.a,
+        );
+    }
+
+    /// Every stage's position and velocity into `qst`, `vst` (as
+    /// [`Self::stage_state`] for each stage, the same operations), in one
+    /// element-wise pass: one hand-over for all stages.
+    fn stage_states(&mut self, h: f64) {
+        let n = self.n;
+        let qst = self.qst.each_mut().map(|x| &mut x[..n]);
+        let vst = self.vst.each_mut().map(|x| &mut x[..n]);
+        stage_states_into(
+            self.tab.stages(),
+            0..S,
+            h,
+            qst,
+            vst,
+            &self.q,
+            &self.v,
+            &self.a,
         );
     }
 

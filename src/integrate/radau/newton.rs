@@ -127,16 +127,16 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             if self.renewal.before_correction(conv.round()) {
                 self.factor_at(h, false)?;
             }
-            // residuals of the stages
+            // residuals of the stages (their states in one pass)
+            self.stage_states(h);
             for i in 0..S {
-                self.stage_state(i, h);
                 self.stats.residual_evaluations += 1;
                 let ti = self.t + tab.c[i] * h;
                 self.sys.residual(
                     StateView {
                         t: ti,
-                        q: &self.qs,
-                        qd: &self.vs,
+                        q: &self.qst[i],
+                        qd: &self.vst[i],
                     },
                     &self.a[i],
                     &self.l[i],
