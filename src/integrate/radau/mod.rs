@@ -538,6 +538,22 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
     }
 }
 
+/// One coordinate of stage i's position and velocity,
+/// `Q_i = q + c_i h v + h² Σ_j (𝔄²)_ij A_j`, `V_i = v + h Σ_j 𝔄_ij A_j`
+/// (`ch` = c_i h, `a`, `a2`: row i of 𝔄 and 𝔄², `st(j)` = A_j).
+#[inline(always)]
+pub(super) fn stage_at<const S: usize>(
+    ch: f64,
+    a: &[f64; S],
+    a2: &[f64; S],
+    h: f64,
+    q: f64,
+    v: f64,
+    st: impl Fn(usize) -> f64,
+) -> (f64, f64) {
+    (q + ch * v + h * h * dot(a2, &st), v + h * dot(a, st))
+}
+
 /// Stages `stages` (`K` of them) of `q`, `v` and the stage accelerations
 /// `st` into `qs[..]`, `vs[..]` (one per stage, of length n):
 /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`;
@@ -566,8 +582,7 @@ fn stage_states_into<const S: usize, const K: usize>(
                 // slices of length n: no bounds checks in the loop, vectorised
                 let (qs, vs) = (&mut qs[..q.len()], &mut vs[..q.len()]);
                 for k in 0..qs.len() {
-                    qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
-                    vs[k] = v[k] + h * dot(a, |j| st[j][k]);
+                    (qs[k], vs[k]) = stage_at(ch, a, a2, h, q[k], v[k], |j| st[j][k]);
                 }
             }
         },
@@ -787,15 +802,13 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 self.rejected = false;
             }
             // accept: stiffly accurate, the last stage is the step's end
-            // (the adaptive error test left it in `qs`, `vs` already);
-            // `q_old ← q`, `q ← Q_S` by swapping buffers (`qs` is scratch)
-            if !adaptive {
-                self.stage_state(S - 1, h);
-            }
+            // (the converged attempt's last update left it in `qst`,
+            // `vst`); `q_old ← q`, `q ← Q_S` by swapping buffers (`qst` is
+            // scratch until the next attempt's stage states)
             std::mem::swap(&mut self.q_old, &mut self.q);
-            std::mem::swap(&mut self.q, &mut self.qs);
+            std::mem::swap(&mut self.q, &mut self.qst[S - 1]);
             std::mem::swap(&mut self.v_old, &mut self.v);
-            std::mem::swap(&mut self.v, &mut self.vs);
+            std::mem::swap(&mut self.v, &mut self.vst[S - 1]);
             self.qdd.copy_from_slice(&self.a[S - 1]);
             self.lam.copy_from_slice(&self.l[S - 1]);
             if self.opts.project {

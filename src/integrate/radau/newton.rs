@@ -123,12 +123,18 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let eta0 = first_rate(self.eta);
         let mut conv = Convergence::with_first_rate(radau_convergence(self.opts.max_newton), eta0);
         let mut its = 0usize;
+        // whether `qst`, `vst` hold the stage states of the current `a`
+        // (the update computes them for the next correction)
+        let mut stages_current = false;
         loop {
             if self.renewal.before_correction(conv.round()) {
                 self.factor_at(h, false)?;
             }
-            // residuals of the stages (their states in one pass)
-            self.stage_states(h);
+            // residuals of the stages (their states in one pass, unless
+            // the last update computed them)
+            if !stages_current {
+                self.stage_states(h);
+            }
             for i in 0..S {
                 self.stats.residual_evaluations += 1;
                 let ti = self.t + tab.c[i] * h;
@@ -192,12 +198,20 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             let dnorm = {
                 let x: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][..n]);
                 let av: [&mut [f64]; S] = self.a.each_mut().map(|a| &mut a[..n]);
-                let q = &self.q[..n];
+                let (q, v) = (&self.q[..n], &self.v[..n]);
+                let qst: [&mut [f64]; S] = self.qst.each_mut().map(|x| &mut x[..n]);
+                let vst: [&mut [f64]; S] = self.vst.each_mut().map(|x| &mut x[..n]);
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each);
-                // in two halves concurrently for large n (max: order-free),
-                // with the multipliers' update
-                let update = |base: usize, (av, x, q): ([&mut [f64]; S], [&[f64]; S], &[f64])| {
+                // the next correction's stage states from the updated
+                // stages (`stage_at`, as `stage_states`); in two halves
+                // concurrently for large n (max: order-free), with the
+                // multipliers' update
+                type Rows<'a, const S: usize> = (
+                    ([&'a mut [f64]; S], [&'a [f64]; S], &'a [f64]),
+                    ([&'a mut [f64]; S], [&'a mut [f64]; S], &'a [f64]),
+                );
+                let update = |base: usize, ((av, x, q), (qst, vst, v)): Rows<'_, S>| {
                     let mut dnorm = 0.0_f64;
                     for k in 0..q.len() {
                         let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
@@ -207,6 +221,13 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         for i in 1..S {
                             av[i][k] += d[i];
                             big = big.max((h * h * d[i]).abs());
+                        }
+                        let st: [f64; S] = std::array::from_fn(|j| av[j][k]);
+                        for i in 0..S {
+                            (qst[i][k], vst[i][k]) =
+                                stage_at(tab.c[i] * h, &tab.a[i], &tab.a2[i], h, q[k], v[k], |j| {
+                                    st[j]
+                                });
                         }
                         let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
                         let mut ratio = big / (tol_q + floor);
@@ -239,11 +260,12 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 // hand-over (each in its own two halves)
                 split_passes(
                     par,
-                    (n, (av, x, q), update),
+                    (n, ((av, x, q), (qst, vst, v)), update),
                     (m, (lv, xl), update_l),
                     f64::max,
                 )
             };
+            stages_current = true;
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
@@ -275,6 +297,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                             }
                         }
                     }
+                    stages_current = false;
                     self.factor_at(h, true)?;
                     continue;
                 }
