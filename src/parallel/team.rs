@@ -558,13 +558,7 @@ impl Team {
             // a window ended with this pass: the evidence it gave
             let preempted = self.h.take_preempted();
             if a.exploit_window_ended() {
-                // alone: a core found free counts only against a stretch
-                // chosen because none was
-                let against = if solo {
-                    a.busy && core_free(self.cores)
-                } else {
-                    preempted
-                };
+                let against = self.against(solo, a.busy, preempted);
                 wake |= a.evidence(against);
             }
         }
@@ -574,6 +568,22 @@ impl Team {
             self.h.wake_helper();
         }
         solo
+    }
+
+    /// Whether an exploit window just ended gives evidence against the
+    /// way it ran ([`DOUBT_WINDOWS`]). Alone: a core found free, only
+    /// against a stretch chosen because none was (`busy`). With the
+    /// helper: a half taken back from it awake (`preempted`: it was not on
+    /// a core) while no core is free beside the team's two threads (the
+    /// helper counted among the runnable tasks while awake); on an idle
+    /// machine such a take-back is a passing pause of the helper's core,
+    /// whose cost the probes weigh by wall time.
+    fn against(&self, solo: bool, busy: bool, preempted: bool) -> bool {
+        if solo {
+            busy && core_free(self.cores)
+        } else {
+            preempted && !core_free(self.cores + usize::from(self.h.helper_awake()))
+        }
     }
 
     /// Records how a posted half ran; after [`MISS_LIMIT`] take-backs in a
