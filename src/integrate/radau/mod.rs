@@ -538,27 +538,11 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
     }
 }
 
-/// One coordinate of stage i's position and velocity,
-/// `Q_i = q + c_i h v + h² Σ_j (𝔄²)_ij A_j`, `V_i = v + h Σ_j 𝔄_ij A_j`
-/// (`ch` = c_i h, `a`, `a2`: row i of 𝔄 and 𝔄², `st(j)` = A_j).
-#[inline(always)]
-pub(super) fn stage_at<const S: usize>(
-    ch: f64,
-    a: &[f64; S],
-    a2: &[f64; S],
-    h: f64,
-    q: f64,
-    v: f64,
-    st: impl Fn(usize) -> f64,
-) -> (f64, f64) {
-    (q + ch * v + h * h * dot(a2, &st), v + h * dot(a, st))
-}
-
 /// Stages `stages` (`K` of them) of `q`, `v` and the stage accelerations
 /// `st` into `qs[..]`, `vs[..]` (one per stage, of length n):
 /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`;
 /// element-wise, in two halves concurrently for large n (one hand-over
-/// for all `K` stages, each half stage after stage).
+/// for all `K` stages, each half stage after stage: [`stage_rows`]).
 #[allow(clippy::too_many_arguments)]
 fn stage_states_into<const S: usize, const K: usize>(
     tab: &RadauStages<S>,
@@ -576,18 +560,34 @@ fn stage_states_into<const S: usize, const K: usize>(
         n >= crate::parallel::PARALLEL_MIN_COORDS,
         n,
         (qs, vs, &q[..n], &v[..n], st),
-        |_, (qs, vs, q, v, st)| {
-            for ((qs, vs), i) in qs.into_iter().zip(vs).zip(stages.clone()) {
-                let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
-                // slices of length n: no bounds checks in the loop, vectorised
-                let (qs, vs) = (&mut qs[..q.len()], &mut vs[..q.len()]);
-                for k in 0..qs.len() {
-                    (qs[k], vs[k]) = stage_at(ch, a, a2, h, q[k], v[k], |j| st[j][k]);
-                }
-            }
-        },
+        |_, (qs, vs, q, v, st)| stage_rows(tab, stages.clone(), h, qs, vs, q, v, st),
         |(), ()| (),
     );
+}
+
+/// The rows of [`stage_states_into`] over one range of coordinates (all
+/// slices of its length), stage after stage, on this thread.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn stage_rows<const S: usize, const K: usize>(
+    tab: &RadauStages<S>,
+    stages: std::ops::Range<usize>,
+    h: f64,
+    qs: [&mut [f64]; K],
+    vs: [&mut [f64]; K],
+    q: &[f64],
+    v: &[f64],
+    st: [&[f64]; S],
+) {
+    for ((qs, vs), i) in qs.into_iter().zip(vs).zip(stages) {
+        let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
+        // slices of one length: no bounds checks in the loop, vectorised
+        let (qs, vs) = (&mut qs[..q.len()], &mut vs[..q.len()]);
+        let (v, st) = (&v[..q.len()], st.map(|s| &s[..q.len()]));
+        for k in 0..qs.len() {
+            qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
+            vs[k] = v[k] + h * dot(a, |j| st[j][k]);
+        }
+    }
 }
 
 impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {

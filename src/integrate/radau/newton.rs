@@ -203,8 +203,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 let vst: [&mut [f64]; S] = self.vst.each_mut().map(|x| &mut x[..n]);
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each);
-                // the next correction's stage states from the updated
-                // stages (`stage_at`, as `stage_states`); in two halves
+                // then the next correction's stage states from the updated
+                // stages (as `stage_states`, over the same half); in two halves
                 // concurrently for large n (max: order-free), with the
                 // multipliers' update
                 type Rows<'a, const S: usize> = (
@@ -222,13 +222,6 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                             av[i][k] += d[i];
                             big = big.max((h * h * d[i]).abs());
                         }
-                        let st: [f64; S] = std::array::from_fn(|j| av[j][k]);
-                        for i in 0..S {
-                            (qst[i][k], vst[i][k]) =
-                                stage_at(tab.c[i] * h, &tab.a[i], &tab.a2[i], h, q[k], v[k], |j| {
-                                    st[j]
-                                });
-                        }
                         let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
                         let mut ratio = big / (tol_q + floor);
                         if adaptive {
@@ -244,6 +237,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         }
                         dnorm = dnorm.max(ratio);
                     }
+                    let av: [&[f64]; S] = av.map(|a| -> &[f64] { a });
+                    stage_rows(tab, 0..S, h, qst, vst, q, v, av);
                     dnorm
                 };
                 let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);
