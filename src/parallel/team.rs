@@ -369,8 +369,8 @@ pub enum Rule {
         /// Probes not run because no core was free (`/proc/loadavg`):
         /// the team ran alone instead.
         skipped: u32,
-        /// Stretches ended early, their probe brought forward by
-        /// [`DOUBT_WINDOWS`] windows in a row of evidence against them.
+        /// Stretches ended early, their probe brought forward by a few
+        /// windows in a row (`DOUBT_WINDOWS`, 2) of evidence against them.
         cut: u32,
     },
 }
