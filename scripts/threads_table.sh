@@ -67,7 +67,7 @@ for mode in $BUSY_MODES; do
         line=$("$bin" "$N" "$method" "$t" "$threads")
         echo "$line" | jq -c --arg mode "$mode" --arg round "$round" --arg load "$load" \
           '. + {mode: $mode, round: ($round | tonumber), load: ($load | tonumber)}' >>"$OUT"
-        echo "$mode $method round $round threads $threads: $(echo "$line" | jq -c '{wall_s, cpu_s, halves_split, halves_taken_back, halves_solo, threads_rule}')" >&2
+        echo "$mode $method round $round threads $threads: $(echo "$line" | jq -c '{wall_s, cpu_s, halves_split, halves_taken_back, halves_taken_back_awake, halves_solo, threads_passes, newton_iterations, threads_rule}')" >&2
       done
     done
   done

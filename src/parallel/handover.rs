@@ -196,6 +196,12 @@ impl Handover {
         self.started.load(Ordering::Acquire) && self.state.load(Ordering::Acquire) == IDLE
     }
 
+    /// Whether the helper is not parked (spinning or running a half: a
+    /// runnable task of the machine).
+    pub(super) fn helper_awake(&self) -> bool {
+        !self.helper_parked.load(Ordering::SeqCst)
+    }
+
     /// Wakes a parked helper (it spins for [`SPIN`] again).
     pub(super) fn wake_helper(&self) {
         if self.helper_parked.load(Ordering::SeqCst) {

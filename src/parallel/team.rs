@@ -300,6 +300,10 @@ pub struct TeamReport {
     /// Halves posted to a team's helper that the caller took back and ran
     /// itself because the helper had not started them.
     pub halves_taken_back: usize,
+    /// Those of [`Self::halves_taken_back`] whose helper was awake, not
+    /// parked (it was not on a core, or not yet spinning): the rest were
+    /// posted to a parked helper, woken too late.
+    pub halves_taken_back_awake: usize,
     /// Joins a team ran on one thread without posting (the second thread
     /// was found busy, or the A/B rule ran that window alone).
     pub halves_solo: usize,
@@ -365,6 +369,9 @@ pub enum Rule {
         /// Probes not run because no core was free (`/proc/loadavg`):
         /// the team ran alone instead.
         skipped: u32,
+        /// Stretches ended early, their probe brought forward by a few
+        /// windows in a row (`DOUBT_WINDOWS`, 2) of evidence against them.
+        cut: u32,
     },
 }
 
@@ -399,6 +406,7 @@ impl Rule {
                 alone,
                 last_ratio,
                 skipped,
+                ..
             } => {
                 let busy = match skipped {
                     0 => String::new(),
@@ -440,6 +448,7 @@ impl TeamReport {
     fn add(&mut self, o: TeamReport) {
         self.halves_split += o.halves_split;
         self.halves_taken_back += o.halves_taken_back;
+        self.halves_taken_back_awake += o.halves_taken_back_awake;
         self.halves_solo += o.halves_solo;
         self.passes += o.passes;
         self.decisions[0] += o.decisions[0];
@@ -460,6 +469,7 @@ thread_local! {
         Cell::new(TeamReport {
             halves_split: 0,
             halves_taken_back: 0,
+            halves_taken_back_awake: 0,
             halves_solo: 0,
             passes: 0,
             decisions: [0; 2],
@@ -493,6 +503,7 @@ struct Team {
     adaptive: bool,
     split: AtomicUsize,
     taken_back: AtomicUsize,
+    taken_back_awake: AtomicUsize,
     solo: AtomicUsize,
     misses: AtomicU32,
     solo_left: AtomicU32,
@@ -516,6 +527,7 @@ impl Team {
             adaptive,
             split: AtomicUsize::new(0),
             taken_back: AtomicUsize::new(0),
+            taken_back_awake: AtomicUsize::new(0),
             solo: AtomicUsize::new(0),
             misses: AtomicU32::new(0),
             solo_left: AtomicU32::new(0),
@@ -546,13 +558,7 @@ impl Team {
             // a window ended with this pass: the evidence it gave
             let preempted = self.h.take_preempted();
             if a.exploit_window_ended() {
-                // alone: a core found free counts only against a stretch
-                // chosen because none was
-                let against = if solo {
-                    a.busy && core_free(self.cores)
-                } else {
-                    preempted
-                };
+                let against = self.against(solo, a.busy, preempted);
                 wake |= a.evidence(against);
             }
         }
@@ -562,6 +568,22 @@ impl Team {
             self.h.wake_helper();
         }
         solo
+    }
+
+    /// Whether an exploit window just ended gives evidence against the
+    /// way it ran ([`DOUBT_WINDOWS`]). Alone: a core found free, only
+    /// against a stretch chosen because none was (`busy`). With the
+    /// helper: a half taken back from it awake (`preempted`: it was not on
+    /// a core) while no core is free beside the team's two threads (the
+    /// helper counted among the runnable tasks while awake); on an idle
+    /// machine such a take-back is a passing pause of the helper's core,
+    /// whose cost the probes weigh by wall time.
+    fn against(&self, solo: bool, busy: bool, preempted: bool) -> bool {
+        if solo {
+            busy && core_free(self.cores)
+        } else {
+            preempted && !core_free(self.cores + usize::from(self.h.helper_awake()))
+        }
     }
 
     /// Records how a posted half ran; after [`MISS_LIMIT`] take-backs in a
@@ -584,6 +606,7 @@ impl Team {
             }
             Ran::TakenBack { awake: true } => {
                 self.taken_back.fetch_add(1, r);
+                self.taken_back_awake.fetch_add(1, r);
                 let m = self.misses.load(r) + 1;
                 if self.adaptive && m >= MISS_LIMIT {
                     let b = self.backoff.load(r);
@@ -629,6 +652,7 @@ impl Team {
                     alone,
                     last_ratio: a.last_ratio,
                     skipped: a.skipped,
+                    cut: a.cut,
                 };
                 (a.decided, rule)
             }
@@ -636,6 +660,7 @@ impl Team {
         TeamReport {
             halves_split: self.split.load(Ordering::Relaxed),
             halves_taken_back: self.taken_back.load(Ordering::Relaxed),
+            halves_taken_back_awake: self.taken_back_awake.load(Ordering::Relaxed),
             halves_solo: self.solo.load(Ordering::Relaxed),
             passes: self.passes.load(Ordering::Relaxed),
             decisions,

@@ -486,6 +486,11 @@ pub fn simulate_into(
     extra.insert("split".into(), (team.halves_split > 0).into());
     extra.insert("halves_split".into(), team.halves_split.into());
     extra.insert("halves_taken_back".into(), team.halves_taken_back.into());
+    extra.insert(
+        "halves_taken_back_awake".into(),
+        team.halves_taken_back_awake.into(),
+    );
+    extra.insert("threads_passes".into(), team.passes.into());
     extra.insert("halves_solo".into(), team.halves_solo.into());
     extra.insert(
         "threads_rule".into(),

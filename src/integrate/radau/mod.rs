@@ -381,6 +381,9 @@ struct Run<'g, 's, const S: usize, T: Tableau<S>> {
     l_prev: [Vec<f64>; S],
     qs: Vec<f64>,
     vs: Vec<f64>,
+    /// Every stage's position and velocity of the current correction.
+    qst: [Vec<f64>; S],
+    vst: [Vec<f64>; S],
     r: [Vec<f64>; S],
     x: [Vec<f64>; S],
     y: Vec<f64>,
@@ -454,6 +457,8 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             l_prev: vm(),
             qs: vec![0.0; n],
             vs: vec![0.0; n],
+            qst: vn(),
+            vst: vn(),
             r: vnm(),
             x: vnm(),
             y: [q0, qd0].concat(),
@@ -520,6 +525,8 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             l_prev,
             qs: self.qs,
             vs: self.vs,
+            qst: std::array::from_fn(|_| vec![0.0; n]),
+            vst: std::array::from_fn(|_| vec![0.0; n]),
             r: std::array::from_fn(|_| vec![0.0; n + m]),
             x: std::array::from_fn(|_| vec![0.0; n + m]),
             y: self.y,
@@ -546,29 +553,92 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
     }
 }
 
+/// Stages `stages` (`K` of them) of `q`, `v` and the stage accelerations
+/// `st` into `qs[..]`, `vs[..]` (one per stage, of length n):
+/// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`;
+/// element-wise, in two halves concurrently for large n (one hand-over
+/// for all `K` stages, each half stage after stage: [`stage_rows`]).
+#[allow(clippy::too_many_arguments)]
+fn stage_states_into<const S: usize, const K: usize>(
+    tab: &RadauStages<S>,
+    stages: std::ops::Range<usize>,
+    h: f64,
+    qs: [&mut [f64]; K],
+    vs: [&mut [f64]; K],
+    q: &[f64],
+    v: &[f64],
+    st: &[Vec<f64>; S],
+) {
+    let n = qs.first().map_or(0, |x| x.len());
+    let st: [&[f64]; S] = std::array::from_fn(|j| &st[j][..n]);
+    crate::parallel::split_pass(
+        n >= crate::parallel::PARALLEL_MIN_COORDS,
+        n,
+        (qs, vs, &q[..n], &v[..n], st),
+        |_, (qs, vs, q, v, st)| stage_rows(tab, stages.clone(), h, qs, vs, q, v, st),
+        |(), ()| (),
+    );
+}
+
+/// The rows of [`stage_states_into`] over one range of coordinates (all
+/// slices of its length), stage after stage, on this thread.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn stage_rows<const S: usize, const K: usize>(
+    tab: &RadauStages<S>,
+    stages: std::ops::Range<usize>,
+    h: f64,
+    qs: [&mut [f64]; K],
+    vs: [&mut [f64]; K],
+    q: &[f64],
+    v: &[f64],
+    st: [&[f64]; S],
+) {
+    for ((qs, vs), i) in qs.into_iter().zip(vs).zip(stages) {
+        let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
+        // slices of one length: no bounds checks in the loop, vectorised
+        let (qs, vs) = (&mut qs[..q.len()], &mut vs[..q.len()]);
+        let (v, st) = (&v[..q.len()], st.map(|s| &s[..q.len()]));
+        for k in 0..qs.len() {
+            qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
+            vs[k] = v[k] + h * dot(a, |j| st[j][k]);
+        }
+    }
+}
+
 impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
     /// Stage i's position and velocity into `qs`, `vs`:
     /// `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`, `V_i = v_n + h Σ_j 𝔄_ij A_j`.
     fn stage_state(&mut self, i: usize, h: f64) {
-        let tab = self.tab.stages();
         let n = self.n;
-        let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
-        // slices of length n: no bounds checks in the loop, vectorised;
-        // element-wise, in two halves concurrently for large n
-        let st: [&[f64]; S] = std::array::from_fn(|j| &self.a[j][..n]);
-        let (q, v) = (&self.q[..n], &self.v[..n]);
         let (qs, vs) = (&mut self.qs[..n], &mut self.vs[..n]);
-        crate::parallel::split_pass(
-            n >= crate::parallel::PARALLEL_MIN_COORDS,
-            n,
-            (qs, vs, q, v, st),
-            |_, (qs, vs, q, v, st)| {
-                for k in 0..qs.len() {
-                    qs[k] = q[k] + ch * v[k] + h * h * dot(a2, |j| st[j][k]);
-                    vs[k] = v[k] + h * dot(a, |j| st[j][k]);
-                }
-            },
-            |(), ()| (),
+        stage_states_into(
+            self.tab.stages(),
+            i..i + 1,
+            h,
+            [qs],
+            [vs],
+            &self.q,
+            &self.v,
+            &self.a,
+        );
+    }
+
+    /// Every stage's position and velocity into `qst`, `vst` (as
+    /// [`Self::stage_state`] for each stage, the same operations), in one
+    /// element-wise pass: one hand-over for all stages.
+    fn stage_states(&mut self, h: f64) {
+        let n = self.n;
+        let qst = self.qst.each_mut().map(|x| &mut x[..n]);
+        let vst = self.vst.each_mut().map(|x| &mut x[..n]);
+        stage_states_into(
+            self.tab.stages(),
+            0..S,
+            h,
+            qst,
+            vst,
+            &self.q,
+            &self.v,
+            &self.a,
         );
     }
 
@@ -747,15 +817,13 @@ impl<const S: usize, T: Tableau<S>> Stepper for Run<'_, '_, S, T> {
                 self.rejected = false;
             }
             // accept: stiffly accurate, the last stage is the step's end
-            // (the adaptive error test left it in `qs`, `vs` already);
-            // `q_old ← q`, `q ← Q_S` by swapping buffers (`qs` is scratch)
-            if !adaptive {
-                self.stage_state(S - 1, h);
-            }
+            // (the converged attempt's last update left it in `qst`,
+            // `vst`); `q_old ← q`, `q ← Q_S` by swapping buffers (`qst` is
+            // scratch until the next attempt's stage states)
             std::mem::swap(&mut self.q_old, &mut self.q);
-            std::mem::swap(&mut self.q, &mut self.qs);
+            std::mem::swap(&mut self.q, &mut self.qst[S - 1]);
             std::mem::swap(&mut self.v_old, &mut self.v);
-            std::mem::swap(&mut self.v, &mut self.vs);
+            std::mem::swap(&mut self.v, &mut self.vst[S - 1]);
             self.qdd.copy_from_slice(&self.a[S - 1]);
             self.lam.copy_from_slice(&self.l[S - 1]);
             if self.opts.project {

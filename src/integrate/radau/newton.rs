@@ -124,20 +124,26 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let limit = newton_limit::<S>(self.opts.max_newton);
         let mut conv = Convergence::with_first_rate(radau_convergence(limit), eta0);
         let mut its = 0usize;
+        // whether `qst`, `vst` hold the stage states of the current `a`
+        // (the update computes them for the next correction)
+        let mut stages_current = false;
         loop {
             if self.renewal.before_correction(conv.round()) {
                 self.factor_at(h, false)?;
             }
-            // residuals of the stages
+            // residuals of the stages (their states in one pass, unless
+            // the last update computed them)
+            if !stages_current {
+                self.stage_states(h);
+            }
             for i in 0..S {
-                self.stage_state(i, h);
                 self.stats.residual_evaluations += 1;
                 let ti = self.t + tab.c[i] * h;
                 self.sys.residual(
                     StateView {
                         t: ti,
-                        q: &self.qs,
-                        qd: &self.vs,
+                        q: &self.qst[i],
+                        qd: &self.vst[i],
                     },
                     &self.a[i],
                     &self.l[i],
@@ -193,12 +199,20 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             let dnorm = {
                 let x: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][..n]);
                 let av: [&mut [f64]; S] = self.a.each_mut().map(|a| &mut a[..n]);
-                let q = &self.q[..n];
+                let (q, v) = (&self.q[..n], &self.v[..n]);
+                let qst: [&mut [f64]; S] = self.qst.each_mut().map(|x| &mut x[..n]);
+                let vst: [&mut [f64]; S] = self.vst.each_mut().map(|x| &mut x[..n]);
                 // the largest stage correction of each coordinate, then one
                 // division (both monotone: the same max as dividing each);
-                // in two halves concurrently for large n (max: order-free),
-                // with the multipliers' update
-                let update = |base: usize, (av, x, q): ([&mut [f64]; S], [&[f64]; S], &[f64])| {
+                // then the next correction's stage states from the updated
+                // stages (as `stage_states`, over the same half); in two halves
+                // concurrently for large n (max: order-free), with the
+                // multipliers' update
+                type Rows<'a, const S: usize> = (
+                    ([&'a mut [f64]; S], [&'a [f64]; S], &'a [f64]),
+                    ([&'a mut [f64]; S], [&'a mut [f64]; S], &'a [f64]),
+                );
+                let update = |base: usize, ((av, x, q), (qst, vst, v)): Rows<'_, S>| {
                     let mut dnorm = 0.0_f64;
                     for k in 0..q.len() {
                         let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
@@ -224,6 +238,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         }
                         dnorm = dnorm.max(ratio);
                     }
+                    let av: [&[f64]; S] = av.map(|a| -> &[f64] { a });
+                    stage_rows(tab, 0..S, h, qst, vst, q, v, av);
                     dnorm
                 };
                 let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);
@@ -240,11 +256,12 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 // hand-over (each in its own two halves)
                 split_passes(
                     par,
-                    (n, (av, x, q), update),
+                    (n, ((av, x, q), (qst, vst, v)), update),
                     (m, (lv, xl), update_l),
                     f64::max,
                 )
             };
+            stages_current = true;
             if !dnorm.is_finite() {
                 return Err(SystemError::msg("non-finite Newton correction"));
             }
@@ -276,6 +293,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                             }
                         }
                     }
+                    stages_current = false;
                     self.factor_at(h, true)?;
                     continue;
                 }

@@ -650,3 +650,29 @@ fn runnable_tasks_of_loadavg() {
     assert_eq!(runnable_tasks("0.1 0.2 0.3"), None);
     assert_eq!(runnable_tasks("0.1 0.2 0.3 x/4 5"), None);
 }
+
+/// The evidence of an exploit window against the way it ran: with the
+/// helper, a half taken back from an awake helper counts only while no
+/// core is free beside the team (a busy machine), not on an idle one;
+/// alone, a free core counts only against a stretch chosen for want of
+/// one.
+#[test]
+fn a_take_back_is_evidence_only_on_a_busy_machine() {
+    let t = Team::new(false);
+    for (free, preempted, busy, with_helper, alone) in [
+        (false, true, false, true, false),
+        (false, false, false, false, false),
+        (true, true, false, false, false),
+        (true, false, true, false, true),
+        (false, false, true, false, false),
+    ] {
+        TEST_FREE.with(|f| f.set(Some(free)));
+        assert_eq!(
+            t.against(false, busy, preempted),
+            with_helper,
+            "{free} {preempted}"
+        );
+        assert_eq!(t.against(true, busy, preempted), alone, "{free} {busy}");
+    }
+    TEST_FREE.with(|f| f.set(None));
+}
