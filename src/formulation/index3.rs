@@ -297,7 +297,7 @@ impl<'a> Index3<'a> {
         // pass and the per-half scans (the same bits either way)
         if self.halves.is_some()
             && crate::parallel::concurrent()
-            && self.residual_in_halves(t, q, qd, qdd, lambda, scale, r)
+            && self.residual_in_halves(StateView { t, q, qd }, qdd, lambda, scale, r)
         {
             return Ok(());
         }
@@ -353,12 +353,9 @@ impl<'a> Index3<'a> {
     /// leaving the work to the caller's one-piece evaluation (which names
     /// the culprit), when anything is not finite — or, for good, when the
     /// constraint kernels cannot evaluate a range of joints.
-    #[allow(clippy::too_many_arguments)]
     fn residual_in_halves(
         &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         qdd: &[f64],
         lambda: &[f64],
         scale: f64,

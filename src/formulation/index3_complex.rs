@@ -92,14 +92,11 @@ impl ChainPath {
         })
     }
 
-    /// Assemble `K_r`, `K_i` (module docs) and factorise.
-    #[allow(clippy::too_many_arguments)]
+    /// Assemble `K_r`, `K_i` (module docs) at `x` and `λ` and factorise.
     fn factorize(
         &mut self,
         sys: &System,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         lambda: &[f64],
         [c0, c1, c2]: [[f64; 2]; 3],
     ) -> Result<(), FormulationError> {
@@ -242,8 +239,9 @@ impl<'a> Index3Complex<'a> {
             ));
         }
         self.factorizations += 1;
+        let x = StateView { t, q, qd };
         if let Some(ch) = self.chain.as_mut().filter(|_| self.on_chain) {
-            match ch.factorize(self.sys, t, q, qd, lambda, c) {
+            match ch.factorize(self.sys, x, lambda, c) {
                 Ok(()) => return Ok(()),
                 // a vanishing pivot: the pivoting LU from here on
                 Err(FormulationError::Linear { .. }) => self.on_chain = false,
@@ -254,7 +252,7 @@ impl<'a> Index3Complex<'a> {
             self.lu = Some(LuPath::new(self.sys)?);
         }
         let lu = self.lu.as_mut().expect("built above");
-        lu.assemble_and_factorize(self.sys, t, q, qd, lambda, c)
+        lu.assemble_and_factorize(self.sys, x, lambda, c)
     }
 
     /// Solve with the last factorisation: `re + i·im` (each `[x; y]`, length
@@ -338,15 +336,12 @@ impl LuPath {
         })
     }
 
-    /// Assemble `G` (coefficients `[re, im]`, `c₀` real) in its real
-    /// embedding and factorise it.
-    #[allow(clippy::too_many_arguments)]
+    /// Assemble `G` (coefficients `[re, im]`, `c₀` real) at `x` and `λ` in
+    /// its real embedding and factorise it.
     fn assemble_and_factorize(
         &mut self,
         sys: &System,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        StateView { t, q, qd }: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), FormulationError> {
