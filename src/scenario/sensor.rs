@@ -4,7 +4,7 @@
 use super::element::{Decl, Kind, RawTagged};
 use super::model::RawPoint;
 use super::ScenarioError;
-use crate::model::{joint_short_name, Sensor, SensorKind, System};
+use crate::model::{joint_short_name, BodyPoint, Sensor, SensorKind, System};
 use serde::Deserialize;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -135,18 +135,13 @@ pub(super) fn build(
         let kind = match spec(s, decl.name, k, file)? {
             Spec::Point(p) => {
                 let b = body("body", &p.body)?;
-                SensorKind::Point {
-                    body: b,
-                    point: point("point", p.point, b)?,
-                }
+                SensorKind::Point(BodyPoint::new(b, point("point", p.point, b)?))
             }
             Spec::Distance(d) => {
                 let (bi, bj) = (body("body_i", &d.body_i)?, body("body_j", &d.body_j)?);
                 SensorKind::Distance {
-                    body_i: bi,
-                    point_i: point("point_i", d.point_i, bi)?,
-                    body_j: bj,
-                    point_j: point("point_j", d.point_j, bj)?,
+                    i: BodyPoint::new(bi, point("point_i", d.point_i, bi)?),
+                    j: BodyPoint::new(bj, point("point_j", d.point_j, bj)?),
                 }
             }
             Spec::JointAngle(j) => {
