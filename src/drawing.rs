@@ -19,7 +19,7 @@
 pub mod arrows;
 mod build;
 
-use crate::model::{BodyRef, ForceGeometry, JointGeometry, Slide, System};
+use crate::model::{BodyPoint, BodyRef, ForceGeometry, JointGeometry, Slide, System};
 use serde::{Deserialize, Serialize};
 
 /// A point or vector in the plane \[m\].

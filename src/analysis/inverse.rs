@@ -166,9 +166,10 @@ fn dense_jacobian(sys: &System, q: &[f64], t: f64) -> Vec<f64> {
 /// the slide along a translational joint's axis ([`LockKind::eval`]).
 fn relative_row(sys: &System, geometry: JointGeometry, q: &[f64]) -> Option<Vec<f64>> {
     let kind = match geometry {
-        JointGeometry::Revolute { body_i, body_j, .. } => {
-            LockKind::RelativeAngle { body_i, body_j }
-        }
+        JointGeometry::Revolute { i, j } => LockKind::RelativeAngle {
+            body_i: i.body,
+            body_j: j.body,
+        },
         JointGeometry::Translational(slide) => LockKind::Slide(slide),
         JointGeometry::Other => return None,
     };

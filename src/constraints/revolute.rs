@@ -5,7 +5,7 @@ use super::{
     JointGeometry,
 };
 use crate::model::FdWorkspace;
-use crate::model::{perp, BodyRef, ModelError};
+use crate::model::{perp, BodyPoint, BodyRef, ModelError};
 
 /// Revolute joint, 2 equations (paper eq. (14) for the rod):
 /// `Φ = r_i + R(φ_i) s_i − r_j − R(φ_j) s_j = 0`.
@@ -46,10 +46,8 @@ impl Revolute {
 impl Constraint for Revolute {
     fn geometry(&self) -> JointGeometry {
         JointGeometry::Revolute {
-            body_i: self.body_i,
-            s_i: self.s_i,
-            body_j: self.body_j,
-            s_j: self.s_j,
+            i: BodyPoint::new(self.body_i, self.s_i),
+            j: BodyPoint::new(self.body_j, self.s_j),
         }
     }
 

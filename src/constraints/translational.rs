@@ -4,7 +4,7 @@ use super::{
     angle, angular_velocity, check_bodies, check_finite, point, two_body_pattern, velocity,
     Constraint, JointGeometry,
 };
-use crate::model::{perp, rotate, BodyRef, ModelError, Slide};
+use crate::model::{perp, rotate, BodyPoint, BodyRef, ModelError, Slide};
 
 /// Translational joint, 2 equations:
 ///
@@ -70,11 +70,9 @@ fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
 impl Constraint for Translational {
     fn geometry(&self) -> JointGeometry {
         JointGeometry::Translational(Slide {
-            body_i: self.body_i,
-            s_i: self.s_i,
+            i: BodyPoint::new(self.body_i, self.s_i),
             u_i: self.u_i,
-            body_j: self.body_j,
-            s_j: self.s_j,
+            j: BodyPoint::new(self.body_j, self.s_j),
         })
     }
 

@@ -220,7 +220,7 @@ impl<'a> ForceArrows<'a> {
                     .attachment_points()
                     .into_iter()
                     .rev()
-                    .find_map(|(body, s)| (body == BodyRef::Body(b)).then_some(s));
+                    .find_map(|p| (p.body == BodyRef::Body(b)).then_some(p.point));
                 out.push(Arrow {
                     kind: ArrowKind::Reaction,
                     name: crate::model::joint_short_name(c.as_ref()).unwrap_or_else(|| c.name()),

@@ -25,28 +25,27 @@ impl Drawing {
         };
         for c in system.constraints() {
             let g = c.geometry();
-            for (b, p) in g.attachment_points() {
-                pts.push(world(q0, carrier(b), p));
-                if let BodyRef::Body(i) = b {
-                    push(&mut joints[i], p);
+            for p in g.attachment_points() {
+                pts.push(p.at(q0));
+                if let BodyRef::Body(i) = p.body {
+                    push(&mut joints[i], p.point);
                 }
             }
             match g {
-                JointGeometry::Revolute {
-                    body_i,
-                    s_i,
-                    body_j,
-                    s_j,
-                } => {
+                JointGeometry::Revolute { i, j } => {
                     // one pin per joint, on the second body (or the first
                     // when the second is the ground)
-                    pins.push(match body_j {
-                        BodyRef::Body(j) => (Some(j), s_j),
-                        BodyRef::Ground => (carrier(body_i), s_i),
+                    pins.push(match j.body {
+                        BodyRef::Body(b) => (Some(b), j.point),
+                        BodyRef::Ground => (carrier(i.body), i.point),
                     });
                 }
                 JointGeometry::Translational(Slide {
-                    body_j: BodyRef::Body(j),
+                    j:
+                        BodyPoint {
+                            body: BodyRef::Body(j),
+                            ..
+                        },
                     ..
                 }) => sliders[j] = true,
                 _ => {}
@@ -56,15 +55,9 @@ impl Drawing {
         for f in system.forces() {
             let g = f.geometry();
             match g {
-                ForceGeometry::PointToPoint {
-                    body_i,
-                    point_i,
-                    body_j,
-                    point_j,
-                    ..
-                } => {
-                    pts.push(world(q0, carrier(body_i), point_i));
-                    pts.push(world(q0, carrier(body_j), point_j));
+                ForceGeometry::PointToPoint { i, j, .. } => {
+                    pts.push(i.at(q0));
+                    pts.push(j.at(q0));
                 }
                 ForceGeometry::Wall {
                     body,
@@ -196,16 +189,20 @@ impl Drawing {
         for c in system.constraints() {
             match c.geometry() {
                 JointGeometry::Revolute {
-                    body_i: BodyRef::Ground,
-                    s_i: p,
-                    body_j: other,
-                    ..
+                    i:
+                        BodyPoint {
+                            body: BodyRef::Ground,
+                            point: p,
+                        },
+                    j: BodyPoint { body: other, .. },
                 }
                 | JointGeometry::Revolute {
-                    body_j: BodyRef::Ground,
-                    s_j: p,
-                    body_i: other,
-                    ..
+                    j:
+                        BodyPoint {
+                            body: BodyRef::Ground,
+                            point: p,
+                        },
+                    i: BodyPoint { body: other, .. },
                 } => {
                     // the support points away from the pinned body's
                     // centre at the initial pose, along the nearer axis
@@ -231,13 +228,14 @@ impl Drawing {
                 JointGeometry::Translational(slide) => {
                     let axis = mul(slide.u_i, 1.0 / norm(slide.u_i).max(1e-300));
                     let gap = slider_box[1] * 1.3;
-                    match (slide.body_i, slide.body_j) {
-                        (BodyRef::Ground, BodyRef::Body(j)) => d
+                    let (i, j) = (slide.i, slide.j);
+                    match (i.body, j.body) {
+                        (BodyRef::Ground, BodyRef::Body(b)) => d
                             .pending
-                            .push(Pending::GroundGuide(slide.s_i, axis, gap, j, slide.s_j)),
+                            .push(Pending::GroundGuide(i.point, axis, gap, b, j.point)),
                         (BodyRef::Body(_), _) => d.parts.push(Part::Guide {
-                            body: carrier(slide.body_i),
-                            point: slide.s_i,
+                            body: carrier(i.body),
+                            point: i.point,
                             axis,
                             from: -0.25 * scale,
                             to: 0.25 * scale,
@@ -253,16 +251,14 @@ impl Drawing {
         for g in geoms {
             match g {
                 ForceGeometry::PointToPoint {
-                    body_i,
-                    point_i,
-                    body_j,
-                    point_j,
+                    i,
+                    j,
                     free_length,
                     spring,
                     damper,
                 } => {
-                    let (a, b) = (point_i, point_j);
-                    let (bi, bj) = (carrier(body_i), carrier(body_j));
+                    let (a, b) = (i.point, j.point);
+                    let (bi, bj) = (carrier(i.body), carrier(j.body));
                     let l0 = norm(sub(world(q0, bj, b), world(q0, bi, a)));
                     // a ground end: a short hatched anchor across the element
                     for (end, other, body) in [(a, world(q0, bj, b), bi), (b, world(q0, bi, a), bj)]

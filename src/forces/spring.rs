@@ -2,14 +2,13 @@
 //! body point and a ground point).
 
 use super::{check_coordinates, Check, ForceElement, ForceJacobians, Law};
-use crate::model::{BodyRef, ModelError, TimeFunction};
+use crate::model::{BodyPoint, ModelError, TimeFunction};
 
 /// Lengths below this \[m\] have no direction: the element applies no force.
 const MIN_LENGTH: f64 = 1e-12;
 
-/// Spring–damper–actuator between point `s_i` of body i and point `s_j` of
-/// body j (body-frame coordinates; for [`BodyRef::Ground`] the point is
-/// global).
+/// Spring–damper–actuator between the body points `i` and `j`
+/// ([`BodyPoint`]: body-frame coordinates, global on the ground).
 ///
 /// With `p = r + A(φ) s` the points, `d = p_j − p_i`, `L = |d|`, `e = d/L`,
 /// deflection `δ = L − free_length` and rate `L̇ = e·ḋ`, the tension is
@@ -31,14 +30,12 @@ const MIN_LENGTH: f64 = 1e-12;
 /// such a configuration is singular and should be avoided by the model).
 #[derive(Debug, Clone)]
 pub struct PointSpringDamper {
-    /// First body (receives `+F e`); may be the ground.
-    pub body_i: BodyRef,
-    /// Point on body i, body frame \[m\] (global for the ground).
-    pub point_i: [f64; 2],
-    /// Second body (receives `−F e`); may be the ground.
-    pub body_j: BodyRef,
-    /// Point on body j, body frame \[m\] (global for the ground).
-    pub point_j: [f64; 2],
+    /// The point on the first body (which receives `+F e`); may be on the
+    /// ground.
+    pub i: BodyPoint,
+    /// The point on the second body (which receives `−F e`); may be on the
+    /// ground.
+    pub j: BodyPoint,
     /// Free length \[m\], ≥ 0.
     pub free_length: f64,
     /// Tension as a function of the deflection `δ` \[N\]; non-decreasing.
@@ -63,20 +60,10 @@ struct Kin {
 
 impl PointSpringDamper {
     /// A linear spring (stiffness `k` \[N/m\]) and damper (`c` \[N s/m\]).
-    pub fn linear(
-        body_i: BodyRef,
-        point_i: [f64; 2],
-        body_j: BodyRef,
-        point_j: [f64; 2],
-        free_length: f64,
-        k: f64,
-        c: f64,
-    ) -> Self {
+    pub fn linear(i: BodyPoint, j: BodyPoint, free_length: f64, k: f64, c: f64) -> Self {
         Self {
-            body_i,
-            point_i,
-            body_j,
-            point_j,
+            i,
+            j,
             free_length,
             stiffness: Law::Linear(k),
             damping: Law::Linear(c),
@@ -91,8 +78,8 @@ impl PointSpringDamper {
         let mut out = [(0, 0.0, [0.0; 2]); 2];
         let mut n = 0;
         for (b, s, p) in [
-            (self.body_i, -1.0, self.point_i),
-            (self.body_j, 1.0, self.point_j),
+            (self.i.body, -1.0, self.i.point),
+            (self.j.body, 1.0, self.j.point),
         ] {
             if let Some(o) = b.offset() {
                 out[n] = (o, s, p);
@@ -107,15 +94,13 @@ impl PointSpringDamper {
 
     /// Current length `L` of the element.
     pub fn length(&self, q: &[f64]) -> f64 {
-        let pi = self.body_i.point_at(q, self.point_i);
-        let pj = self.body_j.point_at(q, self.point_j);
+        let (pi, pj) = (self.i.at(q), self.j.at(q));
         (pj[0] - pi[0]).hypot(pj[1] - pi[1])
     }
 
     /// Length, rate and derivatives; `None` below [`MIN_LENGTH`].
     fn kin(&self, q: &[f64], qd: &[f64]) -> Option<Kin> {
-        let pi = self.body_i.point_at(q, self.point_i);
-        let pj = self.body_j.point_at(q, self.point_j);
+        let (pi, pj) = (self.i.at(q), self.j.at(q));
         let d = [pj[0] - pi[0], pj[1] - pi[1]];
         let len = d[0].hypot(d[1]);
         if len.is_nan() || len < MIN_LENGTH {
@@ -193,10 +178,8 @@ impl ForceElement for PointSpringDamper {
             Law::Table { f, .. } => f.iter().any(|v| *v != 0.0),
         };
         crate::model::ForceGeometry::PointToPoint {
-            body_i: self.body_i,
-            point_i: self.point_i,
-            body_j: self.body_j,
-            point_j: self.point_j,
+            i: self.i,
+            j: self.j,
             free_length: self.free_length,
             spring: nonzero(&self.stiffness),
             damper: nonzero(&self.damping),
@@ -206,7 +189,7 @@ impl ForceElement for PointSpringDamper {
     fn name(&self) -> String {
         format!(
             "point spring-damper {:?} {:?} - {:?} {:?}",
-            self.body_i, self.point_i, self.body_j, self.point_j
+            self.i.body, self.i.point, self.j.body, self.j.point
         )
     }
 
@@ -287,9 +270,9 @@ impl ForceElement for PointSpringDamper {
     fn validate(&self, n_coords: usize) -> Result<(), ModelError> {
         let name = self.name();
         let check = Check { element: &name };
-        check.two_bodies(self.body_i, self.body_j)?;
-        check.finite_point("point_i", self.point_i)?;
-        check.finite_point("point_j", self.point_j)?;
+        check.two_bodies(self.i.body, self.j.body)?;
+        check.finite_point("point_i", self.i.point)?;
+        check.finite_point("point_j", self.j.point)?;
         check.sign("free_length", self.free_length, false)?;
         check.finite("preload", self.preload)?;
         self.stiffness.validate(&name, "stiffness", true)?;

@@ -60,12 +60,11 @@ fn code(b: BodyRef) -> i64 {
 /// A revolute joint as data: (body i, body j, kernel parameters s_i, s_j).
 fn revolute(g: JointGeometry) -> Option<(BodyRef, BodyRef, [f64; 4])> {
     match g {
-        JointGeometry::Revolute {
-            body_i,
-            s_i,
-            body_j,
-            s_j,
-        } => Some((body_i, body_j, [s_i[0], s_i[1], s_j[0], s_j[1]])),
+        JointGeometry::Revolute { i, j } => Some((
+            i.body,
+            j.body,
+            [i.point[0], i.point[1], j.point[0], j.point[1]],
+        )),
         _ => None,
     }
 }

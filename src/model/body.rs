@@ -98,3 +98,26 @@ impl BodyRef {
         }
     }
 }
+
+/// A point fixed on a body, or a fixed point of the ground: where joints,
+/// springs and sensors attach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyPoint {
+    /// The body, or the ground.
+    pub body: BodyRef,
+    /// The point in the body frame \[m\] (global on the ground).
+    pub point: [f64; 2],
+}
+
+impl BodyPoint {
+    /// The point `point` of `body`.
+    pub fn new(body: BodyRef, point: [f64; 2]) -> Self {
+        Self { body, point }
+    }
+
+    /// Its global position `r + R(φ) s` \[m\] at the pose `q`
+    /// ([`BodyRef::point_at`]).
+    pub fn at(self, q: &[f64]) -> [f64; 2] {
+        self.body.point_at(q, self.point)
+    }
+}

@@ -7,7 +7,7 @@
 //! acceleration equation Φ_q q̈ = γ (paper, eq. (4)–(5)). For implicit
 //! integrators it also provides (Φ_qᵀ λ)_q.
 
-use super::{perp, rotate, BodyRef, FdWorkspace, ModelError};
+use super::{perp, rotate, BodyPoint, BodyRef, FdWorkspace, ModelError};
 use std::fmt::Debug;
 
 /// A holonomic (possibly rheonomic) constraint block of `n_eq` equations.
@@ -80,65 +80,46 @@ pub trait Constraint: Send + Sync + Debug {
     }
 }
 
-/// A joint described as data ([`Constraint::geometry`]). Points are in the
-/// body frame (global for the ground).
+/// A joint described as data ([`Constraint::geometry`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum JointGeometry {
-    /// Revolute joint: `r_i + R(φ_i) s_i = r_j + R(φ_j) s_j`.
+    /// Revolute joint: the two points coincide,
+    /// `r_i + R(φ_i) s_i = r_j + R(φ_j) s_j`.
     Revolute {
-        /// First body.
-        body_i: BodyRef,
-        /// Pin point on the first body.
-        s_i: [f64; 2],
-        /// Second body.
-        body_j: BodyRef,
-        /// Pin point on the second body.
-        s_j: [f64; 2],
+        /// The pin point on the first body.
+        i: BodyPoint,
+        /// The pin point on the second body.
+        j: BodyPoint,
     },
-    /// Translational joint: the point `s_j` of body j slides along the axis
-    /// `u_i` through `s_i` on body i.
+    /// Translational joint: the point `j` slides along the axis `u_i`
+    /// through the point `i`.
     Translational(Slide),
     /// Anything else (drives, user constraints).
     Other,
 }
 
 impl JointGeometry {
-    /// The body-fixed points the joint attaches, `(body, point)`.
-    pub fn attachment_points(&self) -> Vec<(BodyRef, [f64; 2])> {
+    /// The body-fixed points the joint attaches.
+    pub fn attachment_points(&self) -> Vec<BodyPoint> {
         match *self {
-            JointGeometry::Revolute {
-                body_i,
-                s_i,
-                body_j,
-                s_j,
+            JointGeometry::Revolute { i, j } | JointGeometry::Translational(Slide { i, j, .. }) => {
+                vec![i, j]
             }
-            | JointGeometry::Translational(Slide {
-                body_i,
-                s_i,
-                body_j,
-                s_j,
-                ..
-            }) => vec![(body_i, s_i), (body_j, s_j)],
             JointGeometry::Other => Vec::new(),
         }
     }
 }
 
-/// A translational joint as data: the point `s_j` of body j slides along
-/// the unit axis `u_i` through the point `s_i` of body i (body frames;
-/// global for the ground).
+/// A translational joint as data: the point `j` slides along the unit
+/// axis `u_i` (body i frame; global on the ground) through the point `i`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slide {
-    /// Body carrying the axis.
-    pub body_i: BodyRef,
-    /// Point of the axis (body i frame).
-    pub s_i: [f64; 2],
+    /// Point of the axis, on the body carrying it.
+    pub i: BodyPoint,
     /// Unit axis (body i frame).
     pub u_i: [f64; 2],
-    /// Sliding body.
-    pub body_j: BodyRef,
-    /// Sliding point (body j frame).
-    pub s_j: [f64; 2],
+    /// Sliding point, on the sliding body.
+    pub j: BodyPoint,
 }
 
 impl Slide {
@@ -146,7 +127,7 @@ impl Slide {
     /// body j (none for the ground); the order of [`Slide::eval`]'s
     /// gradient.
     pub fn columns(&self) -> Vec<usize> {
-        [self.body_i, self.body_j]
+        [self.i.body, self.j.body]
             .iter()
             .filter_map(|b| b.offset())
             .flat_map(|o| [o, o + 1, o + 2])
@@ -156,20 +137,20 @@ impl Slide {
     /// The slide `d = (r_Pj − r_Pi) · R(φ_i) u_i` \[m\] at `q`, and its
     /// gradient over [`Slide::columns`] into `grad` (exact).
     pub fn eval(&self, q: &[f64], grad: &mut [f64]) -> f64 {
-        let (ri, rj) = (origin(q, self.body_i), origin(q, self.body_j));
-        let (ai, dai) = rotated(q, self.body_i, self.s_i);
-        let (aj, daj) = rotated(q, self.body_j, self.s_j);
-        let (u, du) = rotated(q, self.body_i, self.u_i);
+        let (ri, rj) = (origin(q, self.i.body), origin(q, self.j.body));
+        let (ai, dai) = rotated(q, self.i.body, self.i.point);
+        let (aj, daj) = rotated(q, self.j.body, self.j.point);
+        let (u, du) = rotated(q, self.i.body, self.u_i);
         let d = [rj[0] + aj[0] - ri[0] - ai[0], rj[1] + aj[1] - ri[1] - ai[1]];
         let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
         let mut k = 0;
-        if self.body_i.offset().is_some() {
+        if self.i.body.offset().is_some() {
             grad[0] = -u[0];
             grad[1] = -u[1];
             grad[2] = -dot(u, dai) + dot(d, du);
             k = 3;
         }
-        if self.body_j.offset().is_some() {
+        if self.j.body.offset().is_some() {
             grad[k] = u[0];
             grad[k + 1] = u[1];
             grad[k + 2] = dot(u, daj);
@@ -240,8 +221,8 @@ mod tests {
                 [q[o] + a[0], q[o + 1] + a[1]]
             }
         };
-        let u = s.body_i.offset().map_or(s.u_i, |o| rotate(q[o + 2], s.u_i));
-        let (pi, pj) = (point(s.body_i, s.s_i), point(s.body_j, s.s_j));
+        let u = s.i.body.offset().map_or(s.u_i, |o| rotate(q[o + 2], s.u_i));
+        let (pi, pj) = (point(s.i.body, s.i.point), point(s.j.body, s.j.point));
         u[0] * (pj[0] - pi[0]) + u[1] * (pj[1] - pi[1])
     }
 
@@ -251,11 +232,9 @@ mod tests {
         let (sn, cs) = 0.4_f64.sin_cos();
         for body_i in [BodyRef::Body(0), BodyRef::Ground] {
             let s = Slide {
-                body_i,
-                s_i: [0.25, -0.1],
+                i: BodyPoint::new(body_i, [0.25, -0.1]),
                 u_i: [cs, sn],
-                body_j: BodyRef::Body(1),
-                s_j: [-0.15, 0.05],
+                j: BodyPoint::new(BodyRef::Body(1), [-0.15, 0.05]),
             };
             let cols = s.columns();
             let mut grad = [0.0; 6];

@@ -4,7 +4,7 @@
 //! [`crate::forces`]); and [`FdWorkspace`], the allocation-free finite
 //! differences behind the default Jacobians of forces and constraints.
 
-use super::{touched_columns, BodyRef, Constraint, ModelError};
+use super::{touched_columns, BodyPoint, Constraint, ModelError};
 use std::collections::HashMap;
 use std::fmt::Debug;
 
@@ -136,14 +136,10 @@ impl<L: BodyLoads> ForceElement for L {
 pub enum ForceGeometry {
     /// A spring and/or damper between two body points.
     PointToPoint {
-        /// First body.
-        body_i: BodyRef,
-        /// Point on the first body.
-        point_i: [f64; 2],
-        /// Second body.
-        body_j: BodyRef,
-        /// Point on the second body.
-        point_j: [f64; 2],
+        /// The point on the first body.
+        i: BodyPoint,
+        /// The point on the second body.
+        j: BodyPoint,
         /// Free length \[m\].
         free_length: f64,
         /// Has a stiffness (drawn as a zig-zag).

@@ -21,7 +21,7 @@ mod sensor;
 mod system;
 mod time_function;
 
-pub use body::{Body, BodyRef};
+pub use body::{Body, BodyPoint, BodyRef};
 pub(crate) use constraint::touched_columns;
 pub use constraint::{check_bodies, Constraint, JointGeometry, Slide};
 pub use energy::EnergyWorkspace;

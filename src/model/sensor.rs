@@ -12,19 +12,14 @@
 //!   ([`ForceElement::readings`]: a spring's tension and deflection, a
 //!   contact's normal force and penetration).
 
-use super::{BodyRef, Constraint, System};
+use super::{BodyPoint, BodyRef, Constraint, System};
 
 /// What a [`Sensor`] measures.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SensorKind {
     /// Position and velocity of a body point (body frame; the ground: a
     /// fixed global point).
-    Point {
-        /// The body.
-        body: BodyRef,
-        /// The point in the body frame \[m\].
-        point: [f64; 2],
-    },
+    Point(BodyPoint),
     /// Relative angle and rate of the two bodies of joint `joint` (index
     /// into [`System::constraints`]).
     JointAngle {
@@ -35,14 +30,10 @@ pub enum SensorKind {
     },
     /// Distance between two body points and its rate.
     Distance {
-        /// First body.
-        body_i: BodyRef,
-        /// Its point \[m\].
-        point_i: [f64; 2],
-        /// Second body.
-        body_j: BodyRef,
-        /// Its point \[m\].
-        point_j: [f64; 2],
+        /// The point on the first body.
+        i: BodyPoint,
+        /// The point on the second body.
+        j: BodyPoint,
     },
     /// The readings of force element `element` (index into
     /// [`System::forces`]).
@@ -61,9 +52,10 @@ pub struct Sensor {
     pub kind: SensorKind,
 }
 
-/// Position and velocity of point `s` of body `b`.
-fn point_state(b: BodyRef, s: [f64; 2], q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
-    match b.offset() {
+/// Position and velocity of the body point `p`.
+fn point_state(p: BodyPoint, q: &[f64], qd: &[f64]) -> ([f64; 2], [f64; 2]) {
+    let s = p.point;
+    match p.body.offset() {
         None => (s, [0.0; 2]),
         Some(o) => {
             let (sn, cs) = q[o + 2].sin_cos();
@@ -92,7 +84,7 @@ impl Sensor {
     /// [`Sensor::evaluate`].
     pub fn quantities(&self, sys: &System) -> Vec<(&'static str, &'static str)> {
         match self.kind {
-            SensorKind::Point { .. } => {
+            SensorKind::Point(_) => {
                 vec![("x", "m"), ("y", "m"), ("vx", "m/s"), ("vy", "m/s")]
             }
             SensorKind::JointAngle { .. } => vec![("angle", "rad"), ("rate", "rad/s")],
@@ -108,8 +100,8 @@ impl Sensor {
     /// [`Sensor::quantities`]).
     pub fn evaluate(&self, sys: &System, t: f64, q: &[f64], qd: &[f64], out: &mut Vec<f64>) {
         match self.kind {
-            SensorKind::Point { body, point } => {
-                let (p, v) = point_state(body, point, q, qd);
+            SensorKind::Point(p) => {
+                let (p, v) = point_state(p, q, qd);
                 out.extend_from_slice(&[p[0], p[1], v[0], v[1]]);
             }
             SensorKind::JointAngle { body_i, body_j } => {
@@ -117,14 +109,9 @@ impl Sensor {
                 out.push(ang(body_j, q) - ang(body_i, q));
                 out.push(ang(body_j, qd) - ang(body_i, qd));
             }
-            SensorKind::Distance {
-                body_i,
-                point_i,
-                body_j,
-                point_j,
-            } => {
-                let (pi, vi) = point_state(body_i, point_i, q, qd);
-                let (pj, vj) = point_state(body_j, point_j, q, qd);
+            SensorKind::Distance { i, j } => {
+                let (pi, vi) = point_state(i, q, qd);
+                let (pj, vj) = point_state(j, q, qd);
                 let d = [pj[0] - pi[0], pj[1] - pi[1]];
                 let len = d[0].hypot(d[1]);
                 let rate = if len > 0.0 {

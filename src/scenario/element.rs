@@ -535,29 +535,25 @@ pub(super) mod docs {
         }
     }
 
-    /// Each `(table, key, near)` of `cases` appended to `base` fails at
-    /// `<kind>[0].<key>` as not a key of its type, suggesting `near`; the
-    /// errors, for further checks.
-    pub(in crate::scenario) fn check_typos(
+    /// `table` appended to `base` fails at `<kind>[0].<key>` as not a key
+    /// of its type, suggesting `near`; the error, for further checks.
+    pub(in crate::scenario) fn check_typo(
         kind: &super::Kind,
         base: &str,
-        cases: &[(&str, &str, &str)],
-    ) -> Vec<crate::scenario::ScenarioError> {
-        let errors = cases.iter().map(|&(table, key, near)| {
-            let e = crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[])
-                .expect_err(table);
-            assert_eq!(e.key, format!("{}[0].{key}", kind.table), "{e}");
-            assert!(
-                e.message.contains(&format!("did you mean `{near}`?")),
-                "{e}"
-            );
-            let ty = table.split('"').nth(1).unwrap();
-            let what = format!("{ty} {}", kind.what);
-            let not_a_key = format!("not a key of {} {what}", super::article(&what));
-            assert!(e.message.starts_with(&not_a_key), "{e}");
-            e
-        });
-        errors.collect()
+        (table, key, near): (&str, &str, &str),
+    ) -> crate::scenario::ScenarioError {
+        let e =
+            crate::scenario::parse(&format!("{base}{table}"), "f.toml", "f", &[]).expect_err(table);
+        assert_eq!(e.key, format!("{}[0].{key}", kind.table), "{e}");
+        assert!(
+            e.message.contains(&format!("did you mean `{near}`?")),
+            "{e}"
+        );
+        let ty = table.split('"').nth(1).unwrap();
+        let what = format!("{ty} {}", kind.what);
+        let not_a_key = format!("not a key of {} {what}", super::article(&what));
+        assert!(e.message.starts_with(&not_a_key), "{e}");
+        e
     }
 
     /// `keys` sorted, as owned strings.
@@ -565,5 +561,116 @@ pub(super) mod docs {
         let mut k: Vec<String> = keys.iter().map(|s| s.to_string()).collect();
         k.sort();
         k
+    }
+}
+
+/// The `[[force]]`, `[[joint]]` and `[[sensor]]` declarations held to
+/// docs/scenarios.md and to their typo messages, every kind alike.
+#[cfg(test)]
+mod kinds {
+    use super::docs::{check_keys, check_typo, keys_after, keys_of_row};
+    use super::{Decl, Kind};
+    use crate::scenario::forces::{self, FORCE};
+    use crate::scenario::joints::{self, JOINT};
+    use crate::scenario::sensor::{self, SENSOR};
+
+    /// docs/scenarios.md lists exactly each type's keys, as its struct
+    /// declares them.
+    #[test]
+    fn docs_list_each_types_keys() {
+        check_keys(forces::TYPES, "[[force]]", |t| {
+            keys_after(&format!("### `{t}` —"))
+        });
+        check_keys(joints::TYPES, "[[joint]]", |t| {
+            keys_of_row("## `[[joint]]`", t)
+        });
+        check_keys(sensor::TYPES, "[[sensor]]", |t| {
+            keys_of_row("## `[[sensor]]`", t)
+        });
+    }
+
+    /// A scenario of one body `a` up to an open table of `kind` (a sensor
+    /// named `m`, with a spring `s` to read).
+    fn base(kind: &Kind) -> String {
+        let body = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n[time]\nend = 0.1\n";
+        match kind.table {
+            "sensor" => format!(
+                "{body}[[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\n\
+                 body_j = \"ground\"\n[[sensor]]\nname = \"m\"\n"
+            ),
+            table => format!("{body}[[{table}]]\n"),
+        }
+    }
+
+    /// The keys of type `ty` of `kind`.
+    fn keys(kind: &Kind, ty: &str) -> &'static [&'static str] {
+        fn of<A>(types: &[Decl<A>], ty: &str) -> &'static [&'static str] {
+            (types.iter().find(|t| t.name == ty).expect("a type").keys)()
+        }
+        match kind.table {
+            "force" => of(forces::TYPES, ty),
+            "joint" => of(joints::TYPES, ty),
+            _ => of(sensor::TYPES, ty),
+        }
+    }
+
+    /// A typo in a table is reported at its key with the nearest key of
+    /// its type, and the message lists this type's keys (a force's not
+    /// those of every force type).
+    #[test]
+    fn typos_suggest_the_nearest_key_of_this_type() {
+        let cases = [
+            (&FORCE, "type = \"torque\"\nbody = \"a\"\ntorqe = 1.0", "torqe", "torque"),
+            (&FORCE, "type = \"force\"\nbody = \"a\"\nfx = 1.0\nfy = 0.0\npoimt = [0.0, 0.0]", "poimt", "point"),
+            (&FORCE, "type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\ndampin = 1.0", "dampin", "damping"),
+            (&FORCE, "type = \"rotational_spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nrest_angel = 1.0", "rest_angel", "rest_angle"),
+            (&FORCE, "type = \"contact\"\nbody = \"a\"\nstiffness = 1.0\nwall_normal_dg = 90.0", "wall_normal_dg", "wall_normal_deg"),
+            (&FORCE, "type = \"fluid\"\nbody = \"a\"\nfluid_density = 1.0\nvolum = 1.0", "volum", "volume"),
+            (&FORCE, "type = \"expression\"\nbody = \"a\"\ntorq = \"1\"", "torq", "torque"),
+            (&JOINT, "type = \"revolute\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_i = [0.0, 0.0]\npoint_jj = [0.0, 0.0]", "point_jj", "point_j"),
+            (&JOINT, "type = \"translational\"\nbody_i = \"a\"\nbody_j = \"ground\"\naxis = [1.0, 0.0]", "axis", "axis_i"),
+            (&JOINT, "type = \"drive_coordinate\"\nbody = \"a\"\ncoordinate = \"x\"\nmotoin = 0.0", "motoin", "motion"),
+            (&JOINT, "type = \"drive_angle\"\nbody_i = \"a\"\nbody_jj = \"ground\"\nmotion = 0.0", "body_jj", "body_j"),
+            (&SENSOR, "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]", "piont", "point"),
+            (&SENSOR, "type = \"joint_angle\"\njiont = \"j\"", "jiont", "joint"),
+            (&SENSOR, "type = \"distance\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_ii = [0.0, 0.0]", "point_ii", "point_i"),
+            (&SENSOR, "type = \"force_element\"\nforces = \"s\"", "forces", "force"),
+            (&SENSOR, "type = \"contact\"\nforc = \"s\"", "forc", "force"),
+        ];
+        for (kind, table, key, near) in cases {
+            let e = check_typo(kind, &base(kind), (table, key, near));
+            let ty = table.split('"').nth(1).unwrap();
+            assert!(e.message.contains(&keys(kind, ty).join(", ")), "{e}");
+            if ty != "fluid" {
+                assert!(!e.message.contains("fluid_density"), "{e}");
+            }
+        }
+    }
+
+    /// A key of another type of the kind is reported with this type's
+    /// keys and no suggestion; a misspelt type with the nearest type.
+    #[test]
+    fn other_types_keys_and_misspelt_types_are_reported_at_their_key() {
+        let cases = [
+            (
+                &FORCE,
+                "type = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\nradius = 0.1",
+                "radius",
+                "not a key of a spring force element",
+            ),
+            (
+                &JOINT,
+                "type = \"revolut\"\nbody_i = \"a\"\nbody_j = \"ground\"",
+                "type",
+                "did you mean 'revolute'?",
+            ),
+        ];
+        for (kind, table, key, says) in cases {
+            let e = crate::scenario::parse(&format!("{}{table}", base(kind)), "f.toml", "f", &[])
+                .unwrap_err();
+            assert_eq!(e.key, format!("{}[0].{key}", kind.table), "{e}");
+            assert!(e.message.contains(says), "{e}");
+            assert_eq!(e.message.contains("did you mean"), key == "type", "{e}");
+        }
     }
 }

@@ -295,13 +295,16 @@ fn joint_lock(
     finite("displacement", j.displacement)?;
     finite("velocity", j.velocity)?;
     let lock = match system.constraints()[k].geometry() {
-        JointGeometry::Revolute { body_i, body_j, .. } => {
+        JointGeometry::Revolute { i: pin_i, j: pin_j } => {
             for (f, v) in [("displacement", j.displacement), ("velocity", j.velocity)] {
                 if v.is_some() {
                     return Err(err(f, "not a key of a revolute joint (angle, rate)".into()));
                 }
             }
-            let kind = LockKind::RelativeAngle { body_i, body_j };
+            let kind = LockKind::RelativeAngle {
+                body_i: pin_i.body,
+                body_j: pin_j.body,
+            };
             let theta = angle.ok_or_else(|| {
                 err(
                     "angle_deg",
@@ -390,12 +393,7 @@ fn branch_flip(system: &System, q_given: &[f64], q: &[f64], locked: &[usize]) ->
         .iter()
         .enumerate()
         .filter_map(|(k, c)| match c.geometry() {
-            JointGeometry::Revolute {
-                body_i,
-                s_i,
-                body_j,
-                s_j,
-            } => Some((k, body_i, s_i, body_j, s_j)),
+            JointGeometry::Revolute { i, j } => Some((k, i.body, i.point, j.body, j.point)),
             _ => None,
         })
         .collect();

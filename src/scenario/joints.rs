@@ -114,7 +114,7 @@ pub(in crate::scenario) fn function_of_time(
 }
 
 /// The `[[joint]]` tables.
-static JOINT: Kind = Kind::new("joint", "joint");
+pub(super) static JOINT: Kind = Kind::new("joint", "joint");
 
 /// A joint type's row of [`TYPES`].
 pub(super) type JointDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
@@ -275,41 +275,5 @@ impl ElementType<Context<'_>> for DriveAngleJoint {
         cx.builder
             .add_constraint(DriveRelativeAngle::new(name, bi, bj, f));
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{JOINT, TYPES};
-    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
-
-    /// docs/scenarios.md's joint table lists exactly each joint struct's keys.
-    #[test]
-    fn docs_list_each_joint_types_keys() {
-        check_keys(TYPES, "[[joint]]", |t| keys_of_row("## `[[joint]]`", t));
-    }
-
-    /// A typo in a joint table is reported at its key with the nearest key
-    /// of this type.
-    #[test]
-    fn typos_suggest_the_nearest_key_of_this_type() {
-        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
-                    [time]\nend = 0.1\n[[joint]]\n";
-        let cases = [
-            ("type = \"revolute\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_i = [0.0, 0.0]\npoint_jj = [0.0, 0.0]", "point_jj", "point_j"),
-            ("type = \"translational\"\nbody_i = \"a\"\nbody_j = \"ground\"\naxis = [1.0, 0.0]", "axis", "axis_i"),
-            ("type = \"drive_coordinate\"\nbody = \"a\"\ncoordinate = \"x\"\nmotoin = 0.0", "motoin", "motion"),
-            ("type = \"drive_angle\"\nbody_i = \"a\"\nbody_jj = \"ground\"\nmotion = 0.0", "body_jj", "body_j"),
-        ];
-        check_typos(&JOINT, base, &cases);
-        let e = crate::scenario::parse(
-            &format!("{base}type = \"revolut\"\nbody_i = \"a\"\nbody_j = \"ground\""),
-            "f.toml",
-            "f",
-            &[],
-        )
-        .unwrap_err();
-        assert_eq!(e.key, "joint[0].type", "{e}");
-        assert!(e.message.contains("did you mean 'revolute'?"), "{e}");
     }
 }

@@ -4,7 +4,7 @@
 use super::element::{Decl, Kind, RawTagged};
 use super::model::RawPoint;
 use super::ScenarioError;
-use crate::model::{joint_short_name, Sensor, SensorKind, System};
+use crate::model::{joint_short_name, BodyPoint, Sensor, SensorKind, System};
 use serde::Deserialize;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -60,11 +60,11 @@ enum Spec {
 }
 
 /// The `[[sensor]]` tables.
-static SENSOR: Kind = Kind::new("sensor", "sensor");
+pub(super) static SENSOR: Kind = Kind::new("sensor", "sensor");
 
 /// Every `[[sensor]]` type, in the order of docs/scenarios.md (read by
 /// [`spec`]).
-const TYPES: &[Decl<()>] = &[
+pub(super) const TYPES: &[Decl<()>] = &[
     Decl::new::<PointSensor>("point", ()),
     Decl::new::<JointAngleSensor>("joint_angle", ()),
     Decl::new::<DistanceSensor>("distance", ()),
@@ -135,18 +135,13 @@ pub(super) fn build(
         let kind = match spec(s, decl.name, k, file)? {
             Spec::Point(p) => {
                 let b = body("body", &p.body)?;
-                SensorKind::Point {
-                    body: b,
-                    point: point("point", p.point, b)?,
-                }
+                SensorKind::Point(BodyPoint::new(b, point("point", p.point, b)?))
             }
             Spec::Distance(d) => {
                 let (bi, bj) = (body("body_i", &d.body_i)?, body("body_j", &d.body_j)?);
                 SensorKind::Distance {
-                    body_i: bi,
-                    point_i: point("point_i", d.point_i, bi)?,
-                    body_j: bj,
-                    point_j: point("point_j", d.point_j, bj)?,
+                    i: BodyPoint::new(bi, point("point_i", d.point_i, bi)?),
+                    j: BodyPoint::new(bj, point("point_j", d.point_j, bj)?),
                 }
             }
             Spec::JointAngle(j) => {
@@ -240,45 +235,4 @@ pub(super) fn build(
         out.push(sensor);
     }
     Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{SENSOR, TYPES};
-    use crate::scenario::element::docs::{check_keys, check_typos, keys_of_row};
-
-    /// docs/scenarios.md's sensor table lists exactly each type's keys.
-    #[test]
-    fn docs_list_each_sensor_types_keys() {
-        check_keys(TYPES, "[[sensor]]", |t| keys_of_row("## `[[sensor]]`", t));
-    }
-
-    /// A typo in a sensor table is reported at its key with the nearest
-    /// key of this type.
-    #[test]
-    fn typos_suggest_the_nearest_key_of_this_type() {
-        let base = "[[body]]\nname = \"a\"\nmass = 1.0\ninertia = 1.0\n\
-                    [[force]]\nname = \"s\"\ntype = \"spring\"\nbody_i = \"a\"\nbody_j = \"ground\"\n\
-                    [time]\nend = 0.1\n[[sensor]]\nname = \"m\"\n";
-        let cases = [
-            (
-                "type = \"point\"\nbody = \"a\"\npiont = [0.0, 0.0]",
-                "piont",
-                "point",
-            ),
-            ("type = \"joint_angle\"\njiont = \"j\"", "jiont", "joint"),
-            (
-                "type = \"distance\"\nbody_i = \"a\"\nbody_j = \"ground\"\npoint_ii = [0.0, 0.0]",
-                "point_ii",
-                "point_i",
-            ),
-            (
-                "type = \"force_element\"\nforces = \"s\"",
-                "forces",
-                "force",
-            ),
-            ("type = \"contact\"\nforc = \"s\"", "forc", "force"),
-        ];
-        check_typos(&SENSOR, base, &cases);
-    }
 }

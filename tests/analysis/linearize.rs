@@ -12,7 +12,7 @@ use mbsolve::analysis::linearize::{
 use mbsolve::constraints::{DriveCoordinate, Revolute};
 use mbsolve::forces::{PointSpringDamper, RotationalSpringDamper};
 use mbsolve::integrate::{Method as IntegrationMethod, Tolerance};
-use mbsolve::model::{Body, BodyRef, System, SystemBuilder, TimeFunction};
+use mbsolve::model::{Body, BodyPoint, BodyRef, System, SystemBuilder, TimeFunction};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, RunConfig};
 use std::path::Path;
@@ -459,10 +459,8 @@ fn cart_pendulum(m: f64, i: f64, d: f64, k: f64, c: f64, motion: TimeFunction) -
         [0.0, d],
     ));
     b.add_force(PointSpringDamper::linear(
-        BodyRef::Ground,
-        [-span, -d],
-        BodyRef::Body(1),
-        [0.0, 0.0],
+        BodyPoint::new(BodyRef::Ground, [-span, -d]),
+        BodyPoint::new(BodyRef::Body(1), [0.0, 0.0]),
         span,
         k,
         c,

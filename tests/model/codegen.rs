@@ -374,16 +374,16 @@ fn other_topologies_are_not_recognised() {
         b.add_body(body.clone());
     }
     for k in [1, 0, 2, 3] {
-        let JointGeometry::Revolute {
-            body_i,
-            s_i,
-            body_j,
-            s_j,
-        } = sc.system.constraints()[k].geometry()
-        else {
+        let JointGeometry::Revolute { i, j } = sc.system.constraints()[k].geometry() else {
             panic!("the four-bar has revolutes only")
         };
-        b.add_constraint(Revolute::new(format!("j{k}"), body_i, s_i, body_j, s_j));
+        b.add_constraint(Revolute::new(
+            format!("j{k}"),
+            i.body,
+            i.point,
+            j.body,
+            j.point,
+        ));
     }
     assert!(generated::recognise(&b.build().unwrap()).is_none());
 }

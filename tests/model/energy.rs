@@ -7,7 +7,7 @@ use mbsolve::constraints::Revolute;
 use mbsolve::forces::PointSpringDamper;
 use mbsolve::formulation::{Index1, Index1Options};
 use mbsolve::integrate::{Method, Tolerance};
-use mbsolve::model::{Body, BodyRef, EnergyWorkspace, System, SystemBuilder};
+use mbsolve::model::{Body, BodyPoint, BodyRef, EnergyWorkspace, System, SystemBuilder};
 use mbsolve::scenario::{self, FOURBAR_TOML};
 use mbsolve::simulation::{simulate, RunConfig, Trajectory};
 
@@ -37,10 +37,8 @@ fn spring_pendulum() -> (System, Vec<f64>, Vec<f64>) {
         [-0.5 * L, 0.0],
     ));
     b.add_force(PointSpringDamper::linear(
-        BodyRef::Body(0),
-        [0.5 * L, 0.0],
-        BodyRef::Ground,
-        ANCHOR,
+        BodyPoint::new(BodyRef::Body(0), [0.5 * L, 0.0]),
+        BodyPoint::new(BodyRef::Ground, ANCHOR),
         0.3,
         K,
         C,

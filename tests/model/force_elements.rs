@@ -5,7 +5,7 @@
 use mbsolve::forces::{
     FdWorkspace, ForceElement, HalfPlaneContact, Law, PointSpringDamper, RotationalSpringDamper,
 };
-use mbsolve::model::{BodyRef, ModelError, TimeFunction};
+use mbsolve::model::{BodyPoint, BodyRef, ModelError, TimeFunction};
 
 /// Deterministic uniform numbers in [-1, 1) (64-bit LCG).
 struct Rng(u64);
@@ -134,10 +134,8 @@ fn law_validation_names_field_and_value() {
         .is_ok());
     // a spring rejects a dissipation-violating damper table
     let mut s = PointSpringDamper::linear(
-        BodyRef::Ground,
-        [0.0, 0.0],
-        BodyRef::Body(0),
-        [0.0, 0.0],
+        BodyPoint::new(BodyRef::Ground, [0.0, 0.0]),
+        BodyPoint::new(BodyRef::Body(0), [0.0, 0.0]),
         1.0,
         1.0,
         1.0,
@@ -156,10 +154,8 @@ fn law_validation_names_field_and_value() {
 
 fn springs() -> Vec<PointSpringDamper> {
     let mut a = PointSpringDamper::linear(
-        BodyRef::Body(0),
-        [0.3, -0.1],
-        BodyRef::Body(2),
-        [-0.2, 0.4],
+        BodyPoint::new(BodyRef::Body(0), [0.3, -0.1]),
+        BodyPoint::new(BodyRef::Body(2), [-0.2, 0.4]),
         0.7,
         50.0,
         3.0,
@@ -172,10 +168,8 @@ fn springs() -> Vec<PointSpringDamper> {
         offset: 0.3,
     });
     let mut b = PointSpringDamper::linear(
-        BodyRef::Body(1),
-        [0.5, 0.2],
-        BodyRef::Ground,
-        [1.0, -2.0],
+        BodyPoint::new(BodyRef::Body(1), [0.5, 0.2]),
+        BodyPoint::new(BodyRef::Ground, [1.0, -2.0]),
         0.4,
         0.0,
         0.0,
@@ -254,10 +248,8 @@ fn spring_pendulum_static_stretch_is_mg_over_k() {
     // body of mass m hanging at its centre from ground point (0, 0)
     let (m, grav, k, l0) = (2.0, 9.81, 400.0, 0.5);
     let s = PointSpringDamper::linear(
-        BodyRef::Ground,
-        [0.0, 0.0],
-        BodyRef::Body(0),
-        [0.0, 0.0],
+        BodyPoint::new(BodyRef::Ground, [0.0, 0.0]),
+        BodyPoint::new(BodyRef::Body(0), [0.0, 0.0]),
         l0,
         k,
         10.0,

@@ -8,7 +8,7 @@ use crate::common::cli::mbsolve;
 use mbsolve::builders::{add_named_rod, n_link_pendulum, RodParams};
 use mbsolve::constraints::Revolute;
 use mbsolve::forces::{Law, PointSpringDamper};
-use mbsolve::model::{BodyRef, SystemBuilder};
+use mbsolve::model::{BodyPoint, BodyRef, SystemBuilder};
 use mbsolve::scenario;
 use mbsolve::simulation::{simulate, Trajectory};
 use std::path::Path;
@@ -175,10 +175,8 @@ fn two_rods_scenario_equals_the_library_assembly() {
         [0.0, -h2],
     ));
     b.add_force(PointSpringDamper {
-        body_i: BodyRef::Body(r1.bodies[0]),
-        point_i: [0.0, -h1],
-        body_j: BodyRef::Body(r2.bodies[n2 - 1]),
-        point_j: [0.0, h2],
+        i: BodyPoint::new(BodyRef::Body(r1.bodies[0]), [0.0, -h1]),
+        j: BodyPoint::new(BodyRef::Body(r2.bodies[n2 - 1]), [0.0, h2]),
         free_length: std::f64::consts::FRAC_1_SQRT_2,
         stiffness: Law::Linear(200.0),
         damping: Law::Linear(0.0),

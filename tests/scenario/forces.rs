@@ -6,7 +6,7 @@ use mbsolve::forces::{
     Buoyancy, Drag, ExpressionLoadBuilder, ForceElement, HalfPlaneContact, Law, LinePoint,
     PointSpringDamper, RotationalSpringDamper,
 };
-use mbsolve::model::{BodyRef, TimeFunction};
+use mbsolve::model::{BodyPoint, BodyRef, TimeFunction};
 use mbsolve::scenario::{self, Scenario, ScenarioError};
 
 const HEAD: &str = r#"
@@ -91,10 +91,8 @@ force_velocity = { x = [-1.0, 1.0], f = [-4.0, 6.0] }
     )
     .unwrap();
     let mut s = PointSpringDamper::linear(
-        BodyRef::Body(0),
-        [0.1, 0.2],
-        BodyRef::Body(1),
-        [-0.3, 0.0],
+        BodyPoint::new(BodyRef::Body(0), [0.1, 0.2]),
+        BodyPoint::new(BodyRef::Body(1), [-0.3, 0.0]),
         0.6,
         120.0,
         3.0,
@@ -108,10 +106,8 @@ force_velocity = { x = [-1.0, 1.0], f = [-4.0, 6.0] }
     });
     same(&sc, 0, &s); // gravity comes after the [[force]] elements
     let mut s = PointSpringDamper::linear(
-        BodyRef::Ground,
-        [0.0, 1.0],
-        BodyRef::Body(1),
-        [0.0; 2],
+        BodyPoint::new(BodyRef::Ground, [0.0, 1.0]),
+        BodyPoint::new(BodyRef::Body(1), [0.0; 2]),
         0.0,
         0.0,
         0.0,

@@ -88,6 +88,12 @@ const BAUMGARTE_10: Baumgarte = Baumgarte {
     beta: 10.0,
 };
 
+/// The index-3 augmented Lagrangian with its own Newton iteration cap.
+fn augmented_lagrangian(c: &mut RunConfig) {
+    c.implicit.max_newton = ALM_MAX_NEWTON;
+    c.formulation.formulation = Formulation::AugmentedLagrangian;
+}
+
 /// The methods compared, in table order.
 pub fn methods() -> Vec<StudyMethod> {
     use Base::{Bdf, GenAlpha, Ode45};
@@ -170,18 +176,14 @@ pub fn methods() -> Vec<StudyMethod> {
             |c| {
                 c.method = Method::Newmark;
                 c.implicit.rho_inf = 1.0;
-                c.implicit.max_newton = ALM_MAX_NEWTON;
-                c.formulation.formulation = Formulation::AugmentedLagrangian;
+                augmented_lagrangian(c);
             },
         ),
         row(
             "alm_genalpha",
             "index-3 augmented Lagrangian + projections, generalized-α",
             GenAlpha,
-            |c| {
-                c.implicit.max_newton = ALM_MAX_NEWTON;
-                c.formulation.formulation = Formulation::AugmentedLagrangian;
-            },
+            augmented_lagrangian,
         ),
         row(
             "genalpha",

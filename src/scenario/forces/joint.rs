@@ -111,10 +111,10 @@ impl ElementType<Context<'_>> for JointTorque {
     const TYPE: &'static str = "joint_torque";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let j = find(cx, "joint_torque", &self.joint, "revolute")?;
-        let JointGeometry::Revolute { body_i, body_j, .. } = j.geometry else {
+        let JointGeometry::Revolute { i, j, .. } = j.geometry else {
             return Err(cx.err("joint", format!("joint '{}' is not revolute", self.joint)));
         };
-        let (i, jj) = (body_name(cx, body_i), body_name(cx, body_j));
+        let (i, jj) = (body_name(cx, i.body), body_name(cx, j.body));
         let load = builder(cx, &self.torque, &[&i, &jj])
             .joint_torque(i.as_deref(), jj.as_deref(), &self.torque)
             .map_err(|e| expression_error(cx, e))?
@@ -134,15 +134,15 @@ impl ElementType<Context<'_>> for JointForce {
                 format!("joint '{}' is not translational", self.joint),
             ));
         };
-        let (i, jj) = (body_name(cx, slide.body_i), body_name(cx, slide.body_j));
+        let (i, jj) = (body_name(cx, slide.i.body), body_name(cx, slide.j.body));
         let (a, b) = (
             LinePoint {
                 body: i.clone(),
-                point: slide.s_i,
+                point: slide.i.point,
             },
             LinePoint {
                 body: jj.clone(),
-                point: slide.s_j,
+                point: slide.j.point,
             },
         );
         let load = builder(cx, &self.force, &[&i, &jj])

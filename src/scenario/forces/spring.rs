@@ -3,6 +3,7 @@
 
 use super::{Context, ElementType};
 use crate::forces::PointSpringDamper;
+use crate::model::BodyPoint;
 use crate::scenario::model::{RawPoint, RawTable};
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
@@ -44,10 +45,8 @@ impl ElementType<Context<'_>> for Spring {
             None => None,
         };
         let s = PointSpringDamper {
-            body_i,
-            point_i: cx.point("point_i", self.point_i, body_i)?,
-            body_j,
-            point_j: cx.point("point_j", self.point_j, body_j)?,
+            i: BodyPoint::new(body_i, cx.point("point_i", self.point_i, body_i)?),
+            j: BodyPoint::new(body_j, cx.point("point_j", self.point_j, body_j)?),
             free_length: cx.finite("free_length", self.free_length.unwrap_or(0.0))?,
             stiffness: cx.law(
                 ("stiffness", self.stiffness),
