@@ -18,19 +18,21 @@ macro_rules! side {
     };
 }
 
-/// `memoised!(memo; f_sc(q, args…))`: `kernels::f_sc(q, sc, args…)` with
-/// the sines and cosines `sc` of `q`'s angles from the chain's memo
-/// (updated here, shared with Φ, Φ_q, γ and the force kernels at the same
-/// q), or computed afresh by [`fresh_trig`] when another thread holds the
-/// memo: the same bits either way, so a run's bits do not depend on which
-/// concurrent task took the memo.
+/// `memoised!(chain; f_sc(q, args…))`: with `qc` the chain's part of the
+/// system's `q`, `kernels::f_sc(qc, sc, args…)` with the sines and cosines
+/// `sc` of its angles from the chain's memo (updated here, shared with Φ,
+/// Φ_q, γ and the force kernels at the same q), or computed afresh by
+/// [`fresh_trig`] when another thread holds the memo: the same bits either
+/// way, so a run's bits do not depend on which concurrent task took the
+/// memo.
 macro_rules! memoised {
-    ($memo:expr; $sc:ident($q:expr $(, $arg:expr)*)) => {
-        match $memo.try_write() {
-            Ok(mut m) => kernels::$sc($q, m.update($q) $(, $arg)*),
-            Err(_) => kernels::$sc($q, &fresh_trig($q) $(, $arg)*),
+    ($chain:expr; $sc:ident($q:expr $(, $arg:expr)*)) => {{
+        let qc = $chain.chain_q($q);
+        match $chain.memo.try_write() {
+            Ok(mut m) => kernels::$sc(qc, m.update(qc) $(, $arg)*),
+            Err(_) => kernels::$sc(qc, &fresh_trig(qc) $(, $arg)*),
         }
-    };
+    }};
 }
 
 /// `[sin φ_b, cos φ_b]` of every body of `q` (3 coordinates per body) by
@@ -286,9 +288,9 @@ impl ConstraintKernels for ChainKernels {
             Some(g) if g.row0 == 0 => (1, 0),
             _ => (0, nh),
         };
-        let (qc, p, l) = (self.chain_q(q), &self.params, &lambda[self.chain_rows()]);
+        let (p, l) = (&self.params, &lambda[self.chain_rows()]);
         let o = &mut vals[chain_at..chain_at + nh];
-        memoised!(self.memo; revolute_chain_hessian_sc(qc, p, l, o));
+        memoised!(self; revolute_chain_hessian_sc(q, p, l, o));
         if let Some(g) = &self.ground {
             g.add_hessian(q, lambda, &mut vals[ground_at..ground_at + 1]);
         }
@@ -312,20 +314,18 @@ impl ConstraintKernels for ChainKernels {
     fn name(&self) -> &str {
         &self.name
     }
-    fn phi(&self, q_all: &[f64], _t: f64, out: &mut [f64]) {
+    fn phi(&self, q: &[f64], _t: f64, out: &mut [f64]) {
         let o = &mut out[self.chain_rows()];
-        let (p, q) = (&self.params, self.chain_q(q_all));
-        memoised!(self.memo; revolute_chain_phi_sc(q, p, o));
+        memoised!(self; revolute_chain_phi_sc(q, &self.params, o));
         if let Some(g) = &self.ground {
-            g.phi(q_all, out);
+            g.phi(q, out);
         }
     }
-    fn jacobian_values(&self, q_all: &[f64], _t: f64, vals: &mut [f64]) {
+    fn jacobian_values(&self, q: &[f64], _t: f64, vals: &mut [f64]) {
         let o = &mut vals[self.chain_vals()];
-        let (p, q) = (&self.params, self.chain_q(q_all));
-        memoised!(self.memo; revolute_chain_jacobian_sc(q, p, o));
+        memoised!(self; revolute_chain_jacobian_sc(q, &self.params, o));
         if let Some(g) = &self.ground {
-            g.jacobian(q_all, vals);
+            g.jacobian(q, vals);
         }
     }
     fn phi_tmul(
@@ -337,12 +337,12 @@ impl ConstraintKernels for ChainKernels {
         g: &mut [f64],
     ) -> bool {
         let rows = self.chain_rows();
-        let (p, q, l) = (&self.params, self.chain_q(q_all), &lambda[rows.clone()]);
+        let (p, l) = (&self.params, &lambda[rows.clone()]);
         let (o, gc) = (
             &mut phi[rows],
             &mut g[self.q0..self.q0 + 3 * (self.n_joints + 1)],
         );
-        memoised!(self.memo; revolute_chain_phi_tmul_sc(q, p, l, o, gc));
+        memoised!(self; revolute_chain_phi_tmul_sc(q_all, p, l, o, gc));
         if let Some(gj) = &self.ground {
             gj.phi_tmul(q_all, lambda, phi, g);
         }
@@ -406,12 +406,11 @@ impl ConstraintKernels for ChainKernels {
             g.phi_t(q, out);
         }
     }
-    fn gamma(&self, q_all: &[f64], qd_all: &[f64], _t: f64, out: &mut [f64]) {
-        let o = &mut out[self.chain_rows()];
-        let (p, q, qd) = (&self.params, self.chain_q(q_all), self.chain_q(qd_all));
-        memoised!(self.memo; revolute_chain_gamma_sc(q, qd, p, o));
+    fn gamma(&self, q: &[f64], qd: &[f64], _t: f64, out: &mut [f64]) {
+        let (qdc, o) = (self.chain_q(qd), &mut out[self.chain_rows()]);
+        memoised!(self; revolute_chain_gamma_sc(q, qdc, &self.params, o));
         if let Some(g) = &self.ground {
-            g.gamma(q_all, qd_all, out);
+            g.gamma(q, qd, out);
         }
     }
 }

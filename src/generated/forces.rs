@@ -7,8 +7,9 @@ use super::memo::SharedTrig;
 use crate::forces::drag_force;
 use crate::forces::Clearance;
 use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
-use crate::model::{ForceElement, ForceKernels};
+use crate::model::{ForceElement, ForceKernels, StateView};
 use crate::trig::{sin_cos, sin_cos4};
+use std::ops::Range;
 
 /// Generated Jacobians of the torsional spring–dampers between neighbours of
 /// a chain of bodies `body0, body0 + 1, …` (the rod's bending springs), for
@@ -44,7 +45,8 @@ impl ForceKernels for TorsionalChainJacobians {
             .map(|k| vec![self.q0 + 3 * k + 2, self.q0 + 3 * k + 5])
             .collect()
     }
-    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+    fn add_jacobians(&self, x: StateView<'_>, dq: &mut [f64], dqd: &mut [f64]) {
+        let StateView { q, qd, .. } = x;
         let r = self.q0..self.q0 + 3 * (self.n() + 1);
         kernels::torsional_chain_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
     }
@@ -52,18 +54,12 @@ impl ForceKernels for TorsionalChainJacobians {
     /// from g_j, spring after spring: the element's `−T` with the same
     /// roundings, in the same order into each entry (bit-identical;
     /// tests/model/codegen.rs).
-    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        self.add_forces_range(t, q, qd, g, 0..self.n())
+    fn add_forces(&self, x: StateView<'_>, g: &mut [f64]) -> bool {
+        self.add_forces_range(x, g, 0..self.n())
     }
     /// Springs `elements` only: bodies `elements.start ..= elements.end`.
-    fn add_forces_range(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        g: &mut [f64],
-        elements: std::ops::Range<usize>,
-    ) -> bool {
+    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+        let StateView { q, qd, .. } = x;
         let (a, b) = (elements.start, elements.end);
         let r = self.q0 + 3 * a..self.q0 + 3 * (b + 1);
         let fp = &self.fp[3 * a..3 * b];
@@ -119,15 +115,16 @@ impl ForceKernels for DragJacobians {
     fn jacobian_coordinates(&self) -> Vec<Vec<usize>> {
         body_blocks(self.q0, self.fp.len() / 3)
     }
-    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+    fn add_jacobians(&self, x: StateView<'_>, dq: &mut [f64], dqd: &mut [f64]) {
+        let StateView { q, qd, .. } = x;
         let r = self.q0..self.q0 + self.fp.len();
         kernels::drag_bodies_force_jacobians(&q[r.clone()], &qd[r], &self.fp, dq, dqd);
     }
     /// The drag forces of every body in one loop: the angles' sines and
     /// cosines from the chain's memo (updated here) when shared, else
     /// computed (`DragJacobians::forces_on`).
-    fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        let nb = self.fp.len() / 3;
+    fn add_forces(&self, x: StateView<'_>, g: &mut [f64]) -> bool {
+        let (StateView { q, qd, .. }, nb) = (x, self.fp.len() / 3);
         if let Some(t) = &self.trig {
             if let Ok(mut m) = t.memo.try_write() {
                 let sc = m.update(&q[t.q0..t.q0 + 3 * t.n_bodies]);
@@ -141,14 +138,8 @@ impl ForceKernels for DragJacobians {
     /// The drag forces of bodies `elements`: the memo's sines and cosines
     /// where current (read, not updated: the two halves of the residual
     /// read it at once), else computed.
-    fn add_forces_range(
-        &self,
-        _t: f64,
-        q: &[f64],
-        qd: &[f64],
-        g: &mut [f64],
-        elements: std::ops::Range<usize>,
-    ) -> bool {
+    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+        let StateView { q, qd, .. } = x;
         if let Some(t) = &self.trig {
             if let Ok(m) = t.memo.try_read() {
                 if m.current(&q[t.q0..], elements.clone()) {
@@ -168,7 +159,7 @@ impl DragJacobians {
     /// sines and cosines `sc` (`[sin, cos]` per body of `ks`): the
     /// roundings of `Drag::force`, body after body (bit-identical;
     /// tests/model/codegen.rs).
-    fn forces_with(&self, ks: std::ops::Range<usize>, sc: &[f64], qd: &[f64], g: &mut [f64]) {
+    fn forces_with(&self, ks: Range<usize>, sc: &[f64], qd: &[f64], g: &mut [f64]) {
         let r = self.q0 + 3 * ks.start..self.q0 + 3 * ks.end;
         let fp = &self.fp[3 * ks.start..3 * ks.end];
         assert!(sc.len() == 2 * ks.len() && r.end <= qd.len().min(g.len()));
@@ -182,7 +173,7 @@ impl DragJacobians {
     }
     /// The drag forces of bodies `ks`, the sines and cosines computed four
     /// at a time ([`sin_cos4`], else [`sin_cos`]; the same bits).
-    fn forces_on(&self, ks: std::ops::Range<usize>, q: &[f64], qd: &[f64], g: &mut [f64]) {
+    fn forces_on(&self, ks: Range<usize>, q: &[f64], qd: &[f64], g: &mut [f64]) {
         let mut k = ks.start;
         while k < ks.end {
             let m = (ks.end - k).min(4);
@@ -261,7 +252,8 @@ impl ForceKernels for ContactJacobians {
     /// as in their forces) has every corner at δ ≤ 0, where the kernel
     /// adds zeros, so skipping it leaves `dq`, `dqd` as they were (most
     /// of a long rod's segments, at every factorisation).
-    fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+    fn add_jacobians(&self, x: StateView<'_>, dq: &mut [f64], dqd: &mut [f64]) {
+        let StateView { q, qd, .. } = x;
         let ne = self.fp.len() / 8;
         assert!(dq.len() >= 9 * ne && dqd.len() >= 9 * ne);
         for (k, clear) in self.clearance.iter().enumerate() {
@@ -284,17 +276,11 @@ impl ForceKernels for ContactJacobians {
     /// first test, made here in the loop; the others call their element's
     /// `add_forces`. The same operations in the same order as the elements
     /// called one by one.
-    fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) -> bool {
-        self.add_forces_range(t, q, qd, g, 0..self.contacts.len())
+    fn add_forces(&self, x: StateView<'_>, g: &mut [f64]) -> bool {
+        self.add_forces_range(x, g, 0..self.contacts.len())
     }
-    fn add_forces_range(
-        &self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        g: &mut [f64],
-        elements: std::ops::Range<usize>,
-    ) -> bool {
+    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+        let StateView { t, q, qd } = x;
         for k in elements {
             let clear = match &self.uniform {
                 Some(c) => c.clear(q[self.q0 + 3 * k]),
@@ -370,8 +356,13 @@ mod tests {
                 _ => {}
             }
             let (mut ga, mut gb) = (vec![0.0; n], vec![0.0; n]);
-            assert!(own.add_forces(0.0, &q, &qd, &mut ga));
-            assert!(shared.add_forces(0.0, &q, &qd, &mut gb));
+            let x = StateView {
+                t: 0.0,
+                q: &q,
+                qd: &qd,
+            };
+            assert!(own.add_forces(x, &mut ga));
+            assert!(shared.add_forces(x, &mut gb));
             for (k, (a, b)) in ga.iter().zip(&gb).enumerate() {
                 assert_eq!(a.to_bits(), b.to_bits(), "case {case}, g[{k}]");
             }
@@ -421,7 +412,15 @@ mod tests {
             let base_q: Vec<f64> = (0..9 * nb).map(|_| next(-1.0, 1.0)).collect();
             let base_qd: Vec<f64> = (0..9 * nb).map(|_| next(-1.0, 1.0)).collect();
             let (mut dq, mut dqd) = (base_q.clone(), base_qd.clone());
-            kern.add_jacobians(0.0, &q, &qd, &mut dq, &mut dqd);
+            kern.add_jacobians(
+                StateView {
+                    t: 0.0,
+                    q: &q,
+                    qd: &qd,
+                },
+                &mut dq,
+                &mut dqd,
+            );
             let (mut want_q, mut want_qd) = (base_q, base_qd);
             let r = 3 * body0..n;
             kernels::contact_bodies_force_jacobians(

@@ -7,7 +7,7 @@ use std::ops::Range;
 mod halves;
 mod kernels;
 pub use halves::ResidualHalves;
-pub use kernels::{ConstraintKernels, ConstraintTerms, ForceKernels};
+pub use kernels::{ConstraintKernels, ConstraintTerms, ForceKernels, StateView};
 
 /// Force kernels attached to a range of elements, with the range of their
 /// Jacobian values.
@@ -27,6 +27,19 @@ struct KernelBlock {
     vals: Range<usize>,
     hess: Range<usize>,
     kernels: Box<dyn ConstraintKernels>,
+}
+
+/// A per-joint term of the constraints (`System::along_plan`).
+#[derive(Debug, Clone, Copy)]
+enum Term<'a> {
+    /// Φ(q, t), eq. (2).
+    Phi,
+    /// Φ_q(q, t) values in pattern order.
+    Jacobian,
+    /// Φ_t(q, t).
+    PhiT,
+    /// γ(q, q̇, t), eq. (4), at these velocities q̇.
+    Gamma(&'a [f64]),
 }
 
 /// One step of an evaluation plan: a joint (or force element) evaluated
@@ -348,7 +361,7 @@ impl System {
         force_jacobian_block(f.as_ref(), self.n_coords(), &mut self.force_jac_pattern)?;
         self.force_jac_offset.push(self.force_jac_pattern.len());
         self.forces.push(f);
-        self.make_plan();
+        self.plan_with(self.use_kernels);
         Ok(self.forces.len() - 1)
     }
     /// Bodies in numbering order.
@@ -427,33 +440,51 @@ impl System {
         self.row_offset[k]..self.row_offset[k + 1]
     }
 
-    /// Φ(q, t), eq. (2).
-    pub fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
+    /// A per-joint term of the constraints at `(q, t)` into `out`, along the
+    /// evaluation plan: each joint evaluated alone into its rows (its
+    /// entries of Φ_q for [`Term::Jacobian`]), each kernel block into its
+    /// own.
+    fn along_plan(&self, term: Term<'_>, q: &[f64], t: f64, out: &mut [f64]) {
+        let offsets = match term {
+            Term::Jacobian => &self.jac_offset,
+            _ => &self.row_offset,
+        };
         for s in &self.plan {
             match *s {
-                Segment::Joint(k) => self.constraints[k].phi(q, t, &mut out[self.rows(k)]),
+                Segment::Joint(k) => {
+                    let (c, o) = (&self.constraints[k], &mut out[offsets[k]..offsets[k + 1]]);
+                    match term {
+                        Term::Phi => c.phi(q, t, o),
+                        Term::Jacobian => c.jacobian(q, t, o),
+                        Term::PhiT => c.phi_t(q, t, o),
+                        Term::Gamma(qd) => c.gamma(q, qd, t, o),
+                    }
+                }
                 Segment::Kernels(i) => {
                     let b = &self.kernels[i];
-                    b.kernels.phi(q, t, &mut out[b.rows.clone()]);
+                    let part = match term {
+                        Term::Jacobian => b.vals.clone(),
+                        _ => b.rows.clone(),
+                    };
+                    let (k, o) = (&b.kernels, &mut out[part]);
+                    match term {
+                        Term::Phi => k.phi(q, t, o),
+                        Term::Jacobian => k.jacobian_values(q, t, o),
+                        Term::PhiT => k.phi_t(q, t, o),
+                        Term::Gamma(qd) => k.gamma(q, qd, t, o),
+                    }
                 }
             }
         }
     }
+
+    /// Φ(q, t), eq. (2).
+    pub fn phi(&self, q: &[f64], t: f64, out: &mut [f64]) {
+        self.along_plan(Term::Phi, q, t, out);
+    }
     /// Values of Φ_q(q, t) in the order of [`System::jacobian_pattern`].
     pub fn jacobian_values(&self, q: &[f64], t: f64, vals: &mut [f64]) {
-        for s in &self.plan {
-            match *s {
-                Segment::Joint(k) => self.constraints[k].jacobian(
-                    q,
-                    t,
-                    &mut vals[self.jac_offset[k]..self.jac_offset[k + 1]],
-                ),
-                Segment::Kernels(i) => {
-                    let b = &self.kernels[i];
-                    b.kernels.jacobian_values(q, t, &mut vals[b.vals.clone()]);
-                }
-            }
-        }
+        self.along_plan(Term::Jacobian, q, t, vals);
     }
     /// True when specialised kernels evaluate (some of) the constraints.
     pub fn uses_kernels(&self) -> bool {
@@ -496,13 +527,8 @@ impl System {
                 }
                 Segment::Kernels(i) => {
                     let b = &self.force_kernels[i];
-                    b.kernels.add_jacobians(
-                        t,
-                        q,
-                        qd,
-                        &mut dq[b.vals.clone()],
-                        &mut dqd[b.vals.clone()],
-                    );
+                    let (dq, dqd) = (&mut dq[b.vals.clone()], &mut dqd[b.vals.clone()]);
+                    b.kernels.add_jacobians(StateView { t, q, qd }, dq, dqd);
                 }
             }
         }
@@ -599,27 +625,11 @@ impl System {
 
     /// Φ_t(q, t).
     pub fn phi_t(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        for s in &self.plan {
-            match *s {
-                Segment::Joint(k) => self.constraints[k].phi_t(q, t, &mut out[self.rows(k)]),
-                Segment::Kernels(i) => {
-                    let b = &self.kernels[i];
-                    b.kernels.phi_t(q, t, &mut out[b.rows.clone()]);
-                }
-            }
-        }
+        self.along_plan(Term::PhiT, q, t, out);
     }
     /// γ(q, q̇, t) of the acceleration equation Φ_q q̈ = γ, eq. (4).
     pub fn gamma(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) {
-        for s in &self.plan {
-            match *s {
-                Segment::Joint(k) => self.constraints[k].gamma(q, qd, t, &mut out[self.rows(k)]),
-                Segment::Kernels(i) => {
-                    let b = &self.kernels[i];
-                    b.kernels.gamma(q, qd, t, &mut out[b.rows.clone()]);
-                }
-            }
-        }
+        self.along_plan(Term::Gamma(qd), q, t, out);
     }
     /// Generalized forces g(q, q̇, t) (overwrites `g`).
     pub fn forces_into(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
@@ -629,7 +639,7 @@ impl System {
                 Segment::Joint(e) => self.forces[e].add_forces(t, q, qd, g),
                 Segment::Kernels(i) => {
                     let b = &self.force_kernels[i];
-                    if !b.kernels.add_forces(t, q, qd, g) {
+                    if !b.kernels.add_forces(StateView { t, q, qd }, g) {
                         for f in &self.forces[b.elements.clone()] {
                             f.add_forces(t, q, qd, g);
                         }

@@ -93,13 +93,12 @@ mod newton;
 use super::common;
 use super::driver::{Failure, StepCut, Stepper};
 use super::implicit::{
-    attempt_or_cut, implicit_outputs, implicit_stepper, run as run_implicit, validate_run,
-    Attempted, CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView,
-    StepTry, Warn,
+    attempt_or_cut, implicit_entry, implicit_outputs, implicit_stepper, validate_run, Attempted,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, Shrink, Span, StateView, StepTry, Warn,
 };
 use super::{
-    IntegratorError, Method, OdeOptions, Report, SecondOrderDae, SystemError, Tolerance,
-    REUSE_BAND, ROUNDING_ULPS,
+    IntegratorError, Method, OdeOptions, SecondOrderDae, SystemError, Tolerance, REUSE_BAND,
+    ROUNDING_ULPS,
 };
 use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
 
@@ -162,23 +161,13 @@ impl Bdf {
         })
     }
 
-    /// Counters of the last run.
-    pub fn stats(&self) -> ImplicitStats {
-        self.stats
-    }
-
-    /// Integrate from `(t0, q0, q̇0)` to `t_end`; the observer receives
-    /// `y = [q; q̇]` (as [`super::GenAlpha::integrate`]).
-    pub fn integrate(
-        &mut self,
-        sys: &mut dyn SecondOrderDae,
-        span: Span<'_>,
-    ) -> Result<Report, IntegratorError> {
-        validate_run(sys.n(), &span, &self.ode, true)?;
-        let mut run = BdfRun::new(sys, &self.ode, &span);
-        let (report, stats) = run_implicit(&mut run, span, self.ode.max_steps);
-        self.stats = stats;
-        Ok(report)
+    implicit_entry! {
+        /// Integrate from `(t0, q0, q̇0)` to `t_end`; the observer receives
+        /// `y = [q; q̇]` (as [`super::GenAlpha::integrate`]).
+        |bdf, sys, span| {
+            validate_run(sys.n(), span, &bdf.ode, true)?;
+            BdfRun::new(sys, &bdf.ode, span)
+        }
     }
 }
 

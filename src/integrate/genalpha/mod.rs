@@ -183,12 +183,12 @@ pub use step::SAFETY;
 use super::driver::{Failure, StepCut, Stepper};
 use super::hermite::cubic;
 use super::implicit::{
-    attempt_or_cut, implicit_outputs, implicit_stepper, run as run_implicit, validate_run,
-    Attempted, CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink,
-    Span, StateView, StepTry, Warn,
+    attempt_or_cut, implicit_entry, implicit_outputs, implicit_stepper, validate_run, Attempted,
+    CutRules, Cuts, ImplicitStats, Renewal, RenewalOptions, SecondOrderDae, Shrink, Span,
+    StateView, StepTry, Warn,
 };
 use super::Tolerance;
-use super::{common, ImplicitOptions, IntegratorError, Method, OdeOptions, Report, SystemError};
+use super::{common, ImplicitOptions, IntegratorError, Method, OdeOptions, SystemError};
 
 /// The generalized-α integrator (module docs) with its parameters and options.
 #[derive(Debug, Clone)]
@@ -286,37 +286,27 @@ impl GenAlpha {
     pub fn options(&self) -> &ImplicitOptions {
         &self.opts
     }
-    /// Counters of the last run.
-    pub fn stats(&self) -> ImplicitStats {
-        self.stats
-    }
 
-    /// Integrate from `(t0, q0, q̇0)` to `t_end` (with the augmented
-    /// Lagrangian's [`SecondOrderDae::multiplier_update`]: `(q0, q̇0)`
-    /// consistent, fixed step; `adaptive`, `project`, `reuse`,
-    /// `filter_error`, `check_constraints`, `lu`, `extrapolate` are
-    /// [`IntegratorError::NotApplicable`]).
-    ///
-    /// The observer receives `y = [q; q̇]`: `output` at each requested time
-    /// (exact at step ends, else cubic Hermite interpolation of q with q̇
-    /// and of q̇ with q̈ between the two step ends), `step` after every
-    /// accepted step. `output_times` must be strictly increasing within
-    /// `[t0, t_end]`. Inputs are validated as for the explicit integrators;
-    /// a failure midway is `Ok` with [`Termination::Failed`](super::Termination::Failed).
-    pub fn integrate(
-        &mut self,
-        sys: &mut dyn SecondOrderDae,
-        span: Span<'_>,
-    ) -> Result<Report, IntegratorError> {
-        if sys.multiplier_update().is_some() {
-            augmented::check_options(self.method, &self.opts)?;
+    implicit_entry! {
+        /// Integrate from `(t0, q0, q̇0)` to `t_end` (with the augmented
+        /// Lagrangian's [`SecondOrderDae::multiplier_update`]: `(q0, q̇0)`
+        /// consistent, fixed step; `adaptive`, `project`, `reuse`,
+        /// `filter_error`, `check_constraints`, `lu`, `extrapolate` are
+        /// [`IntegratorError::NotApplicable`]).
+        ///
+        /// The observer receives `y = [q; q̇]`: `output` at each requested time
+        /// (exact at step ends, else cubic Hermite interpolation of q with q̇
+        /// and of q̇ with q̈ between the two step ends), `step` after every
+        /// accepted step. `output_times` must be strictly increasing within
+        /// `[t0, t_end]`. Inputs are validated as for the explicit integrators;
+        /// a failure midway is `Ok` with [`Termination::Failed`](super::Termination::Failed).
+        |g, sys, span| {
+            if sys.multiplier_update().is_some() {
+                augmented::check_options(g.method, &g.opts)?;
+            }
+            validate_run(sys.n(), span, &g.ode, g.opts.adaptive)?;
+            Run::new(g, sys, span)
         }
-        validate_run(sys.n(), &span, &self.ode, self.opts.adaptive)?;
-        self.stats = ImplicitStats::default();
-        let mut run = Run::new(self, sys, &span);
-        let (report, stats) = run_implicit(&mut run, span, self.ode.max_steps);
-        self.stats = stats;
-        Ok(report)
     }
 }
 

@@ -23,5 +23,7 @@ pub(crate) use failure::{attempt_or_cut, Attempted, CutRules, Cuts, Shrink, Step
 pub use problem::{DaeResult, MultiplierUpdate, SecondOrderDae, StateView};
 pub use renewal::{Renewal, RenewalOptions};
 pub use run::Span;
-pub(crate) use run::{implicit_outputs, implicit_stepper, run, validate_run, ImplicitStepper};
+pub(crate) use run::{
+    implicit_entry, implicit_outputs, implicit_stepper, run, validate_run, ImplicitStepper,
+};
 pub use stats::{ImplicitStats, COUNTED_ORDERS};

@@ -4,22 +4,11 @@
 //! iteration as an optional hook ([`MultiplierUpdate`]).
 
 use super::super::SystemError;
+pub use crate::model::StateView;
 
 /// What an evaluation of a [`SecondOrderDae`] returns: nothing, or the
 /// system's typed failure.
 pub type DaeResult = Result<(), SystemError>;
-
-/// A state `(t, q, q̇)` of a [`SecondOrderDae`], as the implicit schemes
-/// hand it to their problem.
-#[derive(Debug, Clone, Copy)]
-pub struct StateView<'a> {
-    /// Time t \[s\].
-    pub t: f64,
-    /// Positions q, n of them.
-    pub q: &'a [f64],
-    /// Velocities q̇, n of them.
-    pub qd: &'a [f64],
-}
 
 /// A constrained second-order system `M q̈ + Φ_qᵀ λ = g(q, q̇, t)`,
 /// `Φ(q, t) = 0` with a diagonal mass matrix, as the implicit integrators

@@ -85,6 +85,38 @@ macro_rules! implicit_outputs {
 }
 pub(crate) use implicit_outputs;
 
+/// The public `stats()` and `integrate(sys, span)` of an implicit method
+/// whose run needs only the system, written inside its `impl` block: the
+/// method keeps its counters in its field `stats` and its [`OdeOptions`]
+/// in `ode`. Given `integrate`'s doc comment and `|me, sys, span| body`,
+/// where `body` checks the inputs (returning early with `?`) and sets up
+/// the run (an [`ImplicitStepper`]) from the method `me`, the system and
+/// the span, which [`run`] then drives.
+macro_rules! implicit_entry {
+    ($(#[$doc:meta])* |$me:ident, $sys:ident, $span:ident| $start:block) => {
+        /// Counters of the last run.
+        pub fn stats(&self) -> $crate::integrate::implicit::ImplicitStats {
+            self.stats
+        }
+
+        $(#[$doc])*
+        pub fn integrate(
+            &mut self,
+            sys: &mut dyn $crate::integrate::implicit::SecondOrderDae,
+            span: $crate::integrate::implicit::Span<'_>,
+        ) -> Result<$crate::integrate::Report, $crate::integrate::IntegratorError> {
+            let (report, stats) = {
+                let ($me, $sys, $span) = (&*self, sys, &span);
+                let mut run = $start;
+                $crate::integrate::implicit::run(&mut run, span, self.ode.max_steps)
+            };
+            self.stats = stats;
+            Ok(report)
+        }
+    };
+}
+pub(crate) use implicit_entry;
+
 /// Drive `st` through [`driver::drive`] over `span` with at most
 /// `max_steps` steps: the report
 /// (a failure midway is [`super::super::Termination::Failed`]) and the

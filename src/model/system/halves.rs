@@ -18,7 +18,7 @@
 //! the few pieces that load them, evaluated once more on their own in plan
 //! order ([`System::residual_boundary`]): the same bits there too.
 
-use super::{Segment, System};
+use super::{Segment, StateView, System};
 use std::collections::BTreeSet;
 use std::ops::Range;
 
@@ -282,8 +282,8 @@ impl System {
                 self.forces[*e].add_forces_on_bodies(t, q, qd, g, bodies.clone())
             }
             Part::Kernels(i, r) => {
-                let b = &self.force_kernels[*i];
-                if !b.kernels.add_forces_range(t, q, qd, g, r.clone()) {
+                let (b, x) = (&self.force_kernels[*i], StateView { t, q, qd });
+                if !b.kernels.add_forces_range(x, g, r.clone()) {
                     let e0 = b.elements.start;
                     for f in &self.forces[e0 + r.start..e0 + r.end] {
                         f.add_forces(t, q, qd, g);
