@@ -22,7 +22,7 @@ macro_rules! side {
 /// system's `q`, `kernels::f_sc(qc, sc, args…)` with the sines and cosines
 /// `sc` of its angles from the chain's memo (updated here, shared with Φ,
 /// Φ_q, γ and the force kernels at the same q), or computed afresh by
-/// [`fresh_trig`] when another thread holds the memo: the same bits either
+/// `fresh_trig` when another thread holds the memo: the same bits either
 /// way, so a run's bits do not depend on which concurrent task took the
 /// memo.
 macro_rules! memoised {
@@ -357,7 +357,7 @@ impl ConstraintKernels for ChainKernels {
     }
     /// `phi_tmul` of the joints `joints`: the chain's joints among them
     /// with the memo's sines and cosines where current (else computed by
-    /// [`fresh_trig`], the same bits), then the ground joint when among them — the order
+    /// `fresh_trig`, the same bits), then the ground joint when among them — the order
     /// of `phi_tmul`.
     fn phi_tmul_joints(
         &self,
