@@ -6,7 +6,7 @@
 
 use super::model::{body_index, body_point, body_ref, RawPoint};
 use super::{error, ScenarioError};
-use crate::model::BodyRef;
+use crate::model::{BodyPoint, BodyRef, SystemBuilder};
 use serde::de::{self, DeserializeOwned, Visitor};
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -31,6 +31,53 @@ pub(super) trait ElementType<C>: DeserializeOwned {
     const TYPE: &'static str;
     /// Adds what the table declares; errors name `<table>[k].<key>`.
     fn add(self, cx: &mut C) -> Result<(), ScenarioError>;
+}
+
+/// What a kind of element builds with besides its [`Site`] and the
+/// system builder: `()` for `[[joint]]`s, gravity, the joints and the
+/// states for `[[force]]`s.
+pub(super) trait Knows {
+    /// The data, borrowed for `'a`.
+    type Data<'a>;
+}
+
+impl Knows for () {
+    type Data<'a> = ();
+}
+
+/// What an element type of the kind `K` builds with: where its table is,
+/// its name and the model's names (its key, error and body helpers,
+/// through `Deref`), the system being built, and what its kind knows.
+pub(super) struct Context<'a, K: Knows> {
+    /// Where the table is.
+    pub(super) site: Site<'a>,
+    /// The system being built.
+    pub(super) builder: &'a mut SystemBuilder,
+    /// What the kind knows besides.
+    pub(super) known: K::Data<'a>,
+}
+
+impl<'a, K: Knows> std::ops::Deref for Context<'a, K> {
+    type Target = Site<'a>;
+    fn deref(&self) -> &Site<'a> {
+        &self.site
+    }
+}
+
+/// A type's `add` in the context of its kind `K`: reads the table as the
+/// type and adds what it declares.
+pub(super) type AddFn<K> = for<'a> fn(&RawTagged, &mut Context<'a, K>) -> Result<(), ScenarioError>;
+
+impl<K: Knows> Decl<AddFn<K>> {
+    /// The row of the type `T` of the kind `K`.
+    pub(super) const fn of<T: for<'a> ElementType<Context<'a, K>>>() -> Self {
+        Decl::new::<T>(T::TYPE, |raw, cx| {
+            let site = &cx.site;
+            site.kind
+                .read::<T>(raw, T::TYPE, site.k, site.file)?
+                .add(cx)
+        })
+    }
 }
 
 /// A type's row in the list of the `[[force]]`, `[[joint]]` or
@@ -185,6 +232,22 @@ impl Site<'_> {
             ));
         }
         Ok((bi, bj))
+    }
+
+    /// The two ends of a two-body element (`what`, e.g. "a spring"):
+    /// `body_i` and `body_j`, which must differ ([`Site::two_bodies`]),
+    /// with their points `point_i` and `point_j` ([`Site::point`]).
+    pub(super) fn two_points(
+        &self,
+        what: &str,
+        (body_i, point_i): (&str, Option<RawPoint>),
+        (body_j, point_j): (&str, Option<RawPoint>),
+    ) -> Result<(BodyPoint, BodyPoint), ScenarioError> {
+        let (bi, bj) = self.two_bodies(what, body_i, body_j)?;
+        Ok((
+            BodyPoint::new(bi, self.point("point_i", point_i, bi)?),
+            BodyPoint::new(bj, self.point("point_j", point_j, bj)?),
+        ))
     }
 
     /// The body-frame point at `fld` on `body` (`None`: the origin).

@@ -2,7 +2,7 @@
 //! `drive_coordinate`, `drive_angle`), read from the joint's table after
 //! its `type` ([`super::element`]), and the constraint each builds.
 
-use super::element::{Decl, ElementType, Kind, RawTagged, Site};
+use super::element::{self, AddFn, Decl, ElementType, Kind, RawTagged};
 use super::model::{time_function, RawPoint};
 use super::ScenarioError;
 use crate::constraints::{
@@ -14,20 +14,7 @@ use serde::Deserialize;
 use std::collections::HashMap;
 
 /// What a joint type builds with.
-pub(super) struct Context<'a> {
-    /// Where `joint[k]` is, its name and the model's names (its key, error
-    /// and body helpers, through `Deref`).
-    site: Site<'a>,
-    /// The system being built.
-    builder: &'a mut SystemBuilder,
-}
-
-impl<'a> std::ops::Deref for Context<'a> {
-    type Target = Site<'a>;
-    fn deref(&self) -> &Site<'a> {
-        &self.site
-    }
-}
+type Context<'a> = element::Context<'a, ()>;
 
 impl Context<'_> {
     /// The `motion` of a drive ([`function_of_time`]).
@@ -117,21 +104,14 @@ pub(in crate::scenario) fn function_of_time(
 pub(super) static JOINT: Kind = Kind::new("joint", "joint");
 
 /// A joint type's row of [`TYPES`].
-pub(super) type JointDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
-
-/// The row of the joint type `T`.
-const fn decl<T: for<'a> ElementType<Context<'a>>>() -> JointDecl {
-    JointDecl::new::<T>(T::TYPE, |raw, cx| {
-        JOINT.read::<T>(raw, T::TYPE, cx.k, cx.file)?.add(cx)
-    })
-}
+pub(super) type JointDecl = Decl<AddFn<()>>;
 
 /// Every `[[joint]]` type, in the order of docs/scenarios.md.
 pub(super) const TYPES: &[JointDecl] = &[
-    decl::<RevoluteJoint>(),
-    decl::<TranslationalJoint>(),
-    decl::<DriveCoordinateJoint>(),
-    decl::<DriveAngleJoint>(),
+    JointDecl::of::<RevoluteJoint>(),
+    JointDecl::of::<TranslationalJoint>(),
+    JointDecl::of::<DriveCoordinateJoint>(),
+    JointDecl::of::<DriveAngleJoint>(),
 ];
 
 /// Builds `joint[k]` (`raw`) into `builder`; every error names `joint[k].key`.
@@ -147,6 +127,7 @@ pub(super) fn add_joint(
     let mut cx = Context {
         site: JOINT.site(raw, k, names, ends, file),
         builder,
+        known: (),
     };
     (decl.add)(raw, &mut cx)
 }
@@ -168,12 +149,14 @@ struct RevoluteJoint {
 impl ElementType<Context<'_>> for RevoluteJoint {
     const TYPE: &'static str = "revolute";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (bi, bj) = cx.two_bodies("a joint", &self.body_i, &self.body_j)?;
-        let pi = cx.point("point_i", Some(self.point_i), bi)?;
-        let pj = cx.point("point_j", Some(self.point_j), bj)?;
+        let (i, j) = cx.two_points(
+            "a joint",
+            (&self.body_i, Some(self.point_i)),
+            (&self.body_j, Some(self.point_j)),
+        )?;
         let name = std::mem::take(&mut cx.site.name);
         cx.builder
-            .add_constraint(Revolute::new(name, bi, pi, bj, pj));
+            .add_constraint(Revolute::new(name, i.body, i.point, j.body, j.point));
         Ok(())
     }
 }
@@ -199,9 +182,11 @@ struct TranslationalJoint {
 impl ElementType<Context<'_>> for TranslationalJoint {
     const TYPE: &'static str = "translational";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (bi, bj) = cx.two_bodies("a joint", &self.body_i, &self.body_j)?;
-        let pi = cx.point("point_i", Some(self.point_i), bi)?;
-        let pj = cx.point("point_j", Some(self.point_j), bj)?;
+        let (i, j) = cx.two_points(
+            "a joint",
+            (&self.body_i, Some(self.point_i)),
+            (&self.body_j, Some(self.point_j)),
+        )?;
         let axis = self.axis_i;
         let len = axis[0].hypot(axis[1]);
         if !len.is_finite() || len <= 0.0 {
@@ -214,10 +199,11 @@ impl ElementType<Context<'_>> for TranslationalJoint {
             BodyRef::Ground => 0.0,
             BodyRef::Body(i) => cx.builder.bodies()[i].q0[2],
         };
-        let theta0 = angle(bj) - angle(bi);
+        let theta0 = angle(j.body) - angle(i.body);
         let name = std::mem::take(&mut cx.site.name);
-        cx.builder
-            .add_constraint(Translational::new(name, bi, pi, axis, bj, pj, theta0));
+        cx.builder.add_constraint(Translational::new(
+            name, i.body, i.point, axis, j.body, j.point, theta0,
+        ));
         Ok(())
     }
 }

@@ -359,7 +359,6 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             geometry: last.geometry(),
         });
     }
-    let gravity = raw.gravity;
     let mut forces = Vec::with_capacity(raw.force.len());
     for (k, f) in raw.force.iter().enumerate() {
         let start = builder.n_forces();
@@ -367,12 +366,12 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<Model, ScenarioErro
             f,
             &mut builder,
             k,
-            gravity,
             super::forces::Known {
                 names: &names,
                 ends: &components.ends,
                 joints: &joints,
                 states: &states,
+                gravity: raw.gravity,
             },
             file,
         )?;

@@ -126,7 +126,7 @@ impl ElementType<Context<'_>> for Expression {
             }
         }
         let map = |e| expression_error(cx, e);
-        let states = expression_names(names, cx.states, &texts).1;
+        let states = expression_names(names, cx.known.states, &texts).1;
         let b = ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states);
         let b = if f.torque.is_some() {
             b.torque(

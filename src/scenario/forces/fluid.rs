@@ -42,7 +42,7 @@ impl ElementType<Context<'_>> for Fluid {
             ));
         }
         if let Some(volume) = self.volume {
-            let g = cx.gravity.unwrap_or([0.0, 0.0]);
+            let g = cx.known.gravity.unwrap_or([0.0, 0.0]);
             if g[0] != 0.0 || g[1] > 0.0 {
                 return Err(error(
                     cx.file,

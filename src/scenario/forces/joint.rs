@@ -53,8 +53,8 @@ fn find<'a>(
     name: &str,
     want: &str,
 ) -> Result<&'a NamedJoint, ScenarioError> {
-    let Some(j) = cx.joints.iter().find(|j| j.name == name) else {
-        let known: Vec<&str> = cx.joints.iter().map(|j| j.name.as_str()).collect();
+    let Some(j) = cx.known.joints.iter().find(|j| j.name == name) else {
+        let known: Vec<&str> = cx.known.joints.iter().map(|j| j.name.as_str()).collect();
         return Err(cx.err(
             "joint",
             format!(
@@ -103,7 +103,8 @@ fn builder(cx: &Context, text: &str, sides: &[&Option<String>]) -> ExpressionLoa
             }
         }
     }
-    let states = super::expression::expression_names(cx.names, cx.states, &[text.to_string()]).1;
+    let states =
+        super::expression::expression_names(cx.names, cx.known.states, &[text.to_string()]).1;
     ExpressionLoadBuilder::new(&cx.name, &read).with_states(&states)
 }
 

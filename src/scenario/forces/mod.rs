@@ -5,7 +5,7 @@
 //! [`TYPES`].
 
 pub(super) use super::element::ElementType;
-use super::element::{Decl, Kind, RawTagged, Site};
+use super::element::{self, AddFn, Decl, Kind, Knows, RawTagged};
 use super::model::RawTable;
 use super::{error, ScenarioError};
 use crate::forces::{ForceElement, Law};
@@ -28,46 +28,34 @@ pub(super) use joint::NamedJoint;
 pub(super) static FORCE: Kind = Kind::new("force", "force element");
 
 /// A force type's row of [`TYPES`].
-pub(super) type ForceDecl = Decl<fn(&RawTagged, &mut Context) -> Result<(), ScenarioError>>;
-
-/// The row of the force type `T`.
-const fn decl<T: for<'a> ElementType<Context<'a>>>() -> ForceDecl {
-    ForceDecl::new::<T>(T::TYPE, |raw, cx| {
-        FORCE.read::<T>(raw, T::TYPE, cx.k, cx.file)?.add(cx)
-    })
-}
+pub(super) type ForceDecl = Decl<AddFn<Forces>>;
 
 /// Every `[[force]]` type, in the order of docs/scenarios.md.
 pub(super) const TYPES: &[ForceDecl] = &[
-    decl::<torque::Torque>(),
-    decl::<applied::Force>(),
-    decl::<spring::Spring>(),
-    decl::<rotational::RotationalSpring>(),
-    decl::<contact::Contact>(),
-    decl::<fluid::Fluid>(),
-    decl::<expression::Expression>(),
-    decl::<joint::JointTorque>(),
-    decl::<joint::JointForce>(),
+    ForceDecl::of::<torque::Torque>(),
+    ForceDecl::of::<applied::Force>(),
+    ForceDecl::of::<spring::Spring>(),
+    ForceDecl::of::<rotational::RotationalSpring>(),
+    ForceDecl::of::<contact::Contact>(),
+    ForceDecl::of::<fluid::Fluid>(),
+    ForceDecl::of::<expression::Expression>(),
+    ForceDecl::of::<joint::JointTorque>(),
+    ForceDecl::of::<joint::JointForce>(),
 ];
 
-/// What a force type builds with: the builder, where its table is, and
-/// the model's names.
-pub(super) struct Context<'a> {
-    /// Where `force[k]` is, its name and the model's names (its key, error
-    /// and body helpers, through `Deref`).
-    site: Site<'a>,
-    /// The system being built.
-    pub(super) builder: &'a mut SystemBuilder,
-    /// The scenario's `gravity`.
-    pub(super) gravity: Option<[f64; 2]>,
-    /// The `[[joint]]`s by name (for joint loads).
-    pub(super) joints: &'a [NamedJoint],
-    /// The `[[state]]`s: (name, coordinate).
-    pub(super) states: &'a [(String, usize)],
+/// The `[[force]]` kind: what its types build with besides the builder
+/// and the site is [`Known`].
+pub(super) struct Forces;
+
+impl Knows for Forces {
+    type Data<'a> = Known<'a>;
 }
 
+/// What a force type builds with.
+pub(super) type Context<'a> = element::Context<'a, Forces>;
+
 /// What the model knows when its forces are added: the names of bodies
-/// and joints, and the rods' and chains' half lengths.
+/// and joints, the rods' and chains' half lengths, the states and gravity.
 #[derive(Clone, Copy)]
 pub(super) struct Known<'a> {
     /// Body index by name.
@@ -78,6 +66,8 @@ pub(super) struct Known<'a> {
     pub(super) joints: &'a [NamedJoint],
     /// The `[[state]]`s: (name, coordinate).
     pub(super) states: &'a [(String, usize)],
+    /// The scenario's `gravity`.
+    pub(super) gravity: Option<[f64; 2]>,
 }
 
 /// Builds `force[k]` (`raw`) into `builder`; every error names `force[k].key`.
@@ -85,32 +75,16 @@ pub(super) fn add_force(
     raw: &RawTagged,
     builder: &mut SystemBuilder,
     k: usize,
-    gravity: Option<[f64; 2]>,
     known: Known<'_>,
     file: &str,
 ) -> Result<(), ScenarioError> {
-    let Known {
-        names,
-        ends,
-        joints,
-        states,
-    } = known;
     let decl = FORCE.decl(raw, TYPES, k, file)?;
     let mut cx = Context {
-        site: FORCE.site(raw, k, names, ends, file),
+        site: FORCE.site(raw, k, known.names, known.ends, file),
         builder,
-        gravity,
-        joints,
-        states,
+        known,
     };
     (decl.add)(raw, &mut cx)
-}
-
-impl<'a> std::ops::Deref for Context<'a> {
-    type Target = Site<'a>;
-    fn deref(&self) -> &Site<'a> {
-        &self.site
-    }
 }
 
 impl Context<'_> {

@@ -3,7 +3,6 @@
 
 use super::{Context, ElementType};
 use crate::forces::PointSpringDamper;
-use crate::model::BodyPoint;
 use crate::scenario::model::{RawPoint, RawTable};
 use crate::scenario::ScenarioError;
 use serde::Deserialize;
@@ -39,14 +38,18 @@ pub(in crate::scenario) struct Spring {
 impl ElementType<Context<'_>> for Spring {
     const TYPE: &'static str = "spring";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (body_i, body_j) = cx.two_bodies("a spring", &self.body_i, &self.body_j)?;
+        let (i, j) = cx.two_points(
+            "a spring",
+            (&self.body_i, self.point_i),
+            (&self.body_j, self.point_j),
+        )?;
         let actuator = match self.actuator {
             Some(v) => Some(cx.function(Self::TYPE, "actuator", v)?),
             None => None,
         };
         let s = PointSpringDamper {
-            i: BodyPoint::new(body_i, cx.point("point_i", self.point_i, body_i)?),
-            j: BodyPoint::new(body_j, cx.point("point_j", self.point_j, body_j)?),
+            i,
+            j,
             free_length: cx.finite("free_length", self.free_length.unwrap_or(0.0))?,
             stiffness: cx.law(
                 ("stiffness", self.stiffness),
