@@ -4,7 +4,7 @@
 
 use crate::constraints::Revolute;
 use crate::forces::{
-    Buoyancy, Check, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
+    Buoyancy, Check, ContactLaw, CornerState, Drag, Gravity, TorsionalSpringDamper, WallContact,
 };
 use crate::generated::{
     ChainKernels, ContactJacobians, DragJacobians, GroundPivot, SharedTrig, TorsionalChainJacobians,
@@ -275,10 +275,12 @@ impl RodParams {
             length: self.segment_length(),
             left_wall: -0.5 * self.channel_width,
             right_wall: 0.5 * self.channel_width,
-            stiffness: self.contact_stiffness,
-            damping: self.contact_damping,
-            friction: self.friction_coefficient,
-            slip_velocity: self.friction_velocity,
+            law: ContactLaw {
+                stiffness: self.contact_stiffness,
+                damping: self.contact_damping,
+                friction: self.friction_coefficient,
+                slip_velocity: self.friction_velocity,
+            },
         }
     }
 }

@@ -338,7 +338,7 @@ pub fn max_force(arrows: &[Arrow]) -> f64 {
 mod tests {
     use super::*;
     use crate::constraints::Revolute;
-    use crate::forces::HalfPlaneContact;
+    use crate::forces::{ContactLaw, HalfPlaneContact};
     use crate::model::{Body, SystemBuilder};
 
     const G: f64 = 9.81;
@@ -359,10 +359,12 @@ mod tests {
             r,
             [0.0, 0.0],
             [0.0, 1.0],
-            k,
-            0.5,
-            0.3,
-            1e-3,
+            ContactLaw {
+                stiffness: k,
+                damping: 0.5,
+                friction: 0.3,
+                slip_velocity: 1e-3,
+            },
         ));
         b.add_constraint(Revolute::new(
             "pin",

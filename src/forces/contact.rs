@@ -66,34 +66,34 @@ pub struct WallContact {
     pub left_wall: f64,
     /// x of the right wall \[m\] (+d/2 in problem B).
     pub right_wall: f64,
-    /// Hertz stiffness k_h > 0 \[N/m^{3/2}\] (1e9).
+    /// The contact laws (problem B: k_h = 1e9 N/m^{3/2}, χ = 0.75 s/m,
+    /// μ = 0.3, v_s = 1e-3 m/s).
+    pub law: ContactLaw,
+}
+
+/// The laws of a penalty contact (docs/problems.md, problem B, "contact"),
+/// one piece of code for [`WallContact`] and [`super::HalfPlaneContact`]:
+/// the Hunt–Crossley normal force `F_n = max(0, k_h δ^{3/2} (1 + χ δ̇))` for
+/// penetration `δ > 0` and its rate `δ̇` (positive while approaching), with
+/// the elastic potential `(2/5) k_h δ^{5/2}`, and regularised Coulomb
+/// friction `−μ F_n tanh(v / v_s)` for slip velocity `v`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactLaw {
+    /// Hertz stiffness k_h > 0 \[N/m^{3/2}\].
     pub stiffness: f64,
-    /// Hunt–Crossley damping factor χ ≥ 0 \[s/m\] (0.75).
+    /// Hunt–Crossley damping factor χ ≥ 0 \[s/m\].
     pub damping: f64,
-    /// Friction coefficient μ ≥ 0 (0.3).
+    /// Friction coefficient μ ≥ 0.
     pub friction: f64,
-    /// Regularisation velocity v_s > 0 of the friction law \[m/s\] (1e-3).
+    /// Regularisation velocity v_s > 0 of the friction law \[m/s\].
     pub slip_velocity: f64,
 }
 
-/// The Hunt–Crossley normal law of the contacts (docs/problems.md, problem
-/// B, "contact"): `F_n = max(0, k_h δ^{3/2} (1 + χ δ̇))` for penetration
-/// `δ > 0` and its rate `δ̇` (positive while approaching), with the elastic
-/// potential `(2/5) k_h δ^{5/2}`. One piece of code for [`WallContact`] and
-/// [`super::HalfPlaneContact`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct HuntCrossley {
-    /// Hertz stiffness k_h \[N/m^{3/2}\].
-    pub kh: f64,
-    /// Damping factor χ \[s/m\].
-    pub chi: f64,
-}
-
-impl HuntCrossley {
+impl ContactLaw {
     /// `F_n(δ, δ̇)` (clamped at 0), for `δ > 0`.
     #[inline]
     pub(crate) fn force(&self, delta: f64, delta_dot: f64) -> f64 {
-        (self.kh * delta * delta.sqrt() * (1.0 + self.chi * delta_dot)).max(0.0)
+        (self.stiffness * delta * delta.sqrt() * (1.0 + self.damping * delta_dot)).max(0.0)
     }
 
     /// `(∂F_n/∂δ, ∂F_n/∂δ̇)` of the unclamped law, for `δ > 0`.
@@ -101,25 +101,67 @@ impl HuntCrossley {
     pub(crate) fn slopes(&self, delta: f64, delta_dot: f64) -> (f64, f64) {
         let sq = delta.sqrt();
         (
-            1.5 * self.kh * sq * (1.0 + self.chi * delta_dot),
-            self.kh * delta * sq * self.chi,
+            1.5 * self.stiffness * sq * (1.0 + self.damping * delta_dot),
+            self.stiffness * delta * sq * self.damping,
         )
     }
 
     /// Elastic potential `(2/5) k_h δ^{5/2}`, for `δ > 0`.
     #[inline]
     pub(crate) fn energy(&self, delta: f64) -> f64 {
-        0.4 * self.kh * delta * delta * delta.sqrt()
+        0.4 * self.stiffness * delta * delta * delta.sqrt()
+    }
+
+    /// `(tanh(v/v_s), d tanh(v/v_s)/dv)` of the friction law at slip
+    /// velocity `v`.
+    #[inline]
+    pub(crate) fn friction_tanh(&self, v: f64) -> (f64, f64) {
+        let th = (v / self.slip_velocity).tanh();
+        (th, (1.0 - th * th) / self.slip_velocity)
+    }
+
+    /// The laws at a point in contact: penetration `delta` > 0 \[m\], its
+    /// rate `delta_dot` \[m/s\], slip velocity `v` \[m/s\].
+    #[inline]
+    pub(crate) fn engage(&self, delta: f64, delta_dot: f64, v: f64) -> Engaged {
+        let (tanh, dtanh) = self.friction_tanh(v);
+        Engaged {
+            delta,
+            delta_dot,
+            fn_: self.force(delta, delta_dot),
+            tanh,
+            dtanh,
+        }
+    }
+
+    /// The friction force `−μ F_n tanh` for the normal force `fn_`.
+    #[inline]
+    pub(crate) fn friction_force(&self, fn_: f64, tanh: f64) -> f64 {
+        -self.friction * fn_ * tanh
+    }
+
+    /// The checks of an element's `validate`: `stiffness` and
+    /// `slip_velocity` positive, `damping` and `friction` non-negative.
+    pub(crate) fn check(&self, check: &Check) -> Result<(), ModelError> {
+        check.positive(&[("stiffness", self.stiffness)])?;
+        check.positive(&[("slip_velocity", self.slip_velocity)])?;
+        check.non_negative(&[("damping", self.damping), ("friction", self.friction)])
     }
 }
 
-/// Regularised Coulomb friction of the contacts: the friction force is
-/// `−μ F_n tanh(v / v_s)` for slip velocity `v`; returns
-/// `(tanh(v/v_s), d tanh(v/v_s)/dv)`.
-#[inline]
-pub(crate) fn friction_tanh(v: f64, slip_velocity: f64) -> (f64, f64) {
-    let th = (v / slip_velocity).tanh();
-    (th, (1.0 - th * th) / slip_velocity)
+/// The contact laws at one point in contact ([`ContactLaw::engage`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Engaged {
+    /// Penetration δ > 0 \[m\].
+    pub(crate) delta: f64,
+    /// Its rate δ̇ \[m/s\].
+    pub(crate) delta_dot: f64,
+    /// Normal force F_n ≥ 0 \[N\].
+    pub(crate) fn_: f64,
+    /// `tanh(v/v_s)` of the slip velocity v.
+    pub(crate) tanh: f64,
+    /// Its derivative `d tanh(v/v_s)/dv` \[s/m\].
+    pub(crate) dtanh: f64,
 }
 
 /// Per-corner contact evaluation against one wall.
@@ -130,21 +172,11 @@ struct CornerEval {
     /// Rotated corner offset R(φ) s.
     rs: [f64; 2],
     pos: [f64; 2],
-    delta: f64,
-    delta_dot: f64,
-    fn_: f64,
-    tanh: f64,
+    /// The laws at the corner.
+    engaged: Engaged,
 }
 
 impl WallContact {
-    /// The normal law of this element.
-    fn law(&self) -> HuntCrossley {
-        HuntCrossley {
-            kh: self.stiffness,
-            chi: self.damping,
-        }
-    }
-
     /// Body-fixed position of corner `c` (0..4): 0 = (−w/2, −l_s/2),
     /// 1 = (+w/2, −l_s/2), 2 = (+w/2, +l_s/2), 3 = (−w/2, +l_s/2)
     /// (counter-clockwise from bottom left at φ = 0). Panics for `c >= 4`.
@@ -204,9 +236,7 @@ impl WallContact {
                 if delta <= 0.0 {
                     continue;
                 }
-                let delta_dot = -sigma * vel[0];
-                let fn_ = self.law().force(delta, delta_dot);
-                let (tanh, _) = friction_tanh(vel[1], self.slip_velocity);
+                let engaged = self.law.engage(delta, -sigma * vel[0], vel[1]);
                 f(
                     c,
                     &CornerEval {
@@ -214,10 +244,7 @@ impl WallContact {
                         sigma,
                         rs,
                         pos,
-                        delta,
-                        delta_dot,
-                        fn_,
-                        tanh,
+                        engaged,
                     },
                 );
             }
@@ -228,17 +255,18 @@ impl WallContact {
     /// (δ > 0), in corner order. `out` is not cleared. `q`, `qd` are the
     /// full coordinate and velocity vectors.
     pub fn corner_states(&self, q: &[f64], qd: &[f64], out: &mut Vec<CornerState>) {
-        self.for_each_contact(self.body_q(q), self.body_q(qd), |c, e| {
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |c, ce| {
+            let e = ce.engaged;
             out.push(CornerState {
                 body: self.body,
                 segment: self.segment,
                 corner: c,
-                wall: e.wall,
-                position: e.pos,
+                wall: ce.wall,
+                position: ce.pos,
                 penetration: e.delta,
                 penetration_rate: e.delta_dot,
                 normal_force: e.fn_,
-                friction_force: -self.friction * e.fn_ * e.tanh,
+                friction_force: self.law.friction_force(e.fn_, e.tanh),
             })
         });
     }
@@ -273,13 +301,14 @@ impl ForceElement for WallContact {
 
     fn add_forces(&self, _t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
         let o = 3 * self.body;
-        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, e| {
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, ce| {
+            let e = ce.engaged;
             if e.fn_ > 0.0 {
-                let fx = e.sigma * e.fn_;
-                let fy = -self.friction * e.fn_ * e.tanh;
+                let fx = ce.sigma * e.fn_;
+                let fy = self.law.friction_force(e.fn_, e.tanh);
                 g[o] += fx;
                 g[o + 1] += fy;
-                g[o + 2] += e.rs[0] * fy - e.rs[1] * fx;
+                g[o + 2] += ce.rs[0] * fy - ce.rs[1] * fx;
             }
         });
     }
@@ -287,13 +316,13 @@ impl ForceElement for WallContact {
     fn add_jacobians(&self, _t: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
         let ForceJacobians { dq, dqd, .. } = out;
         let w = qd[3 * self.body + 2];
-        let (mu, vs) = (self.friction, self.slip_velocity);
-        let law = self.law();
-        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, e| {
+        let (mu, law) = (self.law.friction, self.law);
+        self.for_each_contact(self.body_q(q), self.body_q(qd), |_, ce| {
+            let e = ce.engaged;
             if e.fn_ <= 0.0 {
                 return; // clamped: force and derivatives vanish
             }
-            let (sg, rs) = (e.sigma, e.rs);
+            let (sg, rs) = (ce.sigma, ce.rs);
             // Derivatives w.r.t. (x, y, φ) and (ẋ, ẏ, φ̇).
             // p = r + R s: ∂p_x/∂q = (1, 0, −rs_y); ṗ = ṙ + φ̇ J R s:
             // ∂ṗ_x/∂φ = −φ̇ rs_x, ∂ṗ_y/∂φ = −φ̇ rs_y, ∂ṗ/∂q̇ = (I, J R s).
@@ -303,7 +332,6 @@ impl ForceElement for WallContact {
             let d_vy_q = [0.0, 0.0, -w * rs[1]];
             let d_vy_qd = [0.0, 1.0, rs[0]];
             let (a, b) = law.slopes(e.delta, e.delta_dot); // ∂F_n/∂δ, ∂F_n/∂δ̇
-            let dtanh = (1.0 - e.tanh * e.tanh) / vs;
             let fx = sg * e.fn_;
             let fy = -mu * e.fn_ * e.tanh;
             for (out, dd, ddd, dvy, is_q) in [
@@ -313,7 +341,7 @@ impl ForceElement for WallContact {
                 for c in 0..3 {
                     let dfn = a * dd[c] + b * ddd[c];
                     let dfx = sg * dfn;
-                    let dfy = -mu * (e.tanh * dfn + e.fn_ * dtanh * dvy[c]);
+                    let dfy = -mu * (e.tanh * dfn + e.fn_ * e.dtanh * dvy[c]);
                     let mut dt = rs[0] * dfy - rs[1] * dfx;
                     if is_q && c == 2 {
                         // ∂(R s)/∂φ = J R s = (−rs_y, rs_x)
@@ -330,7 +358,7 @@ impl ForceElement for WallContact {
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let mut e = 0.0;
         self.for_each_contact(self.body_q(q), [0.0; 3], |_, c| {
-            e += self.law().energy(c.delta);
+            e += self.law.energy(c.engaged.delta);
         });
         Some(e)
     }
@@ -339,9 +367,7 @@ impl ForceElement for WallContact {
         let name = self.name();
         let check = Check { element: &name };
         check.positive(&[("width", self.width), ("length", self.length)])?;
-        check.positive(&[("stiffness", self.stiffness)])?;
-        check.positive(&[("slip_velocity", self.slip_velocity)])?;
-        check.non_negative(&[("damping", self.damping), ("friction", self.friction)])?;
+        self.law.check(&check)?;
         check.finite("left_wall", self.left_wall)?;
         check.finite("right_wall", self.right_wall)?;
         if self.right_wall - self.left_wall <= self.width {

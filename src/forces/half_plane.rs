@@ -2,7 +2,8 @@
 //! half-plane at any angle), with the rod's Hunt–Crossley normal law and
 //! regularised Coulomb friction (docs/scenarios.md, `[[force]]`).
 
-use super::contact::{friction_tanh, HuntCrossley};
+use super::contact::Engaged;
+use super::ContactLaw;
 use super::{check_coordinates, Check, ForceElement, ForceJacobians};
 use crate::model::{BodyRef, ModelError, TimeFunction};
 
@@ -43,14 +44,8 @@ pub struct HalfPlaneContact {
     /// Outward unit normal of the wall (into the free side); normalised by
     /// [`HalfPlaneContact::new`].
     pub normal: [f64; 2],
-    /// Hertz stiffness k_h > 0 \[N/m^{3/2}\].
-    pub stiffness: f64,
-    /// Hunt–Crossley damping factor χ ≥ 0 \[s/m\].
-    pub damping: f64,
-    /// Friction coefficient μ ≥ 0.
-    pub friction: f64,
-    /// Regularisation velocity v_s > 0 of the friction law \[m/s\].
-    pub slip_velocity: f64,
+    /// The contact laws.
+    pub law: ContactLaw,
     /// Displacement `(d_x(t), d_y(t))` \[m\] of the wall from `wall_point`,
     /// global; `None`: a fixed wall.
     pub wall_motion: Option<[TimeFunction; 2]>,
@@ -65,27 +60,20 @@ struct Eval {
     u: [f64; 2],
     /// Contact-point offset `c = u − R n`.
     c: [f64; 2],
-    delta: f64,
-    delta_dot: f64,
-    fn_: f64,
-    tanh: f64,
-    dtanh: f64,
+    /// The laws at the contact point.
+    engaged: Engaged,
 }
 
 impl HalfPlaneContact {
     /// A contact with the normal `normal` normalised (a zero or non-finite
     /// normal is kept as given and rejected by `validate`).
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         body: usize,
         point: [f64; 2],
         radius: f64,
         wall_point: [f64; 2],
         normal: [f64; 2],
-        stiffness: f64,
-        damping: f64,
-        friction: f64,
-        slip_velocity: f64,
+        law: ContactLaw,
     ) -> Self {
         let len = normal[0].hypot(normal[1]);
         let normal = if len.is_finite() && len > 0.0 {
@@ -99,10 +87,7 @@ impl HalfPlaneContact {
             radius,
             wall_point,
             normal,
-            stiffness,
-            damping,
-            friction,
-            slip_velocity,
+            law,
             wall_motion: None,
             surface_velocity: [0.0, 0.0],
         }
@@ -123,13 +108,6 @@ impl HalfPlaneContact {
                 let ([x, vx, _], [y, vy, _]) = (fx.eval(t), fy.eval(t));
                 ([self.wall_point[0] + x, self.wall_point[1] + y], [vx, vy])
             }
-        }
-    }
-
-    fn law(&self) -> HuntCrossley {
-        HuntCrossley {
-            kh: self.stiffness,
-            chi: self.damping,
         }
     }
 
@@ -172,24 +150,19 @@ impl HalfPlaneContact {
         let vc = [qd[o] - w * c[1] - ad[0], qd[o + 1] + w * c[0] - ad[1]];
         let delta_dot = -(n[0] * pd[0] + n[1] * pd[1]);
         let vt = t[0] * vc[0] + t[1] * vc[1];
-        let fn_ = self.law().force(delta, delta_dot);
-        let (tanh, dtanh) = friction_tanh(vt, self.slip_velocity);
         Some(Eval {
             u,
             c,
-            delta,
-            delta_dot,
-            fn_,
-            tanh,
-            dtanh,
+            engaged: self.law.engage(delta, delta_dot, vt),
         })
     }
 
     /// `(F_n, F_t, δ)` at time `t` \[s\]: normal force, friction force
     /// along `t = J n` \[N\] and penetration \[m\]; zeros without contact.
     pub fn contact_forces_at(&self, t: f64, q: &[f64], qd: &[f64]) -> (f64, f64, f64) {
-        self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |e| {
-            (e.fn_, -self.friction * e.fn_ * e.tanh, e.delta)
+        self.eval(t, q, qd).map_or((0.0, 0.0, 0.0), |ev| {
+            let e = ev.engaged;
+            (e.fn_, self.law.friction_force(e.fn_, e.tanh), e.delta)
         })
     }
 }
@@ -221,40 +194,42 @@ impl ForceElement for HalfPlaneContact {
     }
 
     fn add_forces(&self, time: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
-        let Some(e) = self.eval(time, q, qd) else {
+        let Some(ev) = self.eval(time, q, qd) else {
             return;
         };
+        let e = ev.engaged;
         if e.fn_ <= 0.0 {
             return;
         }
         let (n, t) = (self.normal, self.tangent());
-        let ff = -self.friction * e.fn_ * e.tanh;
+        let ff = self.law.friction_force(e.fn_, e.tanh);
         let f = [e.fn_ * n[0] + ff * t[0], e.fn_ * n[1] + ff * t[1]];
         let o = 3 * self.body;
         g[o] += f[0];
         g[o + 1] += f[1];
-        g[o + 2] += e.c[0] * f[1] - e.c[1] * f[0];
+        g[o + 2] += ev.c[0] * f[1] - ev.c[1] * f[0];
     }
 
     fn add_jacobians(&self, time: f64, q: &[f64], qd: &[f64], out: ForceJacobians<'_>) {
         let ForceJacobians { dq, dqd, .. } = out;
-        let Some(e) = self.eval(time, q, qd) else {
+        let Some(ev) = self.eval(time, q, qd) else {
             return;
         };
+        let e = ev.engaged;
         if e.fn_ <= 0.0 {
             return; // clamped: force and derivatives vanish
         }
         let (n, t) = (self.normal, self.tangent());
         let w = qd[3 * self.body + 2];
-        let mu = self.friction;
-        let (a, b) = self.law().slopes(e.delta, e.delta_dot);
+        let mu = self.law.friction;
+        let (a, b) = self.law.slopes(e.delta, e.delta_dot);
         let ff = -mu * e.fn_ * e.tanh;
         let f = [e.fn_ * n[0] + ff * t[0], e.fn_ * n[1] + ff * t[1]];
-        let ju = [-e.u[1], e.u[0]]; // ∂u/∂φ = ∂c/∂φ = J u
-        let jc = [-e.c[1], e.c[0]];
+        let ju = [-ev.u[1], ev.u[0]]; // ∂u/∂φ = ∂c/∂φ = J u
+        let jc = [-ev.c[1], ev.c[0]];
         let n_ju = n[0] * ju[0] + n[1] * ju[1];
-        let n_u = n[0] * e.u[0] + n[1] * e.u[1];
-        let t_u = t[0] * e.u[0] + t[1] * e.u[1];
+        let n_u = n[0] * ev.u[0] + n[1] * ev.u[1];
+        let t_u = t[0] * ev.u[0] + t[1] * ev.u[1];
         let t_jc = t[0] * jc[0] + t[1] * jc[1];
         // derivatives of δ, δ̇, v_t w.r.t. (x, y, φ) and (ẋ, ẏ, φ̇):
         // δ = R − n·(r + u − a); δ̇ = −n·(ṙ + ω J u) with ∂(J u)/∂φ = −u;
@@ -272,7 +247,7 @@ impl ForceElement for HalfPlaneContact {
                 let dfn = a * dd[col] + b * ddd[col];
                 let dff = -mu * (e.tanh * dfn + e.fn_ * e.dtanh * dvt[col]);
                 let df = [dfn * n[0] + dff * t[0], dfn * n[1] + dff * t[1]];
-                let mut dm = e.c[0] * df[1] - e.c[1] * df[0];
+                let mut dm = ev.c[0] * df[1] - ev.c[1] * df[0];
                 if is_q && col == 2 {
                     dm += ju[0] * f[1] - ju[1] * f[0];
                 }
@@ -306,7 +281,7 @@ impl ForceElement for HalfPlaneContact {
         }
         let delta = self.penetration(q);
         Some(if delta > 0.0 {
-            self.law().energy(delta)
+            self.law.energy(delta)
         } else {
             0.0
         })
@@ -334,10 +309,8 @@ impl ForceElement for HalfPlaneContact {
                 "must be a unit vector (a finite, non-zero normal given to `new`)",
             ));
         }
-        check.positive(&[("stiffness", self.stiffness)])?;
-        check.positive(&[("slip_velocity", self.slip_velocity)])?;
-        check.non_negative(&[("radius", self.radius), ("damping", self.damping)])?;
-        check.non_negative(&[("friction", self.friction)])?;
+        self.law.check(&check)?;
+        check.non_negative(&[("radius", self.radius)])?;
         check_coordinates(&name, &self.coordinates(), n_coords)
     }
 }

@@ -25,7 +25,7 @@ pub use applied::{AppliedForce, AppliedTorque};
 pub use buoyancy::Buoyancy;
 pub use callback::{CallbackError, CallbackForce, CallbackLaw};
 pub(crate) use contact::Clearance;
-pub use contact::{CornerState, Wall, WallContact};
+pub use contact::{ContactLaw, CornerState, Wall, WallContact};
 pub(crate) use drag::drag_force;
 pub use drag::Drag;
 pub use expression::{ExpressionError, ExpressionLoad, ExpressionLoadBuilder, LinePoint};

@@ -2,7 +2,7 @@
 //! (an expression of x and t, docs/expressions.md), with the laws of
 //! [`HalfPlaneContact`] against the profile's local tangent line.
 
-use super::{Check, ForceElement, HalfPlaneContact};
+use super::{Check, ContactLaw, ForceElement, HalfPlaneContact};
 use crate::model::ModelError;
 use mbsolve_codegen::{parse, Ctx, ParseError, Tape};
 use std::sync::Mutex;
@@ -35,17 +35,13 @@ pub struct RoadContact {
 impl RoadContact {
     /// A road contact of `body`'s circle (`point` in the body frame \[m\],
     /// `radius` \[m\]) with the profile `y = profile(x, t)` \[m\], and the
-    /// contact laws of [`HalfPlaneContact::new`].
-    #[allow(clippy::too_many_arguments)]
+    /// contact laws `law`.
     pub fn new(
         body: usize,
         point: [f64; 2],
         radius: f64,
         profile: &str,
-        stiffness: f64,
-        damping: f64,
-        friction: f64,
-        slip_velocity: f64,
+        law: ContactLaw,
     ) -> Result<Self, ParseError> {
         let mut ctx = Ctx::new();
         let x = ctx.var("x");
@@ -58,17 +54,7 @@ impl RoadContact {
         })?;
         let hx = ctx.diff(h, x);
         let ht = ctx.diff(h, t);
-        let base = HalfPlaneContact::new(
-            body,
-            point,
-            radius,
-            [0.0, 0.0],
-            [0.0, 1.0],
-            stiffness,
-            damping,
-            friction,
-            slip_velocity,
-        );
+        let base = HalfPlaneContact::new(body, point, radius, [0.0, 0.0], [0.0, 1.0], law);
         Ok(Self {
             base,
             profile: profile.to_string(),

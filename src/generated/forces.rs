@@ -229,10 +229,10 @@ impl ContactJacobians {
                         0.5 * e.length,
                         e.left_wall,
                         e.right_wall,
-                        e.stiffness,
-                        e.damping,
-                        e.friction,
-                        e.slip_velocity,
+                        e.law.stiffness,
+                        e.law.damping,
+                        e.law.friction,
+                        e.law.slip_velocity,
                     ]
                 })
                 .collect(),
@@ -305,6 +305,7 @@ fn body_blocks(q0: usize, n: usize) -> Vec<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::forces::ContactLaw;
     use crate::generated::ChainKernels;
     use crate::model::ConstraintKernels;
 
@@ -385,10 +386,12 @@ mod tests {
                 length: ls,
                 left_wall: -0.025,
                 right_wall: 0.025,
-                stiffness: 1e9,
-                damping: 0.75,
-                friction: 0.3,
-                slip_velocity: 1e-3,
+                law: ContactLaw {
+                    stiffness: 1e9,
+                    damping: 0.75,
+                    friction: 0.3,
+                    slip_velocity: 1e-3,
+                },
             })
             .collect();
         let kern = ContactJacobians::new(body0, &contacts);

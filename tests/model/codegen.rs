@@ -6,7 +6,9 @@
 
 use mbsolve::builders::n_link_pendulum;
 use mbsolve::constraints::{Revolute, Translational};
-use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
+use mbsolve::forces::{
+    ContactLaw, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact,
+};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
 use mbsolve::model::{
     Body, BodyRef, ConstraintKernels, ConstraintTerms, Evaluation, JointGeometry, System,
@@ -547,10 +549,12 @@ fn contact_kernels_match_runtime_elements() {
             length: ls,
             left_wall: -0.025,
             right_wall: 0.025,
-            stiffness: 1e9,
-            damping: 0.75,
-            friction: 0.3,
-            slip_velocity: 1e-3,
+            law: ContactLaw {
+                stiffness: 1e9,
+                damping: 0.75,
+                friction: 0.3,
+                slip_velocity: 1e-3,
+            },
         })
         .collect();
     let fp: Vec<f64> = elems
@@ -561,10 +565,10 @@ fn contact_kernels_match_runtime_elements() {
                 0.5 * e.length,
                 e.left_wall,
                 e.right_wall,
-                e.stiffness,
-                e.damping,
-                e.friction,
-                e.slip_velocity,
+                e.law.stiffness,
+                e.law.damping,
+                e.law.friction,
+                e.law.slip_velocity,
             ]
         })
         .collect();

@@ -3,7 +3,8 @@
 //! the work of the force, damper power, law validation, static cases.
 
 use mbsolve::forces::{
-    FdWorkspace, ForceElement, HalfPlaneContact, Law, PointSpringDamper, RotationalSpringDamper,
+    ContactLaw, FdWorkspace, ForceElement, HalfPlaneContact, Law, PointSpringDamper,
+    RotationalSpringDamper,
 };
 use mbsolve::model::{BodyPoint, BodyRef, ModelError, TimeFunction};
 
@@ -356,10 +357,12 @@ fn contacts() -> Vec<HalfPlaneContact> {
             0.0,
             [0.1, -0.5],
             [-(20f64.to_radians().sin()), 20f64.to_radians().cos()],
-            1e5,
-            0.8,
-            0.4,
-            1e-2,
+            ContactLaw {
+                stiffness: 1e5,
+                damping: 0.8,
+                friction: 0.4,
+                slip_velocity: 1e-2,
+            },
         ),
         // a circle against a wall at 130°, normal not of unit length
         HalfPlaneContact::new(
@@ -371,10 +374,12 @@ fn contacts() -> Vec<HalfPlaneContact> {
                 2.0 * 130f64.to_radians().cos(),
                 2.0 * 130f64.to_radians().sin(),
             ],
-            3e4,
-            0.0,
-            0.6,
-            5e-2,
+            ContactLaw {
+                stiffness: 3e4,
+                damping: 0.0,
+                friction: 0.6,
+                slip_velocity: 5e-2,
+            },
         ),
     ]
 }
@@ -437,10 +442,12 @@ fn half_plane_contact_matches_hertz_law_and_rolling_has_no_friction() {
         0.2,
         [5.0, 0.0],
         [0.0, 3.0],
-        2e6,
-        0.5,
-        0.7,
-        1e-3,
+        ContactLaw {
+            stiffness: 2e6,
+            damping: 0.5,
+            friction: 0.7,
+            slip_velocity: 1e-3,
+        },
     );
     let delta = 1e-3;
     let q = [1.0, 0.2 - delta, 0.9];
@@ -463,7 +470,19 @@ fn half_plane_contact_matches_hertz_law_and_rolling_has_no_friction() {
     assert!(
         matches!(bad.validate(3), Err(ModelError::InvalidParameter { field, .. }) if field == "radius")
     );
-    let bad = HalfPlaneContact::new(0, [0.0; 2], 0.0, [0.0; 2], [0.0, 0.0], 1.0, 0.0, 0.0, 1.0);
+    let bad = HalfPlaneContact::new(
+        0,
+        [0.0; 2],
+        0.0,
+        [0.0; 2],
+        [0.0, 0.0],
+        ContactLaw {
+            stiffness: 1.0,
+            damping: 0.0,
+            friction: 0.0,
+            slip_velocity: 1.0,
+        },
+    );
     assert!(
         matches!(bad.validate(3), Err(ModelError::InvalidParameter { field, .. }) if field == "normal")
     );

@@ -4,8 +4,8 @@
 
 use mbsolve::builders::{add_rod, build_rod, cantilever, n_link_pendulum, RodParams};
 use mbsolve::forces::{
-    Buoyancy, CornerState, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, Wall,
-    WallContact,
+    Buoyancy, ContactLaw, CornerState, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper,
+    Wall, WallContact,
 };
 use mbsolve::model::{BodyRef, ModelError, System, SystemBuilder};
 
@@ -335,10 +335,12 @@ fn contact() -> WallContact {
         length: 0.1,
         left_wall: -0.025,
         right_wall: 0.025,
-        stiffness: 1e9,
-        damping: 0.75,
-        friction: 0.3,
-        slip_velocity: 1e-3,
+        law: ContactLaw {
+            stiffness: 1e9,
+            damping: 0.75,
+            friction: 0.3,
+            slip_velocity: 1e-3,
+        },
     }
 }
 
@@ -509,10 +511,8 @@ fn penetrating_states(seed: u64, n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
 #[test]
 fn contact_friction_never_adds_energy_and_jacobians_are_exact() {
     let c = contact();
-    let frictionless = WallContact {
-        friction: 0.0,
-        ..contact()
-    };
+    let mut frictionless = contact();
+    frictionless.law.friction = 0.0;
     let (mut n_active, mut n_compared) = (0, 0);
     for (q, qd) in penetrating_states(3, 400) {
         let g = forces(&c, &q, &qd);
@@ -555,7 +555,7 @@ fn contact_friction_never_adds_energy_and_jacobians_are_exact() {
 fn contact_static_hertz_equilibrium() {
     let c = contact();
     for (f, e) in [(200.0, 0.02), (50.0, 0.0), (1000.0, -0.03)] {
-        let kh = c.stiffness;
+        let kh = c.law.stiffness;
         let (mut x, mut phi) = (0.01 + (0.5 * f / kh).powf(2.0 / 3.0), 0.0);
         let zero = vec![0.0; 3];
         let mut converged = false;
@@ -614,10 +614,10 @@ fn contact_validation() {
         f(&mut c);
         c.validate(3)
     };
-    assert_invalid(e(|c| c.stiffness = 0.0), "stiffness");
-    assert_invalid(e(|c| c.slip_velocity = 0.0), "slip_velocity");
-    assert_invalid(e(|c| c.friction = -0.1), "friction");
-    assert_invalid(e(|c| c.damping = f64::NAN), "damping");
+    assert_invalid(e(|c| c.law.stiffness = 0.0), "stiffness");
+    assert_invalid(e(|c| c.law.slip_velocity = 0.0), "slip_velocity");
+    assert_invalid(e(|c| c.law.friction = -0.1), "friction");
+    assert_invalid(e(|c| c.law.damping = f64::NAN), "damping");
     assert_invalid(e(|c| c.right_wall = 0.0), "right_wall");
     assert_invalid(e(|c| c.length = -1.0), "length");
 }

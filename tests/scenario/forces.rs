@@ -3,8 +3,8 @@
 //! directly), and bad input is an error naming file, key and value.
 
 use mbsolve::forces::{
-    Buoyancy, Drag, ExpressionLoadBuilder, ForceElement, HalfPlaneContact, Law, LinePoint,
-    PointSpringDamper, RotationalSpringDamper,
+    Buoyancy, ContactLaw, Drag, ExpressionLoadBuilder, ForceElement, HalfPlaneContact, Law,
+    LinePoint, PointSpringDamper, RotationalSpringDamper,
 };
 use mbsolve::model::{BodyPoint, BodyRef, TimeFunction};
 use mbsolve::scenario::{self, Scenario, ScenarioError};
@@ -199,7 +199,19 @@ fy = "a.y"
     same(
         &sc,
         2,
-        &HalfPlaneContact::new(0, [0.2, -0.1], 0.05, [0.0, -1.0], n, 1e6, 0.5, 0.3, 0.01),
+        &HalfPlaneContact::new(
+            0,
+            [0.2, -0.1],
+            0.05,
+            [0.0, -1.0],
+            n,
+            ContactLaw {
+                stiffness: 1e6,
+                damping: 0.5,
+                friction: 0.3,
+                slip_velocity: 0.01,
+            },
+        ),
     );
     same(
         &sc,

@@ -2,7 +2,7 @@
 //! fixed or moving ([`HalfPlaneContact`]).
 
 use super::{Context, ElementType};
-use crate::forces::{HalfPlaneContact, RoadContact};
+use crate::forces::{ContactLaw, HalfPlaneContact, RoadContact};
 use crate::model::BodyRef;
 use crate::scenario::joints::function_of_time;
 use crate::scenario::model::RawPoint;
@@ -45,6 +45,12 @@ impl ElementType<Context<'_>> for Contact {
     const TYPE: &'static str = "contact";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
         let body = cx.body_index("body", &self.body)?;
+        let law = ContactLaw {
+            stiffness: self.stiffness,
+            damping: self.damping.unwrap_or(0.0),
+            friction: self.friction.unwrap_or(0.0),
+            slip_velocity: self.slip_velocity.unwrap_or(1e-3),
+        };
         if let Some(road) = &self.road {
             for (k, given) in [
                 ("wall_point", self.wall_point.is_some()),
@@ -61,10 +67,7 @@ impl ElementType<Context<'_>> for Contact {
                 cx.point("point", self.point, BodyRef::Body(body))?,
                 self.radius.unwrap_or(0.0),
                 road,
-                self.stiffness,
-                self.damping.unwrap_or(0.0),
-                self.friction.unwrap_or(0.0),
-                self.slip_velocity.unwrap_or(1e-3),
+                law,
             )
             .map_err(|e| {
                 cx.err(
@@ -111,10 +114,7 @@ impl ElementType<Context<'_>> for Contact {
             self.radius.unwrap_or(0.0),
             cx.global("wall_point", self.wall_point)?,
             normal,
-            self.stiffness,
-            self.damping.unwrap_or(0.0),
-            self.friction.unwrap_or(0.0),
-            self.slip_velocity.unwrap_or(1e-3),
+            law,
         );
         let c = match self.wall_motion {
             None => c,
