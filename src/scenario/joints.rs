@@ -9,7 +9,7 @@ use crate::constraints::{
     expression_motion, spline_motion, DriveCoordinate, DriveRelativeAngle, Revolute, Spline,
     Translational,
 };
-use crate::model::{BodyRef, SystemBuilder, TimeFunction};
+use crate::model::{BodyPoint, BodyRef, SystemBuilder, TimeFunction};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -17,6 +17,18 @@ use std::collections::HashMap;
 type Context<'a> = element::Context<'a, ()>;
 
 impl Context<'_> {
+    /// The two points a joint joins, `point_i` on `body_i` and `point_j`
+    /// on `body_j` ([`Site::two_points`](element::Site::two_points)).
+    fn ends(
+        &self,
+        body_i: &str,
+        point_i: RawPoint,
+        body_j: &str,
+        point_j: RawPoint,
+    ) -> Result<(BodyPoint, BodyPoint), ScenarioError> {
+        self.two_points("a joint", (body_i, Some(point_i)), (body_j, Some(point_j)))
+    }
+
     /// The `motion` of a drive ([`function_of_time`]).
     fn motion(&self, v: toml::Value) -> Result<TimeFunction, ScenarioError> {
         function_of_time(v, "motion").map_err(|(k, m)| self.err(&k, m))
@@ -149,11 +161,7 @@ struct RevoluteJoint {
 impl ElementType<Context<'_>> for RevoluteJoint {
     const TYPE: &'static str = "revolute";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (i, j) = cx.two_points(
-            "a joint",
-            (&self.body_i, Some(self.point_i)),
-            (&self.body_j, Some(self.point_j)),
-        )?;
+        let (i, j) = cx.ends(&self.body_i, self.point_i, &self.body_j, self.point_j)?;
         let name = std::mem::take(&mut cx.site.name);
         cx.builder
             .add_constraint(Revolute::new(name, i.body, i.point, j.body, j.point));
@@ -182,11 +190,7 @@ struct TranslationalJoint {
 impl ElementType<Context<'_>> for TranslationalJoint {
     const TYPE: &'static str = "translational";
     fn add(self, cx: &mut Context) -> Result<(), ScenarioError> {
-        let (i, j) = cx.two_points(
-            "a joint",
-            (&self.body_i, Some(self.point_i)),
-            (&self.body_j, Some(self.point_j)),
-        )?;
+        let (i, j) = cx.ends(&self.body_i, self.point_i, &self.body_j, self.point_j)?;
         let axis = self.axis_i;
         let len = axis[0].hypot(axis[1]);
         if !len.is_finite() || len <= 0.0 {
