@@ -234,23 +234,27 @@ fn an_alternating_team_gives_the_bits_of_one_thread() {
     }
 }
 
-/// The rule's decision and reason for a run that opens no team: a
-/// small state, a pool of one thread, the setting one.
-#[test]
-fn the_summary_says_why_a_run_used_one_thread() {
-    use crate::integrate::{Method, OdeOptions};
-    use crate::simulation::{simulate, RunConfig};
-    let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
-    let cfg = RunConfig {
-        method: Method::Bdf,
-        t_end: 1e-5,
-        output_dt: 1e-5,
-        ode: OdeOptions {
+/// A bdf run (rtol 1e-5) to `t_end` with outputs every `output_dt`.
+fn bdf_run(t_end: f64, output_dt: f64) -> crate::simulation::RunConfig {
+    crate::simulation::RunConfig {
+        method: crate::integrate::Method::Bdf,
+        t_end,
+        output_dt,
+        ode: crate::integrate::OdeOptions {
             rtol: 1e-5,
             ..Default::default()
         },
         ..Default::default()
-    };
+    }
+}
+
+/// The rule's decision and reason for a run that opens no team: a
+/// small state, a pool of one thread, the setting one.
+#[test]
+fn the_summary_says_why_a_run_used_one_thread() {
+    use crate::simulation::{simulate, RunConfig};
+    let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
+    let cfg = bdf_run(1e-5, 1e-5);
     let rule = |n, pool_threads, threads| {
         let (sys, q0, qd0, _) = chain(n);
         let cfg = RunConfig {
@@ -303,19 +307,9 @@ fn a_posted_half_nobody_takes_runs_on_the_caller() {
 /// results' independence of the thread count: tests/linalg/parallel_newton.rs).
 #[test]
 fn a_large_implicit_run_posts_halves_to_the_helper() {
-    use crate::integrate::{Method, OdeOptions};
-    use crate::simulation::{simulate, RunConfig};
+    use crate::simulation::simulate;
     let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
-    let mut cfg = RunConfig {
-        method: Method::Bdf,
-        t_end: 2e-4,
-        output_dt: 1e-4,
-        ode: OdeOptions {
-            rtol: 1e-5,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let mut cfg = bdf_run(2e-4, 1e-4);
     cfg.threads = Threads::Two;
     let (_, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
     assert_eq!(s.status, "completed", "{:?}", s.message);
