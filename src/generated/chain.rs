@@ -412,7 +412,7 @@ impl ConstraintKernels for ChainKernels {
     }
     /// The residual's halves with the memo in two parts at `split_body`:
     /// each half updates its bodies' sines and cosines and then runs with
-    /// them, in one hand-over ([`TrigMemo::update_in_halves`]); without
+    /// them, in one hand-over (`TrigMemo::update_in_halves`); without
     /// the memo (another thread holds it, or the split is not inside the
     /// chain) the halves run without it.
     fn in_halves(&self, q: &[f64], _t: f64, split_body: usize, lo: HalfTask<'_>, hi: HalfTask<'_>) {
@@ -432,7 +432,7 @@ impl ConstraintKernels for ChainKernels {
         crate::parallel::join_if(true, || lo(None), || hi(None));
     }
     /// `phi_tmul` of the joints `joints`: the chain's joints among them
-    /// ([`ChainKernels::phi_tmul_chain_joints`]), then the ground joint
+    /// (`ChainKernels::phi_tmul_chain_joints`), then the ground joint
     /// when among them — the order of `phi_tmul`.
     fn phi_tmul_joints(
         &self,

@@ -49,7 +49,7 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         false
     }
     /// The index-3 residual's two halves `lo` and `hi` concurrently
-    /// ([`crate::parallel::join_if`]), each handed the shared work of its
+    /// (on the run's two threads), each handed the shared work of its
     /// bodies (below `split_body`, and from it) done in the same hand-over
     /// as the half itself: the sines and cosines of their angles
     /// ([`BodyTrig`]), which the half's [`ConstraintKernels::phi_tmul_joints`]
