@@ -670,3 +670,42 @@ fn a_take_back_is_evidence_only_on_a_busy_machine() {
     }
     TEST_FREE.with(|f| f.set(None));
 }
+
+/// A slow host under an idle guest (the hypervisor takes time from the
+/// cores: an awake helper misses a half in every window, and every pass
+/// is slower, the team still faster than one thread): the team's
+/// stretches are never cut and every probe keeps the team; on a busy
+/// guest (no core free beside the team) the same misses cut the stretch.
+#[test]
+fn a_slow_idle_host_keeps_the_second_thread() {
+    let w = 2usize;
+    let slow_team = |alone: bool| if alone { 300 } else { 200 };
+    let yes = std::cell::Cell::new(true);
+    let t = Team::new(false);
+    let misses_every_window = |solo: bool| t.against(solo, false, true);
+    TEST_FREE.with(|f| f.set(Some(true)));
+    let mut a = Adapt::new(w as u32, true);
+    // three probes and the stretches of 8 and 16 windows between them
+    let r = drive_with_evidence(
+        &mut a,
+        24 + 24 * w + 1,
+        slow_team,
+        &yes,
+        misses_every_window,
+    );
+    assert_eq!((a.decided, a.cut), ([3, 0], 0));
+    let probes = [0..8, 8 + 8 * w..16 + 8 * w, 16 + 24 * w..24 + 24 * w];
+    for (k, x) in r.iter().enumerate() {
+        assert!(
+            probes.iter().any(|p| p.contains(&k)) || !x.0,
+            "pass {k} alone"
+        );
+    }
+    // a busy guest: the misses are evidence, the stretch ends after
+    // DOUBT_WINDOWS windows
+    TEST_FREE.with(|f| f.set(Some(false)));
+    let mut b = Adapt::new(w as u32, true);
+    drive_with_evidence(&mut b, 8 + 1 + 2 * w, slow_team, &yes, misses_every_window);
+    assert_eq!((b.decided, b.cut), ([1, 0], 1));
+    TEST_FREE.with(|f| f.set(None));
+}
