@@ -71,7 +71,7 @@ use crate::integrate::{DaeResult, SecondOrderDae, StateView, SystemError};
 use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
-use crate::model::{ResidualHalves, System};
+use crate::model::{BodyTrig, ResidualHalves, System};
 use crate::parallel::{join_if, PARALLEL_MIN_COORDS};
 use serde::Serialize;
 
@@ -374,7 +374,6 @@ impl<'a> Index3<'a> {
         } = b;
         let (g_lo, tmp_lo) = (&mut self.g, &mut self.tmp);
         let split = h.split();
-        sys.prepare_residual_halves(q, t);
         // the boundary's sums first (a few pieces, here): the high half
         // takes them before it fills its rows
         if !sys.residual_boundary(h, t, q, qd, lambda, g_edge, phi_edge, tmp_edge) {
@@ -402,28 +401,39 @@ impl<'a> Index3<'a> {
         // one half: its state checked, its forces and constraint terms, the
         // boundary's sums (high half), its rows filled; None: the kernels
         // cannot evaluate a range of joints
-        let half =
-            |high: bool, g: &mut [f64], phi: &mut [&mut [f64]], tmp: &mut [f64], r: &mut [f64]| {
-                let c = if high { split..n } else { 0..split };
-                if !(finite(&q[c.clone()]) && finite(&qd[c.clone()])) {
-                    return Some(false);
+        let x = StateView { t, q, qd };
+        let half = |high: bool,
+                    g: &mut [f64],
+                    phi: &mut [&mut [f64]],
+                    tmp: &mut [f64],
+                    r: &mut [f64],
+                    trig: Option<BodyTrig<'_>>| {
+            let c = if high { split..n } else { 0..split };
+            if !(finite(&q[c.clone()]) && finite(&qd[c.clone()])) {
+                return Some(false);
+            }
+            if !sys.residual_half(h, high, x, lambda, g, phi, tmp, trig) {
+                return None;
+            }
+            if high {
+                for &k in h.boundary() {
+                    g[k] = g_edge[k];
+                    tmp[k] = tmp_edge[k];
                 }
-                if !sys.residual_half(h, high, t, q, qd, lambda, g, phi, tmp) {
-                    return None;
-                }
-                if high {
-                    for &k in h.boundary() {
-                        g[k] = g_edge[k];
-                        tmp[k] = tmp_edge[k];
-                    }
-                }
-                let rows = fill_dynamic(r, c.start, scale, mass, qdd, tmp, g);
-                Some(rows && phi.iter().all(|p| finite(p)))
-            };
-        let (lo, hi) = join_if(
-            true,
-            || half(false, g_lo, phi_lo, tmp_lo, r_lo),
-            || half(true, g_hi, phi_hi, tmp_hi, r_hi),
+            }
+            let rows = fill_dynamic(r, c.start, scale, mass, qdd, tmp, g);
+            Some(rows && phi.iter().all(|p| finite(p)))
+        };
+        // each half's result (Some(false): not finite; None: the kernels
+        // cannot evaluate a range of joints), and the halves' shared work
+        // (the sines and cosines of their bodies) in the same hand-over
+        let (mut lo, mut hi) = (None, None);
+        sys.in_residual_halves(
+            h,
+            q,
+            t,
+            &mut |trig| lo = half(false, g_lo, phi_lo, tmp_lo, r_lo, trig),
+            &mut |trig| hi = half(true, g_hi, phi_hi, tmp_hi, r_hi, trig),
         );
         match (lo, hi) {
             (Some(true), Some(true)) => true,

@@ -3,7 +3,7 @@
 
 use super::memo::{SharedTrig, TrigMemo};
 use super::{arr, arr_mut, kernels, revolute};
-use crate::model::{BodyRef, ConstraintKernels, ConstraintTerms, System};
+use crate::model::{BodyRef, BodyTrig, ConstraintKernels, ConstraintTerms, HalfTask, System};
 use crate::trig::sin_cos;
 
 /// The kernel `$gb` when the ground is the joint's side i, else `$bg`
@@ -255,6 +255,68 @@ impl ChainKernels {
         &q[self.q0..self.q0 + 3 * (self.n_joints + 1)]
     }
 
+    /// `revolute_chain_phi_tmul_sc` of the chain's joints `ks` (`qc`, `gc`:
+    /// the chain's coordinates; `l`, `o`: those joints' rows), joint after
+    /// joint: the sines and cosines of the joints whose two bodies `trig`
+    /// holds from it, of the others (one at each end of a half) by
+    /// [`sin_cos`]; without `trig`, from the memo where current, else
+    /// `fresh_trig`. The same operations and bits every way.
+    fn phi_tmul_chain_joints(
+        &self,
+        qc: &[f64],
+        ks: std::ops::Range<usize>,
+        l: &[f64],
+        o: &mut [f64],
+        gc: &mut [f64],
+        trig: Option<BodyTrig<'_>>,
+    ) {
+        let b0 = self.q0 / 3;
+        // the joints ja..jb whose bodies ja..=jb `trig` holds
+        let held = trig.map(|t| {
+            let first = (t.body0.saturating_sub(b0)).max(ks.start);
+            let end = (t.body0 + t.sc.len() / 2)
+                .saturating_sub(b0 + 1)
+                .min(ks.end);
+            (t, first, end.max(first))
+        });
+        let mut run = |js: std::ops::Range<usize>, sc: &[f64]| {
+            let r = 2 * (js.start - ks.start)..2 * (js.end - ks.start);
+            kernels::revolute_chain_phi_tmul_sc(
+                &qc[3 * js.start..3 * (js.end + 1)],
+                sc,
+                &self.params[4 * js.start..4 * js.end],
+                &l[r.clone()],
+                &mut o[r],
+                &mut gc[3 * js.start..3 * (js.end + 1)],
+            )
+        };
+        match held {
+            Some((t, ja, jb)) if ja < jb => {
+                let one = |j: usize| {
+                    let ((s0, c0), (s1, c1)) = (sin_cos(qc[3 * j + 2]), sin_cos(qc[3 * j + 5]));
+                    [s0, c0, s1, c1]
+                };
+                for j in ks.start..ja {
+                    run(j..j + 1, &one(j));
+                }
+                let sc = t.of(b0 + ja..b0 + jb + 1).expect("held bodies");
+                run(ja..jb, sc);
+                for j in jb..ks.end {
+                    run(j..j + 1, &one(j));
+                }
+            }
+            _ => match self.memo.try_read() {
+                Ok(m) if m.current(qc, ks.start..ks.end + 1) => {
+                    run(ks.clone(), &m.sc[2 * ks.start..2 * (ks.end + 1)])
+                }
+                _ => {
+                    let qk = &qc[3 * ks.start..3 * (ks.end + 1)];
+                    run(ks.clone(), &fresh_trig(qk))
+                }
+            },
+        }
+    }
+
     /// The memo of the chain's sines and cosines, to share with force
     /// kernels on the chain's bodies ([`SharedTrig`]).
     pub(crate) fn shared_trig(&self) -> SharedTrig {
@@ -348,17 +410,30 @@ impl ConstraintKernels for ChainKernels {
         }
         true
     }
-    /// The sines and cosines of every angle into the memo (its two halves
-    /// concurrently for long chains).
-    fn prepare(&self, q: &[f64], _t: f64) {
-        if let Ok(mut m) = self.memo.try_write() {
-            m.update(self.chain_q(q));
+    /// The residual's halves with the memo in two parts at `split_body`:
+    /// each half updates its bodies' sines and cosines and then runs with
+    /// them, in one hand-over (`TrigMemo::update_in_halves`); without
+    /// the memo (another thread holds it, or the split is not inside the
+    /// chain) the halves run without it.
+    fn in_halves(&self, q: &[f64], _t: f64, split_body: usize, lo: HalfTask<'_>, hi: HalfTask<'_>) {
+        let (b0, nb) = (self.q0 / 3, self.n_joints + 1);
+        let k = split_body.wrapping_sub(b0);
+        if (1..nb).contains(&k) {
+            if let Ok(mut m) = self.memo.try_write() {
+                m.update_in_halves(
+                    self.chain_q(q),
+                    k,
+                    |sc| lo(Some(BodyTrig { body0: b0, sc })),
+                    |sc| hi(Some(BodyTrig { body0: b0 + k, sc })),
+                );
+                return;
+            }
         }
+        crate::parallel::join_if(true, || lo(None), || hi(None));
     }
     /// `phi_tmul` of the joints `joints`: the chain's joints among them
-    /// with the memo's sines and cosines where current (else computed by
-    /// `fresh_trig`, the same bits), then the ground joint when among them — the order
-    /// of `phi_tmul`.
+    /// (`ChainKernels::phi_tmul_chain_joints`), then the ground joint
+    /// when among them — the order of `phi_tmul`.
     fn phi_tmul_joints(
         &self,
         q_all: &[f64],
@@ -367,6 +442,7 @@ impl ConstraintKernels for ChainKernels {
         phi: &mut [f64],
         g: &mut [f64],
         joints: std::ops::Range<usize>,
+        trig: Option<BodyTrig<'_>>,
     ) -> bool {
         let nj = self.n_joints;
         let ground_first = matches!(&self.ground, Some(gj) if gj.row0 == 0);
@@ -376,21 +452,9 @@ impl ConstraintKernels for ChainKernels {
         let kb = joints.end.saturating_sub(c0).min(nj);
         if ka < kb {
             let r = 2 * (ka + c0 - joints.start)..2 * (kb + c0 - joints.start);
-            let qc = self.chain_q(q_all);
-            let (qk, p) = (&qc[3 * ka..3 * (kb + 1)], &self.params[4 * ka..4 * kb]);
             let (l, o) = (&lambda[r.clone()], &mut phi[r]);
-            let gc = &mut g[self.q0 + 3 * ka..self.q0 + 3 * (kb + 1)];
-            match self.memo.try_read() {
-                Ok(m) if m.current(qc, ka..kb + 1) => kernels::revolute_chain_phi_tmul_sc(
-                    qk,
-                    &m.sc[2 * ka..2 * (kb + 1)],
-                    p,
-                    l,
-                    o,
-                    gc,
-                ),
-                _ => kernels::revolute_chain_phi_tmul_sc(qk, &fresh_trig(qk), p, l, o, gc),
-            }
+            let gc = &mut g[self.q0..self.q0 + 3 * (nj + 1)];
+            self.phi_tmul_chain_joints(self.chain_q(q_all), ka..kb, l, o, gc, trig);
         }
         if let Some(gj) = &self.ground {
             let jg = if ground_first { 0 } else { nj };
@@ -430,7 +494,7 @@ mod tests {
         k.gamma(q, qd, 0.0, &mut gamma);
         k.phi_tmul(q, 0.0, lam, &mut phi2, &mut g);
         let (mut phi3, mut g3) = (vec![0.0; m], vec![0.0; q.len()]);
-        k.phi_tmul_joints(q, 0.0, lam, &mut phi3, &mut g3, 0..k.n_joints);
+        k.phi_tmul_joints(q, 0.0, lam, &mut phi3, &mut g3, 0..k.n_joints, None);
         vec![phi, vals, hess, gamma, phi2, g, phi3, g3]
     }
 

@@ -7,7 +7,7 @@ use super::memo::SharedTrig;
 use crate::forces::drag_force;
 use crate::forces::Clearance;
 use crate::forces::{Drag, TorsionalSpringDamper, WallContact};
-use crate::model::{ForceElement, ForceKernels, StateView};
+use crate::model::{BodyTrig, ForceElement, ForceKernels, StateView};
 use crate::trig::{sin_cos, sin_cos4};
 use std::ops::Range;
 
@@ -55,10 +55,16 @@ impl ForceKernels for TorsionalChainJacobians {
     /// roundings, in the same order into each entry (bit-identical;
     /// tests/model/codegen.rs).
     fn add_forces(&self, x: StateView<'_>, g: &mut [f64]) -> bool {
-        self.add_forces_range(x, g, 0..self.n())
+        self.add_forces_range(x, g, 0..self.n(), None)
     }
     /// Springs `elements` only: bodies `elements.start ..= elements.end`.
-    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+    fn add_forces_range(
+        &self,
+        x: StateView<'_>,
+        g: &mut [f64],
+        elements: Range<usize>,
+        _trig: Option<BodyTrig<'_>>,
+    ) -> bool {
         let StateView { q, qd, .. } = x;
         let (a, b) = (elements.start, elements.end);
         let r = self.q0 + 3 * a..self.q0 + 3 * (b + 1);
@@ -135,11 +141,22 @@ impl ForceKernels for DragJacobians {
         self.forces_on(0..nb, q, qd, g);
         true
     }
-    /// The drag forces of bodies `elements`: the memo's sines and cosines
-    /// where current (read, not updated: the two halves of the residual
-    /// read it at once), else computed.
-    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+    /// The drag forces of bodies `elements`: the sines and cosines handed
+    /// to the half (`trig`) when it holds those bodies, else the memo's
+    /// where current (read, not updated), else computed.
+    fn add_forces_range(
+        &self,
+        x: StateView<'_>,
+        g: &mut [f64],
+        elements: Range<usize>,
+        trig: Option<BodyTrig<'_>>,
+    ) -> bool {
         let StateView { q, qd, .. } = x;
+        let b0 = self.q0 / 3;
+        if let Some(sc) = trig.and_then(|t| t.of(b0 + elements.start..b0 + elements.end)) {
+            self.forces_with(elements, sc, qd, g);
+            return true;
+        }
         if let Some(t) = &self.trig {
             if let Ok(m) = t.memo.try_read() {
                 if m.current(&q[t.q0..], elements.clone()) {
@@ -277,9 +294,15 @@ impl ForceKernels for ContactJacobians {
     /// `add_forces`. The same operations in the same order as the elements
     /// called one by one.
     fn add_forces(&self, x: StateView<'_>, g: &mut [f64]) -> bool {
-        self.add_forces_range(x, g, 0..self.contacts.len())
+        self.add_forces_range(x, g, 0..self.contacts.len(), None)
     }
-    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
+    fn add_forces_range(
+        &self,
+        x: StateView<'_>,
+        g: &mut [f64],
+        elements: Range<usize>,
+        _trig: Option<BodyTrig<'_>>,
+    ) -> bool {
         let StateView { t, q, qd } = x;
         for k in elements {
             let clear = match &self.uniform {

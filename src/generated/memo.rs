@@ -31,19 +31,38 @@ impl TrigMemo {
         // two halves concurrently for long chains: each angle's sin_cos is
         // independent of the others, so the bits do not depend on threads
         let nb = self.phi_bits.len();
-        let half = nb / 2;
-        let (bits_lo, bits_hi) = self.phi_bits.split_at_mut(half);
-        let (sc_lo, sc_hi) = self.sc.split_at_mut(2 * half);
         if nb >= TRIG_PARALLEL_MIN_BODIES {
-            crate::parallel::join_if(
-                true,
-                || trig_update(q, 0, bits_lo, sc_lo),
-                || trig_update(q, half, bits_hi, sc_hi),
-            );
+            self.update_in_halves(q, nb / 2, |_| (), |_| ());
         } else {
             trig_update(q, 0, &mut self.phi_bits, &mut self.sc);
         }
         &self.sc
+    }
+    /// The memo in two parts, bodies below `k` and from `k` (`k` ≤ the
+    /// bodies), each updated from `q` and then handed to `lo` or `hi`
+    /// (`[sin, cos]` of the part's bodies), the two concurrently in one
+    /// hand-over ([`crate::parallel::join_if`]): the same bits as
+    /// [`TrigMemo::update`] then `lo` and `hi`.
+    pub(super) fn update_in_halves<RA: Send, RB: Send>(
+        &mut self,
+        q: &[f64],
+        k: usize,
+        lo: impl FnOnce(&[f64]) -> RA + Send,
+        hi: impl FnOnce(&[f64]) -> RB + Send,
+    ) -> (RA, RB) {
+        let (bits_lo, bits_hi) = self.phi_bits.split_at_mut(k);
+        let (sc_lo, sc_hi) = self.sc.split_at_mut(2 * k);
+        crate::parallel::join_if(
+            true,
+            || {
+                trig_update(q, 0, bits_lo, sc_lo);
+                lo(sc_lo)
+            },
+            || {
+                trig_update(q, k, bits_hi, sc_hi);
+                hi(sc_hi)
+            },
+        )
     }
 }
 

@@ -34,8 +34,8 @@ pub(crate) use sensor::evaluate_sensors;
 pub use sensor::joint_short_name;
 pub use sensor::{drives, Drive, Sensor, SensorKind};
 pub use system::{
-    ConstraintKernels, ConstraintTerms, Evaluation, ForceKernels, ResidualHalves, State, StateView,
-    System, SystemBuilder,
+    BodyTrig, ConstraintKernels, ConstraintTerms, Evaluation, ForceKernels, HalfTask,
+    ResidualHalves, State, StateView, System, SystemBuilder,
 };
 pub use time_function::TimeFunction;
 

@@ -7,7 +7,9 @@ use std::ops::Range;
 mod halves;
 mod kernels;
 pub use halves::ResidualHalves;
-pub use kernels::{ConstraintKernels, ConstraintTerms, ForceKernels, StateView};
+pub use kernels::{
+    BodyTrig, ConstraintKernels, ConstraintTerms, ForceKernels, HalfTask, StateView,
+};
 
 /// Force kernels attached to a range of elements, with the range of their
 /// Jacobian values.

@@ -356,6 +356,17 @@ pub(crate) fn in_halves<const W: usize, const R: usize, T: Send>(
 mod tests {
     use super::*;
 
+    /// `run(false)` (a pass in one piece) on this thread and `run(true)`
+    /// (in halves) on a pool of two threads, for a comparison of their
+    /// bits.
+    fn in_one_piece_and_in_halves<R: Send>(run: impl Fn(bool) -> R + Sync) -> (R, R) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        (run(false), pool.install(|| run(true)))
+    }
+
     /// [`split_pass`] over a tuple of an array of written slices and a
     /// read slice, on two threads of a pool: each half sees its own
     /// elements with its global base index, writes only them, and the
@@ -385,11 +396,7 @@ mod tests {
             );
             (r, a, b)
         };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        let (one, two) = (run(false), pool.install(|| run(true)));
+        let (one, two) = in_one_piece_and_in_halves(run);
         assert_eq!(one.0 .1, len);
         assert_eq!(two.0 .1, len);
         assert_eq!(one.0 .0.to_bits(), two.0 .0.to_bits());
@@ -433,11 +440,7 @@ mod tests {
             );
             (big, a, e)
         };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
-        let (one, two) = (run(false), pool.install(|| run(true)));
+        let (one, two) = in_one_piece_and_in_halves(run);
         assert_eq!(one.0.to_bits(), two.0.to_bits());
         let expected = (0..len).fold(0.0_f64, |m, k| m.max((src[k] * k as f64).abs()));
         assert_eq!(two.0, expected);

@@ -100,7 +100,7 @@ use super::{
     IntegratorError, Method, OdeOptions, SecondOrderDae, SystemError, Tolerance, REUSE_BAND,
     ROUNDING_ULPS,
 };
-use crate::parallel::{in_halves, join_if, Slices, PARALLEL_MIN_COORDS};
+use crate::parallel::{split_pass, PARALLEL_MIN_COORDS};
 
 /// Highest order.
 pub const MAX_ORDER: usize = 5;
@@ -334,17 +334,16 @@ impl<'s> BdfRun<'s> {
         }
     }
 
-    /// `‖est_p ./ max(|y_n|, |y_new|, thr)‖∞` for the local errors of the
-    /// orders `ps` (at most three, each `≤ ts.len() − 1`; module docs):
-    /// `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the last `p + 1`
-    /// accepted ones, times [`Self::error_factor`]; one pass over the
-    /// components for all the orders ([`EstimateIn`]), in two fixed halves
-    /// concurrently for large n.
-    fn estimates(&self, ps: &[usize], t1: f64, h: f64) -> [f64; 3] {
-        const L: usize = MAX_ORDER + 3;
-        let mut w = [[0.0; L]; 3];
+    /// The weights of the error estimates of the orders `ps` (at most
+    /// three, each `≤ ts.len() − 1`; module docs): the local error of
+    /// order p is `p!·h^{p+1}·y[τ_0 … τ_{p+1}]` on the new point and the
+    /// last `p + 1` accepted ones, times [`Self::error_factor`]; `w[o][j]`
+    /// weighs the new point (`j = 0`) and history point `j − 1` in it
+    /// ([`EstimateIn`]).
+    fn estimate_weights(&self, ps: &[usize], t1: f64, h: f64) -> [[f64; MAX_ORDER + 3]; 3] {
+        let mut w = [[0.0; MAX_ORDER + 3]; 3];
         for (o, &p) in ps.iter().enumerate() {
-            let mut nodes = [0.0; L];
+            let mut nodes = [0.0; MAX_ORDER + 3];
             nodes[0] = t1;
             for j in 0..=p {
                 nodes[j + 1] = self.ts[j];
@@ -354,41 +353,74 @@ impl<'s> BdfRun<'s> {
             let c = fact * h.powi(p as i32 + 1) * self.error_factor(p);
             w[o][..p + 2].iter_mut().for_each(|x| *x *= c);
         }
+        w
+    }
+
+    /// The step's end in one pass over the components, in two fixed halves
+    /// concurrently for large n (one hand-over): `[q; q̇]` copied into
+    /// `ynew` and checked finite, and with `est` (the orders `ps` and
+    /// their weights, [`Self::estimate_weights`]) the error estimates
+    /// `‖est_p ./ max(|y_n|, |y_new|, thr)‖∞` of those orders
+    /// ([`EstimateIn`]; zero without). The max is order-free: the same
+    /// bits in one piece or in halves.
+    fn step_end(
+        &mut self,
+        est: Option<(&[usize], &[[f64; MAX_ORDER + 3]; 3])>,
+        h: f64,
+    ) -> (bool, [f64; 3]) {
         let n = self.n;
         let mut hist: [&[f64]; MAX_ORDER + 2] = [&[]; MAX_ORDER + 2];
         for (hj, y) in hist.iter_mut().zip(&self.ys) {
             *hj = y;
         }
-        let src = EstimateIn {
-            n,
-            ps,
-            w: &w,
-            hist: &hist,
-            ynew: &self.ynew,
-            threshold: &self.threshold,
-            h,
+        let (hist, threshold) = (&hist, &self.threshold[..]);
+        let (yq, yv) = self.ynew.split_at_mut(n);
+        let pass = |base: usize, (yq, yv, q, v): (&mut [f64], &mut [f64], &[f64], &[f64])| {
+            let mut finite = true;
+            for (d, &x) in yq.iter_mut().zip(q).chain(yv.iter_mut().zip(v)) {
+                *d = x;
+                finite &= x.is_finite();
+            }
+            let e = est.map_or([0.0; 3], |(ps, w)| {
+                let (yq, yv) = (&*yq, &*yv);
+                let src = EstimateIn {
+                    n,
+                    ps,
+                    w,
+                    hist,
+                    base,
+                    yq,
+                    yv,
+                    threshold,
+                    h,
+                };
+                src.range(base, base + yq.len())
+            });
+            (finite, e)
         };
-        // the weighted max is order-free: two fixed halves concurrently
-        // for large n give the same bits
-        if n >= PARALLEL_MIN_COORDS {
-            let (a, b) = join_if(true, || src.range(0, n / 2), || src.range(n / 2, n));
-            std::array::from_fn(|o| a[o].max(b[o]))
-        } else {
-            src.range(0, n)
-        }
+        split_pass(
+            n >= PARALLEL_MIN_COORDS,
+            n,
+            (yq, yv, &self.q[..n], &self.v[..n]),
+            pass,
+            |(fa, ea), (fb, eb)| (fa && fb, std::array::from_fn(|o| ea[o].max(eb[o]))),
+        )
     }
 }
 
-/// What the error estimates' pass reads ([`BdfRun::estimates`]): the
+/// What the error estimates' pass reads ([`BdfRun::step_end`]): the
 /// orders `ps`, their weights `w[o][j]` on the new point (`j = 0`) and the
 /// history points `hist[j − 1]` (newest first, each `[q; q̇]` of length
-/// `2n`), the new point `ynew`, the weights' thresholds and the step.
+/// `2n`), the new point's positions `yq` and velocities `yv` of the
+/// components from `base` on, the weights' thresholds and the step.
 struct EstimateIn<'a> {
     n: usize,
     ps: &'a [usize],
     w: &'a [[f64; MAX_ORDER + 3]; 3],
     hist: &'a [&'a [f64]; MAX_ORDER + 2],
-    ynew: &'a [f64],
+    base: usize,
+    yq: &'a [f64],
+    yv: &'a [f64],
     threshold: &'a [f64],
     h: f64,
 }
@@ -425,7 +457,8 @@ impl EstimateIn<'_> {
     #[inline(always)]
     fn block<const B: usize>(&self, i0: usize) -> [f64; 3] {
         let (n, h, hist) = (self.n, self.h, self.hist);
-        let (yq, yv) = (&self.ynew[i0..i0 + B], &self.ynew[n + i0..n + i0 + B]);
+        let j0 = i0 - self.base;
+        let (yq, yv) = (&self.yq[j0..j0 + B], &self.yv[j0..j0 + B]);
         // the newest history point: y_n of the weights
         let (ynq, thr) = (&hist[0][i0..i0 + B], &self.threshold[i0..i0 + B]);
         let inv: [f64; B] =
@@ -533,28 +566,27 @@ impl Stepper for BdfRun<'_> {
                 done = false;
                 continue;
             }
-            // copy [q; q̇] and check it finite in one pass (located only
-            // on failure), in two fixed halves concurrently for large n
-            let (yq, yv) = self.ynew.split_at_mut(n);
-            let finite = in_halves(
-                n >= PARALLEL_MIN_COORDS,
-                n,
-                Slices {
-                    base: 0,
-                    w: [yq, yv],
-                    r: [&self.q, &self.v],
-                },
-                |u| {
-                    let ([yq, yv], [q, v]) = (u.w, u.r);
-                    let mut finite = true;
-                    for (d, &x) in yq.iter_mut().zip(q).chain(yv.iter_mut().zip(v)) {
-                        *d = x;
-                        finite &= x.is_finite();
-                    }
-                    finite
-                },
-                |a, b| a && b,
-            );
+            // the order k's estimate, and those of k ∓ 1 where the order
+            // may change after this step (in the same pass); none at the
+            // first step
+            let (k, len) = (self.k, self.ts.len());
+            let change = rejections == 0 && self.steps_at_k >= k && len > k;
+            let lower = change && k > 1;
+            let higher = change && k < self.max_order && len > k + 1;
+            let mut ps = [k.min(len - 1), 0, 0];
+            let mut np = 1;
+            if lower {
+                ps[np] = k - 1;
+                np += 1;
+            }
+            if higher {
+                ps[np] = k + 1;
+                np += 1;
+            }
+            let w = (len > 1).then(|| self.estimate_weights(&ps[..np], t1, h));
+            // copy [q; q̇], check it finite (located only on failure) and
+            // estimate the errors in one pass
+            let (finite, e) = self.step_end(w.as_ref().map(|w| (&ps[..np], w)), h);
             if let Some((index, value)) = (!finite)
                 .then(|| common::first_non_finite(&self.ynew))
                 .flatten()
@@ -569,7 +601,7 @@ impl Stepper for BdfRun<'_> {
             }
             let (err, est_lower, est_higher) = if self.ts.len() == 1 {
                 // first step: y − (y_0 + h ẏ_0) estimates the Euler error
-                // (velocities times h, as in `estimates`)
+                // (velocities times h, as in `EstimateIn::block`)
                 let y0 = &self.ys[0];
                 let mut m: f64 = 0.0;
                 for i in 0..n {
@@ -580,23 +612,6 @@ impl Stepper for BdfRun<'_> {
                 }
                 (m * self.error_factor(1), None, None)
             } else {
-                // the order k's estimate, and those of k ∓ 1 where the order
-                // may change after this step (in the same pass)
-                let (k, len) = (self.k, self.ts.len());
-                let change = rejections == 0 && self.steps_at_k >= k && len > k;
-                let lower = change && k > 1;
-                let higher = change && k < self.max_order && len > k + 1;
-                let mut ps = [k.min(len - 1), 0, 0];
-                let mut np = 1;
-                if lower {
-                    ps[np] = k - 1;
-                    np += 1;
-                }
-                if higher {
-                    ps[np] = k + 1;
-                    np += 1;
-                }
-                let e = self.estimates(&ps[..np], t1, h);
                 (e[0], lower.then_some(e[1]), higher.then(|| e[np - 1]))
             };
             if err <= self.rtol {

@@ -5,7 +5,7 @@
 
 use super::super::implicit::{Assessment, Convergence, ConvergenceOptions, Next, Remainder};
 use super::*;
-use crate::parallel::split_passes;
+use crate::parallel::{in_halves, split_passes, Slices};
 
 impl BdfRun<'_> {
     pub(super) fn factor(&mut self, t1: f64, a0: f64) -> Result<(), SystemError> {
@@ -98,7 +98,7 @@ impl BdfRun<'_> {
         }
         let s = 1.0 / (a0 * a0);
         // a position error δ makes a velocity error a_0 δ, which the error
-        // test weighs as h·a_0·δ (`estimates`): one factor on the q-norm
+        // test weighs as h·a_0·δ (`BdfRun::step_end`): one factor on the q-norm
         let vfac = (a0 * h).max(1.0);
         let floor = ROUNDING_ULPS * f64::EPSILON;
         // ode15s's test (Shampine & Reichelt 1997) with the rate kept on

@@ -239,7 +239,19 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         dnorm = dnorm.max(ratio);
                     }
                     let av: [&[f64]; S] = av.map(|a| -> &[f64] { a });
-                    stage_rows(tab, 0..S, h, qst, vst, q, v, av);
+                    let stages = 0..S;
+                    stage_rows(
+                        StageBase {
+                            tab,
+                            stages,
+                            h,
+                            q,
+                            v,
+                            st: av,
+                        },
+                        qst,
+                        vst,
+                    );
                     dnorm
                 };
                 let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);

@@ -18,7 +18,7 @@
 //! the few pieces that load them, evaluated once more on their own in plan
 //! order ([`System::residual_boundary`]): the same bits there too.
 
-use super::{Segment, StateView, System};
+use super::{BodyTrig, HalfTask, Segment, StateView, System};
 use std::collections::BTreeSet;
 use std::ops::Range;
 
@@ -264,26 +264,29 @@ impl System {
         if !joints.is_empty() {
             let k = &self.kernels[0].kernels;
             let l = &lambda[rows.clone()];
-            if !k.phi_tmul_joints(q, t, l, &mut phi[..rows.len()], tmp, joints.clone()) {
+            let phi = &mut phi[..rows.len()];
+            if !k.phi_tmul_joints(q, t, l, phi, tmp, joints.clone(), None) {
                 return false;
             }
         }
         for part in &h.edge_forces {
-            self.add_part(part, t, q, qd, g);
+            self.add_part(part, StateView { t, q, qd }, g, None);
         }
         true
     }
 
-    /// Add one piece's forces to `g`.
-    fn add_part(&self, part: &Part, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
+    /// Add one piece's forces at `x` to `g` (`trig`: the sines and
+    /// cosines handed to the half, if any).
+    fn add_part(&self, part: &Part, x: StateView<'_>, g: &mut [f64], trig: Option<BodyTrig<'_>>) {
+        let StateView { t, q, qd } = x;
         match part {
             &Part::Element(e) => self.forces[e].add_forces(t, q, qd, g),
             Part::Bodies(e, bodies) => {
                 self.forces[*e].add_forces_on_bodies(t, q, qd, g, bodies.clone())
             }
             Part::Kernels(i, r) => {
-                let (b, x) = (&self.force_kernels[*i], StateView { t, q, qd });
-                if !b.kernels.add_forces_range(x, g, r.clone()) {
+                let b = &self.force_kernels[*i];
+                if !b.kernels.add_forces_range(x, g, r.clone(), trig) {
                     let e0 = b.elements.start;
                     for f in &self.forces[e0 + r.start..e0 + r.end] {
                         f.add_forces(t, q, qd, g);
@@ -293,10 +296,19 @@ impl System {
         }
     }
 
-    /// Shared work of the constraint kernels before the halves at `q`
-    /// ([`crate::model::ConstraintKernels::prepare`]).
-    pub(crate) fn prepare_residual_halves(&self, q: &[f64], t: f64) {
-        self.kernels[0].kernels.prepare(q, t);
+    /// The residual's two halves `lo` and `hi` concurrently, each with
+    /// the shared work of its bodies done in the same hand-over
+    /// ([`crate::model::ConstraintKernels::in_halves`]; `q`: the state
+    /// the halves evaluate at).
+    pub(crate) fn in_residual_halves(
+        &self,
+        h: &ResidualHalves,
+        q: &[f64],
+        t: f64,
+        lo: HalfTask<'_>,
+        hi: HalfTask<'_>,
+    ) {
+        self.kernels[0].kernels.in_halves(q, t, h.split / 3, lo, hi)
     }
 
     /// One half of the residual's forces and constraint terms (`high`:
@@ -304,21 +316,23 @@ impl System {
     /// `tmp` (the low half: and the boundary), put its runs' Φ into `phi`
     /// (its runs of rows, in the order of [`ResidualHalves::row_runs`])
     /// and add their Φ_qᵀλ to `tmp` (λ: every multiplier), then its
-    /// forces to `g`. Returns false when the constraint kernels cannot
-    /// evaluate a range of joints (`g`, `tmp`, `phi` then unusable).
+    /// forces to `g`; `trig`: the sines and cosines of its bodies handed
+    /// to it by [`System::in_residual_halves`], if any. Returns false when
+    /// the constraint kernels cannot evaluate a range of joints (`g`,
+    /// `tmp`, `phi` then unusable).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn residual_half(
         &self,
         h: &ResidualHalves,
         high: bool,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         lambda: &[f64],
         g: &mut [f64],
         phi: &mut [&mut [f64]],
         tmp: &mut [f64],
+        trig: Option<BodyTrig<'_>>,
     ) -> bool {
+        let StateView { t, q, .. } = x;
         let side = usize::from(high);
         let coords = if high { h.split..g.len() } else { 0..h.split };
         g[coords.clone()].fill(0.0);
@@ -338,12 +352,12 @@ impl System {
         let mine = h.runs.iter().filter(|r| r.0 == high);
         for ((_, joints, rows), phi) in mine.zip(phi.iter_mut()) {
             let l = &lambda[rows.clone()];
-            if !k.phi_tmul_joints(q, t, l, phi, tmp, joints.clone()) {
+            if !k.phi_tmul_joints(q, t, l, phi, tmp, joints.clone(), trig) {
                 return false;
             }
         }
         for part in &h.forces[side] {
-            self.add_part(part, t, q, qd, g);
+            self.add_part(part, x, g, trig);
         }
         true
     }

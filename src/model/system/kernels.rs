@@ -48,20 +48,27 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         let _ = (q, t, lambda, phi, g);
         false
     }
-    /// Shared work before concurrent [`ConstraintKernels::phi_tmul_joints`]
-    /// calls at the same `q` (the sines and cosines of every angle).
-    /// Default: nothing.
-    fn prepare(&self, q: &[f64], t: f64) {
-        let _ = (q, t);
+    /// The index-3 residual's two halves `lo` and `hi` concurrently
+    /// (on the run's two threads), each handed the shared work of its
+    /// bodies (below `split_body`, and from it) done in the same hand-over
+    /// as the half itself: the sines and cosines of their angles
+    /// ([`BodyTrig`]), which the half's [`ConstraintKernels::phi_tmul_joints`]
+    /// and [`ForceKernels::add_forces_range`] read. Default: no shared
+    /// work (`None`).
+    fn in_halves(&self, q: &[f64], t: f64, split_body: usize, lo: HalfTask<'_>, hi: HalfTask<'_>) {
+        let _ = (q, t, split_body);
+        crate::parallel::join_if(true, || lo(None), || hi(None));
     }
     /// [`ConstraintKernels::phi_tmul`] of the range's joints `joints` only
     /// (indices within the range, in row order): their Φ into `phi` and
     /// their λ from `lambda` (both: those joints' rows only), Φ_qᵀλ added
     /// to `g` (all coordinates) with the operations `phi_tmul` does for
     /// them. For the index-3 residual's two halves, which call it
-    /// concurrently on disjoint joints after [`ConstraintKernels::prepare`].
+    /// concurrently on disjoint joints inside [`ConstraintKernels::in_halves`]
+    /// (`trig`: the sines and cosines it handed the half, if any).
     /// Returns false when the kernels do not have it (the halves are then
     /// not used).
+    #[allow(clippy::too_many_arguments)]
     fn phi_tmul_joints(
         &self,
         q: &[f64],
@@ -70,8 +77,9 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         phi: &mut [f64],
         g: &mut [f64],
         joints: Range<usize>,
+        trig: Option<BodyTrig<'_>>,
     ) -> bool {
-        let _ = (q, t, lambda, phi, g, joints);
+        let _ = (q, t, lambda, phi, g, joints, trig);
         false
     }
     /// Φ, Φ_q values and γ in one pass into `out`. Default: the three
@@ -81,6 +89,33 @@ pub trait ConstraintKernels: Send + Sync + std::fmt::Debug {
         self.phi(q, t, out.phi);
         self.jacobian_values(q, t, out.vals);
         self.gamma(q, qd, t, out.gamma);
+    }
+}
+
+/// One half of the index-3 residual ([`ConstraintKernels::in_halves`]):
+/// run with the sines and cosines of its bodies when the kernels share
+/// them.
+pub type HalfTask<'a> = &'a mut (dyn FnMut(Option<BodyTrig<'_>>) + Send);
+
+/// `[sin φ_b, cos φ_b]` of the consecutive bodies `b = body0, body0 + 1,
+/// …` (global body indices, `sc.len() / 2` of them): one half's part of a
+/// chain's memo of sines and cosines ([`ConstraintKernels::in_halves`]),
+/// the values of the crate's one `sin_cos`.
+#[derive(Debug, Clone, Copy)]
+pub struct BodyTrig<'a> {
+    /// Global index of the first body.
+    pub body0: usize,
+    /// `[sin, cos]` per body.
+    pub sc: &'a [f64],
+}
+
+impl<'a> BodyTrig<'a> {
+    /// `[sin, cos]` of the bodies `bodies` (global indices) when all of
+    /// them are here.
+    pub fn of(&self, bodies: Range<usize>) -> Option<&'a [f64]> {
+        let a = bodies.start.checked_sub(self.body0)?;
+        let b = bodies.end.checked_sub(self.body0)?;
+        self.sc.get(2 * a..2 * b)
     }
 }
 
@@ -135,9 +170,17 @@ pub trait ForceKernels: Send + Sync + std::fmt::Debug {
     }
     /// [`ForceKernels::add_forces`] of the elements `elements` (indices
     /// within the range) only, bit-identical to those elements' own
-    /// `add_forces` in order; false (the default): the elements do it.
-    fn add_forces_range(&self, x: StateView<'_>, g: &mut [f64], elements: Range<usize>) -> bool {
-        let _ = (x, g, elements);
+    /// `add_forces` in order (`trig`: sines and cosines of bodies handed
+    /// to a half of the residual, [`ConstraintKernels::in_halves`]); false
+    /// (the default): the elements do it.
+    fn add_forces_range(
+        &self,
+        x: StateView<'_>,
+        g: &mut [f64],
+        elements: Range<usize>,
+        trig: Option<BodyTrig<'_>>,
+    ) -> bool {
+        let _ = (x, g, elements, trig);
         false
     }
 }

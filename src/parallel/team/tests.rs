@@ -234,23 +234,27 @@ fn an_alternating_team_gives_the_bits_of_one_thread() {
     }
 }
 
-/// The rule's decision and reason for a run that opens no team: a
-/// small state, a pool of one thread, the setting one.
-#[test]
-fn the_summary_says_why_a_run_used_one_thread() {
-    use crate::integrate::{Method, OdeOptions};
-    use crate::simulation::{simulate, RunConfig};
-    let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
-    let cfg = RunConfig {
-        method: Method::Bdf,
-        t_end: 1e-5,
-        output_dt: 1e-5,
-        ode: OdeOptions {
+/// A bdf run (rtol 1e-5) to `t_end` with outputs every `output_dt`.
+fn bdf_run(t_end: f64, output_dt: f64) -> crate::simulation::RunConfig {
+    crate::simulation::RunConfig {
+        method: crate::integrate::Method::Bdf,
+        t_end,
+        output_dt,
+        ode: crate::integrate::OdeOptions {
             rtol: 1e-5,
             ..Default::default()
         },
         ..Default::default()
-    };
+    }
+}
+
+/// The rule's decision and reason for a run that opens no team: a
+/// small state, a pool of one thread, the setting one.
+#[test]
+fn the_summary_says_why_a_run_used_one_thread() {
+    use crate::simulation::{simulate, RunConfig};
+    let chain = |n| crate::builders::stiff_chain(n, 5f64.to_radians()).unwrap();
+    let cfg = bdf_run(1e-5, 1e-5);
     let rule = |n, pool_threads, threads| {
         let (sys, q0, qd0, _) = chain(n);
         let cfg = RunConfig {
@@ -303,19 +307,9 @@ fn a_posted_half_nobody_takes_runs_on_the_caller() {
 /// results' independence of the thread count: tests/linalg/parallel_newton.rs).
 #[test]
 fn a_large_implicit_run_posts_halves_to_the_helper() {
-    use crate::integrate::{Method, OdeOptions};
-    use crate::simulation::{simulate, RunConfig};
+    use crate::simulation::simulate;
     let (sys, q0, qd0, _) = crate::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
-    let mut cfg = RunConfig {
-        method: Method::Bdf,
-        t_end: 2e-4,
-        output_dt: 1e-4,
-        ode: OdeOptions {
-            rtol: 1e-5,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let mut cfg = bdf_run(2e-4, 1e-4);
     cfg.threads = Threads::Two;
     let (_, s) = simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap();
     assert_eq!(s.status, "completed", "{:?}", s.message);
@@ -674,5 +668,44 @@ fn a_take_back_is_evidence_only_on_a_busy_machine() {
         );
         assert_eq!(t.against(true, busy, preempted), alone, "{free} {busy}");
     }
+    TEST_FREE.with(|f| f.set(None));
+}
+
+/// A slow host under an idle guest (the hypervisor takes time from the
+/// cores: an awake helper misses a half in every window, and every pass
+/// is slower, the team still faster than one thread): the team's
+/// stretches are never cut and every probe keeps the team; on a busy
+/// guest (no core free beside the team) the same misses cut the stretch.
+#[test]
+fn a_slow_idle_host_keeps_the_second_thread() {
+    let w = 2usize;
+    let slow_team = |alone: bool| if alone { 300 } else { 200 };
+    let yes = std::cell::Cell::new(true);
+    let t = Team::new(false);
+    let misses_every_window = |solo: bool| t.against(solo, false, true);
+    TEST_FREE.with(|f| f.set(Some(true)));
+    let mut a = Adapt::new(w as u32, true);
+    // three probes and the stretches of 8 and 16 windows between them
+    let r = drive_with_evidence(
+        &mut a,
+        24 + 24 * w + 1,
+        slow_team,
+        &yes,
+        misses_every_window,
+    );
+    assert_eq!((a.decided, a.cut), ([3, 0], 0));
+    let probes = [0..8, 8 + 8 * w..16 + 8 * w, 16 + 24 * w..24 + 24 * w];
+    for (k, x) in r.iter().enumerate() {
+        assert!(
+            probes.iter().any(|p| p.contains(&k)) || !x.0,
+            "pass {k} alone"
+        );
+    }
+    // a busy guest: the misses are evidence, the stretch ends after
+    // DOUBT_WINDOWS windows
+    TEST_FREE.with(|f| f.set(Some(false)));
+    let mut b = Adapt::new(w as u32, true);
+    drive_with_evidence(&mut b, 8 + 1 + 2 * w, slow_team, &yes, misses_every_window);
+    assert_eq!((b.decided, b.cut), ([1, 0], 1));
     TEST_FREE.with(|f| f.set(None));
 }
