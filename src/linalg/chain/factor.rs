@@ -2,18 +2,20 @@
 //! two halves, then the separator's two-segment rows (module docs of
 //! [`super`]).
 
-use super::{Envelope, Fill, PARALLEL_MIN_DIM};
+use super::scalar::Pivots;
+use super::{Envelope, Fill, Scalar, PARALLEL_MIN_DIM};
 use crate::linalg::sparse::{coordinate_scale, multiplier_scale};
-use crate::linalg::{LinalgError, SaddleMatrix};
+use crate::linalg::LinalgError;
 use crate::parallel::join_if;
 
-impl Envelope {
-    /// Scaled, regularised LDLᵀ of the values of `k` (module docs): the
+impl<T: Scalar> Envelope<T> {
+    /// Scaled LDLᵀ of the values `vals` (by slot of the analysed pattern;
+    /// module docs), each pivot under [`Scalar::pivot`] with `ε`, `δ`: the
     /// halves `T` and `B` concurrently (`join_if`; each is sequential
     /// inside and touches only its own rows), then the separator.
-    pub(super) fn factorize(
+    pub(in crate::linalg) fn factorize(
         &mut self,
-        k: &SaddleMatrix,
+        vals: T::Values<'_>,
         epsilon: f64,
         delta: f64,
     ) -> Result<Regularized, LinalgError> {
@@ -21,14 +23,14 @@ impl Envelope {
         let par = dim >= PARALLEL_MIN_DIM;
         let rule = Pivots {
             positive: &self.positive,
+            perm: &self.perm,
             epsilon,
             delta,
         };
-        let vals = k.values();
         let (first, ptr, fa) = (&self.first, &self.ptr, &self.fa);
         let profile = ptr[dim];
         let perm = &self.perm;
-        let scaling = Scaling {
+        let scaling = Scaling::<T> {
             n: self.n,
             perm: &self.perm,
             dslot: &self.dslot,
@@ -112,9 +114,9 @@ impl Envelope {
                 d -= t * l;
                 lower[pi + o] = l;
             }
-            let d = rule.pivot(i, d, &mut regularized)?;
+            let d = d.pivot(i, &rule, &mut regularized)?;
             diag[i] = d;
-            dinv[i] = 1.0 / d;
+            dinv[i] = d.recip();
         }
         Ok(regularized)
     }
@@ -123,28 +125,29 @@ impl Envelope {
 /// The symmetric scaling of [`SparseLdlt`](crate::linalg::SparseLdlt) (`saddle_scaling`,
 /// `coordinate_scale`, `multiplier_scale`) row by row in elimination
 /// order, so each part computes its own (the maximum is exact: any order
-/// gives the same bits).
-struct Scaling<'a> {
+/// gives the same bits), with the modulus of complex entries (real scale
+/// factors keep the matrix symmetric).
+struct Scaling<'a, 'v, T: Scalar> {
     n: usize,
     perm: &'a [usize],
     dslot: &'a [usize],
     phi_ptr: &'a [usize],
     phi_ent: &'a [(usize, usize)],
-    vals: &'a [f64],
+    vals: T::Values<'v>,
 }
 
-impl Scaling<'_> {
+impl<T: Scalar> Scaling<'_, '_, T> {
     /// `pscale[i − base]` for the rows `rows` (`pscale` from permuted row
     /// `base`, covering the columns of their Φ_q entries).
     fn rows(&self, rows: std::ops::Range<usize>, base: usize, pscale: &mut [f64]) {
         for i in rows {
-            let d = self.vals[self.dslot[i]];
+            let d = T::value(self.vals, self.dslot[i]).modulus();
             pscale[i - base] = if self.perm[i] < self.n {
                 coordinate_scale(d)
             } else {
-                let mut s = d.abs().sqrt();
+                let mut s = d.sqrt();
                 for &(slot, c) in &self.phi_ent[self.phi_ptr[i]..self.phi_ptr[i + 1]] {
-                    s = s.max(self.vals[slot].abs() * pscale[c - base]);
+                    s = s.max(T::value(self.vals, slot).modulus() * pscale[c - base]);
                 }
                 multiplier_scale(s)
             };
@@ -157,21 +160,21 @@ impl Scaling<'_> {
 /// from permuted row `base`; a non-finite value of `K` is an error naming
 /// its row and column.
 #[allow(clippy::too_many_arguments)]
-fn load(
+fn load<T: Scalar>(
     fill: &[Fill],
     perm: &[usize],
-    vals: &[f64],
+    vals: T::Values<'_>,
     pscale: &[f64],
     base: usize,
-    lower: &mut [f64],
-    diag: &mut [f64],
+    lower: &mut [T],
+    diag: &mut [T],
 ) -> Result<(), LinalgError> {
-    lower.fill(0.0);
-    diag.fill(0.0);
+    lower.fill(T::ZERO);
+    diag.fill(T::ZERO);
     let nl = lower.len();
     for f in fill {
-        let v = vals[f.slot as usize];
-        let x = v * pscale[f.row as usize - base] * pscale[f.col as usize - base];
+        let v = T::value(vals, f.slot as usize);
+        let x = v.scale_sym(pscale[f.row as usize - base], pscale[f.col as usize - base]);
         if !v.is_finite() {
             return Err(LinalgError::NonFinite {
                 row: perm[f.row as usize],
@@ -192,9 +195,9 @@ fn load(
 /// coordinate rows (a pivot of the `A` part ≤ ε: `A` not positive definite
 /// there, [`SolverStats::indefinite_pivots`](crate::linalg::SolverStats)).
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct Regularized {
-    pub(super) all: usize,
-    pub(super) coordinate: usize,
+pub(in crate::linalg) struct Regularized {
+    pub(in crate::linalg) all: usize,
+    pub(in crate::linalg) coordinate: usize,
 }
 
 impl std::ops::Add for Regularized {
@@ -207,48 +210,14 @@ impl std::ops::Add for Regularized {
     }
 }
 
-/// The expected pivot signs and the regularisation of [`SparseLdlt`](crate::linalg::SparseLdlt).
-struct Pivots<'a> {
-    positive: &'a [bool],
-    epsilon: f64,
-    delta: f64,
-}
-
-impl Pivots<'_> {
-    /// Pivot `d` of row `i` (global numbering): `δ` with the expected sign
-    /// when `d` has the wrong sign or is within `ε` of 0 (counted).
-    fn pivot(&self, i: usize, d: f64, regularized: &mut Regularized) -> Result<f64, LinalgError> {
-        let d = if self.positive[i] {
-            if d <= self.epsilon {
-                regularized.all += 1;
-                regularized.coordinate += 1;
-                self.delta
-            } else {
-                d
-            }
-        } else if d >= -self.epsilon {
-            regularized.all += 1;
-            -self.delta
-        } else {
-            d
-        };
-        if !d.is_finite() {
-            return Err(LinalgError::Singular(format!(
-                "envelope LDLᵀ: non-finite pivot at elimination step {i}"
-            )));
-        }
-        Ok(d)
-    }
-}
-
 /// `Σ_o v[a + o] v[b + o]`, `o < len`.
-fn dot(v: &[f64], a: usize, b: usize, len: usize) -> f64 {
+fn dot<T: Scalar>(v: &[T], a: usize, b: usize, len: usize) -> T {
     dot2(&v[a..a + len], &v[b..b + len])
 }
 
 /// `Σ_i a_i b_i` in index order.
-pub(super) fn dot2(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).fold(0.0, |s, (x, y)| s + x * y)
+pub(super) fn dot2<T: Scalar>(a: &[T], b: &[T]) -> T {
+    a.iter().zip(b).fold(T::ZERO, |s, (&x, &y)| s + x * y)
 }
 
 /// Crout (up-looking) LDLᵀ of the plain envelope rows `rows` of one half,
@@ -259,14 +228,14 @@ pub(super) fn dot2(a: &[f64], b: &[f64]) -> f64 {
 /// t_ij = a_ij − Σ_{k<j} t_ik L_jk,   L_ij = t_ij / d_j,   d_i = a_ii − Σ_{j<i} t_ij L_ij
 /// ```
 #[allow(clippy::too_many_arguments)]
-fn crout_rows(
+fn crout_rows<T: Scalar>(
     first: &[usize],
     ptr: &[usize],
     base: usize,
     rows: std::ops::Range<usize>,
-    lower: &mut [f64],
-    diag: &mut [f64],
-    dinv: &mut [f64],
+    lower: &mut [T],
+    diag: &mut [T],
+    dinv: &mut [T],
     rule: &Pivots<'_>,
 ) -> Result<Regularized, LinalgError> {
     let p0 = ptr[base];
@@ -278,13 +247,13 @@ fn crout_rows(
             let fj = first[j];
             let k0 = fi.max(fj);
             let (ti, lj) = (pi + (k0 - fi), ptr[j] - p0 + (k0 - fj));
-            let mut dot = 0.0;
+            let mut dot = T::ZERO;
             for o in 0..j - k0 {
                 // SAFETY: rows base ≤ j < i lie before row i in `lower`
                 // (ptr is increasing, ptr[i + 1] − p0 ≤ len checked above),
                 // and k0 + o < j stays inside both rows' envelopes.
                 unsafe {
-                    dot += lower.get_unchecked(ti + o) * lower.get_unchecked(lj + o);
+                    dot += *lower.get_unchecked(ti + o) * *lower.get_unchecked(lj + o);
                 }
             }
             lower[pi + (j - fi)] -= dot;
@@ -298,9 +267,9 @@ fn crout_rows(
             d -= *t * l;
             *t = l;
         }
-        let d = rule.pivot(i, d, &mut regularized)?;
+        let d = d.pivot(i, rule, &mut regularized)?;
         diag[i - base] = d;
-        dinv[i - base] = 1.0 / d;
+        dinv[i - base] = d.recip();
     }
     Ok(regularized)
 }

@@ -71,17 +71,21 @@
 //! # Files
 //!
 //! [`order`] the body-by-body orders and the envelope layout, [`factor`]
-//! the scaled, regularised Crout LDLᵀ, [`solve`] the substitutions;
+//! the scaled, regularised Crout LDLᵀ, [`solve`] the substitutions, each
+//! written once for real and complex entries ([`scalar`]: `f64`, and
+//! [`Complex`] for [`super::ComplexChainLdlt`]);
 //! [`lu`] the band LU with partial pivoting of full (unsymmetric,
 //! indefinite) matrices in the same order ([`ChainLu`]).
 
 mod factor;
 mod lu;
 mod order;
+mod scalar;
 mod solve;
 
 pub use lu::{ChainLu, DEFAULT_GROWTH_LIMIT};
 
+pub(super) use scalar::{Complex, Scalar};
 pub(super) use solve::Scatter;
 
 use super::sparse::RefineBuffers;
@@ -116,8 +120,9 @@ const MAX_SEPARATOR_ROW: usize = 4 * MAX_BANDWIDTH;
 /// plain envelope rows `[first[i], i)` inside their own half; a separator
 /// row has two segments, `[fa, s0)` in the tail of `T` and `[first[i], i)`
 /// over the tail of `B` and the separator. Unsplit: `s0 = sb = dim`.
+/// Entries of type `T`: `f64` ([`ChainLdlt`]) or [`Complex`].
 #[derive(Debug)]
-pub(super) struct Envelope {
+pub(super) struct Envelope<T: Scalar = f64> {
     pub(super) dim: usize,
     pub(super) n: usize,
     pub(super) nnz: usize,
@@ -133,9 +138,9 @@ pub(super) struct Envelope {
     /// (separator rows: the `T` segment, then the other).
     pub(super) ptr: Vec<usize>,
     /// `L` by rows (envelope), then the pivots `d` (`env[ptr[dim] + i]`).
-    env: Vec<f64>,
+    env: Vec<T>,
     /// `1/d_i`.
-    dinv: Vec<f64>,
+    dinv: Vec<T>,
     /// Where each value of `K` goes, by the part (`T`, `B`, `S`) of its
     /// envelope row: `K`'s slot, its position in that part's storage,
     /// the permuted row and column.
@@ -151,12 +156,12 @@ pub(super) struct Envelope {
     positive: Vec<bool>,
     /// The scaling of [`SparseLdlt`] (`saddle_scaling`) in elimination order.
     pscale: Vec<f64>,
-    /// Permuted right-hand side, then `y` of `L y = P S x`.
-    w: Vec<f64>,
+    /// `y` of `L y = P S x`.
+    w: Vec<T>,
     /// The substitutions' compact copy of `first` and `perm`.
     pub(super) rows: RowTable,
     /// `D⁻¹ y`, then `z` of `Lᵀ z = D⁻¹ y` (the backward substitution).
-    wd: Vec<f64>,
+    wd: Vec<T>,
 }
 
 /// What the substitutions read per plain row besides the values, in 5
@@ -307,7 +312,7 @@ impl SaddlePointSolver for ChainLdlt {
             });
         }
         self.factorized = false;
-        let r = e.factorize(k, self.epsilon, self.delta)?;
+        let r = e.factorize(k.values(), self.epsilon, self.delta)?;
         self.factorized = true;
         self.stats.factorizations += 1;
         self.stats.regularized_pivots += r.all;
@@ -337,12 +342,12 @@ impl SaddlePointSolver for ChainLdlt {
         self.stats.solves += 1;
         let finite = if self.check_residual {
             let refined = self.bufs.solve_checked(k, rhs, |x| {
-                e.solve(x);
+                e.solve(&Scatter::new(x));
             });
             self.stats.refinements += usize::from(refined);
             rhs.iter().all(|v| v.is_finite())
         } else {
-            e.solve(rhs)
+            e.solve(&Scatter::new(rhs))
         };
         if finite {
             Ok(())

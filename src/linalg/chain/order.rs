@@ -2,7 +2,7 @@
 //! envelope layout of the permuted matrix (module docs of [`super`],
 //! "Order and envelope" and "Two halves").
 
-use super::{Envelope, Fill, MAX_BANDWIDTH, MAX_SEPARATOR_ROW, SPLIT_MIN_DIM};
+use super::{Envelope, Fill, Scalar, MAX_BANDWIDTH, MAX_SEPARATOR_ROW, SPLIT_MIN_DIM};
 use crate::linalg::SaddleMatrix;
 
 /// Group (body) range of each multiplier row: lowest and highest body among
@@ -120,7 +120,7 @@ pub(super) fn body_order(k: &SaddleMatrix) -> Option<Vec<usize>> {
     Some(plain_order(n, &row_groups(k)?))
 }
 
-impl Envelope {
+impl<T: Scalar> Envelope<T> {
     /// The envelope of `k` in the body-by-body order (two-sided when
     /// `split` and the pattern allows it), or `None` when a multiplier row
     /// has no coordinate column or a row is wider than [`MAX_BANDWIDTH`].
@@ -247,16 +247,16 @@ impl Envelope {
             first,
             fa,
             ptr,
-            env: vec![0.0; profile + dim],
-            dinv: vec![0.0; dim],
+            env: vec![T::ZERO; profile + dim],
+            dinv: vec![T::ZERO; dim],
             fill,
             dslot,
             phi_ptr,
             phi_ent,
             positive,
             pscale: vec![1.0; dim],
-            w: vec![0.0; dim],
-            wd: vec![0.0; dim],
+            w: vec![T::ZERO; dim],
+            wd: vec![T::ZERO; dim],
             rows,
         })
     }

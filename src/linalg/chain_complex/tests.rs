@@ -1,5 +1,5 @@
 use super::*;
-use crate::linalg::{APattern, Symmetry};
+use crate::linalg::{APattern, Symmetry, PARALLEL_MIN_DIM};
 
 /// A chain-like saddle matrix: `bodies` bodies of 3 coordinates, a
 /// 2-row joint between neighbours, springs coupling neighbouring
@@ -148,9 +148,12 @@ fn the_two_sided_order_solves_like_the_one_sided_one() {
         let dim = kr.dim();
         assert!(dim >= crate::linalg::SPLIT_MIN_DIM);
         let mut two = ComplexChainLdlt::analyze(&kr).expect("a chain pattern");
-        assert!(two.s0 < two.sb && two.sb < dim, "split");
+        assert!(
+            two.envelope.s0 < two.envelope.sb && two.envelope.sb < dim,
+            "split"
+        );
         let mut one = ComplexChainLdlt::analyze_order(&kr, false).expect("a chain pattern");
-        assert_eq!((one.s0, one.sb), (dim, dim));
+        assert_eq!((one.envelope.s0, one.envelope.sb), (dim, dim));
         let br: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.37).sin()).collect();
         let bi: Vec<f64> = (0..dim).map(|i| (i as f64 * 0.11).cos()).collect();
         let x2 = solve_with(&mut two, &kr, &ki);
@@ -263,7 +266,7 @@ fn errors_before_factorisation_and_on_singular_pivots() {
 fn the_row_table_walks_the_envelope_rows() {
     for (bodies, split) in [(50, false), (400, true), (1001, true)] {
         let (kr, _) = chain_pair(bodies, 7);
-        let e = Envelope::analyze(&kr, split).expect("a chain pattern");
+        let e = Envelope::<Complex>::analyze(&kr, split).expect("a chain pattern");
         assert_eq!(e.s0 < e.dim, split);
         let t = &e.rows;
         assert!(t.perm.iter().zip(&e.perm).all(|(&a, &b)| a as usize == b));
