@@ -98,7 +98,7 @@
 //! grid point, at the full step, the attempt spans `k` grid steps when
 //! no force element foresees an onset — a contact's start, or one
 //! running — within [`FLIGHT_LOOKAHEAD`] `H`
-//! ([`SecondOrderDae::onset_within`]: gaps over closing velocities at
+//! ([`SecondOrderDae::onset_within`]: gaps over speeds across the walls at
 //! the step's start). Its matrices are factorised for `H` (a change of
 //! the step renews them, as any); a flight step that Newton fails is
 //! retried from the same point at `h`.
