@@ -329,12 +329,13 @@ impl ForceElement for WallContact {
 
     /// The first corner that could reach a wall within `horizon` at its
     /// current speed across the wall, `τ = −δ / |δ̇|` for a gap `δ < 0`,
-    /// towards the wall or away from it (a corner leaving a wall comes back
-    /// within milliseconds when the rod bends; approaching only, flight
-    /// steps failed twice as often on the falling rod: docs/scaling.md);
+    /// towards the wall or away from it (a corner leaving a wall may come
+    /// back within a flight step as the rod bends; the two rules compared
+    /// in docs/scaling.md, "The falling rod with a flight step");
     /// `Some(0.0)` while a corner penetrates (`δ ≥ 0`). A segment whose
     /// corners cannot travel to a wall, at most `(|ẋ| + |φ̇| r) horizon` with
-    /// `r` the reach of [`WallContact::clear_of_walls`], is cleared first.
+    /// `r` the reach of the segment (half its width plus half its length),
+    /// is cleared first.
     fn onset_within(&self, _t: f64, q: &[f64], qd: &[f64], horizon: f64) -> Option<f64> {
         let (qb, vb) = (self.body_q(q), self.body_q(qd));
         let c = self.clearance();

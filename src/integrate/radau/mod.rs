@@ -178,8 +178,8 @@ pub(super) const KEEP_STEP: f64 = 1.2;
 /// is taken only when no force element foresees an onset within this many
 /// times `H` from the step's start (the extrapolation by the current
 /// velocities looks past the step, for the accelerations it leaves out;
-/// 4 against 2 on the falling rod: fewer failed flight steps at the
-/// walls, docs/scaling.md).
+/// 4 and 2 compared on the falling rod in docs/scaling.md, "The falling
+/// rod with a flight step").
 pub const FLIGHT_LOOKAHEAD: f64 = 4.0;
 
 /// RADAU's tolerance transformation for `S` stages, `rtol' = 0.1
