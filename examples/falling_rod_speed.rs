@@ -20,7 +20,8 @@
 //!
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
 //! 1e-3 s), `MBS_ATOL` (absolute tolerance of the adaptive runs, default
-//! 1e-3·rtol), `MBS_MAX_STEP` (s, the adaptive runs' largest step), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
+//! 1e-3·rtol), `MBS_MAX_STEP` (s, the adaptive runs' largest step), `MBS_FLIGHT_STEP` (s,
+//! radau's `integrator.flight_step` with a fixed step), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
 //! LU of the full iteration matrix), `MBS_TRACE` (file), `MBS_THREADS` (the rayon
 //! pool the run is installed in, default 1; CPU time counts every thread).
 
@@ -222,6 +223,9 @@ fn run(n: usize, spec: &str) -> serde_json::Value {
     }
     if let Some(h) = env("MBS_MAX_STEP") {
         cfg.ode.max_step = Some(h);
+    }
+    if let Some(h) = env("MBS_FLIGHT_STEP") {
+        cfg.implicit.flight_step = Some(h);
     }
     if let Some(t) = env("MBS_NEWTON_TOL") {
         cfg.implicit.newton_tol = t;

@@ -355,6 +355,45 @@ impl ForceElement for WallContact {
         });
     }
 
+    /// The first corner that could reach a wall within `horizon` at its
+    /// current speed across the wall, `τ = −δ / |δ̇|` for a gap `δ < 0`,
+    /// towards the wall or away from it (a corner leaving a wall may come
+    /// back within a flight step as the rod bends; the two rules compared
+    /// in docs/scaling.md, "The falling rod with a flight step");
+    /// `Some(0.0)` while a corner penetrates (`δ ≥ 0`). A segment whose
+    /// corners cannot travel to a wall, at most `(|ẋ| + |φ̇| r) horizon` with
+    /// `r` the reach of the segment (half its width plus half its length),
+    /// is cleared first.
+    fn onset_within(&self, _t: f64, q: &[f64], qd: &[f64], horizon: f64) -> Option<f64> {
+        let (qb, vb) = (self.body_q(q), self.body_q(qd));
+        let c = self.clearance();
+        let travel = (vb[0].abs() + vb[2].abs() * c.reach) * horizon;
+        if qb[0] - c.reach - travel > c.left && qb[0] + c.reach + travel < c.right {
+            return None;
+        }
+        let (sn, cs) = qb[2].sin_cos();
+        let mut first: Option<f64> = None;
+        for k in 0..4 {
+            let s = self.corner_offset(k);
+            let rs = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
+            let (x, vx) = (qb[0] + rs[0], vb[0] - vb[2] * rs[1]);
+            for (sigma, xw) in [(1.0, self.left_wall), (-1.0, self.right_wall)] {
+                let (delta, delta_dot) = (sigma * (xw - x), -sigma * vx);
+                let tau = if delta >= 0.0 {
+                    0.0
+                } else if delta_dot != 0.0 {
+                    -delta / delta_dot.abs()
+                } else {
+                    continue;
+                };
+                if tau <= horizon && first.is_none_or(|f| tau < f) {
+                    first = Some(tau);
+                }
+            }
+        }
+        first
+    }
+
     fn potential_energy(&self, q: &[f64]) -> Option<f64> {
         let mut e = 0.0;
         self.for_each_contact(self.body_q(q), [0.0; 3], |_, c| {

@@ -258,6 +258,26 @@ impl ForceElement for HalfPlaneContact {
         }
     }
 
+    /// `τ = −δ / |δ̇|` for a gap `δ < 0`, towards the wall or away from it
+    /// (relative to a moving wall, with its velocity at `t`; as
+    /// [`super::WallContact`]'s corners); `Some(0.0)` in contact (`δ ≥ 0`).
+    fn onset_within(&self, t: f64, q: &[f64], qd: &[f64], horizon: f64) -> Option<f64> {
+        let delta = self.penetration_at(t, q);
+        if delta >= 0.0 {
+            return Some(0.0);
+        }
+        let (o, n) = (3 * self.body, self.normal);
+        let ad = self.wall(t).1;
+        let (sn, cs) = q[o + 2].sin_cos();
+        let s = self.point;
+        let u = [cs * s[0] - sn * s[1], sn * s[0] + cs * s[1]];
+        let w = qd[o + 2];
+        let pd = [qd[o] - w * u[1] - ad[0], qd[o + 1] + w * u[0] - ad[1]];
+        let delta_dot = -(n[0] * pd[0] + n[1] * pd[1]);
+        let tau = -delta / delta_dot.abs();
+        (delta_dot != 0.0 && tau <= horizon).then_some(tau)
+    }
+
     fn readings(&self) -> &'static [(&'static str, &'static str)] {
         &[
             ("normal_force", "N"),

@@ -95,6 +95,10 @@ impl ForceElement for RoadContact {
     fn add_forces(&self, t: f64, q: &[f64], qd: &[f64], g: &mut [f64]) {
         self.local(t, q).add_forces(t, q, qd, g);
     }
+    /// `Some(0.0)`: the profile's next rise is not foreseen.
+    fn onset_within(&self, _t: f64, _q: &[f64], _qd: &[f64], _horizon: f64) -> Option<f64> {
+        Some(0.0)
+    }
     fn readings(&self) -> &'static [(&'static str, &'static str)] {
         self.base.readings()
     }

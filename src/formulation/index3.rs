@@ -646,6 +646,16 @@ impl SecondOrderDae for Index3<'_> {
     fn project(&mut self, t: f64, q: &mut [f64], qd: &mut [f64]) -> Result<(), SystemError> {
         Index3::project(self, t, q, qd).map_err(SystemError::new)
     }
+    /// The earliest [`crate::model::ForceElement::onset_within`] of the
+    /// system's force elements.
+    fn onset_within(&mut self, x: StateView<'_>, horizon: f64) -> Option<f64> {
+        let StateView { t, q, qd } = x;
+        self.sys
+            .forces()
+            .iter()
+            .filter_map(|f| f.onset_within(t, q, qd, horizon))
+            .reduce(f64::min)
+    }
     /// The position step of [`Index3::project`] until
     /// `‖Φ‖∞ ≤ 64 ε max(1, ‖q‖∞)`: a simplified Newton with the mass
     /// saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` last factorised (at a nearby

@@ -231,6 +231,13 @@ const ALPHA_KEYS: Keys = &[
 /// Radau IIA's own keys: those of its Newton iteration.
 const RADAU_KEYS: Keys = &[(NEWTON_KEYS, KeyUse::Always)];
 
+/// Those of Radau IIA with fixed or adaptive steps: also the flight step
+/// of the fixed-step mode.
+const RADAU_FIXED_KEYS: Keys = &[
+    (NEWTON_KEYS, KeyUse::Always),
+    (&["flight_step"], KeyUse::FixedStep),
+];
+
 const EXPLICIT_THREADS: &str = "forces ∥ constraint terms of each RHS";
 const ALPHA_THREADS: &str = "residual halves, Newton updates, split chain LDLᵀ";
 const RADAU_THREADS: &str = "residual halves, split real chain LDLᵀ";
@@ -302,14 +309,14 @@ pub const METHODS: [MethodInfo; 12] = [
         Family::Radau,
         Stepping::FixedOrAdaptive,
         RADAU_THREADS,
-        RADAU_KEYS,
+        RADAU_FIXED_KEYS,
     ),
     MethodInfo::row(
         Method::Radau9,
         Family::Radau,
         Stepping::FixedOrAdaptive,
         RADAU_THREADS,
-        RADAU_KEYS,
+        RADAU_FIXED_KEYS,
     ),
     MethodInfo::row(
         Method::Radau59,
@@ -323,7 +330,7 @@ pub const METHODS: [MethodInfo; 12] = [
         Family::Radau,
         Stepping::FixedOrAdaptive,
         RADAU_THREADS,
-        RADAU_KEYS,
+        RADAU_FIXED_KEYS,
     ),
 ];
 

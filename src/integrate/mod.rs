@@ -73,7 +73,7 @@ pub use method::{
 pub use options::{ImplicitOptions, OdeOptions, Tolerance};
 pub use radau::{
     ComplexNewton, OrderCounts, Radau13, Radau5, Radau59, Radau9, RadauHigh, RadauStages,
-    RadauTableau,
+    RadauTableau, FLIGHT_LOOKAHEAD,
 };
 
 use std::ops::ControlFlow;

@@ -131,6 +131,15 @@ pub struct ImplicitOptions {
     /// on the stiff chain and problem C (docs/scaling.md, "Measurements
     /// behind the defaults").
     pub extrapolate: bool,
+    /// Radau IIA with a fixed step `h`: a larger step `H = k h` (k an
+    /// integer ≥ 2) taken from a grid point when no force element
+    /// foresees an onset (a contact's start, or one running) within
+    /// [`FLIGHT_LOOKAHEAD`](super::FLIGHT_LOOKAHEAD) `H` of it
+    /// ([`crate::model::ForceElement::onset_within`]), ending on the grid
+    /// of `h`: the contact-free flight of a body between walls at the
+    /// larger step, its contacts at `h` (docs/scenarios.md). `None`
+    /// (default): every step is `h`.
+    pub flight_step: Option<f64>,
 }
 
 impl Default for ImplicitOptions {
@@ -147,6 +156,7 @@ impl Default for ImplicitOptions {
             min_step: None,
             lu: false,
             extrapolate: false,
+            flight_step: None,
         }
     }
 }
@@ -340,6 +350,19 @@ impl ImplicitOptions {
             return Err(invalid("max_newton", 0, "must be at least 1"));
         }
         check_positive("min_step", self.min_step)?;
+        if let (Some(big), true) = (self.flight_step, self.adaptive) {
+            return Err(invalid("flight_step", big, "applies to fixed steps only"));
+        }
+        if let (Some(big), Some(h)) = (self.flight_step, fixed_step) {
+            let k = (big / h).round();
+            if !(big.is_finite() && k >= 2.0 && (big - k * h).abs() <= 1e-9 * big) {
+                return Err(invalid(
+                    "flight_step",
+                    big,
+                    &format!("must be an integer multiple (2 or more) of the fixed step {h}"),
+                ));
+            }
+        }
         if method.family() != Family::GeneralizedAlpha {
             return Ok(());
         }
@@ -356,7 +379,7 @@ impl ImplicitOptions {
     }
 
     /// The scenario keys of the fields, in declaration order.
-    const FIELDS: [&'static str; 11] = [
+    const FIELDS: [&'static str; 12] = [
         "rho_inf",
         "adaptive",
         "newton_tol",
@@ -368,6 +391,7 @@ impl ImplicitOptions {
         "min_step",
         "lu",
         "extrapolate",
+        "flight_step",
     ];
 
     /// The first field (in declaration order) with `filter(field)` whose
@@ -386,6 +410,7 @@ impl ImplicitOptions {
             self.min_step != d.min_step,
             self.lu != d.lu,
             self.extrapolate != d.extrapolate,
+            self.flight_step != d.flight_step,
         ]
         .into_iter()
         .zip(Self::FIELDS)

@@ -44,6 +44,18 @@ pub trait ForceElement: Send + Sync + Debug {
     fn read(&self, t: f64, q: &[f64], qd: &[f64], out: &mut [f64]) {
         let _ = (t, q, qd, out);
     }
+    /// The time from `(t, q, q̇)` within which an onset of this element's
+    /// force (a contact's start) cannot be ruled out, if it lies within
+    /// `horizon` \[s\]: for a contact, its gap over its current speed across
+    /// the wall; `Some(0.0)` while the force is on (a contact running) or
+    /// when the element cannot foresee its onsets; `None` when no onset lies
+    /// within `horizon` (the default: an element whose force has none). Radau IIA's flight step
+    /// ([`crate::integrate::ImplicitOptions::flight_step`]) is taken only
+    /// when no element foresees an onset within it.
+    fn onset_within(&self, t: f64, q: &[f64], qd: &[f64], horizon: f64) -> Option<f64> {
+        let _ = (t, q, qd, horizon);
+        None
+    }
     /// Is the element a sum of loads on single bodies (gravity, buoyancy),
     /// so that [`ForceElement::add_forces_on_bodies`] can split it between
     /// the index-3 residual's two halves? Default: false.

@@ -54,6 +54,8 @@ pub(super) struct RawIntegrator {
     min_step: Option<f64>,
     lu: Option<bool>,
     extrapolate: Option<bool>,
+    // radau5, radau9, radau13 with a fixed step: `ImplicitOptions::flight_step`
+    flight_step: Option<f64>,
     // bdf only: see `OdeOptions::max_order`, `OdeOptions::ndf`
     max_order: Option<i64>,
     ndf: Option<bool>,
@@ -183,6 +185,7 @@ pub(super) fn build(raw: &RawScenario, file: &str) -> Result<RunConfig, Scenario
         implicit.newton_tol = v;
     }
     implicit.min_step = ri.min_step;
+    implicit.flight_step = ri.flight_step;
     if let Some(v) = ri.max_newton {
         implicit.max_newton = count("max_newton", v, "must be ≥ 1")?;
     }
@@ -591,7 +594,7 @@ fn augmented_lagrangian(
 
 /// The `[integrator]` keys of `raw` (besides `method`) and whether each
 /// is given, in declaration order.
-fn integrator_keys(ri: &RawIntegrator) -> [(&'static str, bool); 19] {
+fn integrator_keys(ri: &RawIntegrator) -> [(&'static str, bool); 20] {
     [
         ("rtol", ri.rtol.is_some()),
         ("atol", ri.atol.is_some()),
@@ -609,6 +612,7 @@ fn integrator_keys(ri: &RawIntegrator) -> [(&'static str, bool); 19] {
         ("min_step", ri.min_step.is_some()),
         ("lu", ri.lu.is_some()),
         ("extrapolate", ri.extrapolate.is_some()),
+        ("flight_step", ri.flight_step.is_some()),
         ("max_order", ri.max_order.is_some()),
         ("ndf", ri.ndf.is_some()),
         ("method", ri.method.is_some()),

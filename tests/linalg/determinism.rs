@@ -50,3 +50,43 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
         "{mean_vy:e} vs {expect:e}"
     );
 }
+
+/// radau5 with a flight step on the rod (its contact onsets asked at every
+/// grid point, the flight steps' Newton matrices besides the step's): the
+/// same bits with one and two threads, and flight steps were taken.
+#[test]
+fn rod_radau5_with_a_flight_step_is_bit_identical_with_one_and_two_threads() {
+    let n = PARALLEL_MIN_COORDS / 3 + 10;
+    let (sys, _) = build_rod(&RodParams::problem_b(n)).unwrap();
+    let (q0, qd0) = sys.initial_state();
+    let mut cfg = RunConfig {
+        method: Method::Radau5,
+        ode: OdeOptions {
+            fixed_step: Some(1e-4),
+            ..Default::default()
+        },
+        t_end: 4e-3,
+        output_dt: 1e-3,
+        ..Default::default()
+    };
+    cfg.implicit.flight_step = Some(5e-4);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (traj, s) = pool.install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
+        assert_eq!(s.status, "completed", "{:?}", s.message);
+        (traj, s.steps)
+    };
+    let ((a, steps_a), (b, steps_b)) = (run(1), run(2));
+    assert_eq!(steps_a, steps_b);
+    // 40 steps of 1e-4 without the flight step
+    assert!(steps_a < 20, "{steps_a} steps");
+    assert_eq!(a.t, b.t);
+    for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
+        for (x, y) in qa.iter().zip(qb) {
+            assert_eq!(x.to_bits(), y.to_bits());
+        }
+    }
+}

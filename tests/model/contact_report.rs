@@ -132,3 +132,75 @@ fn an_angle_beyond_two_pi_in_radians_is_noted() {
         );
     }
 }
+
+/// The ball's run with radau5 at `step` 1e-4, with and without
+/// `flight_step` (its summary).
+fn radau_ball(flight_step: Option<&str>) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ball.toml");
+    std::fs::write(&file, BALL).unwrap();
+    let mut args = vec![
+        "run".to_string(),
+        file.to_str().unwrap().into(),
+        "--out".into(),
+        dir.path().to_str().unwrap().into(),
+    ];
+    let mut sets = vec!["integrator.method=\"radau5\"".to_string()];
+    sets.push("integrator.step=1e-4".into());
+    if let Some(h) = flight_step {
+        sets.push(format!("integrator.flight_step={h}"));
+    }
+    for s in sets {
+        args.extend(["--set".into(), s]);
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(&std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap())
+        .unwrap()
+}
+
+/// radau5 at `step` 1e-4 with `flight_step` 3e-3 on the dropped ball:
+/// the free fall takes the flight step (under half the steps), the impact
+/// the step — the first contact is seen within one step of 1e-4 after the
+/// free-fall time √(2h/g) (the flight step across it, from 0.201 to
+/// 0.204 s, would see it 2e-3 late), once — and the peak normal force is
+/// that of the energy balance within 1 %, as without the flight step.
+#[test]
+fn a_flight_step_falls_at_the_larger_step_and_meets_the_floor_at_the_step() {
+    let (plain, flight) = (radau_ball(None), radau_ball(Some("3e-3")));
+    let steps = |s: &serde_json::Value| s["steps"].as_u64().unwrap();
+    assert!(
+        2 * steps(&flight) < steps(&plain),
+        "{} against {} steps",
+        steps(&flight),
+        steps(&plain)
+    );
+    let (g, h, m, k): (f64, f64, f64, f64) = (9.81, 0.2, 1.0, 1e6);
+    let t_hit = (2.0 * h / g).sqrt();
+    let v2 = 2.0 * g * h;
+    let energy = |d: f64| 0.4 * k * d.powf(2.5) - 0.5 * m * v2 - m * g * d;
+    let (mut lo, mut hi) = (0.0, 0.1);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if energy(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let peak = k * lo.powf(1.5);
+    for s in [&plain, &flight] {
+        let floor = &s["contacts"][0];
+        let first = floor["first_contact_time"].as_f64().unwrap();
+        assert!(
+            first >= t_hit - 1e-9 && first <= t_hit + 1e-4 + 1e-9,
+            "{first} against {t_hit}"
+        );
+        assert_eq!(floor["starts"].as_array().unwrap().len(), 1, "{floor}");
+        let got = floor["peak_normal_force"].as_f64().unwrap();
+        assert!((got / peak - 1.0).abs() < 0.01, "{got} N against {peak} N");
+    }
+}

@@ -12,6 +12,7 @@ mod counting;
 mod beam;
 mod codegen;
 mod contact_events;
+mod contact_onsets;
 mod contact_report;
 mod energy;
 mod expression;

@@ -352,6 +352,7 @@ fn the_method_table_decides_which_integrator_keys_apply() {
         ("min_step", "1e-9"),
         ("lu", "true"),
         ("extrapolate", "true"),
+        ("flight_step", "2e-3"),
         ("max_order", "3"),
         ("ndf", "true"),
     ];
@@ -454,5 +455,32 @@ fn applicability_messages_name_the_methods_of_the_table() {
         let (k, m) = rejected(o);
         assert_eq!(k, key, "{o:?}: {m}");
         assert!(m.contains(why), "{o:?}: {m}");
+    }
+}
+
+/// `integrator.flight_step` must be an integer multiple (2 or more) of
+/// `integrator.step`: anything else is an error naming the key and the
+/// value, from the scenario or from the library's options.
+#[test]
+fn a_flight_step_off_the_grid_is_an_error_naming_key_and_value() {
+    for bad in ["2.5e-3", "1e-3", "-2e-3", "5e-4"] {
+        let o = [
+            "integrator.method=\"radau5\"".to_string(),
+            "integrator.step=1e-3".into(),
+            format!("integrator.flight_step={bad}"),
+        ];
+        let o: Vec<&str> = o.iter().map(String::as_str).collect();
+        let e = match fourbar(&o) {
+            Err(e) => e.to_string(),
+            Ok(sc) => mbsolve::simulation::simulate(&sc.system, &sc.q0, &sc.qd0, &sc.run, &mut [])
+                .map(|_| ())
+                .expect_err(bad)
+                .to_string(),
+        };
+        let shown = bad.parse::<f64>().unwrap().to_string();
+        assert!(
+            e.contains("flight_step") && e.contains(&shown) && e.contains("multiple"),
+            "{bad}: {e}"
+        );
     }
 }

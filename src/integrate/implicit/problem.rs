@@ -65,6 +65,14 @@ pub trait SecondOrderDae {
         let _ = (t, q);
         Ok(false)
     }
+    /// The earliest time from `x` to the onset of a force (a contact's
+    /// start) within `horizon` \[s\] that the system foresees
+    /// ([`crate::model::ForceElement::onset_within`]); `Some(0.0)` while one
+    /// is on; `None` (the default) when none lies within `horizon`.
+    fn onset_within(&mut self, x: StateView<'_>, horizon: f64) -> Option<f64> {
+        let _ = (x, horizon);
+        None
+    }
     /// The augmented Lagrangian's multiplier iteration, if this system is
     /// one ([`MultiplierUpdate`]); `None` (the default): the multipliers
     /// are unknowns of the Newton system.
