@@ -458,9 +458,7 @@ impl<'a> Index3<'a> {
         self.blocks.assemble_with_jacobian(
             sys,
             &mut self.k,
-            t,
-            q,
-            qd,
+            StateView { t, q, qd },
             lambda,
             [c_m, c_c, c_k],
             &mut self.jac,
