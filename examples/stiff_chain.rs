@@ -51,7 +51,8 @@ fn main() {
         // settings to experiment with: MBS_NEWTON_TOL (m/s²), MBS_EXTRAPOLATE (0/1),
         // MBS_RHO_INF, MBS_SPARSE (faer's LDLᵀ instead of the chain solver), MBS_T_END (s),
         // MBS_VERBOSE (the summary's message and warnings on stderr), MBS_NOREUSE (a
-        // factorisation at every Newton iteration: exact Newton)
+        // factorisation at every Newton iteration: exact Newton), MBS_FORMULATION (the
+        // scenario key `formulation`, e.g. `augmented_lagrangian` with genalpha)
         if let Some(t) = std::env::var("MBS_NEWTON_TOL")
             .ok()
             .and_then(|v| v.parse().ok())
@@ -63,6 +64,9 @@ fn main() {
         }
         if std::env::var("MBS_NOREUSE").is_ok() {
             cfg.implicit.reuse = false;
+        }
+        if let Ok(v) = std::env::var("MBS_FORMULATION") {
+            cfg.formulation.formulation = v.parse().unwrap_or_else(|e| panic!("{v}: {e}"));
         }
         if std::env::var("MBS_SPARSE").is_ok() {
             cfg.formulation.linear_solver = mbsolve::linalg::SolverKind::Sparse;

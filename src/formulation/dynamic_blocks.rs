@@ -6,7 +6,7 @@
 
 use super::{all_finite, FormulationError};
 use crate::linalg::{APattern, SaddleMatrix, Storage, Symmetry};
-use crate::model::{FdWorkspace, System};
+use crate::model::{FdWorkspace, StateView, System};
 use crate::parallel::{join_if, Halve, PARALLEL_MIN_COORDS};
 use std::sync::OnceLock;
 
@@ -17,13 +17,8 @@ pub(crate) struct DynamicBlocks {
     force_first: usize,
     /// Id of the first (Φ_qᵀλ)_q entry ([`System::hessian_pattern`] order).
     hess_first: usize,
-    hess_vals: Vec<f64>,
-    dq: Vec<f64>,
-    dqd: Vec<f64>,
-    ws: FdWorkspace,
-    /// The workspace of the Hessians (evaluated beside the force
-    /// Jacobians, [`Self::evaluate`]).
-    ws_hess: FdWorkspace,
+    /// The blocks' values at the last state evaluated.
+    vals: BlockValues,
     /// The reciprocal part of the force Jacobians (symmetric storage,
     /// [`Self::write`]): per coordinate pair `{i, j}` (i ≠ j) of the force
     /// Jacobian pattern, `skew_ent[skew_ptr[p]..skew_ptr[p + 1]]` lists its
@@ -41,6 +36,81 @@ pub(crate) struct DynamicBlocks {
     /// coordinates on), made at its first call; `None` where it does not
     /// apply.
     plan: OnceLock<Option<HalfPlan>>,
+}
+
+/// The values of the dynamic blocks at one state: ∂g/∂q and ∂g/∂q̇ in the
+/// order of [`System::force_jacobian_pattern`], (Φ_qᵀλ)_q in the order of
+/// [`System::hessian_pattern`], with the finite-difference workspaces of
+/// the elements that have no analytic ones. The Newton matrices that write
+/// them ([`DynamicBlocks`], the complex matrix's real embedding) evaluate
+/// them here.
+pub(crate) struct BlockValues {
+    pub(super) dq: Vec<f64>,
+    pub(super) dqd: Vec<f64>,
+    pub(super) hess: Vec<f64>,
+    ws: FdWorkspace,
+    /// The workspace of the Hessians (evaluated beside the force
+    /// Jacobians, [`Self::evaluate`]).
+    ws_hess: FdWorkspace,
+}
+
+impl BlockValues {
+    /// Zeroed values for the patterns of `sys`.
+    pub(crate) fn new(sys: &System) -> Self {
+        let n_force = sys.force_jacobian_pattern().len();
+        Self {
+            dq: vec![0.0; n_force],
+            dqd: vec![0.0; n_force],
+            hess: vec![0.0; sys.hessian_pattern().len()],
+            ws: FdWorkspace::default(),
+            ws_hess: FdWorkspace::default(),
+        }
+    }
+
+    /// Evaluate the force Jacobians (when `forces`), the Hessians (when
+    /// `hessians`) at `x` and λ `lam`, and `Φ_q(q, t)` into `jac`, each
+    /// checked finite; the blocks not evaluated keep their old values.
+    pub(crate) fn evaluate(
+        &mut self,
+        sys: &System,
+        StateView { t, q, qd }: StateView<'_>,
+        lam: &[f64],
+        forces: bool,
+        hessians: bool,
+        jac: &mut [f64],
+    ) -> Result<(), FormulationError> {
+        // the force Jacobians, and the Hessians with Φ_q: concurrently for
+        // large systems (`join_if`; each task sequential inside and
+        // writing its own buffers, so the bits do not depend on threads)
+        let (dq, dqd, ws) = (&mut self.dq, &mut self.dqd, &mut self.ws);
+        let (hess, ws_h) = (&mut self.hess, &mut self.ws_hess);
+        join_if(
+            sys.n_coords() >= PARALLEL_MIN_COORDS,
+            || {
+                if forces {
+                    dq.fill(0.0);
+                    dqd.fill(0.0);
+                    sys.add_force_jacobians(t, q, qd, dq, dqd, ws);
+                }
+            },
+            || {
+                if hessians && !hess.is_empty() {
+                    hess.fill(0.0);
+                    sys.add_constraint_hessians(q, t, lam, hess, ws_h);
+                }
+                sys.jacobian_values(q, t, jac);
+            },
+        );
+        all_finite(
+            t,
+            &[
+                ("the force Jacobian ∂g/∂q", &self.dq),
+                ("the force Jacobian ∂g/∂q̇", &self.dqd),
+                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess),
+                ("the constraint Jacobian Φ_q", jac),
+            ],
+        )
+    }
 }
 
 /// The additions of [`DynamicBlocks::write`] and
@@ -95,13 +165,13 @@ impl HalfPlan {
             work[slot] += ADD;
         }
         let slot = |id: usize| k.a_entry(id).0;
-        for e in (0..b.dq.len()).filter(|&e| !b.skip[e]) {
+        for e in (0..b.vals.dq.len()).filter(|&e| !b.skip[e]) {
             work[slot(b.force_first + e)] += ADD;
         }
         for (p, &first) in b.skew_first.iter().enumerate() {
             work[slot(b.force_first + first)] += ADD + 2 * (b.skew_ptr[p + 1] - b.skew_ptr[p]);
         }
-        for e in 0..b.hess_vals.len() {
+        for e in 0..b.vals.hess.len() {
             work[slot(b.hess_first + e)] += ADD;
         }
         for &s in k.jac_slots() {
@@ -127,11 +197,7 @@ impl DynamicBlocks {
         let mut blocks = Self {
             force_first,
             hess_first,
-            hess_vals: vec![0.0; sys.hessian_pattern().len()],
-            dq: vec![0.0; n_force],
-            dqd: vec![0.0; n_force],
-            ws: FdWorkspace::default(),
-            ws_hess: FdWorkspace::default(),
+            vals: BlockValues::new(sys),
             skew_first: Vec::new(),
             skew_ptr: Vec::new(),
             skew_ent: Vec::new(),
@@ -182,16 +248,7 @@ impl DynamicBlocks {
         self.skew_ent = members.concat();
     }
 
-    /// The last evaluated blocks ([`Self::evaluate`]): ∂g/∂q and ∂g/∂q̇ in
-    /// the order of [`System::force_jacobian_pattern`], (Φ_qᵀλ)_q in the
-    /// order of [`System::hessian_pattern`].
-    pub(crate) fn values(&self) -> (&[f64], &[f64], &[f64]) {
-        (&self.dq, &self.dqd, &self.hess_vals)
-    }
-
-    /// Evaluate the force Jacobians (when `forces`), the Hessians (when
-    /// `hessians`) and `Φ_q(q, t)` into `jac`, each checked finite; the
-    /// blocks not evaluated keep their old values.
+    /// [`BlockValues::evaluate`] of these blocks at `(t, q, q̇)`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn evaluate(
         &mut self,
@@ -204,41 +261,19 @@ impl DynamicBlocks {
         hessians: bool,
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
-        // the force Jacobians, and the Hessians with Φ_q: concurrently for
-        // large systems (`join_if`; each task sequential inside and
-        // writing its own buffers, so the bits do not depend on threads)
-        let (dq, dqd, ws) = (&mut self.dq, &mut self.dqd, &mut self.ws);
-        let (hess, ws_h) = (&mut self.hess_vals, &mut self.ws_hess);
-        join_if(
-            sys.n_coords() >= PARALLEL_MIN_COORDS,
-            || {
-                if forces {
-                    dq.fill(0.0);
-                    dqd.fill(0.0);
-                    sys.add_force_jacobians(t, q, qd, dq, dqd, ws);
-                }
-            },
-            || {
-                if hessians && !hess.is_empty() {
-                    hess.fill(0.0);
-                    sys.add_constraint_hessians(q, t, lam, hess, ws_h);
-                }
-                sys.jacobian_values(q, t, jac);
-            },
-        );
-        all_finite(
-            t,
-            &[
-                ("the force Jacobian ∂g/∂q", &self.dq),
-                ("the force Jacobian ∂g/∂q̇", &self.dqd),
-                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess_vals),
-                ("the constraint Jacobian Φ_q", jac),
-            ],
-        )
+        let x = StateView { t, q, qd };
+        self.vals.evaluate(sys, x, lam, forces, hessians, jac)
+    }
+
+    /// The last evaluated blocks ([`BlockValues::evaluate`]): ∂g/∂q and
+    /// ∂g/∂q̇ in the order of [`System::force_jacobian_pattern`], (Φ_qᵀλ)_q
+    /// in the order of [`System::hessian_pattern`].
+    pub(crate) fn values(&self) -> (&[f64], &[f64], &[f64]) {
+        (&self.vals.dq, &self.vals.dqd, &self.vals.hess)
     }
 
     /// Zero `k` and write `c_m M − c_c ∂g/∂q̇ − c_k ∂g/∂q + c_k (Φ_qᵀλ)_q`
-    /// into its `A` block from the last evaluated blocks ([`Self::evaluate`];
+    /// into its `A` block from the last evaluated blocks ([`BlockValues::evaluate`];
     /// the force Jacobians only when `c_c` or `c_k` ≠ 0, the Hessians only
     /// when `c_k` ≠ 0). The Jacobian block is left to the caller.
     ///
@@ -284,7 +319,7 @@ impl DynamicBlocks {
         let symmetric: [bool; P] =
             std::array::from_fn(|p| force[p] && ks[p].storage() == Storage::SymmetricLower);
         if force.contains(&true) {
-            for (e, (&dq, &dqd)) in self.dq.iter().zip(&self.dqd).enumerate() {
+            for (e, (&dq, &dqd)) in self.vals.dq.iter().zip(&self.vals.dqd).enumerate() {
                 for p in 0..P {
                     if force[p] && !(symmetric[p] && self.skip[e]) {
                         let [_, c_c, c_k] = cs[p];
@@ -296,8 +331,8 @@ impl DynamicBlocks {
         if symmetric.contains(&true) {
             for (pair, &first) in self.skew_first.iter().enumerate() {
                 let ents = &self.skew_ent[self.skew_ptr[pair]..self.skew_ptr[pair + 1]];
-                let dq = reciprocal_correction(ents, &self.dq);
-                let dqd = reciprocal_correction(ents, &self.dqd);
+                let dq = reciprocal_correction(ents, &self.vals.dq);
+                let dqd = reciprocal_correction(ents, &self.vals.dqd);
                 if dq != 0.0 || dqd != 0.0 {
                     for p in (0..P).filter(|&p| symmetric[p]) {
                         let [_, c_c, c_k] = cs[p];
@@ -309,7 +344,7 @@ impl DynamicBlocks {
         }
         for (k, &[_, _, c_k]) in ks.iter_mut().zip(&cs) {
             if c_k != 0.0 {
-                for (e, &h) in self.hess_vals.iter().enumerate() {
+                for (e, &h) in self.vals.hess.iter().enumerate() {
                     k.add_a(self.hess_first + e, c_k * h);
                 }
             }
@@ -319,31 +354,28 @@ impl DynamicBlocks {
 
 impl DynamicBlocks {
     /// What the coefficients `[c_m, c_c, c_k]` of [`Self::write`] need
-    /// [`Self::evaluate`] to evaluate: `(forces, hessians)`, the force
+    /// [`BlockValues::evaluate`] to evaluate: `(forces, hessians)`, the force
     /// Jacobians when `c_c` or `c_k` ≠ 0, the Hessians when `c_k` ≠ 0.
     pub(crate) fn needs([_, c_c, c_k]: [f64; 3]) -> (bool, bool) {
         (c_c != 0.0 || c_k != 0.0, c_k != 0.0)
     }
 
-    /// [`Self::evaluate`] what `c` [`Self::needs`] (each evaluation checked
+    /// [`BlockValues::evaluate`] what `c` [`Self::needs`] (each evaluation checked
     /// finite, [`FormulationError::NonFinite`], so an overflow is not
     /// reported as a singular matrix), then [`Self::write_with_jacobian`]
     /// with `Φ_q` from `jac`: [`Self::write`] followed by
     /// [`SaddleMatrix::set_jacobian`], the same values.
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn assemble_with_jacobian(
         &mut self,
         sys: &System,
         k: &mut SaddleMatrix,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
+        x: StateView<'_>,
         lam: &[f64],
         c: [f64; 3],
         jac: &mut [f64],
     ) -> Result<(), FormulationError> {
         let (forces, hessians) = Self::needs(c);
-        self.evaluate(sys, t, q, qd, lam, forces, hessians, jac)?;
+        self.vals.evaluate(sys, x, lam, forces, hessians, jac)?;
         self.write_with_jacobian(sys, k, c, jac);
         Ok(())
     }
@@ -442,7 +474,7 @@ impl DynamicBlocks {
             let (h, s) = side(slot);
             (h, s, w)
         };
-        for e in 0..self.dq.len() {
+        for e in 0..self.vals.dq.len() {
             if !self.skip[e] {
                 let (h, s, w) = a(self.force_first + e);
                 halves[h].force.push((e, s, w));
@@ -452,7 +484,7 @@ impl DynamicBlocks {
             let (h, s, w) = a(self.force_first + first);
             halves[h].skew.push((p, s, w));
         }
-        for e in 0..self.hess_vals.len() {
+        for e in 0..self.vals.hess.len() {
             let (h, s, w) = a(self.hess_first + e);
             halves[h].hess.push((e, s, w));
         }
@@ -492,7 +524,7 @@ impl DynamicBlocks {
         let force = cs.map(|[_, c_c, c_k]| c_c != 0.0 || c_k != 0.0);
         if force.contains(&true) {
             for &(e, s, w) in &ops.force {
-                let (dq, dqd) = (self.dq[e], self.dqd[e]);
+                let (dq, dqd) = (self.vals.dq[e], self.vals.dqd[e]);
                 for (v, &[_, c_c, c_k]) in vs
                     .iter_mut()
                     .zip(&cs)
@@ -503,8 +535,8 @@ impl DynamicBlocks {
             }
             for &(pair, s, w) in &ops.skew {
                 let ents = &self.skew_ent[self.skew_ptr[pair]..self.skew_ptr[pair + 1]];
-                let dq = reciprocal_correction(ents, &self.dq);
-                let dqd = reciprocal_correction(ents, &self.dqd);
+                let dq = reciprocal_correction(ents, &self.vals.dq);
+                let dqd = reciprocal_correction(ents, &self.vals.dqd);
                 if dq != 0.0 || dqd != 0.0 {
                     for (v, &[_, c_c, c_k]) in vs
                         .iter_mut()
@@ -518,7 +550,7 @@ impl DynamicBlocks {
         }
         if cs.iter().any(|c| c[2] != 0.0) {
             for &(e, s, w) in &ops.hess {
-                let h = self.hess_vals[e];
+                let h = self.vals.hess[e];
                 for (v, &[_, _, c_k]) in vs.iter_mut().zip(&cs).filter(|(_, c)| c[2] != 0.0) {
                     v[s] += w * (c_k * h);
                 }
@@ -633,7 +665,7 @@ mod tests {
         blocks
             .evaluate(&sys, 0.0, &q, &qd, &lam, true, true, &mut jac)
             .unwrap();
-        for v in blocks.dq.iter_mut().chain(blocks.dqd.iter_mut()) {
+        for v in blocks.vals.dq.iter_mut().chain(blocks.vals.dqd.iter_mut()) {
             *v += 1e4 * rnd();
         }
         (sys, blocks, k0, jac)
@@ -690,7 +722,7 @@ mod tests {
         // the reciprocal corrections are not all zero (the test sees them)
         let corrected = (0..blocks.skew_first.len()).any(|p| {
             let ents = &blocks.skew_ent[blocks.skew_ptr[p]..blocks.skew_ptr[p + 1]];
-            reciprocal_correction(ents, &blocks.dq) != 0.0
+            reciprocal_correction(ents, &blocks.vals.dq) != 0.0
         });
         assert!(corrected);
     }

@@ -468,9 +468,7 @@ impl<'a> Index3<'a> {
         self.blocks.assemble_with_jacobian(
             sys,
             &mut self.k,
-            t,
-            q,
-            qd,
+            StateView { t, q, qd },
             lambda,
             [c_m, c_c, c_k],
             &mut self.jac,
@@ -584,25 +582,15 @@ impl<'a> Index3<'a> {
     }
 }
 
+/// The state must be finite: else [`FormulationError::Invalid`] naming
+/// the component ([`super::non_finite_state`]).
 fn finite_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
-    let n = q.len();
-    // the vectorised scan first; the entry is searched for only on failure
-    if crate::numeric::first_non_finite(q).is_none()
-        && crate::numeric::first_non_finite(qd).is_none()
-    {
-        return Ok(());
+    match super::non_finite_state(q, qd) {
+        None => Ok(()),
+        Some(c) => Err(FormulationError::Invalid(format!(
+            "at t = {t}: state component {c} is not finite"
+        ))),
     }
-    if let Some(k) = q.iter().chain(qd).position(|v| !v.is_finite()) {
-        return Err(FormulationError::Invalid(format!(
-            "at t = {t}: state component {} is not finite",
-            if k < n {
-                System::coordinate_name(k)
-            } else {
-                format!("d{}/dt", System::coordinate_name(k - n))
-            }
-        )));
-    }
-    Ok(())
 }
 
 /// [`Index3`] is the multibody instance of the integrator's abstract

@@ -22,7 +22,7 @@
 //! ([`SolverKind::SparseLu`]). The pattern is the real Newton matrix's
 //! ([`Index3`](super::Index3): force Jacobians ∪ constraint Hessians) in
 //! each of the four blocks, built once; the Jacobians are evaluated by
-//! the same [`System`] calls as [`super::Index3`]'s.
+//! the same code as [`super::Index3`]'s (`BlockValues::evaluate`).
 //!
 //! **Chain patterns** ([`ComplexSolverKind::Auto`], the default): when the
 //! real Newton matrix's pattern is a chain's (the envelope of
@@ -36,15 +36,15 @@
 //! replaces dominated a radau5 run: docs/radau.md). A pivot that vanishes (no pivoting here) falls back to
 //! the LU, built then, for the rest of the run.
 
-use super::dynamic_blocks::DynamicBlocks;
+use super::dynamic_blocks::{BlockValues, DynamicBlocks};
 use super::state_border::ComplexStateBorder;
-use super::{all_finite, linear_at, FormulationError};
+use super::{linear_at, FormulationError};
 use crate::integrate::{ComplexNewton, StateView, SystemError};
 use crate::linalg::{
     solver_for, APattern, ComplexChainLdlt, SaddleMatrix, SaddlePointSolver, SolverKind,
     SolverOptions, Storage, Symmetry,
 };
-use crate::model::{FdWorkspace, System};
+use crate::model::System;
 
 /// How [`Index3Complex`] factorises the complex Newton matrix.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -155,13 +155,11 @@ struct LuPath {
     k: SaddleMatrix,
     solver: Box<dyn SaddlePointSolver>,
     sources: Vec<Source>,
-    dq: Vec<f64>,
-    dqd: Vec<f64>,
-    hess: Vec<f64>,
+    /// ∂g/∂q, ∂g/∂q̇ and (Φ_qᵀλ)_q at the last state.
+    vals: BlockValues,
     jac: Vec<f64>,
     jac2: Vec<f64>,
     x: Vec<f64>,
-    ws: FdWorkspace,
 }
 
 impl std::fmt::Debug for Index3Complex<'_> {
@@ -221,59 +219,6 @@ impl<'a> Index3Complex<'a> {
     pub fn factorizations(&self) -> usize {
         self.factorizations
     }
-
-    /// Assemble `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `(t, q, q̇, λ)`
-    /// (coefficients `[re, im]`) and factorise it (module docs).
-    #[allow(clippy::too_many_arguments)]
-    pub fn assemble_and_factorize(
-        &mut self,
-        t: f64,
-        q: &[f64],
-        qd: &[f64],
-        lambda: &[f64],
-        c: [[f64; 2]; 3],
-    ) -> Result<(), FormulationError> {
-        if c[0][1] != 0.0 {
-            return Err(FormulationError::Invalid(
-                "complex Newton matrix: the mass coefficient c₀ must be real".into(),
-            ));
-        }
-        self.factorizations += 1;
-        let x = StateView { t, q, qd };
-        if let Some(ch) = self.chain.as_mut().filter(|_| self.on_chain) {
-            match ch.factorize(self.sys, x, lambda, c) {
-                Ok(()) => return Ok(()),
-                // a vanishing pivot: the pivoting LU from here on
-                Err(FormulationError::Linear { .. }) => self.on_chain = false,
-                Err(e) => return Err(e),
-            }
-        }
-        if self.lu.is_none() {
-            self.lu = Some(LuPath::new(self.sys)?);
-        }
-        let lu = self.lu.as_mut().expect("built above");
-        lu.assemble_and_factorize(self.sys, x, lambda, c)
-    }
-
-    /// Solve with the last factorisation: `re + i·im` (each `[x; y]`, length
-    /// `n + m`) is overwritten with the solution.
-    pub fn solve_in_place(
-        &mut self,
-        t: f64,
-        re: &mut [f64],
-        im: &mut [f64],
-    ) -> Result<(), FormulationError> {
-        let lin = linear_at(t);
-        match (&mut self.chain, &mut self.lu) {
-            (Some(ch), _) if self.on_chain => match &mut ch.border {
-                Some(b) => b.solve(re, im, |re, im| ch.ldlt.solve(re, im)),
-                None => ch.ldlt.solve(re, im),
-            }
-            .map_err(lin),
-            (_, Some(lu)) => lu.solve_in_place(t, self.n, self.m, re, im),
-            _ => Err(lin(crate::linalg::LinalgError::NotReady("factorize"))),
-        }
-    }
 }
 
 impl LuPath {
@@ -326,13 +271,10 @@ impl LuPath {
             k,
             solver,
             sources,
-            dq: vec![0.0; sys.force_jacobian_pattern().len()],
-            dqd: vec![0.0; sys.force_jacobian_pattern().len()],
-            hess: vec![0.0; sys.hessian_pattern().len()],
+            vals: BlockValues::new(sys),
             jac: vec![0.0; jp.len()],
             jac2: vec![0.0; 2 * jp.len()],
             x: vec![0.0; 2 * (n + m)],
-            ws: FdWorkspace::default(),
         })
     }
 
@@ -341,27 +283,15 @@ impl LuPath {
     fn assemble_and_factorize(
         &mut self,
         sys: &System,
-        StateView { t, q, qd }: StateView<'_>,
+        x: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), FormulationError> {
-        let n = sys.n_coords();
+        let (n, t) = (sys.n_coords(), x.t);
         let [c0, c1, c2] = c;
-        self.dq.fill(0.0);
-        self.dqd.fill(0.0);
-        sys.add_force_jacobians(t, q, qd, &mut self.dq, &mut self.dqd, &mut self.ws);
-        self.hess.fill(0.0);
-        sys.add_constraint_hessians(q, t, lambda, &mut self.hess, &mut self.ws);
-        sys.jacobian_values(q, t, &mut self.jac);
-        all_finite(
-            t,
-            &[
-                ("the force Jacobian ∂g/∂q", &self.dq),
-                ("the force Jacobian ∂g/∂q̇", &self.dqd),
-                ("the constraint Hessian (Φ_qᵀλ)_q", &self.hess),
-                ("the constraint Jacobian Φ_q", &self.jac),
-            ],
-        )?;
+        self.vals
+            .evaluate(sys, x, lambda, true, true, &mut self.jac)?;
+        let BlockValues { dq, dqd, hess, .. } = &self.vals;
         let k = &mut self.k;
         k.set_zero();
         for (i, &mi) in sys.mass_diagonal().iter().enumerate() {
@@ -378,11 +308,11 @@ impl LuPath {
             let v = match *s {
                 // −(c₁ ∂g/∂q̇ + c₂ ∂g/∂q)
                 Source::Force(e, p) => {
-                    let (a, b) = (self.dqd[e], self.dq[e]);
+                    let (a, b) = (dqd[e], dq[e]);
                     pick([-(c1[0] * a + c2[0] * b), -(c1[1] * a + c2[1] * b)], p)
                 }
                 // c₂ (Φ_qᵀλ)_q
-                Source::Hessian(e, p) => pick([c2[0] * self.hess[e], c2[1] * self.hess[e]], p),
+                Source::Hessian(e, p) => pick([c2[0] * hess[e], c2[1] * hess[e]], p),
             };
             k.add_a(id, v);
         }
@@ -420,16 +350,48 @@ impl LuPath {
 }
 
 impl ComplexNewton for Index3Complex<'_> {
+    /// Assemble `[c₀ M + c₁ C_t + c₂ K_t, Φ_qᵀ; Φ_q, 0]` at `x` and `λ`
+    /// (coefficients `[re, im]`, `c₀` real) and factorise it (module docs).
     fn factorize_complex(
         &mut self,
-        StateView { t, q, qd }: StateView<'_>,
+        x: StateView<'_>,
         lambda: &[f64],
         c: [[f64; 2]; 3],
     ) -> Result<(), SystemError> {
-        self.assemble_and_factorize(t, q, qd, lambda, c)
+        if c[0][1] != 0.0 {
+            return Err(SystemError::new(FormulationError::Invalid(
+                "complex Newton matrix: the mass coefficient c₀ must be real".into(),
+            )));
+        }
+        self.factorizations += 1;
+        if let Some(ch) = self.chain.as_mut().filter(|_| self.on_chain) {
+            match ch.factorize(self.sys, x, lambda, c) {
+                Ok(()) => return Ok(()),
+                // a vanishing pivot: the pivoting LU from here on
+                Err(FormulationError::Linear { .. }) => self.on_chain = false,
+                Err(e) => return Err(SystemError::new(e)),
+            }
+        }
+        if self.lu.is_none() {
+            self.lu = Some(LuPath::new(self.sys).map_err(SystemError::new)?);
+        }
+        let lu = self.lu.as_mut().expect("built above");
+        lu.assemble_and_factorize(self.sys, x, lambda, c)
             .map_err(SystemError::new)
     }
+    /// Solve with the last factorisation: `re + i·im` (each `[x; y]`,
+    /// length `n + m`) is overwritten with the solution.
     fn solve_complex(&mut self, t: f64, re: &mut [f64], im: &mut [f64]) -> Result<(), SystemError> {
-        self.solve_in_place(t, re, im).map_err(SystemError::new)
+        let lin = linear_at(t);
+        match (&mut self.chain, &mut self.lu) {
+            (Some(ch), _) if self.on_chain => match &mut ch.border {
+                Some(b) => b.solve(re, im, |re, im| ch.ldlt.solve(re, im)),
+                None => ch.ldlt.solve(re, im),
+            }
+            .map_err(lin),
+            (_, Some(lu)) => lu.solve_in_place(t, self.n, self.m, re, im),
+            _ => Err(lin(crate::linalg::LinalgError::NotReady("factorize"))),
+        }
+        .map_err(SystemError::new)
     }
 }

@@ -213,20 +213,19 @@ impl Baumgarte {
 /// [`FormulationError::Unstable`] naming the component (`q = y[..n]`,
 /// `q̇ = y[n..]`).
 pub(crate) fn check_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
-    let n = q.len();
-    let bad = crate::numeric::first_non_finite(q)
-        .map(|(k, _)| k)
-        .or_else(|| crate::numeric::first_non_finite(qd).map(|(k, _)| n + k));
-    match bad {
+    match non_finite_state(q, qd) {
         None => Ok(()),
-        Some(k) => Err(FormulationError::Unstable {
-            t,
-            component: if k < n {
-                crate::model::System::coordinate_name(k)
-            } else {
-                format!("d{}/dt", crate::model::System::coordinate_name(k - n))
-            },
-        }),
+        Some(component) => Err(FormulationError::Unstable { t, component }),
+    }
+}
+
+/// The name of the first non-finite component of the state `(q, q̇)`
+/// (e.g. `phi12` or `dx3/dt`), or `None` when all are finite.
+pub(crate) fn non_finite_state(q: &[f64], qd: &[f64]) -> Option<String> {
+    let name = crate::model::System::coordinate_name;
+    match crate::numeric::first_non_finite(q) {
+        Some((k, _)) => Some(name(k)),
+        None => crate::numeric::first_non_finite(qd).map(|(k, _)| format!("d{}/dt", name(k))),
     }
 }
 

@@ -24,7 +24,7 @@
 
 use mbsolve::builders::stiff_chain;
 use mbsolve::formulation::{ComplexSolverKind, Index3, Index3Complex, NewtonSolverKind};
-use mbsolve::integrate::{SecondOrderDae, StateView};
+use mbsolve::integrate::{ComplexNewton, SecondOrderDae, StateView};
 use mbsolve::linalg::SolverKind;
 
 /// Dense `[c₀M + c₁C + c₂K, Φ_qᵀ; Φ_q, 0]` of `Index3` (exact, sparse-LU
@@ -74,22 +74,26 @@ fn complex_solve_against_dense(kind: ComplexSolverKind, name: &str, zero_first: 
     let gr = dense(&mut f, &q, &qd, &lam, [1.0, c1[0], c2[0]]);
     let gi0 = dense(&mut f, &q, &qd, &lam, [0.0, c1[1], c2[1]]);
     let mut c = Index3Complex::with_solver(&sys, kind).unwrap();
+    let x = StateView {
+        t: 0.0,
+        q: &q,
+        qd: &qd,
+    };
     if zero_first {
         assert_eq!(c.solver_name(), "complex-chain-ldlt");
         // G = 0: singular; the LDLᵀ's first pivot vanishes (what the LU
         // then reports is faer's matter: it need not detect it)
-        let _ = c.assemble_and_factorize(0.0, &q, &qd, &lam, [[0.0, 0.0]; 3]);
+        let _ = c.factorize_complex(x, &lam, [[0.0, 0.0]; 3]);
     } else {
         assert_eq!(c.solver_name(), name);
     }
-    c.assemble_and_factorize(0.0, &q, &qd, &lam, [[1.0, 0.0], c1, c2])
-        .unwrap();
+    c.factorize_complex(x, &lam, [[1.0, 0.0], c1, c2]).unwrap();
     assert_eq!(c.solver_name(), name);
     let d = n + m;
     let b_re: Vec<f64> = (0..d).map(|i| ((i as f64) * 0.37).sin()).collect();
     let b_im: Vec<f64> = (0..d).map(|i| ((i as f64) * 0.91).cos()).collect();
     let (mut xr, mut xi) = (b_re.clone(), b_im.clone());
-    c.solve_in_place(0.0, &mut xr, &mut xi).unwrap();
+    c.solve_complex(0.0, &mut xr, &mut xi).unwrap();
     // residual of (G_r + i G_i)[x] with the Φ rows real (G_i has no Φ part)
     let mut worst = 0.0_f64;
     let scale = b_re

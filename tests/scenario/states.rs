@@ -456,6 +456,7 @@ fn the_documented_repeated_states_example_runs() {
 #[test]
 fn the_complex_states_border_solves_as_the_lu() {
     use mbsolve::formulation::{ComplexSolverKind, Index3Complex};
+    use mbsolve::integrate::{ComplexNewton, StateView};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/pid_arm.toml");
     let sc = scenario::load(std::path::Path::new(path), &[]).unwrap();
     let sys = &sc.system;
@@ -476,14 +477,19 @@ fn the_complex_states_border_solves_as_the_lu() {
         let c1 = [h * mu[0], h * mu[1]];
         let c2 = [c1[0] * c1[0] - c1[1] * c1[1], 2.0 * c1[0] * c1[1]];
         let c = [[1.0, 0.0], c1, c2];
-        chain.assemble_and_factorize(0.3, &q, &v, &lam, c).unwrap();
-        lu.assemble_and_factorize(0.3, &q, &v, &lam, c).unwrap();
+        let x = StateView {
+            t: 0.3,
+            q: &q,
+            qd: &v,
+        };
+        chain.factorize_complex(x, &lam, c).unwrap();
+        lu.factorize_complex(x, &lam, c).unwrap();
         assert_eq!(chain.solver_name(), "complex-chain-ldlt");
         let re: Vec<f64> = (0..n + m).map(|k| ((k * 7 + 3) as f64).sin()).collect();
         let im: Vec<f64> = (0..n + m).map(|k| ((k * 5 + 1) as f64).cos()).collect();
         let (mut ar, mut ai, mut br, mut bi) = (re.clone(), im.clone(), re, im);
-        chain.solve_in_place(0.3, &mut ar, &mut ai).unwrap();
-        lu.solve_in_place(0.3, &mut br, &mut bi).unwrap();
+        chain.solve_complex(0.3, &mut ar, &mut ai).unwrap();
+        lu.solve_complex(0.3, &mut br, &mut bi).unwrap();
         let scale = br.iter().chain(&bi).fold(0.0f64, |s, x| s.max(x.abs()));
         let d = ar
             .iter()
