@@ -4,7 +4,7 @@
 //! element's own force law switches on along that motion, and the corners'
 //! velocities against finite differences of their positions.
 
-use mbsolve::forces::{ForceElement, HalfPlaneContact, WallContact};
+use mbsolve::forces::{ContactLaw, ForceElement, HalfPlaneContact, WallContact};
 
 fn segment() -> WallContact {
     WallContact {
@@ -14,10 +14,12 @@ fn segment() -> WallContact {
         length: 0.1,
         left_wall: -0.025,
         right_wall: 0.025,
-        stiffness: 1e9,
-        damping: 0.75,
-        friction: 0.3,
-        slip_velocity: 1e-3,
+        law: ContactLaw {
+            stiffness: 1e9,
+            damping: 0.75,
+            friction: 0.3,
+            slip_velocity: 1e-3,
+        },
     }
 }
 
@@ -126,7 +128,19 @@ fn a_rotating_segment_uses_the_corners_velocities() {
 #[test]
 fn a_half_plane_contact_foresees_its_onset() {
     let n = [(-30f64).to_radians().sin(), 30f64.to_radians().cos()];
-    let c = HalfPlaneContact::new(0, [0.05, 0.0], 0.1, [0.0, 0.0], n, 1e6, 0.0, 0.0, 1e-3);
+    let c = HalfPlaneContact::new(
+        0,
+        [0.05, 0.0],
+        0.1,
+        [0.0, 0.0],
+        n,
+        ContactLaw {
+            stiffness: 1e6,
+            damping: 0.0,
+            friction: 0.0,
+            slip_velocity: 1e-3,
+        },
+    );
     let q0 = [0.2, 0.6, 0.0];
     let qd = [-0.3, -2.0, 0.0];
     let gap = -c.penetration(&q0);
