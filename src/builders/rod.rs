@@ -266,8 +266,10 @@ impl RodParams {
         }
     }
 
-    /// The wall-contact element of segment `segment` on body `body`.
-    fn contact_element(&self, body: usize, segment: usize) -> WallContact {
+    /// The wall-contact element of segment `segment` (of length
+    /// [`Self::segment_length`]) on body `body`: the channel's walls at
+    /// `±channel_width / 2` and the Hertz law of these parameters.
+    pub fn contact_element(&self, body: usize, segment: usize) -> WallContact {
         WallContact {
             body,
             segment,

@@ -328,7 +328,7 @@ fn body_blocks(q0: usize, n: usize) -> Vec<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::forces::ContactLaw;
+    use crate::builders::RodParams;
     use crate::generated::ChainKernels;
     use crate::model::ConstraintKernels;
 
@@ -400,22 +400,9 @@ mod tests {
     /// buffers that already hold values.
     #[test]
     fn contact_jacobians_skipping_clear_segments_have_the_bits_of_the_full_kernel() {
-        let (nb, body0, ls) = (40, 3, 0.002);
+        let (nb, body0) = (40, 3);
         let contacts: Vec<WallContact> = (0..nb)
-            .map(|k| WallContact {
-                body: body0 + k,
-                segment: k,
-                width: 0.03,
-                length: ls,
-                left_wall: -0.025,
-                right_wall: 0.025,
-                law: ContactLaw {
-                    stiffness: 1e9,
-                    damping: 0.75,
-                    friction: 0.3,
-                    slip_velocity: 1e-3,
-                },
-            })
+            .map(|k| RodParams::problem_b(500).contact_element(body0 + k, k))
             .collect();
         let kern = ContactJacobians::new(body0, &contacts);
         let mut u = crate::numeric::test_uniform(99);

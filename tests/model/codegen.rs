@@ -4,11 +4,9 @@
 //! N-link pendulums and the four-bar; whole four-bar trajectories; force
 //! kernels against the runtime's force elements; recognition.
 
-use mbsolve::builders::n_link_pendulum;
+use mbsolve::builders::{n_link_pendulum, RodParams};
 use mbsolve::constraints::{Revolute, Translational};
-use mbsolve::forces::{
-    ContactLaw, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact,
-};
+use mbsolve::forces::{Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, WallContact};
 use mbsolve::generated::{self, attach_generated, kernels, ChainKernels, FourBarKernels};
 use mbsolve::model::{
     Body, BodyRef, ConstraintKernels, ConstraintTerms, Evaluation, JointGeometry, System,
@@ -542,20 +540,7 @@ fn contact_kernels_match_runtime_elements() {
     let n = 5;
     let ls = 0.1;
     let elems: Vec<WallContact> = (0..n)
-        .map(|i| WallContact {
-            body: i,
-            segment: i,
-            width: 0.03,
-            length: ls,
-            left_wall: -0.025,
-            right_wall: 0.025,
-            law: ContactLaw {
-                stiffness: 1e9,
-                damping: 0.75,
-                friction: 0.3,
-                slip_velocity: 1e-3,
-            },
-        })
+        .map(|i| RodParams::problem_b(10).contact_element(i, i))
         .collect();
     let fp: Vec<f64> = elems
         .iter()

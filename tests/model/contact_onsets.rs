@@ -4,23 +4,11 @@
 //! element's own force law switches on along that motion, and the corners'
 //! velocities against finite differences of their positions.
 
+use mbsolve::builders::RodParams;
 use mbsolve::forces::{ContactLaw, ForceElement, HalfPlaneContact, WallContact};
 
 fn segment() -> WallContact {
-    WallContact {
-        body: 0,
-        segment: 0,
-        width: 0.03,
-        length: 0.1,
-        left_wall: -0.025,
-        right_wall: 0.025,
-        law: ContactLaw {
-            stiffness: 1e9,
-            damping: 0.75,
-            friction: 0.3,
-            slip_velocity: 1e-3,
-        },
-    }
+    RodParams::problem_b(10).contact_element(0, 0)
 }
 
 /// The x-force of `e` at `q` (velocity `qd`).

@@ -4,8 +4,8 @@
 
 use mbsolve::builders::{add_rod, build_rod, cantilever, n_link_pendulum, RodParams};
 use mbsolve::forces::{
-    Buoyancy, ContactLaw, CornerState, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper,
-    Wall, WallContact,
+    Buoyancy, CornerState, Drag, FdWorkspace, ForceElement, TorsionalSpringDamper, Wall,
+    WallContact,
 };
 use mbsolve::model::{BodyRef, ModelError, System, SystemBuilder};
 
@@ -328,20 +328,7 @@ fn drag_is_frame_invariant_dissipative_and_has_exact_jacobians() {
 // ---------------------------------------------------------------- contact
 
 fn contact() -> WallContact {
-    WallContact {
-        body: 0,
-        segment: 4,
-        width: 0.03,
-        length: 0.1,
-        left_wall: -0.025,
-        right_wall: 0.025,
-        law: ContactLaw {
-            stiffness: 1e9,
-            damping: 0.75,
-            friction: 0.3,
-            slip_velocity: 1e-3,
-        },
-    }
+    RodParams::problem_b(10).contact_element(0, 4)
 }
 
 #[test]
