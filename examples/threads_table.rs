@@ -78,6 +78,8 @@ fn main() {
         "halves_taken_back": get("halves_taken_back"),
         "halves_taken_back_awake": get("halves_taken_back_awake"),
         "threads_passes": get("threads_passes"),
+        "caller_parks": get("threads_caller_parks"),
+        "helper_wakes": get("threads_helper_wakes"),
         "newton_iterations": get("newton_iterations"),
         "halves_solo": get("halves_solo"),
         "threads_rule": get("threads_rule"),

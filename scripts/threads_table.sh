@@ -20,7 +20,11 @@
 # run inside passes in halves, the gain a free second thread would bound
 # (Amdahl, each pass as long as its longer half), the seconds outside and
 # inside the halves, and of the two-thread run's halves the longer halves'
-# seconds and the rest (the hand-over's cost and waits).
+# seconds and the rest (the hand-over's cost and waits), and the one-thread
+# run's serial stretches between two passes of at least 0.3 ms (the
+# helper's spin) and 1 ms of CPU. The summary's `threads_caller_parks` and
+# `threads_helper_wakes` of the two-thread run: waits that parked, and
+# wake-ups of a parked helper.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 N=${1:-10000}
@@ -67,7 +71,7 @@ for mode in $BUSY_MODES; do
         line=$("$bin" "$N" "$method" "$t" "$threads")
         echo "$line" | jq -c --arg mode "$mode" --arg round "$round" --arg load "$load" \
           '. + {mode: $mode, round: ($round | tonumber), load: ($load | tonumber)}' >>"$OUT"
-        echo "$mode $method round $round threads $threads: $(echo "$line" | jq -c '{wall_s, cpu_s, halves_split, halves_taken_back, halves_taken_back_awake, halves_solo, threads_passes, newton_iterations, threads_rule}')" >&2
+        echo "$mode $method round $round threads $threads: $(echo "$line" | jq -c '{wall_s, cpu_s, halves_split, halves_taken_back, halves_taken_back_awake, halves_solo, threads_passes, caller_parks, helper_wakes, newton_iterations, threads_rule, gaps: .threads_clock.gaps}')" >&2
       done
     done
   done
@@ -78,8 +82,8 @@ echo "raw lines: $OUT" >&2
 python3 - "$OUT" <<'PY'
 import json, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
-print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | in halves 1 / 2 | bound 1 / 2 | outside halves 1 / 2 [s] | in halves 1 / 2 [s] | 2: longer halves, hand-over [s] | halves split / taken back / solo | probes: team, alone, skipped | same tip |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+print("| method | machine | round | load | 1 thread wall (CPU) [s] | 2 threads wall (CPU) [s] | 1/2 wall | in halves 1 / 2 | bound 1 / 2 | outside halves 1 / 2 [s] | in halves 1 / 2 [s] | 2: longer halves, hand-over [s] | halves split / taken back / solo | parks: caller, helper | serial gaps ≥ 0.3 / 1 ms (1 thread) | probes: team, alone, skipped | same tip |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 key = lambda r: (r["mode"], r["method"], r["round"])
 groups = {}
 for r in rows:
@@ -106,6 +110,8 @@ for (mode, method, rnd), g in groups.items():
     print(f"| {method} | {mode} | {rnd} | {a['load']:.1f} | {a['wall_s']:.2f} ({a['cpu_s']:.2f}) "
           f"| {b['wall_s']:.2f} ({b['cpu_s']:.2f}) | {a['wall_s'] / b['wall_s']:.2f}× | {clock} "
           f"| {b['halves_split']} / {b['halves_taken_back']} / {b['halves_solo']} "
+          f"| {b.get('caller_parks', '–')}, {b.get('helper_wakes', '–')} "
+          f"| {' / '.join(str(g) for g in ca['gaps'][2:4]) if 'gaps' in ca else '–'} "
           f"| {rule.get('team', '–')}, {rule.get('alone', '–')}, {rule.get('skipped', '–')} "
           f"| {'yes' if a['tip_bits'] == b['tip_bits'] else 'NO'} |")
 PY

@@ -43,16 +43,33 @@ mod sync {
         }
     }
 
-    /// A bounded busy-wait: `spin` is true until `limit` has passed.
+    /// A bounded busy-wait: `spin` is true until the thread has spun for
+    /// `limit`, or `WALL_CAP` times `limit` of wall time has passed. The
+    /// clock is read every 64 spins (a few microseconds); a longer
+    /// interval between two readings ([`DESCHEDULED`]) is time the
+    /// thread was not running (another task or the host held its core)
+    /// and does not count, so a helper descheduled while it waits does
+    /// not park as soon as it runs again, just before the next post.
     pub(super) struct Spin {
         start: Instant,
+        last: Instant,
+        spun: Duration,
         n: u32,
         limit: Duration,
     }
+    /// A gap between two readings of a spinning thread's clock longer
+    /// than this is time it was not running.
+    pub(super) const DESCHEDULED: Duration = Duration::from_micros(50);
+    /// The longest wait in wall time, in multiples of the spin's limit
+    /// (on a machine that keeps descheduling the thread).
+    const WALL_CAP: u32 = 10;
     impl Spin {
         pub(super) fn new(limit: Duration) -> Self {
+            let now = Instant::now();
             Self {
-                start: Instant::now(),
+                start: now,
+                last: now,
+                spun: Duration::ZERO,
                 n: 0,
                 limit,
             }
@@ -60,8 +77,17 @@ mod sync {
         pub(super) fn spin(&mut self) -> bool {
             std::hint::spin_loop();
             self.n = self.n.wrapping_add(1);
-            // read the clock only every 64 spins
-            self.n % 64 != 0 || self.start.elapsed() <= self.limit
+            if self.n % 64 != 0 {
+                return true;
+            }
+            let now = Instant::now();
+            let dt = now.saturating_duration_since(self.last);
+            self.last = now;
+            if dt <= DESCHEDULED {
+                self.spun += dt;
+            }
+            self.spun <= self.limit
+                && now.saturating_duration_since(self.start) <= WALL_CAP * self.limit
         }
     }
 }
@@ -101,9 +127,11 @@ mod sync {
 pub(super) use sync::Thread;
 use sync::{current, park, AtomicBool, AtomicU8, Mutex, Ordering, Slot, Spin};
 
-/// How long an idle helper busy-waits for the next half before it parks:
-/// longer than the serial work between two joins of a Newton iteration,
-/// so that a quiet machine pays no wake-up inside one.
+/// How long an idle helper busy-waits for the next half before it parks
+/// (time it is descheduled not counted, at most ten times this of wall
+/// time): longer than the serial work between two joins of a Newton
+/// iteration, so that a quiet machine pays no wake-up inside one. Every
+/// busy-wait here counts its time this way.
 pub const SPIN: Duration = Duration::from_micros(300);
 
 /// How long a caller busy-waits for a half the helper is running before
@@ -162,6 +190,11 @@ pub(super) struct Handover {
     /// it was not parked (awake, so not on a core: preempted); cleared by
     /// [`Handover::take_preempted`].
     preempted: AtomicBool,
+    /// Waits of the caller that parked ([`Handover::parks`]); statistics,
+    /// not part of the protocol (std's atomic under loom too).
+    caller_parks: std::sync::atomic::AtomicUsize,
+    /// Unparks of a parked helper by the caller ([`Handover::parks`]).
+    helper_wakes: std::sync::atomic::AtomicUsize,
 }
 
 // SAFETY: `job` and `panic` are touched only by the side that owns the
@@ -187,6 +220,8 @@ impl Handover {
             helper_parked: AtomicBool::new(false),
             caller_parked: AtomicBool::new(false),
             preempted: AtomicBool::new(false),
+            caller_parks: std::sync::atomic::AtomicUsize::new(0),
+            helper_wakes: std::sync::atomic::AtomicUsize::new(0),
         }
     }
 
@@ -207,8 +242,19 @@ impl Handover {
         if self.helper_parked.load(Ordering::SeqCst) {
             if let Some(h) = self.helper.lock().unwrap().as_ref() {
                 h.unpark();
+                self.helper_wakes
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }
         }
+    }
+
+    /// The caller's waits for a running half that parked (after
+    /// [`WAIT_SPIN`]) and its wake-ups of a parked helper (a post or a
+    /// wake after the helper's [`SPIN`] ran out): each costs a wake-up
+    /// latency, the first on the caller's path.
+    pub(super) fn parks(&self) -> (usize, usize) {
+        let r = std::sync::atomic::Ordering::Relaxed;
+        (self.caller_parks.load(r), self.helper_wakes.load(r))
     }
 
     /// `(a(), b())`: posts `b` to the helper, runs `a`, then takes `b`
@@ -297,6 +343,8 @@ impl Handover {
         let mut spin = Spin::new(WAIT_SPIN);
         while self.state.load(Ordering::Acquire) != DONE {
             if !spin.spin() {
+                self.caller_parks
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 self.caller_parked.store(true, Ordering::SeqCst);
                 while self.state.load(Ordering::SeqCst) != DONE {
                     park();

@@ -17,7 +17,7 @@
 mod handover;
 pub(crate) mod team;
 
-pub use team::{Clock, Rule, TeamReport, CLOCK_ENV, SPIN};
+pub use team::{Clock, Rule, TeamReport, CLOCK_ENV, GAP_BOUNDS_S, SPIN};
 
 use serde::Serialize;
 use std::cell::Cell;

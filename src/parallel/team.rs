@@ -29,7 +29,8 @@
 //! team, alone, alone, team, so that a steady drift of the machine's load
 //! hits both alike), measures the wall time of each, and runs the next
 //! [`EXPLOIT_MIN`] … [`EXPLOIT_MAX`] windows the faster way (the team
-//! only when it took at most [`TEAM_MARGIN`] of the time alone), then
+//! only when it took at most [`TEAM_MARGIN`] of the time alone;
+//! [`CLEAR_STRETCH`] times as many when at most [`CLEAR_MARGIN`]), then
 //! probes again — at once when [`DOUBT_WINDOWS`] windows in a row gave
 //! evidence against the way it runs (with the helper: a half taken back
 //! from a helper that was awake, so preempted; alone, when it runs alone
@@ -74,8 +75,8 @@ pub use super::handover::SPIN;
 
 mod clock;
 pub(crate) use clock::one_thread_form;
-use clock::{clock_wanted, clocked, cpu, Timed};
-pub use clock::{Clock, CLOCK_ENV};
+use clock::{clock_wanted, clocked, cpu, start_gaps, Timed};
+pub use clock::{Clock, CLOCK_ENV, GAP_BOUNDS_S};
 
 /// Take-backs in a row after which an `Auto` team stops posting halves.
 pub(crate) const MISS_LIMIT: u32 = 4;
@@ -106,6 +107,17 @@ pub(crate) const DOUBT_WINDOWS: u32 = 2;
 /// most this fraction of the wall time of the windows alone (a tie goes
 /// to one thread).
 pub(crate) const TEAM_MARGIN: f64 = 0.97;
+
+/// An `Auto` team whose probe windows with the helper took at most this
+/// fraction of the wall time of its windows alone (a clear gain, beyond
+/// the noise of a shared host) runs a stretch [`CLEAR_STRETCH`] times as
+/// long as it would after a closer choice (up to [`EXPLOIT_MAX`]): each
+/// probe runs half its windows alone, so fewer probes leave more of a run
+/// to the team where it clearly pays; evidence against the team still
+/// ends the stretch ([`DOUBT_WINDOWS`]).
+pub(crate) const CLEAR_MARGIN: f64 = 0.8;
+/// How much longer a stretch runs after a probe within [`CLEAR_MARGIN`].
+pub(crate) const CLEAR_STRETCH: u32 = 4;
 
 /// The probe windows, in order: with the helper (`false`) or alone
 /// (`true`).
@@ -249,6 +261,9 @@ impl Adapt {
             } else {
                 EXPLOIT_MIN
             };
+            if team.as_secs_f64() <= CLEAR_MARGIN * alone.as_secs_f64() {
+                self.exploit = (CLEAR_STRETCH * self.exploit).min(EXPLOIT_MAX);
+            }
             self.last = Some(solo);
             self.doubts = 0;
             self.decided[usize::from(solo)] += 1;
@@ -310,6 +325,12 @@ pub struct TeamReport {
     /// Passes the caller of a team counted (`concurrent` calls): the
     /// A/B rule's measure of progress, the same whichever way it ran.
     pub passes: usize,
+    /// Waits of the caller for a half running on the helper that
+    /// outlasted its spin and parked (each then costs a wake-up).
+    pub caller_parks: usize,
+    /// Wake-ups of a parked helper (posts and wakes after an idle
+    /// stretch longer than [`SPIN`]).
+    pub helper_wakes: usize,
     /// Probes of the A/B rule that chose the team, and that chose one
     /// thread.
     pub decisions: [u32; 2],
@@ -451,12 +472,17 @@ impl TeamReport {
         self.halves_taken_back_awake += o.halves_taken_back_awake;
         self.halves_solo += o.halves_solo;
         self.passes += o.passes;
+        self.caller_parks += o.caller_parks;
+        self.helper_wakes += o.helper_wakes;
         self.decisions[0] += o.decisions[0];
         self.decisions[1] += o.decisions[1];
         self.clock.run_s += o.clock.run_s;
         self.clock.halves_s += o.clock.halves_s;
         self.clock.work_s += o.clock.work_s;
         self.clock.longer_s += o.clock.longer_s;
+        for (a, b) in self.clock.gaps.iter_mut().zip(o.clock.gaps) {
+            *a += b;
+        }
         if o.rule != Rule::None {
             self.rule = o.rule;
         }
@@ -472,6 +498,8 @@ thread_local! {
             halves_taken_back_awake: 0,
             halves_solo: 0,
             passes: 0,
+            caller_parks: 0,
+            helper_wakes: 0,
             decisions: [0; 2],
             rule: Rule::None,
             clock: Clock {
@@ -479,6 +507,7 @@ thread_local! {
                 halves_s: 0.0,
                 work_s: 0.0,
                 longer_s: 0.0,
+                gaps: [0; 5],
             },
         })
     };
@@ -657,7 +686,10 @@ impl Team {
                 (a.decided, rule)
             }
         };
+        let (caller_parks, helper_wakes) = self.h.parks();
         TeamReport {
+            caller_parks,
+            helper_wakes,
             halves_split: self.split.load(Ordering::Relaxed),
             halves_taken_back: self.taken_back.load(Ordering::Relaxed),
             halves_taken_back_awake: self.taken_back_awake.load(Ordering::Relaxed),
@@ -715,6 +747,7 @@ pub(crate) fn run<R>(large: bool, state: usize, f: impl FnOnce() -> R) -> R {
     let clock = outer && clock_wanted();
     if outer {
         CLOCK_ON.with(|c| c.set(clock));
+        start_gaps();
     }
     /// Adds the run's CPU seconds to the report ([`Clock::run_s`]).
     struct RunClock(bool, Option<f64>);

@@ -491,6 +491,8 @@ pub fn simulate_into(
         team.halves_taken_back_awake.into(),
     );
     extra.insert("threads_passes".into(), team.passes.into());
+    extra.insert("threads_caller_parks".into(), team.caller_parks.into());
+    extra.insert("threads_helper_wakes".into(), team.helper_wakes.into());
     extra.insert("halves_solo".into(), team.halves_solo.into());
     extra.insert(
         "threads_rule".into(),

@@ -4,6 +4,7 @@
 
 use super::{CLOCK_ON, DEPTH, IN_HELPER, REPORT};
 use serde::Serialize;
+use std::cell::Cell;
 
 /// Environment variable that makes a run keep its [`Clock`] (`1`).
 pub const CLOCK_ENV: &str = "MBSOLVE_THREADS_CLOCK";
@@ -20,6 +21,10 @@ pub const CLOCK_ENV: &str = "MBSOLVE_THREADS_CLOCK";
 /// long as its longer half); with two threads `run_s − halves_s` is the
 /// caller's serial work and `halves_s − longer_s` what the hand-over cost
 /// it beyond the longer halves (spinning; parked waits do not count).
+/// `gaps` counts the caller's serial stretches between two outermost
+/// passes by their CPU seconds: an idle helper parks after
+/// [`SPIN`](super::SPIN) of wall time, so a stretch longer than that
+/// costs the next pass a wake-up.
 /// Zero where the thread CPU clock is unavailable (not Linux).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Clock {
@@ -33,6 +38,25 @@ pub struct Clock {
     /// The longer half of each of those passes (a one-thread form that
     /// interleaves them: half the pass).
     pub longer_s: f64,
+    /// Serial stretches between two outermost passes of the run (the
+    /// caller's CPU seconds from the end of one to the start of the next)
+    /// of at least each of [`GAP_BOUNDS_S`]: all, 0.1 ms, 0.3 ms
+    /// ([`SPIN`](super::SPIN)), 1 ms, 3 ms.
+    pub gaps: [usize; 5],
+}
+
+/// The bounds of [`Clock::gaps`], CPU seconds.
+pub const GAP_BOUNDS_S: [f64; 5] = [0.0, 1e-4, 3e-4, 1e-3, 3e-3];
+
+thread_local! {
+    /// The CPU seconds at the end of the last outermost pass of the run
+    /// on this thread (NaN: none yet).
+    static PASS_END: Cell<f64> = const { Cell::new(f64::NAN) };
+}
+
+/// Forgets the last pass's end (a run starts).
+pub(super) fn start_gaps() {
+    PASS_END.with(|e| e.set(f64::NAN));
 }
 
 /// Whether a run keeps a [`Clock`]: [`CLOCK_ENV`] is `1` (in tests,
@@ -75,8 +99,21 @@ impl Timed {
         let depth = DEPTH.with(|d| d.replace(d.get() + 1));
         let outermost = depth == 0 && !IN_HELPER.with(|h| h.get());
         let timed = outermost && CLOCK_ON.with(|c| c.get());
+        let start = timed.then(cpu);
+        if let Some(s) = start {
+            let gap = s - PASS_END.with(|e| e.get());
+            if gap >= 0.0 {
+                REPORT.with(|r| {
+                    let mut v = r.get();
+                    for (n, b) in v.clock.gaps.iter_mut().zip(GAP_BOUNDS_S) {
+                        *n += usize::from(gap >= b);
+                    }
+                    r.set(v);
+                });
+            }
+        }
         Self {
-            start: timed.then(cpu),
+            start,
             halves: None,
         }
     }
@@ -86,7 +123,9 @@ impl Drop for Timed {
     fn drop(&mut self) {
         DEPTH.with(|d| d.set(d.get() - 1));
         if let Some(s) = self.start {
-            let whole = cpu() - s;
+            let end = cpu();
+            PASS_END.with(|e| e.set(end));
+            let whole = end - s;
             // a one-thread form that runs both halves at once: two equal
             // halves
             let (a, b) = self.halves.unwrap_or((whole / 2.0, whole / 2.0));
