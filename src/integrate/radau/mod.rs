@@ -33,7 +33,13 @@
 //!
 //! # Simplified Newton
 //!
-//! The Jacobians are frozen at `(t_n, q_n, v_n, λ_n)`. With
+//! The Jacobians are frozen at the predictor's middle stage
+//! `(t_n + c_m h, Q_m, V_m, Λ_m)`, `c_m` the node nearest `h/2`
+//! (`newton::middle`; c₂ = 0.645 here): every stage lies within
+//! `0.65 h` of it, where the step's start `(t_n, q_n, v_n, λ_n)` lies up
+//! to `h` away, and the contraction of the simplified Newton iteration
+//! grows with that distance (the bodies turn within the step; measured in
+//! docs/radau.md, "The Newton matrices at the middle stage"). With
 //! `T⁻¹ 𝔄 T = diag(γ, [α −β; β α])` (γ real, `μ = α + iβ` the complex
 //! eigenvalue pair of 𝔄) and the transformed unknowns `(T⁻¹ ⊗ I) ΔA`,
 //! `(T⁻¹ ⊗ I) ΔΛ`, the `3(n + m)` Newton system splits into one real
@@ -69,9 +75,9 @@
 //! diverging correction is undone and Newton goes on with the renewed
 //! matrices instead of halving the step at once (fewer failed attempts
 //! from the stiff chain's kinked start; docs/scaling.md, "Measurements
-//! behind the defaults"). The matrix frozen at the step's start carries the multipliers' geometric
-//! stiffness `(Φ_qᵀλ_n)_q` of the kink's spring forces, which the first
-//! step relaxes. The same renewal (without the undo; one renewal per
+//! behind the defaults"). The matrix frozen at the predictor carries the multipliers' geometric
+//! stiffness `(Φ_qᵀλ)_q` of the predicted kink's spring forces, which the
+//! first step relaxes. The same renewal (without the undo; one renewal per
 //! attempt in all) is taken when `max_newton` corrections did not suffice
 //! but the iteration still contracts (as generalized-α's). An
 //! iteration that stops contracting with position corrections `h² ΔA`

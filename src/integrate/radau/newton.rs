@@ -6,6 +6,17 @@
 use super::*;
 use crate::parallel::{split_pass, split_passes, Halve, PARALLEL_MIN_COORDS};
 
+/// The stage at whose predicted (or current) iterate the Newton matrices
+/// of an attempt are factorised: `S/2`, the node nearest the step's
+/// middle (`c = 0.645, 0.584, 0.559` for S = 3, 5, 7). The stages lie
+/// within `max(c_m, 1 − c_m) h` of it instead of within `h` of the step's
+/// start, so the frozen matrices' mismatch with the stages' own Jacobians
+/// (the bodies turn within the step) is about halved (simplified Newton,
+/// Hairer & Wanner II, §IV.8: its contraction grows with that mismatch).
+pub(super) const fn middle<const S: usize>() -> usize {
+    S / 2
+}
+
 /// The rate estimate of an attempt's first correction from the last one
 /// kept, `max(η, ε)^0.8` (RADAU5's `FACCON`).
 pub(super) fn first_rate(eta: f64) -> f64 {
@@ -26,21 +37,17 @@ pub(super) fn radau_convergence(max_newton: usize) -> ConvergenceOptions {
 }
 
 impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
-    /// Factorise the real and the complex matrices for the step `h` at its
-    /// start (`at_end` false) or at the current iterate of its last stage
-    /// `(Q_S, V_S, Λ_S)` (`at_end`; `qs`, `vs` are overwritten).
-    pub(super) fn factor_at(&mut self, h: f64, at_end: bool) -> Result<(), SystemError> {
+    /// Factorise the real and the complex matrices for the step `h` at the
+    /// current iterate of stage `i`, `(t_n + c_i h, Q_i, V_i, Λ_i)` (`qs`,
+    /// `vs` are overwritten): [`middle`]`::<S>()` at the predictor and
+    /// before a correction, the last stage when an attempt renews them
+    /// (module docs of [`super`], "Simplified Newton").
+    pub(super) fn factor_at(&mut self, h: f64, i: usize) -> Result<(), SystemError> {
         let tab = self.tab.stages();
         let g = tab.gamma;
         self.renewal.factorising();
-        if at_end {
-            self.stage_state(S - 1, h);
-        }
-        let (t, q, v, lam) = if at_end {
-            (self.t + h, &self.qs, &self.vs, &self.l[S - 1])
-        } else {
-            (self.t, &self.q, &self.v, &self.lam)
-        };
+        self.stage_state(i, h);
+        let (t, q, v, lam) = (self.t + tab.c[i] * h, &self.qs, &self.vs, &self.l[i]);
         self.stats.factorizations += 1;
         let x = StateView { t, q, qd: v };
         self.sys.factorize(x, lam, [1.0, h * g, h * h * g * g])?;
@@ -89,7 +96,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         // from the factorised one by the rounding of the grid's
         // arithmetic, `target − t`, is the same step: `SAME_STEP`)
         if self.renewal.at_predictor(h) {
-            self.factor_at(h, false)?;
+            self.factor_at(h, middle::<S>())?;
         }
         // the constraint rows of each transformed system divided by h²μ²
         let g = tab.gamma;
@@ -129,7 +136,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         let mut stages_current = false;
         loop {
             if self.renewal.before_correction(conv.round()) {
-                self.factor_at(h, false)?;
+                self.factor_at(h, middle::<S>())?;
             }
             // residuals of the stages (their states in one pass, unless
             // the last update computed them)
@@ -306,7 +313,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                         }
                     }
                     stages_current = false;
-                    self.factor_at(h, true)?;
+                    self.factor_at(h, S - 1)?;
                     continue;
                 }
                 Assessment::Diverged | Assessment::Hopeless | Assessment::Slow => {
@@ -334,7 +341,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 Some(Next::Iterate) => {}
                 // still contracting: renew the matrices at the last stage's
                 // (much better) iterate once and go on, as generalized-α
-                Some(Next::Renew) => self.factor_at(h, true)?,
+                Some(Next::Renew) => self.factor_at(h, S - 1)?,
                 Some(Next::Exhausted) => {
                     return Err(SystemError::msg(format!(
                         "no convergence in {} iterations (last correction {:.3e} × tol)",

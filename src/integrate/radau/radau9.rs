@@ -23,7 +23,7 @@
 //! (`SecondOrderDae::factorize` with `c = [1, hγ, h²γ²]`) and P complex
 //! ones ([`ComplexNewton`] with `μ_p = α_p + iβ_p`), each
 //! `[M + hμ C_t + h²μ² K_t, Φ_qᵀ; Φ_q, 0]` with the constraint rows
-//! divided by `h²μ²`; the Jacobians frozen at the step's start and kept
+//! divided by `h²μ²`; the Jacobians frozen at the predictor's middle stage and kept
 //! across steps while Newton contracts, the predictor, the convergence
 //! test, the renewals within an attempt, the start ramp and the fixed-step
 //! grid are radau5's (its module docs; the same stage loop, with S
