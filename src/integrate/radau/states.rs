@@ -64,45 +64,27 @@ pub(super) fn stage_states_into<const S: usize, const K: usize>(
 /// The rows of [`stage_states_into`] over one range of coordinates (all
 /// slices of its length), stage after stage, on this thread.
 pub(super) fn stage_rows<const S: usize, const K: usize>(
-    StageBase {
-        tab,
-        stages,
-        h,
-        q,
-        v,
-        st,
-    }: StageBase<'_, S>,
+    base: StageBase<'_, S>,
     qs: [&mut [f64]; K],
     vs: [&mut [f64]; K],
 ) {
-    for ((qs, vs), i) in qs.into_iter().zip(vs).zip(stages) {
-        stage_row(qs, vs, q, v, st, tab.c[i] * h, h, &tab.a[i], &tab.a2[i]);
+    for ((qs, vs), i) in qs.into_iter().zip(vs).zip(base.stages.clone()) {
+        stage_row(qs, vs, &base, i);
     }
 }
 
-/// One stage of [`stage_rows`]: `qs = q + ch v + h² Σ_j a2_j st_j`,
-/// `vs = v + h Σ_j a_j st_j`. The outputs are parameters of their own
-/// (references the compiler knows overlap nothing else), so the loop
-/// is vectorised without run-time overlap checks, which it would need
-/// for slices held in arrays, and for more of them than it takes.
-#[allow(clippy::too_many_arguments)]
-fn stage_row<const S: usize>(
-    qs: &mut [f64],
-    vs: &mut [f64],
-    q: &[f64],
-    v: &[f64],
-    st: [&[f64]; S],
-    ch: f64,
-    h: f64,
-    a: &[f64; S],
-    a2: &[f64; S],
-) {
+/// Stage `i` of [`stage_rows`] into `qs`, `vs`. The outputs are
+/// parameters of their own (references the compiler knows overlap
+/// nothing else), so the loop is vectorised without run-time overlap
+/// checks, which it would need for slices held in arrays, and for more of
+/// them than it takes.
+fn stage_row<const S: usize>(qs: &mut [f64], vs: &mut [f64], base: &StageBase<'_, S>, i: usize) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx") {
         // SAFETY: the processor has AVX (checked above)
-        return unsafe { stage_row_avx(qs, vs, q, v, st, ch, h, a, a2) };
+        return unsafe { stage_row_avx(qs, vs, base, i) };
     }
-    stage_row_lanes(qs, vs, q, v, st, ch, h, a, a2)
+    stage_row_lanes(qs, vs, base, i)
 }
 
 /// [`stage_row_lanes`] compiled for AVX: four lanes instead of two, the
@@ -110,35 +92,28 @@ fn stage_row<const S: usize>(
 /// bits.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-#[allow(clippy::too_many_arguments)]
 unsafe fn stage_row_avx<const S: usize>(
     qs: &mut [f64],
     vs: &mut [f64],
-    q: &[f64],
-    v: &[f64],
-    st: [&[f64]; S],
-    ch: f64,
-    h: f64,
-    a: &[f64; S],
-    a2: &[f64; S],
+    base: &StageBase<'_, S>,
+    i: usize,
 ) {
-    stage_row_lanes(qs, vs, q, v, st, ch, h, a, a2)
+    stage_row_lanes(qs, vs, base, i)
 }
 
-/// The loop of [`stage_row`].
+/// The loop of [`stage_row`]: `Q_i = q_n + c_i h v_n + h² Σ_j (𝔄²)_ij A_j`,
+/// `V_i = v_n + h Σ_j 𝔄_ij A_j`.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn stage_row_lanes<const S: usize>(
     qs: &mut [f64],
     vs: &mut [f64],
-    q: &[f64],
-    v: &[f64],
-    st: [&[f64]; S],
-    ch: f64,
-    h: f64,
-    a: &[f64; S],
-    a2: &[f64; S],
+    base: &StageBase<'_, S>,
+    i: usize,
 ) {
+    let StageBase {
+        tab, h, q, v, st, ..
+    } = *base;
+    let (ch, a, a2) = (tab.c[i] * h, &tab.a[i], &tab.a2[i]);
     // slices of one length: no bounds checks in the loop
     let n = q.len();
     let (qs, vs, v, st) = (&mut qs[..n], &mut vs[..n], &v[..n], st.map(|s| &s[..n]));
