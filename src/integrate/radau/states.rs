@@ -160,3 +160,57 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         stage_states_into(stage_base!(self, 0..S, h), qst, vst);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stage rows (in vector lanes, with AVX where the processor has
+    /// it) give the bits of the stage formula evaluated one coordinate at
+    /// a time, left to right, for three and five stages and a length that
+    /// is not a multiple of the lanes: no fused multiply–add and no
+    /// reordered sum.
+    #[test]
+    fn stage_rows_give_the_bits_of_the_formula() {
+        fn check<const S: usize>() {
+            let tab = RadauStages::<S>::new();
+            let n = 37;
+            let x = |i: usize| (i as f64 * 0.754_877_666_246_692_7).fract() - 0.5;
+            let q: Vec<f64> = (0..n).map(|k| 10.0 * x(k)).collect();
+            let v: Vec<f64> = (0..n).map(|k| x(k + 101)).collect();
+            let st: [Vec<f64>; S] =
+                std::array::from_fn(|j| (0..n).map(|k| 1e3 * x(k + 211 * (j + 1))).collect());
+            let h = 3.7e-4;
+            let mut qs: [Vec<f64>; S] = std::array::from_fn(|_| vec![0.0; n]);
+            let mut vs: [Vec<f64>; S] = std::array::from_fn(|_| vec![0.0; n]);
+            let base = StageBase {
+                tab: &tab,
+                stages: 0..S,
+                h,
+                q: &q,
+                v: &v,
+                st: std::array::from_fn(|j| &st[j][..]),
+            };
+            stage_rows(
+                base,
+                qs.each_mut().map(|x| &mut x[..]),
+                vs.each_mut().map(|x| &mut x[..]),
+            );
+            for i in 0..S {
+                for k in 0..n {
+                    let (mut sq, mut sv) = (tab.a2[i][0] * st[0][k], tab.a[i][0] * st[0][k]);
+                    for j in 1..S {
+                        sq += tab.a2[i][j] * st[j][k];
+                        sv += tab.a[i][j] * st[j][k];
+                    }
+                    let q_ik = q[k] + tab.c[i] * h * v[k] + h * h * sq;
+                    let v_ik = v[k] + h * sv;
+                    assert_eq!(qs[i][k].to_bits(), q_ik.to_bits(), "Q_{i}[{k}]");
+                    assert_eq!(vs[i][k].to_bits(), v_ik.to_bits(), "V_{i}[{k}]");
+                }
+            }
+        }
+        check::<3>();
+        check::<5>();
+    }
+}
