@@ -176,7 +176,7 @@ mod tests {
             let tab = RadauStages::<S>::new();
             let n = 37;
             let x = |i: usize| (i as f64 * 0.754_877_666_246_692_7).fract() - 0.5;
-            let q: Vec<f64> = (0..n).map(|k| 10.0 * x(k)).collect();
+            let q: Vec<f64> = (0..n).map(|k| 1e-4 * x(k)).collect();
             let v: Vec<f64> = (0..n).map(|k| x(k + 101)).collect();
             let st: [Vec<f64>; S] =
                 std::array::from_fn(|j| (0..n).map(|k| 1e3 * x(k + 211 * (j + 1))).collect());
