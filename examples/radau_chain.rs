@@ -11,6 +11,8 @@
 //! `radau9:H`, `aradau9:RTOL` the same with radau9; `radau59:RTOL`
 //! radau59 (always adaptive). The line also gives radau59's steps at
 //! order 9 and changes of order.
+//! `tip_bits`: the tip's bits in hex, `q_hash`: an FNV-1a hash of the
+//! bits of the coordinates q at `t_end`, to compare runs bit for bit.
 //! `TOL`: `integrator.newton_tol` (m/s²) of that run; `MBS_NEWTON_TOL`
 //! sets it for the runs without one. `MBS_T_END` (s, default 0.1).
 //! The stiff-chain comparisons of docs/radau.md run `radau5:4e-4:1`.
@@ -85,11 +87,15 @@ fn main() {
         let q = traj.q.last().expect("an output row");
         let tip = stiff_chain_tip_x(&info, q);
         let err = reference.map(|r| (tip - r).abs());
+        let q_hash = q.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, x| {
+            (h ^ x.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+        });
         let get = |k: &str| s.extra.get(k).cloned().unwrap_or_default();
         println!(
-            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"error_rejections\":{},\"steps_order9\":{},\"order_changes\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
+            "{{\"n\":{n},\"method\":\"{name}\",\"h\":{h},\"newton_tol\":{},\"status\":{:?},\"tip\":{tip:.10},\"tip_bits\":\"{:016x}\",\"q_hash\":\"{q_hash:016x}\",\"err\":{},\"steps\":{},\"newton_iterations\":{},\"factorizations\":{},\"newton_failures\":{},\"error_rejections\":{},\"steps_order9\":{},\"order_changes\":{},\"max_phi\":{:.3e},\"cpu\":{cpu:.3}}}",
             cfg.implicit.newton_tol,
             s.status,
+            tip.to_bits(),
             err.map_or("null".into(), |e| format!("{e:.3e}")),
             s.steps,
             get("newton_iterations"),

@@ -739,9 +739,16 @@ fn fill_dynamic(
     tmp: &[f64],
     g: &[f64],
 ) -> bool {
-    for (i, ri) in r.iter_mut().enumerate() {
-        let k = base + i;
-        *ri = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
+    // the inputs cut to r's rows: no bounds checks, vectorised
+    let rows = base..base + r.len();
+    let (mass, qdd, tmp, g) = (
+        &mass[rows.clone()],
+        &qdd[rows.clone()],
+        &tmp[rows.clone()],
+        &g[rows],
+    );
+    for k in 0..r.len() {
+        r[k] = scale * (mass[k] * qdd[k] + tmp[k] - g[k]);
     }
     crate::numeric::first_non_finite(r).is_none()
 }
