@@ -21,7 +21,9 @@
 //! Environment: `MBS_T_END` (s, default 1), `MBS_DT` (output step, default
 //! 1e-3 s), `MBS_ATOL` (absolute tolerance of the adaptive runs, default
 //! 1e-3·rtol), `MBS_MAX_STEP` (s, the adaptive runs' largest step), `MBS_FLIGHT_STEP` (s,
-//! radau's `integrator.flight_step` with a fixed step), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
+//! radau's `integrator.flight_step` with a fixed step), `MBS_VX` (m/s, the
+//! initial horizontal velocity, default 0.1: a change of 1e-9 gives another
+//! path through the contacts, for a sample of paths), `MBS_RHO_INF`, `MBS_EXTRAPOLATE` (1: `integrator.extrapolate`), `MBS_LU` (1: exact Newton with the sparse
 //! LU of the full iteration matrix), `MBS_TRACE` (file), `MBS_THREADS` (the rayon
 //! pool the run is installed in, default 1; CPU time counts every thread).
 
@@ -171,7 +173,11 @@ fn main() {
 /// One run of problem B at `n` segments with `spec` = `METHOD:H_OR_RTOL`:
 /// its JSON line (and the trace file of `MBS_TRACE`).
 fn run(n: usize, spec: &str) -> serde_json::Value {
-    let (sys, info) = build_rod(&RodParams::problem_b(n)).expect("problem B builds");
+    let mut params = RodParams::problem_b(n);
+    if let Some(vx) = env("MBS_VX") {
+        params.initial_velocity[0] = vx;
+    }
+    let (sys, info) = build_rod(&params).expect("problem B builds");
     let (q0, qd0) = sys.initial_state();
     let t_end = env("MBS_T_END").unwrap_or(1.0);
     let dt = env("MBS_DT").unwrap_or(1e-3);

@@ -107,7 +107,8 @@
 //! ([`SecondOrderDae::onset_within`]: gaps over speeds across the walls at
 //! the step's start). Its matrices are factorised for `H` (a change of
 //! the step renews them, as any); a flight step that Newton fails is
-//! retried from the same point at `h`.
+//! retried from the same point at `h`. A flight step after a shorter
+//! step starts Newton from the constant predictor (`flight.rs`).
 //!
 //! **Adaptive** ([`ImplicitOptions::adaptive`]; `rtol`, `atol`,
 //! `max_step`, `initial_step` of [`OdeOptions`]): RADAU5's embedded error
@@ -132,6 +133,7 @@
 // 3×3 tableau algebra reads clearest with indices
 #![allow(clippy::needless_range_loop)]
 
+mod flight;
 mod newton;
 mod radau9;
 mod stages;
@@ -591,29 +593,6 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
 }
 
 impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
-    /// Grid steps of `h_fixed` the next fixed-step attempt spans: the
-    /// flight stride from a grid point at the full step when no force
-    /// element foresees an onset within [`FLIGHT_LOOKAHEAD`] flight steps
-    /// ([`SecondOrderDae::onset_within`]), else 1.
-    fn grid_steps(&mut self) -> u64 {
-        let k = self.flight_stride;
-        let at_grid = (self.t - (self.t0 + (self.k_grid - 1) as f64 * self.h_fixed)).abs()
-            <= 1e-9 * self.h_fixed;
-        if k == 1 || self.flight_failed || !at_grid || self.h < self.h_fixed * (1.0 - 1e-9) {
-            return 1;
-        }
-        let here = StateView {
-            t: self.t,
-            q: &self.q,
-            qd: &self.v,
-        };
-        let horizon = FLIGHT_LOOKAHEAD * k as f64 * self.h_fixed;
-        match self.sys.onset_within(here, horizon) {
-            None => k,
-            Some(_) => 1,
-        }
-    }
-
     /// `atol` of coordinate `i`.
     fn atol(&self, i: usize) -> f64 {
         match &self.ode.atol {

@@ -67,7 +67,7 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
         // predictor: the previous step's stage polynomials extrapolated
         // (element-wise: in two halves concurrently for large n)
         let par = n >= PARALLEL_MIN_COORDS;
-        match self.h_prev {
+        match self.extrapolated_step(h) {
             Some(hp) => {
                 let w: [[f64; S]; S] =
                     std::array::from_fn(|i| self.tab.basis(1.0 + tab.c[i] * h / hp));
