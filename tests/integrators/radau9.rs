@@ -165,12 +165,11 @@ fn radau9_and_radau13_take_a_step_or_tolerances() {
 /// (module docs of radau, "Simplified Newton"), not at the step's start:
 /// on the four-bar (problem A, 2 s, the crank turning at 2π rad/s and
 /// faster) at h = 5e-3 the stages lie up to a step's turn of the bodies
-/// from the step's start, and simplified Newton at the default tolerance
-/// failed there 68 times with radau9 and 119 times with radau5, each
-/// failure cutting the step; at the middle stage 31 and 67
-/// (docs/radau.md, "The Newton matrices at the middle stage"). The run
-/// stays on the constraints: the largest ‖Φ‖ over the output rows below
-/// 1e-9 m (1e-12 … 5e-12 measured).
+/// from the step's start, where simplified Newton at the default
+/// tolerance fails more often than the bounds below allow, each failure
+/// cutting the step (counts before and after: docs/radau.md, "The Newton
+/// matrices at the middle stage"). The run stays on the constraints: the
+/// largest ‖Φ‖ over the output rows below 1e-9 m.
 #[test]
 fn fourbar_newton_failures_with_matrices_at_the_middle_stage() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fourbar.toml");

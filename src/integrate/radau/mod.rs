@@ -38,7 +38,7 @@
 //! (`newton::middle`; c₂ = 0.645 here): every stage lies within
 //! `0.65 h` of it, where the step's start `(t_n, q_n, v_n, λ_n)` lies up
 //! to `h` away, and the contraction of the simplified Newton iteration
-//! grows with that distance (the bodies turn within the step; measured in
+//! grows with that distance (the bodies turn within the step;
 //! docs/radau.md, "The Newton matrices at the middle stage"). With
 //! `T⁻¹ 𝔄 T = diag(γ, [α −β; β α])` (γ real, `μ = α + iβ` the complex
 //! eigenvalue pair of 𝔄) and the transformed unknowns `(T⁻¹ ⊗ I) ΔA`,
