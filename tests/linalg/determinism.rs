@@ -2,15 +2,37 @@
 
 use mbsolve::builders::{build_rod, RodParams};
 use mbsolve::integrate::{Method, OdeOptions};
+use mbsolve::model::System;
 use mbsolve::parallel::PARALLEL_MIN_COORDS;
-use mbsolve::simulation::{simulate, RunConfig};
+use mbsolve::simulation::{simulate, RunConfig, Summary, Trajectory};
+
+/// `simulate` in a rayon pool of `threads` threads; the run must complete.
+fn run_in_pool(threads: usize, sys: &System, cfg: &RunConfig) -> (Trajectory, Summary) {
+    let (q0, qd0) = sys.initial_state();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let (traj, s) = pool.install(|| simulate(sys, &q0, &qd0, cfg, &mut []).unwrap());
+    assert_eq!(s.status, "completed", "{:?}", s.message);
+    (traj, s)
+}
+
+/// The same output times and the same bits of every q and q̇.
+fn assert_same_bits(a: &Trajectory, b: &Trajectory) {
+    assert_eq!(a.t, b.t);
+    for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
+        for (x, y) in qa.iter().zip(qb) {
+            assert_eq!(x.to_bits(), y.to_bits());
+        }
+    }
+}
 
 #[test]
 fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
     // Large enough that forces and constraint terms run concurrently.
     let n = PARALLEL_MIN_COORDS / 3 + 10;
     let (sys, _) = build_rod(&RodParams::problem_b(n)).unwrap();
-    let (q0, qd0) = sys.initial_state();
     let cfg = RunConfig {
         method: Method::Rk4,
         ode: OdeOptions {
@@ -25,22 +47,8 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
         formulation: Default::default(),
         ..Default::default()
     };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let (traj, s) = pool.install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
-        assert_eq!(s.status, "completed", "{:?}", s.message);
-        traj
-    };
-    let (a, b) = (run(1), run(2));
-    assert_eq!(a.t, b.t);
-    for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
-        for (x, y) in qa.iter().zip(qb) {
-            assert_eq!(x.to_bits(), y.to_bits());
-        }
-    }
+    let ((a, _), (b, _)) = (run_in_pool(1, &sys, &cfg), run_in_pool(2, &sys, &cfg));
+    assert_same_bits(&a, &b);
     // and the run moved: the rod's centre started to fall at about
     // g (1 − ρ_w/ρ) (drag from the 0.1 m/s sideways motion adds ~1e-5)
     let mean_vy = (0..n).map(|i| a.qd.last().unwrap()[3 * i + 1]).sum::<f64>() / n as f64;
@@ -58,7 +66,6 @@ fn rod_trajectory_is_bit_identical_with_one_and_two_threads() {
 fn rod_radau5_with_a_flight_step_is_bit_identical_with_one_and_two_threads() {
     let n = PARALLEL_MIN_COORDS / 3 + 10;
     let (sys, _) = build_rod(&RodParams::problem_b(n)).unwrap();
-    let (q0, qd0) = sys.initial_state();
     let mut cfg = RunConfig {
         method: Method::Radau5,
         ode: OdeOptions {
@@ -70,23 +77,10 @@ fn rod_radau5_with_a_flight_step_is_bit_identical_with_one_and_two_threads() {
         ..Default::default()
     };
     cfg.implicit.flight_step = Some(5e-4);
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let (traj, s) = pool.install(|| simulate(&sys, &q0, &qd0, &cfg, &mut []).unwrap());
-        assert_eq!(s.status, "completed", "{:?}", s.message);
-        (traj, s.steps)
-    };
-    let ((a, steps_a), (b, steps_b)) = (run(1), run(2));
+    let ((a, sa), (b, sb)) = (run_in_pool(1, &sys, &cfg), run_in_pool(2, &sys, &cfg));
+    let (steps_a, steps_b) = (sa.steps, sb.steps);
     assert_eq!(steps_a, steps_b);
     // 40 steps of 1e-4 without the flight step
     assert!(steps_a < 20, "{steps_a} steps");
-    assert_eq!(a.t, b.t);
-    for (qa, qb) in a.q.iter().zip(&b.q).chain(a.qd.iter().zip(&b.qd)) {
-        for (x, y) in qa.iter().zip(qb) {
-            assert_eq!(x.to_bits(), y.to_bits());
-        }
-    }
+    assert_same_bits(&a, &b);
 }

@@ -40,6 +40,54 @@ step = 1e-4
 end = 0.3
 "#;
 
+/// `mbsolve run FILE --out DIR --set S…`: the run's stdout and its
+/// summary (`DIR/STEM.summary.json`, STEM the file's); fails the test
+/// when the run fails.
+fn run(
+    file: &std::path::Path,
+    dir: &std::path::Path,
+    sets: &[&str],
+) -> (String, serde_json::Value) {
+    let mut args = vec![
+        "run".to_string(),
+        file.to_str().unwrap().into(),
+        "--out".into(),
+        dir.to_str().unwrap().into(),
+    ];
+    for s in sets {
+        args.extend(["--set".into(), s.to_string()]);
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stem = file.file_stem().unwrap().to_str().unwrap();
+    let summary = std::fs::read_to_string(dir.join(format!("{stem}.summary.json"))).unwrap();
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        serde_json::from_str(&summary).unwrap(),
+    )
+}
+
+/// The largest compression δ of a body of mass `m` dropped from `h` onto a
+/// Hertz contact of stiffness `k` (no damping), from the energy balance
+/// ½ m v² + m g δ = (2/5) k δ^{5/2} with v² = 2 g h, by bisection.
+fn hertz_compression(g: f64, h: f64, m: f64, k: f64) -> f64 {
+    let v2 = 2.0 * g * h;
+    let energy = |d: f64| 0.4 * k * d.powf(2.5) - 0.5 * m * v2 - m * g * d;
+    let (mut lo, mut hi) = (0.0, 0.1);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if energy(mid) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    lo
+}
+
 /// First contact at the free-fall time √(2h/g) (h = 0.2 m: the circle's
 /// bottom above the floor) to within a step; the contact starts and ends
 /// once; the peak normal force k δ^{3/2} at the largest compression δ of
@@ -50,23 +98,9 @@ fn every_contact_element_is_reported() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("ball.toml");
     std::fs::write(&file, BALL).unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args([
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            dir.path().to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (stdout, s) = run(&file, dir.path(), &[]);
     assert!(stdout.contains("contact floor: first at t = "), "{stdout}");
     assert!(stdout.contains("contact ceiling: none"), "{stdout}");
-    let s: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap(),
-    )
-    .unwrap();
     let c = s["contacts"].as_array().expect("contacts in the summary");
     assert_eq!(c.len(), 2);
     let (floor, ceiling) = (&c[0], &c[1]);
@@ -84,16 +118,7 @@ fn every_contact_element_is_reported() {
     assert_eq!(starts[0].as_f64(), Some(first));
     // an elastic Hertz impact lasts ≈ 3.2 δ_max / v: a few milliseconds
     let v2 = 2.0 * g * h;
-    let energy = |d: f64| 0.4 * k * d.powf(2.5) - 0.5 * m * v2 - m * g * d;
-    let (mut lo, mut hi) = (0.0, 0.1);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if energy(mid) > 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
+    let lo = hertz_compression(g, h, m, k);
     let peak = k * lo.powf(1.5);
     let got = floor["peak_normal_force"].as_f64().unwrap();
     assert!((got / peak - 1.0).abs() < 0.01, "{got} N against {peak} N");
@@ -139,27 +164,10 @@ fn radau_ball(flight_step: Option<&str>) -> serde_json::Value {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("ball.toml");
     std::fs::write(&file, BALL).unwrap();
-    let mut args = vec![
-        "run".to_string(),
-        file.to_str().unwrap().into(),
-        "--out".into(),
-        dir.path().to_str().unwrap().into(),
-    ];
-    let mut sets = vec!["integrator.method=\"radau5\"".to_string()];
-    sets.push("integrator.step=1e-4".into());
-    if let Some(h) = flight_step {
-        sets.push(format!("integrator.flight_step={h}"));
-    }
-    for s in sets {
-        args.extend(["--set".into(), s]);
-    }
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(&args)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_str(&std::fs::read_to_string(dir.path().join("ball.summary.json")).unwrap())
-        .unwrap()
+    let flight = flight_step.map(|h| format!("integrator.flight_step={h}"));
+    let mut sets = vec!["integrator.method=\"radau5\"", "integrator.step=1e-4"];
+    sets.extend(flight.as_deref());
+    run(&file, dir.path(), &sets).1
 }
 
 /// radau5 at `step` 1e-4 with `flight_step` 3e-3 on the dropped ball:
@@ -180,18 +188,7 @@ fn a_flight_step_falls_at_the_larger_step_and_meets_the_floor_at_the_step() {
     );
     let (g, h, m, k): (f64, f64, f64, f64) = (9.81, 0.2, 1.0, 1e6);
     let t_hit = (2.0 * h / g).sqrt();
-    let v2 = 2.0 * g * h;
-    let energy = |d: f64| 0.4 * k * d.powf(2.5) - 0.5 * m * v2 - m * g * d;
-    let (mut lo, mut hi) = (0.0, 0.1);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if energy(mid) > 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    let peak = k * lo.powf(1.5);
+    let peak = k * hertz_compression(g, h, m, k).powf(1.5);
     for s in [&plain, &flight] {
         let floor = &s["contacts"][0];
         let first = floor["first_contact_time"].as_f64().unwrap();
@@ -209,20 +206,14 @@ fn a_flight_step_falls_at_the_larger_step_and_meets_the_floor_at_the_step() {
 /// `flight_step` 8e-3 over 0.3 s: the first flight step after the steps of
 /// the first wall contacts starts Newton from the constant predictor, and
 /// no attempt fails. Extrapolating the stage polynomials of a step of 4e-4
-/// over 8e-3 put corners into the walls from states with none near them,
-/// and 6 flight steps failed (docs/scaling.md, "The falling rod's contact
-/// phases"). The rod still touches the walls.
+/// over 8e-3 puts corners into the walls from states with none near them,
+/// and flight steps fail (counts: docs/scaling.md, "The falling rod's
+/// contact phases"). The rod still touches the walls.
 #[test]
 fn the_rods_flight_steps_after_its_contacts_do_not_fail() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/falling_rod.toml");
-    let mut args = vec![
-        "run".to_string(),
-        scenario.into(),
-        "--out".into(),
-        dir.path().to_str().unwrap().into(),
-    ];
-    for s in [
+    let sets = [
         "rod.segments=100",
         "integrator.method=\"radau5\"",
         "integrator.step=4e-4",
@@ -230,18 +221,8 @@ fn the_rods_flight_steps_after_its_contacts_do_not_fail() {
         "integrator.newton_tol=1",
         "time.end=0.3",
         "output.dt=0.01",
-    ] {
-        args.extend(["--set".into(), s.into()]);
-    }
-    let o = Command::new(env!("CARGO_BIN_EXE_mbsolve"))
-        .args(&args)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("falling_rod.summary.json")).unwrap(),
-    )
-    .unwrap();
+    ];
+    let (_, s) = run(std::path::Path::new(scenario), dir.path(), &sets);
     assert_eq!(s["newton_failures"].as_u64(), Some(0), "{s}");
     assert!(s["contact_starts"].as_u64().is_some_and(|n| n > 0), "{s}");
 }
