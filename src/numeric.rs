@@ -79,6 +79,28 @@ pub(crate) fn cabs(a: C64) -> f64 {
 
 /// Uniform pseudo-random numbers in `[0, 1)` for tests: Knuth's MMIX
 /// linear congruential generator from `seed`, the top 53 bits.
+/// A time `t` [s] as messages print it: the `{:e}` form rounded to 12
+/// significant digits, so a time summed from steps (`1.0150000000000001`)
+/// reads `1.015e0`, or the shortest round-trip `{:e}` where that is
+/// shorter (subnormals); non-finite values as `{}` prints them.
+pub(crate) struct Time(pub f64);
+
+impl std::fmt::Display for Time {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = format!("{:.11e}", self.0);
+        let rounded = match s.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.')),
+            None => s,
+        };
+        let shortest = format!("{:e}", self.0);
+        f.write_str(if shortest.len() < rounded.len() {
+            &shortest
+        } else {
+            &rounded
+        })
+    }
+}
+
 #[cfg(test)]
 pub(crate) fn test_uniform(mut seed: u64) -> impl FnMut() -> f64 {
     move || {
@@ -86,5 +108,24 @@ pub(crate) fn test_uniform(mut seed: u64) -> impl FnMut() -> f64 {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Time;
+
+    #[test]
+    fn times_print_with_twelve_significant_digits() {
+        let s = |t: f64| Time(t).to_string();
+        assert_eq!(s(1.0150000000000001), "1.015e0");
+        assert_eq!(s(0.1 + 0.2), "3e-1");
+        assert_eq!(s(0.0), "0e0");
+        assert_eq!(s(-2.5e-3), "-2.5e-3");
+        assert_eq!(s(1.234567890123456), "1.23456789012e0");
+        assert_eq!(s(1.3e-322), "1.3e-322");
+        assert_eq!(s(120.0), "1.2e2");
+        assert_eq!(s(f64::NAN), "NaN");
+        assert_eq!(s(f64::NEG_INFINITY), "-inf");
     }
 }

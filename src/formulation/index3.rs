@@ -72,6 +72,7 @@ use crate::linalg::{
     solver_for, APattern, SaddleMatrix, SaddlePointSolver, SolverKind, SolverOptions, SolverStats,
 };
 use crate::model::{BodyTrig, ResidualHalves, System};
+use crate::numeric::Time;
 use crate::parallel::{join_if, PARALLEL_MIN_COORDS};
 use serde::Serialize;
 
@@ -709,8 +710,9 @@ impl Index3<'_> {
                     return Ok(true);
                 }
                 return Err(FormulationError::Invalid(format!(
-                    "the projection of an output row at t = {t:e} diverged (‖Φ‖∞ {first:.3e} → \
-                     {now:.3e})"
+                    "the projection of an output row at t = {t} diverged (‖Φ‖∞ {first:.3e} → \
+                     {now:.3e})",
+                    t = Time(t)
                 )));
             }
             q.copy_from_slice(interpolated);

@@ -41,6 +41,7 @@ use crate::integrate::{
 };
 use crate::linalg::full_pivot_order;
 use crate::model::System;
+use crate::numeric::Time;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::lu::partial_pivoting::{factor, solve};
 use faer::perm::PermRef;
@@ -858,8 +859,9 @@ impl Observer for FullState<'_, '_> {
                 if s.dep != self.split.dep {
                     self.repartition = true;
                     return ControlFlow::Break(format!(
-                        "coordinate partitioning: new independent set at t = {t:e} \
-                         (κ₁ = {kappa:.2e})"
+                        "coordinate partitioning: new independent set at t = {t} \
+                         (κ₁ = {kappa:.2e})",
+                        t = Time(t)
                     ));
                 }
             }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use super::common::OutputCursor;
 use super::{Observer, Stats, SystemError, Termination};
+use crate::numeric::Time;
 
 /// A method bound to its system and initial state, advanced one accepted
 /// step at a time.
@@ -59,7 +60,7 @@ pub trait Stepper {
 pub enum Failure {
     /// The system failed: a right-hand side, residual, Newton matrix,
     /// solve or projection ([`SystemError`], downcastable to its type).
-    #[error("{what} failed at t = {t:e}{}: {source}", in_step(*.step_from))]
+    #[error("{what} failed at t = {}{}: {source}", Time(*.t), in_step(*.step_from))]
     System {
         /// What was evaluated ("right-hand side", "projection", …).
         what: &'static str,
@@ -72,7 +73,8 @@ pub enum Failure {
     },
     /// A value came out NaN or infinite.
     #[error(
-        "{what} returned a non-finite value ({value}) in component {index} at t = {t:e}{}",
+        "{what} returned a non-finite value ({value}) in component {index} at t = {}{}",
+        Time(*.t),
         in_step(*.step_from)
     )]
     NonFinite {
@@ -88,7 +90,7 @@ pub enum Failure {
         value: f64,
     },
     /// The step size fell below the smallest allowed.
-    #[error("step size {h:.3e} below the smallest allowed ({h_min:.3e}) at t = {t:e}: {cause}")]
+    #[error("step size {h:.3e} below the smallest allowed ({h_min:.3e}) at t = {}: {cause}", Time(*.t))]
     StepTooSmall {
         /// Time of the last accepted state.
         t: f64,
@@ -101,7 +103,9 @@ pub enum Failure {
     },
     /// The cap on accepted steps was reached.
     #[error(
-        "maximum number of steps (max_steps = {max_steps}) reached at t = {t:e} before t_end = {t_end:e}"
+        "maximum number of steps (max_steps = {max_steps}) reached at t = {} before t_end = {}",
+        Time(*.t),
+        Time(*.t_end)
     )]
     MaxSteps {
         /// The cap ([`super::OdeOptions::max_steps`]).
@@ -147,7 +151,7 @@ pub enum StepCut {
     #[error("the step does not advance t (t + h == t)")]
     NoProgress,
     /// Newton kept failing.
-    #[error("Newton does not converge (at t = {t:e} with h = {h:.3e}: {source})")]
+    #[error("Newton does not converge (at t = {} with h = {h:.3e}: {source})", Time(*.t))]
     Newton {
         /// Time the failed attempt aimed at.
         t: f64,
@@ -159,7 +163,9 @@ pub enum StepCut {
 }
 
 fn in_step(from: Option<f64>) -> String {
-    from.map_or(String::new(), |t| format!(" (in the step from t = {t:e})"))
+    from.map_or(String::new(), |t| {
+        format!(" (in the step from t = {})", Time(t))
+    })
 }
 
 impl PartialEq for Failure {

@@ -10,6 +10,7 @@ use crate::integrate::{
     Observer, OdeOptions, Radau5, Report, Span, Stats, Termination, Tolerance,
 };
 use crate::model::System;
+use crate::numeric::Time;
 use crate::parallel::{with_threads, Threads};
 use serde::Serialize;
 use std::ops::ControlFlow;
@@ -664,9 +665,9 @@ fn finish(
     }
     let rank_pivots = work.regularized_pivots - work.indefinite_pivots;
     if rank_pivots > 0 {
-        let first = work
-            .first_regularized_t
-            .map_or(String::new(), |t| format!(", the first at t = {t:e}"));
+        let first = work.first_regularized_t.map_or(String::new(), |t| {
+            format!(", the first at t = {t}", t = Time(t))
+        });
         if let Some(t) = work.first_regularized_t {
             extra.insert("first_regularized_t".into(), t.into());
         }

@@ -406,10 +406,12 @@ impl Watch<'_, '_, '_, '_> {
         if vn > bound && !self.warned_phid {
             self.warned_phid = true;
             self.warn(format!(
-                "velocity constraint violation ‖Φ_q q̇ + Φ_t‖ = {vn:.3e} at t = {t:e} exceeds \
+                "velocity constraint violation ‖Φ_q q̇ + Φ_t‖ = {vn:.3e} at t = {t} exceeds \
                  {bound:.3e} (100 (rtol V + atol), V = {:.3e} m/s the largest body speed): the \
                  velocities do not fit the joints; {}",
-                self.speed, self.advice
+                self.speed,
+                self.advice,
+                t = Time(t)
             ));
         }
     }
@@ -421,10 +423,9 @@ impl Watch<'_, '_, '_, '_> {
         if cn > self.phi_warn && !self.warned_phi && !at_output {
             self.warned_phi = true;
             self.warn(format!(
-                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} (100 (rtol L + atol)): \
+                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t} exceeds {:.3e} (100 (rtol L + atol)): \
                  the solution is drifting off its constraints; {}",
-                self.phi_warn, self.advice
-            ));
+                self.phi_warn, self.advice, t = Time(t)));
         }
         let pos = q[..self.sys.n_body_coords()]
             .chunks(3)
@@ -432,22 +433,28 @@ impl Watch<'_, '_, '_, '_> {
             .fold(0.0, |a: f64, v| a.max(v.abs()));
         let reason = if cn > self.phi_fail && at_output {
             Some(format!(
-                "constraint violation ‖Φ‖ = {cn:.3e} in the output at t = {t:e}, interpolated \
+                "constraint violation ‖Φ‖ = {cn:.3e} in the output at t = {t}, interpolated \
                  between steps, exceeds {:.3e} ({}): the step is too large for the motion \
                  between outputs; reduce the step (integrator.step or the tolerances)",
-                self.phi_fail, self.phi_fail_why
+                self.phi_fail,
+                self.phi_fail_why,
+                t = Time(t)
             ))
         } else if cn > self.phi_fail {
             Some(format!(
-                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t:e} exceeds {:.3e} \
+                "constraint violation ‖Φ‖ = {cn:.3e} at t = {t} exceeds {:.3e} \
                  ({}): the mechanism has come apart; {}",
-                self.phi_fail, self.phi_fail_why, self.advice
+                self.phi_fail,
+                self.phi_fail_why,
+                self.advice,
+                t = Time(t)
             ))
         } else if pos > self.pos_fail {
             Some(format!(
-                "a position coordinate reached {pos:.3e} m at t = {t:e} (more than {:.1e} m): \
+                "a position coordinate reached {pos:.3e} m at t = {t} (more than {:.1e} m): \
                  the integration is unstable — reduce the step",
-                self.pos_fail
+                self.pos_fail,
+                t = Time(t)
             ))
         } else {
             None
@@ -601,8 +608,10 @@ impl Observer for Watch<'_, '_, '_, '_> {
                     self.reactions.fill(f64::NAN);
                     if !self.warned_extras {
                         self.warned_extras = true;
-                        let m =
-                            format!("accelerations and reactions at t = {t:e}: {e} (NaN written)");
+                        let m = format!(
+                            "accelerations and reactions at t = {t}: {e} (NaN written)",
+                            t = Time(t)
+                        );
                         self.warn(m);
                     }
                 }
@@ -637,8 +646,9 @@ impl Observer for Watch<'_, '_, '_, '_> {
         if let Some(what) = first_non_finite(&sample) {
             // a non-finite number is never written: the run fails here
             let msg = format!(
-                "non-finite output at t = {t:e}: {what} (the row is not written; the run's \
-                 state or a derived quantity overflowed — check the scenario's magnitudes)"
+                "non-finite output at t = {t}: {what} (the row is not written; the run's \
+                 state or a derived quantity overflowed — check the scenario's magnitudes)",
+                t = Time(t)
             );
             self.sink_error = Some(msg.clone());
             return ControlFlow::Break(msg);
@@ -649,7 +659,7 @@ impl Observer for Watch<'_, '_, '_, '_> {
                 ControlFlow::Continue(())
             }
             Err(e) => {
-                let msg = format!("writing the output at t = {t:e} failed: {e}");
+                let msg = format!("writing the output at t = {t} failed: {e}", t = Time(t));
                 self.sink_error = Some(msg.clone());
                 ControlFlow::Break(msg)
             }
@@ -675,10 +685,11 @@ impl Observer for Watch<'_, '_, '_, '_> {
                  the augmented Lagrangian (docs/constraint_methods.md)"
             };
             self.warn(format!(
-                "Φ_q lost rank at t ≈ {:e} (rank measure {:.1e}): the mechanism passed through a \
+                "Φ_q lost rank at t ≈ {} (rank measure {:.1e}): the mechanism passed through a \
                  singular configuration, where the equations of motion do not fix the branch; \
                  {advice}",
-                c.t, c.ratio
+                Time(c.t),
+                c.ratio
             ));
         }
         self.guard(t, q, cn, false)
@@ -686,17 +697,17 @@ impl Observer for Watch<'_, '_, '_, '_> {
     fn progress(&mut self, t: f64, stats: &Stats) -> ControlFlow<String> {
         if let Some((budget, h, t0)) = self.step_budget {
             if stats.steps > budget {
-                let r = format!(
+                let r =
+                    format!(
                     "the fixed step h = {h:e} s keeps being cut: {} steps ({} failed attempts) \
-                     reached only t = {t:e} s, {budget} steps being {STALL_FACTOR} times what \
+                     reached only t = {t} s, {budget} steps being {STALL_FACTOR} times what \
                      h needs for the whole run (mean step {:.3e} s) — Newton keeps failing \
                      here (the warnings list the first failures): the motion is too fast or \
                      the position singular for this step; reduce it, or use \
                      integrator.adaptive = true",
                     stats.steps,
                     stats.failed_steps,
-                    (t - t0) / stats.steps as f64
-                );
+                    (t - t0) / stats.steps as f64, t = Time(t));
                 self.stalled = Some(r.clone());
                 return ControlFlow::Break(r);
             }

@@ -15,7 +15,9 @@ use std::time::{Duration, Instant};
 pub struct Usage {
     /// user + system CPU time \[s\]
     pub cpu_s: f64,
-    /// peak resident set size \[kB\] (`ru_maxrss`, Linux)
+    /// peak resident set size \[kB\] (`ru_maxrss`, Linux): the child's,
+    /// and also its spawner's up to the child's `exec` (the kernel keeps
+    /// the larger), so it bounds the child's own peak from above
     pub max_rss_kb: u64,
 }
 

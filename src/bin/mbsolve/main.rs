@@ -578,6 +578,9 @@ fn run(
     for (k, v) in provenance {
         summary.extra.insert(k.into(), v);
     }
+    if let Some(kb) = peak_memory_kb() {
+        summary.extra.insert("peak_memory_kb".into(), kb.into());
+    }
     files.finish(&summary).map_err(|e| e.to_string())?;
     report!(
         "{}: {} steps ({} failed), {} RHS evaluations, {:.3} s; max ‖Φ‖ = {:.3e}, final ‖Φ‖ = {:.3e}",
@@ -709,4 +712,14 @@ fn bench_gate(json: Option<&std::path::Path>) -> Result<ExitCode, String> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// This process's peak resident memory so far \[kB\]: `VmHWM` of
+/// `/proc/self/status` (Linux; `None` elsewhere). It is this program's
+/// own, where a parent's `wait4` (`ru_maxrss`) also counts the memory of
+/// the process that spawned it, up to its `exec`.
+fn peak_memory_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }

@@ -4,6 +4,7 @@
 //! the rows between steps satisfy the constraints as the step ends do.
 
 use super::SecondOrderDae;
+use crate::numeric::Time;
 
 /// The warning of a row that could not be projected (given once per run).
 const UNPROJECTED: &str = "an output row between steps could not be projected onto the constraints";
@@ -21,8 +22,9 @@ pub(crate) fn settle_output(
     if let Err(e) = sys.project_output(t, q) {
         if !warnings.iter().any(|w| w.starts_with(UNPROJECTED)) {
             warnings.push(format!(
-                "{UNPROJECTED} (first at t = {t:e}: {e}); such rows are the method's \
-                 interpolant, the step ends are unaffected"
+                "{UNPROJECTED} (first at t = {}: {e}); such rows are the method's \
+                 interpolant, the step ends are unaffected",
+                Time(t)
             ));
         }
     }

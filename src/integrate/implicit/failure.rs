@@ -8,6 +8,7 @@
 use super::super::driver::{Failure, StepCut};
 use super::super::SystemError;
 use super::run::ImplicitStepper;
+use crate::numeric::Time;
 use std::sync::Arc;
 
 /// How a scheme's step shrinks after a Newton failure.
@@ -175,8 +176,9 @@ fn warn(warnings: &mut Vec<String>, rule: Warn, x: &StepTry, reason: &SystemErro
         return;
     }
     let msg = format!(
-        "Newton failed at t = {:e} with h = {:.3e}: {reason}",
-        x.t_new, x.h
+        "Newton failed at t = {} with h = {:.3e}: {reason}",
+        Time(x.t_new),
+        x.h
     );
     if warnings.len() < WARNED_FAILURES {
         warnings.push(msg);
