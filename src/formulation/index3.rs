@@ -87,6 +87,9 @@ pub struct Index3Stats {
     pub newton_solver: SolverStats,
     /// Counters of the mass-matrix solver (initial accelerations, projections).
     pub mass_solver: SolverStats,
+    /// Counters of the output projection's mass-matrix solver
+    /// ([`SecondOrderDae::project_output`]).
+    pub output_solver: SolverStats,
     /// Projections onto the constraint manifold.
     pub projections: usize,
 }
@@ -109,6 +112,11 @@ pub struct Index3<'a> {
     solver: Box<dyn SaddlePointSolver>,
     kp: SaddleMatrix,
     psolver: Box<dyn SaddlePointSolver>,
+    /// The output projection's factorisation of `kp`, without the residual
+    /// check: its corrections are accepted by `‖Φ‖` alone
+    /// ([`SecondOrderDae::project_output`]), so a refinement step would only
+    /// double each solve.
+    osolver: Box<dyn SaddlePointSolver>,
     /// The mass, force-Jacobian and (Φ_qᵀλ)_q blocks of `k`.
     blocks: DynamicBlocks,
     jac: Vec<f64>,
@@ -121,9 +129,9 @@ pub struct Index3<'a> {
     phi: Vec<f64>,
     x: Vec<f64>,
     stats: Index3Stats,
-    /// Whether `psolver` holds a factorisation (of the mass saddle matrix
-    /// at some recent `q`), which the output projection may reuse.
-    mass_factored: bool,
+    /// Whether `osolver` holds a factorisation (of the mass saddle matrix
+    /// at some recent output row), which the next output row may reuse.
+    output_factored: bool,
     /// The controller states' exact border over the symmetric solver.
     border: Option<StateBorder>,
 }
@@ -221,6 +229,14 @@ impl<'a> Index3<'a> {
             psolver.storage(),
         );
         psolver.analyze(&kp).map_err(lin)?;
+        let mut osolver = solver_for(
+            linear_solver,
+            n + m,
+            SolverOptions {
+                residual_check: false,
+            },
+        );
+        osolver.analyze(&kp).map_err(lin)?;
         Ok(Self {
             sys,
             n,
@@ -229,6 +245,7 @@ impl<'a> Index3<'a> {
             solver,
             kp,
             psolver,
+            osolver,
             blocks,
             jac: vec![0.0; sys.jacobian_pattern().len()],
             g: vec![0.0; n],
@@ -249,7 +266,7 @@ impl<'a> Index3<'a> {
             phi: vec![0.0; m],
             x: vec![0.0; n + m],
             stats: Index3Stats::default(),
-            mass_factored: false,
+            output_factored: false,
             border,
         })
     }
@@ -274,6 +291,7 @@ impl<'a> Index3<'a> {
         let mut s = self.stats;
         s.newton_solver = self.solver.stats();
         s.mass_solver = self.psolver.stats();
+        s.output_solver = self.osolver.stats();
         s
     }
 
@@ -493,15 +511,28 @@ impl<'a> Index3<'a> {
         .map_err(linear_at(t))
     }
 
-    /// Factorise the mass saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` at `q`.
-    fn factor_mass(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
+    /// The mass saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` at `q` into `kp`.
+    fn load_mass(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
         self.sys.jacobian_values(q, t, &mut self.jac);
         all_finite(t, &[("the constraint Jacobian Φ_q", &self.jac)])?;
         self.kp.set_a_diagonal(self.sys.mass_diagonal());
         self.kp.set_jacobian(&self.jac);
-        self.mass_factored = false;
+        Ok(())
+    }
+
+    /// Factorise the mass saddle matrix at `q` with `psolver`.
+    fn factor_mass(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
+        self.load_mass(t, q)?;
         self.psolver.factorize(&self.kp).map_err(linear_at(t))?;
-        self.mass_factored = true;
+        Ok(())
+    }
+
+    /// Factorise the mass saddle matrix at the output row `q` with `osolver`.
+    fn factor_output(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
+        self.load_mass(t, q)?;
+        self.output_factored = false;
+        self.osolver.factorize(&self.kp).map_err(linear_at(t))?;
+        self.output_factored = true;
         Ok(())
     }
 
@@ -647,13 +678,14 @@ impl SecondOrderDae for Index3<'_> {
     }
     /// The position step of [`Index3::project`] until
     /// `‖Φ‖∞ ≤ 64 ε max(1, ‖q‖∞)`: a simplified Newton with the mass
-    /// saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` last factorised (at a nearby
-    /// output row or the start), refactorised at the interpolated `q` when
-    /// the violation does not fall fourfold per correction or after
-    /// `OUTPUT_PROJECTION_ITERATIONS` corrections. The velocities are left
-    /// as given (their constraint violation is the method's, as at its
-    /// steps). The projection has its own factorisation, never the Newton
-    /// matrix's.
+    /// saddle matrix `[M, Φ_qᵀ; Φ_q, 0]` last factorised at a nearby
+    /// output row (at the first row: at it), refactorised at the
+    /// interpolated `q` when the violation does not fall fourfold per
+    /// correction or after `OUTPUT_PROJECTION_ITERATIONS` corrections. The
+    /// velocities are left as given (their constraint violation is the
+    /// method's, as at its steps). The projection has its own factorisation,
+    /// neither the Newton matrix's nor that of [`Index3::project`], and its
+    /// solves have no residual check: `‖Φ‖` accepts its corrections.
     fn project_output(&mut self, t: f64, q: &mut [f64]) -> Result<bool, SystemError> {
         let norm = crate::numeric::max_abs;
         let err = SystemError::new;
@@ -685,13 +717,13 @@ impl Index3<'_> {
         tol: f64,
     ) -> Result<bool, FormulationError> {
         let norm = crate::numeric::max_abs;
-        let mut fresh = !self.mass_factored;
+        let mut fresh = !self.output_factored;
         if fresh {
-            self.factor_mass(t, q)?;
+            self.factor_output(t, q)?;
         }
         let (mut res, mut it) = (first, 0);
         loop {
-            mass_orthogonal_step(&mut *self.psolver, &self.kp, &self.phi, &mut self.x, q)
+            mass_orthogonal_step(&mut *self.osolver, &self.kp, &self.phi, &mut self.x, q)
                 .map_err(linear_at(t))?;
             self.sys.phi(q, t, &mut self.phi);
             let now = norm(&self.phi);
@@ -716,7 +748,7 @@ impl Index3<'_> {
                 )));
             }
             q.copy_from_slice(interpolated);
-            self.factor_mass(t, q)?;
+            self.factor_output(t, q)?;
             self.sys.phi(q, t, &mut self.phi);
             (fresh, res, it) = (true, first, 0);
         }

@@ -404,7 +404,7 @@ impl Index3Scheme for GenAlpha {
             ("jacobian_evaluations", fs.jacobians.into()),
             (
                 "projection_factorizations",
-                fs.mass_solver.factorizations.into(),
+                (fs.mass_solver.factorizations + fs.output_solver.factorizations).into(),
             ),
             ("fixed_step", fixed_step),
             ("adaptive", opts.adaptive.into()),
