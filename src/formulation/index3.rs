@@ -134,6 +134,9 @@ pub struct Index3<'a> {
     output_factored: bool,
     /// The controller states' exact border over the symmetric solver.
     border: Option<StateBorder>,
+    /// [`SecondOrderDae::correction_lengths`]: 1, except a body angle's
+    /// radius of gyration.
+    correction_lengths: Vec<f64>,
 }
 
 /// Buffers of [`Index3`]'s residual in halves: the high half's g and
@@ -268,6 +271,7 @@ impl<'a> Index3<'a> {
             stats: Index3Stats::default(),
             output_factored: false,
             border,
+            correction_lengths: correction_lengths(sys),
         })
     }
 
@@ -625,6 +629,21 @@ fn finite_state(t: f64, q: &[f64], qd: &[f64]) -> Result<(), FormulationError> {
     }
 }
 
+/// The lengths of [`SecondOrderDae::correction_lengths`]: 1 for every
+/// coordinate but a body's angle (coordinate `3i + 2` of body `i`), which
+/// gets the body's radius of gyration `√(I/m)` (1 where that is not a
+/// positive finite number).
+fn correction_lengths(sys: &System) -> Vec<f64> {
+    let mut l = vec![1.0; sys.n_coords()];
+    for (i, b) in sys.bodies().iter().enumerate() {
+        let rho = (b.inertia / b.mass).sqrt();
+        if rho.is_finite() && rho > 0.0 {
+            l[3 * i + 2] = rho;
+        }
+    }
+    l
+}
+
 /// [`Index3`] is the multibody instance of the integrator's abstract
 /// second-order DAE ([`SecondOrderDae`]), so `integrate` stays free of
 /// multibody types.
@@ -637,6 +656,9 @@ impl SecondOrderDae for Index3<'_> {
     }
     fn mass_diagonal(&self) -> &[f64] {
         self.sys.mass_diagonal()
+    }
+    fn correction_lengths(&self) -> Option<&[f64]> {
+        Some(&self.correction_lengths)
     }
     fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64], lam: &mut [f64]) -> DaeResult {
         Index3::accelerations(self, x.t, x.q, x.qd, qdd, lam).map_err(SystemError::new)

@@ -86,7 +86,9 @@ pub struct ImplicitOptions {
     pub adaptive: bool,
     /// Newton tolerance on the acceleration corrections `Δq̈ = β' Δq`
     /// (m/s², rad/s²; also bounds the velocity and position corrections),
-    /// floored at the rounding noise of q (module docs). Unconverged
+    /// floored at the rounding noise of q (module docs); Radau IIA
+    /// measures a body angle's correction at the body's radius of
+    /// gyration `√(I/m)`, in m/s² as the translations'. Unconverged
     /// remainders add up to a position error of about `T² newton_tol`
     /// over a run of length T. Default 1e-6.
     pub newton_tol: f64,

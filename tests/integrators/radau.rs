@@ -296,7 +296,7 @@ fn radau5_needs_a_fixed_step_or_adaptive() {
 }
 
 /// `integrator.newton_tol` is read by radau5 (the α-family keys are not):
-/// at N = 100, h = 4e-4 a tolerance of 1e-2 m/s² instead of 1e-6 (below
+/// at N = 100, h = 4e-4 a tolerance of 1e-1 m/s² instead of 1e-6 (below
 /// the rounding floor on this chain) keeps the tip within 1e-5 m of the
 /// reference with fewer Newton corrections: the corrections beyond the
 /// first of each attempt — the ones the tolerance decides, since every
@@ -348,10 +348,10 @@ fn newton_tolerance_key_is_read() {
         )
     };
     let (e_tight, its_tight, att_tight) = run(1e-6);
-    let (e_loose, its_loose, att_loose) = run(1e-2);
+    let (e_loose, its_loose, att_loose) = run(1e-1);
     println!(
         "newton_tol 1e-6: {e_tight:e} m, {its_tight} corrections in {att_tight} attempts; \
-         1e-2: {e_loose:e} m, {its_loose} in {att_loose}"
+         1e-1: {e_loose:e} m, {its_loose} in {att_loose}"
     );
     assert!(e_tight < 1e-5 && e_loose < 1e-5);
     let (extra_tight, extra_loose) = (its_tight - att_tight, its_loose - att_loose);
@@ -440,4 +440,67 @@ fn adaptive_error_over_the_run_follows_rtol() {
     let e = largest_errors_over_the_run(Method::Radau5, &rtols);
     let bad = outside_a_decade_of_rtol(&rtols, &e);
     assert!(bad.is_empty(), "{bad:?}");
+}
+
+/// `Index3`'s correction lengths (the Newton test's length per
+/// coordinate): 1 for x and y, the radius of gyration for φ. Against the
+/// peers' segment (`../shared/peers/README.md`: l_s = 1/N, a w = 0.03 m
+/// square, I = m (l_s² + w²)/12), so `√(I/m) = √((l_s² + w²)/12)`.
+#[test]
+fn index3_measures_angle_corrections_at_the_radius_of_gyration() {
+    let n = 4;
+    let (sys, _, _, _) = stiff_chain(n, crate::common::stiff_chain::theta0()).unwrap();
+    let f = Index3::new(&sys, SolverKind::Auto).unwrap();
+    let l = f.correction_lengths().expect("Index3 gives lengths");
+    assert_eq!(l.len(), 3 * n);
+    let (ls, w) = (1.0 / n as f64, 0.03);
+    let rho = ((ls * ls + w * w) / 12.0).sqrt();
+    for b in 0..n {
+        assert_eq!(&l[3 * b..3 * b + 2], &[1.0, 1.0]);
+        assert!(
+            (l[3 * b + 2] - rho).abs() < 1e-12 * rho,
+            "body {b}: {} against {rho}",
+            l[3 * b + 2]
+        );
+    }
+}
+
+/// With the angles' corrections measured at the segments' radius of
+/// gyration (8.7 mm) instead of 1 m per rad, radau5's Newton test at a
+/// loose `newton_tol` follows what the tip needs: the stiff chain (N =
+/// 100, h = 4e-4, `newton_tol` 8 m/s²) stays within 4e-5 m of the same
+/// step with Newton converged to 1e-5 m/s² (the tip every 2 ms from
+/// 20 ms, after the start's step cuts), with at most 90 factorisations
+/// (real and complex) in its 264 steps. Measured with 1 m per rad: 7.4e-5 m
+/// and 100 (docs/scaling.md, "radau5's Newton test with angles at the
+/// radius of gyration").
+#[test]
+fn a_loose_newton_test_with_angles_at_the_radius_of_gyration() {
+    let n = 100;
+    let mut cfg = RunConfig {
+        method: Method::Radau5,
+        t_end: T_END,
+        output_dt: 2e-3,
+        ..Default::default()
+    };
+    cfg.ode.fixed_step = Some(4e-4);
+    cfg.implicit.newton_tol = 1e-5;
+    let converged = tip_rows(n, &cfg);
+    cfg.implicit.newton_tol = 8.0;
+    let (_, s, traj) = tip_after(n, &cfg);
+    let (_, _, _, info) = stiff_chain(n, crate::common::stiff_chain::theta0()).unwrap();
+    let loose: Vec<f64> = traj.q.iter().map(|q| stiff_chain_tip_x(&info, q)).collect();
+    assert_eq!(loose.len(), converged.len());
+    let worst = loose
+        .iter()
+        .zip(&converged)
+        .skip(10)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(worst < 4e-5, "tip {worst:.3e} m from the converged Newton");
+    assert!(
+        s.factorizations <= 90,
+        "{} factorisations in {} steps",
+        s.factorizations,
+        s.steps
+    );
 }

@@ -31,6 +31,16 @@ pub trait SecondOrderDae {
     fn m(&self) -> usize;
     /// Diagonal of M.
     fn mass_diagonal(&self) -> &[f64];
+    /// The length \[m\] at which Radau IIA's Newton test measures each
+    /// coordinate's correction against `newton_tol` (m/s²): 1 for a
+    /// translation and a controller state, a body angle's radius of
+    /// gyration `ρ = √(I/m)` (m/rad), so that an angular acceleration
+    /// correction `Δφ̈` counts as `ρ Δφ̈`, the root-mean-square acceleration
+    /// correction it gives the body's mass (`I Δφ̈² = m (ρ Δφ̈)²`). `None`
+    /// (the default): 1 for every coordinate.
+    fn correction_lengths(&self) -> Option<&[f64]> {
+        None
+    }
     /// Consistent accelerations and multipliers at `x = (t, q, q̇)`:
     /// `M q̈ + Φ_qᵀ λ = g`, `Φ_q q̈ = γ`.
     fn accelerations(&mut self, x: StateView<'_>, qdd: &mut [f64], lam: &mut [f64]) -> DaeResult;

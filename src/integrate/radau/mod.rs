@@ -59,7 +59,9 @@
 //! [`THETA_REFACTOR`](super::THETA_REFACTOR)); convergence test as generalized-α's, the one
 //! [`Convergence`](super::implicit::Convergence) (Hairer &
 //! Wanner II, eq. (8.10)) on the position-equivalent corrections
-//! `h² ΔA_i` against `h² newton_tol`, floored at [`ROUNDING_ULPS`] of `q`;
+//! `h² ΔA_i` against `h² newton_tol`, a body angle's at the body's radius
+//! of gyration (`h² newton_tol / ρ`; [`SecondOrderDae::correction_lengths`]),
+//! floored at [`ROUNDING_ULPS`] of `q`;
 //! the first correction of an attempt is judged with RADAU5's rate
 //! estimate `η₀ = max(η_prev, ε)^0.8` from the last converged attempt
 //! (not raised to 1), so a good predictor on a contracting matrix
@@ -431,6 +433,9 @@ struct Run<'g, 's, const S: usize, T: Tableau<S>> {
     /// The contraction θ of the last converged attempt's last correction
     /// (None: it converged in one correction; radau59's order rule).
     last_theta: Option<f64>,
+    /// Per coordinate, the Newton test's tolerance factor: `1/ℓ` of
+    /// [`SecondOrderDae::correction_lengths`] (`newton::tolerance_factors`).
+    tol_factor: Vec<f64>,
 }
 
 impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
@@ -457,6 +462,7 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             (false, h) => h.unwrap_or(0.0),
             (true, _) => ode.initial_step.map_or(0.0, |h| h.min(h_max)),
         };
+        let tol_factor = newton::tolerance_factors(&*sys);
         let vn = || std::array::from_fn(|_| vec![0.0; n]);
         let vm = || std::array::from_fn(|_| vec![0.0; m]);
         let vnm = || std::array::from_fn(|_| vec![0.0; n + m]);
@@ -512,6 +518,7 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
                 first_cause: false,
             }),
             last_theta: None,
+            tol_factor,
         })
     }
 }
@@ -577,6 +584,7 @@ impl<'g, 's, const S: usize, T: Tableau<S>> Run<'g, 's, S, T> {
             warnings: self.warnings,
             cuts: self.cuts,
             last_theta: self.last_theta,
+            tol_factor: self.tol_factor,
         }
     }
 
