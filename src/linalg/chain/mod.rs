@@ -87,8 +87,6 @@ pub use lu::{ChainLu, DEFAULT_GROWTH_LIMIT};
 
 pub(super) use scalar::{Complex, Scalar};
 pub(super) use solve::Scatter;
-#[cfg(test)]
-pub(super) use solve::BASELINE;
 
 use super::sparse::RefineBuffers;
 use super::{

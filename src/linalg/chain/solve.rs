@@ -5,6 +5,7 @@
 
 use super::factor::dot2;
 use super::{Envelope, Scalar, PARALLEL_MIN_DIM};
+use crate::numeric::with_avx;
 use crate::parallel::join_if;
 
 impl<T: Scalar> Envelope<T> {
@@ -99,44 +100,6 @@ impl<T: Scalar> Envelope<T> {
         };
         bad == 0.0 && lo && hi
     }
-}
-
-/// `f()` compiled for AVX when the processor has it (the sweeps, inlined
-/// into [`avx`]): a complex product's two parts in one `vaddsubpd`,
-/// three-operand instructions; the same operations in the same order (no
-/// fused multiply-add), so the same bits as the baseline build.
-#[inline(always)]
-fn with_avx<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx") && !baseline_only() {
-        // SAFETY: the processor has AVX (checked above)
-        return unsafe { avx(f) };
-    }
-    f()
-}
-
-#[cfg(test)]
-std::thread_local! {
-    /// Sweeps on this thread in the baseline build even where the
-    /// processor has AVX (the tests compare the two builds' bits).
-    pub(in crate::linalg) static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// Are the sweeps held to the baseline build ([`BASELINE`], tests only)?
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn baseline_only() -> bool {
-    #[cfg(test)]
-    return BASELINE.get();
-    #[cfg(not(test))]
-    false
-}
-
-/// `f()` with AVX enabled (for [`with_avx`]).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-unsafe fn avx<R>(f: impl FnOnce() -> R) -> R {
-    f()
 }
 
 /// The right-hand side `x` of [`Envelope::solve`], read through the

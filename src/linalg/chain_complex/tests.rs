@@ -288,7 +288,7 @@ fn the_row_table_walks_the_envelope_rows() {
 /// the matrices' products, independent of the factorisation).
 #[test]
 fn the_avx_sweeps_give_the_bits_of_the_baseline_build() {
-    use crate::linalg::chain::BASELINE;
+    use crate::numeric::BASELINE;
     for (bodies, split) in [(40, false), (1001, true)] {
         let (kr, ki) = chain_pair(bodies, 11);
         let dim = kr.dim();
