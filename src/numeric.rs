@@ -40,6 +40,45 @@ pub(crate) fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
+/// `f()` compiled for AVX when the processor has it ([`avx`]; `f`'s body is
+/// inlined there): a complex product's two parts in one `vaddsubpd`,
+/// four lanes of an element-wise pass instead of two, three-operand
+/// instructions. The same operations in the same order (AVX has no fused
+/// multiply-add), so the same bits as the baseline build.
+#[inline(always)]
+pub(crate) fn with_avx<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") && !baseline_only() {
+        // SAFETY: the processor has AVX (checked above)
+        return unsafe { avx(f) };
+    }
+    f()
+}
+
+#[cfg(test)]
+std::thread_local! {
+    /// [`with_avx`] on this thread runs the baseline build even where the
+    /// processor has AVX (the tests compare the two builds' bits).
+    pub(crate) static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Is [`with_avx`] held to the baseline build ([`BASELINE`], tests only)?
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn baseline_only() -> bool {
+    #[cfg(test)]
+    return BASELINE.get();
+    #[cfg(not(test))]
+    false
+}
+
+/// `f()` with AVX enabled (for [`with_avx`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn avx<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
 /// A complex number `[re, im]`.
 pub(crate) type C64 = [f64; 2];
 

@@ -184,22 +184,9 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
             {
                 let (x_q, x_l) = self.x.each_mut().map(|x| &mut x[..n + m]).halve(n);
                 let (r_q, r_l) = self.r.each_ref().map(|r| &r[..n + m]).halve(n);
-                let inv_d = &inv_d;
-                let transform = |constraint: bool, (mut x, r): ([&mut [f64]; S], [&[f64]; S])| {
-                    for k in 0..r[0].len() {
-                        let rk: [f64; S] = std::array::from_fn(|i| r[i][k]);
-                        for (xj, tj) in x.iter_mut().zip(ti) {
-                            xj[k] = -dot(tj, |i| rk[i]);
-                        }
-                        if constraint {
-                            x[0][k] *= inv_g;
-                            for (p, d) in inv_d.iter().enumerate() {
-                                let z = cmul([x[1 + 2 * p][k], x[2 + 2 * p][k]], *d);
-                                x[1 + 2 * p][k] = z[0];
-                                x[2 + 2 * p][k] = z[1];
-                            }
-                        }
-                    }
+                let scale = (inv_g, &inv_d[..]);
+                let transform = |constraint: bool, (x, r): ([&mut [f64]; S], [&[f64]; S])| {
+                    transform_rows(x, r, ti, constraint.then_some(scale));
                 };
                 split_passes(
                     par,
@@ -237,32 +224,15 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                     ([&'a mut [f64]; S], [&'a [f64]; S], &'a [f64]),
                     ([&'a mut [f64]; S], [&'a mut [f64]; S], &'a [f64]),
                 );
-                let update = |base: usize, ((av, x, q), (qst, vst, v)): Rows<'_, S>| {
-                    let mut dnorm = 0.0_f64;
-                    for k in 0..q.len() {
-                        let y: [f64; S] = std::array::from_fn(|j| x[j][k]);
-                        let d: [f64; S] = std::array::from_fn(|i| dot(&tt[i], |j| y[j]));
-                        let mut big = (h * h * d[0]).abs();
-                        av[0][k] += d[0];
-                        for i in 1..S {
-                            av[i][k] += d[i];
-                            big = big.max((h * h * d[i]).abs());
-                        }
-                        let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
-                        let mut ratio = big / (tol_q * tol_factor[base + k] + floor);
-                        if adaptive {
-                            // RADAU5's test on the stage position corrections
-                            // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
-                            let dq = |i: usize| (h * h * dot(&a2w[i], |j| d[j])).abs();
-                            let big_q = (1..S).fold(dq(0), |b, i| b.max(dq(i)));
-                            let atol = match &ode.atol {
-                                Tolerance::Scalar(a) => *a,
-                                Tolerance::Vector(v) => v[base + k],
-                            };
-                            ratio = ratio.min(big_q / (fa * atol + fr * q[k].abs() + floor));
-                        }
-                        dnorm = dnorm.max(ratio);
-                    }
+                let norm = Norm {
+                    h,
+                    tt,
+                    tol_q,
+                    tol_factor,
+                    adaptive: adaptive.then_some((a2w, fr, fa, &ode.atol)),
+                };
+                let update = |base: usize, ((mut av, x, q), (qst, vst, v)): Rows<'_, S>| {
+                    let dnorm = update_rows(&norm, base, &mut av, x, q);
                     let av: [&[f64]; S] = av.map(|a| -> &[f64] { a });
                     let stages = 0..S;
                     stage_rows(
@@ -281,13 +251,8 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                 };
                 let xl: [&[f64]; S] = std::array::from_fn(|j| &self.x[j][n..n + m]);
                 let lv: [&mut [f64]; S] = self.l.each_mut().map(|l| &mut l[..m]);
-                let update_l = |_: usize, (mut lv, xl): ([&mut [f64]; S], [&[f64]; S])| {
-                    for k in 0..xl[0].len() {
-                        let y: [f64; S] = std::array::from_fn(|j| xl[j][k]);
-                        for (li, ti) in lv.iter_mut().zip(tt) {
-                            li[k] += dot(ti, |j| y[j]);
-                        }
-                    }
+                let update_l = |_: usize, (lv, xl): ([&mut [f64]; S], [&[f64]; S])| {
+                    update_multipliers(lv, xl, tt);
                 };
                 // the coordinates' and the multipliers' updates in one
                 // hand-over (each in its own two halves)
@@ -368,6 +333,346 @@ impl<const S: usize, T: Tableau<S>> Run<'_, '_, S, T> {
                     )));
                 }
             }
+        }
+    }
+}
+
+/// Rows of an element-wise pass computed together: one vector of AVX
+/// (or two of SSE2) per stage and coordinate.
+const LANES: usize = 4;
+
+/// An element-wise pass over rows, done `L` rows at a time: each row's
+/// operations as written, in the row's own lane, so the bits are those
+/// of a plain loop over the rows.
+trait Blocks {
+    /// Rows `k .. k + L`.
+    fn block<const L: usize>(&mut self, k: usize);
+}
+
+/// `pass` over rows `0..len` in blocks of [`LANES`], then the rest one
+/// by one, compiled for AVX where the processor has it
+/// ([`crate::numeric::with_avx`]).
+#[inline(always)]
+fn in_blocks(len: usize, pass: &mut impl Blocks) {
+    crate::numeric::with_avx(|| {
+        let full = len - len % LANES;
+        for k in (0..full).step_by(LANES) {
+            pass.block::<LANES>(k);
+        }
+        for k in full..len {
+            pass.block::<1>(k);
+        }
+    })
+}
+
+/// Rows `k .. k + L` of each slice as arrays (one bounds check each).
+#[inline(always)]
+fn rows_at<const S: usize, const L: usize>(v: &[&[f64]; S], k: usize) -> [[f64; L]; S] {
+    std::array::from_fn(|i| v[i][k..k + L].try_into().expect("L rows"))
+}
+
+/// Rows `k .. k + L` of `v` as an array to write (one bounds check).
+#[inline(always)]
+fn rows_mut<const L: usize>(v: &mut [f64], k: usize) -> &mut [f64; L] {
+    (&mut v[k..k + L]).try_into().expect("L rows")
+}
+
+/// The transformed right-hand sides of one kind of rows (module docs of
+/// [`super`], "Simplified Newton"): `x_j = −Σ_i (T⁻¹)_ji r_i` for each
+/// row, and with `scale = Some((1/(h²γ²), [1/(h²μ_p²)]))` (the constraint
+/// rows) `x_0` times the first and each complex pair `(x_{2p+1},
+/// x_{2p+2})` times the second's entry `p`; in blocks of rows
+/// ([`in_blocks`]).
+fn transform_rows<const S: usize>(
+    x: [&mut [f64]; S],
+    r: [&[f64]; S],
+    ti: &[[f64; S]; S],
+    scale: Option<(f64, &[[f64; 2]])>,
+) {
+    let len = r[0].len();
+    in_blocks(len, &mut Transform { x, r, ti, scale });
+}
+
+/// The pass of [`transform_rows`].
+struct Transform<'a, const S: usize> {
+    x: [&'a mut [f64]; S],
+    r: [&'a [f64]; S],
+    ti: &'a [[f64; S]; S],
+    scale: Option<(f64, &'a [[f64; 2]])>,
+}
+
+impl<const S: usize> Blocks for Transform<'_, S> {
+    #[inline(always)]
+    fn block<const L: usize>(&mut self, k: usize) {
+        let rk: [[f64; L]; S] = rows_at(&self.r, k);
+        let ti = self.ti;
+        let mut out: [[f64; L]; S] =
+            std::array::from_fn(|j| std::array::from_fn(|l| -dot(&ti[j], |i| rk[i][l])));
+        if let Some((inv_g, inv_d)) = self.scale {
+            for o in &mut out[0] {
+                *o *= inv_g;
+            }
+            for (p, d) in inv_d.iter().enumerate() {
+                for l in 0..L {
+                    let z = cmul([out[1 + 2 * p][l], out[2 + 2 * p][l]], *d);
+                    out[1 + 2 * p][l] = z[0];
+                    out[2 + 2 * p][l] = z[1];
+                }
+            }
+        }
+        for (xj, o) in self.x.iter_mut().zip(&out) {
+            *rows_mut(xj, k) = *o;
+        }
+    }
+}
+
+/// What the correction norm of [`update_rows`] needs: the step `h`, the
+/// back-transformation `T`, the position tolerance `h² newton_tol`, its
+/// factor per coordinate ([`tolerance_factors`], indexed from 0 over all
+/// coordinates), and for adaptive steps RADAU5's test ((𝔄²), the
+/// fractions `fr`, `fa` of `rtol` and `atol`, `atol`).
+pub(super) struct Norm<'a, const S: usize> {
+    pub(super) h: f64,
+    pub(super) tt: &'a [[f64; S]; S],
+    pub(super) tol_q: f64,
+    pub(super) tol_factor: &'a [f64],
+    pub(super) adaptive: Option<(&'a [[f64; S]; S], f64, f64, &'a Tolerance)>,
+}
+
+/// The back-transformed corrections `ΔA_i = Σ_j T_ij x_j` added to the
+/// stages `av` of coordinates `base ..` (rows of `x`, `q`), and the
+/// largest of each coordinate's `max_i |h² ΔA_i| / (h² newton_tol f_k +
+/// floor)` (`f_k` of [`tolerance_factors`]) (floor: [`ROUNDING_ULPS`] of `q`), for adaptive steps the
+/// smaller of that and RADAU5's `max_i |ΔQ_i| / (fa atol + fr |q| +
+/// floor)` with `ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j`. In blocks of rows
+/// ([`in_blocks`]); a maximum per lane, then over the lanes (the same
+/// maximum in any order).
+fn update_rows<const S: usize>(
+    norm: &Norm<'_, S>,
+    base: usize,
+    av: &mut [&mut [f64]; S],
+    x: [&[f64]; S],
+    q: &[f64],
+) -> f64 {
+    let mut pass = Update {
+        norm,
+        base,
+        av,
+        x,
+        q,
+        dnorm: [0.0; LANES],
+    };
+    in_blocks(q.len(), &mut pass);
+    pass.dnorm.into_iter().fold(0.0, f64::max)
+}
+
+/// The pass of [`update_rows`], with its maximum per lane.
+struct Update<'a, 'b, const S: usize> {
+    norm: &'a Norm<'a, S>,
+    base: usize,
+    av: &'a mut [&'b mut [f64]; S],
+    x: [&'a [f64]; S],
+    q: &'a [f64],
+    dnorm: [f64; LANES],
+}
+
+impl<const S: usize> Blocks for Update<'_, '_, S> {
+    #[inline(always)]
+    fn block<const L: usize>(&mut self, k: usize) {
+        let Norm {
+            h,
+            tt,
+            tol_q,
+            tol_factor,
+            ..
+        } = *self.norm;
+        let y: [[f64; L]; S] = rows_at(&self.x, k);
+        let q: [f64; L] = rows_at(&[self.q], k)[0];
+        let d: [[f64; L]; S] =
+            std::array::from_fn(|i| std::array::from_fn(|l| dot(&tt[i], |j| y[j][l])));
+        let mut big: [f64; L] = std::array::from_fn(|l| (h * h * d[0][l]).abs());
+        for (i, a) in self.av.iter_mut().enumerate() {
+            let a = rows_mut::<L>(a, k);
+            for l in 0..L {
+                a[l] += d[i][l];
+                if i > 0 {
+                    big[l] = big[l].max((h * h * d[i][l]).abs());
+                }
+            }
+        }
+        for l in 0..L {
+            let floor = ROUNDING_ULPS * f64::EPSILON * q[l].abs().max(1.0);
+            let mut ratio = big[l] / (tol_q * tol_factor[self.base + k + l] + floor);
+            if let Some((a2w, fr, fa, atol)) = self.norm.adaptive {
+                // RADAU5's test on the stage position corrections
+                // ΔQ_i = h² Σ_j (𝔄²)_ij ΔA_j, where looser
+                let dq = |i: usize| (h * h * dot(&a2w[i], |j| d[j][l])).abs();
+                let big_q = (1..S).fold(dq(0), |b, i| b.max(dq(i)));
+                let atol = match atol {
+                    Tolerance::Scalar(a) => *a,
+                    Tolerance::Vector(v) => v[self.base + k + l],
+                };
+                ratio = ratio.min(big_q / (fa * atol + fr * q[l].abs() + floor));
+            }
+            self.dnorm[l] = self.dnorm[l].max(ratio);
+        }
+    }
+}
+
+/// The multipliers' corrections `ΔΛ_i = Σ_j T_ij x_j` added to the stages
+/// `lv`, in blocks of rows ([`in_blocks`]).
+fn update_multipliers<const S: usize>(lv: [&mut [f64]; S], xl: [&[f64]; S], tt: &[[f64; S]; S]) {
+    let len = xl[0].len();
+    in_blocks(len, &mut Multipliers { lv, xl, tt });
+}
+
+/// The pass of [`update_multipliers`].
+struct Multipliers<'a, const S: usize> {
+    lv: [&'a mut [f64]; S],
+    xl: [&'a [f64]; S],
+    tt: &'a [[f64; S]; S],
+}
+
+impl<const S: usize> Blocks for Multipliers<'_, S> {
+    #[inline(always)]
+    fn block<const L: usize>(&mut self, k: usize) {
+        let y: [[f64; L]; S] = rows_at(&self.xl, k);
+        for (li, ti) in self.lv.iter_mut().zip(self.tt) {
+            let li = rows_mut::<L>(li, k);
+            for l in 0..L {
+                li[l] += dot(ti, |j| y[j][l]);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::numeric::BASELINE;
+
+    /// The Newton passes in blocks of rows (with AVX where the processor
+    /// has it, and held to the baseline build) give the bits of their
+    /// formulas evaluated one row at a time, left to right: the
+    /// transformed right-hand sides with and without the constraint
+    /// rows' scaling, the stage and multiplier updates, and the norm with
+    /// and without RADAU5's adaptive test (a tolerance per coordinate),
+    /// for three and five stages and 37 rows (blocks and a rest).
+    #[test]
+    fn the_newton_passes_give_the_bits_of_the_formulas() {
+        fn check<const S: usize>(baseline: bool) {
+            BASELINE.set(baseline);
+            let tab = RadauStages::<S>::new();
+            let n = 37;
+            let x = |i: usize| (i as f64 * 0.754_877_666_246_692_7).fract() - 0.5;
+            let vecs = |s: usize, f: f64| -> [Vec<f64>; S] {
+                std::array::from_fn(|j| (0..n).map(|k| f * x(k + s * (j + 1))).collect())
+            };
+            let (r, xs, a0) = (vecs(211, 1e2), vecs(307, 1e-3), vecs(401, 10.0));
+            let q: Vec<f64> = (0..n).map(|k| 3.0 * x(k + 13)).collect();
+            let (h, inv_g) = (3.7e-4, 0.37);
+            let inv_d: Vec<[f64; 2]> = (0..(S - 1) / 2).map(|p| [1.5 + p as f64, -0.25]).collect();
+            let bits = |v: f64| v.to_bits();
+            // the transformation, plain and scaled
+            for scale in [None, Some((inv_g, &inv_d[..]))] {
+                let mut out: [Vec<f64>; S] = std::array::from_fn(|_| vec![0.0; n]);
+                transform_rows(
+                    out.each_mut().map(|o| &mut o[..]),
+                    r.each_ref().map(|r| &r[..]),
+                    &tab.t_inv,
+                    scale,
+                );
+                for k in 0..n {
+                    let mut want: [f64; S] = std::array::from_fn(|j| {
+                        let mut s = tab.t_inv[j][0] * r[0][k];
+                        for i in 1..S {
+                            s += tab.t_inv[j][i] * r[i][k];
+                        }
+                        -s
+                    });
+                    if scale.is_some() {
+                        want[0] *= inv_g;
+                        for (p, d) in inv_d.iter().enumerate() {
+                            let (a, b) = (want[1 + 2 * p], want[2 + 2 * p]);
+                            want[1 + 2 * p] = a * d[0] - b * d[1];
+                            want[2 + 2 * p] = a * d[1] + b * d[0];
+                        }
+                    }
+                    for j in 0..S {
+                        assert_eq!(bits(out[j][k]), bits(want[j]), "x_{j}[{k}] ({scale:?})");
+                    }
+                }
+            }
+            // the updates and the norm, fixed and adaptive steps
+            let atol = Tolerance::Vector((0..n).map(|k| 1e-6 * (1.0 + x(k + 5))).collect());
+            let f: Vec<f64> = (0..n).map(|k| 1.0 + 100.0 * x(k + 29).abs()).collect();
+            for adaptive in [None, Some((&tab.a2, 2e-3, 0.7, &atol))] {
+                let norm = Norm {
+                    h,
+                    tt: &tab.t,
+                    tol_q: h * h,
+                    tol_factor: &f,
+                    adaptive,
+                };
+                let mut av = a0.clone();
+                let dnorm = update_rows(
+                    &norm,
+                    0,
+                    &mut av.each_mut().map(|a| &mut a[..]),
+                    xs.each_ref().map(|x| &x[..]),
+                    &q,
+                );
+                let mut lv = a0.clone();
+                update_multipliers(
+                    lv.each_mut().map(|l| &mut l[..]),
+                    xs.each_ref().map(|x| &x[..]),
+                    &tab.t,
+                );
+                let mut want_norm = 0.0_f64;
+                for k in 0..n {
+                    let d: [f64; S] = std::array::from_fn(|i| {
+                        let mut s = tab.t[i][0] * xs[0][k];
+                        for j in 1..S {
+                            s += tab.t[i][j] * xs[j][k];
+                        }
+                        s
+                    });
+                    let mut big = 0.0_f64;
+                    for i in 0..S {
+                        assert_eq!(bits(av[i][k]), bits(a0[i][k] + d[i]), "A_{i}[{k}]");
+                        assert_eq!(bits(lv[i][k]), bits(a0[i][k] + d[i]), "Λ_{i}[{k}]");
+                        big = big.max((h * h * d[i]).abs());
+                    }
+                    let floor = ROUNDING_ULPS * f64::EPSILON * q[k].abs().max(1.0);
+                    let mut ratio = big / (h * h * f[k] + floor);
+                    if adaptive.is_some() {
+                        let mut big_q = 0.0_f64;
+                        for i in 0..S {
+                            let mut s = tab.a2[i][0] * d[0];
+                            for j in 1..S {
+                                s += tab.a2[i][j] * d[j];
+                            }
+                            big_q = big_q.max((h * h * s).abs());
+                        }
+                        let Tolerance::Vector(a) = &atol else {
+                            unreachable!()
+                        };
+                        ratio = ratio.min(big_q / (0.7 * a[k] + 2e-3 * q[k].abs() + floor));
+                    }
+                    want_norm = want_norm.max(ratio);
+                }
+                assert_eq!(
+                    bits(dnorm),
+                    bits(want_norm),
+                    "norm ({})",
+                    adaptive.is_some()
+                );
+            }
+            BASELINE.set(false);
+        }
+        for baseline in [false, true] {
+            check::<3>(baseline);
+            check::<5>(baseline);
         }
     }
 }

@@ -6,6 +6,7 @@ use super::scalar::Pivots;
 use super::{Envelope, Fill, Scalar, PARALLEL_MIN_DIM};
 use crate::linalg::sparse::{coordinate_scale, multiplier_scale};
 use crate::linalg::LinalgError;
+use crate::numeric::with_avx;
 use crate::parallel::join_if;
 
 impl<T: Scalar> Envelope<T> {
@@ -51,17 +52,23 @@ impl<T: Scalar> Envelope<T> {
         let (ps_t, ps_rest) = self.pscale.split_at_mut(s0);
         let ps_b = &mut ps_rest[..sb - s0];
         let (fill_t, fill_b) = (&self.fill[0], &self.fill[1]);
+        // (compiled for AVX where the processor has it: `with_avx`, the
+        // same bits)
         let (rt, rb) = join_if(
             par,
             || {
-                scaling.rows(0..s0, 0, ps_t);
-                load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
-                crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule)
+                with_avx(|| {
+                    scaling.rows(0..s0, 0, ps_t);
+                    load(fill_t, perm, vals, ps_t, 0, lower_t, diag_t)?;
+                    crout_rows(first, ptr, 0, 0..s0, lower_t, diag_t, dinv_t, &rule)
+                })
             },
             || {
-                scaling.rows(s0..sb, s0, ps_b);
-                load(fill_b, perm, vals, ps_b, s0, lower_b, diag_b)?;
-                crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule)
+                with_avx(|| {
+                    scaling.rows(s0..sb, s0, ps_b);
+                    load(fill_b, perm, vals, ps_b, s0, lower_b, diag_b)?;
+                    crout_rows(first, ptr, s0, s0..sb, lower_b, diag_b, dinv_b, &rule)
+                })
             },
         );
         let mut regularized = rt? + rb?;
@@ -139,6 +146,7 @@ struct Scaling<'a, 'v, T: Scalar> {
 impl<T: Scalar> Scaling<'_, '_, T> {
     /// `pscale[i − base]` for the rows `rows` (`pscale` from permuted row
     /// `base`, covering the columns of their Φ_q entries).
+    #[inline(always)]
     fn rows(&self, rows: std::ops::Range<usize>, base: usize, pscale: &mut [f64]) {
         for i in rows {
             let d = T::value(self.vals, self.dslot[i]).modulus();
@@ -160,6 +168,7 @@ impl<T: Scalar> Scaling<'_, '_, T> {
 /// from permuted row `base`; a non-finite value of `K` is an error naming
 /// its row and column.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn load<T: Scalar>(
     fill: &[Fill],
     perm: &[usize],
@@ -228,6 +237,7 @@ pub(super) fn dot2<T: Scalar>(a: &[T], b: &[T]) -> T {
 /// t_ij = a_ij − Σ_{k<j} t_ik L_jk,   L_ij = t_ij / d_j,   d_i = a_ii − Σ_{j<i} t_ij L_ij
 /// ```
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn crout_rows<T: Scalar>(
     first: &[usize],
     ptr: &[usize],

@@ -172,28 +172,46 @@ pub(super) struct Envelope<T: Scalar = f64> {
 /// `ptr` on from its first row), and `perm[i]`. Where the factors do not
 /// fit the last-level cache (the stiff chain at N = 10⁵), every sweep
 /// streams these arrays from memory with the values.
+///
+/// Checked once when made, so that the sweeps need no bounds checks: a
+/// plain row's envelope lies inside its half (`len[i] ≤ i − base`, `base`
+/// the half's first row), every `perm[i]` is below the dimension, and each
+/// half's entries are `L[start[h]..start[h + 1]]` (the lengths summed).
 #[derive(Debug)]
 pub(in crate::linalg) struct RowTable {
     /// `i − first[i]`.
     pub(in crate::linalg) len: Vec<u8>,
     /// `perm[i]`.
     pub(in crate::linalg) perm: Vec<u32>,
+    /// Where the plain rows of `T` (`0..s0`) and of `B` (`s0..sb`) start
+    /// and end in the envelope storage: `T`'s are `start[0]..start[1]`,
+    /// `B`'s `start[1]..start[2]`.
+    pub(in crate::linalg) start: [usize; 3],
 }
 
 impl RowTable {
-    /// The table of `first` and `perm`, or `None` when a row is longer
-    /// than 255 or an index does not fit 32 bits.
-    pub(super) fn new(first: &[usize], perm: &[usize]) -> Option<Self> {
-        let len = first
+    /// The table of `first` and `perm` with the halves `0..s0`, `s0..sb`,
+    /// or `None` when a row is longer than 255, an index does not fit 32
+    /// bits, `perm` has an entry not below its length, or a plain row's
+    /// envelope leaves its half.
+    pub(super) fn new(first: &[usize], perm: &[usize], s0: usize, sb: usize) -> Option<Self> {
+        let dim = perm.len();
+        let inside = |i: usize| first[i] <= i && (i < s0 || i >= sb || first[i] >= s0);
+        if first.len() != dim || s0 > sb || sb > dim || !(0..dim).all(inside) {
+            return None;
+        }
+        let len: Vec<u8> = first
             .iter()
             .enumerate()
             .map(|(i, &f)| u8::try_from(i - f).ok())
             .collect::<Option<_>>()?;
         let perm = perm
             .iter()
-            .map(|&p| u32::try_from(p).ok())
+            .map(|&p| u32::try_from(p).ok().filter(|_| p < dim))
             .collect::<Option<_>>()?;
-        Some(Self { len, perm })
+        let sum = |r: std::ops::Range<usize>| len[r].iter().map(|&l| usize::from(l)).sum::<usize>();
+        let start = [0, sum(0..s0), sum(0..sb)];
+        Some(Self { len, perm, start })
     }
 }
 

@@ -236,7 +236,8 @@ impl<T: Scalar> Envelope<T> {
         let phi_ent: Vec<(usize, usize)> =
             by_row.idx.iter().map(|&s| (s, col_of_slot[s])).collect();
         let positive = perm.iter().map(|&i| i < n).collect();
-        let rows = super::RowTable::new(&first, &perm)?;
+        let rows = super::RowTable::new(&first, &perm, s0, sb)?;
+        debug_assert!(rows.start[1] == ptr[s0] && rows.start[2] == ptr[sb]);
         Some(Self {
             dim,
             n,

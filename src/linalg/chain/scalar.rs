@@ -100,12 +100,21 @@ pub(in crate::linalg) trait Scalar:
     /// Entry `s` of the values.
     fn value(v: Self::Values<'_>, s: usize) -> Self;
 
+    /// The length of the right-hand side (of its shortest part).
+    fn len(x: &Self::Vector<'_>) -> usize;
+
     /// Entry `p` of the right-hand side.
-    fn get(x: &Self::Vector<'_>, p: usize) -> Self;
+    ///
+    /// # Safety
+    /// `p` is below [`Self::len`].
+    unsafe fn get(x: &Self::Vector<'_>, p: usize) -> Self;
 
     /// Write entry `p` of the solution; returns `x · 0` summed over its
     /// parts: zero when it is finite, NaN when not.
-    fn put(x: &Self::Vector<'_>, p: usize, v: Self) -> f64;
+    ///
+    /// # Safety
+    /// `p` is below [`Self::len`].
+    unsafe fn put(x: &Self::Vector<'_>, p: usize, v: Self) -> f64;
 
     /// `self · s` for a real `s`.
     fn scale(self, s: f64) -> Self;
@@ -162,14 +171,20 @@ impl Scalar for f64 {
         v[s]
     }
 
-    #[inline(always)]
-    fn get(x: &Scatter<'_>, p: usize) -> f64 {
-        x.get(p)
+    fn len(x: &Scatter<'_>) -> usize {
+        x.len()
     }
 
     #[inline(always)]
-    fn put(x: &Scatter<'_>, p: usize, v: f64) -> f64 {
-        x.set(p, v);
+    unsafe fn get(x: &Scatter<'_>, p: usize) -> f64 {
+        // SAFETY: p < x's length (the contract)
+        unsafe { x.get(p) }
+    }
+
+    #[inline(always)]
+    unsafe fn put(x: &Scatter<'_>, p: usize, v: f64) -> f64 {
+        // SAFETY: p < x's length (the contract)
+        unsafe { x.set(p, v) };
         v * 0.0
     }
 
@@ -241,18 +256,28 @@ impl Scalar for Complex {
         }
     }
 
+    fn len((re, im): &(Scatter<'_>, Scatter<'_>)) -> usize {
+        re.len().min(im.len())
+    }
+
     #[inline(always)]
-    fn get((re, im): &(Scatter<'_>, Scatter<'_>), p: usize) -> Self {
-        Complex {
-            re: re.get(p),
-            im: im.get(p),
+    unsafe fn get((re, im): &(Scatter<'_>, Scatter<'_>), p: usize) -> Self {
+        // SAFETY: p < both parts' lengths (the contract)
+        unsafe {
+            Complex {
+                re: re.get(p),
+                im: im.get(p),
+            }
         }
     }
 
     #[inline(always)]
-    fn put((re, im): &(Scatter<'_>, Scatter<'_>), p: usize, v: Self) -> f64 {
-        re.set(p, v.re);
-        im.set(p, v.im);
+    unsafe fn put((re, im): &(Scatter<'_>, Scatter<'_>), p: usize, v: Self) -> f64 {
+        // SAFETY: p < both parts' lengths (the contract)
+        unsafe {
+            re.set(p, v.re);
+            im.set(p, v.im);
+        }
         v.re * 0.0 + v.im * 0.0
     }
 

@@ -281,3 +281,62 @@ fn the_row_table_walks_the_envelope_rows() {
         }
     }
 }
+
+/// The factorisation and the sweeps compiled for AVX give the bits of the
+/// baseline build (the same operations in the same order), real and
+/// complex, one- and two-sided orders; and both solve the system (the residual through
+/// the matrices' products, independent of the factorisation).
+#[test]
+fn the_avx_build_factorises_and_solves_with_the_bits_of_the_baseline_build() {
+    use crate::numeric::BASELINE;
+    for (bodies, split) in [(40, false), (1001, true)] {
+        let (kr, ki) = chain_pair(bodies, 11);
+        let dim = kr.dim();
+        let b: (Vec<f64>, Vec<f64>) = (
+            (0..dim).map(|i| (i as f64 * 0.37).sin()).collect(),
+            (0..dim).map(|i| (i as f64 * 0.11).cos()).collect(),
+        );
+        let mut c = ComplexChainLdlt::analyze_order(&kr, split).expect("a chain pattern");
+        let mut r = Envelope::<f64>::analyze(&kr, split).expect("a chain pattern");
+        let mut run = |baseline: bool| {
+            BASELINE.set(baseline);
+            c.factorize(&kr, &ki).expect("nonsingular");
+            r.factorize(kr.values(), DEFAULT_EPSILON, DEFAULT_DELTA)
+                .expect("nonsingular");
+            let mut x = b.clone();
+            c.solve(&mut x.0, &mut x.1).expect("finite");
+            let mut y = b.0.clone();
+            assert!(r.solve(&Scatter::new(&mut y)));
+            BASELINE.set(false);
+            (x, y)
+        };
+        let (avx, base) = (run(false), run(true));
+        assert!(same_bits(&avx.0, &base.0), "N = {bodies}: complex");
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&avx.1), bits(&base.1), "N = {bodies}: real");
+        let res = residual(&kr, &ki, (&base.0 .0, &base.0 .1), (&b.0, &b.1));
+        assert!(res < 1e-12, "N = {bodies}: complex residual {res:e}");
+        let mut kx = vec![0.0; dim];
+        kr.mul_vec(&base.1, &mut kx);
+        let res = kx
+            .iter()
+            .zip(&b.0)
+            .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(res < 1e-12, "N = {bodies}: real residual {res:e}");
+    }
+}
+
+/// The row table refuses a plain row whose envelope leaves its half (a
+/// row of `B` reaching into `T`) and a permutation entry beyond the
+/// dimension: the sweeps read without bounds checks on its word.
+#[test]
+fn the_row_table_refuses_rows_outside_their_half() {
+    let perm: Vec<usize> = (0..6).collect();
+    // rows 0..3 in T, 3..5 in B, 5 the separator
+    let first = [0, 0, 1, 3, 3, 0];
+    assert!(crate::linalg::chain::RowTable::new(&first, &perm, 3, 5).is_some());
+    let into_t = [0, 0, 1, 2, 3, 0];
+    assert!(crate::linalg::chain::RowTable::new(&into_t, &perm, 3, 5).is_none());
+    let beyond = [0, 1, 2, 3, 4, 6];
+    assert!(crate::linalg::chain::RowTable::new(&first, &beyond, 3, 5).is_none());
+}
