@@ -28,6 +28,7 @@
 use super::{linear_at, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::{FdWorkspace, System};
+use crate::parallel::{split_pass, split_passes, PARALLEL_MIN_COORDS};
 
 /// Largest natural frequency and damping rate of the constrained,
 /// linearised system at a state (module docs).
@@ -196,52 +197,72 @@ pub fn fastest_modes(
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         (v > 0.0).then_some(best)
     };
+    // ½ (A + Aᵀ) by rows: row i's terms (j, entry) in the order in
+    // which a scatter over the pattern adds them to row i (entry (r, c):
+    // row r reads x_c, then row c reads x_r), so that each row's sum has
+    // the operations of that scatter, and a half of the rows reads x
+    // everywhere but writes only its own rows
+    let sym = SymmetricRows::new(n, pattern);
+    let par = n >= PARALLEL_MIN_COORDS;
     // Rayleigh quotient and vector of the power iteration on
-    // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A
+    // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A; the
+    // element-wise passes in two halves for large n (`parallel::split_pass`,
+    // cut at n/2 whatever the thread count; the sums are each half's
+    // ordered sum, low + high)
     let mut iterate = |d: &[f64], s: f64| -> Result<(f64, Vec<f64>), FormulationError> {
-        // y = ½ (A + Aᵀ) x − s M x with A = −∂g/∂(q or q̇)
-        let apply = |x: &[f64], y: &mut [f64]| {
-            for i in 0..n {
-                y[i] = -s * mass[i] * x[i];
-            }
-            for (&(r, c), &v) in pattern.iter().zip(d.iter()) {
-                y[r] -= 0.5 * v * x[c];
-                y[c] -= 0.5 * v * x[r];
-            }
-        };
         // deterministic start with all components, projected
-        let mut x: Vec<f64> = (0..n)
-            .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
+        let x0 = |i: usize| 1.0 + 0.5 * ((i as f64) * 0.7).sin();
+        let mut rhs: Vec<f64> = (0..n + m)
+            .map(|i| if i < n { mass[i] * x0(i) } else { 0.0 })
             .collect();
-        let mut rhs = vec![0.0; n + m];
-        let mut y = vec![0.0; n];
+        let mut x = vec![0.0; n];
+        let mut xn = vec![0.0; n];
         let mut rq = 0.0;
-        for it in 0..=iterations {
-            // x ← P M⁻¹ (A x) (the first pass only projects the start);
-            // y = A x from the last pass's Rayleigh quotient
-            if it == 0 {
-                for i in 0..n {
-                    rhs[i] = mass[i] * x[i];
-                }
-            } else {
-                rhs[..n].copy_from_slice(&y);
-            }
-            rhs[n..].fill(0.0);
+        for _ in 0..=iterations {
+            // x ← P M⁻¹ (A x) (the first pass only projects the start)
             solver.solve_in_place(&k, &mut rhs).map_err(lin)?;
-            x.copy_from_slice(&rhs[..n]);
-            // M-normalise; Rayleigh quotient xᵀAx / xᵀMx
-            let xm: f64 = x
-                .iter()
-                .zip(mass)
-                .map(|(a, mi)| a * a * mi)
-                .sum::<f64>()
-                .sqrt();
+            // ‖x‖_M² of the projection
+            let xm2 = split_pass(
+                par,
+                n,
+                (&mut x[..], &rhs[..n], mass),
+                |_, (x, r, mass): (&mut [f64], &[f64], &[f64])| {
+                    x.copy_from_slice(r);
+                    x.iter().zip(mass).map(|(a, mi)| a * a * mi).sum::<f64>()
+                },
+                |lo, hi| lo + hi,
+            );
+            let xm = xm2.sqrt();
             if xm <= 0.0 || !xm.is_finite() {
-                break;
+                return Ok((rq + s, x));
             }
-            x.iter_mut().for_each(|v| *v /= xm);
-            apply(&x, &mut y);
-            rq = x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>();
+            // M-normalise (xn = x / ‖x‖_M); y = (A − s M) xn into the
+            // next right-hand side; Rayleigh quotient xnᵀ y (xnᵀ M xn = 1)
+            let (rq_lo, rq_hi) = {
+                let (rq_q, rl) = rhs.split_at_mut(n);
+                let x = &x[..];
+                split_passes(
+                    par,
+                    (
+                        n,
+                        (&mut xn[..], rq_q),
+                        |base: usize, (xn, y): (&mut [f64], &mut [f64])| {
+                            let mut rq = 0.0;
+                            for (k, (xi, yi)) in xn.iter_mut().zip(y.iter_mut()).enumerate() {
+                                let i = base + k;
+                                *xi = x[i] / xm;
+                                *yi = sym.apply_row(i, -s * mass[i] * *xi, d, |j| x[j] / xm);
+                                rq += *xi * *yi;
+                            }
+                            (rq, 0.0)
+                        },
+                    ),
+                    (m, rl, |_, rl: &mut [f64]| rl.fill(0.0)),
+                    |(lo, _), (hi, _)| (lo, hi),
+                )
+            };
+            rq = rq_lo + rq_hi;
+            std::mem::swap(&mut x, &mut xn);
         }
         Ok((rq + s, x))
     };
@@ -274,4 +295,48 @@ pub fn fastest_modes(
         accel,
         accel_source,
     })
+}
+
+/// The symmetric part `½ (J + Jᵀ)` of a matrix given by its entries
+/// (`pattern[e] = (r, c)` with value `d[e]`) by rows: row `i`'s terms
+/// `(j, e)` in the order in which the scatter `y_r −= ½ d_e x_c; y_c −=
+/// ½ d_e x_r` over `e` adds them to `y_i`, so that [`Self::apply_row`]
+/// does a row's operations of that scatter in the same order.
+struct SymmetricRows {
+    /// Row `i`'s terms are `terms[start[i]..start[i + 1]]`.
+    start: Vec<usize>,
+    /// `(j, e)`: column and entry.
+    terms: Vec<(u32, u32)>,
+}
+
+impl SymmetricRows {
+    fn new(n: usize, pattern: &[(usize, usize)]) -> Self {
+        let mut start = vec![0usize; n + 1];
+        for &(r, c) in pattern {
+            start[r + 1] += 1;
+            start[c + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut terms = vec![(0u32, 0u32); start[n]];
+        for (e, &(r, c)) in pattern.iter().enumerate() {
+            // indices of a pattern over n < 2³² coordinates
+            let e = e as u32;
+            terms[next[r]] = (c as u32, e);
+            next[r] += 1;
+            terms[next[c]] = (r as u32, e);
+            next[c] += 1;
+        }
+        Self { start, terms }
+    }
+
+    /// `y_i = init − Σ ½ d_e x_j` over row `i`'s terms in order, `x_j`
+    /// read through `x`.
+    fn apply_row(&self, i: usize, init: f64, d: &[f64], x: impl Fn(usize) -> f64) -> f64 {
+        self.terms[self.start[i]..self.start[i + 1]]
+            .iter()
+            .fold(init, |y, &(j, e)| y - 0.5 * d[e as usize] * x(j as usize))
+    }
 }
