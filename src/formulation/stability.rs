@@ -197,13 +197,11 @@ pub fn fastest_modes(
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         (v > 0.0).then_some(best)
     };
-    // ½ (A + Aᵀ) by rows: row i's terms (j, entry) in the order in
-    // which a scatter over the pattern adds them to row i (entry (r, c):
-    // row r reads x_c, then row c reads x_r), so that each row's sum has
-    // the operations of that scatter, and a half of the rows reads x
-    // everywhere but writes only its own rows
-    let sym = SymmetricRows::new(n, pattern);
     let par = n >= PARALLEL_MIN_COORDS;
+    // the entries by the rows they write: both in the low half of the
+    // rows, both in the high half, or one in each (all in the first list
+    // without halves)
+    let parts = EntryHalves::new(pattern, if par { n / 2 } else { n });
     // Rayleigh quotient and vector of the power iteration on
     // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A; the
     // element-wise passes in two halves for large n (`parallel::split_pass`,
@@ -216,7 +214,6 @@ pub fn fastest_modes(
             .map(|i| if i < n { mass[i] * x0(i) } else { 0.0 })
             .collect();
         let mut x = vec![0.0; n];
-        let mut xn = vec![0.0; n];
         let mut rq = 0.0;
         for _ in 0..=iterations {
             // x ← P M⁻¹ (A x) (the first pass only projects the start)
@@ -234,35 +231,51 @@ pub fn fastest_modes(
             );
             let xm = xm2.sqrt();
             if xm <= 0.0 || !xm.is_finite() {
-                return Ok((rq + s, x));
+                break;
             }
-            // M-normalise (xn = x / ‖x‖_M); y = (A − s M) xn into the
-            // next right-hand side; Rayleigh quotient xnᵀ y (xnᵀ M xn = 1)
-            let (rq_lo, rq_hi) = {
-                let (rq_q, rl) = rhs.split_at_mut(n);
-                let x = &x[..];
+            // M-normalise; y = −s M x into the next right-hand side, its
+            // multiplier rows cleared
+            {
+                let (y, rl) = rhs.split_at_mut(n);
                 split_passes(
                     par,
                     (
                         n,
-                        (&mut xn[..], rq_q),
-                        |base: usize, (xn, y): (&mut [f64], &mut [f64])| {
-                            let mut rq = 0.0;
-                            for (k, (xi, yi)) in xn.iter_mut().zip(y.iter_mut()).enumerate() {
-                                let i = base + k;
-                                *xi = x[i] / xm;
-                                *yi = sym.apply_row(i, -s * mass[i] * *xi, d, |j| x[j] / xm);
-                                rq += *xi * *yi;
+                        (&mut x[..], y, mass),
+                        |_, (x, y, mass): (&mut [f64], &mut [f64], &[f64])| {
+                            for ((xi, yi), mi) in x.iter_mut().zip(y.iter_mut()).zip(mass) {
+                                *xi /= xm;
+                                *yi = -s * mi * *xi;
                             }
-                            (rq, 0.0)
                         },
                     ),
                     (m, rl, |_, rl: &mut [f64]| rl.fill(0.0)),
-                    |(lo, _), (hi, _)| (lo, hi),
-                )
+                    |(), ()| (),
+                );
+            }
+            // y −= ½ (A + Aᵀ) x: each half its own rows' entries, then
+            // those across the cut; Rayleigh quotient xᵀ y (xᵀ M x = 1)
+            let x = &x[..];
+            let [lo, hi, across] = &parts.0;
+            let add = |base: usize, y: &mut [f64], entries: &[u32]| {
+                for &e in entries {
+                    let ((r, c), v) = (pattern[e as usize], d[e as usize]);
+                    y[r - base] -= 0.5 * v * x[c];
+                    y[c - base] -= 0.5 * v * x[r];
+                }
             };
-            rq = rq_lo + rq_hi;
-            std::mem::swap(&mut x, &mut xn);
+            let y = &mut rhs[..n];
+            let cut = if par { n / 2 } else { n };
+            let (y_lo, y_hi) = y.split_at_mut(cut);
+            crate::parallel::join_if(par, || add(0, y_lo, lo), || add(cut, y_hi, hi));
+            add(0, y, across);
+            rq = split_pass(
+                par,
+                n,
+                (x, &*y),
+                |_, (x, y): (&[f64], &[f64])| x.iter().zip(y).map(|(a, b)| a * b).sum::<f64>(),
+                |lo, hi| lo + hi,
+            );
         }
         Ok((rq + s, x))
     };
@@ -297,46 +310,24 @@ pub fn fastest_modes(
     })
 }
 
-/// The symmetric part `½ (J + Jᵀ)` of a matrix given by its entries
-/// (`pattern[e] = (r, c)` with value `d[e]`) by rows: row `i`'s terms
-/// `(j, e)` in the order in which the scatter `y_r −= ½ d_e x_c; y_c −=
-/// ½ d_e x_r` over `e` adds them to `y_i`, so that [`Self::apply_row`]
-/// does a row's operations of that scatter in the same order.
-struct SymmetricRows {
-    /// Row `i`'s terms are `terms[start[i]..start[i + 1]]`.
-    start: Vec<usize>,
-    /// `(j, e)`: column and entry.
-    terms: Vec<(u32, u32)>,
-}
+/// The entries of a pattern (`pattern[e] = (r, c)`, rows and columns of
+/// one `n × n` matrix) by the rows `r` and `c` they touch, each list in
+/// the entries' order: both below `cut`, both at or above it, one on each
+/// side.
+struct EntryHalves([Vec<u32>; 3]);
 
-impl SymmetricRows {
-    fn new(n: usize, pattern: &[(usize, usize)]) -> Self {
-        let mut start = vec![0usize; n + 1];
-        for &(r, c) in pattern {
-            start[r + 1] += 1;
-            start[c + 1] += 1;
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut next = start.clone();
-        let mut terms = vec![(0u32, 0u32); start[n]];
+impl EntryHalves {
+    fn new(pattern: &[(usize, usize)], cut: usize) -> Self {
+        let mut parts: [Vec<u32>; 3] = Default::default();
         for (e, &(r, c)) in pattern.iter().enumerate() {
-            // indices of a pattern over n < 2³² coordinates
-            let e = e as u32;
-            terms[next[r]] = (c as u32, e);
-            next[r] += 1;
-            terms[next[c]] = (r as u32, e);
-            next[c] += 1;
+            let part = match (r < cut, c < cut) {
+                (true, true) => 0,
+                (false, false) => 1,
+                _ => 2,
+            };
+            // entries of a pattern held in memory: fewer than 2³²
+            parts[part].push(e as u32);
         }
-        Self { start, terms }
-    }
-
-    /// `y_i = init − Σ ½ d_e x_j` over row `i`'s terms in order, `x_j`
-    /// read through `x`.
-    fn apply_row(&self, i: usize, init: f64, d: &[f64], x: impl Fn(usize) -> f64) -> f64 {
-        self.terms[self.start[i]..self.start[i + 1]]
-            .iter()
-            .fold(init, |y, &(j, e)| y - 0.5 * d[e as usize] * x(j as usize))
+        Self(parts)
     }
 }
