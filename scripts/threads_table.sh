@@ -21,8 +21,8 @@
 # (Amdahl, each pass as long as its longer half), the seconds outside and
 # inside the halves, and of the two-thread run's halves the longer halves'
 # seconds and the rest (the hand-over's cost and waits), and the one-thread
-# run's serial stretches between two passes of at least 0.3 ms (the
-# helper's spin) and 1 ms of CPU. The summary's `threads_caller_parks` and
+# run's serial stretches between two passes of at least 0.3 ms and 1 ms
+# (the helper's spin) of CPU. The summary's `threads_caller_parks` and
 # `threads_helper_wakes` of the two-thread run: waits that parked, and
 # wake-ups of a parked helper.
 set -euo pipefail

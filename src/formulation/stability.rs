@@ -28,6 +28,7 @@
 use super::{linear_at, FormulationError};
 use crate::linalg::{solver_for, SaddleMatrix, SolverKind, SolverOptions};
 use crate::model::{FdWorkspace, System};
+use crate::parallel::{split_pass, split_passes, PARALLEL_MIN_COORDS};
 
 /// Largest natural frequency and damping rate of the constrained,
 /// linearised system at a state (module docs).
@@ -196,52 +197,85 @@ pub fn fastest_modes(
             .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
         (v > 0.0).then_some(best)
     };
+    let par = n >= PARALLEL_MIN_COORDS;
+    // the entries by the rows they write: both in the low half of the
+    // rows, both in the high half, or one in each (all in the first list
+    // without halves)
+    let parts = EntryHalves::new(pattern, if par { n / 2 } else { n });
     // Rayleigh quotient and vector of the power iteration on
-    // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A
+    // x ← P M⁻¹ (A − s M) x (module docs), reported as that of A; the
+    // element-wise passes in two halves for large n (`parallel::split_pass`,
+    // cut at n/2 whatever the thread count; the sums are each half's
+    // ordered sum, low + high)
     let mut iterate = |d: &[f64], s: f64| -> Result<(f64, Vec<f64>), FormulationError> {
-        // y = ½ (A + Aᵀ) x − s M x with A = −∂g/∂(q or q̇)
-        let apply = |x: &[f64], y: &mut [f64]| {
-            for i in 0..n {
-                y[i] = -s * mass[i] * x[i];
-            }
-            for (&(r, c), &v) in pattern.iter().zip(d.iter()) {
-                y[r] -= 0.5 * v * x[c];
-                y[c] -= 0.5 * v * x[r];
-            }
-        };
         // deterministic start with all components, projected
-        let mut x: Vec<f64> = (0..n)
-            .map(|i| 1.0 + 0.5 * ((i as f64) * 0.7).sin())
+        let x0 = |i: usize| 1.0 + 0.5 * ((i as f64) * 0.7).sin();
+        let mut rhs: Vec<f64> = (0..n + m)
+            .map(|i| if i < n { mass[i] * x0(i) } else { 0.0 })
             .collect();
-        let mut rhs = vec![0.0; n + m];
-        let mut y = vec![0.0; n];
+        let mut x = vec![0.0; n];
         let mut rq = 0.0;
-        for it in 0..=iterations {
-            // x ← P M⁻¹ (A x) (the first pass only projects the start);
-            // y = A x from the last pass's Rayleigh quotient
-            if it == 0 {
-                for i in 0..n {
-                    rhs[i] = mass[i] * x[i];
-                }
-            } else {
-                rhs[..n].copy_from_slice(&y);
-            }
-            rhs[n..].fill(0.0);
+        for _ in 0..=iterations {
+            // x ← P M⁻¹ (A x) (the first pass only projects the start)
             solver.solve_in_place(&k, &mut rhs).map_err(lin)?;
-            x.copy_from_slice(&rhs[..n]);
-            // M-normalise; Rayleigh quotient xᵀAx / xᵀMx
-            let xm: f64 = x
-                .iter()
-                .zip(mass)
-                .map(|(a, mi)| a * a * mi)
-                .sum::<f64>()
-                .sqrt();
+            // ‖x‖_M² of the projection
+            let xm2 = split_pass(
+                par,
+                n,
+                (&mut x[..], &rhs[..n], mass),
+                |_, (x, r, mass): (&mut [f64], &[f64], &[f64])| {
+                    x.copy_from_slice(r);
+                    x.iter().zip(mass).map(|(a, mi)| a * a * mi).sum::<f64>()
+                },
+                |lo, hi| lo + hi,
+            );
+            let xm = xm2.sqrt();
             if xm <= 0.0 || !xm.is_finite() {
                 break;
             }
-            x.iter_mut().for_each(|v| *v /= xm);
-            apply(&x, &mut y);
-            rq = x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>();
+            // M-normalise; y = −s M x into the next right-hand side, its
+            // multiplier rows cleared
+            {
+                let (y, rl) = rhs.split_at_mut(n);
+                split_passes(
+                    par,
+                    (
+                        n,
+                        (&mut x[..], y, mass),
+                        |_, (x, y, mass): (&mut [f64], &mut [f64], &[f64])| {
+                            for ((xi, yi), mi) in x.iter_mut().zip(y.iter_mut()).zip(mass) {
+                                *xi /= xm;
+                                *yi = -s * mi * *xi;
+                            }
+                        },
+                    ),
+                    (m, rl, |_, rl: &mut [f64]| rl.fill(0.0)),
+                    |(), ()| (),
+                );
+            }
+            // y −= ½ (A + Aᵀ) x: each half its own rows' entries, then
+            // those across the cut; Rayleigh quotient xᵀ y (xᵀ M x = 1)
+            let x = &x[..];
+            let [lo, hi, across] = &parts.0;
+            let add = |base: usize, y: &mut [f64], entries: &[u32]| {
+                for &e in entries {
+                    let ((r, c), v) = (pattern[e as usize], d[e as usize]);
+                    y[r - base] -= 0.5 * v * x[c];
+                    y[c - base] -= 0.5 * v * x[r];
+                }
+            };
+            let y = &mut rhs[..n];
+            let cut = if par { n / 2 } else { n };
+            let (y_lo, y_hi) = y.split_at_mut(cut);
+            crate::parallel::join_if(par, || add(0, y_lo, lo), || add(cut, y_hi, hi));
+            add(0, y, across);
+            rq = split_pass(
+                par,
+                n,
+                (x, &*y),
+                |_, (x, y): (&[f64], &[f64])| x.iter().zip(y).map(|(a, b)| a * b).sum::<f64>(),
+                |lo, hi| lo + hi,
+            );
         }
         Ok((rq + s, x))
     };
@@ -274,4 +308,26 @@ pub fn fastest_modes(
         accel,
         accel_source,
     })
+}
+
+/// The entries of a pattern (`pattern[e] = (r, c)`, rows and columns of
+/// one `n × n` matrix) by the rows `r` and `c` they touch, each list in
+/// the entries' order: both below `cut`, both at or above it, one on each
+/// side.
+struct EntryHalves([Vec<u32>; 3]);
+
+impl EntryHalves {
+    fn new(pattern: &[(usize, usize)], cut: usize) -> Self {
+        let mut parts: [Vec<u32>; 3] = Default::default();
+        for (e, &(r, c)) in pattern.iter().enumerate() {
+            let part = match (r < cut, c < cut) {
+                (true, true) => 0,
+                (false, false) => 1,
+                _ => 2,
+            };
+            // entries of a pattern held in memory: fewer than 2³²
+            parts[part].push(e as u32);
+        }
+        Self(parts)
+    }
 }

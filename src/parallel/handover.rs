@@ -130,9 +130,13 @@ use sync::{current, park, AtomicBool, AtomicU8, Mutex, Ordering, Slot, Spin};
 /// How long an idle helper busy-waits for the next half before it parks
 /// (time it is descheduled not counted, at most ten times this of wall
 /// time): longer than the serial work between two joins of a Newton
-/// iteration, so that a quiet machine pays no wake-up inside one. Every
-/// busy-wait here counts its time this way.
-pub const SPIN: Duration = Duration::from_micros(300);
+/// iteration, than most serial stretches at a step's end (the observer's
+/// ‖Φ‖, the step's acceptance: `Clock::gaps`) and than a pass of the
+/// A/B rule's last window alone (the helper is woken at its start), so
+/// that a quiet machine pays no wake-up inside a step nor at the start
+/// of a window with the helper. Every busy-wait here counts its time
+/// this way.
+pub const SPIN: Duration = Duration::from_millis(1);
 
 /// How long a caller busy-waits for a half the helper is running before
 /// it parks: a few times the imbalance of two equal halves.

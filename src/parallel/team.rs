@@ -15,7 +15,8 @@
 //! caller waiting for a running half parks after a short spin. Under
 //! [`Threads::Auto`] a team whose helper keeps missing its halves (a busy
 //! machine: [`MISS_LIMIT`] take-backs in a row from a helper that was
-//! awake, not parked: it was not on a core) stops posting for a while
+//! awake, not parked: it was not on a core, while no core is free by
+//! `/proc/loadavg`) stops posting for a while
 //! ([`SOLO_MIN`] joins, doubled at each further miss up to [`SOLO_MAX`])
 //! and lets the helper park, then tries again: the run falls back to one
 //! thread while the second is not available.
@@ -30,7 +31,7 @@
 //! hits both alike), measures the wall time of each, and runs the next
 //! [`EXPLOIT_MIN`] … [`EXPLOIT_MAX`] windows the faster way (the team
 //! only when it took at most [`TEAM_MARGIN`] of the time alone;
-//! [`CLEAR_STRETCH`] times as many when at most [`CLEAR_MARGIN`]), then
+//! [`EXPLOIT_MAX`] at once when at most [`CLEAR_MARGIN`]), then
 //! probes again — at once when [`DOUBT_WINDOWS`] windows in a row gave
 //! evidence against the way it runs (with the helper: a half taken back
 //! from a helper that was awake, so preempted; alone, when it runs alone
@@ -409,7 +410,11 @@ impl Team {
 
     /// Records how a posted half ran; after [`MISS_LIMIT`] take-backs in a
     /// row from an awake helper (one that was not on a core) an adaptive
-    /// team runs the next `backoff` joins alone. A take-back from a parked
+    /// team runs the next `backoff` joins alone, unless a core is free
+    /// beside the team's two threads (`/proc/loadavg`, the awake helper
+    /// counted: on an idle machine such a row is a pause of the helper's
+    /// core by the host, and the A/B rule's probes weigh its cost by wall
+    /// time; each further miss asks again). A take-back from a parked
     /// helper, woken too late after a serial stretch longer than [`SPIN`],
     /// is a wake-up latency, not a busy machine: it neither counts as a
     /// miss nor resets the count (posting to a parked helper costs the
@@ -429,14 +434,17 @@ impl Team {
                 self.taken_back.fetch_add(1, r);
                 self.taken_back_awake.fetch_add(1, r);
                 let m = self.misses.load(r) + 1;
-                if self.adaptive && m >= MISS_LIMIT {
+                if self.adaptive
+                    && m >= MISS_LIMIT
+                    && !core_free(self.cores + usize::from(self.h.helper_awake()))
+                {
                     let b = self.backoff.load(r);
                     self.solo_left.store(b, r);
                     self.backoff.store((2 * b).min(SOLO_MAX), r);
                     // one more miss at the next try backs off again
                     self.misses.store(MISS_LIMIT - 1, r);
                 } else {
-                    self.misses.store(m, r);
+                    self.misses.store(m.min(MISS_LIMIT - 1), r);
                 }
             }
         }

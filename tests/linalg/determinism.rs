@@ -84,3 +84,27 @@ fn rod_radau5_with_a_flight_step_is_bit_identical_with_one_and_two_threads() {
     assert!(steps_a < 20, "{steps_a} steps");
     assert_same_bits(&a, &b);
 }
+
+/// The stability check's power iteration (`fastest_modes`) on a chain
+/// whose element-wise passes run in two halves (3·2000 coordinates, at
+/// least `PARALLEL_MIN_COORDS`) and whose chain solves are two-sided
+/// (dimension 10 000): the same bits of every rate in a pool of one
+/// thread and of two, and a positive, finite stiffest mode.
+#[test]
+fn fastest_modes_are_bit_identical_with_one_and_two_threads() {
+    let (sys, q0, qd0, _) = mbsolve::builders::stiff_chain(2000, 5f64.to_radians()).unwrap();
+    assert!(sys.n_coords() >= PARALLEL_MIN_COORDS);
+    let modes = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| mbsolve::formulation::fastest_modes(&sys, 0.0, &q0, &qd0, 60).unwrap())
+    };
+    let (a, b) = (modes(1), modes(2));
+    assert!(a.omega > 0.0 && a.omega.is_finite(), "{a:?}");
+    for (x, y) in [(a.omega, b.omega), (a.sigma, b.sigma), (a.growth, b.growth)] {
+        assert_eq!(x.to_bits(), y.to_bits(), "{a:?} {b:?}");
+    }
+    assert_eq!(a.sources, b.sources);
+}

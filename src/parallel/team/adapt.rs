@@ -27,14 +27,13 @@ pub(crate) const TEAM_MARGIN: f64 = 0.97;
 
 /// An `Auto` team whose probe windows with the helper took at most this
 /// fraction of the wall time of its windows alone (a clear gain, beyond
-/// the noise of a shared host) runs a stretch [`CLEAR_STRETCH`] times as
-/// long as it would after a closer choice (up to [`EXPLOIT_MAX`]): each
-/// probe runs half its windows alone, so fewer probes leave more of a run
-/// to the team where it clearly pays; evidence against the team still
-/// ends the stretch ([`DOUBT_WINDOWS`]).
+/// the noise of a shared host) runs the longest stretch, [`EXPLOIT_MAX`]
+/// windows, at once: each probe runs half its windows alone, so on a
+/// machine with a core free a run where the team clearly pays makes one
+/// probe per `EXPLOIT_MAX` windows; evidence against the team still
+/// ends the stretch ([`DOUBT_WINDOWS`]), and a machine whose cores are
+/// all busy skips the probes.
 pub(crate) const CLEAR_MARGIN: f64 = 0.8;
-/// How much longer a stretch runs after a probe within [`CLEAR_MARGIN`].
-pub(crate) const CLEAR_STRETCH: u32 = 4;
 
 /// The probe windows, in order: with the helper (`false`) or alone
 /// (`true`).
@@ -183,7 +182,7 @@ impl Adapt {
                 EXPLOIT_MIN
             };
             if team.as_secs_f64() <= CLEAR_MARGIN * alone.as_secs_f64() {
-                self.exploit = (CLEAR_STRETCH * self.exploit).min(EXPLOIT_MAX);
+                self.exploit = EXPLOIT_MAX;
             }
             self.last = Some(solo);
             self.doubts = 0;

@@ -40,8 +40,8 @@ pub struct Clock {
     pub longer_s: f64,
     /// Serial stretches between two outermost passes of the run (the
     /// caller's CPU seconds from the end of one to the start of the next)
-    /// of at least each of [`GAP_BOUNDS_S`]: all, 0.1 ms, 0.3 ms
-    /// ([`SPIN`](super::SPIN)), 1 ms, 3 ms.
+    /// of at least each of [`GAP_BOUNDS_S`]: all, 0.1 ms, 0.3 ms, 1 ms
+    /// ([`SPIN`](super::SPIN)), 3 ms.
     pub gaps: [usize; 5],
 }
 
