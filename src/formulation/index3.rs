@@ -115,8 +115,12 @@ pub struct Index3<'a> {
     /// The output projection's factorisation of `kp`, without the residual
     /// check: its corrections are accepted by `‖Φ‖` alone
     /// ([`SecondOrderDae::project_output`]), so a refinement step would only
-    /// double each solve.
-    osolver: Box<dyn SaddlePointSolver>,
+    /// double each solve. Made at the first output row that needs it (the
+    /// solver `mass_kind`), so a run without such rows holds no second
+    /// factorisation of `kp`.
+    osolver: Option<Box<dyn SaddlePointSolver>>,
+    /// The solver kind of `psolver` and `osolver`.
+    mass_kind: SolverKind,
     /// The mass, force-Jacobian and (Φ_qᵀλ)_q blocks of `k`.
     blocks: DynamicBlocks,
     jac: Vec<f64>,
@@ -232,14 +236,6 @@ impl<'a> Index3<'a> {
             psolver.storage(),
         );
         psolver.analyze(&kp).map_err(lin)?;
-        let mut osolver = solver_for(
-            linear_solver,
-            n + m,
-            SolverOptions {
-                residual_check: false,
-            },
-        );
-        osolver.analyze(&kp).map_err(lin)?;
         Ok(Self {
             sys,
             n,
@@ -248,7 +244,8 @@ impl<'a> Index3<'a> {
             solver,
             kp,
             psolver,
-            osolver,
+            osolver: None,
+            mass_kind: linear_solver,
             blocks,
             jac: vec![0.0; sys.jacobian_pattern().len()],
             g: vec![0.0; n],
@@ -295,7 +292,7 @@ impl<'a> Index3<'a> {
         let mut s = self.stats;
         s.newton_solver = self.solver.stats();
         s.mass_solver = self.psolver.stats();
-        s.output_solver = self.osolver.stats();
+        s.output_solver = self.osolver.as_ref().map(|s| s.stats()).unwrap_or_default();
         s
     }
 
@@ -535,7 +532,18 @@ impl<'a> Index3<'a> {
     fn factor_output(&mut self, t: f64, q: &[f64]) -> Result<(), FormulationError> {
         self.load_mass(t, q)?;
         self.output_factored = false;
-        self.osolver.factorize(&self.kp).map_err(linear_at(t))?;
+        let solver = match &mut self.osolver {
+            Some(s) => s,
+            None => {
+                let opts = SolverOptions {
+                    residual_check: false,
+                };
+                let mut s = solver_for(self.mass_kind, self.n + self.m, opts);
+                s.analyze(&self.kp).map_err(linear_at(t))?;
+                self.osolver.insert(s)
+            }
+        };
+        solver.factorize(&self.kp).map_err(linear_at(t))?;
         self.output_factored = true;
         Ok(())
     }
@@ -745,7 +753,12 @@ impl Index3<'_> {
         }
         let (mut res, mut it) = (first, 0);
         loop {
-            mass_orthogonal_step(&mut *self.osolver, &self.kp, &self.phi, &mut self.x, q)
+            let Some(solver) = self.osolver.as_deref_mut() else {
+                return Err(FormulationError::Invalid(
+                    "the output projection has no factorisation".into(),
+                ));
+            };
+            mass_orthogonal_step(solver, &self.kp, &self.phi, &mut self.x, q)
                 .map_err(linear_at(t))?;
             self.sys.phi(q, t, &mut self.phi);
             let now = norm(&self.phi);
