@@ -256,14 +256,7 @@ fn guards_trip_on_nonsense_and_stay_silent_on_the_shipped_scenarios() {
                 .expect("the output time");
             assert!(at <= t, "{s}");
         } else {
-            // the message rounds the time to 12 significant digits
-            let at: f64 = m
-                .split("at t = ")
-                .nth(1)
-                .and_then(|r| r.split(' ').next())
-                .and_then(|v| v.parse().ok())
-                .expect("the failure's time");
-            assert!((at - t).abs() <= 1e-11 * t.abs(), "{s}");
+            assert!(crate::common::names_time(m, t), "{s}");
         }
         if sets[0] == "time.end=50" {
             // warned first, at the time it happened, before stopping

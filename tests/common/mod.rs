@@ -16,6 +16,21 @@ pub mod setup;
 pub mod stiff_chain;
 pub mod trajectory;
 
+/// Whether `msg` names the time `t` as the library's messages print times
+/// (`t = ` and `t` rounded to 12 significant digits): some `t = NUMBER`
+/// in it within 1e-11 of `t`, relative.
+pub fn names_time(msg: &str, t: f64) -> bool {
+    msg.split("t = ").skip(1).any(|rest| {
+        let number: String = rest
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | '-' | '+'))
+            .collect();
+        number
+            .parse::<f64>()
+            .is_ok_and(|v| (v - t).abs() <= 1e-11 * t.abs())
+    })
+}
+
 /// `max |x − y| / max |y|`.
 pub fn rel_diff(x: &[f64], y: &[f64]) -> f64 {
     let d = x
