@@ -22,11 +22,9 @@ pub(super) const fn middle<const S: usize>() -> usize {
 /// system gives none): a correction `h² ΔA_k` passes at `h² newton_tol /
 /// ℓ_k`, so a body angle's acceleration correction is measured at the
 /// body's radius of gyration, in m/s² as the translations'. At 1 m per
-/// rad an angle of the stiff chain (1 mm segments of a 3 cm square rod,
-/// `ρ` = 8.7 mm) would be held to a test 115 times tighter than its
-/// translations, and the corrections would go to its stiff modes at the
-/// tip (docs/scaling.md, "radau5's Newton test with angles at the radius
-/// of gyration").
+/// rad a body with `ρ` ≪ 1 m would have its angle held to a test `1/ρ`
+/// times tighter than its translations (docs/scaling.md, "radau5's Newton
+/// test with angles at the radius of gyration").
 pub(super) fn tolerance_factors(sys: &dyn SecondOrderDae) -> Vec<f64> {
     match sys.correction_lengths() {
         Some(l) => l.iter().map(|&l| 1.0 / l).collect(),
